@@ -1,0 +1,120 @@
+"""Small float64 geometry helpers shared by every warp method.
+
+Conventions (DEVELOPERS.md): 4x4 row-major matrices applied to column vectors,
+``clip = M @ [x, y, z, 1]``; light clip space is OpenGL NDC [-1, 1]^3; a camera
+or light "eye" space looks down its local -Z with +Y up.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+EPS = np.finfo(np.float64).eps
+
+
+def normalize(v) -> np.ndarray:
+    """Unit vector along ``v``; raises ValueError for a zero or non-finite vector."""
+    v = np.asarray(v, dtype=np.float64)
+    n = float(np.linalg.norm(v))
+    if not np.isfinite(n) or n == 0.0:
+        raise ValueError(f"cannot normalize vector {v.tolist()}")
+    return v / n
+
+
+def homogeneous(points) -> np.ndarray:
+    """(N, 3) points -> (N, 4) with w = 1."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    return np.hstack([p, np.ones((len(p), 1))])
+
+
+def transform_h(matrix, points) -> np.ndarray:
+    """Apply a 4x4 matrix to (N, 3) points; returns homogeneous (N, 4), no divide."""
+    return homogeneous(points) @ np.asarray(matrix, dtype=np.float64).T
+
+
+def transform_points(matrix, points) -> np.ndarray:
+    """Apply a 4x4 matrix to (N, 3) points with the homogeneous divide -> (N, 3)."""
+    h = transform_h(matrix, points)
+    return h[:, :3] / h[:, 3:4]
+
+
+def transform_directions(matrix, directions) -> np.ndarray:
+    """Apply the linear 3x3 part of an affine 4x4 matrix to (N, 3) directions."""
+    d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    return d @ np.asarray(matrix, dtype=np.float64)[:3, :3].T
+
+
+def translation(offset) -> np.ndarray:
+    m = np.eye(4)
+    m[:3, 3] = offset
+    return m
+
+
+def perpendicular(v) -> np.ndarray:
+    """A unit vector perpendicular to ``v``, chosen continuously away from the
+    axis most aligned with ``v`` (deterministic)."""
+    v = normalize(v)
+    axis = np.eye(3)[int(np.argmin(np.abs(v)))]
+    return normalize(np.cross(v, axis))
+
+
+def look_along(eye, forward, up_hint) -> np.ndarray:
+    """World -> eye matrix for an eye at ``eye`` looking along ``forward`` (its -Z),
+    with +Y as close to ``up_hint`` as possible. If ``up_hint`` is parallel to
+    ``forward`` a deterministic perpendicular is used instead."""
+    f = normalize(forward)
+    up = np.asarray(up_hint, dtype=np.float64)
+    side = np.cross(f, up)
+    if np.linalg.norm(side) < 1e-9 * max(1.0, np.linalg.norm(up)):
+        side = np.cross(f, perpendicular(f))
+    x = normalize(side)
+    y = np.cross(x, f)
+    m = np.eye(4)
+    m[0, :3], m[1, :3], m[2, :3] = x, y, -f
+    m[:3, 3] = -m[:3, :3] @ np.asarray(eye, dtype=np.float64)
+    return m
+
+
+def frustum_matrix(left, right, bottom, top, near, far) -> np.ndarray:
+    """OpenGL glFrustum: eye space (looking down -Z) -> clip, near -> z_ndc -1."""
+    m = np.zeros((4, 4))
+    m[0, 0] = 2 * near / (right - left)
+    m[0, 2] = (right + left) / (right - left)
+    m[1, 1] = 2 * near / (top - bottom)
+    m[1, 2] = (top + bottom) / (top - bottom)
+    m[2, 2] = -(far + near) / (far - near)
+    m[2, 3] = -2 * far * near / (far - near)
+    m[3, 2] = -1.0
+    return m
+
+
+def perspective_matrix(fov_y, aspect, near, far) -> np.ndarray:
+    """OpenGL gluPerspective with the vertical field of view ``fov_y`` in radians."""
+    t = near * np.tan(fov_y / 2)
+    return frustum_matrix(-t * aspect, t * aspect, -t, t, near, far)
+
+
+def ortho_matrix(left, right, bottom, top, near, far) -> np.ndarray:
+    """OpenGL glOrtho: eye space (looking down -Z) -> clip."""
+    m = np.eye(4)
+    m[0, 0] = 2 / (right - left)
+    m[0, 3] = -(right + left) / (right - left)
+    m[1, 1] = 2 / (top - bottom)
+    m[1, 3] = -(top + bottom) / (top - bottom)
+    m[2, 2] = -2 / (far - near)
+    m[2, 3] = -(far + near) / (far - near)
+    return m
+
+
+UNIT_CUBE_CORNERS = np.array(
+    [[x, y, z] for z in (-1.0, 1.0) for y in (-1.0, 1.0) for x in (-1.0, 1.0)]
+)
+"""The 8 corners of NDC [-1,1]^3: near face (z=-1) first, x fastest."""
+
+
+def clip_volume_corners(matrix) -> np.ndarray:
+    """World-space corners of the clip volume of ``matrix`` (inverse projection of
+    the NDC unit cube), ordered like ``UNIT_CUBE_CORNERS``. Points at infinity
+    (orthographic limits) are returned as very far finite points only if the
+    matrix is invertible; callers check ``np.isfinite``."""
+    inv = np.linalg.inv(np.asarray(matrix, dtype=np.float64))
+    return transform_points(inv, UNIT_CUBE_CORNERS)

@@ -1,0 +1,420 @@
+"""Plain data in and out of the warp core: no bpy, numpy float64 only.
+
+Inputs: :class:`View` (the camera), :class:`Light`, :class:`SceneBounds`.
+Output of every method: :class:`ShadowSetup` = a list of :class:`ShadowMap`
+plus :class:`Diagnostics`.
+
+A world point is shadow-tested against the *first* map of ``ShadowSetup.maps``
+whose clip volume contains it (w > 0 and x, y, z in [-1, 1]) and, if the map
+carries ``view_depth_range``, whose eye depth lies in that range. Plane maps
+carry a ``region`` as well; see :meth:`ShadowMap.serves`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Optional
+
+import numpy as np
+
+from .geometry import normalize, perspective_matrix, transform_h, transform_points, UNIT_CUBE_CORNERS
+
+
+class WarpError(ValueError):
+    """A configuration the warp core cannot handle; the message says what and why."""
+
+
+class EmptyBodyError(WarpError):
+    """The intersection body B is empty: nothing visible can be shadowed."""
+
+
+def _mat4(m, name) -> np.ndarray:
+    a = np.asarray(m, dtype=np.float64)
+    if a.shape != (4, 4) or not np.all(np.isfinite(a)):
+        raise WarpError(f"{name} must be a finite 4x4 matrix")
+    return a
+
+
+@dataclass(frozen=True)
+class View:
+    """The camera.
+
+    ``camera_to_world``: 4x4, columns are the camera's local X, Y, Z axes and its
+    position; it looks down local -Z with +Y up (Blender's ``matrix_world``).
+    ``projection``: camera -> clip, OpenGL-style (near -> z_ndc -1), e.g. from
+    ``Object.calc_matrix_camera`` so sensor fit and lens shift are right.
+    """
+
+    camera_to_world: np.ndarray
+    projection: np.ndarray
+    near: float
+    far: float
+    resolution: tuple[int, int] = (1920, 1080)
+    orthographic: bool = False
+
+    def __post_init__(self):
+        object.__setattr__(self, "camera_to_world", _mat4(self.camera_to_world, "camera matrix_world"))
+        object.__setattr__(self, "projection", _mat4(self.projection, "camera projection"))
+        if not (0 < self.near < self.far and math.isfinite(self.far)):
+            raise WarpError(f"camera clip range must satisfy 0 < near < far (got near={self.near}, far={self.far})")
+        w, h = (int(v) for v in self.resolution)
+        if w < 1 or h < 1:
+            raise WarpError(f"camera resolution must be positive (got {self.resolution})")
+        object.__setattr__(self, "resolution", (w, h))
+
+    @classmethod
+    def perspective(cls, camera_to_world, fov_y, aspect, near, far, resolution=(1920, 1080)) -> "View":
+        """A symmetric perspective camera with vertical field of view ``fov_y`` (radians)."""
+        if not (0 < fov_y < math.pi):
+            raise WarpError(f"fov_y must be in (0, 180) degrees (got {math.degrees(fov_y)})")
+        return cls(camera_to_world, perspective_matrix(fov_y, aspect, near, far), near, far, resolution)
+
+    @property
+    def world_to_camera(self) -> np.ndarray:
+        return np.linalg.inv(self.camera_to_world)
+
+    @property
+    def world_to_clip(self) -> np.ndarray:
+        return self.projection @ self.world_to_camera
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.camera_to_world[:3, 3].copy()
+
+    @property
+    def direction(self) -> np.ndarray:
+        """Unit view direction in world space (the camera's local -Z)."""
+        return normalize(-self.camera_to_world[:3, 2])
+
+    @property
+    def up(self) -> np.ndarray:
+        return normalize(self.camera_to_world[:3, 1])
+
+    @property
+    def fov_y(self) -> float:
+        """Vertical field of view (radians) of a symmetric perspective projection."""
+        return 2.0 * math.atan(1.0 / self.projection[1, 1])
+
+    @property
+    def fov_x(self) -> float:
+        return 2.0 * math.atan(1.0 / self.projection[0, 0])
+
+    def corners(self) -> np.ndarray:
+        """(8, 3) world-space corners of the view frustum V: near face first
+        (x fastest, then y), then far face; see ``geometry.UNIT_CUBE_CORNERS``."""
+        inv = np.linalg.inv(self.world_to_clip)
+        return transform_points(inv, UNIT_CUBE_CORNERS)
+
+    def eye_depth(self, points) -> np.ndarray:
+        """Distance along the view direction (positive in front) of (N, 3) points."""
+        return -transform_h(self.world_to_camera, points)[:, 2]
+
+
+LIGHT_TYPES = ("SUN", "POINT", "SPOT")
+
+
+@dataclass(frozen=True)
+class Light:
+    """A light. ``direction`` is the direction the light *travels* (SUN, SPOT).
+    ``spot_angle`` is the full cone angle in radians (SPOT).
+
+    Blender AREA lights are modelled as SPOT lights at their centre facing
+    their -Z, with cone angle = min(spread, 179°): hard shadows from the centre
+    (see docs/design.md); that conversion lives in the scene glue, not here.
+    """
+
+    type: str
+    direction: Optional[np.ndarray] = None
+    position: Optional[np.ndarray] = None
+    spot_angle: float = math.radians(45.0)
+    color: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    energy: float = 1.0
+    name: str = "Light"
+
+    def __post_init__(self):
+        if self.type not in LIGHT_TYPES:
+            raise WarpError(f"light '{self.name}': unsupported type {self.type!r}; use one of {', '.join(LIGHT_TYPES)}")
+        if self.type in ("SUN", "SPOT"):
+            if self.direction is None:
+                raise WarpError(f"light '{self.name}' ({self.type}) needs a direction")
+            try:
+                object.__setattr__(self, "direction", normalize(self.direction))
+            except ValueError:
+                raise WarpError(f"light '{self.name}': direction must be a non-zero finite vector") from None
+        if self.type in ("POINT", "SPOT"):
+            if self.position is None:
+                raise WarpError(f"light '{self.name}' ({self.type}) needs a position")
+            p = np.asarray(self.position, dtype=np.float64)
+            if p.shape != (3,) or not np.all(np.isfinite(p)):
+                raise WarpError(f"light '{self.name}': position must be 3 finite numbers")
+            object.__setattr__(self, "position", p)
+        if self.type == "SPOT" and not (0 < self.spot_angle < math.pi):
+            raise WarpError(f"light '{self.name}': spot angle must be in (0, 180) degrees")
+
+    @property
+    def is_directional(self) -> bool:
+        return self.type == "SUN"
+
+    @property
+    def homogeneous_position(self) -> np.ndarray:
+        """(x, y, z, w): the light's position, w = 0 for a sun (pointing *towards*
+        the light, i.e. against ``direction``)."""
+        if self.is_directional:
+            return np.append(-self.direction, 0.0)
+        return np.append(self.position, 1.0)
+
+    def rays_to(self, points) -> np.ndarray:
+        """Unit light-travel directions arriving at (N, 3) points."""
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        if self.is_directional:
+            return np.broadcast_to(self.direction, pts.shape).copy()
+        d = pts - self.position
+        return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+@dataclass(frozen=True)
+class SceneBounds:
+    """World-space axis-aligned boxes, each ``[[min x, y, z], [max x, y, z]]``.
+
+    ``casters`` cast shadows, ``receivers`` receive them (often the same boxes).
+    """
+
+    casters: np.ndarray
+    receivers: np.ndarray
+
+    def __post_init__(self):
+        for name in ("casters", "receivers"):
+            b = np.asarray(getattr(self, name), dtype=np.float64).reshape(-1, 2, 3)
+            if not np.all(np.isfinite(b)):
+                raise WarpError(f"scene {name}: box coordinates must be finite")
+            if np.any(b[:, 0] > b[:, 1]):
+                raise WarpError(f"scene {name}: every box needs min <= max")
+            object.__setattr__(self, name, b)
+
+    @classmethod
+    def from_boxes(cls, boxes) -> "SceneBounds":
+        b = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3)
+        return cls(b, b)
+
+    @property
+    def all_boxes(self) -> np.ndarray:
+        return np.concatenate([self.casters, self.receivers])
+
+    @property
+    def is_empty(self) -> bool:
+        return len(self.casters) == 0 and len(self.receivers) == 0
+
+    def aabb(self) -> Optional[np.ndarray]:
+        """(2, 3) box around every caster and receiver, or None for an empty scene."""
+        b = self.all_boxes
+        if len(b) == 0:
+            return None
+        return np.array([b[:, 0].min(axis=0), b[:, 1].max(axis=0)])
+
+    def scale(self) -> float:
+        """A length typical of the scene (the AABB diagonal), for relative tolerances."""
+        box = self.aabb()
+        return 1.0 if box is None else max(float(np.linalg.norm(box[1] - box[0])), 1e-12)
+
+
+@dataclass
+class Region:
+    """The part of the world a plane map serves (Chong-Gortler §3): points within
+    ``tolerance`` of the plane ``dot(normal, x) = offset`` whose projection lies in
+    the convex ``polygon`` (world-space (K, 3) vertices on the plane)."""
+
+    normal: np.ndarray
+    offset: float
+    polygon: np.ndarray
+    tolerance: float
+
+    def contains(self, points) -> np.ndarray:
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        n = np.asarray(self.normal, dtype=np.float64)
+        dist = p @ n - self.offset
+        on_plane = np.abs(dist) <= self.tolerance
+        q = p - dist[:, None] * n
+        poly = np.asarray(self.polygon, dtype=np.float64)
+        inside = np.ones(len(p), dtype=bool)
+        k = len(poly)
+        for i in range(k):
+            a, b = poly[i], poly[(i + 1) % k]
+            inside &= np.cross(b - a, q - a) @ n >= -self.tolerance * np.linalg.norm(b - a)
+        return on_plane & inside
+
+    def to_json(self) -> dict:
+        return {"normal": self.normal.tolist(), "offset": float(self.offset),
+                "polygon": np.asarray(self.polygon).tolist(), "tolerance": float(self.tolerance)}
+
+
+@dataclass
+class ShadowMap:
+    """One shadow map: world -> light clip (OpenGL NDC) ``matrix``, texel ``size``,
+    the depth test that keeps the occluder nearest the light, and its ``role``
+    ("main", "cube+X", "plane:0", "fallback", ...).
+
+    ``depth_row`` (optional, linear-z, Scherzer §4.2): a 4-vector r with
+    z_ndc = r @ [x, y, z, 1] used instead of the matrix's z row after the
+    divide; the matrix's own z row still defines the clip volume.
+    """
+
+    matrix: np.ndarray
+    size: tuple[int, int]
+    depth_test: str = "LESS"
+    role: str = "main"
+    view_depth_range: Optional[tuple[float, float]] = None
+    region: Optional[Region] = None
+    depth_row: Optional[np.ndarray] = None
+
+    def clip(self, points) -> np.ndarray:
+        return transform_h(self.matrix, points)
+
+    def contains(self, points, tol: float = 0.0) -> np.ndarray:
+        """Which (N, 3) points are inside the clip volume (w > 0, |ndc| <= 1 + tol)."""
+        h = self.clip(points)
+        w = h[:, 3]
+        ok = w > 0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ndc = h[:, :3] / np.where(ok, w, 1.0)[:, None]
+        return ok & np.all(np.abs(ndc) <= 1.0 + tol, axis=1)
+
+    def serves(self, points, view: Optional[View] = None, tol: float = 0.0) -> np.ndarray:
+        """Which points this map is responsible for: its clip volume, its region
+        (plane maps) and its view depth range (if any)."""
+        ok = self.contains(points, tol)
+        if self.region is not None:
+            ok &= self.region.contains(points)
+        if self.view_depth_range is not None and view is not None:
+            d = view.eye_depth(points)
+            ok &= (d >= self.view_depth_range[0]) & (d <= self.view_depth_range[1])
+        return ok
+
+    def to_json(self) -> dict:
+        out: dict[str, Any] = {
+            "matrix": self.matrix.tolist(),
+            "size": [int(self.size[0]), int(self.size[1])],
+            "depth_test": self.depth_test,
+            "role": self.role,
+        }
+        if self.view_depth_range is not None:
+            out["view_depth_range"] = [float(v) for v in self.view_depth_range]
+        if self.region is not None:
+            out["region"] = self.region.to_json()
+        if self.depth_row is not None:
+            out["depth_row"] = np.asarray(self.depth_row).tolist()
+        return out
+
+
+@dataclass
+class Diagnostics:
+    """What a method computed on the way, for overlays, reports and tests.
+
+    theta: angle between light and view directions (radians, in [0, pi/2] by
+    symmetry, GMNPR convention); gamma: angle between light and view directions
+    in [0, pi] (LiSPSM's γ, Scherzer §4.4); body_vertices: B; warp_frustum_corners:
+    the 8 world corners of the warp frustum P (if any); fallbacks: (what, reason).
+    """
+
+    method: str
+    theta: Optional[float] = None
+    gamma: Optional[float] = None
+    n_opt: Optional[float] = None
+    lam: Optional[float] = None
+    body_vertices: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    warp_frustum_corners: Optional[np.ndarray] = None
+    fallbacks: list[tuple[str, str]] = field(default_factory=list)
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def fallback(self, what: str, reason: str) -> None:
+        self.fallbacks.append((what, reason))
+
+    def to_json(self) -> dict:
+        def conv(v):
+            if isinstance(v, np.ndarray):
+                return v.tolist()
+            if isinstance(v, (np.floating, np.integer)):
+                return v.item()
+            if isinstance(v, dict):
+                return {k: conv(x) for k, x in v.items()}
+            if isinstance(v, (list, tuple)):
+                return [conv(x) for x in v]
+            return v
+
+        out = {
+            "method": self.method,
+            "theta_deg": None if self.theta is None else math.degrees(self.theta),
+            "gamma_deg": None if self.gamma is None else math.degrees(self.gamma),
+            "n_opt": self.n_opt,
+            "lambda": self.lam,
+            "body_vertices": conv(self.body_vertices),
+            "warp_frustum_corners": conv(self.warp_frustum_corners),
+            "fallbacks": [{"what": w, "reason": r} for w, r in self.fallbacks],
+        }
+        out.update(conv(self.extra))
+        return out
+
+
+@dataclass
+class ShadowSetup:
+    """The result of every method: maps in selection order plus diagnostics."""
+
+    maps: list[ShadowMap]
+    diagnostics: Diagnostics
+
+    def to_json(self) -> dict:
+        return {"maps": [m.to_json() for m in self.maps], "diagnostics": self.diagnostics.to_json()}
+
+    def map_index(self, points, view: Optional[View] = None, tol: float = 0.0) -> np.ndarray:
+        """For (N, 3) points, the index of the first map that serves each, or -1."""
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        idx = np.full(len(p), -1, dtype=np.int64)
+        for i, m in enumerate(self.maps):
+            free = idx < 0
+            if not free.any():
+                break
+            hit = np.zeros(len(p), dtype=bool)
+            hit[free] = m.serves(p[free], view, tol)
+            idx[hit] = i
+        return idx
+
+
+@dataclass(frozen=True)
+class WarpOptions:
+    """Every method's knobs, with the defaults a fresh scene gets.
+
+    shadow_map_size: texels (w, h) of the map (split among maps for multi-map setups).
+    texel_snapping: snap the uniform map's window to whole texels (no crawling).
+    delta_z: Scherzer Eq. 1's Δz - "body" (extent of B) or "visible" (the
+        ``visible_depth_range``); used for n_opt only, never for B.
+    middle_vector: use B's middle vector as V_P (Scherzer §4.4) instead of Eq. 3.
+    linear_z: linear depth distribution (Scherzer §4.2) - sets ShadowMap.depth_row.
+    lam: force GMNPR's λ (None = Eq. 8).
+    max_frustum_angle: widest single perspective map for a point light (radians);
+        wider needs take cube faces.
+    planes: planes of interest for plane_optimal, [(point, normal), ...].
+    plane_budget: fraction of the texel budget given to plane maps (rest: fallback).
+    """
+
+    shadow_map_size: tuple[int, int] = (2048, 2048)
+    texel_snapping: bool = False
+    delta_z: str = "body"
+    visible_depth_range: Optional[tuple[float, float]] = None
+    middle_vector: bool = False
+    linear_z: bool = False
+    lam: Optional[float] = None
+    max_frustum_angle: float = math.radians(120.0)
+    planes: tuple = ()
+    plane_budget: float = 0.75
+
+    def __post_init__(self):
+        size = self.shadow_map_size
+        if isinstance(size, (int, np.integer)):
+            size = (int(size), int(size))
+        w, h = (int(v) for v in size)
+        if not (1 <= w <= 16384 and 1 <= h <= 16384):
+            raise WarpError(f"shadow map size must be between 1 and 16384 texels per side (got {w}x{h})")
+        object.__setattr__(self, "shadow_map_size", (w, h))
+        if self.delta_z not in ("body", "visible"):
+            raise WarpError(f"delta_z must be 'body' or 'visible' (got {self.delta_z!r})")
+        if not (0.0 < self.plane_budget <= 1.0):
+            raise WarpError("plane_budget must be in (0, 1]")
