@@ -1,0 +1,52 @@
+"""Lixel's render settings as plain data (no bpy): what the scene's Lixel panel
+edits and what the gpu pipeline, render engine, scripts and report consume.
+
+``addon.ui.properties`` mirrors these fields as a PropertyGroup on the Scene and
+converts with ``to_settings()``; defaults here give a good result on a fresh
+scene with a camera and a sun.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+from .warp.types import WarpOptions, WarpError
+
+BIAS_MODES = ("NONE", "CONSTANT", "SLOPE", "CONSTANT_SLOPE")
+MDSM_SELECTIONS = ("MINMAX", "SORT")
+
+
+@dataclass(frozen=True)
+class ShadowSettings:
+    """Filtering and biasing (Scherzer §4.2-4.3, Pagot et al. §4)."""
+
+    bias_mode: str = "CONSTANT_SLOPE"
+    constant_bias: float = 0.0005      # in NDC depth units
+    slope_bias: float = 1.5            # multiples of the depth slope per texel
+    back_faces: bool = False           # render back faces into the map (Scherzer §4.2)
+    pcf_kernel: int = 3                # k in k x k PCF, 1..5
+    mdsm_depths: int = 1               # n of n-SM, 1..4 (MDSM §4.2)
+    mdsm_selection: str = "MINMAX"     # MDSM §4.3
+    mdsm_neighbourhood: int = 3        # q of the q x q neighbourhood
+    eye_blur: float = 0.0              # depth-dependent eye-space blur radius in pixels (Scherzer §4.3), 0 = off
+
+    def __post_init__(self):
+        if self.bias_mode not in BIAS_MODES:
+            raise WarpError(f"bias mode must be one of {', '.join(BIAS_MODES)}")
+        if not 1 <= self.pcf_kernel <= 5:
+            raise WarpError(f"PCF kernel must be 1..5 (got {self.pcf_kernel})")
+        if not 1 <= self.mdsm_depths <= 4:
+            raise WarpError(f"MDSM depth count must be 1..4 (got {self.mdsm_depths})")
+        if self.mdsm_selection not in MDSM_SELECTIONS:
+            raise WarpError(f"MDSM selection must be one of {', '.join(MDSM_SELECTIONS)}")
+        if self.eye_blur < 0:
+            raise WarpError("eye-space blur must be >= 0")
+
+
+@dataclass(frozen=True)
+class LixelSettings:
+    method: str = "lispsm"
+    warp: WarpOptions = field(default_factory=WarpOptions)
+    shadow: ShadowSettings = field(default_factory=ShadowSettings)
+
+    def with_method(self, method: str) -> "LixelSettings":
+        return replace(self, method=method)

@@ -1,0 +1,79 @@
+"""Blender-module test harness.
+
+The extension is installed from this working tree as ``bl_ext.lixel_dev.lixel``
+through a user repository whose ``lixel`` entry is a symlink to the repo root,
+exactly as Blender loads an installed extension. Everything registered is
+unregistered at the end of the session (Blender 4.2/4.5 crash or hang at exit
+otherwise; see shared notes §8.5).
+"""
+import atexit
+import os
+import tempfile
+from pathlib import Path
+
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+ROOT = Path(__file__).resolve().parents[2]
+REPO_MODULE = "lixel_dev"
+ADDON_MODULE = f"bl_ext.{REPO_MODULE}.lixel"
+
+
+def _ensure_repo() -> None:
+    repos = bpy.context.preferences.extensions.repos
+    if any(r.module == REPO_MODULE for r in repos):
+        return
+    directory = Path(tempfile.mkdtemp(prefix="lixel-ext-repo-"))
+    (directory / "lixel").symlink_to(ROOT, target_is_directory=True)
+    repos.new(name="Lixel dev", module=REPO_MODULE, custom_directory=str(directory), source="USER")
+
+
+def enable_lixel():
+    """Enable the extension (idempotent) and return its root module."""
+    import addon_utils
+    import importlib
+    _ensure_repo()
+    addon_utils.enable(ADDON_MODULE, default_set=True, handle_error=_raise)
+    return importlib.import_module(ADDON_MODULE)
+
+
+def disable_lixel() -> None:
+    import addon_utils
+    addon_utils.disable(ADDON_MODULE, default_set=True, handle_error=_raise)
+
+
+def _raise(exc):
+    raise exc
+
+
+@atexit.register
+def _unregister_everything() -> None:
+    # Last line of defence for the 4.2/4.5 exit crash: nothing of ours may stay registered.
+    try:
+        import addon_utils
+        if ADDON_MODULE in {m.__name__ for m in addon_utils.modules()} and addon_utils.check(ADDON_MODULE)[1]:
+            disable_lixel()
+    except Exception:
+        pass
+
+
+@pytest.fixture(scope="session")
+def lixel():
+    """The enabled Lixel extension's root module (registered for the whole session)."""
+    mod = enable_lixel()
+    yield mod
+    disable_lixel()
+
+
+@pytest.fixture
+def fresh_scene():
+    """An empty scene made active for the test, removed afterwards."""
+    old = bpy.context.window.scene if bpy.context.window else bpy.context.scene
+    scene = bpy.data.scenes.new("lixel_test")
+    if bpy.context.window:
+        bpy.context.window.scene = scene
+    yield scene
+    if bpy.context.window:
+        bpy.context.window.scene = old
+    bpy.data.scenes.remove(scene)
