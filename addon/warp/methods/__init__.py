@@ -1,0 +1,10 @@
+"""The warp methods, by name. Each is ``method(view, light, body, options) -> ShadowSetup``."""
+from __future__ import annotations
+
+from typing import Callable
+
+from .uniform import uniform
+
+METHODS: dict[str, Callable] = {
+    "uniform": uniform,
+}

@@ -1,0 +1,71 @@
+"""Command line: ``python -m addon.warp --method NAME|all CONFIG.json`` -> JSON on stdout.
+
+Plain Python and numpy, no bpy. A malformed config prints one line naming the
+field and exits with status 2. An empty intersection body is reported in the
+output (no maps, ``diagnostics.empty_body`` says why), not crashed on.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from . import METHODS, compute, intersection_body
+from .config import ConfigError, parse_config
+from .types import EmptyBodyError, WarpError
+
+
+def run_method(name, view, light, scene, options, body):
+    if isinstance(body, EmptyBodyError):
+        return {"maps": [], "diagnostics": {"method": name, "empty_body": str(body), "fallbacks": []}}
+    try:
+        return compute(name, view, light, scene, options, body=body).to_json()
+    except WarpError as exc:
+        return {"maps": [], "diagnostics": {"method": name, "error": str(exc), "fallbacks": []}}
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m addon.warp", description="Lixel light matrices for a config.")
+    parser.add_argument("--method", required=True, help=f"one of {', '.join(METHODS)}, or 'all'")
+    parser.add_argument("config", help="JSON config file ('-' for standard input)")
+    parser.add_argument("--indent", type=int, default=None, help="pretty-print the JSON")
+    args = parser.parse_args(argv)
+    if args.method != "all" and args.method not in METHODS:
+        print(f"lixel: error: --method: unknown method {args.method!r}; choose one of {', '.join(METHODS)} or all",
+              file=sys.stderr)
+        return 2
+    try:
+        text = sys.stdin.read() if args.config == "-" else open(args.config, encoding="utf-8").read()
+    except OSError as exc:
+        print(f"lixel: error: config: cannot read {args.config}: {exc.strerror}", file=sys.stderr)
+        return 2
+    try:
+        config = json.loads(text)
+    except json.JSONDecodeError as exc:
+        print(f"lixel: error: config: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})", file=sys.stderr)
+        return 2
+    try:
+        view, light, scene, options = parse_config(config)
+    except WarpError as exc:
+        print(f"lixel: error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        body = intersection_body(view, light, scene)
+    except EmptyBodyError as exc:
+        body = exc
+    names = list(METHODS) if args.method == "all" else [args.method]
+    results = {n: run_method(n, view, light, scene, options, body) for n in names}
+    if args.method == "all":
+        out = {"methods": results}
+    else:
+        out = results[args.method]
+        if "error" in out["diagnostics"]:
+            print(f"lixel: error: {args.method}: {out['diagnostics']['error']}", file=sys.stderr)
+            return 1
+    json.dump(out, sys.stdout, indent=args.indent)
+    sys.stdout.write("\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

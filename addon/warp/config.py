@@ -1,0 +1,189 @@
+"""The JSON config of ``python -m addon.warp`` -> plain inputs.
+
+    {"camera": {"matrix_world": 4x4 row-major, "fov_y_deg": 60, "aspect": 1.7778,
+                "near": 0.1, "far": 70, "resolution": [1280, 720]},
+     "light":  {"type": "SUN"|"POINT"|"SPOT", "direction": [x,y,z], "position": [x,y,z],
+                "spot_angle_deg": 90},
+     "boxes":  [{"min": [x,y,z], "max": [x,y,z]}, ...],
+     "shadow_map_size": 1024,                    (an int, or [w, h])
+     "planes": [{"point": [...], "normal": [...]}],   (optional, plane_optimal)
+     "options": {...}}                            (optional WarpOptions fields)
+
+An orthographic camera gives ``"orthographic": true`` and ``"ortho_height"``
+instead of ``fov_y_deg``. Every error names the field (``ConfigError``).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+
+from .geometry import ortho_matrix
+from .types import Light, SceneBounds, View, WarpError, WarpOptions
+
+
+class ConfigError(WarpError):
+    """A malformed config; the message starts with the offending field."""
+
+
+def _get(obj: dict, key: str, path: str, default: Any = ...):
+    if not isinstance(obj, dict):
+        raise ConfigError(f"{path}: must be an object")
+    if key not in obj:
+        if default is ...:
+            raise ConfigError(f"{path}.{key}: missing" if path else f"{key}: missing")
+        return default
+    return obj[key]
+
+
+def _number(value, field: str, *, positive=False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ConfigError(f"{field}: must be a finite number (got {value!r})")
+    if positive and value <= 0:
+        raise ConfigError(f"{field}: must be positive (got {value!r})")
+    return float(value)
+
+
+def _vector(value, field: str, n: int = 3) -> np.ndarray:
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{field}: must be a list of {n} numbers") from None
+    if a.shape != (n,) or not np.all(np.isfinite(a)):
+        raise ConfigError(f"{field}: must be a list of {n} finite numbers (got {value!r})")
+    return a
+
+
+def _matrix(value, field: str) -> np.ndarray:
+    try:
+        a = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{field}: must be a 4x4 list of numbers") from None
+    if a.shape != (4, 4) or not np.all(np.isfinite(a)):
+        raise ConfigError(f"{field}: must be a 4x4 list of finite numbers")
+    if abs(np.linalg.det(a[:3, :3])) < 1e-12:
+        raise ConfigError(f"{field}: the rotation part is singular")
+    return a
+
+
+def _size(value, field: str) -> tuple[int, int]:
+    if isinstance(value, bool):
+        raise ConfigError(f"{field}: must be an int or [w, h]")
+    if isinstance(value, int):
+        w = h = value
+    elif isinstance(value, (list, tuple)) and len(value) == 2 and all(isinstance(v, int) and not isinstance(v, bool) for v in value):
+        w, h = value
+    else:
+        raise ConfigError(f"{field}: must be an int or [w, h] of ints (got {value!r})")
+    if not (1 <= w <= 16384 and 1 <= h <= 16384):
+        raise ConfigError(f"{field}: must be between 1 and 16384 texels per side (got {value!r})")
+    return int(w), int(h)
+
+
+def parse_view(cam: dict) -> View:
+    m = _matrix(_get(cam, "matrix_world", "camera"), "camera.matrix_world")
+    near = _number(_get(cam, "near", "camera"), "camera.near", positive=True)
+    far = _number(_get(cam, "far", "camera"), "camera.far", positive=True)
+    if far <= near:
+        raise ConfigError(f"camera.far: must be greater than camera.near ({far} <= {near})")
+    res = _size(_get(cam, "resolution", "camera", [1920, 1080]), "camera.resolution")
+    aspect = _number(_get(cam, "aspect", "camera", res[0] / res[1]), "camera.aspect", positive=True)
+    try:
+        if _get(cam, "orthographic", "camera", False):
+            h = _number(_get(cam, "ortho_height", "camera"), "camera.ortho_height", positive=True)
+            proj = ortho_matrix(-h * aspect / 2, h * aspect / 2, -h / 2, h / 2, near, far)
+            return View(m, proj, near, far, res, orthographic=True)
+        fov = _number(_get(cam, "fov_y_deg", "camera"), "camera.fov_y_deg", positive=True)
+        if fov >= 180:
+            raise ConfigError(f"camera.fov_y_deg: must be below 180 (got {fov})")
+        return View.perspective(m, math.radians(fov), aspect, near, far, res)
+    except ConfigError:
+        raise
+    except WarpError as exc:
+        raise ConfigError(f"camera: {exc}") from None
+
+
+def parse_light(light: dict) -> Light:
+    kind = _get(light, "type", "light")
+    if kind not in ("SUN", "POINT", "SPOT"):
+        raise ConfigError(f"light.type: must be SUN, POINT or SPOT (got {kind!r})")
+    kw: dict[str, Any] = {"type": kind, "name": str(light.get("name", "light"))}
+    if kind in ("SUN", "SPOT"):
+        d = _vector(_get(light, "direction", "light"), "light.direction")
+        if not np.any(d):
+            raise ConfigError("light.direction: must not be zero")
+        kw["direction"] = d
+    if kind in ("POINT", "SPOT"):
+        kw["position"] = _vector(_get(light, "position", "light"), "light.position")
+    if kind == "SPOT":
+        angle = _number(_get(light, "spot_angle_deg", "light"), "light.spot_angle_deg", positive=True)
+        if angle >= 180:
+            raise ConfigError(f"light.spot_angle_deg: must be below 180 (got {angle})")
+        kw["spot_angle"] = math.radians(angle)
+    return Light(**kw)
+
+
+def parse_boxes(boxes) -> SceneBounds:
+    if not isinstance(boxes, list):
+        raise ConfigError("boxes: must be a list of {\"min\": [...], \"max\": [...]}")
+    out = []
+    for i, b in enumerate(boxes):
+        lo = _vector(_get(b, "min", f"boxes[{i}]"), f"boxes[{i}].min")
+        hi = _vector(_get(b, "max", f"boxes[{i}]"), f"boxes[{i}].max")
+        if np.any(lo > hi):
+            raise ConfigError(f"boxes[{i}]: min must not exceed max")
+        out.append([lo, hi])
+    return SceneBounds.from_boxes(np.asarray(out, dtype=np.float64).reshape(-1, 2, 3))
+
+
+def parse_planes(planes) -> tuple:
+    if not isinstance(planes, list):
+        raise ConfigError("planes: must be a list of {\"point\": [...], \"normal\": [...]}")
+    out = []
+    for i, p in enumerate(planes):
+        point = _vector(_get(p, "point", f"planes[{i}]"), f"planes[{i}].point")
+        normal = _vector(_get(p, "normal", f"planes[{i}]"), f"planes[{i}].normal")
+        if not np.any(normal):
+            raise ConfigError(f"planes[{i}].normal: must not be zero")
+        out.append((point, normal / np.linalg.norm(normal)))
+    return tuple(out)
+
+
+def parse_options(config: dict) -> WarpOptions:
+    kw: dict[str, Any] = {}
+    if "shadow_map_size" in config:
+        kw["shadow_map_size"] = _size(config["shadow_map_size"], "shadow_map_size")
+    if "planes" in config:
+        kw["planes"] = parse_planes(config["planes"])
+    extra = config.get("options", {})
+    if not isinstance(extra, dict):
+        raise ConfigError("options: must be an object")
+    names = {f.name for f in dataclasses.fields(WarpOptions)} - {"shadow_map_size", "planes"}
+    for key, value in extra.items():
+        if key not in names:
+            raise ConfigError(f"options.{key}: unknown option; known: {', '.join(sorted(names))}")
+        if key in ("max_frustum_angle",):
+            value = math.radians(_number(value, f"options.{key}", positive=True))
+        kw[key] = tuple(value) if isinstance(value, list) else value
+    try:
+        return WarpOptions(**kw)
+    except WarpError as exc:
+        raise ConfigError(f"options: {exc}") from None
+    except TypeError as exc:
+        raise ConfigError(f"options: {exc}") from None
+
+
+def parse_config(config: dict) -> tuple[View, Light, SceneBounds, WarpOptions]:
+    if not isinstance(config, dict):
+        raise ConfigError("config: must be a JSON object")
+    view = parse_view(_get(config, "camera", ""))
+    try:
+        light = parse_light(_get(config, "light", ""))
+    except ConfigError:
+        raise
+    except WarpError as exc:
+        raise ConfigError(f"light: {exc}") from None
+    scene = parse_boxes(_get(config, "boxes", ""))
+    return view, light, scene, parse_options(config)

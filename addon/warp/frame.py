@@ -1,0 +1,161 @@
+"""Light frames: the transform after which a light's rays are parallel.
+
+Every method works in a *light space* in which light rays run parallel to +z
+(z grows away from the light) and x, y span the shadow-map image. For a sun the
+frame is a rotation (orthographic light); for a point or spot light it is the
+light's perspective (Stamminger-Drettakis §3: after it the light is
+directional). A point light whose needs do not fit one frustum narrower than
+``WarpOptions.max_frustum_angle`` gets one frame per cube face that B needs.
+
+The image's +y axis is the view direction projected onto the image plane (the
+LiSPSM V_P of Scherzer §4.4, Eq. 3), blended continuously with the camera's up
+vector when light and view are (nearly) parallel, so the frame never jumps.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .body import IntersectionBody
+from .geometry import look_along, normalize, transform_h
+from .polyhedron import Plane, clip_faces, unique_points
+from .types import Light, View, WarpOptions
+
+PARALLEL_BLEND = math.sin(math.radians(1.0))
+"""Below this |projected view direction| the camera's up vector takes over."""
+
+FLIP_Z = np.diag([1.0, 1.0, -1.0, 1.0])
+
+
+@dataclass(frozen=True)
+class LightFrame:
+    """``to_light``: world -> light space (projective for point lights);
+    ``points``: world-space vertices of the part of B this frame serves;
+    ``role``: "main" or "cube+X" etc.; ``directional``: orthographic frame."""
+
+    to_light: np.ndarray
+    points: np.ndarray
+    role: str
+    directional: bool
+    near_clamped: bool = False
+
+
+def image_up(view_direction, view_up, light_direction) -> np.ndarray:
+    """The map's +y: the view direction projected perpendicular to the light
+    (Scherzer Eq. 3, V_P = (V_light x V_eye) x V_light up to sign), blended
+    with the projected camera up when the projection vanishes."""
+    d = normalize(light_direction)
+    pv = view_direction - (view_direction @ d) * d
+    pu = view_up - (view_up @ d) * d
+    s = float(np.linalg.norm(pv))
+    up = pv.copy()
+    if s < PARALLEL_BLEND and np.linalg.norm(pu) > 0:
+        up = up + (PARALLEL_BLEND - s) * normalize(pu)
+    if np.linalg.norm(up) < 1e-300:
+        return np.zeros(3)
+    return normalize(up)
+
+
+def light_angles(view: View, light_direction) -> tuple[float, float]:
+    """(θ, γ): γ = angle between view and light directions in [0, π]
+    (LiSPSM's γ, Scherzer §4.4); θ in [0, π/2] folded by symmetry (GMNPR)."""
+    c = float(np.clip(view.direction @ normalize(light_direction), -1.0, 1.0))
+    gamma = math.acos(c)
+    return min(gamma, math.pi - gamma), gamma
+
+
+def sun_frame(view: View, light: Light, body: IntersectionBody) -> LightFrame:
+    """Orthographic frame of a sun, anchored at the camera for precision."""
+    up = image_up(view.direction, view.up, light.direction)
+    m = FLIP_Z @ look_along(view.position, light.direction, up)
+    return LightFrame(m, body.vertices, "main", True)
+
+
+def _cone_of(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]:
+    """Axis and half-angle of a cone from ``apex`` containing ``points``."""
+    dirs = points - apex
+    norms = np.linalg.norm(dirs, axis=1)
+    dirs = dirs[norms > 0] / norms[norms > 0, None]
+    if len(dirs) == 0:
+        return np.array([0.0, 0.0, -1.0]), math.pi
+    mean = dirs.sum(axis=0)
+    if np.linalg.norm(mean) < 1e-9 * len(dirs):
+        return normalize(dirs[0]), math.pi
+    axis = normalize(mean)
+    half = float(np.arccos(np.clip(dirs @ axis, -1.0, 1.0)).max())
+    return axis, half
+
+
+def perspective_frame(apex, axis, up_hint, points, role, scale) -> LightFrame:
+    """A point light's perspective looking along ``axis`` from ``apex``:
+    eye space -> (x, y, z_gl, -z) so rays from the apex become parallel to z.
+    The near plane is the nearest point's depth, clamped to a scale-relative
+    minimum when the light sits inside the body."""
+    view = look_along(apex, axis, up_hint)
+    depth = -transform_h(view, points)[:, 2]
+    floor = 1e-6 * scale
+    near = float(depth.min())
+    clamped = near < floor
+    near = max(near, floor)
+    far = max(float(depth.max()), near * (1 + 1e-9) + floor)
+    proj = np.array([
+        [1.0, 0.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0, 0.0],
+        [0.0, 0.0, -(far + near) / (far - near), -2 * far * near / (far - near)],
+        [0.0, 0.0, -1.0, 0.0],
+    ])
+    return LightFrame(proj @ view, points, role, False, clamped)
+
+
+CUBE_FACES = (("+X", 0, 1.0), ("-X", 0, -1.0), ("+Y", 1, 1.0), ("-Y", 1, -1.0), ("+Z", 2, 1.0), ("-Z", 2, -1.0))
+
+
+def point_frames(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> list[LightFrame]:
+    """One perspective frame when B fits a frustum narrower than
+    ``max_frustum_angle``, else one per cube face that B reaches (cube aligned
+    with the mean direction to B, so as few faces as possible are needed)."""
+    apex = light.position
+    axis, half = _cone_of(body.vertices, apex)
+    inside = bool(body.contains(apex[None])[0])
+    if not inside and 2 * half <= options.max_frustum_angle:
+        up = image_up(view.direction, view.up, axis)
+        return [perspective_frame(apex, axis, up, body.vertices, "main", body.scale)]
+    up = image_up(view.direction, view.up, axis)
+    if not np.any(up):
+        up = np.cross(axis, np.eye(3)[int(np.argmin(np.abs(axis)))])
+    basis = np.stack([normalize(np.cross(up, -axis)), normalize(up), -axis])  # cube axes: x, y, z = -axis
+    frames = []
+    for name, k, sign in CUBE_FACES:
+        forward = sign * basis[k]
+        others = [basis[j] for j in range(3) if j != k]
+        faces = [f - apex for f in body.faces]
+        for o in others:
+            for s in (1.0, -1.0):
+                # keep the pyramid |o . x| <= forward . x (a 90-degree face)
+                faces = clip_faces(faces, Plane(normalize(s * o - forward), 0.0), body.tolerance)
+                if not faces:
+                    break
+            if not faces:
+                break
+        if not faces:
+            continue
+        near_floor = 1e-6 * body.scale
+        clamped = min(float((f @ forward).min()) for f in faces) < near_floor
+        if clamped:
+            faces = clip_faces(faces, Plane(-forward, -near_floor), body.tolerance)
+            if not faces:
+                continue
+        pts = unique_points(np.concatenate(faces), body.tolerance * 10) + apex
+        face_up = basis[1] if k != 1 else basis[2]
+        frame = perspective_frame(apex, forward, face_up, pts, "cube" + name, body.scale)
+        frames.append(LightFrame(frame.to_light, frame.points, frame.role, False, clamped))
+    return frames
+
+
+def light_frames(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> list[LightFrame]:
+    """The frames a light needs for this body, in selection order."""
+    if light.is_directional:
+        return [sun_frame(view, light, body)]
+    return point_frames(view, light, body, options)

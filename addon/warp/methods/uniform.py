@@ -1,0 +1,71 @@
+"""Uniform (focused standard) shadow maps: the light frustum fitted to B.
+
+Scherzer §4.1 (focusing on the intersection body B); Brabec et al. via
+Scherzer [4]. For a sun the map is orthographic; for point and spot lights it
+is the light's perspective, one map per needed cube face when B does not fit a
+single frustum (see ``frame.point_frames``).
+
+Texel snapping (option): the sun map's window is quantised to a ladder of sizes
+and its origin to whole texels, so a moving camera does not make shadow edges
+crawl.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..body import IntersectionBody
+from ..fit import fit_to_unit_cube, ndc_bounds, window_matrix
+from ..frame import LightFrame, light_angles, light_frames
+from ..types import Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpOptions
+
+SNAP_STEPS_PER_OCTAVE = 8
+
+
+def map_sizes(options: WarpOptions, count: int) -> tuple[int, int]:
+    """Each of ``count`` maps gets the full per-map size (the budget is per map)."""
+    return options.shadow_map_size
+
+
+def snapped_window(lo: np.ndarray, hi: np.ndarray, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Grow the x/y window [lo, hi] to a quantised extent whose origin sits on
+    whole texels (orthographic frames only: light-space units are world units)."""
+    lo, hi = lo.copy(), hi.copy()
+    for axis in (0, 1):
+        ext = max(hi[axis] - lo[axis], 1e-300)
+        ladder = 2.0 ** (math.ceil(math.log2(ext) * SNAP_STEPS_PER_OCTAVE) / SNAP_STEPS_PER_OCTAVE)
+        texel = ladder / size[axis]
+        start = math.floor(lo[axis] / texel) * texel
+        end = start + ladder
+        if end < hi[axis]:
+            end += texel * math.ceil((hi[axis] - end) / texel)
+        lo[axis], hi[axis] = start, end
+    return lo, hi
+
+
+def frame_map(frame: LightFrame, options: WarpOptions, snap: bool = False) -> ShadowMap:
+    """An unwarped map for one light frame, fitted to the frame's points."""
+    if snap and frame.directional:
+        lo, hi = ndc_bounds(frame.to_light, frame.points)
+        lo, hi = snapped_window(lo, hi, options.shadow_map_size)
+        matrix = window_matrix(lo, hi) @ frame.to_light
+    else:
+        matrix = fit_to_unit_cube(frame.to_light, frame.points)
+    return ShadowMap(matrix, options.shadow_map_size, "LESS", frame.role)
+
+
+def uniform(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
+    diag = Diagnostics("uniform", body_vertices=body.vertices)
+    frames = light_frames(view, light, body, options)
+    maps = [frame_map(f, options, options.texel_snapping) for f in frames]
+    if light.is_directional:
+        diag.theta, diag.gamma = light_angles(view, light.direction)
+    else:
+        axis = body.centroid - light.position
+        diag.theta, diag.gamma = light_angles(view, axis)
+    for f in frames:
+        if f.near_clamped:
+            diag.fallback(f"{f.role}: near plane", "the light is inside B; points nearer than 1e-6 of the scene scale are not covered")
+    diag.extra["frames"] = [f.role for f in frames]
+    return ShadowSetup(maps, diag)
