@@ -1,0 +1,1 @@
+"""The Lixel render engine (``bl_idname = "LIXEL"``)."""
