@@ -10,17 +10,27 @@ PY42   := $(VENV42)/bin/python
 export XDG_CACHE_HOME ?= $(CURDIR)/.cache/xdg
 export BLENDER_USER_RESOURCES ?= $(CURDIR)/.cache/blender-user
 
-.PHONY: demo test test-5.0 test-4.2 test-warp bench extension validate clean venvs
+.PHONY: demo test test-5.0 test-4.2 test-warp bench extension validate clean venvs system-deps
 
 venvs: $(VENV)/.installed $(VENV42)/.installed
 
-$(VENV)/.installed: requirements/blender-5.0.txt requirements/common.txt
+# bpy needs X11 client libraries and Mesa's EGL/llvmpipe (software OpenGL) to load and draw.
+SYSTEM_LIBS := libX11.so.6 libXrender.so.1 libXfixes.so.3 libXi.so.6 libxkbcommon.so.0 libEGL.so.1 libSM.so.6 libGL.so.1
+system-deps:
+	@missing=$$(for l in $(SYSTEM_LIBS); do ldconfig -p | grep -q "$$l" || echo $$l; done); \
+	if [ -n "$$missing" ]; then \
+	  echo "installing system libraries for bpy (missing: $$missing)"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+	    libx11-6 libxrender1 libxfixes3 libxi6 libxkbcommon0 libsm6 libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri >/dev/null; \
+	fi
+
+$(VENV)/.installed: requirements/blender-5.0.txt requirements/common.txt | system-deps
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -r requirements/blender-5.0.txt
 	touch $@
 
-$(VENV42)/.installed: requirements/blender-4.2.txt requirements/common.txt
+$(VENV42)/.installed: requirements/blender-4.2.txt requirements/common.txt | system-deps
 	$(PYTHON) -m venv $(VENV42)
 	$(PY42) -m pip install --quiet --upgrade pip
 	$(PY42) -m pip install --quiet -r requirements/blender-4.2.txt
