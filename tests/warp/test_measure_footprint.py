@@ -1,0 +1,70 @@
+"""Texel footprint on analytic cases."""
+import math
+
+import numpy as np
+import pytest
+
+from addon.measure.footprint import footprint_stats, footprints, setup_footprints
+from addon.warp.geometry import look_along, ortho_matrix
+from addon.warp.types import Diagnostics, ShadowMap, ShadowSetup, View
+
+
+def _top_down_view(height, fov_y_deg, res):
+    c2w = np.linalg.inv(look_along([0.0, 0.0, height], [0, 0, -1], [0, 1, 0]))
+    return View.perspective(c2w, math.radians(fov_y_deg), res[0] / res[1], 0.1, 100.0, res)
+
+
+def _uniform_sun_map(half_extent, size):
+    # a sun straight down: light eye at z = 50 looking down -Z, ortho window [-a, a]^2
+    w2l = look_along([0.0, 0.0, 50.0], [0, 0, -1], [0, 1, 0])
+    return ortho_matrix(-half_extent, half_extent, -half_extent, half_extent, 1.0, 100.0) @ w2l
+
+
+@pytest.mark.parametrize("height,fov,res,a,size", [(10.0, 60, (640, 480), 20.0, 1024),
+                                                     (3.0, 40, (320, 320), 8.0, 256)])
+def test_top_down_sun_over_a_plane_with_a_uniform_map_has_constant_known_footprint(height, fov, res, a, size):
+    view = _top_down_view(height, fov, res)
+    rng = np.random.default_rng(0)
+    half_h = height * math.tan(math.radians(fov) / 2)
+    pts = np.column_stack([rng.uniform(-half_h * res[0] / res[1], half_h * res[0] / res[1], 500),
+                           rng.uniform(-half_h, half_h, 500), np.zeros(500)])
+    normals = np.tile([0.0, 0.0, 1.0], (500, 1))
+    lin, area = footprints(view.world_to_clip, res, _uniform_sun_map(a, size), (size, size), pts, normals)
+    texel = 2 * a / size                     # world length of a texel
+    pixel = 2 * half_h / res[1]               # world length of a pixel at depth `height`
+    assert np.allclose(lin, texel / pixel, rtol=1e-9)
+    assert np.allclose(area, (texel / pixel) ** 2, rtol=1e-9)
+
+
+def test_oblique_receiver_footprint_is_the_worst_direction():
+    # camera looks straight down; the map's sun travels at 60 degrees from vertical along +x:
+    # texels stretch by 1/cos(60) = 2 along x on the ground, so the linear footprint doubles.
+    view = _top_down_view(10.0, 60, (400, 400))
+    t = math.radians(60)
+    d = np.array([math.sin(t), 0.0, -math.cos(t)])
+    w2l = look_along(-50 * d, d, [0, 1, 0])
+    m = ortho_matrix(-10, 10, -10, 10, 1, 100) @ w2l
+    pts = np.array([[0.5, -1.0, 0.0], [2.0, 3.0, 0.0]])
+    lin, area = footprints(view.world_to_clip, (400, 400), m, (500, 500), pts, np.tile([0, 0, 1.0], (2, 1)))
+    pixel = 2 * 10 * math.tan(math.radians(30)) / 400
+    texel = 20 / 500
+    assert np.allclose(lin, 2 * texel / pixel, rtol=1e-9)
+    assert np.allclose(area, 2 * (texel / pixel) ** 2, rtol=1e-9)
+
+
+def test_setup_footprints_uses_the_serving_map_and_nan_elsewhere():
+    view = _top_down_view(10.0, 60, (200, 200))
+    m = ShadowMap(_uniform_sun_map(5.0, 100), (100, 100))
+    setup = ShadowSetup([m], Diagnostics("uniform"))
+    pts = np.array([[0.0, 0.0, 0.0], [7.0, 0.0, 0.0]])   # the second is outside the map window
+    lin, _ = setup_footprints(view, setup, pts, np.tile([0, 0, 1.0], (2, 1)))
+    assert np.isfinite(lin[0]) and np.isnan(lin[1])
+
+
+def test_footprint_stats():
+    s = footprint_stats(np.array([0.5, 1.0, 2.0, np.inf, np.nan]))
+    assert s.max == np.inf and s.count == 4
+    assert s.frac_above_1 == pytest.approx(0.5)
+    assert s.mean == pytest.approx(3.5 / 3)
+    m = footprint_stats(np.array([0.5, 3.0]), mask=np.array([True, False]))
+    assert (m.max, m.count, m.frac_above_1) == (0.5, 1, 0.0)
