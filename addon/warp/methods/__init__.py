@@ -3,8 +3,10 @@ from __future__ import annotations
 
 from typing import Callable
 
+from .plane_optimal import plane_optimal
 from .uniform import uniform
 
 METHODS: dict[str, Callable] = {
     "uniform": uniform,
+    "plane_optimal": plane_optimal,
 }
