@@ -47,6 +47,9 @@ class IntersectionBody:
     """Which of ``scene.casters`` meet hull(R ∪ light) ∩ L (can shadow what is seen)."""
     receiver_mask: np.ndarray
     """Which of ``scene.receivers`` meet V ∩ L."""
+    receiver_boxes: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 3)))
+    """World-space boxes of the receivers that meet V ∩ L (``scene.receivers[receiver_mask]``),
+    e.g. for plane_optimal's default plane of interest."""
     hull_planes: list[Plane] = field(default_factory=list)
     """World-space half-spaces of hull(R ∪ light) ∩ L: the light-extruded body."""
     tolerance: float = 0.0
@@ -194,6 +197,7 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
         visible_vertices=unique_points(visible_pts, tol * 10) + origin,
         caster_mask=caster_mask,
         receiver_mask=receiver_mask,
+        receiver_boxes=scene.receivers[receiver_mask].copy(),
         hull_planes=world_planes,
         tolerance=tol,
         scale=scale,
