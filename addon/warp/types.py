@@ -172,6 +172,11 @@ class Light:
         return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
+def _centre_half(boxes: np.ndarray) -> np.ndarray:
+    """(6, N): rows 0-2 the boxes' centres, rows 3-5 their half extents."""
+    return np.ascontiguousarray(np.concatenate([(boxes[:, 0] + boxes[:, 1]).T / 2, (boxes[:, 1] - boxes[:, 0]).T / 2]))
+
+
 @dataclass(frozen=True)
 class SceneBounds:
     """World-space axis-aligned boxes, each ``[[min x, y, z], [max x, y, z]]``.
@@ -190,11 +195,26 @@ class SceneBounds:
             if np.any(b[:, 0] > b[:, 1]):
                 raise WarpError(f"scene {name}: every box needs min <= max")
             object.__setattr__(self, name, b)
+        # Centres and half-extents, stacked (6, N) for vectorised culling (body.boxes_meeting).
+        object.__setattr__(self, "_caster_stack", _centre_half(self.casters))
+        same = self.receivers is self.casters or (self.receivers.shape == self.casters.shape
+                                                  and np.array_equal(self.receivers, self.casters))
+        object.__setattr__(self, "_receiver_stack", self._caster_stack if same else _centre_half(self.receivers))
 
     @classmethod
     def from_boxes(cls, boxes) -> "SceneBounds":
         b = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3)
         return cls(b, b)
+
+    @property
+    def caster_centre_half(self) -> np.ndarray:
+        """(6, N) centres (rows 0-2) and half extents (rows 3-5) of the casters."""
+        return self._caster_stack
+
+    @property
+    def receiver_centre_half(self) -> np.ndarray:
+        """(6, N) centres (rows 0-2) and half extents (rows 3-5) of the receivers."""
+        return self._receiver_stack
 
     @property
     def all_boxes(self) -> np.ndarray:
@@ -392,7 +412,12 @@ class WarpOptions:
     max_frustum_angle: widest single perspective map for a point light (radians);
         wider needs take cube faces.
     planes: planes of interest for plane_optimal, [(point, normal), ...].
-    plane_budget: fraction of the texel budget given to plane maps (rest: fallback).
+    plane_budget: the most of the texel budget (shadow_map_size area) plane maps
+        may take; they take only what one lixel per pixel needs, the fallback
+        gets the rest (plane_optimal).
+    plane_twist: "auto" (rotate a plane map's image when the budget forces fewer
+        lixels than pixels and the rotated rectangle is tighter), "on", "off"
+        (Chong-Gortler §2, "twist").
     """
 
     shadow_map_size: tuple[int, int] = (2048, 2048)
@@ -405,6 +430,7 @@ class WarpOptions:
     max_frustum_angle: float = math.radians(120.0)
     planes: tuple = ()
     plane_budget: float = 0.75
+    plane_twist: str = "auto"
 
     def __post_init__(self):
         size = self.shadow_map_size
@@ -418,3 +444,5 @@ class WarpOptions:
             raise WarpError(f"delta_z must be 'body' or 'visible' (got {self.delta_z!r})")
         if not (0.0 < self.plane_budget <= 1.0):
             raise WarpError("plane_budget must be in (0, 1]")
+        if self.plane_twist not in ("auto", "on", "off"):
+            raise WarpError(f"plane_twist must be 'auto', 'on' or 'off' (got {self.plane_twist!r})")
