@@ -1,0 +1,178 @@
+"""Exact hard shadows for every pixel by ray casting (the report's ground truth).
+
+For each pixel centre the camera ray's first hit in a ``mathutils.bvhtree.BVHTree``
+of the evaluated scene's triangles is the visible point; a second ray from that
+point towards the light decides lit or shadowed. This is exact (up to the float32
+BVH) for hard shadows, whatever the shadow-map method.
+
+Pixel convention: images are (H, W) with row 0 at the *bottom*, like Blender's
+render results and OpenGL read-back; pixel (x, y) has NDC centre
+((2x + 1)/W - 1, (2y + 1)/H - 1).
+
+``valid`` marks the pixels the error metrics count: a surface is visible, it faces
+the light (a surface turned away is dark whatever the shadow test says) and, for
+a spot light, it lies inside the cone.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from addon.scene.instances import walk_instances
+from addon.warp.types import Light, View
+
+
+@dataclass
+class Triangles:
+    """World-space triangles of an evaluated scene: (T, 3, 3) float64."""
+
+    tris: np.ndarray
+    seconds: float = 0.0
+
+    def __len__(self) -> int:
+        return len(self.tris)
+
+
+def _local_triangles(ob_eval) -> np.ndarray:
+    me = ob_eval.data if ob_eval.type == "MESH" else ob_eval.to_mesh()
+    try:
+        me.calc_loop_triangles()
+        n = len(me.loop_triangles)
+        idx = np.empty(n * 3, dtype=np.int32)
+        me.loop_triangles.foreach_get("vertices", idx)
+        co = np.empty(len(me.vertices) * 3, dtype=np.float64)
+        me.vertices.foreach_get("co", co)
+        return co.reshape(-1, 3)[idx.reshape(-1, 3)]
+    finally:
+        if ob_eval.type != "MESH":
+            ob_eval.to_mesh_clear()
+
+
+def scene_triangles(depsgraph) -> Triangles:
+    """Every triangle the evaluated scene draws (real objects and GN instances)."""
+    t0 = time.perf_counter()
+    local: dict = {}
+
+    def on_geometry(key, ob_eval):
+        tri = _local_triangles(ob_eval)
+        local[key] = tri
+        return len(tri) > 0
+
+    inst = walk_instances(depsgraph, on_geometry)
+    parts = []
+    by_key: dict = {}
+    for i, key in enumerate(inst.keys):
+        by_key.setdefault(key, []).append(i)
+    for key, rows in by_key.items():
+        tri = local[key]                                         # (t, 3, 3)
+        mats = inst.matrices[rows]                               # (k, 4, 4)
+        w = np.einsum("kij,tvj->ktvi", mats[:, :3, :3], tri) + mats[:, None, None, :3, 3]
+        parts.append(w.reshape(-1, 3, 3))
+    tris = np.concatenate(parts) if parts else np.zeros((0, 3, 3))
+    return Triangles(tris, time.perf_counter() - t0)
+
+
+def build_bvh(tris: Triangles):
+    from mathutils.bvhtree import BVHTree
+    t = tris.tris
+    verts = t.reshape(-1, 3).tolist()
+    polys = np.arange(len(verts), dtype=np.int64).reshape(-1, 3).tolist()
+    return BVHTree.FromPolygons(verts, polys, all_triangles=True, epsilon=0.0)
+
+
+def pixel_rays(view: View):
+    """World ray origins and unit directions (H*W, 3) through the pixel centres
+    (row 0 at the bottom), plus the NDC grid."""
+    w, h = view.resolution
+    xs = (2 * np.arange(w) + 1) / w - 1
+    ys = (2 * np.arange(h) + 1) / h - 1
+    X, Y = np.meshgrid(xs, ys)
+    inv = np.linalg.inv(view.world_to_clip)
+    def unproject(z):
+        p = np.stack([X.ravel(), Y.ravel(), np.full(X.size, z), np.ones(X.size)], axis=1) @ inv.T
+        return p[:, :3] / p[:, 3:4]
+    a, b = unproject(-1.0), unproject(1.0)
+    d = b - a
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    return a, d
+
+
+@dataclass
+class GroundTruth:
+    """Per-pixel ground truth, (H, W) arrays with row 0 at the bottom."""
+
+    hit: np.ndarray          # bool: a surface is visible
+    points: np.ndarray       # (H, W, 3) visible point (NaN where no hit)
+    normals: np.ndarray      # (H, W, 3) unit geometric normal facing the camera
+    shadow: np.ndarray       # bool: the point is in shadow (or faces away from the light)
+    valid: np.ndarray        # bool: counted by the metrics (hit, faces the light, inside a spot cone)
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def shape(self):
+        return self.hit.shape
+
+
+def _to_light(light: Light, p: np.ndarray):
+    """Unit directions from points towards the light and the distances to it (inf for a sun)."""
+    if light.is_directional:
+        d = np.broadcast_to(-light.direction, p.shape).copy()
+        return d, np.full(len(p), np.inf)
+    d = light.position - p
+    dist = np.linalg.norm(d, axis=1)
+    return d / dist[:, None], dist
+
+
+def ground_truth(view: View, light: Light, bvh, scene_scale: float) -> GroundTruth:
+    """Cast the camera rays and the shadow rays (see module doc)."""
+    from mathutils import Vector
+    w, h = view.resolution
+    t0 = time.perf_counter()
+    origins, dirs = pixel_rays(view)
+    n = len(origins)
+    pts = np.full((n, 3), np.nan)
+    nrm = np.zeros((n, 3))
+    hit = np.zeros(n, dtype=bool)
+    ray_cast = bvh.ray_cast
+    reach = view.far * 4.0
+    for i, (o, d) in enumerate(zip(origins.tolist(), dirs.tolist())):
+        loc, normal, _, _ = ray_cast(Vector(o), Vector(d), reach)
+        if loc is not None:
+            hit[i] = True
+            pts[i] = loc
+            nrm[i] = normal
+    t1 = time.perf_counter()
+    # keep what the camera sees: eye depth within [near, far]
+    depth = np.full(n, np.nan)
+    depth[hit] = view.eye_depth(pts[hit])
+    hit &= (depth >= view.near) & (depth <= view.far)
+    # normals face the camera
+    flip = np.einsum("ij,ij->i", nrm, dirs) > 0
+    nrm[flip] *= -1
+    shadow = np.zeros(n, dtype=bool)
+    valid = hit.copy()
+    idx = np.flatnonzero(hit)
+    p = pts[idx]
+    to_l, dist = _to_light(light, p)
+    facing = np.einsum("ij,ij->i", nrm[idx], to_l) > 0
+    valid[idx[~facing]] = False
+    shadow[idx[~facing]] = True
+    if light.type == "SPOT":
+        inside = np.einsum("ij,j->i", -to_l, light.direction) >= math.cos(light.spot_angle / 2)
+        valid[idx[~inside]] = False
+        shadow[idx[~inside]] = True
+    todo = np.flatnonzero(facing)
+    eps = 1e-5 * scene_scale + 2e-5 * np.linalg.norm(p - view.position, axis=1)
+    start = p + nrm[idx] * eps[:, None]
+    limit = np.where(np.isfinite(dist), dist - 2 * eps, scene_scale * 4.0)
+    for k in todo.tolist():
+        loc, _, _, _ = ray_cast(Vector(start[k].tolist()), Vector(to_l[k].tolist()), float(limit[k]))
+        if loc is not None:
+            shadow[idx[k]] = True
+    t2 = time.perf_counter()
+    return GroundTruth(hit=hit.reshape(h, w), points=pts.reshape(h, w, 3), normals=nrm.reshape(h, w, 3),
+                       shadow=shadow.reshape(h, w), valid=valid.reshape(h, w),
+                       timings={"camera_rays": t1 - t0, "shadow_rays": t2 - t1})
