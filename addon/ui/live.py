@@ -1,0 +1,296 @@
+"""The live Lixel state of each scene: its inputs (view, light, bounds,
+settings), B, the shadow setup, the overlay geometry and what each step cost.
+
+:func:`update` recomputes only what changed: a moved camera re-describes the
+view but reuses the scene bounds; B is rebuilt only when the view, light or
+bounds differ from last time; the setup only when B or the settings differ;
+the overlay geometry only when the setup did. The timings of the last update
+are kept for the panel's readouts. Operators, the panel, the overlays, the
+depsgraph handler and the background scripts all go through here.
+
+The state is runtime only (never saved): it is dropped on file load.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field, replace
+from typing import Optional
+
+import numpy as np
+
+from ..scene.describe import describe_bounds, describe_light, describe_view, pick_light
+from ..scene.instances import walk_instances
+from ..settings import LixelSettings
+from ..warp import METHODS, compute, intersection_body
+from ..warp.types import EmptyBodyError, WarpError
+from .overlay_geometry import footprint_estimate, overlay_geometry
+
+log = logging.getLogger(__name__)
+
+INPUTS = ("view", "light", "bounds", "settings")
+DEBUG_KEY = "lixel_debug"
+"""Custom property marking Lixel's own debug objects (baked B, frusta, GN helpers):
+they are never casters or receivers, or B would feed back into itself."""
+
+
+def is_debug_object(ob) -> bool:
+    orig = getattr(ob, "original", None) or ob
+    try:
+        return DEBUG_KEY in orig.keys()
+    except (AttributeError, ReferenceError, TypeError):
+        return False
+
+
+def scene_bounds(depsgraph):
+    """SceneBounds of the evaluated scene without Lixel's debug objects."""
+    return describe_bounds(depsgraph, walk_instances(depsgraph, on_geometry=lambda key, ob: not is_debug_object(ob)))
+
+
+@dataclass
+class LiveState:
+    """One scene's last computation (everything plain data)."""
+
+    scene_name: str
+    view: object = None
+    light: object = None
+    light_name: str = ""
+    bounds: object = None
+    settings: Optional[LixelSettings] = None
+    method_used: str = ""
+    body: object = None
+    setup: object = None
+    geometry: Optional[dict] = None
+    footprint: Optional[dict] = None
+    error: str = ""
+    note: str = ""
+    timings: dict = field(default_factory=dict)
+    recomputed: tuple = ()
+    generation: int = 0
+    """Bumped whenever the setup or geometry changes (overlays rebuild GPU batches on change)."""
+
+    @property
+    def ok(self) -> bool:
+        return self.setup is not None and not self.error
+
+    def total_ms(self) -> float:
+        return float(sum(self.timings.values()))
+
+
+_states: dict[str, LiveState] = {}
+
+
+def state(scene) -> Optional[LiveState]:
+    """The scene's last state, or None if Lixel never computed for it."""
+    return _states.get(scene.name if not isinstance(scene, str) else scene)
+
+
+def clear() -> None:
+    """Forget every scene's state (file load, unregister)."""
+    _states.clear()
+
+
+def scene_settings(scene) -> LixelSettings:
+    """The scene's ``LixelSettings`` (``scene.lixel`` when the add-on is registered,
+    else the defaults)."""
+    props = getattr(scene, "lixel", None)
+    return props.to_settings() if props is not None else LixelSettings()
+
+
+def _same(a, b) -> bool:
+    """Equality of plain warp inputs (dataclasses holding numpy arrays)."""
+    if a is None or b is None:
+        return a is b
+    if type(a) is not type(b):
+        return False
+    for k, va in vars(a).items():
+        vb = getattr(b, k)
+        if isinstance(va, np.ndarray) or isinstance(vb, np.ndarray):
+            if va is None or vb is None or np.shape(va) != np.shape(vb) or not np.array_equal(va, vb):
+                return False
+        elif va != vb:
+            return False
+    return True
+
+
+def resolve_method(method: str) -> tuple[str, str]:
+    """(method to run, note). A method the warp core does not offer yet runs as
+    uniform, with a note saying so."""
+    if method in METHODS:
+        return method, ""
+    return "uniform", f"method '{method}' is not available in this build; showing 'uniform' instead"
+
+
+def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[LixelSettings] = None,
+           camera=None, light_obj=None) -> LiveState:
+    """Recompute the scene's Lixel state. ``changed``: a subset of ``INPUTS``
+    known to have changed (None: check everything). ``settings`` overrides the
+    scene's (scripts); ``camera``/``light_obj`` override the scene's choice.
+    Errors (no camera, no light, no mesh, empty B) are kept in ``state.error``
+    with a message for the user; they never raise."""
+    st = _states.get(scene.name)
+    if st is None:
+        st = _states[scene.name] = LiveState(scene.name)
+    todo = set(INPUTS) if changed is None else set(changed)
+    if depsgraph is None:
+        depsgraph = scene.view_layers[0].depsgraph
+    timings: dict[str, float] = {}
+    recomputed = []
+
+    def timed(name, fn, *args, **kw):
+        t0 = time.perf_counter()
+        try:
+            return fn(*args, **kw)
+        finally:
+            timings[name] = (time.perf_counter() - t0) * 1000.0
+
+    try:
+        new_settings = settings if settings is not None else timed("settings", scene_settings, scene)
+        view = st.view
+        if "view" in todo or view is None:
+            view = timed("describe view", describe_view, camera if camera is not None else scene.camera,
+                         depsgraph, scene)
+        light = st.light
+        if "light" in todo or light is None:
+            lob = light_obj if light_obj is not None else pick_light(scene, depsgraph, active)
+            light = timed("describe light", describe_light, lob, depsgraph)
+            st.light_name = lob.name
+        bounds = st.bounds
+        if "bounds" in todo or bounds is None:
+            bounds = timed("describe bounds", scene_bounds, depsgraph)
+            if len(bounds.receivers) == 0:
+                raise WarpError(f"Scene '{scene.name}' has no visible mesh, curve or text objects: "
+                                f"add geometry to cast and receive shadows")
+    except WarpError as exc:
+        return _fail(st, str(exc), timings)
+
+    inputs_changed = not (_same(view, st.view) and _same(light, st.light) and _same(bounds, st.bounds))
+    settings_changed = new_settings != st.settings
+    st.view, st.light, st.bounds, st.settings = view, light, bounds, new_settings
+    if not inputs_changed and not settings_changed and st.setup is not None and not st.error:
+        st.timings, st.recomputed = timings, ()
+        return st
+    try:
+        body = st.body
+        if inputs_changed or body is None:
+            body = timed("B", intersection_body, view, light, bounds)
+            recomputed.append("B")
+        method, note = resolve_method(new_settings.method)
+        setup = timed("warp", compute, method, view, light, bounds, new_settings.warp, body=body)
+        recomputed.append("setup")
+    except (WarpError, EmptyBodyError) as exc:
+        st.body = None
+        return _fail(st, str(exc), timings)
+    st.body, st.setup, st.method_used, st.note, st.error = body, setup, method, note, ""
+    st.geometry = timed("overlay geometry", overlay_geometry, view, setup, body.faces)
+    recomputed.append("overlays")
+    st.footprint = timed("footprint", footprint_estimate, setup, view, _r_sample(body))
+    st.timings, st.recomputed = timings, tuple(recomputed)
+    st.generation += 1
+    log.debug("Lixel: %s recomputed %s in %.1f ms", scene.name, recomputed, st.total_ms())
+    return st
+
+
+def _r_sample(body) -> np.ndarray:
+    """Points over R (the visible part of B): its vertices and points between
+    them and its centroid."""
+    v = np.asarray(body.visible_vertices, dtype=np.float64)
+    if len(v) == 0:
+        return v
+    c = v.mean(axis=0)
+    return np.concatenate([v, c[None], 0.5 * (v + c), 0.25 * v + 0.75 * c])
+
+
+def _fail(st: LiveState, message: str, timings: dict) -> LiveState:
+    st.error = message
+    st.setup = None
+    st.geometry = None
+    st.footprint = None
+    st.timings = timings
+    st.recomputed = ()
+    st.generation += 1
+    return st
+
+
+def readouts(st: Optional[LiveState]) -> list[tuple[str, str]]:
+    """(label, value) pairs for the panel: θ, γ, n_opt or λ, B's vertex count,
+    maps, footprint, timings."""
+    if st is None:
+        return []
+    if st.setup is None:
+        return [("Error", st.error or "not computed")]
+    import math
+    d = st.setup.diagnostics
+    rows = [("Method", st.method_used)]
+    rows.append(("θ", "—" if d.theta is None else f"{math.degrees(d.theta):.1f}°"))
+    rows.append(("γ", "—" if d.gamma is None else f"{math.degrees(d.gamma):.1f}°"))
+    if d.n_opt is not None:
+        rows.append(("n_opt", f"{d.n_opt:.4g}"))
+    if d.lam is not None:
+        rows.append(("λ", f"{d.lam:.4g}"))
+    rows.append(("B vertices", str(len(d.body_vertices))))
+    rows.append(("Maps", f"{len(st.setup.maps)}  ({', '.join(m.role for m in st.setup.maps)})"))
+    if st.footprint is not None:
+        rows.append(("Texel footprint", f"median {st.footprint['median']:.3g} px, max {st.footprint['max']:.3g} px"))
+    else:
+        rows.append(("Texel footprint", "—"))
+    for what, why in d.fallbacks:
+        rows.append(("Fallback", f"{what}: {why}"))
+    rows.append(("Last update", f"{st.total_ms():.1f} ms ({', '.join(st.recomputed) or 'nothing changed'})"))
+    for k, v in st.timings.items():
+        rows.append((f"  {k}", f"{v:.2f} ms"))
+    return rows
+
+
+def with_method(settings: LixelSettings, method: str) -> LixelSettings:
+    return replace(settings, method=method)
+
+
+def compare_methods(st: LiveState, methods=None) -> list[dict]:
+    """Every available method on the state's inputs (B shared): one row per
+    method with θ, γ, n_opt, λ, map count, footprint statistics, time, or the
+    error. ``st`` must hold a computed setup."""
+    if st.body is None:
+        raise WarpError(st.error or "nothing computed yet")
+    rows = []
+    for name in (methods or list(METHODS)):
+        row: dict = {"method": name}
+        t0 = time.perf_counter()
+        try:
+            setup = compute(name, st.view, st.light, st.bounds, st.settings.warp, body=st.body)
+        except WarpError as exc:
+            row["error"] = str(exc)
+            rows.append(row)
+            continue
+        row["warp_ms"] = (time.perf_counter() - t0) * 1000.0
+        d = setup.diagnostics
+        row.update(theta=d.theta, gamma=d.gamma, n_opt=d.n_opt, lam=d.lam, maps=len(setup.maps),
+                   fallbacks=[f"{w}: {r}" for w, r in d.fallbacks])
+        fp = footprint_estimate(setup, st.view, _r_sample(st.body))
+        row["footprint_median_px"] = None if fp is None else fp["median"]
+        row["footprint_max_px"] = None if fp is None else fp["max"]
+        row["setup"] = setup
+        rows.append(row)
+    return rows
+
+
+def comparison_table(rows: list[dict]) -> str:
+    """The comparison as aligned text (for a Text datablock or a terminal)."""
+    import math
+
+    def deg(v):
+        return "—" if v is None else f"{math.degrees(v):6.1f}°"
+
+    def num(v, fmt="{:.4g}"):
+        return "—" if v is None else fmt.format(v)
+
+    lines = [f"{'method':<14} {'θ':>7} {'γ':>7} {'n_opt':>9} {'λ':>9} {'maps':>4} "
+             f"{'texel px (median)':>18} {'(max)':>9} {'ms':>7}"]
+    for r in rows:
+        if "error" in r:
+            lines.append(f"{r['method']:<14} error: {r['error']}")
+            continue
+        lines.append(f"{r['method']:<14} {deg(r['theta']):>7} {deg(r['gamma']):>7} {num(r['n_opt']):>9} "
+                     f"{num(r['lam']):>9} {r['maps']:>4} {num(r['footprint_median_px'], '{:.3g}'):>18} "
+                     f"{num(r['footprint_max_px'], '{:.3g}'):>9} {r['warp_ms']:7.2f}")
+    return "\n".join(lines)

@@ -1,0 +1,402 @@
+"""Geometry-node tooling, built by this code (the source of truth), idempotent
+and versioned (``node_group["lixel_version"]``; an older group is rebuilt in
+place, so the modifiers that use it keep working).
+
+The light matrices travel in a *matrix carrier*: the mesh object "Lixel Light
+Matrices" with one point per shadow map and the point attributes
+``lixel_light_matrix`` (FLOAT4X4, world -> light clip) and ``lixel_map_size``
+(FLOAT2, texels). A modifier cannot take a Matrix input (shared notes §5), so
+the node groups take the carrier *object* and sample the matrix from it; when
+the carrier's matrices change, every group using it follows.
+
+* **Lixel Texel Grid** puts the shadow-map texel grid on any mesh. Per point it
+  stores ``lixel_light_xyw`` = (x, y, w) of ``M @ [p, 1]`` (clip coordinates,
+  affine in p, so they interpolate exactly across a face), ``lixel_texel`` =
+  the texel coordinate ((x/w)·½+½)·W, ((y/w)·½+½)·H with the homogeneous divide
+  done explicitly (Project Point divides by |w|, so it is not used), and
+  ``lixel_map_size``; per face corner ``lixel_texel_color``, the texel parity
+  at the face centre (for Workbench's Attribute colour). The material "Lixel
+  Texel Grid" divides per pixel and draws the parity checker exactly in EEVEE
+  and Cycles.
+* **Lixel Frustum From Matrix** builds the clip volume of a map as a mesh: the
+  unit cube's corners through the inverse matrix, divided by w.
+"""
+import bpy
+import numpy as np
+
+from .live import DEBUG_KEY
+
+TEXEL_GROUP = "Lixel Texel Grid"
+FRUSTUM_GROUP = "Lixel Frustum From Matrix"
+TEXEL_MATERIAL = "Lixel Texel Grid"
+CARRIER_NAME = "Lixel Light Matrices"
+DEBUG_COLLECTION = "Lixel Debug"
+MATRIX_ATTRIBUTE = "lixel_light_matrix"
+SIZE_ATTRIBUTE = "lixel_map_size"
+XYW_ATTRIBUTE = "lixel_light_xyw"
+TEXEL_ATTRIBUTE = "lixel_texel"
+PARITY_COLOR_ATTRIBUTE = "lixel_texel_color"
+TEXEL_MODIFIER = "Lixel Texel Grid"
+FRUSTUM_MODIFIER = "Lixel Frustum"
+VERSION_KEY = "lixel_version"
+TEXEL_GROUP_VERSION = 1
+FRUSTUM_GROUP_VERSION = 1
+MATERIAL_VERSION = 1
+
+
+# --- small node-building helpers ------------------------------------------------------------------------------
+
+def _socket(sockets, name):
+    for s in sockets:
+        if s.name == name and getattr(s, "enabled", True):
+            return s
+    raise KeyError(f"no socket {name!r} in {[s.name for s in sockets]}")
+
+
+class _Builder:
+    def __init__(self, tree):
+        self.tree = tree
+        self.x = 0
+
+    def node(self, kind, **props):
+        n = self.tree.nodes.new(kind)
+        for k, v in props.items():
+            setattr(n, k, v)
+        n.location = (self.x, 0)
+        self.x += 200
+        return n
+
+    def link(self, out, inp):
+        self.tree.links.new(out, inp)
+
+    def math(self, op, a, b=None, c=None):
+        n = self.node("ShaderNodeMath", operation=op)
+        for i, v in enumerate((a, b, c)):
+            if v is None:
+                continue
+            if isinstance(v, (int, float)):
+                n.inputs[i].default_value = v
+            else:
+                self.link(v, n.inputs[i])
+        return n.outputs[0]
+
+    def vmath(self, op, a, b):
+        n = self.node("ShaderNodeVectorMath", operation=op)
+        for i, v in enumerate((a, b)):
+            if isinstance(v, (tuple, list)):
+                n.inputs[i].default_value = v
+            else:
+                self.link(v, n.inputs[i])
+        return n.outputs["Value" if op == "DOT_PRODUCT" else "Vector"]
+
+    def combine_xyz(self, x, y, z):
+        n = self.node("ShaderNodeCombineXYZ")
+        for i, v in enumerate((x, y, z)):
+            if isinstance(v, (int, float)):
+                n.inputs[i].default_value = v
+            else:
+                self.link(v, n.inputs[i])
+        return n.outputs[0]
+
+    def separate_xyz(self, v):
+        n = self.node("ShaderNodeSeparateXYZ")
+        self.link(v, n.inputs[0])
+        return n.outputs
+
+    def store(self, geometry, name, data_type, domain, value):
+        n = self.node("GeometryNodeStoreNamedAttribute", data_type=data_type, domain=domain)
+        self.link(geometry, _socket(n.inputs, "Geometry"))
+        _socket(n.inputs, "Name").default_value = name
+        self.link(value, _socket(n.inputs, "Value"))
+        return _socket(n.outputs, "Geometry")
+
+
+def _reset_tree(name, tree_type, version):
+    """The node tree ``name``, emptied for a rebuild, or None if it is current."""
+    tree = bpy.data.node_groups.get(name)
+    if tree is not None and tree.bl_idname == tree_type and tree.get(VERSION_KEY) == version:
+        return None, tree
+    if tree is None or tree.bl_idname != tree_type:
+        tree = bpy.data.node_groups.new(name, tree_type)
+    tree.nodes.clear()
+    tree.interface.clear()
+    return tree, tree
+
+
+def _carrier_matrix(b: _Builder, carrier_socket, index_socket):
+    """(matrix, map size) sampled from the carrier object's point ``index``."""
+    info = b.node("GeometryNodeObjectInfo", transform_space="ORIGINAL")
+    b.link(carrier_socket, _socket(info.inputs, "Object"))
+    values = []
+    for attr, dtype in ((MATRIX_ATTRIBUTE, "FLOAT4X4"), (SIZE_ATTRIBUTE, "FLOAT_VECTOR")):
+        named = b.node("GeometryNodeInputNamedAttribute", data_type=dtype)
+        _socket(named.inputs, "Name").default_value = attr
+        sample = b.node("GeometryNodeSampleIndex", data_type=dtype, domain="POINT")
+        b.link(_socket(info.outputs, "Geometry"), _socket(sample.inputs, "Geometry"))
+        b.link(_socket(named.outputs, "Attribute"), _socket(sample.inputs, "Value"))
+        b.link(index_socket, _socket(sample.inputs, "Index"))
+        values.append(_socket(sample.outputs, "Value"))
+    return values
+
+
+def _homogeneous_w(b: _Builder, matrix, point):
+    """w = M[3] · [p, 1] (the 4th row of M, which Transform Point drops)."""
+    sep = b.node("FunctionNodeSeparateMatrix")
+    b.link(matrix, sep.inputs[0])
+    row4 = b.combine_xyz(*(_socket(sep.outputs, f"Column {c} Row 4") for c in (1, 2, 3)))
+    return b.math("ADD", b.vmath("DOT_PRODUCT", point, row4), _socket(sep.outputs, "Column 4 Row 4"))
+
+
+def _transform_point(b: _Builder, matrix, point):
+    n = b.node("FunctionNodeTransformPoint")
+    b.link(point, _socket(n.inputs, "Vector"))
+    b.link(matrix, _socket(n.inputs, "Transform"))
+    return _socket(n.outputs, "Vector")
+
+
+def _self_transform(b: _Builder):
+    me = b.node("GeometryNodeSelfObject")
+    info = b.node("GeometryNodeObjectInfo", transform_space="ORIGINAL")
+    b.link(me.outputs[0], _socket(info.inputs, "Object"))
+    return _socket(info.outputs, "Transform")
+
+
+def _new_input(tree, name, socket_type, default=None, min_value=None):
+    s = tree.interface.new_socket(name, in_out="INPUT", socket_type=socket_type)
+    if default is not None:
+        s.default_value = default
+    if min_value is not None:
+        s.min_value = min_value
+    return s
+
+
+# --- the groups -----------------------------------------------------------------------------------------------
+
+def ensure_texel_grid_group():
+    """The "Lixel Texel Grid" geometry node group (built or rebuilt if outdated)."""
+    tree, current = _reset_tree(TEXEL_GROUP, "GeometryNodeTree", TEXEL_GROUP_VERSION)
+    if tree is None:
+        return current
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    _new_input(tree, "Light Matrices", "NodeSocketObject")
+    _new_input(tree, "Map Index", "NodeSocketInt", 0, 0)
+    _new_input(tree, "Material", "NodeSocketMaterial")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    b = _Builder(tree)
+    gin = b.node("NodeGroupInput")
+    gout = b.node("NodeGroupOutput")
+    matrix, size = _carrier_matrix(b, _socket(gin.outputs, "Light Matrices"), _socket(gin.outputs, "Map Index"))
+    world = _transform_point(b, _self_transform(b), b.node("GeometryNodeInputPosition").outputs[0])
+    clip = b.separate_xyz(_transform_point(b, matrix, world))
+    w = _homogeneous_w(b, matrix, world)
+    size_xy = b.separate_xyz(size)
+    # explicit homogeneous divide (Project Point would divide by |w|)
+    u = b.math("MULTIPLY", b.math("MULTIPLY_ADD", b.math("DIVIDE", clip[0], w), 0.5, 0.5), size_xy[0])
+    v = b.math("MULTIPLY", b.math("MULTIPLY_ADD", b.math("DIVIDE", clip[1], w), 0.5, 0.5), size_xy[1])
+    texel = b.combine_xyz(u, v, 0.0)
+    parity = b.math("FLOORED_MODULO", b.math("ADD", b.math("FLOOR", u), b.math("FLOOR", v)), 2.0)
+    at_face = b.node("GeometryNodeFieldOnDomain", data_type="FLOAT", domain="FACE")
+    b.link(parity, _socket(at_face.inputs, "Value"))
+    parity_face = _socket(at_face.outputs, "Value")
+    colour = b.node("ShaderNodeMix", data_type="RGBA")
+    b.link(parity_face, _socket(colour.inputs, "Factor"))
+    colour.inputs[6].default_value = (0.9, 0.9, 0.9, 1.0)   # A (RGBA)
+    colour.inputs[7].default_value = (0.08, 0.08, 0.1, 1.0)  # B (RGBA)
+    geo = _socket(gin.outputs, "Geometry")
+    geo = b.store(geo, XYW_ATTRIBUTE, "FLOAT_VECTOR", "POINT", b.combine_xyz(clip[0], clip[1], w))
+    geo = b.store(geo, TEXEL_ATTRIBUTE, "FLOAT_VECTOR", "POINT", texel)
+    geo = b.store(geo, SIZE_ATTRIBUTE, "FLOAT_VECTOR", "POINT", size)
+    geo = b.store(geo, PARITY_COLOR_ATTRIBUTE, "FLOAT_COLOR", "CORNER", colour.outputs[2])
+    setmat = b.node("GeometryNodeSetMaterial")
+    b.link(geo, _socket(setmat.inputs, "Geometry"))
+    b.link(_socket(gin.outputs, "Material"), _socket(setmat.inputs, "Material"))
+    b.link(_socket(setmat.outputs, "Geometry"), gout.inputs[0])
+    tree[VERSION_KEY] = TEXEL_GROUP_VERSION
+    return tree
+
+
+def ensure_frustum_group():
+    """The "Lixel Frustum From Matrix" group: the clip volume of map ``Map Index``
+    of the carrier, in the modified object's local space."""
+    tree, current = _reset_tree(FRUSTUM_GROUP, "GeometryNodeTree", FRUSTUM_GROUP_VERSION)
+    if tree is None:
+        return current
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")  # unused; must be first
+    _new_input(tree, "Light Matrices", "NodeSocketObject")
+    _new_input(tree, "Map Index", "NodeSocketInt", 0, 0)
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    b = _Builder(tree)
+    gin = b.node("NodeGroupInput")
+    gout = b.node("NodeGroupOutput")
+    matrix, _size = _carrier_matrix(b, _socket(gin.outputs, "Light Matrices"), _socket(gin.outputs, "Map Index"))
+    inv = b.node("FunctionNodeInvertMatrix")
+    b.link(matrix, _socket(inv.inputs, "Matrix"))
+    inverse = _socket(inv.outputs, "Matrix")
+    cube = b.node("GeometryNodeMeshCube")
+    _socket(cube.inputs, "Size").default_value = (2.0, 2.0, 2.0)
+    for axis in "XYZ":
+        _socket(cube.inputs, f"Vertices {axis}").default_value = 2
+    ndc = b.node("GeometryNodeInputPosition").outputs[0]
+    xyz = _transform_point(b, inverse, ndc)
+    w = _homogeneous_w(b, inverse, ndc)
+    world = b.vmath("DIVIDE", xyz, b.combine_xyz(w, w, w))
+    inv_self = b.node("FunctionNodeInvertMatrix")
+    b.link(_self_transform(b), _socket(inv_self.inputs, "Matrix"))
+    local = _transform_point(b, _socket(inv_self.outputs, "Matrix"), world)
+    setpos = b.node("GeometryNodeSetPosition")
+    b.link(_socket(cube.outputs, "Mesh"), _socket(setpos.inputs, "Geometry"))
+    b.link(local, _socket(setpos.inputs, "Position"))
+    b.link(_socket(setpos.outputs, "Geometry"), gout.inputs[0])
+    tree[VERSION_KEY] = FRUSTUM_GROUP_VERSION
+    return tree
+
+
+def ensure_texel_material():
+    """The "Lixel Texel Grid" material: per-pixel texel parity from the
+    interpolated clip coordinates (x, y, w) with the divide done per pixel, so
+    texel edges are exact in EEVEE and Cycles. Workbench shows the per-face
+    ``lixel_texel_color`` (Viewport Shading > Color > Attribute)."""
+    mat = bpy.data.materials.get(TEXEL_MATERIAL)
+    if mat is not None and mat.get(VERSION_KEY) == MATERIAL_VERSION:
+        return mat
+    if mat is None:
+        mat = bpy.data.materials.new(TEXEL_MATERIAL)
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    tree = mat.node_tree
+    tree.nodes.clear()
+    b = _Builder(tree)
+    xyw = b.node("ShaderNodeAttribute", attribute_type="GEOMETRY", attribute_name=XYW_ATTRIBUTE)
+    size = b.node("ShaderNodeAttribute", attribute_type="GEOMETRY", attribute_name=SIZE_ATTRIBUTE)
+    c = b.separate_xyz(_socket(xyw.outputs, "Vector"))
+    s = b.separate_xyz(_socket(size.outputs, "Vector"))
+    u = b.math("FLOOR", b.math("MULTIPLY", b.math("MULTIPLY_ADD", b.math("DIVIDE", c[0], c[2]), 0.5, 0.5), s[0]))
+    v = b.math("FLOOR", b.math("MULTIPLY", b.math("MULTIPLY_ADD", b.math("DIVIDE", c[1], c[2]), 0.5, 0.5), s[1]))
+    parity = b.math("FLOORED_MODULO", b.math("ADD", u, v), 2.0)
+    mix = b.node("ShaderNodeMix", data_type="RGBA")
+    b.link(parity, _socket(mix.inputs, "Factor"))
+    mix.inputs[6].default_value = (0.9, 0.9, 0.9, 1.0)
+    mix.inputs[7].default_value = (0.08, 0.08, 0.1, 1.0)
+    bsdf = b.node("ShaderNodeBsdfDiffuse")
+    b.link(mix.outputs[2], _socket(bsdf.inputs, "Color"))
+    out = b.node("ShaderNodeOutputMaterial")
+    b.link(bsdf.outputs[0], _socket(out.inputs, "Surface"))
+    mat.diffuse_color = (0.6, 0.6, 0.6, 1.0)
+    mat[VERSION_KEY] = MATERIAL_VERSION
+    return mat
+
+
+# --- the matrix carrier and the objects using the groups --------------------------------------------------------
+
+def debug_collection(scene):
+    """The "Lixel Debug" collection, linked to the scene (created if needed)."""
+    coll = bpy.data.collections.get(DEBUG_COLLECTION)
+    if coll is None:
+        coll = bpy.data.collections.new(DEBUG_COLLECTION)
+    if coll.name not in scene.collection.children:
+        scene.collection.children.link(coll)
+    return coll
+
+
+def debug_object(scene, name, kind, data):
+    """The debug object ``name`` in the debug collection, given ``data`` (reused if
+    it exists: re-baking replaces the data, never duplicates the object)."""
+    coll = debug_collection(scene)
+    ob = bpy.data.objects.get(name)
+    if ob is not None and ob.get(DEBUG_KEY) is None:
+        raise RuntimeError(f"An object named '{name}' exists and is not Lixel's: rename it so Lixel can bake")
+    if ob is None:
+        ob = bpy.data.objects.new(name, data)
+    elif ob.data is not data:
+        old = ob.data
+        ob.data = data
+        if old is not None and old.users == 0:
+            bpy.data.meshes.remove(old)
+    ob[DEBUG_KEY] = kind
+    if ob.name not in coll.objects:
+        coll.objects.link(ob)
+    return ob
+
+
+def write_matrices(mesh, matrices, sizes) -> None:
+    """Put (N, 4, 4) row-major matrices and (N, 2) sizes on the carrier mesh's N points."""
+    mats = np.asarray(matrices, dtype=np.float64).reshape(-1, 4, 4)
+    n = len(mats)
+    if len(mesh.vertices) != n:
+        mesh.clear_geometry()
+        mesh.vertices.add(n)
+    for name, dtype in ((MATRIX_ATTRIBUTE, "FLOAT4X4"), (SIZE_ATTRIBUTE, "FLOAT_VECTOR")):
+        attr = mesh.attributes.get(name)
+        if attr is None or attr.data_type != dtype or attr.domain != "POINT":
+            if attr is not None:
+                mesh.attributes.remove(attr)
+            mesh.attributes.new(name, dtype, "POINT")
+    # FLOAT4X4 attribute values are column-major (shared notes §3/§5)
+    mesh.attributes[MATRIX_ATTRIBUTE].data.foreach_set("value", mats.transpose(0, 2, 1).astype(np.float32).ravel())
+    sz = np.zeros((n, 3), dtype=np.float32)
+    sz[:, :2] = np.asarray(sizes, dtype=np.float32).reshape(-1, 2)
+    mesh.attributes[SIZE_ATTRIBUTE].data.foreach_set("vector", sz.ravel())
+    mesh.update()
+
+
+def ensure_carrier(scene, setup):
+    """The matrix carrier object holding ``setup``'s maps (updated in place)."""
+    mesh = bpy.data.meshes.get(CARRIER_NAME)
+    if mesh is None:
+        mesh = bpy.data.meshes.new(CARRIER_NAME)
+    write_matrices(mesh, [m.matrix for m in setup.maps], [m.size for m in setup.maps])
+    ob = debug_object(scene, CARRIER_NAME, "carrier", mesh)
+    ob.hide_render = True
+    ob.matrix_world = ((1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1))
+    ob.update_tag(refresh={"DATA"})
+    return ob
+
+
+def _set_input(mod, tree, name, value):
+    for item in tree.interface.items_tree:
+        if getattr(item, "in_out", None) == "INPUT" and item.name == name:
+            mod[item.identifier] = value
+            return
+    raise KeyError(name)
+
+
+def add_texel_grid(ob, carrier, map_index: int = 0):
+    """Add (or update) the texel-grid modifier on mesh object ``ob``."""
+    group = ensure_texel_grid_group()
+    mat = ensure_texel_material()
+    mod = ob.modifiers.get(TEXEL_MODIFIER)
+    if mod is None or mod.type != "NODES":
+        mod = ob.modifiers.new(TEXEL_MODIFIER, "NODES")
+    mod.node_group = group
+    _set_input(mod, group, "Light Matrices", carrier)
+    _set_input(mod, group, "Map Index", int(map_index))
+    _set_input(mod, group, "Material", mat)
+    if not any(s.material == mat for s in ob.material_slots):
+        ob.data.materials.append(mat)
+    ob.update_tag()
+    return mod
+
+
+def remove_texel_grid(ob) -> bool:
+    mod = ob.modifiers.get(TEXEL_MODIFIER)
+    if mod is None:
+        return False
+    ob.modifiers.remove(mod)
+    return True
+
+
+def add_frustum_object(scene, carrier, map_index: int = 0):
+    """A debug object whose mesh is map ``map_index``'s clip volume, following the carrier."""
+    group = ensure_frustum_group()
+    name = f"Lixel Frustum (map {map_index})"
+    mesh = bpy.data.meshes.get(name) or bpy.data.meshes.new(name)
+    ob = debug_object(scene, name, "frustum_nodes", mesh)
+    mod = ob.modifiers.get(FRUSTUM_MODIFIER)
+    if mod is None or mod.type != "NODES":
+        mod = ob.modifiers.new(FRUSTUM_MODIFIER, "NODES")
+    mod.node_group = group
+    _set_input(mod, group, "Light Matrices", carrier)
+    _set_input(mod, group, "Map Index", int(map_index))
+    ob.display_type = "WIRE"
+    ob.update_tag()
+    return ob

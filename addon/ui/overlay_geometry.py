@@ -1,0 +1,182 @@
+"""What the viewport overlays draw, as plain numpy arrays (no bpy, no gpu).
+
+The draw handlers in :mod:`.overlays` only upload these arrays, so everything
+drawn can be checked in background mode against the warp core: B's faces are the
+:class:`~addon.warp.body.IntersectionBody` faces, the light frusta are the clip
+volumes of the maps' matrices (inverse projection of the unit cube), the warp
+frustum P is ``Diagnostics.warp_frustum_corners``.
+
+Also here: the footprint readout of the panel, from ``addon.measure.footprint``.
+"""
+from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
+
+from ..warp.geometry import UNIT_CUBE_CORNERS, clip_volume_corners, normalize
+from ..warp.types import ShadowSetup, View
+
+HEXAHEDRON_EDGES = np.array(
+    [(0, 1), (2, 3), (4, 5), (6, 7),   # x edges
+     (0, 2), (1, 3), (4, 6), (5, 7),   # y edges
+     (0, 4), (1, 5), (2, 6), (3, 7)],  # z edges (near -> far)
+    dtype=np.int64)
+"""The 12 edges of a hexahedron whose corners are ordered like ``UNIT_CUBE_CORNERS``."""
+
+assert all(np.sum(UNIT_CUBE_CORNERS[a] != UNIT_CUBE_CORNERS[b]) == 1 for a, b in HEXAHEDRON_EDGES)
+
+HEXAHEDRON_QUADS = np.array([(0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5)],
+                            dtype=np.int64)
+"""The 6 faces (outward) of such a hexahedron, as in ``warp.polyhedron.hexahedron_faces``."""
+
+EXTRA_PROJECTION_CENTRE = ("projection_centre", "projection_center", "eye", "warp_eye")
+EXTRA_V_P = ("v_p", "V_P", "warp_direction", "view_dir_projected")
+EXTRA_MIDDLE_VECTOR = ("middle_vector", "middle", "body_middle_vector")
+
+
+def fan_triangles(faces) -> np.ndarray:
+    """(T, 3, 3) triangles of convex planar polygons (each (K, 3)), fanned from
+    their first vertex."""
+    tris = [np.stack([f[0], f[i], f[i + 1]]) for f in faces for i in range(1, len(f) - 1)]
+    return np.asarray(tris, dtype=np.float64).reshape(-1, 3, 3)
+
+
+def polygon_edges(faces) -> np.ndarray:
+    """(E, 2, 3) boundary segments of polygons, each shared edge once."""
+    seen, out = set(), []
+    for f in faces:
+        k = len(f)
+        for i in range(k):
+            a, b = np.asarray(f[i], dtype=np.float64), np.asarray(f[(i + 1) % k], dtype=np.float64)
+            key = tuple(sorted((tuple(np.round(a, 9)), tuple(np.round(b, 9)))))
+            if key in seen:
+                continue
+            seen.add(key)
+            out.append((a, b))
+    return np.asarray(out, dtype=np.float64).reshape(-1, 2, 3)
+
+
+def hexahedron_lines(corners) -> np.ndarray:
+    """(12, 2, 3) edges of a frustum given as 8 corners (``UNIT_CUBE_CORNERS`` order)."""
+    c = np.asarray(corners, dtype=np.float64).reshape(8, 3)
+    return c[HEXAHEDRON_EDGES]
+
+
+def _extra_vector(extra: dict, names) -> Optional[np.ndarray]:
+    for n in names:
+        v = extra.get(n)
+        if v is None:
+            continue
+        a = np.asarray(v, dtype=np.float64).reshape(-1)
+        if a.shape == (3,) and np.all(np.isfinite(a)):
+            return a
+        if a.shape == (4,) and np.all(np.isfinite(a)) and abs(a[3]) > 1e-300:
+            return a[:3] / a[3]
+    return None
+
+
+def body_extent(body_faces, fallback: float = 1.0) -> float:
+    if not body_faces:
+        return fallback
+    p = np.concatenate([np.asarray(f) for f in body_faces])
+    return float(max(np.linalg.norm(p.max(axis=0) - p.min(axis=0)), 1e-9))
+
+
+def overlay_geometry(view: View, setup: Optional[ShadowSetup], body_faces=None) -> dict:
+    """Everything the line/triangle overlays draw, in world space (float64).
+
+    Keys:
+      ``body_triangles`` (T, 3, 3) and ``body_edges`` (E, 2, 3): B (Scherzer §4.1);
+      ``view_corners`` (8, 3) and ``view_lines`` (12, 2, 3): the camera's frustum V;
+      ``light_corners`` list of (8, 3) and ``light_lines`` (12·M, 2, 3): each map's clip volume;
+      ``warp_corners`` (8, 3) or None and ``warp_lines``: the warp frustum P (Scherzer §4.4);
+      ``points`` dict name -> (3,): the projection centre, B's centroid;
+      ``vectors`` dict name -> (2, 3) segment: V_P and B's middle vector from B's centroid
+      (or the projection centre), scaled to B's size.
+    ``body_faces``: B as convex polygons (``IntersectionBody.faces``); when None,
+    nothing of B is drawn.
+    """
+    faces = list(body_faces) if body_faces is not None else []
+    out: dict = {
+        "body_triangles": fan_triangles(faces),
+        "body_edges": polygon_edges(faces),
+        "view_corners": view.corners(),
+        "light_corners": [],
+        "warp_corners": None,
+        "points": {},
+        "vectors": {},
+    }
+    out["view_lines"] = hexahedron_lines(out["view_corners"])
+    light_lines = []
+    if setup is not None:
+        for m in setup.maps:
+            try:
+                corners = clip_volume_corners(m.matrix)
+            except np.linalg.LinAlgError:
+                continue
+            if not np.all(np.isfinite(corners)):
+                continue
+            out["light_corners"].append(corners)
+            light_lines.append(hexahedron_lines(corners))
+        diag = setup.diagnostics
+        if diag.warp_frustum_corners is not None:
+            wc = np.asarray(diag.warp_frustum_corners, dtype=np.float64).reshape(8, 3)
+            if np.all(np.isfinite(wc)):
+                out["warp_corners"] = wc
+        extent = body_extent(faces, fallback=float(np.linalg.norm(view.corners()[7] - view.corners()[0])) * 0.1)
+        centre = np.concatenate(faces).mean(axis=0) if faces else None
+        eye = _extra_vector(diag.extra, EXTRA_PROJECTION_CENTRE)
+        if eye is not None:
+            out["points"]["projection_centre"] = eye
+        if centre is not None:
+            out["points"]["body_centroid"] = centre
+        origin = centre if centre is not None else eye
+        if origin is not None:
+            for key, names in (("v_p", EXTRA_V_P), ("middle_vector", EXTRA_MIDDLE_VECTOR)):
+                d = _extra_vector(diag.extra, names)
+                if d is not None and np.linalg.norm(d) > 0:
+                    start = eye if (key == "v_p" and eye is not None) else origin
+                    out["vectors"][key] = np.stack([start, start + normalize(d) * extent * 0.5])
+    out["light_lines"] = (np.concatenate(light_lines) if light_lines else np.zeros((0, 2, 3)))
+    out["warp_lines"] = hexahedron_lines(out["warp_corners"]) if out["warp_corners"] is not None else np.zeros((0, 2, 3))
+    return out
+
+
+# --- texel footprint readout ----------------------------------------------------------------------------------
+
+def footprint_estimate(setup: ShadowSetup, view: View, points) -> Optional[dict]:
+    """Median and maximum texel footprint (screen pixels spanned by one texel,
+    ``addon.measure.footprint``) over world ``points`` (e.g. samples of the
+    visible part R of B) on surfaces facing the camera, each point in the map
+    that serves it. None when no point is served."""
+    from ..measure.footprint import setup_footprints
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if len(p) == 0 or setup is None or not setup.maps:
+        return None
+    normals = view.position[None, :] - p
+    keep = np.linalg.norm(normals, axis=1) > 0
+    p, normals = p[keep], normals[keep]
+    idx = setup.map_index(p, view, tol=1e-6)
+    linear, _area = setup_footprints(view, setup, p, normals, map_index=idx)
+    ok = np.isfinite(linear)
+    if not ok.any():
+        return None
+    return {"median": float(np.median(linear[ok])), "max": float(linear[ok].max()), "count": int(ok.sum())}
+
+
+def sample_points(polygons, per_edge: int = 4) -> np.ndarray:
+    """Points spread over convex polygons (vertices, edge points, centroids):
+    the sample the footprint readout uses on R (no randomness: stable readouts)."""
+    pts = []
+    for f in polygons:
+        f = np.asarray(f, dtype=np.float64)
+        c = f.mean(axis=0)
+        pts.append(c[None])
+        for i in range(len(f)):
+            a, b = f[i], f[(i + 1) % len(f)]
+            t = np.linspace(0.0, 1.0, per_edge, endpoint=False)[:, None]
+            edge = a + t * (b - a)
+            pts.append(edge)
+            pts.append(0.5 * (edge + c))
+    return np.concatenate(pts) if pts else np.zeros((0, 3))

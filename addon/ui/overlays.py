@@ -1,0 +1,485 @@
+"""Viewport overlays: draw handlers on ``SpaceView3D`` and the handlers that keep
+the live state current.
+
+* One ``POST_VIEW`` handler draws B (translucent faces and edges), the view and
+  light frusta, the warp frustum P with its projection centre, V_P and B's middle
+  vector, and the texel-grid checker / footprint heatmap on the receivers. One
+  ``POST_PIXEL`` handler draws the shadow map picture-in-picture and the status
+  line. They are added when the first overlay is switched on, removed when the
+  last is switched off, on file load (``load_pre``) and on unregister.
+* ``depsgraph_update_post`` classifies what changed (camera, light, other
+  objects, settings) and calls :func:`live.update` with only that, then tags
+  the 3D views for redraw.
+
+What is drawn comes from :mod:`.overlay_geometry` (pure numpy, tested in
+background mode); this module only uploads it. Shaders: the built-in
+``UNIFORM_COLOR`` (named ``3D_UNIFORM_COLOR`` before Blender 4.0, tried as a
+fallback) and, for the texel checker and heatmap, one shader made with
+``GPUShaderCreateInfo`` (``GPUShader(vert, frag)`` is gone in 5.0).
+"""
+from __future__ import annotations
+
+import logging
+
+import bpy
+import numpy as np
+from bpy.app.handlers import persistent
+
+from . import live
+from .properties import OVERLAYS
+
+log = logging.getLogger(__name__)
+
+_handles: dict[str, object] = {}
+_batches: dict = {}
+"""(scene name, overlay, generation) -> GPU batches, rebuilt when the generation changes."""
+_receivers: dict = {}
+"""scene name -> (generation, triangles (T,3,3) float32) of the receivers for the texel/heatmap overlays."""
+
+COLOURS = {
+    "body_face": (1.0, 0.55, 0.1),
+    "body_edge": (1.0, 0.55, 0.1, 0.9),
+    "view": (0.3, 0.8, 1.0, 0.9),
+    "light": (1.0, 0.95, 0.3, 0.9),
+    "warp": (1.0, 0.3, 0.9, 0.9),
+    "v_p": (0.2, 1.0, 0.3, 1.0),
+    "middle_vector": (0.1, 0.6, 1.0, 1.0),
+    "point": (1.0, 1.0, 1.0, 1.0),
+}
+
+GPU_OVERLAYS = ("show_map", "show_shadowed")
+"""Overlays that need the gpu pipeline (``addon/gpu``)."""
+
+
+# --- shaders -------------------------------------------------------------------------------------------------
+
+def builtin_shader(*names):
+    """The first built-in shader of ``names`` this Blender has (names changed in 4.0/5.0)."""
+    import gpu
+    last = None
+    for n in names:
+        try:
+            return gpu.shader.from_builtin(n)
+        except (ValueError, KeyError, TypeError) as exc:
+            last = exc
+    raise RuntimeError(f"none of the built-in shaders {names} exists: {last}")
+
+
+def uniform_colour_shader():
+    return builtin_shader("UNIFORM_COLOR", "3D_UNIFORM_COLOR")
+
+
+_TEXEL_SHADER = None
+
+TEXEL_VERTEX = """
+void main()
+{
+  v_world = pos;
+  gl_Position = u_view_projection * vec4(pos, 1.0);
+}
+"""
+
+TEXEL_FRAGMENT = """
+/* The first map whose clip volume holds the point (docs/architecture.md, map selection),
+   its texel coordinate with the explicit homogeneous divide, then either the parity checker
+   of the texel grid or the footprint: the side of one texel in screen pixels, from the screen
+   derivatives of the texel coordinate (Stamminger-Drettakis §1.1). */
+void main()
+{
+  int found = -1;
+  vec2 texel = vec2(0.0);
+  for (int i = 0; i < u_count; i++) {
+    vec4 c = u_light[i] * vec4(v_world, 1.0);
+    if (c.w <= 0.0) continue;
+    vec3 ndc = c.xyz / c.w;
+    if (any(greaterThan(abs(ndc), vec3(1.0)))) continue;
+    found = i;
+    texel = (ndc.xy * 0.5 + 0.5) * u_size;
+    break;
+  }
+  if (found < 0) {
+    FragColor = vec4(0.5, 0.5, 0.5, 0.25 * u_alpha);
+    return;
+  }
+  if (u_mode == 0) {
+    ivec2 t = ivec2(floor(texel));
+    float parity = float((t.x + t.y) & 1);
+    vec3 a = (found % 2 == 0) ? vec3(0.95, 0.95, 0.95) : vec3(0.95, 0.85, 0.6);
+    FragColor = vec4(mix(a, vec3(0.1, 0.1, 0.15), parity), u_alpha);
+  } else {
+    /* A = d texel / d pixel (columns dFdx, dFdy); the footprint (addon.measure.footprint) is the largest
+       singular value of A^-1 = 1 / the smallest singular value of A: screen pixels one texel spans. */
+    vec2 ax = dFdx(texel), ay = dFdy(texel);
+    float t = dot(ax, ax) + dot(ay, ay);
+    float d = ax.x * ay.y - ax.y * ay.x;
+    float s_min = sqrt(max(0.5 * (t - sqrt(max(t * t - 4.0 * d * d, 0.0))), 0.0));
+    float px = 1.0 / max(s_min, 1e-6);
+    float s = clamp(log2(px) / 4.0 + 0.5, 0.0, 1.0);
+    vec3 col = s < 0.5 ? mix(vec3(0.1, 0.2, 1.0), vec3(0.1, 0.9, 0.2), s * 2.0)
+                       : mix(vec3(0.1, 0.9, 0.2), vec3(1.0, 0.1, 0.1), s * 2.0 - 1.0);
+    FragColor = vec4(col, u_alpha);
+  }
+}
+"""
+
+MAX_SHADER_MAPS = 6
+"""The checker/heatmap shader serves up to this many maps (a point light's cube faces)."""
+
+
+def texel_shader():
+    """The texel-checker / footprint-heatmap shader (built once, needs a GPU context)."""
+    global _TEXEL_SHADER
+    if _TEXEL_SHADER is None:
+        import gpu
+        iface = gpu.types.GPUStageInterfaceInfo("lixel_texel_iface")
+        iface.smooth("VEC3", "v_world")
+        info = gpu.types.GPUShaderCreateInfo()
+        info.vertex_in(0, "VEC3", "pos")
+        info.vertex_out(iface)
+        info.push_constant("MAT4", "u_view_projection")
+        info.push_constant("MAT4", "u_light", MAX_SHADER_MAPS)
+        info.push_constant("VEC2", "u_size")
+        info.push_constant("INT", "u_count")
+        info.push_constant("INT", "u_mode")
+        info.push_constant("FLOAT", "u_alpha")
+        info.fragment_out(0, "VEC4", "FragColor")
+        info.vertex_source(TEXEL_VERTEX)
+        info.fragment_source(TEXEL_FRAGMENT)
+        _TEXEL_SHADER = gpu.shader.create_from_info(info)
+    return _TEXEL_SHADER
+
+
+# --- handler management --------------------------------------------------------------------------------------
+
+def wanted(scene) -> bool:
+    props = getattr(scene, "lixel", None)
+    return props is not None and props.any_overlay()
+
+
+def sync_handlers(context=None) -> None:
+    """Add the draw handlers if any scene shows an overlay, remove them otherwise,
+    and tag the 3D views for redraw."""
+    scenes = bpy.data.scenes if hasattr(bpy.data, "scenes") else ()
+    need = any(wanted(s) for s in scenes)
+    if need:
+        add_draw_handlers()
+    else:
+        remove_draw_handlers()
+    tag_redraw(context)
+
+
+def add_draw_handlers() -> None:
+    if "view" not in _handles:
+        _handles["view"] = bpy.types.SpaceView3D.draw_handler_add(draw_view, (), "WINDOW", "POST_VIEW")
+    if "pixel" not in _handles:
+        _handles["pixel"] = bpy.types.SpaceView3D.draw_handler_add(draw_pixel, (), "WINDOW", "POST_PIXEL")
+
+
+def remove_draw_handlers() -> None:
+    for key in ("view", "pixel"):
+        h = _handles.pop(key, None)
+        if h is not None:
+            bpy.types.SpaceView3D.draw_handler_remove(h, "WINDOW")
+    _batches.clear()
+    _receivers.clear()
+
+
+def draw_handlers_active() -> tuple[str, ...]:
+    return tuple(sorted(_handles))
+
+
+def tag_redraw(context=None) -> None:
+    wm = getattr(bpy.context, "window_manager", None)
+    if wm is None:
+        return
+    for window in wm.windows:
+        for area in window.screen.areas:
+            if area.type == "VIEW_3D":
+                area.tag_redraw()
+
+
+# --- live updates ----------------------------------------------------------------------------------------------
+
+def classify_updates(scene, depsgraph) -> set:
+    """Which live inputs a depsgraph update touched: 'view' (the scene camera or
+    its data), 'light' (any light: the chosen one may change), 'bounds' (any
+    other object or geometry), 'settings' (the scene itself)."""
+    changed = set()
+    cam = scene.camera
+    cam_data = cam.data if cam is not None else None
+    for u in depsgraph.updates:
+        idb = u.id
+        orig = getattr(idb, "original", idb)
+        if isinstance(orig, bpy.types.Scene):
+            changed.add("settings")
+            changed.add("view")  # the scene camera or the render size may have changed
+        elif isinstance(orig, bpy.types.Object):
+            if cam is not None and orig == cam:
+                changed.add("view")
+            elif orig.type == "LIGHT":
+                changed.add("light")
+            elif orig.type == "CAMERA":
+                continue
+            else:
+                changed.add("bounds")
+        elif isinstance(orig, bpy.types.Camera):
+            if cam_data is not None and orig == cam_data:
+                changed.add("view")
+        elif isinstance(orig, bpy.types.Light):
+            changed.add("light")
+        elif isinstance(orig, (bpy.types.Mesh, bpy.types.Curve, bpy.types.MetaBall, bpy.types.NodeTree,
+                               bpy.types.Collection)):
+            changed.add("bounds")
+    return changed
+
+
+@persistent
+def on_depsgraph_update(scene, depsgraph):
+    """Recompute only what changed, for scenes Lixel already computed and that
+    have live updates on (the cost goes to the panel's timing readout)."""
+    props = getattr(scene, "lixel", None)
+    if props is None or not props.live_update or live.state(scene) is None:
+        return
+    changed = classify_updates(scene, depsgraph)
+    if not changed:
+        return
+    try:
+        active = depsgraph.view_layer.objects.active
+    except (AttributeError, ReferenceError):
+        active = None
+    live.update(scene, depsgraph, changed=changed, active=active)
+    tag_redraw()
+
+
+@persistent
+def on_load_pre(*_args):
+    """A file is being loaded: drop the draw handlers, batches and live state
+    (they point at the old file's data)."""
+    remove_draw_handlers()
+    live.clear()
+
+
+@persistent
+def on_load_post(*_args):
+    """Re-add the draw handlers if the loaded file has overlays switched on, and
+    give never-set-up scenes the preference defaults."""
+    from .properties import ensure_defaults
+    for scene in bpy.data.scenes:
+        ensure_defaults(scene)
+    sync_handlers()
+
+
+APP_HANDLERS = (("depsgraph_update_post", on_depsgraph_update), ("load_pre", on_load_pre),
+                ("load_post", on_load_post))
+
+
+# --- drawing ---------------------------------------------------------------------------------------------------
+
+def _scene_state():
+    scene = bpy.context.scene
+    if scene is None or not wanted(scene):
+        return None, None
+    st = live.state(scene)
+    if st is None:
+        st = live.update(scene, bpy.context.evaluated_depsgraph_get(), active=bpy.context.view_layer.objects.active)
+    return scene, st
+
+
+def _line_batch(shader, segments):
+    from gpu_extras.batch import batch_for_shader
+    pos = np.asarray(segments, dtype=np.float32).reshape(-1, 3)
+    return batch_for_shader(shader, "LINES", {"pos": pos})
+
+
+def _tri_batch(shader, triangles):
+    from gpu_extras.batch import batch_for_shader
+    pos = np.asarray(triangles, dtype=np.float32).reshape(-1, 3)
+    return batch_for_shader(shader, "TRIS", {"pos": pos})
+
+
+def _point_batch(shader, points):
+    from gpu_extras.batch import batch_for_shader
+    pos = np.asarray(points, dtype=np.float32).reshape(-1, 3)
+    return batch_for_shader(shader, "POINTS", {"pos": pos})
+
+
+def _cached(scene_name, key, generation, build):
+    k = (scene_name, key)
+    hit = _batches.get(k)
+    if hit is not None and hit[0] == generation:
+        return hit[1]
+    value = build()
+    _batches[k] = (generation, value)
+    return value
+
+
+def line_sets(props, geometry) -> list:
+    """(name, colour key, (E, 2, 3) segments) to draw for the enabled line overlays."""
+    out = []
+    if props.show_body:
+        out.append(("body_edges", "body_edge", geometry["body_edges"]))
+    if props.show_frusta:
+        out.append(("view_lines", "view", geometry["view_lines"]))
+        out.append(("light_lines", "light", geometry["light_lines"]))
+    if props.show_warp:
+        out.append(("warp_lines", "warp", geometry["warp_lines"]))
+        for name, seg in geometry["vectors"].items():
+            out.append((f"vector_{name}", name, seg[None]))
+    return [(n, c, s) for n, c, s in out if len(s)]
+
+
+def draw_view():
+    """POST_VIEW: B, the frusta, P and its vectors, texels/heatmap on receivers."""
+    import gpu
+    try:
+        scene, st = _scene_state()
+        if st is None or st.geometry is None:
+            return
+        props = scene.lixel
+        geometry = st.geometry
+        shader = uniform_colour_shader()
+        gpu.state.blend_set("ALPHA")
+        gpu.state.depth_test_set("LESS_EQUAL")
+        gpu.state.depth_mask_set(False)
+        if props.show_texels or props.show_footprint:
+            _draw_receivers(scene, st, props)
+        shader.bind()
+        if props.show_body and len(geometry["body_triangles"]):
+            batch = _cached(scene.name, "body_triangles", st.generation,
+                            lambda: _tri_batch(shader, geometry["body_triangles"]))
+            shader.uniform_float("color", (*COLOURS["body_face"], props.body_alpha))
+            batch.draw(shader)
+        gpu.state.line_width_set(2.0)
+        for name, colour, segments in line_sets(props, geometry):
+            batch = _cached(scene.name, name, st.generation, lambda s=segments: _line_batch(shader, s))
+            shader.uniform_float("color", COLOURS[colour])
+            batch.draw(shader)
+        if props.show_warp and geometry["points"]:
+            gpu.state.point_size_set(8.0)
+            pts = np.array(list(geometry["points"].values()))
+            batch = _cached(scene.name, "points", st.generation, lambda: _point_batch(shader, pts))
+            shader.uniform_float("color", COLOURS["point"])
+            batch.draw(shader)
+            gpu.state.point_size_set(1.0)
+        gpu.state.line_width_set(1.0)
+        gpu.state.depth_test_set("NONE")
+        gpu.state.blend_set("NONE")
+    except Exception:  # a draw callback must never raise into Blender's draw loop
+        log.exception("Lixel overlay drawing failed")
+
+
+def receiver_triangles(depsgraph) -> np.ndarray:
+    """(T, 3, 3) world-space triangles of every drawable instance except Lixel's
+    debug objects (for the receiver overlays), read by ``addon.scene.geometry``."""
+    from ..scene.geometry import read_object
+    from ..scene.instances import walk_instances
+    local: dict = {}
+
+    def on_geometry(key, ob):
+        if live.is_debug_object(ob):
+            return False
+        got = read_object(ob)
+        if got is None:
+            return False
+        pos, tris, _fingerprint = got
+        local[key] = np.asarray(pos, dtype=np.float64)[np.asarray(tris)]
+        return True
+
+    inst = walk_instances(depsgraph, on_geometry=on_geometry)
+    out = []
+    for key, m in zip(inst.keys, inst.matrices):
+        t = local[key].reshape(-1, 3)
+        out.append((t @ m[:3, :3].T + m[:3, 3]).reshape(-1, 3, 3))
+    return np.concatenate(out) if out else np.zeros((0, 3, 3))
+
+
+def _draw_receivers(scene, st, props):
+    import gpu
+    from gpu_extras.batch import batch_for_shader
+    shader = texel_shader()
+    hit = _receivers.get(scene.name)
+    bounds_key = id(st.bounds)
+    if hit is None or hit[0] != bounds_key:
+        tris = receiver_triangles(bpy.context.evaluated_depsgraph_get())
+        batch = batch_for_shader(shader, "TRIS", {"pos": tris.reshape(-1, 3).astype(np.float32)}) if len(tris) else None
+        _receivers[scene.name] = hit = (bounds_key, batch)
+    batch = hit[1]
+    if batch is None:
+        return
+    import mathutils
+    maps = st.setup.maps[:MAX_SHADER_MAPS]
+    shader.bind()
+    shader.uniform_float("u_view_projection", bpy.context.region_data.perspective_matrix)
+    flat = np.zeros((MAX_SHADER_MAPS, 16), dtype=np.float32)
+    for i, m in enumerate(maps):
+        flat[i] = np.asarray(m.matrix, dtype=np.float64).T.ravel()
+    shader.uniform_vector_float(shader.uniform_from_name("u_light"),
+                                gpu.types.Buffer("FLOAT", MAX_SHADER_MAPS * 16, flat.ravel()), 16, MAX_SHADER_MAPS)
+    shader.uniform_float("u_size", tuple(float(v) for v in maps[0].size))
+    shader.uniform_int("u_count", len(maps))
+    shader.uniform_float("u_alpha", 0.85)
+    for mode, on in ((0, props.show_texels), (1, props.show_footprint)):
+        if on:
+            shader.uniform_int("u_mode", mode)
+            batch.draw(shader)
+    del mathutils
+
+
+def draw_pixel():
+    """POST_PIXEL: status line and the shadow map picture-in-picture."""
+    try:
+        scene, st = _scene_state()
+        if st is None:
+            return
+        import blf
+        props = scene.lixel
+        font = 0
+        blf.size(font, 13)
+        blf.color(font, 1.0, 1.0, 1.0, 0.9)
+        y = 40
+        text = (f"Lixel: {st.error}" if st.error else
+                f"Lixel {st.method_used}: {len(st.setup.maps)} map(s), B {len(st.setup.diagnostics.body_vertices)} "
+                f"vertices, update {st.total_ms():.1f} ms")
+        blf.position(font, 20, y, 0)
+        blf.draw(font, text)
+        if (props.show_map or props.show_shadowed) and st.setup is not None:
+            note = _draw_gpu_overlays(scene, st, props)
+            if note:
+                blf.position(font, 20, y + 18, 0)
+                blf.draw(font, note)
+    except Exception:
+        log.exception("Lixel overlay drawing failed")
+
+
+def gpu_pipeline():
+    """The gpu pipeline's public module if it is built (``addon/gpu``), else None."""
+    try:
+        from .. import gpu as pipeline
+    except ImportError:
+        return None
+    return pipeline if hasattr(pipeline, "render_shadow_map") else None
+
+
+def _draw_gpu_overlays(scene, st, props) -> str:
+    """The shadow map PiP and the shadowed scene need the gpu pipeline; returns a
+    note for the status line when it is not available."""
+    pipeline = gpu_pipeline()
+    if pipeline is None:
+        return "shadow map / shadowed scene overlays need the gpu pipeline (addon/gpu), not built yet"
+    return ""
+
+
+def register():
+    for name, fn in APP_HANDLERS:
+        getattr(bpy.app.handlers, name).append(fn)
+
+
+def unregister():
+    for name, fn in APP_HANDLERS:
+        lst = getattr(bpy.app.handlers, name)
+        while fn in lst:
+            lst.remove(fn)
+    remove_draw_handlers()
+    live.clear()
+    global _TEXEL_SHADER
+    _TEXEL_SHADER = None

@@ -1,0 +1,257 @@
+"""``scene.lixel``: Lixel's settings stored on the Scene, mirroring the plain
+data of ``addon.settings`` (``LixelSettings``, ``ShadowSettings``) and
+``addon.warp.types.WarpOptions``; ``to_settings()`` converts.
+
+Defaults of a scene that has never been set up come from the add-on
+preferences (``addon.ui.preferences``), applied by :func:`ensure_defaults`.
+"""
+import math
+
+import bpy
+from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, FloatVectorProperty,
+                       IntProperty, IntVectorProperty, PointerProperty, StringProperty)
+
+from ..settings import BIAS_MODES, MDSM_SELECTIONS, LixelSettings, ShadowSettings
+from ..warp.types import WarpError, WarpOptions
+
+# Methods named in docs/architecture.md, in the order the UI lists them.
+DOCUMENTED_METHODS = ("uniform", "psm", "lispsm", "gmnpr", "glpr", "plane_optimal")
+METHOD_LABELS = {
+    "uniform": ("Uniform", "Orthographic/perspective light map fitted to B, no warp (reference)"),
+    "psm": ("PSM", "Perspective shadow maps: the map is taken in the camera's post-perspective space "
+                   "(Stamminger-Drettakis §3-4)"),
+    "lispsm": ("LiSPSM", "Light-space perspective shadow maps with n_opt (Scherzer §4.4, Eq. 1-3)"),
+    "gmnpr": ("GMNPR", "Generalized minimum-norm perspective reparameterisation, λ by Eq. 8 (Zhang et al.)"),
+    "glpr": ("GLPR", "Generalized LiSPSM reparameterisation, λ by Eq. 9 (Zhang et al.)"),
+    "plane_optimal": ("Plane optimal", "One map per plane of interest, exact for that plane, plus a fallback "
+                                       "map (Chong-Gortler §2-3)"),
+}
+MAX_MAP_SIZE = 16384
+"""The largest texture side the GPU (and WarpOptions) accept; see notes §8.8."""
+
+LAMBDA_METHODS = ("gmnpr", "glpr")
+N_OPT_METHODS = ("lispsm",)
+PLANE_METHODS = ("plane_optimal",)
+
+
+def available_methods() -> tuple[str, ...]:
+    """Method names the warp core registers, documented ones first. Falls back
+    to the documented names while the core is being built."""
+    try:
+        from ..warp.methods import METHODS
+        names = tuple(METHODS)
+    except ImportError:
+        names = ()
+    return DOCUMENTED_METHODS + tuple(n for n in names if n not in DOCUMENTED_METHODS)
+
+
+def method_items():
+    items = []
+    for i, name in enumerate(available_methods()):
+        label, desc = METHOD_LABELS.get(name, (name.replace("_", " ").title(), f"Warp method '{name}'"))
+        items.append((name, label, desc, i))
+    return items
+
+
+def _light_poll(self, obj):
+    return obj.type == "LIGHT"
+
+
+class LixelPlane(bpy.types.PropertyGroup):
+    """A plane of interest for plane_optimal (Chong-Gortler §3): a point on it and its normal."""
+
+    point: FloatVectorProperty(name="Point", subtype="TRANSLATION", size=3, default=(0.0, 0.0, 0.0))
+    normal: FloatVectorProperty(name="Normal", subtype="DIRECTION", size=3, default=(0.0, 0.0, 1.0))
+    source: StringProperty(name="Source", description="What the plane was taken from")
+
+
+OVERLAYS = (
+    ("show_body", "Intersection body B", "The intersection body B: translucent faces and edges (Scherzer §4.1)"),
+    ("show_frusta", "View and light frusta", "The camera's view frustum and each shadow map's light frustum"),
+    ("show_warp", "Warp frustum P", "The warp frustum P with its projection centre, V_P and B's middle vector "
+                                    "(Scherzer §4.4)"),
+    ("show_texels", "Texel grid", "A checker of shadow-map texel parity on the receivers, so texel sizes show"),
+    ("show_footprint", "Footprint heatmap", "Shadow-map texel footprint per screen pixel on the receivers "
+                                            "(Stamminger-Drettakis §1.1)"),
+    ("show_map", "Shadow map", "The shadow map itself, picture-in-picture"),
+    ("show_shadowed", "Shadowed scene", "The scene shaded with Lixel's shadows"),
+)
+
+
+class LixelSceneSettings(bpy.types.PropertyGroup):
+    """Everything Lixel needs to compute and render shadows for this scene."""
+
+    initialised: BoolProperty(
+        name="Initialised", default=False, options={"HIDDEN"},
+        description="The preference defaults have been applied to this scene")
+    light: PointerProperty(
+        name="Light", type=bpy.types.Object, poll=_light_poll,
+        description="The light that casts Lixel's shadows (empty: the active light, else the first sun)")
+    method: EnumProperty(name="Method", items=method_items(), default="lispsm",
+                         description="How the shadow map is parametrised")
+
+    # WarpOptions
+    shadow_map_size: IntVectorProperty(
+        name="Map Size", size=2, default=(2048, 2048), min=1, max=MAX_MAP_SIZE, soft_min=64, soft_max=8192,
+        description=f"Shadow map texels (width, height); at most {MAX_MAP_SIZE} per side. "
+                    "Multi-map methods split this budget")
+    texel_snapping: BoolProperty(name="Texel Snapping", default=False,
+                                 description="Snap the uniform map's window to whole texels so shadows do not crawl")
+    delta_z: EnumProperty(
+        name="n_opt Δz", default="body",
+        items=(("body", "Body", "Δz is the extent of B along the view direction (Scherzer §4.4, Eq. 1)"),
+               ("visible", "Visible", "Δz is the visible depth range (Scherzer §4.4, 'Δz from visibility')")),
+        description="What Δz in n_opt = (z_n + √(z_n(z_n+Δz)))/sin γ measures (Scherzer Eq. 1)")
+    use_visible_depth_range: BoolProperty(
+        name="Custom Visible Range", default=False,
+        description="Give the visible depth range by hand instead of taking it from the scene")
+    visible_depth_range: FloatVectorProperty(
+        name="Visible Range", size=2, default=(0.1, 100.0), min=0.0, subtype="NONE", unit="LENGTH",
+        description="Near and far eye depth of what is visible (for Δz = Visible)")
+    middle_vector: BoolProperty(
+        name="Middle Vector", default=False,
+        description="Use B's middle vector as V_P instead of Eq. 3 (Scherzer §4.4)")
+    linear_z: BoolProperty(name="Linear Z", default=False,
+                           description="Linear depth distribution in the map (Scherzer §4.2)")
+    use_lambda: BoolProperty(name="Override λ", default=False,
+                             description="Force GMNPR's λ instead of computing it (Zhang et al. Eq. 8/9)")
+    lam: FloatProperty(name="λ", default=0.5, min=0.0, soft_max=1.0, precision=4,
+                       description="The reparameterisation's λ (Zhang et al. Eq. 2)")
+    max_frustum_angle: FloatProperty(
+        name="Max Frustum Angle", default=math.radians(120.0), min=math.radians(10.0), max=math.radians(170.0),
+        subtype="ANGLE", description="Widest single perspective map for a point light; wider needs take cube faces")
+    planes: CollectionProperty(type=LixelPlane, name="Planes of Interest")
+    active_plane: IntProperty(name="Active Plane", default=0, min=0)
+    plane_budget: FloatProperty(name="Plane Budget", default=0.75, min=0.01, max=1.0, subtype="FACTOR",
+                                description="Fraction of the texel budget given to the plane maps (rest: fallback)")
+
+    # ShadowSettings
+    bias_mode: EnumProperty(
+        name="Bias", default="CONSTANT_SLOPE",
+        items=(("NONE", "None", "No depth bias"),
+               ("CONSTANT", "Constant", "A constant depth offset (Scherzer §4.2)"),
+               ("SLOPE", "Slope", "An offset proportional to the depth slope (Scherzer §4.2)"),
+               ("CONSTANT_SLOPE", "Constant + Slope", "Both offsets (Scherzer §4.2)")))
+    constant_bias: FloatProperty(name="Constant Bias", default=0.0005, min=0.0, soft_max=0.01, precision=5,
+                                 description="Depth offset in NDC depth units")
+    slope_bias: FloatProperty(name="Slope Bias", default=1.5, min=0.0, soft_max=10.0,
+                              description="Multiples of the depth slope per texel")
+    back_faces: BoolProperty(name="Back Faces", default=False,
+                             description="Render back faces into the map (Scherzer §4.2)")
+    pcf_kernel: IntProperty(name="PCF k", default=3, min=1, max=5,
+                            description="k × k percentage-closer filtering")
+    mdsm_depths: IntProperty(name="MDSM Depths", default=1, min=1, max=4,
+                             description="n of the n-shadow map (Pagot et al. §4.2); 1 = an ordinary map")
+    mdsm_selection: EnumProperty(
+        name="MDSM Selection", default="MINMAX",
+        items=(("MINMAX", "Min/Max", "Keep the min and max of the neighbourhood (Pagot et al. §4.3)"),
+               ("SORT", "Sort", "Keep the n sorted depths of the neighbourhood (Pagot et al. §4.3)")))
+    mdsm_neighbourhood: IntProperty(name="MDSM Neighbourhood", default=3, min=1, max=7,
+                                    description="q of the q × q neighbourhood the depths are selected from")
+    eye_blur: FloatProperty(name="Eye Blur", default=0.0, min=0.0, soft_max=8.0, subtype="PIXEL",
+                            description="Depth-dependent eye-space blur radius in pixels, 0 = off (Scherzer §4.3)")
+
+    # Overlays and live updates
+    show_body: BoolProperty(name=OVERLAYS[0][1], description=OVERLAYS[0][2], default=False)
+    show_frusta: BoolProperty(name=OVERLAYS[1][1], description=OVERLAYS[1][2], default=False)
+    show_warp: BoolProperty(name=OVERLAYS[2][1], description=OVERLAYS[2][2], default=False)
+    show_texels: BoolProperty(name=OVERLAYS[3][1], description=OVERLAYS[3][2], default=False)
+    show_footprint: BoolProperty(name=OVERLAYS[4][1], description=OVERLAYS[4][2], default=False)
+    show_map: BoolProperty(name=OVERLAYS[5][1], description=OVERLAYS[5][2], default=False)
+    show_shadowed: BoolProperty(name=OVERLAYS[6][1], description=OVERLAYS[6][2], default=False)
+    live_update: BoolProperty(
+        name="Live Update", default=True,
+        description="Recompute when the camera, the light or objects change (only what changed)")
+    body_alpha: FloatProperty(name="Body Opacity", default=0.15, min=0.0, max=1.0, subtype="FACTOR")
+    map_pip_size: IntProperty(name="Map Size on Screen", default=256, min=64, max=1024, subtype="PIXEL",
+                              description="Side of the picture-in-picture shadow map")
+
+    def warp_options(self) -> WarpOptions:
+        """The WarpOptions these settings describe (raises WarpError with a clear message)."""
+        w, h = (int(v) for v in self.shadow_map_size)
+        if not (1 <= w <= MAX_MAP_SIZE and 1 <= h <= MAX_MAP_SIZE):
+            raise WarpError(f"Lixel map size {w}x{h} is out of range: use 1..{MAX_MAP_SIZE} texels per side")
+        planes = tuple((tuple(p.point), tuple(p.normal)) for p in self.planes)
+        vis = None
+        if self.use_visible_depth_range:
+            near, far = (float(v) for v in self.visible_depth_range)
+            if not 0 <= near < far:
+                raise WarpError(f"Lixel visible range must satisfy 0 <= near < far (got {near}, {far})")
+            vis = (near, far)
+        return WarpOptions(
+            shadow_map_size=(w, h), texel_snapping=self.texel_snapping, delta_z=self.delta_z,
+            visible_depth_range=vis, middle_vector=self.middle_vector, linear_z=self.linear_z,
+            lam=float(self.lam) if self.use_lambda else None, max_frustum_angle=float(self.max_frustum_angle),
+            planes=planes, plane_budget=float(self.plane_budget))
+
+    def shadow_settings(self) -> ShadowSettings:
+        return ShadowSettings(
+            bias_mode=self.bias_mode, constant_bias=float(self.constant_bias), slope_bias=float(self.slope_bias),
+            back_faces=self.back_faces, pcf_kernel=int(self.pcf_kernel), mdsm_depths=int(self.mdsm_depths),
+            mdsm_selection=self.mdsm_selection, mdsm_neighbourhood=int(self.mdsm_neighbourhood),
+            eye_blur=float(self.eye_blur))
+
+    def to_settings(self) -> LixelSettings:
+        """The plain ``LixelSettings`` the render engine, scripts and overlays use."""
+        return LixelSettings(method=self.method, warp=self.warp_options(), shadow=self.shadow_settings())
+
+    def from_settings(self, settings: LixelSettings) -> None:
+        """Write plain settings into these properties (preferences, scripts)."""
+        if settings.method in available_methods():
+            self.method = settings.method
+        wo, sh = settings.warp, settings.shadow
+        self.shadow_map_size = wo.shadow_map_size
+        self.texel_snapping = wo.texel_snapping
+        self.delta_z = wo.delta_z
+        self.use_visible_depth_range = wo.visible_depth_range is not None
+        if wo.visible_depth_range is not None:
+            self.visible_depth_range = wo.visible_depth_range
+        self.middle_vector = wo.middle_vector
+        self.linear_z = wo.linear_z
+        self.use_lambda = wo.lam is not None
+        if wo.lam is not None:
+            self.lam = wo.lam
+        self.max_frustum_angle = wo.max_frustum_angle
+        self.plane_budget = wo.plane_budget
+        self.planes.clear()
+        for point, normal in wo.planes:
+            p = self.planes.add()
+            p.point, p.normal = point, normal
+        for name in ("bias_mode", "constant_bias", "slope_bias", "back_faces", "pcf_kernel", "mdsm_depths",
+                     "mdsm_selection", "mdsm_neighbourhood", "eye_blur"):
+            setattr(self, name, getattr(sh, name))
+
+    def any_overlay(self) -> bool:
+        return any(getattr(self, name) for name, _, _ in OVERLAYS)
+
+
+def ensure_defaults(scene) -> bool:
+    """Apply the add-on preferences' defaults to a scene never set up before.
+    Returns True if it did. (Not callable from draw code: it writes.)"""
+    props = getattr(scene, "lixel", None)
+    if props is None or props.initialised:
+        return False
+    from .preferences import preference_settings
+    prefs = preference_settings()
+    if prefs is not None:
+        props.from_settings(prefs)
+    props.initialised = True
+    return True
+
+
+classes = (LixelPlane, LixelSceneSettings)
+
+assert set(BIAS_MODES) == {i[0] for i in LixelSceneSettings.__annotations__["bias_mode"].keywords["items"]}
+assert set(MDSM_SELECTIONS) == {i[0] for i in LixelSceneSettings.__annotations__["mdsm_selection"].keywords["items"]}
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.lixel = PointerProperty(type=LixelSceneSettings, name="Lixel")
+
+
+def unregister():
+    del bpy.types.Scene.lixel
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)

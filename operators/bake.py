@@ -1,0 +1,199 @@
+"""Bake the debug geometry (B, the frusta, P's vectors) to mesh objects in the
+"Lixel Debug" collection, and the geometry-node tooling (texel grid, frustum
+from matrix)."""
+import bpy
+import numpy as np
+from bpy.props import BoolProperty, IntProperty
+
+from ..addon.ui import nodes
+from ..addon.ui.live import DEBUG_KEY
+from ..addon.ui.overlay_geometry import HEXAHEDRON_QUADS
+from .common import current_state, initialise, scene_poll
+
+BAKED = "baked"
+
+
+def mesh_from_polygons(name, polygons):
+    """A mesh datablock (new or emptied) from convex polygons, vertices shared
+    where polygons meet."""
+    mesh = bpy.data.meshes.get(name) or bpy.data.meshes.new(name)
+    mesh.clear_geometry()
+    verts, index, faces = [], {}, []
+    for poly in polygons:
+        face = []
+        for p in np.asarray(poly, dtype=np.float64):
+            key = tuple(np.round(p, 9))
+            if key not in index:
+                index[key] = len(verts)
+                verts.append(tuple(p))
+            face.append(index[key])
+        faces.append(face)
+    mesh.from_pydata(verts, [], faces)
+    mesh.update()
+    return mesh
+
+
+def mesh_from_segments(name, segments):
+    mesh = bpy.data.meshes.get(name) or bpy.data.meshes.new(name)
+    mesh.clear_geometry()
+    seg = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 3)
+    verts = [tuple(p) for p in seg.reshape(-1, 3)]
+    edges = [(2 * i, 2 * i + 1) for i in range(len(seg))]
+    mesh.from_pydata(verts, edges, [])
+    mesh.update()
+    return mesh
+
+
+def baked_items(st) -> list:
+    """(object name, kind, 'faces'|'edges', data) for everything bake makes."""
+    g = st.geometry
+    items = [("Lixel B", "body", "faces", st.body.faces),
+             ("Lixel View Frustum", "view_frustum", "faces", [g["view_corners"][q] for q in HEXAHEDRON_QUADS])]
+    for i, corners in enumerate(g["light_corners"]):
+        items.append((f"Lixel Light Frustum {i} ({st.setup.maps[i].role})", "light_frustum", "faces",
+                      [corners[q] for q in HEXAHEDRON_QUADS]))
+    if g["warp_corners"] is not None:
+        items.append(("Lixel Warp Frustum P", "warp_frustum", "faces", [g["warp_corners"][q] for q in HEXAHEDRON_QUADS]))
+    for key, seg in g["vectors"].items():
+        items.append((f"Lixel {key}", key, "edges", seg[None]))
+    return items
+
+
+def bake(scene, st) -> list:
+    """Create or update the baked objects; remove baked objects this setup no
+    longer has (e.g. fewer maps). Returns the objects."""
+    made = []
+    for name, kind, what, data in baked_items(st):
+        mesh = mesh_from_polygons(name, data) if what == "faces" else mesh_from_segments(name, data)
+        ob = nodes.debug_object(scene, name, f"{BAKED}:{kind}", mesh)
+        ob.display_type = "SOLID" if kind == "body" else "WIRE"
+        if kind == "body":
+            ob.show_transparent = True
+            ob.color = (1.0, 0.55, 0.1, 0.3)
+        if hasattr(ob, "visible_shadow"):
+            ob.visible_shadow = False
+        made.append(ob)
+    keep = {ob.name for ob in made}
+    coll = nodes.debug_collection(scene)
+    for ob in list(coll.objects):
+        if str(ob.get(DEBUG_KEY, "")).startswith(BAKED + ":") and ob.name not in keep:
+            mesh = ob.data
+            bpy.data.objects.remove(ob)
+            if mesh is not None and mesh.users == 0:
+                bpy.data.meshes.remove(mesh)
+    return made
+
+
+class LIXEL_OT_bake_debug(bpy.types.Operator):
+    """Bake B, the view and light frusta, the warp frustum P and its vectors to meshes in the "Lixel Debug" collection (visible in any render engine and saved with the file; re-baking replaces them)"""
+
+    bl_idname = "lixel.bake_debug"
+    bl_label = "Bake Debug Geometry"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return scene_poll(cls, context)
+
+    def execute(self, context):
+        initialise(context)
+        st = current_state(self, context, force=True)
+        if st is None:
+            return {"CANCELLED"}
+        try:
+            made = bake(context.scene, st)
+        except RuntimeError as exc:
+            self.report({"ERROR"}, f"Lixel: {exc}")
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Lixel: baked {len(made)} objects into '{nodes.DEBUG_COLLECTION}'")
+        return {"FINISHED"}
+
+
+class LIXEL_OT_texel_grid_add(bpy.types.Operator):
+    """Put the shadow-map texel grid on the selected meshes (a geometry-nodes modifier and material); the light matrices come from the "Lixel Light Matrices" object, updated now"""
+
+    bl_idname = "lixel.texel_grid_add"
+    bl_label = "Add Texel Grid"
+    bl_options = {"REGISTER", "UNDO"}
+
+    map_index: IntProperty(name="Map", default=0, min=0, description="Which shadow map's texels to show")
+    remove: BoolProperty(name="Remove", default=False, description="Remove the texel grid instead")
+
+    @classmethod
+    def poll(cls, context):
+        return scene_poll(cls, context)
+
+    def execute(self, context):
+        meshes = [ob for ob in context.selected_objects if ob.type == "MESH" and ob.get(DEBUG_KEY) is None]
+        if not meshes:
+            self.report({"ERROR"}, "Lixel: no mesh selected: select the mesh objects that should show the texel grid")
+            return {"CANCELLED"}
+        if self.remove:
+            n = sum(nodes.remove_texel_grid(ob) for ob in meshes)
+            self.report({"INFO"}, f"Lixel: removed the texel grid from {n} object(s)")
+            return {"FINISHED"}
+        initialise(context)
+        st = current_state(self, context, force=True)
+        if st is None:
+            return {"CANCELLED"}
+        if self.map_index >= len(st.setup.maps):
+            self.report({"ERROR"}, f"Lixel: map {self.map_index} does not exist; this setup has "
+                                   f"{len(st.setup.maps)} map(s)")
+            return {"CANCELLED"}
+        carrier = nodes.ensure_carrier(context.scene, st.setup)
+        for ob in meshes:
+            nodes.add_texel_grid(ob, carrier, self.map_index)
+        self.report({"INFO"}, f"Lixel: texel grid of map {self.map_index} on {len(meshes)} object(s)")
+        return {"FINISHED"}
+
+
+class LIXEL_OT_frustum_add(bpy.types.Operator):
+    """Add an object whose mesh is a shadow map's frustum, built by geometry nodes from the light matrix (it follows the matrix when the setup is synced)"""
+
+    bl_idname = "lixel.frustum_add"
+    bl_label = "Add Frustum From Matrix"
+    bl_options = {"REGISTER", "UNDO"}
+
+    map_index: IntProperty(name="Map", default=0, min=0)
+
+    @classmethod
+    def poll(cls, context):
+        return scene_poll(cls, context)
+
+    def execute(self, context):
+        initialise(context)
+        st = current_state(self, context, force=True)
+        if st is None:
+            return {"CANCELLED"}
+        if self.map_index >= len(st.setup.maps):
+            self.report({"ERROR"}, f"Lixel: map {self.map_index} does not exist; this setup has "
+                                   f"{len(st.setup.maps)} map(s)")
+            return {"CANCELLED"}
+        carrier = nodes.ensure_carrier(context.scene, st.setup)
+        ob = nodes.add_frustum_object(context.scene, carrier, self.map_index)
+        self.report({"INFO"}, f"Lixel: '{ob.name}' follows map {self.map_index}")
+        return {"FINISHED"}
+
+
+class LIXEL_OT_sync_matrices(bpy.types.Operator):
+    """Write the current light matrices to the "Lixel Light Matrices" object, so texel grids and frustum objects follow"""
+
+    bl_idname = "lixel.sync_matrices"
+    bl_label = "Sync Light Matrices"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return scene_poll(cls, context)
+
+    def execute(self, context):
+        initialise(context)
+        st = current_state(self, context, force=True)
+        if st is None:
+            return {"CANCELLED"}
+        nodes.ensure_carrier(context.scene, st.setup)
+        self.report({"INFO"}, f"Lixel: {len(st.setup.maps)} matrices synced")
+        return {"FINISHED"}
+
+
+classes = (LIXEL_OT_bake_debug, LIXEL_OT_texel_grid_add, LIXEL_OT_frustum_add, LIXEL_OT_sync_matrices)

@@ -1,0 +1,105 @@
+"""Export the light matrices and diagnostics to JSON (the CLI's format), and
+compare the methods for the current view."""
+import json
+
+import bpy
+from bpy.props import BoolProperty, StringProperty
+from bpy_extras.io_utils import ExportHelper
+
+from ..addon.ui import live, overlays
+from ..addon.warp import METHODS
+from .common import current_state, initialise, scene_poll
+
+COMPARISON_TEXT = "Lixel Comparison"
+
+
+def export_document(st, all_methods: bool) -> dict:
+    """The CLI's JSON: ``{"maps": [...], "diagnostics": {...}}`` for the scene's
+    method, or ``{"methods": {name: {...}}}`` for every method (like
+    ``python -m addon.warp --method all``)."""
+    if not all_methods:
+        return st.setup.to_json()
+    out = {}
+    for row in live.compare_methods(st):
+        if "error" in row:
+            out[row["method"]] = {"maps": [], "diagnostics": {"method": row["method"], "error": row["error"],
+                                                              "fallbacks": []}}
+        else:
+            out[row["method"]] = row["setup"].to_json()
+    return {"methods": out}
+
+
+class LIXEL_OT_export_json(bpy.types.Operator, ExportHelper):
+    """Export the light matrices and diagnostics of the current setup to JSON, in the format of the command line (python -m addon.warp)"""
+
+    bl_idname = "lixel.export_json"
+    bl_label = "Export Matrices (JSON)"
+    bl_options = {"REGISTER"}
+
+    filename_ext = ".json"
+    filter_glob: StringProperty(default="*.json", options={"HIDDEN"})
+    all_methods: BoolProperty(name="All Methods", default=False,
+                              description="Export every method ({\"methods\": {...}}) instead of the scene's")
+    indent: BoolProperty(name="Pretty", default=True, description="Indent the JSON")
+
+    @classmethod
+    def poll(cls, context):
+        return scene_poll(cls, context)
+
+    def execute(self, context):
+        initialise(context)
+        st = current_state(self, context, force=True)
+        if st is None:
+            return {"CANCELLED"}
+        doc = export_document(st, self.all_methods)
+        try:
+            with open(self.filepath, "w", encoding="utf-8") as fh:
+                json.dump(doc, fh, indent=2 if self.indent else None)
+                fh.write("\n")
+        except OSError as exc:
+            self.report({"ERROR"}, f"Lixel: cannot write '{self.filepath}': {exc.strerror}")
+            return {"CANCELLED"}
+        what = "every method" if self.all_methods else f"{len(st.setup.maps)} map(s) of {st.method_used}"
+        self.report({"INFO"}, f"Lixel: exported {what} to {self.filepath}")
+        return {"FINISHED"}
+
+
+class LIXEL_OT_compare(bpy.types.Operator):
+    """Compare every method for the current view: θ, γ, n_opt, λ, maps and the texel footprint, written to the "Lixel Comparison" text, plus shadow renders when the gpu pipeline is available"""
+
+    bl_idname = "lixel.compare"
+    bl_label = "Compare Methods"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return scene_poll(cls, context)
+
+    def execute(self, context):
+        initialise(context)
+        st = current_state(self, context, force=True)
+        if st is None:
+            return {"CANCELLED"}
+        rows = live.compare_methods(st)
+        table = live.comparison_table(rows)
+        note = ""
+        if overlays.gpu_pipeline() is None:
+            note = ("\n\nShadow renders of each method need the gpu pipeline (addon/gpu), which is not available "
+                    "in this build: only the numbers are compared.")
+        text = bpy.data.texts.get(COMPARISON_TEXT) or bpy.data.texts.new(COMPARISON_TEXT)
+        text.clear()
+        text.write(f"Lixel comparison, scene '{context.scene.name}', camera '{context.scene.camera.name}', "
+                   f"light '{st.light_name}', {len(METHODS)} method(s)\n"
+                   "texel px = screen pixels one shadow-map texel spans on camera-facing surfaces in view (≤ 1 is "
+                   "alias-free)\n\n" + table + note + "\n")
+        best = [r for r in rows if "error" not in r and r["footprint_max_px"] is not None]
+        if best:
+            b = min(best, key=lambda r: r["footprint_max_px"])
+            self.report({"INFO"}, f"Lixel: compared {len(rows)} methods; smallest worst-case footprint: "
+                                  f"{b['method']} ({b['footprint_max_px']:.3g} px). See the '{COMPARISON_TEXT}' text")
+        else:
+            self.report({"INFO"}, f"Lixel: compared {len(rows)} methods. See the '{COMPARISON_TEXT}' text")
+        return {"FINISHED"}
+
+
+classes = (LIXEL_OT_export_json, LIXEL_OT_compare)

@@ -1,0 +1,95 @@
+"""Refresh the setup, reset settings to the preferences, toggle overlays."""
+import bpy
+from bpy.props import EnumProperty
+
+from ..addon.ui import live, overlays
+from ..addon.ui.preferences import preference_settings
+from ..addon.ui.properties import OVERLAYS
+from ..addon.settings import LixelSettings
+from .common import current_state, initialise, scene_poll
+
+
+class LIXEL_OT_refresh(bpy.types.Operator):
+    """Compute (or recompute) the shadow setup for the scene camera and the Lixel light"""
+
+    bl_idname = "lixel.refresh"
+    bl_label = "Refresh Setup"
+    bl_options = {"REGISTER"}
+
+    @classmethod
+    def poll(cls, context):
+        return scene_poll(cls, context)
+
+    def execute(self, context):
+        initialise(context)
+        st = current_state(self, context, force=True)
+        if st is None:
+            return {"CANCELLED"}
+        d = st.setup.diagnostics
+        self.report({"INFO"}, f"Lixel {st.method_used}: {len(st.setup.maps)} map(s), B has "
+                              f"{len(d.body_vertices)} vertices ({st.total_ms():.1f} ms)")
+        overlays.tag_redraw(context)
+        return {"FINISHED"}
+
+
+class LIXEL_OT_reset_settings(bpy.types.Operator):
+    """Reset this scene's Lixel settings to the add-on preferences' defaults (the light and planes are kept)"""
+
+    bl_idname = "lixel.reset_settings"
+    bl_label = "Reset to Preferences"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return scene_poll(cls, context)
+
+    def execute(self, context):
+        props = context.scene.lixel
+        planes = [(tuple(p.point), tuple(p.normal), p.source) for p in props.planes]
+        settings = preference_settings() or LixelSettings()
+        props.from_settings(settings)
+        for point, normal, source in planes:
+            p = props.planes.add()
+            p.point, p.normal, p.source = point, normal, source
+        props.initialised = True
+        self.report({"INFO"}, f"Lixel settings reset to the preferences (method {props.method})")
+        return {"FINISHED"}
+
+
+class LIXEL_OT_toggle_overlay(bpy.types.Operator):
+    """Show or hide a Lixel viewport overlay"""
+
+    bl_idname = "lixel.toggle_overlay"
+    bl_label = "Toggle Lixel Overlay"
+    bl_options = {"REGISTER"}
+
+    overlay: EnumProperty(name="Overlay", items=[(name, label, desc) for name, label, desc in OVERLAYS])
+
+    @classmethod
+    def poll(cls, context):
+        return scene_poll(cls, context)
+
+    @classmethod
+    def description(cls, context, properties):
+        for name, label, desc in OVERLAYS:
+            if name == properties.overlay:
+                return f"Show or hide: {desc}"
+        return cls.__doc__
+
+    def execute(self, context):
+        initialise(context)
+        props = context.scene.lixel
+        on = not getattr(props, self.overlay)
+        setattr(props, self.overlay, on)
+        label = dict((n, l) for n, l, _ in OVERLAYS)[self.overlay]
+        if on:
+            st = current_state(self, context, force=live.state(context.scene) is None)
+            if st is None:
+                self.report({"WARNING"}, f"Lixel: {label} is on but there is nothing to show yet")
+            elif self.overlay in overlays.GPU_OVERLAYS and overlays.gpu_pipeline() is None:
+                self.report({"WARNING"}, f"Lixel: {label} needs the gpu pipeline, which is not available")
+        overlays.sync_handlers(context)
+        return {"FINISHED"}
+
+
+classes = (LIXEL_OT_refresh, LIXEL_OT_reset_settings, LIXEL_OT_toggle_overlay)
