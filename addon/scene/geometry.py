@@ -1,0 +1,230 @@
+"""Triangles of the evaluated scene, one :class:`MeshData` per mesh datablock,
+kept across renders by :class:`GeometryCache`.
+
+Fast paths (shared notes §3): positions through
+``attributes['position'].data.foreach_get('vector')`` and corners through the
+``.corner_vert`` attribute (both about 1 ms per million); triangles and quads
+are triangulated in numpy (``loop_triangles.foreach_get`` costs ~100 ms per
+million triangles and is used only for meshes with n-gons). Instance matrices
+are copied during the walk (``.copy()`` rule, see :mod:`.instances`).
+
+Cache rule: a mesh is re-extracted (and its batch re-uploaded, see
+``addon.gpu.batches``) only when ``depsgraph.updates`` flags its geometry AND
+its content fingerprint (sizes + CRC of positions and corners) changed. The
+fingerprint is needed because a fresh render depsgraph (every F12 without
+persistent data) flags every object as updated.
+"""
+from __future__ import annotations
+
+import logging
+import zlib
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from .instances import InstanceSet, walk_instances
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class MeshData:
+    """Local-space triangles of one geometry key: ``positions`` (V, 3) float32,
+    ``triangles`` (T, 3) int32. ``version`` increases whenever the content changes."""
+
+    key: tuple
+    positions: np.ndarray
+    triangles: np.ndarray
+    fingerprint: tuple = ()
+    version: int = 0
+
+    @property
+    def triangle_count(self) -> int:
+        return len(self.triangles)
+
+
+@dataclass
+class SceneGeometry:
+    """What the gpu pipeline draws: every instance and the meshes they use."""
+
+    instances: InstanceSet
+    meshes: dict = field(default_factory=dict)
+
+    @property
+    def triangle_count(self) -> int:
+        """Triangles over all instances."""
+        return int(sum(self.meshes[k].triangle_count for k in self.instances.keys))
+
+    @classmethod
+    def from_arrays(cls, parts) -> "SceneGeometry":
+        """Geometry without bpy objects (tests, benchmarks): ``parts`` is a list of
+        ``(name, positions (V,3), triangles (T,3), matrices (N,4,4) or None,
+        casts=True)`` tuples; each part becomes one mesh drawn once per matrix."""
+        meshes, keys, names, mats, boxes, casts = {}, [], [], [], [], []
+        for part in parts:
+            name, pos, tris, m = part[:4]
+            cast = part[4] if len(part) > 4 else True
+            key = ("ARRAY", name)
+            pos = np.asarray(pos, dtype=np.float32).reshape(-1, 3)
+            tris = np.asarray(tris, dtype=np.int32).reshape(-1, 3)
+            meshes[key] = MeshData(key, pos, tris, fingerprint=_fingerprint(pos, tris), version=1)
+            m = np.eye(4)[None] if m is None else np.asarray(m, dtype=np.float64).reshape(-1, 4, 4)
+            box = np.array([pos.min(axis=0), pos.max(axis=0)], dtype=np.float64)
+            for mi in m:
+                keys.append(key)
+                names.append(name)
+                mats.append(mi)
+                boxes.append(box)
+                casts.append(bool(cast))
+        inst = InstanceSet(keys=keys, names=names, matrices=np.asarray(mats).reshape(-1, 4, 4),
+                           local_boxes=np.asarray(boxes).reshape(-1, 2, 3),
+                           casts=np.asarray(casts, dtype=bool), receives=np.ones(len(keys), dtype=bool))
+        return cls(inst, meshes)
+
+
+def _fingerprint(*arrays) -> tuple:
+    return tuple((a.shape, zlib.crc32(np.ascontiguousarray(a))) for a in arrays)
+
+
+def _quads_and_tris(positions: np.ndarray, starts: np.ndarray, sizes: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """Triangles of a mesh whose faces all have 3 or 4 corners (numpy).
+
+    A quad is split along its 0-2 diagonal unless that makes the two triangles
+    face opposite ways (a concave quad), in which case the 1-3 diagonal is
+    used, the one through the reflex corner.
+    """
+    tri = sizes == 3
+    quad = ~tri
+    out = []
+    if tri.any():
+        s = starts[tri]
+        out.append(np.stack([corners[s], corners[s + 1], corners[s + 2]], axis=1))
+    if quad.any():
+        s = starts[quad]
+        a, b, c, d = corners[s], corners[s + 1], corners[s + 2], corners[s + 3]
+        p = positions.astype(np.float64)
+        n1 = np.cross(p[b] - p[a], p[c] - p[a])
+        n2 = np.cross(p[c] - p[a], p[d] - p[a])
+        flip = np.einsum("ij,ij->i", n1, n2) < 0
+        t1 = np.where(flip[:, None], np.stack([b, c, d], 1), np.stack([a, b, c], 1))
+        t2 = np.where(flip[:, None], np.stack([b, d, a], 1), np.stack([a, c, d], 1))
+        out += [t1, t2]
+    return np.concatenate(out).astype(np.int32) if out else np.zeros((0, 3), np.int32)
+
+
+def read_mesh(mesh) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """(positions float32 (V,3), triangles int32 (T,3), fingerprint) of a Mesh."""
+    nv = len(mesh.vertices)
+    pos = np.empty(nv * 3, dtype=np.float32)
+    mesh.attributes["position"].data.foreach_get("vector", pos)
+    pos = pos.reshape(-1, 3)
+    nl = len(mesh.loops)
+    corners = np.empty(nl, dtype=np.int32)
+    cv = mesh.attributes.get(".corner_vert")
+    if cv is not None:
+        cv.data.foreach_get("value", corners)
+    else:
+        mesh.loops.foreach_get("vertex_index", corners)
+    npoly = len(mesh.polygons)
+    fp = _fingerprint(pos, corners) + ((nv, nl, npoly),)
+    if nl == 3 * npoly:
+        return pos, corners.reshape(-1, 3).copy(), fp
+    starts = np.empty(npoly, dtype=np.int32)
+    mesh.polygons.foreach_get("loop_start", starts)
+    sizes = np.diff(np.append(starts, nl))
+    if np.all(np.diff(starts) > 0) and sizes.max(initial=3) <= 4 and sizes.min(initial=3) >= 3:
+        return pos, _quads_and_tris(pos, starts, sizes, corners), fp
+    mesh.calc_loop_triangles()
+    tris = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
+    mesh.loop_triangles.foreach_get("vertices", tris)
+    return pos, tris.reshape(-1, 3), fp
+
+
+def read_object(ob_eval) -> Optional[tuple[np.ndarray, np.ndarray, tuple]]:
+    """Triangles of an evaluated object (mesh, curve, text, metaball), or None
+    if it has no faces."""
+    if ob_eval.type == "MESH":
+        mesh = ob_eval.data
+        return read_mesh(mesh) if len(mesh.polygons) else None
+    try:
+        mesh = ob_eval.to_mesh()
+    except RuntimeError:
+        return None
+    try:
+        return read_mesh(mesh) if mesh is not None and len(mesh.polygons) else None
+    finally:
+        ob_eval.to_mesh_clear()
+
+
+def _flagged_names(depsgraph) -> set:
+    """Names of objects and data whose geometry the depsgraph reports as updated."""
+    names = set()
+    for u in depsgraph.updates:
+        if not u.is_updated_geometry:
+            continue
+        idb = getattr(u.id, "original", None) or u.id
+        names.add(idb.name)
+        data = getattr(idb, "data", None)
+        if data is not None:
+            names.add(data.name)
+    return names
+
+
+class GeometryCache:
+    """Meshes by geometry key, kept across renders.
+
+    ``update(depsgraph)`` walks the evaluated scene and returns a
+    :class:`SceneGeometry`; ``extractions`` counts meshes whose triangles were
+    (re-)read, ``reused`` those taken from the cache as they were.
+    """
+
+    def __init__(self):
+        self.meshes: dict = {}
+        self.extractions = 0
+        self.reused = 0
+        self._last_depsgraph = None
+
+    def clear(self) -> None:
+        self.meshes.clear()
+        self._last_depsgraph = None
+
+    def update(self, depsgraph) -> SceneGeometry:
+        same_graph = self._last_depsgraph == depsgraph.as_pointer()
+        flagged = _flagged_names(depsgraph)
+        used: dict = {}
+
+        def on_geometry(key, ob):
+            old = self.meshes.get(key)
+            if old is not None and same_graph and key[1].split("@")[0] not in flagged:
+                used[key] = old
+                self.reused += 1
+                return True
+            got = read_object(ob)
+            if got is None:
+                return False
+            pos, tris, fp = got
+            if old is not None and old.fingerprint == fp:
+                used[key] = old
+                self.reused += 1
+                return True
+            self.extractions += 1
+            used[key] = MeshData(key, pos, tris, fp, version=(old.version + 1) if old is not None else 1)
+            return True
+
+        instances = walk_instances(depsgraph, on_geometry)
+        # Keep entries of objects not drawn this time (hidden, other scenes) for later reuse.
+        self.meshes.update(used)
+        self._last_depsgraph = depsgraph.as_pointer()
+        return SceneGeometry(instances, used)
+
+
+_shared_cache: Optional[GeometryCache] = None
+
+
+def shared_cache() -> GeometryCache:
+    """The process-wide geometry cache (the render engine and operators share it)."""
+    global _shared_cache
+    if _shared_cache is None:
+        _shared_cache = GeometryCache()
+    return _shared_cache

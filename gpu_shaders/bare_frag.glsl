@@ -1,0 +1,4 @@
+/* Depth only: no colour output, the rasterizer's depth is stored. */
+void main()
+{
+}
