@@ -3,10 +3,14 @@ from __future__ import annotations
 
 from typing import Callable
 
+from .lispsm import glpr, gmnpr, lispsm
 from .plane_optimal import plane_optimal
 from .uniform import uniform
 
 METHODS: dict[str, Callable] = {
     "uniform": uniform,
+    "lispsm": lispsm,
+    "gmnpr": gmnpr,
+    "glpr": glpr,
     "plane_optimal": plane_optimal,
 }

@@ -1,0 +1,271 @@
+"""The analytic aliasing model: one place for its formulas (numpy only).
+
+Two parts.
+
+**1. GMNPR's perspective-aliasing model** (Zhang et al., *Generalized
+Minimum-Norm Perspective Shadow Maps*, §2-3; the computational model of their
+Fig. 4). A directional light, the 2D plane spanned by the view and light
+directions; the view frustum has near ``n``, far ``f`` and half field of view
+``phi`` in that plane; ``theta`` in [0, π/2] is the angle between the light and
+view directions (folded by symmetry). The warp frustum P looks along V_P (the
+view direction projected perpendicular to the light, LiSPSM's Eq. 3) and covers
+the view frustum's extent along V_P, ``P_f - P_n`` (:func:`model_extent`).
+λ = P_n / (P_f - P_n) is P's near distance in units of that extent. A point on
+the central view ray at eye depth z sits at z·sin θ along V_P; the map
+coordinate is P's hyperbolic depth s ∈ [0, 1], and
+
+    F(λ, θ, z) = (1 / tan φ) · dz / (z · ds) = ψ(λ, θ) · (z + φ(λ, θ))² / z          (Eq. 2)
+
+is the perspective aliasing (screen pixels per texel along z, up to the
+resolutions). λ → ∞ is the uniform map (:func:`uniform_F`).
+
+The λ selections, each a function of (θ, n, f, φ):
+
+* :func:`lambda_gmnpr` - GMNPR Eq. 8 (Eq. 4's λ1 for θ ≥ φ, Eq. 7's λ2* below;
+  continuous at θ = φ where both are √(fn)/(2f); README corrections applied).
+* :func:`lambda_lispsm` - GMNPR Eq. 9, i.e. Scherzer Eq. 1's n_opt with
+  z_n = n, Δz = f - n, divided by the extent: λ = n_opt / (P_f - P_n).
+* :func:`lambda_glpr` - GLPR: F(z) ~ z, i.e. φ(λ, θ) = 0 in Eq. 2 (the warp's
+  projection centre at the eye's position along V_P, PSM's choice). That λ is
+  n(1 - t)/(f - n + (f + n)t), t = tan φ / tan θ, which is 0 at θ = φ and has no
+  positive solution below (GMNPR §3: "λ = 0 is obviously disastrous"). GLPR's
+  paper is not in our corpus, so Lixel keeps it usable the way GMNPR treats its
+  own degenerate range (Eq. 5-7): λ is floored at ``GLPR_FLOOR`` times its
+  ideal-case value n/(f - n), and for θ < φ that floor grows like Eq. 7,
+  floor / tan(θπ/(4φ)), to ∞ at θ = 0 (convergence to the uniform map).
+
+:func:`lispsm_inverse_n_opt` is Scherzer §4.4 Eq. 1 written as 1 / n_opt, finite
+for every γ (0 at γ = 0, the uniform limit).
+
+**2. The per-point texel footprint** of a real map (any ShadowMap matrix, any
+View): at a surface point p with normal N, both the screen and the map
+parameterize the surface. With T = [t1 t2] an orthonormal tangent basis and,
+for a projective 4x4 matrix M onto an R_x x R_y raster,
+
+    D_M(p) = diag(R_x, R_y)/2 · (M[:2, :3] - ndc ⊗ M[3, :3]) / w        (d raster / d world)
+
+G = D_view·T (pixels per unit length on the surface), H = D_map·T (texels per
+unit length). J = H·G⁻¹ is d texel / d pixel; the **footprint** reported is
+
+    1 / σ_min(J) = σ_max(G·H⁻¹)
+
+the screen length, in pixels, of one texel step in its worst direction
+(Lloyd's per-point aliasing factor m; Stamminger-Drettakis §1.1's
+dp = ds·r_s·cosβ/(r_i·cosα) is its 1D form). Above 1, texels are magnified on
+screen. :func:`texel_footprint_area` gives |det G| / |det H|, pixels per texel
+by area. A surface edge-on to the map (H singular: projection aliasing) gives
++inf; a point behind the camera or the map (w <= 0) gives NaN.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .geometry import homogeneous
+
+GLPR_FLOOR = 0.1
+"""GLPR's λ never drops below this fraction of its ideal-case (θ = π/2) value n/(f - n)."""
+
+
+# ---------------------------------------------------------------- the 2D model
+
+def _t(theta, phi):
+    """t = tan φ / tan θ (0 at θ = π/2, +inf at θ = 0)."""
+    theta = np.asarray(theta, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.tan(phi) * np.cos(theta) / np.sin(theta)
+
+
+def model_extent(theta, n, f, phi):
+    """P_f - P_n: the view frustum's extent along V_P (GMNPR Eq. 9's denominator).
+
+    θ ≥ φ: sin θ·(f - n) + cos θ·tan φ·(f + n);  θ ≤ φ: 2 f cos θ tan φ.
+    Continuous at θ = φ (both 2 f sin φ)."""
+    theta = np.asarray(theta, dtype=np.float64)
+    tp = math.tan(phi)
+    case1 = np.sin(theta) * (f - n) + np.cos(theta) * tp * (f + n)
+    case2 = 2.0 * f * np.cos(theta) * tp
+    return np.where(theta >= phi, case1, case2)
+
+
+def model_near_side(theta, n, f, phi):
+    """Where the view frustum starts along V_P, measured from the eye:
+    n(sin θ - cos θ tan φ) for θ ≥ φ, f(sin θ - cos θ tan φ) below."""
+    theta = np.asarray(theta, dtype=np.float64)
+    s = np.sin(theta) - np.cos(theta) * math.tan(phi)
+    return np.where(theta >= phi, n * s, f * s)
+
+
+def psi(lam, theta, n, f, phi):
+    """ψ(λ, θ) of GMNPR Eq. 2."""
+    theta = np.asarray(theta, dtype=np.float64)
+    t = _t(theta, phi)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        case1 = 1.0 / (math.tan(phi) * (f - n + (f + n) * t) * lam * (lam + 1.0))
+        case2 = 1.0 / (math.tan(phi) * 2.0 * f * lam * (lam + 1.0) / t)
+    return np.where(theta >= phi, case1, case2)
+
+
+def varphi(lam, theta, n, f, phi):
+    """φ(λ, θ) of GMNPR Eq. 2 (the offset of the hyperbola's pole in eye depth)."""
+    theta = np.asarray(theta, dtype=np.float64)
+    t = _t(theta, phi)
+    with np.errstate(invalid="ignore"):
+        case1 = (f - n + (f + n) * t) * lam + n * t - n
+        case2 = f * (2.0 * lam + 1.0) * t - f
+    return np.where(theta >= phi, case1, case2)
+
+
+def uniform_F(theta, z, n, f, phi):
+    """F of the uniform map (the λ → ∞ limit of Eq. 2): (P_f - P_n)/(z sin θ tan φ)."""
+    theta = np.asarray(theta, dtype=np.float64)
+    with np.errstate(divide="ignore"):
+        return model_extent(theta, n, f, phi) / (np.asarray(z, dtype=np.float64) * np.sin(theta) * math.tan(phi))
+
+
+def aliasing_F(lam, theta, z, n, f, phi):
+    """GMNPR Eq. 2: F(λ, θ, z) = ψ(λ, θ)·(z + φ(λ, θ))²/z; λ = inf gives :func:`uniform_F`."""
+    lam = np.asarray(lam, dtype=np.float64)
+    z = np.asarray(z, dtype=np.float64)
+    finite = np.isfinite(lam)
+    lam_f = np.where(finite, lam, 1.0)
+    with np.errstate(invalid="ignore", over="ignore"):
+        warped = psi(lam_f, theta, n, f, phi) * (z + varphi(lam_f, theta, n, f, phi)) ** 2 / z
+    return np.where(finite, warped, uniform_F(theta, z, n, f, phi))
+
+
+def map_coordinate(lam, theta, z, n, f, phi):
+    """s(z) ∈ [0, 1]: P's hyperbolic depth of the central-ray point at eye depth z
+    (s = (1 + λ)(1 - λ/d), d = its distance from P's centre in units of the
+    extent). The geometric definition Eq. 2 is derived from: F = dz/(z ds)/tan φ."""
+    theta = np.asarray(theta, dtype=np.float64)
+    d = (np.asarray(z) * np.sin(theta) - model_near_side(theta, n, f, phi)) / model_extent(theta, n, f, phi) + lam
+    return (1.0 + lam) * (1.0 - lam / d)
+
+
+# ---------------------------------------------------------------- λ selections
+
+def lispsm_inverse_n_opt(z_n, delta_z, gamma) -> float:
+    """1 / n_opt of Scherzer §4.4 Eq. 1, n_opt = (z_n + √(z_n(z_n + Δz))) / sin γ.
+
+    Written as sin γ / (z_n + √(z_n(z_n + Δz))) so it is finite for every γ:
+    0 when light and view are parallel (n_opt = ∞, the uniform map)."""
+    z_n = max(float(z_n), 0.0)
+    root = z_n + math.sqrt(z_n * (z_n + max(float(delta_z), 0.0)))
+    if root <= 0.0:
+        return math.inf
+    return abs(math.sin(gamma)) / root
+
+
+def lambda_lispsm(theta, n, f, phi) -> float:
+    """GMNPR Eq. 9: λ_LiSPSM = n_opt / (P_f - P_n) with Eq. 1's z_n = n, Δz = f - n."""
+    k = lispsm_inverse_n_opt(n, f - n, theta)
+    ext = float(model_extent(theta, n, f, phi))
+    return math.inf if k == 0.0 else 1.0 / (k * ext)
+
+
+def lambda_gmnpr(theta, n, f, phi) -> float:
+    """GMNPR Eq. 8 (with the README's corrected Eq. 4/7): θ ≥ φ:
+    λ1 = (n + √(fn) - n·tanφ/tanθ) / (f - n + (f + n)·tanφ/tanθ);
+    θ < φ: λ2* = √(fn)/(2f) / tan(θπ/(4φ)) (∞ at θ = 0)."""
+    if theta >= phi:
+        t = float(_t(theta, phi))
+        return (n + math.sqrt(f * n) - n * t) / (f - n + (f + n) * t)
+    q = math.tan(theta * math.pi / (4.0 * phi))
+    return math.inf if q <= 0.0 else math.sqrt(f * n) / (2.0 * f) / q
+
+
+def lambda_glpr(theta, n, f, phi) -> float:
+    """GLPR: F(z) ~ z, φ(λ, θ) = 0 -> λ = n(1 - t)/(f - n + (f + n)t), floored at
+    ``GLPR_FLOOR``·n/(f - n); below θ = φ the floor grows like GMNPR Eq. 7,
+    floor / tan(θπ/(4φ)), to ∞ at θ = 0. Continuous everywhere."""
+    floor = GLPR_FLOOR * n / max(f - n, 1e-300 * max(n, 1.0))
+    if theta >= phi:
+        t = float(_t(theta, phi))
+        return max(n * (1.0 - t) / (f - n + (f + n) * t), floor)
+    q = math.tan(theta * math.pi / (4.0 * phi))
+    return math.inf if q <= 0.0 else floor / q
+
+
+LAMBDA_RULES = {"lispsm": lambda_lispsm, "gmnpr": lambda_gmnpr, "glpr": lambda_glpr}
+
+
+# ---------------------------------------------------------------- texel footprint
+
+def tangent_basis(normals) -> np.ndarray:
+    """(N, 3, 2): two orthonormal tangent vectors per normal."""
+    nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    nrm = nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
+    helper = np.where(np.abs(nrm[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
+    t1 = np.cross(nrm, helper)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t2 = np.cross(nrm, t1)
+    return np.stack([t1, t2], axis=2)
+
+
+def raster_jacobian(matrix, size, points) -> np.ndarray:
+    """(N, 2, 3) d(raster)/d(world) of the projective ``matrix`` onto a ``size`` =
+    (w, h) raster (raster x = (ndc_x + 1)/2·w). NaN where w <= 0."""
+    m = np.asarray(matrix, dtype=np.float64)
+    h = homogeneous(points) @ m.T
+    w = h[:, 3]
+    w = np.where(w > 0, w, np.nan)
+    ndc = h[:, :2] / w[:, None]
+    d = (m[None, :2, :3] - ndc[:, :, None] * m[None, 3:4, :3]) / w[:, None, None]
+    scale = np.array([size[0], size[1]], dtype=np.float64) / 2.0
+    return d * scale[None, :, None]
+
+
+def _surface_jacobians(view, shadow_map, points, normals):
+    t = tangent_basis(normals)
+    g = raster_jacobian(view.world_to_clip, view.resolution, points) @ t     # pixels per length
+    h = raster_jacobian(shadow_map.matrix, shadow_map.size, points) @ t      # texels per length
+    return g, h
+
+
+def texel_footprint(view, shadow_map, points, normals) -> np.ndarray:
+    """Screen pixels per texel, linear, at (N, 3) surface ``points`` with ``normals``:
+    σ_max(G·H⁻¹) = 1/σ_min(d texel / d pixel). +inf where the surface is edge-on
+    to the map, NaN where w <= 0 for the camera or the map."""
+    g, h = _surface_jacobians(view, shadow_map, points, normals)
+    out = np.full(len(g), np.nan)
+    valid = np.all(np.isfinite(g), axis=(1, 2)) & np.all(np.isfinite(h), axis=(1, 2))
+    det_h = np.zeros(len(g))
+    det_h[valid] = np.linalg.det(h[valid])
+    scale = np.max(np.abs(h), axis=(1, 2), initial=0.0, where=np.isfinite(h))
+    singular = valid & (np.abs(det_h) <= 1e-14 * scale ** 2)
+    out[singular] = np.inf
+    ok = valid & ~singular
+    if ok.any():
+        hi = h[ok]
+        adj = np.stack([np.stack([hi[:, 1, 1], -hi[:, 0, 1]], axis=1),
+                        np.stack([-hi[:, 1, 0], hi[:, 0, 0]], axis=1)], axis=1)
+        j = g[ok] @ adj / det_h[ok][:, None, None]                            # d pixel / d texel
+        out[ok] = np.linalg.svd(j, compute_uv=False)[:, 0]
+    return out
+
+
+def texel_footprint_area(view, shadow_map, points, normals) -> np.ndarray:
+    """Screen pixels per texel by area, |det G| / |det H| (+inf edge-on, NaN where w <= 0)."""
+    g, h = _surface_jacobians(view, shadow_map, points, normals)
+    out = np.full(len(g), np.nan)
+    valid = np.all(np.isfinite(g), axis=(1, 2)) & np.all(np.isfinite(h), axis=(1, 2))
+    if valid.any():
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out[valid] = np.abs(np.linalg.det(g[valid])) / np.abs(np.linalg.det(h[valid]))
+    return out
+
+
+def setup_texel_footprint(view, setup, points, normals) -> np.ndarray:
+    """:func:`texel_footprint` of a ShadowSetup: each point measured in the map
+    that serves it (``setup.map_index``); NaN for points no map serves."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    idx = setup.map_index(pts, view)
+    out = np.full(len(pts), np.nan)
+    for i, m in enumerate(setup.maps):
+        sel = idx == i
+        if sel.any():
+            out[sel] = texel_footprint(view, m, pts[sel], nrm[sel])
+    return out

@@ -1,0 +1,385 @@
+"""The light-space perspective warp shared by ``lispsm``, ``gmnpr`` and ``glpr``.
+
+Wimmer et al.'s LiSPSM as made robust by Scherzer §4.4, with the warp strength
+chosen by a λ rule (:mod:`..aliasing`). All three differ only in λ.
+
+**The warp frustum P** (Scherzer §4.4, Fig. 9, Eq. 2-3). Work in a light frame
+from ``frame.light_frames`` (light rays parallel to +z; for a point or spot light
+this is the light's post-perspective space, Stamminger-Drettakis §3). In the
+image plane (x, y) P looks along V_P, the view direction projected
+perpendicular to the light (Eq. 3; for a sun the frame's +y already is V_P), so
+its near and far planes are parallel to the light direction. With
+
+    h = V_P · (x, y)            (P's depth axis)
+    q = (x, y) × V_P            (P's lateral axis)
+    h_min, h_max = B's extent along V_P,   D = h_max - h_min
+
+P's near plane touches B's near side h_min and its projection centre is
+P_n = λ·D further back along V_P, at the eye's lateral position and height
+(Eq. 2, C_P = C_eye - (n_opt - z_n)·V_P, with the eye's near distance z_n
+replaced by h_min, B's actual near side: the two agree in the ideal case and this
+guarantees w ≥ 1 on all of B, even where B extends behind the eye). In
+homogeneous light space [X, Y, Z, W] (δ = (h - h_min)/D ∈ [0, 1] on B, μ = 1/λ):
+
+    x' = q - q_eye·W,  y' = δ·W,  z' = Z - z_eye·W,  w' = (1 + μ·δ)·W
+
+so u = x'/w' is P's lateral coordinate, v = y'/w' = δ/(1 + μδ) its hyperbolic
+depth along V_P, and the stored depth z'/w' is light-space z divided by P's w,
+monotonic along every light ray (w' is constant on a ray). The shared unit-cube
+fit (``fit.fit_to_unit_cube``) finishes the map. μ = 0 (λ = ∞, n_opt = ∞) is
+exactly the uniform map: the warp converges continuously to uniform as light
+and view become parallel and needs no switch (Scherzer §4.4: "no perspective warp
+should be present and standard shadow mapping should be reached").
+
+**λ and n_opt.** The paper's λ = P_n/(P_f - P_n) (GMNPR §3) is P's near distance
+in units of its depth extent; here P_f - P_n = D, B's extent along V_P, so
+P_n = λ·D. LiSPSM gives n_opt (Eq. 1) in world units and λ = n_opt / D.
+In Eq. 1 and in GMNPR's (n, f):
+
+* z_n (= n) and Δz (with f = z_n + Δz) are **eye depths, measured along the view
+  direction**: z_n is the nearest eye depth of R = B ∩ V (B's visible part,
+  ``body.visible_vertices``; it is the camera's near distance whenever receivers
+  reach the near plane, as in the paper), and z_n + Δz is R's farthest eye depth
+  (``delta_z="body"``) or the far end of ``options.visible_depth_range``
+  (``delta_z="visible"``, Scherzer's "Δz from visibility", whose near end then
+  replaces z_n). This is the reading GMNPR Eq. 9 uses (P_n = (n + √(fn))/sin θ
+  with the view's n and f), so in the paper's ideal configuration the method's
+  λ equals Eq. 9's. B itself is never changed by it.
+* γ is the angle between the view direction and the light (for point and spot
+  lights: the light ray through the eye), θ = min(γ, π - γ).
+* φ (GMNPR) is the view's half field of view in the plane of the view and light
+  directions: the angle from the view axis to the frustum's side along the light
+  direction's projection (the vertical half-fov for a light in the camera's
+  vertical plane; lens shift included).
+
+**Point and spot lights.** Each frame is the light's post-perspective space;
+V_P is the image of the view ray at the eye (blended towards the frame's +y as
+the view becomes parallel to the light ray through the eye, as in
+``frame.image_up``), λ is computed from the world-space quantities above (it is
+dimensionless) and applied to B's extent in that space. When the eye is behind
+the frame's light plane (w <= 0) the construction is undefined and that frame
+is uniform; when the eye's image lies far outside B's image the warp fades to
+uniform continuously (``FADE_START``..``FADE_END`` half-diagonals of B's image),
+so the eye crossing the light plane causes no jump. Orthographic cameras have no
+perspective aliasing: their maps are uniform. Every such case is recorded in
+``diagnostics.fallbacks``.
+
+**Options.** ``middle_vector``: V_P is the direction from the eye to the middle
+of B (the mean of its vertices, Scherzer's summed vectors) projected
+perpendicular to the light. ``linear_z`` (Scherzer §4.2): ``ShadowMap.depth_row``
+stores light-space depth linearly (the frame's z for a sun, the distance along
+the light's axis for a point light), fitted so B spans [-1, 1]. ``lam`` forces
+λ (gmnpr, glpr).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable, Optional
+
+import numpy as np
+
+from ..aliasing import lambda_glpr, lambda_gmnpr, lispsm_inverse_n_opt
+from ..body import IntersectionBody
+from ..fit import fit_to_unit_cube, ndc_bounds, window_matrix
+from ..frame import PARALLEL_BLEND, LightFrame, light_angles, light_frames
+from ..geometry import clip_volume_corners, transform_h
+from ..types import Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
+from .uniform import frame_map
+
+FADE_START = 2.0
+FADE_END = 4.0
+"""Point-light frames: the warp fades out (linearly in μ) as the eye's image moves
+from FADE_START to FADE_END half-diagonals of B's image away from its centre."""
+
+
+@dataclass
+class WarpContext:
+    """What every frame of one setup shares: the eye-depth range and the view."""
+
+    z_n: float
+    z_f: float
+
+    @property
+    def delta_z(self) -> float:
+        return self.z_f - self.z_n
+
+
+@dataclass
+class FrameGeometry:
+    """One frame's warp geometry, in that frame's (divided) light space."""
+
+    a: np.ndarray          # V_P in the image plane (unit 2-vector)
+    b: np.ndarray          # P's lateral axis (unit 2-vector)
+    eye: np.ndarray        # the eye in light space (3,)
+    h_min: float
+    extent: float          # D, B's extent along V_P in light space
+    extent_world: float    # B's extent along the world V_P (for λ = n_opt / D)
+    gamma: float
+    v_p_world: Optional[np.ndarray]
+    light_dir: np.ndarray  # the light ray at the eye (world, unit)
+    fade: float = 1.0
+
+
+def _blend(v: np.ndarray, s: float) -> np.ndarray:
+    """A unit image-plane direction along ``v`` (weight s = sin of its angle to
+    the light), blended continuously with the frame's +y when s < PARALLEL_BLEND."""
+    y = np.array([0.0, 1.0])
+    nv = float(np.linalg.norm(v))
+    vh = v / nv if nv > 0 and np.isfinite(nv) else y
+    out = s * vh + max(0.0, PARALLEL_BLEND - s) * y
+    n = float(np.linalg.norm(out))
+    return out / n if n > 1e-12 else y
+
+
+def _sin_to(v: np.ndarray, ell: np.ndarray) -> float:
+    nv = float(np.linalg.norm(v))
+    if nv == 0.0:
+        return 0.0
+    u = v / nv
+    return float(np.linalg.norm(u - (u @ ell) * ell))
+
+
+def eye_depth_range(view: View, body: IntersectionBody, options: WarpOptions, diag: Diagnostics) -> WarpContext:
+    """z_n and z_n + Δz for Eq. 1 / GMNPR's (n, f): eye depths (see module docs)."""
+    d = view.eye_depth(body.visible_vertices)
+    z_n = max(view.near, float(d.min()))
+    z_f = max(min(view.far, float(d.max())), z_n)
+    if options.delta_z == "visible":
+        if options.visible_depth_range is None:
+            diag.fallback("delta_z", "'visible' was asked for but no visible_depth_range was given; Δz from B")
+        else:
+            a, b = (float(v) for v in options.visible_depth_range)
+            z_n = max(view.near, a)
+            z_f = max(min(view.far, b), z_n)
+    return WarpContext(z_n, z_f)
+
+
+def half_fov_towards(view: View, light_dir) -> float:
+    """GMNPR's φ: the angle from the view axis to the side of the view frustum
+    in the direction of the (folded) light direction's projection."""
+    ell = np.asarray(light_dir, dtype=np.float64)
+    r = view.camera_to_world[:3, :3]
+    r = r / np.linalg.norm(r, axis=0, keepdims=True)
+    c = r.T @ ell
+    if c[2] > 0:                         # fold: the light line's half that points along the view (-Z)
+        c = -c
+    u = c[:2]
+    p = view.projection
+    bounds_x = ((-1.0 + p[0, 2]) / p[0, 0], (1.0 + p[0, 2]) / p[0, 0])
+    bounds_y = ((-1.0 + p[1, 2]) / p[1, 1], (1.0 + p[1, 2]) / p[1, 1])
+    nu = float(np.linalg.norm(u))
+    if nu < 1e-300:
+        return math.atan(max(min(abs(v) for v in bounds_x + bounds_y), 1e-9))
+    u = u / nu
+    dist = math.inf
+    for k, (lo, hi) in enumerate((bounds_x, bounds_y)):
+        if u[k] > 0:
+            dist = min(dist, hi / u[k])
+        elif u[k] < 0:
+            dist = min(dist, lo / u[k])
+    return math.atan(max(dist, 1e-9))
+
+
+def frame_geometry(view: View, light: Light, frame: LightFrame, options: WarpOptions,
+                   body: IntersectionBody) -> tuple[Optional[FrameGeometry], str]:
+    """The warp geometry of one frame, or (None, reason) when undefined."""
+    t = frame.to_light
+    eye, d = view.position, view.direction
+    ph = transform_h(t, frame.points)
+    pts = ph[:, :3] / ph[:, 3:4]
+    eh = t @ np.append(eye, 1.0)
+    fade = 1.0
+    if frame.directional:
+        ell = light.direction
+        eye_ls = eh[:3] / eh[3]
+        v = np.array([0.0, 1.0])             # the frame's +y is Eq. 3's V_P (blended near parallel)
+        s = 1.0
+        lin = t[:3, :3]
+    else:
+        to_eye = eye - light.position
+        dist = float(np.linalg.norm(to_eye))
+        if dist <= 1e-9 * body.scale:
+            return None, "the eye is at the light: the light ray through the eye is undefined"
+        ell = to_eye / dist
+        if not eh[3] > 1e-12 * dist:
+            return None, "the eye is behind this frame's light plane: no warp in its post-perspective space"
+        eye_ls = eh[:3] / eh[3]
+        dh = t[:, :3] @ d
+        v = (dh[:2] * eh[3] - eh[:2] * dh[3]) / eh[3] ** 2    # image of the view ray at the eye
+        s = _sin_to(d, ell)
+        lo, hi = pts[:, :2].min(axis=0), pts[:, :2].max(axis=0)
+        half = max(float(np.linalg.norm(hi - lo)) / 2, 1e-300)
+        rho = float(np.linalg.norm(eye_ls[:2] - (lo + hi) / 2)) / half
+        fade = float(np.clip((FADE_END - rho) / (FADE_END - FADE_START), 0.0, 1.0))
+        lin = None
+    if options.middle_vector:
+        centre = frame.points.mean(axis=0)   # Scherzer: the sum of the vectors from the eye to B's points
+        mv = centre - eye
+        s = _sin_to(mv, ell)
+        if frame.directional:
+            v = lin[:2] @ mv
+        else:
+            ch = t @ np.append(centre, 1.0)
+            v = ch[:2] / ch[3] - eye_ls[:2]
+    a = v / np.linalg.norm(v) if (frame.directional and not options.middle_vector) else _blend(v, s)
+    b = np.array([a[1], -a[0]])
+    h = pts[:, :2] @ a
+    h_min = float(h.min())
+    extent = float(h.max() - h_min)
+    c = float(np.clip(d @ ell, -1.0, 1.0))
+    gamma = math.acos(c)
+    if frame.directional:
+        v_p = a[0] * lin[0] + a[1] * lin[1]
+        extent_world = extent
+    else:
+        perp = d - c * ell
+        n = float(np.linalg.norm(perp))
+        v_p = perp / n if n > 0 else None
+        extent_world = float(np.ptp((frame.points - eye) @ v_p)) if v_p is not None else 0.0
+    return FrameGeometry(a, b, eye_ls, h_min, extent, extent_world, gamma, v_p, ell, fade), ""
+
+
+def warp_matrix(g: FrameGeometry, mu: float) -> np.ndarray:
+    """P acting on the frame's homogeneous output [X, Y, Z, W] (module docs)."""
+    a, b = g.a, g.b
+    inv_d = 1.0 / g.extent if g.extent > 0 else 0.0
+    q_e = float(g.eye[:2] @ b)
+    delta = np.array([a[0] * inv_d, a[1] * inv_d, 0.0, -g.h_min * inv_d])
+    return np.array([
+        [b[0], b[1], 0.0, -q_e],
+        delta,
+        [0.0, 0.0, 1.0, -float(g.eye[2])],
+        mu * delta + np.array([0.0, 0.0, 0.0, 1.0]),
+    ])
+
+
+def linear_depth_row(frame: LightFrame) -> np.ndarray:
+    """Scherzer §4.2 linear z: a row r with r @ [x, y, z, 1] in [-1, 1] over the
+    frame's points, increasing away from the light (light-space z for a sun,
+    the distance along the light's axis, W, for a point light)."""
+    t = frame.to_light
+    lin = t.copy()
+    if not frame.directional:
+        lin[2] = t[3]
+        lin[3] = np.array([0.0, 0.0, 0.0, 1.0])
+    lo, hi = ndc_bounds(lin, frame.points)
+    return (window_matrix(lo, hi) @ lin)[2]
+
+
+LambdaRule = Callable[[FrameGeometry, WarpContext, float, WarpOptions], float]
+"""(geometry, eye-depth range, φ, options) -> λ (math.inf = uniform)."""
+
+
+def rule_lispsm(g: FrameGeometry, ctx: WarpContext, phi: float, options: WarpOptions) -> float:
+    """λ = n_opt / D with n_opt from Scherzer Eq. 1."""
+    k = lispsm_inverse_n_opt(ctx.z_n, ctx.delta_z, g.gamma)
+    if k == 0.0 or g.extent_world <= 0.0:
+        return math.inf
+    return 1.0 / (k * g.extent_world)
+
+
+def _forced(options: WarpOptions) -> Optional[float]:
+    if options.lam is None:
+        return None
+    lam = float(options.lam)
+    if not lam > 0:
+        raise WarpError(f"the forced λ must be positive (got {options.lam}); leave it unset for Eq. 8")
+    return lam
+
+
+def rule_gmnpr(g: FrameGeometry, ctx: WarpContext, phi: float, options: WarpOptions) -> float:
+    """GMNPR Eq. 8 (or the forced ``options.lam``)."""
+    forced = _forced(options)
+    if forced is not None:
+        return forced
+    theta = min(g.gamma, math.pi - g.gamma)
+    return lambda_gmnpr(theta, ctx.z_n, ctx.z_f, phi)
+
+
+def rule_glpr(g: FrameGeometry, ctx: WarpContext, phi: float, options: WarpOptions) -> float:
+    """GLPR, F(z) ~ z (or the forced ``options.lam``)."""
+    forced = _forced(options)
+    if forced is not None:
+        return forced
+    theta = min(g.gamma, math.pi - g.gamma)
+    return lambda_glpr(theta, ctx.z_n, ctx.z_f, phi)
+
+
+def _finite_or_none(x: float) -> Optional[float]:
+    return float(x) if math.isfinite(x) else None
+
+
+def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: IntersectionBody,
+                 options: WarpOptions) -> ShadowSetup:
+    """The maps of one warp method: one warped map per light frame."""
+    diag = Diagnostics(name, body_vertices=body.vertices)
+    frames = light_frames(view, light, body, options)
+    axis = light.direction if light.is_directional else body.centroid - light.position
+    diag.theta, diag.gamma = light_angles(view, axis)
+    ctx = eye_depth_range(view, body, options, diag)
+    diag.extra["z_n"] = ctx.z_n
+    diag.extra["delta_z"] = ctx.delta_z
+    diag.extra["frames"] = [f.role for f in frames]
+    middle = body.centroid - view.position
+    diag.extra["middle_vector"] = middle / np.linalg.norm(middle) if np.linalg.norm(middle) > 0 else np.zeros(3)
+    maps: list[ShadowMap] = []
+    reported = False
+    for frame in frames:
+        if frame.near_clamped:
+            diag.fallback(f"{frame.role}: near plane",
+                          "the light is inside B; points nearer than 1e-6 of the scene scale are not covered")
+        depth_row = linear_depth_row(frame) if options.linear_z else None
+        if view.orthographic:
+            geo, reason = None, "orthographic camera: no perspective aliasing to redistribute"
+        else:
+            geo, reason = frame_geometry(view, light, frame, options, body)
+        if geo is None:
+            diag.fallback(f"{frame.role}: uniform", reason)
+            m = frame_map(frame, options)
+            maps.append(ShadowMap(m.matrix, m.size, "LESS", frame.role, depth_row=depth_row))
+            continue
+        phi = half_fov_towards(view, geo.light_dir)
+        lam = rule(geo, ctx, phi, options)
+        mu = 0.0 if not math.isfinite(lam) else geo.fade / lam
+        if geo.fade < 1.0:
+            diag.fallback(f"{frame.role}: warp faded", f"the eye's image is far outside B's image in this frame; "
+                                                       f"warp strength x{geo.fade:.3g}" + (" (uniform)" if geo.fade == 0 else ""))
+        if mu == 0.0 and geo.fade > 0.0:
+            diag.fallback(f"{frame.role}: uniform limit", "light parallel to the view direction (γ = 0): "
+                                                         "n_opt = ∞, the warp is the uniform map")
+        matrix = fit_to_unit_cube(warp_matrix(geo, mu) @ frame.to_light, frame.points)
+        maps.append(ShadowMap(matrix, options.shadow_map_size, "LESS", frame.role, depth_row=depth_row))
+        if reported:
+            continue
+        reported = True
+        theta = min(geo.gamma, math.pi - geo.gamma)
+        diag.theta, diag.gamma = theta, geo.gamma
+        p_n = lam * geo.extent_world if math.isfinite(lam) else math.inf
+        if name == "lispsm":
+            diag.n_opt = _finite_or_none(p_n)
+            diag.extra["lambda"] = _finite_or_none(lam)
+        else:
+            diag.lam = _finite_or_none(lam)
+            diag.extra["n_opt"] = _finite_or_none(p_n)
+            diag.extra["phi"] = phi
+        diag.extra["warp_strength_mu"] = mu
+        diag.warp_frustum_corners = clip_volume_corners(matrix)
+        diag.extra["v_p"] = geo.v_p_world if geo.v_p_world is not None else np.zeros(3)
+        diag.extra["projection_centre"] = projection_centre(frame, geo, lam)
+    return ShadowSetup(maps, diag)
+
+
+def projection_centre(frame: LightFrame, g: FrameGeometry, lam: float) -> Optional[np.ndarray]:
+    """P's centre in world space: P_n = λ·D behind B's near side along V_P, at the
+    eye's lateral position and height (None when λ = ∞)."""
+    if not math.isfinite(lam):
+        return None
+    h_c = g.h_min - lam * g.extent
+    q_e = float(g.eye[:2] @ g.b)
+    xy = q_e * g.b + h_c * g.a
+    p = np.linalg.inv(frame.to_light) @ np.array([xy[0], xy[1], g.eye[2], 1.0])
+    if not abs(p[3]) > 1e-300:
+        return None
+    w = p[:3] / p[3]
+    return w if np.all(np.isfinite(w)) else None
