@@ -5,10 +5,12 @@ from typing import Callable
 
 from .lispsm import glpr, gmnpr, lispsm
 from .plane_optimal import plane_optimal
+from .psm import psm
 from .uniform import uniform
 
 METHODS: dict[str, Callable] = {
     "uniform": uniform,
+    "psm": psm,
     "lispsm": lispsm,
     "gmnpr": gmnpr,
     "glpr": glpr,

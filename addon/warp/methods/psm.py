@@ -1,0 +1,146 @@
+"""Perspective shadow maps (Stamminger & Drettakis, SIGGRAPH 2002).
+
+The shadow map is rendered in the post-perspective space (PPS) of a virtual
+camera: world -> virtual camera clip -> PPS light frustum -> unit-cube fit.
+The pieces live in ``post_perspective.py``:
+
+* the virtual camera shift (§4.2) with the near plane at the nearest visible
+  depth (§6): ``virtual_camera``; B' (B in PPS) fills the unit cube;
+* the light in homogeneous coordinates mapped to PPS (§3): a sun becomes a
+  point light on the PPS infinity plane (§3.1), a light behind the camera plane
+  an *inverted* light, a light in the camera plane a directional one (§3.2);
+* one light frustum formula for the three cases (``pps_light_matrix``),
+  continuous through the camera plane; the final unit-cube fit (§4, "fit to
+  the unit cube", ``fit.fit_to_unit_cube``) over B.
+
+Why the composition is valid: the final matrix is F @ Lpps @ V (camera-relative).
+V gives w = virtual eye depth >= d_R > 0 on B; Lpps gives w = 1 + ρ k·q > 0 on
+B' (cone narrower than 180°); F is affine. For a B point, the composed w is the
+product of the two (positive) w's, so w > 0 on B; every row is finite. Lines
+through the light map to lines through L' (projective maps keep incidence) and
+Lpps sends those to one (x, y): one light ray, one texel. Along a ray the depth
+grows away from the real light in every case, so the depth test is "LESS" even
+for inverted lights: the paper reverses the *test* (§3.1), Lixel reverses the
+*depth axis*, which is the same map up to z -> -z but does not jump when the
+light crosses the camera plane.
+
+Where PSM is still discontinuous:
+
+* a point or spot light entering B (for instance a lamp inside the view and the
+  scene box): no single frustum from L' covers B', and Lixel hands over to the
+  uniform map's cube faces (``frame.point_frames``), recorded as a fallback.
+  The brief allowed PPS cube faces instead; uniform's faces were chosen
+  because PSM's gain is small when the light sits inside the visible region
+  (§3.3: a light near the eye converges to the uniform setting) and the cube
+  faces already exist, tested, in one place;
+* an orthographic camera has an affine PPS: PSM *is* the uniform map (§1.1,
+  "for an orthogonal view"), so the uniform map is returned (recorded).
+
+Light exactly at the camera plane (w' = 0), a sun exactly along or against the
+view direction (the PPS light at the centre of the infinity plane, §3.3's worst
+case, where PSM equals the uniform map) and the light crossing the camera plane
+are all handled by the same formula without thresholds.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..body import IntersectionBody
+from ..fit import fit_to_unit_cube
+from ..frame import light_angles
+from ..geometry import UNIT_CUBE_CORNERS, homogeneous, translation
+from ..post_perspective import pps_light_matrix, virtual_camera
+from ..types import Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpOptions
+from .uniform import uniform
+
+COVER_TOLERANCE = 1e-6
+"""Final check: every B vertex has |NDC| <= 1 + this (the fit pads by 1e-7)."""
+
+
+def _light_axis(view: View, light: Light, body: IntersectionBody) -> np.ndarray:
+    return light.direction if light.is_directional else body.centroid - light.position
+
+
+def _uniform_fallback(view: View, light: Light, body: IntersectionBody, options: WarpOptions,
+                      diag: Diagnostics, what: str, reason: str) -> ShadowSetup:
+    diag.fallback(what, reason)
+    base = uniform(view, light, body, options)
+    diag.fallbacks.extend(base.diagnostics.fallbacks)
+    diag.extra["frames"] = base.diagnostics.extra.get("frames")
+    diag.extra["psm_applied"] = False
+    return ShadowSetup(base.maps, diag)
+
+
+def _clip_corners(matrix: np.ndarray):
+    """World corners of the clip volume (UNIT_CUBE_CORNERS order), or None when
+    the volume reaches infinity (a corner's preimage has w <= 0)."""
+    try:
+        inv = np.linalg.inv(matrix)
+    except np.linalg.LinAlgError:
+        return None
+    h = homogeneous(UNIT_CUBE_CORNERS) @ inv.T
+    w = h[:, 3]
+    if not np.all(np.isfinite(h)) or np.any(w <= 1e-12 * np.abs(h[:, :3]).max(axis=1)):
+        return None
+    return h[:, :3] / w[:, None]
+
+
+def covers(matrix: np.ndarray, points: np.ndarray, tol: float = COVER_TOLERANCE) -> bool:
+    h = homogeneous(points) @ matrix.T
+    w = h[:, 3]
+    if not (np.all(np.isfinite(h)) and np.all(w > 0)):
+        return False
+    return bool(np.all(np.abs(h[:, :3] / w[:, None]) <= 1.0 + tol))
+
+
+def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
+    diag = Diagnostics("psm", body_vertices=body.vertices)
+    diag.theta, diag.gamma = light_angles(view, _light_axis(view, light, body))
+    if view.orthographic:
+        return _uniform_fallback(view, light, body, options, diag, "orthographic camera",
+                                 "the post-perspective space of an orthographic camera is affine: "
+                                 "PSM equals the uniform map")
+    if not light.is_directional and bool(body.contains(light.position[None])[0]):
+        return _uniform_fallback(view, light, body, options, diag, "light inside B",
+                                 f"light '{light.name}' is inside the region that must be covered: no single "
+                                 "frustum in post-perspective space contains it; using the uniform cube faces")
+
+    origin = view.position
+    rel = body.vertices - origin
+    cam = virtual_camera(view, body)
+    light_h = light.homogeneous_position.copy()
+    if light_h[3] != 0:
+        light_h[:3] -= origin
+    pps_points = homogeneous(rel) @ cam.to_pps.T
+    pps_points = pps_points[:, :3] / pps_points[:, 3:4]
+    pl = pps_light_matrix(cam.to_pps @ light_h, pps_points)
+
+    diag.extra.update({
+        "pps_light": pl.light,
+        "pps_light_position": pl.position,
+        "pps_light_kind": pl.kind,
+        "inverted": pl.kind == "inverted",
+        "directional_in_pps": pl.kind == "directional",
+        "virtual_shift": cam.shift,
+        "virtual_near": cam.near,
+        "virtual_far": cam.far,
+        "visible_near": cam.visible_near,
+        "pps_cone_half_angle_deg": math.degrees(pl.cone_half_angle),
+    })
+    if pl.matrix is None:
+        return _uniform_fallback(view, light, body, options, diag, "PPS light frustum",
+                                 f"light '{light.name}' touches B in post-perspective space "
+                                 f"(cone half-angle {math.degrees(pl.cone_half_angle):.4f} deg): no single frustum")
+
+    relative = fit_to_unit_cube(pl.matrix @ cam.to_pps, rel)
+    matrix = relative @ translation(-origin)
+    if not (np.all(np.isfinite(matrix)) and covers(relative, rel)):
+        return _uniform_fallback(view, light, body, options, diag, "PSM matrix",
+                                 "the composed PSM matrix is not finite or does not cover B (numerically degenerate)")
+    corners = _clip_corners(relative)
+    diag.warp_frustum_corners = None if corners is None else corners + origin
+    diag.extra["psm_applied"] = True
+    diag.extra["frames"] = ["main"]
+    return ShadowSetup([ShadowMap(matrix, options.shadow_map_size, "LESS", "main")], diag)

@@ -1,0 +1,222 @@
+"""Post-perspective space (PPS) of a virtual camera and light frusta inside it
+(Stamminger & Drettakis, *Perspective Shadow Maps*, §2-§4). Numpy only.
+
+**The virtual camera (§4.2, §6).** PSM renders the shadow map in the camera's
+post-perspective space. The paper moves the camera back along its view
+direction ("virtual camera shift") until the body H (our B) lies entirely in
+front of its near plane, keeping the near distance unchanged (§4.2), and wants
+that near plane as far away as possible: it reads back the depth buffer to put
+it at the nearest visible depth (§6). Lixel combines the two with what B already
+tells us: the nearest visible point is R's nearest eye depth ``d_R`` (R = the
+visible part of B, ``IntersectionBody.visible_vertices``; d_R >= the camera's
+near distance) and B's nearest eye depth is ``d_B <= d_R`` (casters between the
+camera and R, or behind the camera). The virtual eye moves back by
+
+    s = d_R - d_B  >= 0,
+
+so B's nearest point is as far from the virtual eye as the nearest visible
+point is from the real one. s is 0 when nothing in B is nearer than R, and
+continuous in the configuration. Only the eye position and the view direction
+(the camera plane) shape PPS; the field of view, lens shift and near/far only
+apply an affine map to PPS. So the virtual projection is the plain perspective
+(x, y, -n_v, depth_v) with n_v = d_R, then fitted (``fit.fit_to_unit_cube``)
+so that B's PPS image B' fills the unit cube [-1, 1]^3: the virtual near plane
+is at B's nearest point, the far plane at B's farthest point. That keeps PPS
+well conditioned whatever the camera's own clip range (1e-3 .. 1e4).
+
+**The light in PPS (§3).** The light in homogeneous coordinates (w = 0 for a
+sun) is mapped by the virtual camera: L' = (l, w'). w' > 0: a point light in
+PPS; w' < 0 (the light behind the camera plane): an *inverted* point light whose
+rays converge (§3.1-§3.2; the order of points along a ray reverses); w' = 0 (a
+sun perpendicular to the view, a point light in the camera plane): a
+directional light in PPS.
+
+**One formula for all three (:func:`pps_light_matrix`).** For a PPS point p,
+the oriented ray direction u(p) = w' p - l is finite and continuous in w'; it
+points from L' to p when w' > 0, from p to L' when w' < 0 and along -l (the
+light's travel direction) when w' = 0. In every case the real light lies on the
+-u side (moving from p towards the real light changes p by +t·(l - w' p)). The
+map's depth axis k is the axis of the smallest cone containing all u(B'), and
+
+    x = (a·q + γx k·q) / (1 + ρ k·q),  y = (b·q + γy k·q) / (1 + ρ k·q),
+    z = k·q / (1 + ρ k·q),             q = p - c,
+
+with c the mean of B' (inside B'), a, b ⊥ k, and γ, ρ chosen so the x, y and w
+rows vanish at L' (rays through L' collapse to one texel). That is the
+central projection from L' onto the plane through c perpendicular to k,
+measured along a, b, for any w'; ρ ∝ w' and at w' = 0 it is the orthographic
+projection along l. Depth increases along k, i.e. away from the real light
+for normal, inverted and directional PPS lights alike, so the depth test is
+always LESS: the paper's inverted light with a reversed depth *test* (§3.1) is
+here an inverted depth *axis*, the same map up to z -> -z, and the map stays
+continuous when the light crosses the camera plane (PPS light through
+infinity). w = 1 + ρ k·q > 0 on B' exactly when the cone is narrower than
+180°, i.e. when a plane through L' has B' strictly on one side: always for a
+sun (B' lies strictly before the PPS image of infinity), and for a point light
+outside B.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .body import IntersectionBody
+from .fit import fit_to_unit_cube
+from .frame import image_up
+from .geometry import normalize
+from .types import View
+
+PPS_VIEW_DIRECTION = np.array([0.0, 0.0, 1.0])
+"""The view direction in PPS (NDC z grows with eye depth)."""
+PPS_UP = np.array([0.0, 1.0, 0.0])
+
+MIN_CONE_MARGIN = 1e-9
+"""Smallest accepted min_i k·u_i (cosine of the cone's half-angle): below it
+the light is (numerically) on or inside B' and one frustum cannot cover B'."""
+
+DIRECTIONAL_TOLERANCE = 1e-12
+"""|w'| / |l| below which the PPS light is reported as directional (the matrix
+itself needs no threshold: it is continuous through w' = 0)."""
+
+
+@dataclass(frozen=True)
+class VirtualCamera:
+    """``to_pps``: camera-relative world (p - eye) -> PPS clip, with B' filling
+    [-1, 1]^3 and w = virtual eye depth > 0 on B. ``shift``: how far the virtual
+    eye sits behind the real one; ``near``/``far``: B's nearest/farthest virtual
+    eye depth; ``visible_near``: d_R, the nearest visible eye depth."""
+
+    to_pps: np.ndarray
+    shift: float
+    near: float
+    far: float
+    visible_near: float
+
+
+def virtual_camera(view: View, body: IntersectionBody) -> VirtualCamera:
+    """The shifted camera whose PPS PSM works in (module docstring; §4.2, §6)."""
+    origin = view.position
+    to_cam = np.linalg.inv(view.camera_to_world[:3, :3])          # camera-relative world -> camera axes
+    rel = body.vertices - origin
+    depth = -(rel @ to_cam[2])
+    visible_depth = -((body.visible_vertices - origin) @ to_cam[2])
+    d_r = float(max(visible_depth.min(), view.near))
+    d_b = float(depth.min())
+    shift = max(0.0, d_r - d_b)
+    near = d_b + shift
+    raw = np.zeros((4, 4))
+    raw[0, :3] = to_cam[0]
+    raw[1, :3] = to_cam[1]
+    raw[2, 3] = -near                    # z_pps = -near / depth_v: affine in 1/depth (perspective depth)
+    raw[3, :3] = -to_cam[2]
+    raw[3, 3] = shift                    # w = depth + shift = virtual eye depth
+    return VirtualCamera(fit_to_unit_cube(raw, rel), shift, near, float(depth.max()) + shift, d_r)
+
+
+def min_norm_point(points, max_iter: int = 200) -> np.ndarray:
+    """The point of the convex hull of ``points`` (M, d) nearest the origin
+    (Wolfe's algorithm, 1976: exact up to rounding, finitely many steps)."""
+    p = np.asarray(points, dtype=np.float64)
+    sq = np.einsum("ij,ij->i", p, p)
+    scale = max(float(sq.max()), 1e-300)
+    support = [int(np.argmin(sq))]
+    weights = np.array([1.0])
+    x = p[support[0]].copy()
+    for _ in range(max_iter):
+        dots = p @ x
+        j = int(np.argmin(dots))
+        if x @ x - dots[j] <= 1e-14 * scale or j in support:
+            break
+        support.append(j)
+        weights = np.append(weights, 0.0)
+        for _ in range(max_iter):
+            q = p[support]
+            n = len(support)
+            a = np.ones((n + 1, n + 1))
+            a[:n, :n] = q @ q.T
+            a[n, n] = 0.0
+            rhs = np.zeros(n + 1)
+            rhs[n] = 1.0
+            alpha = np.linalg.lstsq(a, rhs, rcond=None)[0][:n]
+            if np.all(alpha > 1e-15):
+                weights = alpha
+                x = alpha @ q
+                break
+            neg = alpha <= 1e-15
+            theta = float(np.min(weights[neg] / (weights[neg] - alpha[neg])))
+            weights = theta * alpha + (1.0 - theta) * weights
+            keep = weights > 1e-15
+            support = [s for s, k in zip(support, keep) if k]
+            weights = weights[keep] / weights[keep].sum()
+            x = weights @ p[support]
+    return x
+
+
+def smallest_cone(directions) -> tuple[np.ndarray, float]:
+    """Axis k and margin min_i k·d_i of the narrowest cone around the unit
+    ``directions``: k maximises min_i k·d_i, which by minimax duality is the
+    direction of the hull's point nearest the origin, and the margin is that
+    point's norm (0 when the directions surround the origin)."""
+    x = min_norm_point(directions)
+    norm = float(np.linalg.norm(x))
+    if norm <= 1e-15:
+        return np.array([0.0, 0.0, 1.0]), 0.0
+    k = x / norm
+    return k, float(np.min(np.asarray(directions) @ k))
+
+
+@dataclass(frozen=True)
+class PPSLight:
+    """The light's frustum in PPS. ``matrix``: PPS -> light clip before the
+    unit-cube fit (None if no single frustum covers B'); ``light``: L' = (l, w')
+    normalised to unit length; ``kind``: "point", "inverted" or "directional";
+    ``cone_half_angle``: radians; ``axis``: k."""
+
+    matrix: np.ndarray | None
+    light: np.ndarray
+    kind: str
+    cone_half_angle: float
+    axis: np.ndarray
+
+    @property
+    def position(self) -> np.ndarray | None:
+        """L' as a PPS point, None when it is at infinity (directional)."""
+        if self.kind == "directional":
+            return None
+        return self.light[:3] / self.light[3]
+
+
+def pps_light_matrix(light_h, points) -> PPSLight:
+    """The light frustum from the homogeneous PPS light ``light_h`` over the
+    PPS points ``points`` (B'), see the module docstring."""
+    lh = np.asarray(light_h, dtype=np.float64)
+    lh = lh / np.linalg.norm(lh)
+    l, wp = lh[:3], float(lh[3])
+    if abs(wp) <= DIRECTIONAL_TOLERANCE * max(float(np.linalg.norm(l)), 1e-300):
+        kind = "directional"
+    else:
+        kind = "point" if wp > 0 else "inverted"
+    pts = np.asarray(points, dtype=np.float64)
+    rays = wp * pts - l
+    lengths = np.linalg.norm(rays, axis=1)
+    if lengths.min() <= 1e-12 * max(float(lengths.max()), 1e-300):
+        return PPSLight(None, lh, kind, math.pi, np.array([0.0, 0.0, 1.0]))
+    k, margin = smallest_cone(rays / lengths[:, None])
+    half = math.acos(min(1.0, max(-1.0, margin)))
+    if margin < MIN_CONE_MARGIN:
+        return PPSLight(None, lh, kind, half, k)
+    centre = pts.mean(axis=0)
+    b = image_up(PPS_VIEW_DIRECTION, PPS_UP, k)
+    a = normalize(np.cross(k, b))                   # a x b = -k, like frame.FLIP_Z @ look_along
+    b = np.cross(a, k)
+    rot = np.stack([a, b, k])
+    lam = rot @ (l - wp * centre)                    # L' in the (a, b, k) frame centred at c, times w'
+    # lam[2] = -k·(w' c - l) < 0: c is a mean of B', every k·(w' p - l) > 0.
+    gx, gy, rho = -lam[0] / lam[2], -lam[1] / lam[2], -wp / lam[2]
+    shear = np.array([[1.0, 0.0, gx, 0.0], [0.0, 1.0, gy, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, rho, 1.0]])
+    frame = np.eye(4)
+    frame[:3, :3] = rot
+    frame[:3, 3] = -rot @ centre
+    return PPSLight(shear @ frame, lh, kind, half, k)
