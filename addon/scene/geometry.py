@@ -189,12 +189,16 @@ class GeometryCache:
         self.meshes.clear()
         self._last_depsgraph = None
 
-    def update(self, depsgraph) -> SceneGeometry:
+    def update(self, depsgraph, exclude=None) -> SceneGeometry:
+        """Walk ``depsgraph`` and return its geometry; ``exclude(ob_eval)`` -> True
+        leaves an object out (e.g. Lixel's own debug objects)."""
         same_graph = self._last_depsgraph == depsgraph.as_pointer()
         flagged = _flagged_names(depsgraph)
         used: dict = {}
 
         def on_geometry(key, ob):
+            if exclude is not None and exclude(ob):
+                return False
             old = self.meshes.get(key)
             if old is not None and same_graph and key[1].split("@")[0] not in flagged:
                 used[key] = old

@@ -1,0 +1,197 @@
+"""The Lixel render engine: F12, ``blender -b file.blend -E LIXEL -f 1`` and
+``bpy.ops.render.render()`` render the scene's camera view shaded with Lixel's
+warped shadow maps.
+
+Passes: Combined; "Shadow" (0 lit .. 1 fully shadowed); "Footprint" (the
+shadow-map texel footprint heatmap, see ``addon.gpu.pipeline.footprint_heatmap``);
+"Shadow Map" (the first map's window depth, resampled to the render size).
+The whole last result (every map at full resolution, timings, counts) stays
+available as :func:`last_render`.
+
+Settings come from ``scene.lixel.to_settings()`` when the Lixel properties are
+registered, else ``LixelSettings()`` defaults. Bad input (no camera, no
+supported light, nothing to render, no GPU) ends the render with a
+``self.report({'ERROR'}, ...)`` naming the problem, never a traceback.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from typing import Optional
+
+import bpy
+import numpy as np
+
+from ..settings import LixelSettings
+from ..warp import compute, intersection_body
+from ..warp.methods import METHODS
+from ..warp.types import WarpError
+
+log = logging.getLogger(__name__)
+
+EXTRA_PASSES = (
+    # name, channels, channel ids, compositor socket type
+    ("Shadow", 1, "X", "VALUE"),
+    ("Footprint", 4, "RGBA", "COLOR"),
+    ("Shadow Map", 1, "Z", "VALUE"),
+)
+
+_last: dict = {}
+
+
+def last_render() -> dict:
+    """The last Lixel render of this session: ``setup``, ``settings``, ``result``
+    (the dict of ``addon.gpu.pipeline.render_shadows``), ``scene``; empty before."""
+    return _last
+
+
+def scene_settings(scene) -> LixelSettings:
+    """``scene.lixel.to_settings()`` if the Lixel properties exist, else the defaults."""
+    props = getattr(scene, "lixel", None)
+    if props is not None and hasattr(props, "to_settings"):
+        return props.to_settings()
+    return LixelSettings()
+
+
+def _debug_filter():
+    try:
+        from ..ui.live import is_debug_object
+    except ImportError:
+        return None
+    return is_debug_object
+
+
+def _world_colour(scene) -> tuple:
+    world = scene.world
+    if world is None:
+        return (0.0, 0.0, 0.0)
+    return tuple(float(c) for c in world.color)
+
+
+def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, settings: Optional[LixelSettings] = None,
+                     warnings: Optional[list] = None) -> dict:
+    """Describe, compute and render an evaluated scene (what the engine does);
+    usable by scripts and operators. Needs a GPU context. Returns
+    :func:`last_render`'s dict. Raises ``WarpError`` with a user-facing message."""
+    from ..gpu.pipeline import render_shadows
+    from ..scene.describe import describe_scene
+    from ..scene.geometry import shared_cache
+
+    scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
+    settings = settings or scene_settings(scene)
+    timings = {}
+    t = time.perf_counter()
+    geometry = shared_cache().update(depsgraph, exclude=_debug_filter())
+    timings["extraction"] = time.perf_counter() - t
+    t = time.perf_counter()
+    view, light, bounds = describe_scene(scene, depsgraph, instances=geometry.instances)
+    method = settings.method
+    if method not in METHODS:
+        if warnings is not None:
+            warnings.append(f"Lixel method '{method}' is not available in this build; rendering with 'uniform'")
+        method = "uniform"
+    body = intersection_body(view, light, bounds)
+    setup = compute(method, view, light, bounds, settings.warp, body=body)
+    timings["warp"] = time.perf_counter() - t
+    result = render_shadows(view, light, setup, geometry, settings, resolution or view.resolution, body=body,
+                            ambient=_world_colour(scene))
+    result["timings"] = {**timings, **result["timings"]}
+    _last.clear()
+    _last.update(setup=setup, settings=settings, result=result, scene=scene.name, method=method)
+    return _last
+
+
+def _resample(img: np.ndarray, w: int, h: int) -> np.ndarray:
+    """Nearest-neighbour resample of an (h0, w0) image to (h, w)."""
+    h0, w0 = img.shape[:2]
+    ys = np.minimum((np.arange(h) + 0.5) * h0 / h, h0 - 1).astype(np.int64)
+    xs = np.minimum((np.arange(w) + 0.5) * w0 / w, w0 - 1).astype(np.int64)
+    return img[ys][:, xs]
+
+
+def _set_pass(layer, name: str, data: np.ndarray) -> None:
+    rp = layer.passes.find_by_name(name, "") if hasattr(layer.passes, "find_by_name") else layer.passes.get(name)
+    if rp is None:
+        rp = layer.passes.get(name)
+    if rp is None:
+        log.warning("Lixel: render pass %s missing", name)
+        return
+    flat = np.ascontiguousarray(data, dtype=np.float32).reshape(-1)
+    try:
+        rp.rect.foreach_set(flat)
+    except (AttributeError, TypeError):
+        rp.rect = flat.reshape(len(flat) // rp.channels, rp.channels).tolist()
+
+
+class LixelRenderEngine(bpy.types.RenderEngine):
+    """Renders the camera's view with Lixel's warped shadow maps."""
+
+    bl_idname = "LIXEL"
+    bl_label = "Lixel"
+    bl_use_gpu_context = True
+    bl_use_preview = False
+
+    def render(self, depsgraph):
+        try:
+            from ..gpu.context import ensure_gpu_context
+            ensure_gpu_context()
+            warnings: list = []
+            out = render_depsgraph(depsgraph, warnings=warnings)
+        except WarpError as exc:
+            self.report({"ERROR"}, f"Lixel: {exc}")
+            return
+        except Exception as exc:  # noqa: BLE001 - a render must end with a message, not a crash
+            log.exception("Lixel render failed")
+            self.report({"ERROR"}, f"Lixel render failed: {exc}")
+            return
+        for msg in warnings:
+            self.report({"WARNING"}, msg)
+        res = out["result"]
+        h, w = res["shadow_mask"].shape  # the full frame (a render border is not cropped)
+        for name, channels, chan_id, _ in EXTRA_PASSES:
+            self.add_pass(name, channels, chan_id)
+        result = self.begin_result(0, 0, w, h)
+        layer = result.layers[0]
+        _set_pass(layer, "Combined", res["combined"])
+        _set_pass(layer, "Shadow", res["shadow_mask"])
+        _set_pass(layer, "Footprint", res["footprint_heatmap"])
+        if res["shadow_maps"]:
+            _set_pass(layer, "Shadow Map", _resample(res["shadow_maps"][0], w, h))
+        self.end_result(result)
+        c = res["counts"]
+        self.update_stats("Lixel", f"{out['method']}: {c['maps']} map(s), {c['casters_drawn']} casters drawn "
+                                   f"({c['caster_triangles_drawn']} tris), {c['casters_culled']} culled")
+
+    def update_render_passes(self, scene=None, renderlayer=None):
+        self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
+        for name, channels, chan_id, kind in EXTRA_PASSES:
+            self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
+
+
+def _panels():
+    """Blender's property panels that should show for the Lixel engine too."""
+    wanted = {"RENDER_PT_format", "RENDER_PT_frame_range", "RENDER_PT_output", "RENDER_PT_color_management",
+              "DATA_PT_camera", "DATA_PT_lens", "DATA_PT_camera_display", "DATA_PT_light", "DATA_PT_context_light",
+              "DATA_PT_context_camera", "OBJECT_PT_visibility"}
+    for name in dir(bpy.types):
+        if name in wanted:
+            panel = getattr(bpy.types, name)
+            if hasattr(panel, "COMPAT_ENGINES"):
+                yield panel
+
+
+classes = (LixelRenderEngine,)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    for panel in _panels():
+        panel.COMPAT_ENGINES.add(LixelRenderEngine.bl_idname)
+
+
+def unregister():
+    for panel in _panels():
+        panel.COMPAT_ENGINES.discard(LixelRenderEngine.bl_idname)
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)
