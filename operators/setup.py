@@ -28,7 +28,7 @@ class LIXEL_OT_refresh(bpy.types.Operator):
         d = st.setup.diagnostics
         self.report({"INFO"}, f"Lixel {st.method_used}: {len(st.setup.maps)} map(s), B has "
                               f"{len(d.body_vertices)} vertices ({st.total_ms():.1f} ms)")
-        overlays.tag_redraw(context)
+        overlays.sync_handlers(context)
         return {"FINISHED"}
 
 

@@ -17,7 +17,8 @@ ROOT_PACKAGE = __package__.rsplit(".addon.ui", 1)[0] if __package__.endswith(".a
 def _scene_prop(name):
     """The same property definition as the Scene settings (one source of truth)."""
     deferred = LixelSceneSettings.__annotations__[name]
-    return deferred.function(**deferred.keywords)
+    keywords = {k: v for k, v in deferred.keywords.items() if k != "update"}
+    return deferred.function(**keywords)
 
 
 class LIXEL_AP_preferences(bpy.types.AddonPreferences):

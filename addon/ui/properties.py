@@ -170,13 +170,14 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
         """The WarpOptions these settings describe (raises WarpError with a clear message)."""
         w, h = (int(v) for v in self.shadow_map_size)
         if not (1 <= w <= MAX_MAP_SIZE and 1 <= h <= MAX_MAP_SIZE):
-            raise WarpError(f"Lixel map size {w}x{h} is out of range: use 1..{MAX_MAP_SIZE} texels per side")
+            raise WarpError(f"shadow map size {w}x{h} is out of range: use 1..{MAX_MAP_SIZE} texels per side "
+                            f"(Lixel panel > Method > Map Size)")
         planes = tuple((tuple(p.point), tuple(p.normal)) for p in self.planes)
         vis = None
         if self.use_visible_depth_range:
             near, far = (float(v) for v in self.visible_depth_range)
             if not 0 <= near < far:
-                raise WarpError(f"Lixel visible range must satisfy 0 <= near < far (got {near}, {far})")
+                raise WarpError(f"the visible range must satisfy 0 <= near < far (got {near}, {far})")
             vis = (near, far)
         return WarpOptions(
             shadow_map_size=(w, h), texel_snapping=self.texel_snapping, delta_z=self.delta_z,
@@ -238,6 +239,20 @@ def ensure_defaults(scene) -> bool:
     props.initialised = True
     return True
 
+
+def _touched(self, _context):
+    """Any edit by the user marks the scene as set up, so the preference
+    defaults never overwrite a choice made before the first Refresh."""
+    if not self.initialised:
+        self.initialised = True
+
+
+SETTING_NAMES = ("light", "method", "shadow_map_size", "texel_snapping", "delta_z", "use_visible_depth_range",
+                 "visible_depth_range", "middle_vector", "linear_z", "use_lambda", "lam", "max_frustum_angle",
+                 "plane_budget", "bias_mode", "constant_bias", "slope_bias", "back_faces", "pcf_kernel",
+                 "mdsm_depths", "mdsm_selection", "mdsm_neighbourhood", "eye_blur")
+for _name in SETTING_NAMES:  # one update callback for every setting (before registration)
+    LixelSceneSettings.__annotations__[_name].keywords["update"] = _touched
 
 classes = (LixelPlane, LixelSceneSettings)
 

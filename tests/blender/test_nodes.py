@@ -1,0 +1,160 @@
+"""Geometry-node tooling: the texel attribute the Texel Grid group evaluates
+equals numpy's per vertex (explicit homogeneous divide), the frustum group's
+mesh is the inverse projection of the unit cube, both follow the matrices when
+they change, and building is idempotent and versioned."""
+import importlib
+import math
+
+import bpy
+import numpy as np
+import pytest
+
+from ui_scenes import active_scene
+
+
+@pytest.fixture(scope="module")
+def nodes(lixel):
+    return importlib.import_module(f"{lixel.__name__}.addon.ui.nodes")
+
+
+@pytest.fixture(scope="module")
+def wg(lixel):
+    return importlib.import_module(f"{lixel.__name__}.addon.warp.geometry")
+
+
+@pytest.fixture
+def scene(lixel):
+    with active_scene("lixel_nodes") as sc:
+        yield sc
+    coll = bpy.data.collections.get("Lixel Debug")
+    if coll is not None:
+        for ob in list(coll.objects):
+            bpy.data.objects.remove(ob)
+        bpy.data.collections.remove(coll)
+
+
+class _Map:
+    def __init__(self, matrix, size):
+        self.matrix, self.size = np.asarray(matrix, dtype=np.float64), size
+
+
+class _Setup:
+    def __init__(self, *maps):
+        self.maps = list(maps)
+
+
+def perspective_light(wg, eye, target, fov=math.radians(50), near=1.0, far=30.0):
+    eye, target = np.asarray(eye, float), np.asarray(target, float)
+    world_to_eye = wg.look_along(eye, target - eye, np.array([0.0, 1.0, 0.0]))
+    return wg.perspective_matrix(fov, 1.0, near, far) @ world_to_eye
+
+
+def evaluated_points(ob, names):
+    dg = bpy.context.evaluated_depsgraph_get()
+    dg.update()
+    me = ob.evaluated_get(dg).data
+    n = len(me.vertices)
+    out = {}
+    for name in names:
+        buf = np.zeros(n * 3, dtype=np.float32)
+        me.attributes[name].data.foreach_get("vector", buf)
+        out[name] = buf.reshape(-1, 3).astype(np.float64)
+    return out
+
+
+def expected_texels(ob, points_local, matrix, size):
+    w = np.array(ob.matrix_world)
+    world = points_local @ w[:3, :3].T + w[:3, 3]
+    h = np.c_[world, np.ones(len(world))] @ np.asarray(matrix).T
+    ndc = h[:, :2] / h[:, 3:]
+    return (ndc * 0.5 + 0.5) * np.asarray(size, dtype=np.float64), h
+
+
+def test_texel_attribute_equals_numpy_per_vertex(scene, nodes, wg):
+    ground = scene.objects["lixel_nodes ground"]
+    ground.location = (0.4, -0.2, 0.3)
+    ground.rotation_euler = (0.1, -0.2, 0.7)
+    ground.scale = (1.3, 0.8, 1.0)
+    m0 = perspective_light(wg, (2.0, -3.0, 12.0), (0.0, 0.0, 0.0))
+    m1 = wg.ortho_matrix(-6, 6, -5, 5, 1, 40) @ wg.look_along(
+        np.array([3.0, 3.0, 10.0]), np.array([-0.3, -0.3, -1.0]), np.array([0.0, 1.0, 0.0]))
+    carrier = nodes.ensure_carrier(scene, _Setup(_Map(m0, (1024, 512)), _Map(m1, (300, 200))))
+    mod = nodes.add_texel_grid(ground, carrier, map_index=0)
+    got = evaluated_points(ground, ["position", nodes.TEXEL_ATTRIBUTE, nodes.XYW_ATTRIBUTE, nodes.SIZE_ATTRIBUTE])
+    expect, h = expected_texels(ground, got["position"], m0, (1024, 512))
+    assert np.all(h[:, 3] > 0)
+    # float32 attributes: a texel coordinate of ~1000 is good to ~1e-4
+    np.testing.assert_allclose(got[nodes.TEXEL_ATTRIBUTE][:, :2], expect, atol=2e-3)
+    np.testing.assert_allclose(got[nodes.XYW_ATTRIBUTE], h[:, [0, 1, 3]], rtol=1e-5, atol=1e-4)
+    np.testing.assert_allclose(got[nodes.SIZE_ATTRIBUTE][:, :2], np.broadcast_to([1024, 512], (len(h), 2)))
+    # the second map, through the modifier's Map Index
+    nodes.add_texel_grid(ground, carrier, map_index=1)
+    got = evaluated_points(ground, ["position", nodes.TEXEL_ATTRIBUTE])
+    expect, _ = expected_texels(ground, got["position"], m1, (300, 200))
+    np.testing.assert_allclose(got[nodes.TEXEL_ATTRIBUTE][:, :2], expect, atol=2e-3)
+    # the group follows the carrier when the matrices change
+    m2 = perspective_light(wg, (-4.0, 1.0, 9.0), (0.5, 0.0, 0.0), fov=math.radians(70))
+    nodes.ensure_carrier(scene, _Setup(_Map(m0, (64, 64)), _Map(m2, (2048, 2048))))
+    got = evaluated_points(ground, ["position", nodes.TEXEL_ATTRIBUTE])
+    expect, _ = expected_texels(ground, got["position"], m2, (2048, 2048))
+    np.testing.assert_allclose(got[nodes.TEXEL_ATTRIBUTE][:, :2], expect, atol=5e-3)
+    # the material is assigned by the modifier
+    dg = bpy.context.evaluated_depsgraph_get()
+    assert nodes.TEXEL_MATERIAL in [mat.name for mat in ground.evaluated_get(dg).data.materials if mat]
+    assert mod.node_group.name == nodes.TEXEL_GROUP
+
+
+def test_divide_is_by_signed_w(scene, nodes, wg):
+    """Points behind the light (w < 0) must not be mirrored as Project Point's |w| would."""
+    ground = scene.objects["lixel_nodes ground"]
+    m = perspective_light(wg, (0.0, 0.0, 0.2), (0.0, 0.0, 5.0), fov=math.radians(120), near=0.05)
+    carrier = nodes.ensure_carrier(scene, _Setup(_Map(m, (100, 100))))
+    nodes.add_texel_grid(ground, carrier)
+    got = evaluated_points(ground, ["position", nodes.TEXEL_ATTRIBUTE])
+    expect, h = expected_texels(ground, got["position"], m, (100, 100))
+    assert np.all(h[:, 3] < 0)
+    np.testing.assert_allclose(got[nodes.TEXEL_ATTRIBUTE][:, :2], expect, rtol=1e-4, atol=1e-3)
+
+
+def test_frustum_from_matrix_is_the_inverse_projected_cube(scene, nodes, wg):
+    m0 = perspective_light(wg, (1.0, 2.0, 9.0), (0.0, 0.0, 0.0))
+    carrier = nodes.ensure_carrier(scene, _Setup(_Map(m0, (512, 512))))
+    ob = nodes.add_frustum_object(scene, carrier, 0)
+    ob.location = (1.0, -2.0, 0.5)  # the group outputs in the object's local space
+    for matrix in (m0, perspective_light(wg, (-3.0, 1.0, 7.0), (1.0, 0.0, 0.0), fov=math.radians(30))):
+        nodes.ensure_carrier(scene, _Setup(_Map(matrix, (512, 512))))
+        got = evaluated_points(ob, ["position"])["position"]
+        world = got + np.array(ob.location)
+        expect = wg.clip_volume_corners(matrix)
+        assert len(world) == 8
+        d = np.linalg.norm(world[:, None] - expect[None], axis=2)
+        scale = np.linalg.norm(expect.max(axis=0) - expect.min(axis=0))
+        assert d.min(axis=1).max() < 1e-5 * scale
+        assert sorted(d.argmin(axis=1)) == list(range(8))
+
+
+def test_groups_are_idempotent_and_versioned(scene, nodes):
+    g1 = nodes.ensure_texel_grid_group()
+    n_nodes = len(g1.nodes)
+    assert nodes.ensure_texel_grid_group() == g1 and len(g1.nodes) == n_nodes
+    assert g1[nodes.VERSION_KEY] == nodes.TEXEL_GROUP_VERSION
+    ground = scene.objects["lixel_nodes ground"]
+    carrier = nodes.ensure_carrier(scene, _Setup(_Map(np.eye(4), (8, 8))))
+    mod = nodes.add_texel_grid(ground, carrier)
+    nodes.add_texel_grid(ground, carrier)
+    assert len(ground.modifiers) == 1
+    assert sum(1 for s in ground.material_slots if s.material and s.material.name == nodes.TEXEL_MATERIAL) == 1
+    # an outdated group is rebuilt in place: the modifier keeps using it
+    g1[nodes.VERSION_KEY] = 0
+    g1.nodes.clear()
+    g2 = nodes.ensure_texel_grid_group()
+    assert g2 == g1 and mod.node_group == g2 and len(g2.nodes) == n_nodes
+    assert g2[nodes.VERSION_KEY] == nodes.TEXEL_GROUP_VERSION
+    f1 = nodes.ensure_frustum_group()
+    assert nodes.ensure_frustum_group() == f1
+    n_groups = len(bpy.data.node_groups)
+    nodes.ensure_frustum_group()
+    nodes.ensure_texel_grid_group()
+    assert len(bpy.data.node_groups) == n_groups
+    m1 = nodes.ensure_texel_material()
+    assert nodes.ensure_texel_material() == m1

@@ -1,0 +1,210 @@
+"""Every LIXEL_OT_* operator runs in background mode on a sample scene, and each
+one that needs a setup reports a clear error (and changes nothing) when the
+camera, the light or the meshes are missing."""
+import importlib
+import json
+
+import bpy
+import numpy as np
+import pytest
+
+from ui_scenes import active_scene
+
+
+@pytest.fixture(scope="module")
+def mods(lixel):
+    class M:
+        pass
+    m = M()
+    for name in ("live", "nodes", "properties", "overlays"):
+        setattr(m, name, importlib.import_module(f"{lixel.__name__}.addon.ui.{name}"))
+    m.warp = importlib.import_module(f"{lixel.__name__}.addon.warp")
+    m.describe = importlib.import_module(f"{lixel.__name__}.addon.scene.describe")
+    return m
+
+
+@pytest.fixture
+def scene(lixel):
+    with active_scene("lixel_ops") as sc:
+        yield sc
+    for name in ("Lixel Debug",):
+        coll = bpy.data.collections.get(name)
+        if coll is not None:
+            for ob in list(coll.objects):
+                bpy.data.objects.remove(ob)
+            bpy.data.collections.remove(coll)
+
+
+def _select_only(scene, names):
+    for ob in scene.objects:
+        ob.select_set(ob.name in names)
+    bpy.context.view_layer.objects.active = scene.objects[names[0]] if names else None
+
+
+def test_refresh_computes_the_scene_setup(scene, mods):
+    assert bpy.ops.lixel.refresh() == {"FINISHED"}
+    st = mods.live.state(scene)
+    assert st.ok and len(st.setup.maps) >= 1
+    # the same setup as the warp core gives for the described scene
+    view, light, bounds = mods.describe.describe_scene(bpy.context)
+    expect = mods.warp.compute(st.method_used, view, light, bounds, scene.lixel.to_settings().warp)
+    for a, b in zip(st.setup.maps, expect.maps):
+        np.testing.assert_allclose(a.matrix, b.matrix, rtol=1e-12, atol=1e-12)
+    assert scene.lixel.initialised
+
+
+def test_toggle_every_overlay_adds_and_removes_draw_handlers(scene, mods):
+    for name, _label, _desc in mods.properties.OVERLAYS:
+        assert bpy.ops.lixel.toggle_overlay(overlay=name) == {"FINISHED"}
+        assert getattr(scene.lixel, name)
+        assert mods.overlays.draw_handlers_active() == ("pixel", "view")
+        assert bpy.ops.lixel.toggle_overlay(overlay=name) == {"FINISHED"}
+        assert not getattr(scene.lixel, name)
+        assert mods.overlays.draw_handlers_active() == ()
+
+
+def test_bake_is_idempotent_and_matches_the_setup(scene, mods):
+    assert bpy.ops.lixel.bake_debug() == {"FINISHED"}
+    coll = bpy.data.collections["Lixel Debug"]
+    first = sorted(ob.name for ob in coll.objects)
+    n_objects, n_meshes = len(bpy.data.objects), len(bpy.data.meshes)
+    assert bpy.ops.lixel.bake_debug() == {"FINISHED"}
+    assert sorted(ob.name for ob in coll.objects) == first
+    assert (len(bpy.data.objects), len(bpy.data.meshes)) == (n_objects, n_meshes)
+    st = mods.live.state(scene)
+    body = coll.objects["Lixel B"].data
+    co = np.array([v.co for v in body.vertices], dtype=np.float64)
+    assert len(co) == len(st.body.vertices)
+    d = np.linalg.norm(co[:, None] - st.body.vertices[None], axis=2)
+    assert d.min(axis=1).max() < 1e-5 * st.body.scale + 1e-6
+    assert len(body.polygons) == len(st.body.faces)
+    # baked objects are never casters or receivers (B must not feed back into itself)
+    bounds_before = st.bounds
+    assert bpy.ops.lixel.refresh() == {"FINISHED"}
+    np.testing.assert_array_equal(mods.live.state(scene).bounds.receivers, bounds_before.receivers)
+
+
+def test_export_writes_the_cli_format(scene, mods, tmp_path):
+    path = tmp_path / "setup.json"
+    assert bpy.ops.lixel.export_json(filepath=str(path)) == {"FINISHED"}
+    doc = json.loads(path.read_text())
+    st = mods.live.state(scene)
+    assert set(doc) == {"maps", "diagnostics"}
+    assert doc == json.loads(json.dumps(st.setup.to_json()))
+    path_all = tmp_path / "all.json"
+    assert bpy.ops.lixel.export_json(filepath=str(path_all), all_methods=True) == {"FINISHED"}
+    doc = json.loads(path_all.read_text())
+    assert set(doc["methods"]) == set(mods.warp.METHODS)
+
+
+def test_export_reports_an_unwritable_path(scene, tmp_path):
+    with pytest.raises(RuntimeError, match="cannot write"):
+        bpy.ops.lixel.export_json(filepath=str(tmp_path / "missing_dir" / "x.json"))
+
+
+def test_compare_lists_every_method(scene, mods):
+    assert bpy.ops.lixel.compare() == {"FINISHED"}
+    text = bpy.data.texts["Lixel Comparison"].as_string()
+    for name in mods.warp.METHODS:
+        assert f"\n{name} " in text
+    bpy.data.texts.remove(bpy.data.texts["Lixel Comparison"])
+
+
+def test_planes_from_selected_objects_and_faces(scene):
+    ground = scene.objects["lixel_ops ground"]
+    ground.location.z = 0.25
+    bpy.context.view_layer.update()
+    _select_only(scene, [ground.name])
+    assert bpy.ops.lixel.planes_from_selection() == {"FINISHED"}
+    planes = scene.lixel.planes
+    assert len(planes) == 1
+    np.testing.assert_allclose(planes[0].normal, (0, 0, 1), atol=1e-6)
+    assert planes[0].point[2] == pytest.approx(0.25)
+    # edit mode: two selected faces of the ground are coplanar -> one plane; a cube side adds another
+    bpy.ops.object.mode_set(mode="EDIT")
+    import bmesh
+    bm = bmesh.from_edit_mesh(ground.data)
+    for f in bm.faces:
+        f.select = f.index in (0, 1)
+    bmesh.update_edit_mesh(ground.data)
+    assert bpy.ops.lixel.planes_from_selection() == {"FINISHED"}
+    assert len(planes) == 1
+    bpy.ops.object.mode_set(mode="OBJECT")
+    assert bpy.ops.lixel.plane_remove(index=0) == {"FINISHED"}
+    assert len(planes) == 0
+
+
+def test_planes_without_selection_is_a_clear_error(scene):
+    _select_only(scene, [])
+    with pytest.raises(RuntimeError, match="no mesh selected"):
+        bpy.ops.lixel.planes_from_selection()
+
+
+def test_texel_grid_frustum_and_sync(scene, mods):
+    ground = scene.objects["lixel_ops ground"]
+    _select_only(scene, [ground.name])
+    assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+    assert ground.modifiers[mods.nodes.TEXEL_MODIFIER].node_group.name == mods.nodes.TEXEL_GROUP
+    assert bpy.ops.lixel.frustum_add() == {"FINISHED"}
+    assert bpy.ops.lixel.sync_matrices() == {"FINISHED"}
+    with pytest.raises(RuntimeError, match="map 7 does not exist"):
+        bpy.ops.lixel.frustum_add(map_index=7)
+    assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"}
+    assert mods.nodes.TEXEL_MODIFIER not in ground.modifiers
+
+
+def test_reset_settings_keeps_light_and_planes(scene):
+    props = scene.lixel
+    props.pcf_kernel = 5
+    props.planes.add().normal = (0, 1, 0)
+    assert bpy.ops.lixel.reset_settings() == {"FINISHED"}
+    assert props.pcf_kernel == 3
+    assert len(props.planes) == 1
+
+
+def test_map_size_beyond_the_limit_is_a_clear_error(scene, mods, monkeypatch):
+    # The property clamps to MAX_MAP_SIZE; lower the limit to reach the check behind it.
+    scene.lixel.initialised = True
+    scene.lixel.shadow_map_size = (4096, 4096)
+    monkeypatch.setattr(mods.properties, "MAX_MAP_SIZE", 1024)
+    with pytest.raises(RuntimeError, match=r"map size 4096x4096 is out of range: use 1\.\.1024"):
+        bpy.ops.lixel.refresh()
+    assert not mods.live.state(scene).ok
+
+
+NEEDS_SETUP = [
+    ("refresh", {}),
+    ("bake_debug", {}),
+    ("export_json", {"filepath": "/nonexistent/never_written.json"}),
+    ("compare", {}),
+    ("sync_matrices", {}),
+    ("frustum_add", {}),
+]
+
+
+@pytest.mark.parametrize("missing,pattern", [
+    ("camera", "no camera"),
+    ("light", "no light"),
+    ("mesh", "no visible mesh"),
+])
+@pytest.mark.parametrize("op,kw", NEEDS_SETUP)
+def test_missing_input_is_reported_clearly(lixel, missing, pattern, op, kw):
+    with active_scene(f"lixel_missing_{missing}", camera=missing != "camera", light=None if missing == "light" else "SUN",
+                      mesh=missing != "mesh") as sc:
+        n_objects = len(bpy.data.objects)
+        with pytest.raises(RuntimeError, match=pattern):
+            getattr(bpy.ops.lixel, op)(**kw)
+        assert len(bpy.data.objects) == n_objects
+        assert "Lixel Debug" not in bpy.data.collections
+        assert sc.lixel.planes is not None
+
+
+def test_texel_grid_without_mesh_or_camera(lixel):
+    with active_scene("lixel_missing_grid", camera=False) as sc:
+        _select_only(sc, [])
+        with pytest.raises(RuntimeError, match="no mesh selected"):
+            bpy.ops.lixel.texel_grid_add()
+        _select_only(sc, [sc.objects["lixel_missing_grid ground"].name])
+        with pytest.raises(RuntimeError, match="no camera"):
+            bpy.ops.lixel.texel_grid_add()
+        assert len(sc.objects["lixel_missing_grid ground"].modifiers) == 0

@@ -1,0 +1,149 @@
+"""What the overlays draw equals the warp core's geometry: B's faces, the view
+frustum, each map's light frustum (inverse projection of the unit cube) and the
+warp frustum P. Computed without drawing, in background mode."""
+import importlib
+import math
+
+import bpy
+import numpy as np
+import pytest
+
+from ui_scenes import active_scene
+
+
+@pytest.fixture(scope="module")
+def m(lixel):
+    class M:
+        pass
+    ns = M()
+    ns.og = importlib.import_module(f"{lixel.__name__}.addon.ui.overlay_geometry")
+    ns.live = importlib.import_module(f"{lixel.__name__}.addon.ui.live")
+    ns.warp = importlib.import_module(f"{lixel.__name__}.addon.warp")
+    ns.types = importlib.import_module(f"{lixel.__name__}.addon.warp.types")
+    ns.geometry = importlib.import_module(f"{lixel.__name__}.addon.warp.geometry")
+    ns.describe = importlib.import_module(f"{lixel.__name__}.addon.scene.describe")
+    return ns
+
+
+def polygon_area(poly):
+    p = np.asarray(poly)
+    return 0.5 * np.linalg.norm(sum(np.cross(p[0], p[i]) + np.cross(p[i], p[i + 1]) + np.cross(p[i + 1], p[0])
+                                    for i in range(1, len(p) - 1)))
+
+
+def triangle_areas(tris):
+    return 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+
+
+def check_body(og, geometry, body):
+    tris = geometry["body_triangles"]
+    # every triangle lies in one face of B and the triangles of a face tile it (same area)
+    face_of = []
+    for t in tris:
+        for i, f in enumerate(body.faces):
+            n = np.cross(f[1] - f[0], f[2] - f[0])
+            n /= np.linalg.norm(n)
+            if np.all(np.abs((t - f[0]) @ n) < 1e-9 * body.scale + 1e-12):
+                face_of.append(i)
+                break
+        else:
+            raise AssertionError("a drawn triangle lies on no face of B")
+    face_of = np.array(face_of)
+    areas = triangle_areas(tris)
+    for i, f in enumerate(body.faces):
+        assert areas[face_of == i].sum() == pytest.approx(polygon_area(f), rel=1e-9, abs=1e-12)
+    # the drawn vertices are exactly B's vertices, and each polygon edge is drawn once
+    drawn = np.unique(np.round(tris.reshape(-1, 3), 9), axis=0)
+    verts = np.unique(np.round(np.concatenate(body.faces), 9), axis=0)
+    np.testing.assert_array_equal(drawn, verts)
+    n_edges = sum(len(f) for f in body.faces) // 2
+    assert len(geometry["body_edges"]) == n_edges
+
+
+@pytest.mark.parametrize("light_type", ["SUN", "SPOT", "POINT"])
+def test_overlay_geometry_equals_the_warp_core(lixel, m, light_type):
+    with active_scene(f"lixel_og_{light_type.lower()}", light=light_type) as scene:
+        view, light, bounds = m.describe.describe_scene(bpy.context)
+        body = m.warp.intersection_body(view, light, bounds)
+        for method in m.warp.METHODS:
+            try:
+                setup = m.warp.compute(method, view, light, bounds, m.types.WarpOptions(), body=body)
+            except m.types.WarpError:
+                continue  # a method not built yet
+            g = m.og.overlay_geometry(view, setup, body.faces)
+            check_body(m.og, g, body)
+            np.testing.assert_allclose(g["view_corners"], view.corners(), rtol=0, atol=0)
+            assert len(g["light_corners"]) == len(setup.maps)
+            for corners, smap in zip(g["light_corners"], setup.maps):
+                # the corners map to the unit cube's corners through the map's own matrix
+                h = np.c_[corners, np.ones(8)] @ smap.matrix.T
+                np.testing.assert_allclose(h[:, :3] / h[:, 3:], m.geometry.UNIT_CUBE_CORNERS, atol=1e-6)
+            if setup.diagnostics.warp_frustum_corners is not None:
+                np.testing.assert_array_equal(g["warp_corners"], setup.diagnostics.warp_frustum_corners)
+                assert len(g["warp_lines"]) == 12
+            else:
+                assert len(g["warp_lines"]) == 0
+            # lines are the 12 edges of each hexahedron
+            assert len(g["light_lines"]) == 12 * len(setup.maps)
+            for a, b in g["view_lines"]:
+                assert np.sum(~np.isclose(a, b)) >= 1
+
+
+def test_live_state_draws_what_the_core_computes(lixel, m):
+    with active_scene("lixel_og_live") as scene:
+        st = m.live.update(scene, bpy.context.evaluated_depsgraph_get())
+        assert st.ok, st.error
+        view, light, bounds = m.describe.describe_scene(bpy.context)
+        body = m.warp.intersection_body(view, light, bounds)
+        check_body(m.og, st.geometry, body)
+        setup = m.warp.compute(st.method_used, view, light, bounds, scene.lixel.to_settings().warp, body=body)
+        for corners, smap in zip(st.geometry["light_corners"], setup.maps):
+            np.testing.assert_allclose(corners, m.geometry.clip_volume_corners(smap.matrix), rtol=1e-12, atol=1e-12)
+
+
+def test_projection_centre_and_vectors_from_diagnostics(m):
+    view = m.types.View.perspective(np.eye(4), math.radians(60), 1.5, 0.1, 50.0)
+    corners = view.corners() + np.array([0.0, 0.0, -1.0])
+    diag = m.types.Diagnostics("lispsm", warp_frustum_corners=corners,
+                               extra={"projection_centre": [1.0, 2.0, 3.0], "v_p": [0.0, 0.0, -2.0],
+                                      "middle_vector": [0.0, 1.0, 0.0]})
+    setup = m.types.ShadowSetup([m.types.ShadowMap(view.world_to_clip, (64, 64))], diag)
+    faces = [np.array([[0, 0, -1.0], [1, 0, -1.0], [0, 1, -1.0]])]
+    g = m.og.overlay_geometry(view, setup, faces)
+    np.testing.assert_array_equal(g["warp_corners"], corners)
+    np.testing.assert_array_equal(g["points"]["projection_centre"], [1.0, 2.0, 3.0])
+    vp = g["vectors"]["v_p"]
+    np.testing.assert_array_equal(vp[0], [1.0, 2.0, 3.0])
+    d = vp[1] - vp[0]
+    np.testing.assert_allclose(d / np.linalg.norm(d), [0, 0, -1.0])
+    mv = g["vectors"]["middle_vector"]
+    np.testing.assert_allclose(mv[0], np.mean(faces[0], axis=0))
+
+
+def test_classify_updates(lixel, m):
+    overlays = importlib.import_module(f"{lixel.__name__}.addon.ui.overlays")
+    with active_scene("lixel_og_updates") as scene:
+        m.live.update(scene, bpy.context.evaluated_depsgraph_get())
+        seen = []
+        original = m.live.update
+
+        def spy(scene_, depsgraph, changed=None, **kw):
+            seen.append(set(changed))
+            return original(scene_, depsgraph, changed=changed, **kw)
+
+        m.live.update = spy
+        try:
+            scene.camera.location.x += 0.5
+            bpy.context.view_layer.update()
+            assert seen and "view" in seen[-1] and "bounds" not in seen[-1]
+            st = m.live.state(scene)
+            assert "describe bounds" not in st.timings  # the scene bounds were reused
+            scene.objects["lixel_og_updates cube"].location.z += 0.5
+            bpy.context.view_layer.update()
+            assert "bounds" in seen[-1] and "view" not in seen[-1]
+            scene.objects["lixel_og_updates light"].rotation_euler.x += 0.1
+            bpy.context.view_layer.update()
+            assert "light" in seen[-1]
+        finally:
+            m.live.update = original
+        del overlays
