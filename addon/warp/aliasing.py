@@ -98,12 +98,17 @@ def model_near_side(theta, n, f, phi):
 
 
 def psi(lam, theta, n, f, phi):
-    """ψ(λ, θ) of GMNPR Eq. 2."""
+    """ψ(λ, θ) of GMNPR Eq. 2.
+
+    θ < φ: 1 / (tan φ · 2fλ(λ + 1) · tan φ/tan θ). The extracted text prints the
+    last factor as tan θ/tan φ; that contradicts the paper's own Case 2 values of
+    F(λ, θ, n) and F(λ, θ, f) (§3) and the geometry of Fig. 4, which both give
+    tan φ/tan θ (tests/warp/test_aliasing.py checks all three agree)."""
     theta = np.asarray(theta, dtype=np.float64)
     t = _t(theta, phi)
     with np.errstate(divide="ignore", invalid="ignore"):
         case1 = 1.0 / (math.tan(phi) * (f - n + (f + n) * t) * lam * (lam + 1.0))
-        case2 = 1.0 / (math.tan(phi) * 2.0 * f * lam * (lam + 1.0) / t)
+        case2 = 1.0 / (math.tan(phi) * 2.0 * f * lam * (lam + 1.0) * t)
     return np.where(theta >= phi, case1, case2)
 
 

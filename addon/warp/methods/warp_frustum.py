@@ -114,7 +114,8 @@ class FrameGeometry:
     eye: np.ndarray        # the eye in light space (3,)
     h_min: float
     extent: float          # D, B's extent along V_P in light space
-    extent_world: float    # B's extent along the world V_P (for λ = n_opt / D)
+    extent_world: float    # this frame's part of B: extent along the world V_P
+    body_extent_world: float  # all of B: extent along the world V_P (the paper's P_f - P_n)
     gamma: float
     v_p_world: Optional[np.ndarray]
     light_dir: np.ndarray  # the light ray at the eye (world, unit)
@@ -232,12 +233,14 @@ def frame_geometry(view: View, light: Light, frame: LightFrame, options: WarpOpt
     if frame.directional:
         v_p = a[0] * lin[0] + a[1] * lin[1]
         extent_world = extent
+        body_extent = float(np.ptp(body.vertices @ v_p))
     else:
         perp = d - c * ell
         n = float(np.linalg.norm(perp))
         v_p = perp / n if n > 0 else None
-        extent_world = float(np.ptp((frame.points - eye) @ v_p)) if v_p is not None else 0.0
-    return FrameGeometry(a, b, eye_ls, h_min, extent, extent_world, gamma, v_p, ell, fade), ""
+        extent_world = float(np.ptp(frame.points @ v_p)) if v_p is not None else 0.0
+        body_extent = float(np.ptp(body.vertices @ v_p)) if v_p is not None else 0.0
+    return FrameGeometry(a, b, eye_ls, h_min, extent, extent_world, body_extent, gamma, v_p, ell, fade), ""
 
 
 def warp_matrix(g: FrameGeometry, mu: float) -> np.ndarray:
@@ -274,9 +277,9 @@ LambdaRule = Callable[[FrameGeometry, WarpContext, float, WarpOptions], float]
 def rule_lispsm(g: FrameGeometry, ctx: WarpContext, phi: float, options: WarpOptions) -> float:
     """λ = n_opt / D with n_opt from Scherzer Eq. 1."""
     k = lispsm_inverse_n_opt(ctx.z_n, ctx.delta_z, g.gamma)
-    if k == 0.0 or g.extent_world <= 0.0:
+    if k == 0.0 or g.body_extent_world <= 0.0:
         return math.inf
-    return 1.0 / (k * g.extent_world)
+    return 1.0 / (k * g.body_extent_world)
 
 
 def _forced(options: WarpOptions) -> Optional[float]:
@@ -341,7 +344,9 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
             continue
         phi = half_fov_towards(view, geo.light_dir)
         lam = rule(geo, ctx, phi, options)
-        mu = 0.0 if not math.isfinite(lam) else geo.fade / lam
+        p_n = lam * geo.body_extent_world if math.isfinite(lam) else math.inf     # P_n in world units
+        lam_frame = p_n / geo.extent_world if geo.extent_world > 0 else math.inf  # λ for this frame's part of B
+        mu = 0.0 if not math.isfinite(lam_frame) else geo.fade / lam_frame
         if geo.fade < 1.0:
             diag.fallback(f"{frame.role}: warp faded", f"the eye's image is far outside B's image in this frame; "
                                                        f"warp strength x{geo.fade:.3g}" + (" (uniform)" if geo.fade == 0 else ""))
@@ -355,7 +360,6 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
         reported = True
         theta = min(geo.gamma, math.pi - geo.gamma)
         diag.theta, diag.gamma = theta, geo.gamma
-        p_n = lam * geo.extent_world if math.isfinite(lam) else math.inf
         if name == "lispsm":
             diag.n_opt = _finite_or_none(p_n)
             diag.extra["lambda"] = _finite_or_none(lam)
@@ -366,7 +370,7 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
         diag.extra["warp_strength_mu"] = mu
         diag.warp_frustum_corners = clip_volume_corners(matrix)
         diag.extra["v_p"] = geo.v_p_world if geo.v_p_world is not None else np.zeros(3)
-        diag.extra["projection_centre"] = projection_centre(frame, geo, lam)
+        diag.extra["projection_centre"] = projection_centre(frame, geo, lam_frame)
     return ShadowSetup(maps, diag)
 
 

@@ -1,0 +1,228 @@
+"""The analytic aliasing model (addon/warp/aliasing.py) reproduces the papers' claims."""
+import math
+
+import numpy as np
+import pytest
+
+from addon.warp import aliasing as al
+from addon.warp.geometry import look_along, ortho_matrix
+from addon.warp.types import ShadowMap, View
+
+N, F, PHI = 1.0, 100.0, math.pi / 6          # GMNPR Fig. 6's configuration
+RULES = (al.lambda_lispsm, al.lambda_gmnpr, al.lambda_glpr)
+
+
+def _near_far_ratio(rule, theta, n=N, f=F, phi=PHI):
+    lam = rule(theta, n, f, phi)
+    return float(al.aliasing_F(lam, theta, n, n, f, phi) / al.aliasing_F(lam, theta, f, n, f, phi))
+
+
+@pytest.mark.parametrize("theta_deg", [35.0, 40.0, 60.0, 75.0, 90.0])
+@pytest.mark.parametrize("case", [("eq2", lambda z: z)])
+def test_eq2_matches_the_geometric_definition_F_is_dz_over_z_ds(theta_deg, case):
+    """Eq. 2's ψ, φ form equals (1/tan φ)·dz/(z ds) of the warp frustum's hyperbolic
+    map coordinate s(z) (the computational model of GMNPR Fig. 4)."""
+    theta = math.radians(theta_deg)
+    for lam in (0.01, 0.3, 2.0):
+        z = np.linspace(N, F, 7)
+        h = 1e-6 * z
+        ds = (al.map_coordinate(lam, theta, z + h, N, F, PHI) - al.map_coordinate(lam, theta, z - h, N, F, PHI)) / (2 * h)
+        geometric = 1.0 / (math.tan(PHI) * z * ds)
+        assert np.allclose(al.aliasing_F(lam, theta, z, N, F, PHI), geometric, rtol=1e-6)
+
+
+def test_eq2_matches_the_geometric_definition_below_the_critical_angle():
+    theta = math.radians(20.0)
+    for lam in (0.05, 1.0):
+        z = np.linspace(N, F, 7)
+        h = 1e-6 * z
+        ds = (al.map_coordinate(lam, theta, z + h, N, F, PHI) - al.map_coordinate(lam, theta, z - h, N, F, PHI)) / (2 * h)
+        assert np.allclose(al.aliasing_F(lam, theta, z, N, F, PHI), 1.0 / (math.tan(PHI) * z * ds), rtol=1e-6)
+
+
+def test_map_coordinate_spans_the_warp_frustum():
+    for theta in (math.radians(20), math.radians(60), math.pi / 2):
+        ext = al.model_extent(theta, N, F, PHI)
+        near = al.model_near_side(theta, N, F, PHI)
+        lam = 0.2
+        # s = 0 at the frustum's near side, 1 at its far side
+        d0 = (near - near) / ext + lam
+        assert (1 + lam) * (1 - lam / d0) == pytest.approx(0.0, abs=1e-12)
+        assert (1 + lam) * (1 - lam / (1 + lam)) == pytest.approx(1.0)
+
+
+def test_model_extent_and_near_side_are_continuous_at_the_critical_angle():
+    for fn in (al.model_extent, al.model_near_side):
+        lo, hi = fn(PHI - 1e-12, N, F, PHI), fn(PHI + 1e-12, N, F, PHI)
+        assert float(lo) == pytest.approx(float(hi), rel=1e-9, abs=1e-9)
+    assert float(al.model_extent(PHI, N, F, PHI)) == pytest.approx(2 * F * math.sin(PHI))
+
+
+@pytest.mark.parametrize("theta_deg", np.linspace(30.5, 90.0, 12))
+def test_gmnpr_equalises_the_error_at_near_and_far_above_the_critical_angle(theta_deg):
+    assert _near_far_ratio(al.lambda_gmnpr, math.radians(theta_deg)) == pytest.approx(1.0, rel=1e-9)
+
+
+@pytest.mark.parametrize("n,f,phi", [(0.1, 70.0, math.radians(30)), (1.0, 800.0, math.pi / 6), (0.5, 20.0, math.radians(45))])
+def test_gmnpr_equalises_for_other_frusta_too(n, f, phi):
+    for theta in np.linspace(phi + 1e-6, math.pi / 2, 9):
+        assert _near_far_ratio(al.lambda_gmnpr, theta, n, f, phi) == pytest.approx(1.0, rel=1e-9)
+
+
+def test_lispsm_equalises_only_at_90_degrees():
+    assert _near_far_ratio(al.lambda_lispsm, math.pi / 2) == pytest.approx(1.0, rel=1e-9)
+    for theta_deg in (35.0, 45.0, 60.0, 75.0, 85.0):
+        r = _near_far_ratio(al.lambda_lispsm, math.radians(theta_deg))
+        assert abs(r - 1.0) > 0.02, theta_deg
+    # and the disagreement grows as θ leaves the ideal case (GMNPR §3, Fig. 6)
+    devs = [abs(_near_far_ratio(al.lambda_lispsm, math.radians(t)) - 1) for t in (85.0, 70.0, 50.0)]
+    assert devs[0] < devs[1] < devs[2]
+
+
+def test_lispsm_lambda_is_eq1_over_the_extent():
+    for theta in (math.radians(20), math.radians(50), math.pi / 2):
+        n_opt = (N + math.sqrt(N * F)) / math.sin(theta)
+        assert al.lambda_lispsm(theta, N, F, PHI) == pytest.approx(n_opt / float(al.model_extent(theta, N, F, PHI)))
+    # GMNPR Eq. 9 printed form, case θ ≥ φ
+    theta = math.radians(60)
+    t = math.tan(PHI) / math.tan(theta)
+    eq9 = (N + math.sqrt(F * N)) / math.sin(theta) / ((N * t + F - N + F * t) * math.sin(theta))
+    assert al.lambda_lispsm(theta, N, F, PHI) == pytest.approx(eq9)
+    theta = math.radians(20)
+    eq9 = (N + math.sqrt(F * N)) / math.sin(theta) / (2 * F * math.tan(PHI) * math.cos(theta))
+    assert al.lambda_lispsm(theta, N, F, PHI) == pytest.approx(eq9)
+
+
+def test_glpr_makes_F_linear_in_z():
+    for theta_deg in (50.0, 70.0, 90.0):
+        theta = math.radians(theta_deg)
+        lam = al.lambda_glpr(theta, N, F, PHI)
+        z = np.linspace(N, F, 9)
+        f_over_z = al.aliasing_F(lam, theta, z, N, F, PHI) / z
+        assert np.allclose(f_over_z, f_over_z[0], rtol=1e-9)
+    assert al.lambda_glpr(math.pi / 2, N, F, PHI) == pytest.approx(N / (F - N))
+
+
+@pytest.mark.parametrize("rule", RULES, ids=lambda r: r.__name__)
+def test_every_warp_converges_to_uniform_as_theta_goes_to_zero(rule):
+    z = np.linspace(N, F, 11)
+    previous = math.inf
+    for theta in (1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6):
+        lam = rule(theta, N, F, PHI)
+        dev = float(np.max(np.abs(al.aliasing_F(lam, theta, z, N, F, PHI) / al.uniform_F(theta, z, N, F, PHI) - 1)))
+        assert dev < previous
+        previous = dev
+    assert previous < 1e-3
+    assert rule(0.0, N, F, PHI) == math.inf
+    assert np.all(al.aliasing_F(math.inf, 0.3, z, N, F, PHI) == al.uniform_F(0.3, z, N, F, PHI))
+
+
+@pytest.mark.parametrize("rule", RULES, ids=lambda r: r.__name__)
+def test_lambda_rules_are_continuous_at_the_critical_angle(rule):
+    at = rule(PHI, N, F, PHI)
+    for eps in (1e-9, -1e-9):
+        assert rule(PHI + eps, N, F, PHI) == pytest.approx(at, rel=1e-6)
+    assert at > 0
+
+
+def test_gmnpr_lambda_at_the_critical_angle_is_sqrt_fn_over_2f():
+    assert al.lambda_gmnpr(PHI, N, F, PHI) == pytest.approx(math.sqrt(F * N) / (2 * F), rel=1e-12)
+    below = al.lambda_gmnpr(PHI * (1 - 1e-12), N, F, PHI)
+    assert below == pytest.approx(math.sqrt(F * N) / (2 * F), rel=1e-9)
+
+
+def test_lispsm_inverse_n_opt_is_finite_and_zero_when_parallel():
+    assert al.lispsm_inverse_n_opt(0.1, 69.9, 0.0) == 0.0
+    assert al.lispsm_inverse_n_opt(0.1, 69.9, math.pi) == pytest.approx(0.0, abs=1e-15)
+    assert 1 / al.lispsm_inverse_n_opt(0.1, 69.9, math.pi / 2) == pytest.approx(0.1 + math.sqrt(0.1 * 70.0))
+    assert 1 / al.lispsm_inverse_n_opt(1.0, 99.0, math.radians(30)) == pytest.approx((1 + 10.0) / 0.5)
+
+
+# ---------------------------------------------------------------- texel footprint
+
+def _top_down_view(height, fov_y_deg, res):
+    c2w = np.linalg.inv(look_along([0.0, 0.0, height], [0, 0, -1], [0, 1, 0]))
+    return View.perspective(c2w, math.radians(fov_y_deg), res[0] / res[1], 0.1, 100.0, res)
+
+
+def _sun_map(half_extent, size):
+    w2l = look_along([0.0, 0.0, 50.0], [0, 0, -1], [0, 1, 0])
+    return ShadowMap(ortho_matrix(-half_extent, half_extent, -half_extent, half_extent, 1.0, 100.0) @ w2l, size)
+
+
+def test_top_down_sun_over_a_plane_with_a_uniform_map_has_a_constant_known_footprint():
+    height, fov, res = 10.0, 60.0, (1280, 720)
+    view = _top_down_view(height, fov, res)
+    sm = _sun_map(20.0, (1024, 512))
+    rng = np.random.default_rng(1)
+    half_h = height * math.tan(math.radians(fov) / 2)
+    pts = np.column_stack([rng.uniform(-half_h * 16 / 9, half_h * 16 / 9, 400), rng.uniform(-half_h, half_h, 400),
+                           np.zeros(400)])
+    normals = np.tile([0.0, 0.0, 1.0], (400, 1))
+    pixel = 2 * half_h / res[1]                        # world length of a screen pixel on the plane
+    texel_x, texel_y = 40.0 / 1024, 40.0 / 512
+    lin = al.texel_footprint(view, sm, pts, normals)
+    area = al.texel_footprint_area(view, sm, pts, normals)
+    assert np.allclose(lin, max(texel_x, texel_y) / pixel, rtol=1e-9)
+    assert np.allclose(area, texel_x * texel_y / pixel ** 2, rtol=1e-9)
+
+
+def test_footprint_is_the_worst_direction_for_an_oblique_sun():
+    view = _top_down_view(10.0, 60.0, (800, 800))
+    # sun tilted 60 degrees from vertical about the y axis: the plane is stretched along x by 1/cos 60
+    d = np.array([math.sin(math.radians(60)), 0.0, -math.cos(math.radians(60))])
+    w2l = look_along([0.0, 0.0, 0.0] - 50 * d, d, [0, 1, 0])
+    sm = ShadowMap(ortho_matrix(-10, 10, -10, 10, 1.0, 200.0) @ w2l, (1000, 1000))
+    pts = np.array([[0.5, -1.0, 0.0], [2.0, 3.0, 0.0]])
+    normals = np.tile([0.0, 0.0, 1.0], (2, 1))
+    pixel = 2 * 10.0 * math.tan(math.radians(30)) / 800
+    texel = 20.0 / 1000
+    assert np.allclose(al.texel_footprint(view, sm, pts, normals), texel / math.cos(math.radians(60)) / pixel, rtol=1e-9)
+    assert np.allclose(al.texel_footprint_area(view, sm, pts, normals),
+                       texel ** 2 / math.cos(math.radians(60)) / pixel ** 2, rtol=1e-9)
+
+
+def test_footprint_is_inf_edge_on_to_the_map_and_nan_behind_the_camera():
+    view = _top_down_view(10.0, 60.0, (800, 800))
+    sm = _sun_map(10.0, (512, 512))
+    pts = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 20.0]])            # the second is behind the camera
+    normals = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])         # the first is a wall parallel to the light
+    fp = al.texel_footprint(view, sm, pts, normals)
+    assert fp[0] == math.inf
+    assert math.isnan(fp[1])
+
+
+def test_footprint_agrees_with_the_measure_module():
+    from addon.measure.footprint import footprints
+    view = _top_down_view(7.0, 50.0, (640, 480))
+    rng = np.random.default_rng(3)
+    d = np.array([0.3, -0.2, -1.0]) / np.linalg.norm([0.3, -0.2, -1.0])
+    w2l = look_along(-40 * d, d, [0, 1, 0])
+    persp = np.array([[2.0, 0, 0.3, 0], [0, 2.0, 0, 0], [0, 0, -1.01, -0.2], [0, 0, -1, 0]]) @ w2l
+    sm = ShadowMap(persp, (777, 333))
+    pts = rng.uniform(-3, 3, (50, 3)) * [1, 1, 0.2]
+    nrm = rng.normal(size=(50, 3))
+    lin, area = footprints(view.world_to_clip, view.resolution, sm.matrix, sm.size, pts, nrm)
+    assert np.allclose(al.texel_footprint(view, sm, pts, nrm), lin, rtol=1e-9)
+    assert np.allclose(al.texel_footprint_area(view, sm, pts, nrm), area, rtol=1e-9)
+
+
+@pytest.mark.parametrize("theta_deg", [5.0, 20.0, 29.0, 31.0, 55.0, 90.0])
+def test_eq2_at_near_and_far_matches_the_papers_case_values(theta_deg):
+    """GMNPR §3's closed forms of F(λ, θ, n) and F(λ, θ, f) (Case 1 and Case 2)."""
+    theta = math.radians(theta_deg)
+    tp, tt = math.tan(PHI), math.tan(theta)
+    for lam in (0.02, 0.7):
+        if theta >= PHI:
+            k = F - N + (F + N) * tp / tt
+            mu = N / ((F - N) * tt / tp + F + N)
+            nu = 1 - F / ((F - N) * tt / tp + F + N)
+            fn = k / (N * tp) * (lam + mu) ** 2 / (lam * (lam + 1))
+            ff = k / (F * tp) * (lam + nu) ** 2 / (lam * (lam + 1))
+        else:
+            mu = 0.5 - (F - N) / (2 * F) * tt / tp
+            nu = 0.5
+            fn = 2 * F / (N * tt) * (lam + mu) ** 2 / (lam * (lam + 1))
+            ff = 2 / tt * (lam + nu) ** 2 / (lam * (lam + 1))
+        assert float(al.aliasing_F(lam, theta, N, N, F, PHI)) == pytest.approx(fn, rel=1e-9)
+        assert float(al.aliasing_F(lam, theta, F, N, F, PHI)) == pytest.approx(ff, rel=1e-9)
