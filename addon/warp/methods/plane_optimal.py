@@ -1,12 +1,370 @@
-"""Plane-optimal shadow maps (Chong & Gortler, "A Lixel for every Pixel", EGSR 2004).
+"""Plane-optimal shadow maps: Chong & Gortler, "A Lixel for every Pixel" (EGSR 2004).
 
-Work in progress: the full construction lands in the next commits.
+One map per plane of interest, exact on that plane, plus a conventional
+fallback map (§3):
+
+* **The matrix** (§2, Eq. 1, 7-10; :func:`addon.warp.plane_map.plane_light_rows`):
+  five point constraints, solved by SVD with rank and residual checks. On the
+  plane, a point's light-image x, y equal its viewer-image x, y.
+* **Sign** (Fig. 5): the matrix is scaled (and its sign chosen) so that w > 0
+  and w equals the viewer's clip w on the plane's needed part; every caster
+  between the light and that part then has w > 0 too.
+* **Depth**: the z row is free (§2 footnote). Lixel uses
+  z_clip = a·w - b·h(x), h = the height above the plane on the light's side,
+  so depth grows away from the light along every light ray, the plane itself
+  has one constant depth, and a, b fit the needed points into [-1, 1] (the
+  unit-cube fit's padding). With ``WarpOptions.linear_z`` the stored depth is
+  the linear height (``ShadowMap.depth_row``, Scherzer §4.2).
+* **Less of the plane** (§2, Fig. 6): the needed rays C are those through
+  P ∩ R, with R = V ∩ S_r ∩ L the body's visible part (between near and far,
+  in front of the camera, inside the spot cone and the receivers' bounds),
+  limited to the plane's extent polygon if it has one. Their light image is
+  bounded by a rectangle with integer texel corners; its lower-left texel is
+  renumbered (0, 0). When the budget allows fewer lixels than the rectangle's
+  pixels, a uniform 2D scale s < 1 is included, the same for every plane, and
+  optionally a twist (a 2D rotation, ``WarpOptions.plane_twist``) that shrinks
+  the rectangle. Pixel (px, py) of a point on the plane then lands on texel
+  s·R(θ)·(px, py) - (i0, j0): exactly the identity at one lixel per pixel.
+* **Regions and order** (§3): map k serves ``Region`` (the plane, the needed
+  polygon, a tolerance): points within the tolerance of the plane whose
+  projection falls in the polygon. Plane maps come first in plane order, the
+  fallback last, so ``ShadowSetup.map_index`` uses the plane map on the plane
+  and the fallback everywhere else. A plane map's clip volume holds its whole
+  region and every point of B between the light and the region (its casters).
+* **Fallback**: the uniform method's frame maps (``frame_map``) over the hull
+  of B minus the plane regions. The regions are slabs of width 2·tolerance, so
+  that hull is B itself: the fallback covers every point of B.
+* **Budget**: T = shadow_map_size texels. Plane maps together take at most
+  ``plane_budget``·T and only what one lixel per pixel needs; every fallback
+  map gets the rest (T minus the plane maps' texels; the per-map convention of
+  ``uniform.map_sizes``). Reported in ``diagnostics.extra["budget"]``.
+* **Planes**: ``WarpOptions.planes`` ((point, normal) or (point, normal,
+  extent polygon)); without any, the top face of the widest flat receiver box
+  (``plane_map.default_plane``).
+
+A plane that cannot have a map (seen edge-on, not in view, the light in its
+plane, a failed solve) is left out with a recorded fallback; the fallback map
+then serves it.
 """
 from __future__ import annotations
 
+import dataclasses
+import math
+
+import numpy as np
+
 from ..body import IntersectionBody
-from ..types import Light, ShadowSetup, View, WarpError, WarpOptions
+from ..fit import ndc_bounds, window_matrix
+from ..frame import light_angles, light_frames
+from ..geometry import translation
+from ..plane_map import (PlaneOfInterest, clip_polygon, default_plane, min_area_twist, offset_polygon, plane_light_rows,
+                         plane_section, polygon_area, rotation2d)
+from ..polyhedron import Plane, clip_faces, unique_points
+from ..types import Diagnostics, Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
+from .uniform import frame_map
+
+MAX_SIDE = 16384
+REGION_TOLERANCE = 1e-6
+"""A point belongs to a plane's region within this fraction of the scene scale
+(at least 100x the body tolerance)."""
+NEAR_FRACTION = 1e-6
+"""A point light inside B: casters nearer than this fraction of the scene scale
+to the light's height are left out of a plane map (as ``frame.perspective_frame``)."""
+TWIST_GAIN = 0.99
+"""plane_twist='auto' twists when the rotated rectangle is below this fraction
+of the unrotated one and the budget forces fewer lixels than pixels."""
+
+
+@dataclasses.dataclass
+class _PlaneJob:
+    """One plane's map while the budget is shared out (coordinates relative to the camera)."""
+
+    index: int
+    plane: PlaneOfInterest
+    polygon: np.ndarray          # needed polygon on P (relative)
+    rows: np.ndarray             # 3x4: x, y, w rows (viewer NDC on P), relative coords
+    pixel: np.ndarray            # 3x3: viewer NDC (x, y, w) -> pixel (px, py, 1)
+    bound_pts: np.ndarray        # region prism + casters (relative), all must be inside the map
+    fit_pts: np.ndarray
+    pixels: np.ndarray           # (K, 2) pixel coords of the tolerance-grown polygon
+    info: dict
+    twist: float = 0.0
+    rect: tuple = (0, 0, 1, 1)
+
+
+def _light_h(light: Light, origin: np.ndarray) -> np.ndarray:
+    h = light.homogeneous_position.copy()
+    if h[3] != 0:
+        h[:3] -= origin
+    return h
+
+
+def _planes_of(options: WarpOptions, body: IntersectionBody, diag: Diagnostics) -> list[PlaneOfInterest]:
+    if options.planes:
+        return [PlaneOfInterest.from_option(p, i) for i, p in enumerate(options.planes)]
+    plane = default_plane(getattr(body, "receiver_boxes", np.zeros((0, 2, 3))))
+    if plane is None:
+        diag.fallback("planes", "no plane of interest given and no flat receiver box in view: "
+                                "only the fallback map is made (give \"planes\" in the config)")
+        return []
+    diag.extra["default_plane"] = plane.name
+    return [plane]
+
+
+def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: IntersectionBody,
+             origin: np.ndarray, tol: float, diag: Diagnostics) -> _PlaneJob | None:
+    """Everything about plane k except its rectangle; None (with a recorded
+    fallback) when the plane cannot have a map."""
+    role = f"plane:{k}"
+    n = plane.normal
+    off = plane.offset - float(n @ origin)           # plane offset, relative coordinates
+    pi = np.append(n, -off)
+    l_h = _light_h(light, origin)
+    scale = body.scale
+    # The light's side of the plane: h(x) = height above P towards the light.
+    light_side = float(pi @ l_h)
+    if abs(light_side) <= (1e-9 if l_h[3] == 0 else max(tol, 1e-9 * scale)):
+        what = "the sun shines along" if l_h[3] == 0 else "the light lies in"
+        diag.fallback(role, f"{what} {plane.name}: every light ray reaching it grazes it, so no plane map "
+                            f"exists; the fallback map serves it")
+        return None
+    side = 1.0 if light_side > 0 else -1.0
+    height = side * pi                                # h(X) = height · (x, 1)
+    # The camera on the plane: it is seen edge-on and covers no pixel.
+    cam = np.linalg.svd(view.world_to_clip[[0, 1, 3]])[2][-1]     # the camera centre (homogeneous)
+    cam_rel = cam.copy()
+    if abs(cam[3]) > 1e-12 * np.linalg.norm(cam[:3]):
+        cam_rel = np.append(cam[:3] / cam[3] - origin, 1.0)
+        edge_on = abs(float(pi @ cam_rel)) <= max(tol, 1e-9 * scale)
+    else:
+        edge_on = abs(float(n @ _unit3(cam[:3]))) <= 1e-9
+    if edge_on:
+        diag.fallback(role, f"{plane.name} passes through the camera (seen edge-on): it covers no pixel")
+        return None
+    # Less of the plane: P ∩ R (R = V ∩ S_r ∩ L), within the plane's extent.
+    poly = plane_section(body.visible_vertices - origin, n, off, body.tolerance)
+    if poly is not None and plane.extent is not None:
+        ext = np.asarray(plane.extent) - origin
+        from ..polyhedron import _polygon_on_plane
+        ext = _polygon_on_plane(ext, n, body.tolerance)
+        if ext is None:
+            poly = None
+        else:
+            for i in range(len(ext)):
+                a, b = ext[i], ext[(i + 1) % len(ext)]
+                poly = clip_polygon(poly, Plane.through(a, np.cross(b - a, n)), body.tolerance)
+                if len(poly) < 3:
+                    poly = None
+                    break
+    if poly is None or polygon_area(poly, n) <= (tol * tol):
+        diag.fallback(role, f"{plane.name} has no visible part (behind the camera, outside the view, the spot "
+                            f"cone or the receivers' bounds)")
+        return None
+    view_rel = view.world_to_clip @ translation(origin)
+    try:
+        m, info = plane_light_rows(view_rel, pi, l_h, scale)
+    except WarpError as exc:
+        diag.fallback(role, f"{plane.name}: {exc}")
+        return None
+    # Sign (Fig. 5) and scale: w equal to the viewer's clip w on the plane.
+    centre = np.append(poly.mean(axis=0), 1.0)
+    w_view = float(view_rel[3] @ centre)
+    w_light = float(m[3] @ centre)
+    if not (w_view > 0 and abs(w_light) > 0):
+        diag.fallback(role, f"{plane.name}: the needed part is not in front of the camera")
+        return None
+    rows = m[[0, 1, 3]] * (w_view / w_light)
+    # The region (what Region.contains accepts) and its casters in B.
+    grown = offset_polygon(poly, n, tol)
+    prism_pts = np.concatenate([grown - tol * n, grown + tol * n])
+    casters, near_clamped = _casters(grown, n, height, l_h, tol, body, origin)
+    if near_clamped:
+        diag.fallback(f"{role}: near plane", "the light is inside B; casters nearer than 1e-6 of the scene scale "
+                                             "to the light's height are not in the plane map")
+    pts = np.concatenate([prism_pts, casters])
+    hw = np.column_stack([pts, np.ones(len(pts))])
+    w = hw @ rows[2]
+    if not np.all(w > 0):
+        keep = w > 0
+        diag.fallback(role, "some casters are behind the plane map's centre of projection and were left out")
+        pts = pts[keep]
+    pixel = np.array([[view.resolution[0] / 2, 0, view.resolution[0] / 2],
+                      [0, view.resolution[1] / 2, view.resolution[1] / 2],
+                      [0, 0, 1.0]])
+    g = np.column_stack([grown, np.ones(len(grown))]) @ (pixel @ rows).T
+    pixels = g[:, :2] / g[:, 2:3]
+    info = dict(info, pixel_area=float(_area2d(pixels)), near_clamped=near_clamped)
+    job = _PlaneJob(k, plane, poly, rows, pixel, pts, pts, pixels, info)
+    job.info["height_row"] = height
+    return job
+
+
+def _casters(grown, n, height, l_h, tol, body, origin):
+    """Vertices of B ∩ C: B's points on the needed rays C (the light rays through
+    the region, §2 Fig. 5-6) from the light down to just beyond the plane.
+
+    C is the cone (a prism for a sun) from the light over the region polygon,
+    grown by tol·(1 + tan α) so that the slab points of the region (whose
+    light rays meet P up to tol·tan α away, α = the light's incidence) are on
+    it. For a point light inside B the part within NEAR_FRACTION of the
+    scene scale below the light's height is cut off (returned flag)."""
+    hv, h0 = height[:3], height[3]
+    if l_h[3] == 0:
+        rays = np.broadcast_to(-l_h[:3], grown.shape)
+    else:
+        rays = grown - l_h[:3] / l_h[3]
+    rays = rays / np.linalg.norm(rays, axis=1, keepdims=True)
+    cos = np.abs(rays @ n)
+    tan = float(np.max(np.sqrt(np.maximum(1 - cos ** 2, 0)) / np.maximum(cos, 1e-300)))
+    poly = offset_polygon(grown, n, tol * (1 + min(tan, 1e12)))
+    centre = poly.mean(axis=0)
+    planes = [Plane(-hv, tol + h0)]                       # h(x) >= -tol
+    for i in range(len(poly)):
+        a, b = poly[i], poly[(i + 1) % len(poly)]
+        towards = l_h[:3] - a * l_h[3]                    # from a towards the light (homogeneous)
+        normal = np.cross(b - a, towards)
+        if not np.any(normal):
+            continue
+        p = Plane.through(a, normal)
+        if p.distance(centre[None])[0] > 0:
+            p = Plane(-p.normal, -p.offset)
+        planes.append(p)
+    faces = [f - origin for f in body.faces]
+    for p in planes:
+        faces = clip_faces(faces, p, body.tolerance)
+        if not faces:
+            return np.zeros((0, 3)), False
+    near_clamped = False
+    if l_h[3] != 0:
+        top = float(height @ l_h) / l_h[3] - NEAR_FRACTION * body.scale
+        if max(float((f @ hv).max()) for f in faces) + h0 > top:
+            near_clamped = True
+            faces = clip_faces(faces, Plane(hv, top - h0), body.tolerance)
+            if not faces:
+                return np.zeros((0, 3)), near_clamped
+    return unique_points(np.concatenate(faces), body.tolerance * 10), near_clamped
+
+
+def _unit3(v):
+    n = float(np.linalg.norm(v))
+    return v / n if n > 0 else v
+
+
+def _area2d(p: np.ndarray) -> float:
+    x, y = p[:, 0], p[:, 1]
+    return 0.5 * abs(float(x @ np.roll(y, -1) - y @ np.roll(x, -1)))
+
+
+def _rect(pixels: np.ndarray, s: float, theta: float) -> tuple[int, int, int, int]:
+    q = s * pixels @ rotation2d(theta).T
+    lo, hi = q.min(axis=0), q.max(axis=0)
+    i0, j0 = math.floor(lo[0]), math.floor(lo[1])
+    i1, j1 = max(math.ceil(hi[0]), i0 + 1), max(math.ceil(hi[1]), j0 + 1)
+    return i0, j0, i1, j1
+
+
+def _texels(rect) -> int:
+    return (rect[2] - rect[0]) * (rect[3] - rect[1])
+
+
+def _share_budget(jobs: list[_PlaneJob], budget: float, twist_mode: str) -> float:
+    """The common lixels-per-pixel scale s <= 1 and each map's twist and rectangle."""
+    if not jobs:
+        return 1.0
+    for j in jobs:
+        j.twist = 0.0
+    need = sum(_texels(_rect(j.pixels, 1.0, 0.0)) for j in jobs)
+    for j in jobs:
+        if twist_mode == "on" or (twist_mode == "auto" and need > budget):
+            t = min_area_twist(j.pixels)
+            a0 = np.prod(np.ptp(j.pixels, axis=0))
+            q = j.pixels @ rotation2d(t).T
+            if twist_mode == "on" or np.prod(np.ptp(q, axis=0)) < TWIST_GAIN * a0:
+                j.twist = t
+    s = 1.0
+    for _ in range(60):
+        rects = [_rect(j.pixels, s, j.twist) for j in jobs]
+        total = sum(_texels(r) for r in rects)
+        side = max(max(r[2] - r[0], r[3] - r[1]) for r in rects)
+        if total <= budget and side <= MAX_SIDE:
+            break
+        shrink = min(math.sqrt(budget / total), MAX_SIDE / side)
+        s *= min(shrink, 1.0) * (1 - 1e-3) if shrink < 1 - 1e-3 else (1 - 1e-3)
+    else:
+        raise WarpError("plane_optimal: could not fit the plane maps into the texel budget")
+    for j, r in zip(jobs, rects):
+        j.rect = r
+    return s
+
+
+def _plane_map(job: _PlaneJob, s: float, origin: np.ndarray, tol: float, options: WarpOptions) -> ShadowMap:
+    i0, j0, i1, j1 = job.rect
+    wm, hm = i1 - i0, j1 - j0
+    a = np.eye(3)
+    a[:2, :2] = s * rotation2d(job.twist)
+    a[:2, 2] = (-i0, -j0)
+    to_ndc = np.array([[2.0 / wm, 0, -1.0], [0, 2.0 / hm, -1.0], [0, 0, 1.0]])
+    xyw = to_ndc @ a @ job.pixel @ job.rows
+    height = job.info["height_row"]
+    m = np.zeros((4, 4))
+    m[0], m[1], m[3] = xyw
+    m[2] = -height
+    lo, hi = ndc_bounds(m, job.fit_pts)
+    win = window_matrix(np.array([-1.0, -1.0, lo[2]]), np.array([1.0, 1.0, hi[2]]))
+    m[2] = win[2, 2] * m[2] + win[2, 3] * m[3]
+    depth_row = None
+    if options.linear_z:
+        hts = np.column_stack([job.fit_pts, np.ones(len(job.fit_pts))]) @ height
+        hlo, hhi = float(hts.min()), float(hts.max())
+        span = max(hhi - hlo, tol)
+        pad = 1e-7 * span
+        # z = 1 at the lowest height (farthest from the light), -1 at the highest
+        k = 2.0 / (span + 2 * pad)
+        depth_row = (-k * height + np.array([0, 0, 0, 1.0 + k * (hlo - pad)])) @ translation(-origin)
+    world = m @ translation(-origin)
+    n = job.plane.normal
+    region = Region(n.copy(), float(job.plane.offset), job.polygon + origin, tol)
+    return ShadowMap(world, (wm, hm), "LESS", f"plane:{job.index}", region=region, depth_row=depth_row)
 
 
 def plane_optimal(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
-    raise WarpError("plane_optimal is not available yet in this build")
+    diag = Diagnostics("plane_optimal", body_vertices=body.vertices)
+    if light.is_directional:
+        diag.theta, diag.gamma = light_angles(view, light.direction)
+    else:
+        diag.theta, diag.gamma = light_angles(view, body.centroid - light.position)
+    origin = view.position
+    tol = max(REGION_TOLERANCE * body.scale, 100 * body.tolerance)
+    planes = _planes_of(options, body, diag)
+    jobs = [j for j in (_prepare(k, p, view, light, body, origin, tol, diag) for k, p in enumerate(planes))
+            if j is not None]
+    total = options.shadow_map_size[0] * options.shadow_map_size[1]
+    plane_budget = options.plane_budget * total
+    s = _share_budget(jobs, plane_budget, options.plane_twist)
+    maps = [_plane_map(j, s, origin, tol, options) for j in jobs]
+    used = sum(m.size[0] * m.size[1] for m in maps)
+
+    frames = light_frames(view, light, body, options)
+    remaining = max(total - used, 1)
+    f = math.sqrt(remaining / total)
+    fb_size = (max(1, int(options.shadow_map_size[0] * f)), max(1, int(options.shadow_map_size[1] * f)))
+    fb_options = dataclasses.replace(options, shadow_map_size=fb_size)
+    for fr in frames:
+        fm = frame_map(fr, fb_options, options.texel_snapping)
+        fm.role = "fallback" if len(frames) == 1 else f"fallback:{fr.role}"
+        maps.append(fm)
+        if fr.near_clamped:
+            diag.fallback(f"{fm.role}: near plane", "the light is inside B; points nearer than 1e-6 of the scene "
+                                                    "scale are not covered")
+    diag.extra["planes"] = [{
+        "role": f"plane:{j.index}", "name": j.plane.name, "normal": j.plane.normal, "offset": j.plane.offset,
+        "lixels_per_pixel": s, "twist_deg": math.degrees(j.twist), "rect": list(j.rect),
+        "pixel_area": j.info["pixel_area"], "condition": j.info["condition"], "residual": j.info["residual"],
+    } for j in jobs]
+    diag.extra["budget"] = {
+        "plane_budget": options.plane_budget, "total_texels": total, "plane_texels": used,
+        "plane_share": used / total, "fallback_size": list(fb_size), "fallback_maps": len(frames),
+        "lixels_per_pixel": s if jobs else None,
+    }
+    diag.extra["frames"] = [m.role for m in maps]
+    return ShadowSetup(maps, diag)

@@ -1,0 +1,311 @@
+"""The plane-optimal light matrix and its pieces (Chong & Gortler, "A Lixel for
+every Pixel", EGSR 2004, §2). Numpy only.
+
+Notation (paper §2): M_v is the viewer's world -> clip matrix, l the light
+(homogeneous, w = 0 for a sun), P the plane of interest, written as the
+4-vector π with π·X = 0 on P. The light matrix M_l maps world -> light clip.
+
+* :func:`five_point_matrix` solves Eq. 1 and 7-10: five point correspondences
+  (the light and four points on P raised so no four are coplanar) fix a
+  projective 4x4 matrix up to scale (Faugeras 1993). Solved as a 15x16 DLT by
+  SVD in float64 with a rank and a residual check.
+* :func:`plane_light_rows` builds those five points: the rays through the four
+  view corners meet P in p^1..p^4 (homogeneous, so corners whose rays miss P
+  or meet it behind the camera, i.e. a quad straddling infinity (Fig. 5), are
+  fine); p^4 is raised along its light ray to p̂^4 (Fig. 2); l is the centre of
+  projection (Eq. 1). The x, y, w rows of the result equal the viewer's on P:
+  every point of P has the same image in both (the plane homography fixes four
+  generic points, so it is the identity).
+
+  Closed form, used only as an independent check in the tests: those rows are
+  M_v·S with S = (π·l) I - l π^T, the projection from l onto P; the light image
+  of any point is the viewer image of its shadow on P.
+* :func:`plane_section`, :func:`offset_polygon`, :func:`clip_polygon`: the
+  needed part of the plane ("less of the plane", §2) as a convex polygon.
+* :func:`min_area_twist`: the 2D rotation (twist, §2) giving the tightest
+  axis-aligned rectangle around the plane's image.
+* :func:`default_plane`: the top face of the widest, thinnest receiver box.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from .polyhedron import Plane, _polygon_on_plane
+from .types import WarpError
+
+RANK_TOL = 1e-10
+"""The DLT system of Eq. 1, 7-10 must have rank 15: its 15th singular value over
+its first must exceed this, else the five points are (nearly) degenerate."""
+
+RESIDUAL_TOL = 1e-9
+"""Largest accepted sine of the angle between M·X and its wanted image Y."""
+
+VIEW_CORNERS = ((-1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (1.0, -1.0))
+"""The four viewer-image points of Eq. 2 (the image corners, in NDC, in the
+paper's order (0,0), (0,h-1), (g-1,h-1), (g-1,0))."""
+
+FLAT_RATIO = 0.1
+"""A receiver box is flat (a floor, a table top, terrain) when its height is at
+most this fraction of its smaller horizontal side."""
+
+
+@dataclass(frozen=True)
+class PlaneOfInterest:
+    """A plane ``normal · x = offset`` (unit normal), optionally limited to the
+    convex ``extent`` polygon ((K, 3) world points on the plane), e.g. a table
+    top. ``name`` says where it came from (for messages)."""
+
+    normal: np.ndarray
+    offset: float
+    extent: Optional[np.ndarray] = None
+    name: str = "plane"
+
+    @classmethod
+    def through(cls, point, normal, extent=None, name: str = "plane") -> "PlaneOfInterest":
+        n = np.asarray(normal, dtype=np.float64).reshape(3)
+        p = np.asarray(point, dtype=np.float64).reshape(3)
+        norm = float(np.linalg.norm(n))
+        if not (np.all(np.isfinite(n)) and np.all(np.isfinite(p))) or norm == 0.0:
+            raise WarpError(f"{name}: needs a finite point and a non-zero finite normal")
+        n = n / norm
+        ext = None
+        if extent is not None:
+            ext = np.asarray(extent, dtype=np.float64).reshape(-1, 3)
+            if len(ext) < 3 or not np.all(np.isfinite(ext)):
+                raise WarpError(f"{name}: an extent needs at least 3 finite points")
+            ext = ext - np.outer(ext @ n - float(n @ p), n)  # onto the plane
+        return cls(n, float(n @ p), ext, name)
+
+    @classmethod
+    def from_option(cls, entry, index: int) -> "PlaneOfInterest":
+        """``WarpOptions.planes`` entries: (point, normal) or (point, normal, extent polygon)."""
+        name = f"planes[{index}]"
+        if isinstance(entry, PlaneOfInterest):
+            return entry
+        if isinstance(entry, dict):
+            return cls.through(entry.get("point"), entry.get("normal"), entry.get("extent"), name)
+        try:
+            items = list(entry)
+        except TypeError:
+            raise WarpError(f"{name}: must be (point, normal) or (point, normal, extent)") from None
+        if len(items) not in (2, 3):
+            raise WarpError(f"{name}: must be (point, normal) or (point, normal, extent)")
+        return cls.through(items[0], items[1], items[2] if len(items) == 3 else None, name)
+
+    @property
+    def point(self) -> np.ndarray:
+        return self.normal * self.offset
+
+    def vector(self, origin=None) -> np.ndarray:
+        """π = (n, -offset) for coordinates relative to ``origin``: π·(x - origin, 1) = 0 on P."""
+        o = 0.0 if origin is None else float(self.normal @ np.asarray(origin, dtype=np.float64))
+        return np.append(self.normal, -(self.offset - o))
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = float(np.linalg.norm(v))
+    return v / n if n > 0 else v
+
+
+def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
+    """The 4x4 projective M with M·src_i ∝ dst_i for five homogeneous
+    correspondences (no four of ``src`` coplanar; Chong-Gortler §2 after
+    Faugeras 1993).
+
+    Each correspondence gives three independent equations
+    Y_m (M X)_j - Y_j (M X)_m = 0 (m = the largest component of Y); the 15x16
+    system is solved by SVD (its null vector), in float64. Raises WarpError when
+    the rank is below 15 (relative singular value under RANK_TOL) or when a
+    correspondence is not met to RESIDUAL_TOL. Returns (M, {"condition",
+    "residual"})."""
+    src = np.asarray(src, dtype=np.float64).reshape(5, 4)
+    dst = np.asarray(dst, dtype=np.float64).reshape(5, 4)
+    rows = []
+    for x, y in zip(src, dst):
+        m = int(np.argmax(np.abs(y)))
+        for j in range(4):
+            if j == m:
+                continue
+            r = np.zeros((4, 4))
+            r[j] = y[m] * x
+            r[m] = -y[j] * x
+            rows.append(r.ravel())
+    a = np.asarray(rows)
+    if not np.all(np.isfinite(a)):
+        raise WarpError("the five point constraints are not finite")
+    _, sv, vt = np.linalg.svd(a)
+    condition = float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0
+    if not condition > RANK_TOL:
+        raise WarpError(f"the five point constraints are degenerate (rank < 15, relative singular value {condition:.3g})")
+    m = vt[-1].reshape(4, 4)
+    residual = 0.0
+    for x, y in zip(src, dst):
+        mx = m @ x
+        nm = float(np.linalg.norm(mx))
+        if nm <= 1e-12 * float(np.linalg.norm(m)) * float(np.linalg.norm(x)):
+            residual = math.inf
+            break
+        u, v = mx / nm, _unit(y)
+        residual = max(residual, float(min(np.linalg.norm(u - v), np.linalg.norm(u + v))))
+    if not residual <= RESIDUAL_TOL:
+        raise WarpError(f"the five point solve missed its constraints (residual {residual:.3g})")
+    return m, {"condition": condition, "residual": residual}
+
+
+def ray_plane_points(view_clip, plane_vec, ndc_xy) -> np.ndarray:
+    """Homogeneous (N, 4) points where the viewer rays through NDC ``ndc_xy``
+    (N, 2) meet the plane π: the line through the ray's near and far points A,
+    B meets π at (π·B) A - (π·A) B. Works for perspective and orthographic views
+    and for rays that meet P behind the camera or at infinity (w <= 0); a ray
+    lying in P gives the zero vector."""
+    inv = np.linalg.inv(np.asarray(view_clip, dtype=np.float64))
+    xy = np.asarray(ndc_xy, dtype=np.float64).reshape(-1, 2)
+    ones = np.ones(len(xy))
+    a = np.column_stack([xy, -ones, ones]) @ inv.T
+    b = np.column_stack([xy, ones, ones]) @ inv.T
+    pa, pb = a @ plane_vec, b @ plane_vec
+    return pb[:, None] * a - pa[:, None] * b
+
+
+def plane_light_rows(view_clip, plane_vec, light_h, length_scale: float) -> tuple[np.ndarray, dict]:
+    """The light matrix of Eq. 1 and 7-10 for the plane π (coordinates relative
+    to the camera, see :func:`plane_optimal`): (4x4 M, info).
+
+    Light-image targets are the viewer's NDC corners (x_i, y_i) with light z
+    = +1 for p^1..p^3, -1 for p̂^4 and l -> (0, 0, 1, 0). World points are
+    scaled by the spread of the p^i (``length_scale`` if none is finite) and
+    each homogeneous point normalised, so the DLT is well conditioned even for
+    a camera 1 cm above a 100 m floor. Raises WarpError naming the reason."""
+    pi = np.asarray(plane_vec, dtype=np.float64)
+    l_h = np.asarray(light_h, dtype=np.float64)
+    corners = np.array(VIEW_CORNERS)
+    p = ray_plane_points(view_clip, pi, corners)
+    norms = np.linalg.norm(p, axis=1)
+    if np.any(norms <= 1e-300) or not np.all(np.isfinite(p)):
+        raise WarpError("a corner ray of the view lies in the plane (the plane is seen edge-on)")
+    finite = np.abs(p[:, 3]) > 1e-12 * np.linalg.norm(p[:, :3], axis=1)
+    dist = np.zeros(4)
+    dist[finite] = np.linalg.norm(p[finite, :3] / p[finite, 3:4], axis=1)
+    sigma = float(np.sqrt(np.mean(dist[finite] ** 2))) if finite.any() else 0.0
+    sigma = min(sigma, 1e6 * length_scale) if sigma > 0 else length_scale
+    nrm = np.diag([1.0 / sigma, 1.0 / sigma, 1.0 / sigma, 1.0])
+    pts = np.array([_unit(nrm @ q) for q in p])
+    light = _unit(nrm @ l_h)
+    raised = _unit(pts[3] + light)  # p̂^4: another point of the line through p^4 and l (Fig. 2)
+    src = np.array([pts[0], pts[1], pts[2], raised, light])
+    dst = np.array([[*corners[0], 1.0, 1.0], [*corners[1], 1.0, 1.0], [*corners[2], 1.0, 1.0],
+                    [*corners[3], -1.0, 1.0], [0.0, 0.0, 1.0, 0.0]])
+    m, info = five_point_matrix(src, dst)
+    return m @ nrm, info
+
+
+def clip_polygon(poly: np.ndarray, plane: Plane, tol: float = 0.0) -> np.ndarray:
+    """Sutherland-Hodgman: the part of a convex polygon with ``plane.distance <= 0``."""
+    if len(poly) == 0:
+        return poly
+    d = plane.distance(poly)
+    d = np.where(np.abs(d) <= tol, 0.0, d)
+    out = []
+    k = len(poly)
+    for i in range(k):
+        a, b, da, db = poly[i], poly[(i + 1) % k], d[i], d[(i + 1) % k]
+        if da <= 0:
+            out.append(a)
+        if (da < 0 < db) or (db < 0 < da):
+            out.append(a + da / (da - db) * (b - a))
+    return np.asarray(out).reshape(-1, 3)
+
+
+def plane_section(vertices, normal, offset: float, tol: float) -> Optional[np.ndarray]:
+    """hull(vertices) ∩ P as a convex polygon (CCW about ``normal``), or None
+    when it has no area: the section of a convex hull by a plane is the hull of
+    its vertices on the plane and of the crossings of every segment between
+    vertices on opposite sides."""
+    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    h = v @ normal - offset
+    on = np.abs(h) <= tol
+    pos, neg = np.where(h > tol)[0], np.where(h < -tol)[0]
+    pts = [v[on] - np.outer(h[on], normal)]
+    if len(pos) and len(neg):
+        hp, hn = h[pos][:, None], h[neg][None, :]
+        t = hp / (hp - hn)
+        cross = v[pos][:, None, :] + t[..., None] * (v[neg][None, :, :] - v[pos][:, None, :])
+        pts.append(cross.reshape(-1, 3))
+    pts = np.concatenate(pts)
+    if len(pts) < 3:
+        return None
+    return _polygon_on_plane(pts, normal, tol)
+
+
+def polygon_area(poly, normal) -> float:
+    poly = np.asarray(poly, dtype=np.float64)
+    s = np.zeros(3)
+    for i in range(len(poly)):
+        s += np.cross(poly[i], poly[(i + 1) % len(poly)])
+    return 0.5 * abs(float(s @ normal))
+
+
+def offset_polygon(poly: np.ndarray, normal: np.ndarray, dist: float) -> np.ndarray:
+    """The convex polygon (CCW about ``normal``) with every edge moved out by
+    ``dist``: exactly the set ``Region.contains`` accepts with tolerance ``dist``."""
+    k = len(poly)
+    out = np.empty_like(poly)
+    for i in range(k):
+        a, b, c = poly[i - 1], poly[i], poly[(i + 1) % k]
+        e1, e2 = _unit(b - a), _unit(c - b)
+        n1, n2 = np.cross(e1, normal), np.cross(e2, normal)  # outward for CCW
+        s = 1.0 + float(n1 @ n2)
+        out[i] = b + dist * (n1 + n2) / s if s > 1e-9 else b + dist * _unit(n1 + n2 if np.any(n1 + n2) else n1)
+    return out
+
+
+def min_area_twist(points2d: np.ndarray) -> float:
+    """The rotation θ in (-π/4, π/4] whose rotated points R(θ)·p have the
+    smallest axis-aligned bounding rectangle (rotating calipers: the best
+    rectangle has a side along a hull edge)."""
+    p = np.asarray(points2d, dtype=np.float64).reshape(-1, 2)
+    best, best_area = 0.0, math.inf
+    k = len(p)
+    for i in range(k):
+        e = p[(i + 1) % k] - p[i]
+        if not np.any(e):
+            continue
+        theta = -math.atan2(e[1], e[0])
+        theta = (theta + math.pi / 4) % (math.pi / 2) - math.pi / 4
+        c, s = math.cos(theta), math.sin(theta)
+        q = p @ np.array([[c, s], [-s, c]])
+        area = float(np.prod(q.max(axis=0) - q.min(axis=0)))
+        if area < best_area * (1 - 1e-12):
+            best, best_area = theta, area
+    return best
+
+
+def rotation2d(theta: float) -> np.ndarray:
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([[c, -s], [s, c]])
+
+
+def default_plane(receiver_boxes) -> Optional[PlaneOfInterest]:
+    """The largest upward-facing flat receiver surface: the top face of the
+    widest flat box (height <= FLAT_RATIO x its smaller side; Z up), limited to
+    that face. None when no receiver box is flat."""
+    b = np.asarray(receiver_boxes, dtype=np.float64).reshape(-1, 2, 3)
+    if len(b) == 0:
+        return None
+    ext = b[:, 1] - b[:, 0]
+    side = np.minimum(ext[:, 0], ext[:, 1])
+    flat = (side > 0) & (ext[:, 2] <= FLAT_RATIO * side)
+    if not flat.any():
+        return None
+    area = np.where(flat, ext[:, 0] * ext[:, 1], -1.0)
+    # widest first, then thinnest, then lowest index (deterministic)
+    order = np.lexsort((np.arange(len(b)), ext[:, 2], -area))
+    i = int(order[0])
+    lo, hi = b[i]
+    top = hi[2]
+    face = np.array([[lo[0], lo[1], top], [hi[0], lo[1], top], [hi[0], hi[1], top], [lo[0], hi[1], top]])
+    return PlaneOfInterest(np.array([0.0, 0.0, 1.0]), float(top), face, f"top of receiver box {i}")
