@@ -10,11 +10,14 @@ hull(R ∪ light) cannot shadow a visible receiver, and a receiver outside V is 
 seen. "Model only what a scene needs."
 
 hull(R ∪ light) is built exactly from half-spaces with the light in homogeneous
-coordinates (w = 0 for a sun): R's faces that do not face the light, plus one
-plane through every silhouette edge and the light.
+coordinates (w = 0 for a sun): R's facets that do not face the light, plus one
+plane through every silhouette edge and the light. Since L is a convex cone
+with its apex at the light and R ⊂ L, hull(R ∪ light) ⊂ L already.
 
-Everything is computed relative to the camera position (so coordinates at 1e5
-keep their precision) with tolerances relative to the scene's scale.
+Polytopes are :class:`~.polyhedron.ConvexPolytope` (vertex enumeration from
+half-spaces, vectorised), computed relative to the camera position (so
+coordinates at 1e5 keep their precision) with tolerances relative to the
+scene's scale. The 10,000-box culling is one matrix product per box set.
 """
 from __future__ import annotations
 
@@ -23,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .polyhedron import Plane, box_faces, clip_faces, face_edges, face_planes, hexahedron_faces, unique_points
+from .polyhedron import ConvexPolytope, Plane
 from .types import EmptyBodyError, Light, SceneBounds, View
 
 CONE_SIDES = 16
@@ -33,6 +36,9 @@ RELATIVE_TOLERANCE = 1e-10
 BOX_PAD = 1e-7
 """Boxes are padded by this fraction of the scene scale so a flat scene still
 gives a closed body of positive volume."""
+
+SUN_FACING = 1e-12
+"""A facet faces a sun when cos(angle to the direction towards it) exceeds this."""
 
 
 @dataclass
@@ -54,22 +60,37 @@ class IntersectionBody:
     """World-space half-spaces of hull(R ∪ light) ∩ L: the light-extruded body."""
     tolerance: float = 0.0
     scale: float = 1.0
+    polytope: ConvexPolytope | None = None
+    """B as a polytope relative to ``origin`` (facet planes, incidence)."""
+    origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    """The point B's ``polytope`` is expressed relative to (the camera position)."""
 
     @property
     def centroid(self) -> np.ndarray:
         return self.vertices.mean(axis=0)
 
     def contains(self, points, tol: float | None = None) -> np.ndarray:
+        """Which (N, 3) world points lie in B (within ``tol``, default 10x the tolerance)."""
         t = self.tolerance * 10 if tol is None else tol
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        if self.polytope is not None:
+            return self.polytope.contains(p - self.origin, t)
+        from .polyhedron import face_planes
         ok = np.ones(len(p), dtype=bool)
         for pl in face_planes(self.faces):
             ok &= pl.distance(p) <= t
         return ok
 
+    def polytope_from(self, apex) -> ConvexPolytope:
+        """B relative to ``apex`` (e.g. a point light), for clipping in its frame."""
+        if self.polytope is None:
+            raise ValueError("this body has no polytope")
+        return self.polytope.translated(self.origin - np.asarray(apex, dtype=np.float64))
 
-def cone_planes(apex, axis, full_angle) -> list[Plane]:
-    """Half-spaces of a pyramid circumscribing the cone (apex, axis, full angle)."""
+
+def cone_halfspaces(apex, axis, full_angle) -> tuple[np.ndarray, np.ndarray]:
+    """(normals (k, 3), offsets (k,)) of a pyramid circumscribing the cone
+    (apex, axis, full angle), k = CONE_SIDES."""
     a = np.asarray(axis, dtype=np.float64)
     a = a / np.linalg.norm(a)
     u = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
@@ -79,70 +100,200 @@ def cone_planes(apex, axis, full_angle) -> list[Plane]:
     # Tangent planes of a regular pyramid circumscribing the cone: the cone's
     # half-angle widened so the cone fits inside the polygon (secant of pi/k).
     widened = math.atan(math.tan(half) / math.cos(math.pi / CONE_SIDES))
-    planes = []
-    for k in range(CONE_SIDES):
-        phi = 2 * math.pi * k / CONE_SIDES
-        radial = math.cos(phi) * u + math.sin(phi) * v
-        n = math.cos(widened) * radial - math.sin(widened) * a
-        planes.append(Plane.through(apex, n))
-    return planes
+    phi = 2 * math.pi * np.arange(CONE_SIDES) / CONE_SIDES
+    radial = np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * v
+    n = math.cos(widened) * radial - math.sin(widened) * a
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    return n, n @ np.asarray(apex, dtype=np.float64)
+
+
+def cone_planes(apex, axis, full_angle) -> list[Plane]:
+    """Half-spaces of a pyramid circumscribing the cone (apex, axis, full angle)."""
+    n, o = cone_halfspaces(apex, axis, full_angle)
+    return [Plane(ni, float(oi)) for ni, oi in zip(n, o)]
+
+
+def _stack_of(boxes: np.ndarray) -> np.ndarray:
+    """(6, N): rows 0-2 the boxes' centres, rows 3-5 their half extents."""
+    return np.ascontiguousarray(np.concatenate([(boxes[:, 0] + boxes[:, 1]).T / 2, (boxes[:, 1] - boxes[:, 0]).T / 2]))
+
+
+def boxes_meeting_arrays(normals, offsets, centre_half: np.ndarray, tol: float = 0.0) -> np.ndarray:
+    """Boolean mask of boxes, given as (6, N) centres/half extents, not entirely
+    outside any half-space ``normals @ x <= offsets`` (a conservative test)."""
+    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    count = centre_half.shape[1]
+    if count == 0:
+        return np.zeros(0, dtype=bool)
+    if len(n) == 0:
+        return np.ones(count, dtype=bool)
+    m = np.concatenate([n, -np.abs(n)], axis=1)
+    # (A non-contiguous operand makes matmul fall off BLAS and take 100x longer.)
+    nearest = m @ np.ascontiguousarray(centre_half) - np.asarray(offsets, dtype=np.float64)[:, None]
+    return nearest.max(axis=0) <= tol
+
+
+CLUSTER_SIZE = 32
+"""Boxes per cluster of the two-level culling index."""
+
+
+class BoxIndex:
+    """A two-level index over a scene's boxes for culling against convex
+    regions: boxes grouped in clusters of ``CLUSTER_SIZE`` (the leaves of a
+    median-split k-d tree) with their bounding boxes. A cluster wholly
+    outside a half-space is rejected, one wholly inside all is accepted, and
+    only the boxes of the remaining clusters are tested one by one. The result
+    equals the plain per-box test (``boxes_meeting_arrays``)."""
+
+    def __init__(self, boxes: np.ndarray):
+        b = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3)
+        self.count = len(b)
+        k = CLUSTER_SIZE
+        if self.count == 0:
+            self.perm = np.zeros(0, dtype=np.int64)
+            self.lo = self.hi = np.zeros((0, 3))
+            self.stack = np.zeros((6, 0))
+            self.c_lo = self.c_hi = np.zeros((0, 3))
+            self.c_stack = np.zeros((6, 0))
+            return
+        # Clusters: leaves of a median-split k-d tree over the box centres (split
+        # along the widest axis of the boxes' extent), so each cluster is compact.
+        centre = (b[:, 0] + b[:, 1]) / 2
+        leaves: list[np.ndarray] = []
+        todo = [np.arange(len(b))]
+        while todo:
+            ids = todo.pop()
+            if len(ids) <= k:
+                leaves.append(ids)
+                continue
+            ext = b[ids, 1].max(axis=0) - b[ids, 0].min(axis=0)
+            axis = int(np.argmax(ext))
+            half = (len(ids) // (2 * k)) * k or k      # left part: whole clusters
+            part = np.argpartition(centre[ids, axis], half - 1)
+            todo.append(ids[part[half:]])
+            todo.append(ids[part[:half]])
+        # Leaves come depth-first, left part first: every leaf but the last is full.
+        self.perm = np.concatenate(leaves)
+        sb = b[self.perm]
+        self.lo, self.hi = np.ascontiguousarray(sb[:, 0]), np.ascontiguousarray(sb[:, 1])
+        self.stack = _stack_of(sb)
+        n_c = -(-self.count // k)
+        pad = n_c * k - self.count
+        plo = np.concatenate([self.lo, np.repeat(self.lo[-1:], pad, axis=0)]).reshape(n_c, k, 3)
+        phi = np.concatenate([self.hi, np.repeat(self.hi[-1:], pad, axis=0)]).reshape(n_c, k, 3)
+        self.c_lo, self.c_hi = plo.min(axis=1), phi.max(axis=1)
+        self.c_stack = _stack_of(np.stack([self.c_lo, self.c_hi], axis=1))
+
+    @classmethod
+    def of(cls, scene: SceneBounds, which: str) -> "BoxIndex":
+        """The index of ``scene.casters`` or ``scene.receivers`` (built once per scene)."""
+        boxes = getattr(scene, which)
+        other = scene.receivers if which == "casters" else scene.casters
+        if other is boxes or (other.shape == boxes.shape and np.array_equal(other, boxes)):
+            which = "boxes"
+        return scene.cached(("BoxIndex", which), lambda: cls(boxes))
+
+    def cull(self, normals, offsets, tol: float = 0.0) -> tuple[np.ndarray, np.ndarray | None]:
+        """(mask over the boxes in their original order, the (2, 3) bounding box
+        of the boxes that meet the region or None)."""
+        n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+        o = np.asarray(offsets, dtype=np.float64).reshape(-1, 1)
+        mask = np.zeros(self.count, dtype=bool)
+        if self.count == 0:
+            return mask, None
+        an = np.abs(n)
+        centre_part = n @ self.c_stack[:3] - o
+        spread = an @ self.c_stack[3:]
+        c_out = (centre_part - spread).max(axis=0) > tol      # wholly outside some half-space
+        c_in = (centre_part + spread).max(axis=0) <= tol      # wholly inside every half-space
+        k = CLUSTER_SIZE
+        sorted_mask = np.repeat(c_in, k)[: self.count]
+        edge = np.nonzero(~c_out & ~c_in)[0]
+        if len(edge):
+            idx = (edge[:, None] * k + np.arange(k)).ravel()
+            idx = idx[idx < self.count]
+            hit = boxes_meeting_arrays(n, o[:, 0], np.take(self.stack, idx, axis=1), tol)
+            sorted_mask[idx[hit]] = True
+            idx = idx[hit]
+        else:
+            idx = edge
+        mask[self.perm] = sorted_mask
+        if not sorted_mask.any():
+            return mask, None
+        los = [self.c_lo[c_in], self.lo[idx]]
+        his = [self.c_hi[c_in], self.hi[idx]]
+        lo = np.min([x.min(axis=0) for x in los if len(x)], axis=0)
+        hi = np.max([x.max(axis=0) for x in his if len(x)], axis=0)
+        return mask, np.array([lo, hi])
 
 
 def boxes_meeting(planes: list[Plane], boxes: np.ndarray, tol: float = 0.0) -> np.ndarray:
     """Boolean mask of (N, 2, 3) boxes not entirely outside any half-space (a
     conservative box/convex-body overlap test)."""
     b = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3)
-    if len(b) == 0:
-        return np.zeros(0, dtype=bool)
-    centre = (b[:, 0] + b[:, 1]) / 2
-    half = (b[:, 1] - b[:, 0]) / 2
-    ok = np.ones(len(b), dtype=bool)
-    for p in planes:
-        nearest = centre @ p.normal - half @ np.abs(p.normal) - p.offset
-        ok &= nearest <= tol
-    return ok
+    if not planes:
+        return np.ones(len(b), dtype=bool)
+    n = np.array([p.normal for p in planes])
+    o = np.array([p.offset for p in planes])
+    return boxes_meeting_arrays(n, o, _stack_of(b), tol)
 
 
-def _aabb(points) -> np.ndarray:
-    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    return np.array([p.min(axis=0), p.max(axis=0)])
-
-
-def _union_box(boxes: np.ndarray) -> np.ndarray:
-    return np.array([boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)])
+def light_halfspaces(light: Light, origin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """L relative to ``origin``: the half-spaces of the light's frustum (only spots have one)."""
+    if light.type != "SPOT":
+        return np.zeros((0, 3)), np.zeros(0)
+    return cone_halfspaces(light.position - origin, light.direction, light.spot_angle)
 
 
 def light_planes(light: Light, origin: np.ndarray) -> list[Plane]:
     """L: the half-spaces of the light's frustum (only spots have one)."""
-    if light.type != "SPOT":
-        return []
-    return cone_planes(light.position - origin, light.direction, light.spot_angle)
+    n, o = light_halfspaces(light, origin)
+    return [Plane(ni, float(oi)) for ni, oi in zip(n, o)]
 
 
 def hull_with_light(faces: list[np.ndarray], light_h: np.ndarray, tol: float) -> list[Plane]:
-    """Half-spaces of hull(P ∪ light) for a convex polyhedron P, light in
-    homogeneous coordinates (x, y, z, w) with w = 0 for a light at infinity."""
-    planes = face_planes(faces)
-    s = [p.normal @ light_h[:3] - p.offset * light_h[3] for p in planes]
-    facing = [si > tol * (1.0 if light_h[3] != 0 else 0.0) + (0.0 if light_h[3] != 0 else 1e-12) for si in s]
-    out = [p for p, f in zip(planes, facing) if not f]
-    centre = np.mean(np.concatenate(faces), axis=0)
-    for a, b, i, j in face_edges(faces, tol):
-        if facing[i] == facing[j]:
-            continue
-        to_light = light_h[:3] - a * light_h[3]
-        n = np.cross(b - a, to_light)
-        if np.linalg.norm(n) <= 1e-14 * max(np.linalg.norm(b - a) * np.linalg.norm(to_light), 1e-300):
-            continue
-        p = Plane.through(a, n)
-        if p.distance(centre[None])[0] > 0:
-            p = Plane(-p.normal, -p.offset)
-        out.append(p)
-    return out
+    """Half-spaces of hull(P ∪ light) for a convex polyhedron P given as faces
+    (see ``hull_halfspaces``), light in homogeneous coordinates (x, y, z, w)."""
+    poly = ConvexPolytope.from_faces(faces, tol)
+    if poly is None:
+        return []
+    n, o = hull_halfspaces(poly, light_h, tol)
+    return [Plane(ni, float(oi)) for ni, oi in zip(n, o)]
+
+
+def hull_halfspaces(poly: ConvexPolytope, light_h: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """Half-spaces (normals, offsets) of hull(P ∪ light) for a convex polytope P,
+    the light in homogeneous coordinates (x, y, z, w), w = 0 for a light at
+    infinity: P's facets not facing the light plus a plane through each
+    silhouette edge (facing facet on one side, non-facing on the other) and the
+    light. A silhouette plane too ill-defined to orient (light on the edge's
+    line) is left out, which only makes the hull larger (conservative)."""
+    n, o = poly.normals, poly.offsets
+    s = n @ light_h[:3] - o * light_h[3]
+    facing = s > (tol if light_h[3] != 0 else SUN_FACING)
+    edges, facets = poly.edges()
+    sil = facing[facets[:, 0]] != facing[facets[:, 1]]
+    a = poly.vertices[edges[sil, 0]]
+    b = poly.vertices[edges[sil, 1]]
+    to_light = light_h[:3] - a * light_h[3]
+    sn = np.cross(b - a, to_light)
+    length = np.linalg.norm(sn, axis=1)
+    ok = length > 1e-12 * np.linalg.norm(b - a, axis=1) * np.linalg.norm(to_light, axis=1)
+    sn = sn[ok] / length[ok, None]
+    so = np.einsum("ij,ij->i", sn, a[ok])
+    flip = sn @ poly.centroid - so > 0
+    sn[flip], so[flip] = -sn[flip], -so[flip]
+    return np.concatenate([n[~facing], sn]), np.concatenate([o[~facing], so])
 
 
 def _pad(box: np.ndarray, amount: float) -> np.ndarray:
     return np.array([box[0] - amount, box[1] + amount])
+
+
+def _view_halfspaces(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Outward (normals, offsets) of the view frustum's six faces from its corners."""
+    poly = ConvexPolytope.from_corners(corners, 0.0)
+    return poly.normals, poly.offsets
 
 
 def intersection_body(view: View, light: Light, scene: SceneBounds) -> IntersectionBody:
@@ -151,54 +302,58 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
     if scene.is_empty:
         raise EmptyBodyError("the scene has no shadow casters or receivers")
     origin = view.position
-    receivers = scene.receivers - origin
-    casters = scene.casters - origin
-    v_faces = hexahedron_faces(view.corners() - origin)
-    v_planes = face_planes(v_faces)
-    l_planes = light_planes(light, origin)
+    corners = view.corners() - origin
+    view_size = float(np.linalg.norm(corners[0] - corners[7]))
+    v_tol = RELATIVE_TOLERANCE * view_size
+    v_poly = ConvexPolytope.from_corners(corners, v_tol)
+    ln, lo = light_halfspaces(light, origin)
+    cone = " and the spot cone" if len(ln) else ""
 
-    receiver_mask = boxes_meeting(v_planes + l_planes, receivers)
-    if not receiver_mask.any():
-        raise EmptyBodyError("no shadow receiver is inside the view frustum" + (" and the spot cone" if l_planes else ""))
-    s_r = _union_box(receivers[receiver_mask])
-    scale = float(max(np.linalg.norm(s_r[1] - s_r[0]), np.linalg.norm(view.corners()[0] - view.corners()[7]) * 1e-6, 1e-9))
+    # Receivers meeting V ∩ L (planes moved to world space for the culling).
+    vn = np.concatenate([v_poly.normals, ln])
+    vo = np.concatenate([v_poly.offsets, lo])
+    receiver_mask, s_r = BoxIndex.of(scene, "receivers").cull(vn, vo + vn @ origin)
+    if s_r is None:
+        raise EmptyBodyError("no shadow receiver is inside the view frustum" + cone)
+    s_r = s_r - origin
+    scale = float(max(np.linalg.norm(s_r[1] - s_r[0]), view_size * 1e-6, 1e-9))
     tol = RELATIVE_TOLERANCE * max(scale, float(np.abs(s_r).max()))
     s_r = _pad(s_r, BOX_PAD * scale)
 
-    visible = v_faces
-    for p in face_planes(box_faces(*s_r)) + l_planes:
-        visible = clip_faces(visible, p, tol)
-        if not visible:
-            raise EmptyBodyError("the view frustum does not meet the receivers" + (" inside the spot cone" if l_planes else ""))
+    # R = V ∩ S_r ∩ L.
+    eye3 = np.eye(3)
+    box_n = np.concatenate([-eye3, eye3])
+    v_poly = ConvexPolytope(v_poly.vertices, v_poly.normals, v_poly.offsets, v_poly.incidence, tol)
+    visible = v_poly.clip(np.concatenate([box_n, ln]), np.concatenate([-s_r[0], s_r[1], lo]))
+    if visible is None:
+        raise EmptyBodyError("the view frustum does not meet the receivers" + (" inside the spot cone" if len(ln) else ""))
 
+    # hull(R ∪ light) ∩ L, and the casters meeting it.
     light_h = light.homogeneous_position.copy()
     if light_h[3] != 0:
         light_h[:3] -= origin
-    h_planes = hull_with_light(visible, light_h, tol) + l_planes
-    caster_mask = boxes_meeting(h_planes, casters, tol)
-    visible_pts = np.concatenate(visible)
-    s_c = _aabb(visible_pts)
-    if caster_mask.any():
-        s_c = _union_box(np.concatenate([s_c[None], casters[caster_mask]]))
+    hn, ho = hull_halfspaces(visible, light_h, tol)
+    hn, ho = np.concatenate([hn, ln]), np.concatenate([ho, lo])
+    caster_mask, cast_box = BoxIndex.of(scene, "casters").cull(hn, ho + hn @ origin, tol)
+    s_c = np.array([visible.vertices.min(axis=0), visible.vertices.max(axis=0)])
+    if cast_box is not None:
+        s_c = np.array([np.minimum(s_c[0], cast_box[0] - origin), np.maximum(s_c[1], cast_box[1] - origin)])
     scale = float(max(np.linalg.norm(s_c[1] - s_c[0]), scale))
     s_c = _pad(s_c, BOX_PAD * scale)
 
-    faces = box_faces(*s_c)
-    for p in h_planes:
-        faces = clip_faces(faces, p, tol)
-        if not faces:
-            raise EmptyBodyError("the light-extruded view does not meet the scene")
-    world_faces = [f + origin for f in faces]
-    vertices = unique_points(np.concatenate(faces), tol * 10) + origin
-    world_planes = [Plane(p.normal, p.offset + float(p.normal @ origin)) for p in h_planes]
+    body = ConvexPolytope.box(s_c[0], s_c[1], tol).clip(hn, ho)
+    if body is None:
+        raise EmptyBodyError("the light-extruded view does not meet the scene")
     return IntersectionBody(
-        vertices=vertices,
-        faces=world_faces,
-        visible_vertices=unique_points(visible_pts, tol * 10) + origin,
+        vertices=body.vertices + origin,
+        faces=[f + origin for f in body.faces()],
+        visible_vertices=visible.vertices + origin,
         caster_mask=caster_mask,
         receiver_mask=receiver_mask,
         receiver_boxes=scene.receivers[receiver_mask].copy(),
-        hull_planes=world_planes,
+        hull_planes=[Plane(n, float(o + n @ origin)) for n, o in zip(hn, ho)],
         tolerance=tol,
         scale=scale,
+        polytope=body,
+        origin=origin,
     )

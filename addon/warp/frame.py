@@ -19,8 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .body import IntersectionBody
-from .geometry import look_along, normalize, transform_h
-from .polyhedron import Plane, clip_faces, unique_points
+from .geometry import look_along, normalize, perpendicular, transform_h
 from .types import Light, View, WarpOptions
 
 PARALLEL_BLEND = math.sin(math.radians(1.0))
@@ -73,18 +72,24 @@ def sun_frame(view: View, light: Light, body: IntersectionBody) -> LightFrame:
     return LightFrame(m, body.vertices, "main", True)
 
 
-def _cone_of(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]:
-    """Axis and half-angle of a cone from ``apex`` containing ``points``."""
-    dirs = points - apex
+def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]:
+    """Axis and half-angle of a cone from ``apex`` containing ``points``.
+
+    The axis points at the centre of the bounding box of the unit directions to
+    the points: unlike a mean over vertices it does not jump when a vertex of B
+    splits in two, so the light frame moves continuously with the view. A
+    half-angle of π means no single cone (directions all around the apex)."""
+    dirs = np.asarray(points, dtype=np.float64) - apex
     norms = np.linalg.norm(dirs, axis=1)
-    dirs = dirs[norms > 0] / norms[norms > 0, None]
+    far = norms > 0
+    dirs = dirs[far] / norms[far, None]
     if len(dirs) == 0:
         return np.array([0.0, 0.0, -1.0]), math.pi
-    mean = dirs.sum(axis=0)
-    if np.linalg.norm(mean) < 1e-9 * len(dirs):
+    mid = (dirs.min(axis=0) + dirs.max(axis=0)) / 2
+    if np.linalg.norm(mid) < 1e-9:
         return normalize(dirs[0]), math.pi
-    axis = normalize(mean)
-    half = float(np.arccos(np.clip(dirs @ axis, -1.0, 1.0)).max())
+    axis = normalize(mid)
+    half = float(np.arccos(np.clip((dirs @ axis).min(), -1.0, 1.0)))
     return axis, half
 
 
@@ -115,41 +120,37 @@ CUBE_FACES = (("+X", 0, 1.0), ("-X", 0, -1.0), ("+Y", 1, 1.0), ("-Y", 1, -1.0), 
 def point_frames(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> list[LightFrame]:
     """One perspective frame when B fits a frustum narrower than
     ``max_frustum_angle``, else one per cube face that B reaches (cube aligned
-    with the mean direction to B, so as few faces as possible are needed)."""
+    with the cone axis to B, so as few faces as possible are needed).
+
+    The switch between the two is a known discontinuity (the number of maps
+    changes), at ``2 * light_cone(B)[1] == max_frustum_angle``."""
     apex = light.position
-    axis, half = _cone_of(body.vertices, apex)
+    axis, half = light_cone(body.vertices, apex)
     inside = bool(body.contains(apex[None])[0])
-    if not inside and 2 * half <= options.max_frustum_angle:
-        up = image_up(view.direction, view.up, axis)
-        return [perspective_frame(apex, axis, up, body.vertices, "main", body.scale)]
     up = image_up(view.direction, view.up, axis)
     if not np.any(up):
-        up = np.cross(axis, np.eye(3)[int(np.argmin(np.abs(axis)))])
-    basis = np.stack([normalize(np.cross(up, -axis)), normalize(up), -axis])  # cube axes: x, y, z = -axis
+        up = perpendicular(axis)
+    if not inside and 2 * half <= options.max_frustum_angle:
+        return [perspective_frame(apex, axis, up, body.vertices, "main", body.scale)]
+    basis = np.stack([normalize(np.cross(up, -axis)), normalize(up - (up @ axis) * axis), -axis])  # cube x, y, z = -axis
+    poly = body.polytope_from(apex)
+    near_floor = 1e-6 * body.scale
     frames = []
     for name, k, sign in CUBE_FACES:
         forward = sign * basis[k]
         others = [basis[j] for j in range(3) if j != k]
-        faces = [f - apex for f in body.faces]
-        for o in others:
-            for s in (1.0, -1.0):
-                # keep the pyramid |o . x| <= forward . x (a 90-degree face)
-                faces = clip_faces(faces, Plane(normalize(s * o - forward), 0.0), body.tolerance)
-                if not faces:
-                    break
-            if not faces:
-                break
-        if not faces:
+        # The face's 90-degree pyramid |o . x| <= forward . x.
+        normals = np.array([s * o - forward for o in others for s in (1.0, -1.0)])
+        part = poly.clip(normals, np.zeros(4))
+        if part is None:
             continue
-        near_floor = 1e-6 * body.scale
-        clamped = min(float((f @ forward).min()) for f in faces) < near_floor
+        clamped = float((part.vertices @ forward).min()) < near_floor
         if clamped:
-            faces = clip_faces(faces, Plane(-forward, -near_floor), body.tolerance)
-            if not faces:
+            part = part.clip(-forward[None], [-near_floor])
+            if part is None:
                 continue
-        pts = unique_points(np.concatenate(faces), body.tolerance * 10) + apex
         face_up = basis[1] if k != 1 else basis[2]
-        frame = perspective_frame(apex, forward, face_up, pts, "cube" + name, body.scale)
+        frame = perspective_frame(apex, forward, face_up, part.vertices + apex, "cube" + name, body.scale)
         frames.append(LightFrame(frame.to_light, frame.points, frame.role, False, clamped))
     return frames
 

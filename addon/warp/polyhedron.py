@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+EPS = float(np.finfo(np.float64).eps)
+
 
 @dataclass(frozen=True)
 class Plane:
@@ -82,17 +84,12 @@ def _polygon_on_plane(points: np.ndarray, normal: np.ndarray, tol: float) -> np.
 
 
 def unique_points(points, tol: float) -> np.ndarray:
-    """Points merged within ``tol`` (first occurrence wins), in a deterministic
-    lexicographic order."""
+    """Points merged within ``tol`` in a deterministic lexicographic order (a
+    point is dropped when an earlier one in that order lies within ``tol``)."""
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if len(p) == 0:
         return p
-    p = p[np.lexsort((p[:, 2], p[:, 1], p[:, 0]))]
-    keep: list[np.ndarray] = []
-    for q in p:
-        if not keep or np.min(np.linalg.norm(np.asarray(keep) - q, axis=1)) > tol:
-            keep.append(q)
-    return np.asarray(keep)
+    return p[_merge_points(p, tol)]
 
 
 def clip_faces(faces: list[np.ndarray], plane: Plane, tol: float) -> list[np.ndarray]:
@@ -172,3 +169,257 @@ def face_edges(faces: list[np.ndarray], tol: float) -> list[tuple[np.ndarray, np
             if a != b:
                 owner.setdefault((min(a, b), max(a, b)), []).append(fi)
     return [(verts[a], verts[b], fs[0], fs[1]) for (a, b), fs in sorted(owner.items()) if len(fs) >= 2]
+
+
+# ---------------------------------------------------------------------------
+# ConvexPolytope: vertices + facet half-spaces + incidence, fully vectorised.
+# ---------------------------------------------------------------------------
+
+DET_MIN = 1e-9
+"""Triples of planes whose normals' triple product is below this are treated as
+meeting in no single point (parallel or sharing a line)."""
+
+_COMBOS: dict[int, np.ndarray] = {}
+
+
+def _combinations3(m: int) -> np.ndarray:
+    """(C(m, 3), 3) index triples i < j < k in lexicographic order (cached)."""
+    c = _COMBOS.get(m)
+    if c is None:
+        i, j, k = np.meshgrid(np.arange(m), np.arange(m), np.arange(m), indexing="ij")
+        sel = (i < j) & (j < k)
+        c = np.stack([i[sel], j[sel], k[sel]], axis=1)
+        _COMBOS[m] = c
+    return c
+
+
+def _cross_table(n: np.ndarray) -> np.ndarray:
+    """(m * m, 3): row a * m + b is n[a] x n[b]."""
+    a = np.repeat(n, len(n), axis=0)
+    b = np.tile(n, (len(n), 1))
+    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
+                     a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
+
+
+def _perpendiculars(n: np.ndarray) -> np.ndarray:
+    """Unit vectors perpendicular to each row of ``n`` (rows of unit length),
+    each away from the axis the row is least aligned with (as geometry.perpendicular)."""
+    axis = np.argmin(np.abs(n), axis=1)
+    e = np.zeros_like(n)
+    e[np.arange(len(n)), axis] = 1.0
+    u = np.cross(n, e)
+    return u / np.linalg.norm(u, axis=1, keepdims=True)
+
+
+def _unit_rows(normals, offsets) -> tuple[np.ndarray, np.ndarray]:
+    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    o = np.asarray(offsets, dtype=np.float64).reshape(-1)
+    length = np.linalg.norm(n, axis=1)
+    good = length > 0
+    return n[good] / length[good, None], o[good] / length[good]
+
+
+def _dedupe_planes(n: np.ndarray, o: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """Drop planes equal (within ``tol``) to an earlier one."""
+    if len(n) < 2:
+        return n, o
+    same = (n @ n.T > 1.0 - 1e-12) & (np.abs(o[:, None] - o[None, :]) <= tol)
+    keep = ~np.any(np.tril(same, -1), axis=1)
+    return n[keep], o[keep]
+
+
+def _merge_points(p: np.ndarray, tol: float) -> np.ndarray:
+    """Indices of the points to keep after merging points closer than ``tol``,
+    sorted lexicographically (deterministic); a point is dropped when an earlier
+    point (in that order) lies within ``tol``."""
+    if len(p) == 0:
+        return np.zeros(0, dtype=np.int64)
+    order = np.lexsort((p[:, 2], p[:, 1], p[:, 0]))
+    q = p[order]
+    diff = q[:, None, :] - q[None, :, :]
+    close = np.einsum("ijk,ijk->ij", diff, diff) <= tol * tol
+    keep = ~np.any(np.tril(close, -1), axis=1)
+    return order[keep]
+
+
+@dataclass(frozen=True)
+class ConvexPolytope:
+    """A closed convex polytope with both descriptions, in float64.
+
+    ``vertices`` (n, 3), sorted lexicographically; ``normals``/``offsets`` the
+    facet half-spaces ``normals @ x <= offsets`` (unit outward normals, no
+    redundant planes); ``incidence`` (n, m) which vertex lies on which facet.
+    ``tol`` is the length below which points and planes are considered to meet.
+
+    Built by vertex enumeration from half-spaces: every triple of planes is
+    solved at once (vectorised), infeasible and duplicate solutions dropped. Only
+    the planes that cut are enumerated when clipping (``clip``), so a clip with
+    k cutting planes on an m-facet polytope solves C(m+k, 3) - C(m, 3) triples.
+    """
+
+    vertices: np.ndarray
+    normals: np.ndarray
+    offsets: np.ndarray
+    incidence: np.ndarray
+    tol: float
+
+    # -- construction --------------------------------------------------------
+    @classmethod
+    def box(cls, lo, hi, tol: float) -> "ConvexPolytope":
+        lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+        return cls.from_corners(np.array([[hi[0] if i & 1 else lo[0], hi[1] if i & 2 else lo[1],
+                                           hi[2] if i & 4 else lo[2]] for i in range(8)]), tol)
+
+    @classmethod
+    def from_corners(cls, corners, tol: float) -> "ConvexPolytope":
+        """A hexahedron (box, frustum) from 8 corners ordered like
+        ``geometry.UNIT_CUBE_CORNERS``; planes from each face's Newell normal."""
+        c = np.asarray(corners, dtype=np.float64).reshape(8, 3)
+        q = np.array(_HEX_QUADS)
+        pts = c[q]                                   # (6, 4, 3)
+        nxt = np.roll(pts, -1, axis=1)
+        newell = np.stack([((pts[..., 1] - nxt[..., 1]) * (pts[..., 2] + nxt[..., 2])).sum(1),
+                           ((pts[..., 2] - nxt[..., 2]) * (pts[..., 0] + nxt[..., 0])).sum(1),
+                           ((pts[..., 0] - nxt[..., 0]) * (pts[..., 1] + nxt[..., 1])).sum(1)], axis=1)
+        n = newell / np.linalg.norm(newell, axis=1, keepdims=True)
+        o = np.einsum("ij,ij->i", n, pts.mean(axis=1))
+        centre = c.mean(axis=0)
+        flip = n @ centre - o > 0
+        n[flip], o[flip] = -n[flip], -o[flip]
+        poly = cls._finish(c[_merge_points(c, 4.0 * tol)] + 0.0, n, o, tol)
+        if poly is None or len(poly.normals) != 6:
+            poly = cls.from_halfspaces(n, o, tol)      # e.g. corners not quite planar per face
+        if poly is None:
+            raise ValueError("degenerate hexahedron")
+        return poly
+
+    @classmethod
+    def from_faces(cls, faces: list[np.ndarray], tol: float) -> "ConvexPolytope | None":
+        """The polytope bounded by the planes of a closed convex face list."""
+        planes = face_planes([np.asarray(f, dtype=np.float64) for f in faces])
+        if len(planes) < 4:
+            return None
+        return cls.from_halfspaces(np.array([p.normal for p in planes]), np.array([p.offset for p in planes]), tol)
+
+    @classmethod
+    def from_halfspaces(cls, normals, offsets, tol: float) -> "ConvexPolytope | None":
+        """The bounded intersection of half-spaces ``normals @ x <= offsets``, or
+        None when it is empty or has no volume (within ``tol``)."""
+        n, o = _unit_rows(normals, offsets)
+        n, o = _dedupe_planes(n, o, tol)
+        if len(n) < 4:
+            return None
+        return cls._build(np.zeros((0, 3)), n, o, _combinations3(len(n)), tol)
+
+    @classmethod
+    def _build(cls, kept: np.ndarray, n: np.ndarray, o: np.ndarray, tri: np.ndarray, tol: float):
+        """Vertices = ``kept`` points plus feasible solutions of plane ``tri``ples."""
+        if len(tri):
+            m = len(n)
+            cross = _cross_table(n)                                  # (m * m, 3)
+            i, j, k = tri[:, 0], tri[:, 1], tri[:, 2]
+            cjk = cross[j * m + k]
+            det = (n[i] * cjk).sum(axis=1)
+            good = np.abs(det) > DET_MIN
+            if not good.all():
+                i, j, k, cjk, det = i[good], j[good], k[good], cjk[good], det[good]
+            # Cramer's rule: x = (o_i (n_j x n_k) + o_j (n_k x n_i) + o_k (n_i x n_j)) / det.
+            x = (o[i, None] * cjk + o[j, None] * cross[k * m + i] + o[k, None] * cross[i * m + j]) / det[:, None]
+            # Rounding error of the solve grows as the planes get closer to sharing a line.
+            slack = tol + 16.0 * EPS * float(np.abs(o).max() + tol) / np.abs(det)
+            feasible = (x @ n.T - o).max(axis=1) <= slack
+            cand = np.concatenate([kept, x[feasible]])
+        else:
+            cand = kept
+        if len(cand) < 4:
+            return None
+        verts = cand[_merge_points(cand, 4.0 * tol)] + 0.0   # + 0.0: no negative zeros
+        return cls._finish(verts, n, o, tol)
+
+    @classmethod
+    def _finish(cls, verts: np.ndarray, n: np.ndarray, o: np.ndarray, tol: float):
+        if len(verts) < 4:
+            return None
+        dist = verts @ n.T - o
+        inc = np.abs(dist) <= 4.0 * tol
+        facet = inc.sum(axis=0) >= 3
+        if facet.sum() < 4:
+            return None
+        n, o, inc = n[facet], o[facet], inc[:, facet]
+        # No volume: every vertex on one facet plane.
+        if np.any(inc.all(axis=0)):
+            return None
+        return cls(verts, n, o, inc, tol)
+
+    # -- operations ----------------------------------------------------------
+    def clip(self, normals, offsets) -> "ConvexPolytope | None":
+        """This polytope ∩ {normals @ x <= offsets}; None when nothing with
+        volume is left. Planes that cut nothing are ignored."""
+        n2, o2 = _unit_rows(normals, offsets)
+        if len(n2) == 0:
+            return self
+        d = self.vertices @ n2.T - o2
+        if np.any(np.all(d >= -self.tol, axis=0)):
+            return None
+        cut = np.any(d > self.tol, axis=0)
+        if not cut.any():
+            return self
+        n2, o2 = _dedupe_planes(n2[cut], o2[cut], self.tol)
+        kept = self.vertices[np.all(d[:, cut] <= self.tol, axis=1)]
+        m = len(self.normals)
+        n = np.concatenate([self.normals, n2])
+        o = np.concatenate([self.offsets, o2])
+        tri = _combinations3(len(n))
+        tri = tri[tri[:, 2] >= m]
+        return type(self)._build(kept, n, o, tri, self.tol)
+
+    def translated(self, offset) -> "ConvexPolytope":
+        t = np.asarray(offset, dtype=np.float64)
+        return ConvexPolytope(self.vertices + t, self.normals, self.offsets + self.normals @ t, self.incidence, self.tol)
+
+    def contains(self, points, tol: float | None = None) -> np.ndarray:
+        t = 10.0 * self.tol if tol is None else tol
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        return np.all(p @ self.normals.T - self.offsets <= t, axis=1)
+
+    @property
+    def centroid(self) -> np.ndarray:
+        """Mean of the vertices (strictly inside for a polytope with volume)."""
+        return self.vertices.mean(axis=0)
+
+    @property
+    def planes(self) -> list[Plane]:
+        return [Plane(n, float(o)) for n, o in zip(self.normals, self.offsets)]
+
+    def edges(self) -> tuple[np.ndarray, np.ndarray]:
+        """(e, 2) vertex index pairs of the edges, and (e, 2) the two facets
+        meeting along each (two vertices on two common facets span an edge)."""
+        a = self.incidence.astype(np.int64)
+        shared = a @ a.T
+        i, j = np.nonzero(np.triu(shared >= 2, 1))
+        both = self.incidence[i] & self.incidence[j]
+        # The first two shared facets (exactly two on a polytope without redundant planes).
+        first = np.argmax(both, axis=1)
+        rest = both.copy()
+        rest[np.arange(len(i)), first] = False
+        second = np.argmax(rest, axis=1)
+        return np.stack([i, j], axis=1), np.stack([first, second], axis=1)
+
+    def faces(self) -> list[np.ndarray]:
+        """The facets as (K, 3) vertex loops, counter-clockwise seen from outside,
+        in facet order."""
+        f, v = np.nonzero(self.incidence.T)
+        counts = np.bincount(f, minlength=len(self.normals))
+        pts = self.vertices[v]
+        centre = np.stack([np.bincount(f, weights=pts[:, c], minlength=len(counts)) for c in range(3)], axis=1)
+        centre /= counts[:, None]
+        u = _perpendiculars(self.normals)
+        w = np.cross(self.normals, u)
+        rel = pts - centre[f]
+        ang = np.arctan2(np.einsum("ij,ij->i", rel, w[f]), np.einsum("ij,ij->i", rel, u[f]))
+        order = np.lexsort((ang, f))
+        return np.split(pts[order], np.cumsum(counts)[:-1])
+
+
+_HEX_QUADS = ((0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5))

@@ -172,11 +172,6 @@ class Light:
         return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
-def _centre_half(boxes: np.ndarray) -> np.ndarray:
-    """(6, N): rows 0-2 the boxes' centres, rows 3-5 their half extents."""
-    return np.ascontiguousarray(np.concatenate([(boxes[:, 0] + boxes[:, 1]).T / 2, (boxes[:, 1] - boxes[:, 0]).T / 2]))
-
-
 @dataclass(frozen=True)
 class SceneBounds:
     """World-space axis-aligned boxes, each ``[[min x, y, z], [max x, y, z]]``.
@@ -195,26 +190,20 @@ class SceneBounds:
             if np.any(b[:, 0] > b[:, 1]):
                 raise WarpError(f"scene {name}: every box needs min <= max")
             object.__setattr__(self, name, b)
-        # Centres and half-extents, stacked (6, N) for vectorised culling (body.boxes_meeting).
-        object.__setattr__(self, "_caster_stack", _centre_half(self.casters))
-        same = self.receivers is self.casters or (self.receivers.shape == self.casters.shape
-                                                  and np.array_equal(self.receivers, self.casters))
-        object.__setattr__(self, "_receiver_stack", self._caster_stack if same else _centre_half(self.receivers))
+        # Derived data computed once per scene on first use (e.g. body.BoxIndex for culling).
+        object.__setattr__(self, "_cache", {})
 
     @classmethod
     def from_boxes(cls, boxes) -> "SceneBounds":
         b = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3)
         return cls(b, b)
 
-    @property
-    def caster_centre_half(self) -> np.ndarray:
-        """(6, N) centres (rows 0-2) and half extents (rows 3-5) of the casters."""
-        return self._caster_stack
-
-    @property
-    def receiver_centre_half(self) -> np.ndarray:
-        """(6, N) centres (rows 0-2) and half extents (rows 3-5) of the receivers."""
-        return self._receiver_stack
+    def cached(self, key, build):
+        """``build()`` once per scene under ``key`` (derived data such as culling indices)."""
+        c = self._cache
+        if key not in c:
+            c[key] = build()
+        return c[key]
 
     @property
     def all_boxes(self) -> np.ndarray:

@@ -1,0 +1,1 @@
+"""Benchmarks and the report (``make demo`` = ``python -m bench.report``)."""
