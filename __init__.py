@@ -6,9 +6,6 @@ module exposes ``register()`` and ``unregister()``.
 from __future__ import annotations
 
 import importlib
-import logging
-
-log = logging.getLogger(__name__)
 
 # properties first (everything else reads them), render engine last.
 _MODULE_NAMES = (
@@ -22,22 +19,20 @@ _MODULE_NAMES = (
 
 
 def _modules():
-    mods = []
-    for name in _MODULE_NAMES:
-        try:
-            mods.append(importlib.import_module(name, __package__))
-        except ModuleNotFoundError as exc:  # a layer not built yet must not break the others
-            if exc.name and exc.name.startswith(__package__ or "addon"):
-                log.debug("Lixel: %s not available (%s)", name, exc)
-                continue
-            raise
-    # TEMPORARY while the layers are being built: skip a package that has no register() yet.
-    return [m for m in mods if hasattr(m, "register")]
+    return [importlib.import_module(name, __package__) for name in _MODULE_NAMES]
 
 
 def register():
-    for mod in _modules():
-        mod.register()
+    done = []
+    try:
+        for mod in _modules():
+            mod.register()
+            done.append(mod)
+    except Exception:
+        # leave nothing half-registered (Blender 4.2 crashes at exit on leftovers)
+        for mod in reversed(done):
+            mod.unregister()
+        raise
 
 
 def unregister():

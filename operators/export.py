@@ -3,7 +3,7 @@ compare the methods for the current view."""
 import json
 
 import bpy
-from bpy.props import BoolProperty, StringProperty
+from bpy.props import BoolProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
 from ..addon.ui import live, overlays
@@ -11,6 +11,7 @@ from ..addon.warp import METHODS
 from .common import current_state, initialise, scene_poll
 
 COMPARISON_TEXT = "Lixel Comparison"
+COMPARISON_IMAGE = "Lixel Comparison"
 
 
 def export_document(st, all_methods: bool) -> dict:
@@ -71,6 +72,9 @@ class LIXEL_OT_compare(bpy.types.Operator):
     bl_label = "Compare Methods"
     bl_options = {"REGISTER", "UNDO"}
 
+    longest_side: IntProperty(name="Picture Size", default=320, min=16, max=4096,
+                              description="Longer side of each method's picture in the comparison image")
+
     @classmethod
     def poll(cls, context):
         return scene_poll(cls, context)
@@ -86,12 +90,24 @@ class LIXEL_OT_compare(bpy.types.Operator):
         if overlays.gpu_pipeline() is None:
             note = ("\n\nShadow renders of each method need the gpu pipeline (addon/gpu), which is not available "
                     "in this build: only the numbers are compared.")
+        else:
+            from ..addon.ui import renders
+            from ..addon.warp.types import WarpError
+            try:
+                picture, names = renders.compare_renders(st, context.evaluated_depsgraph_get(), rows,
+                                                         longest=self.longest_side)
+                renders.to_image(COMPARISON_IMAGE, picture)
+                note = (f"\n\nImage '{COMPARISON_IMAGE}': the camera view rendered with each method, left to right "
+                        f"and top to bottom: {', '.join(names)}.")
+            except (WarpError, ValueError) as exc:
+                note = f"\n\nNo comparison render: {exc}"
+                self.report({"WARNING"}, f"Lixel: no comparison render: {exc}")
         text = bpy.data.texts.get(COMPARISON_TEXT) or bpy.data.texts.new(COMPARISON_TEXT)
         text.clear()
         text.write(f"Lixel comparison, scene '{context.scene.name}', camera '{context.scene.camera.name}', "
                    f"light '{st.light_name}', {len(METHODS)} method(s)\n"
-                   "texel px = screen pixels one shadow-map texel spans on camera-facing surfaces in view (≤ 1 is "
-                   "alias-free)\n\n" + table + note + "\n")
+                   "texel px = screen pixels one shadow-map texel spans, on surfaces in view facing halfway between "
+                   "camera and light (≤ 1: no perspective aliasing)\n\n" + table + note + "\n")
         best = [r for r in rows if "error" not in r and r["footprint_max_px"] is not None]
         if best:
             b = min(best, key=lambda r: r["footprint_max_px"])

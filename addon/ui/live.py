@@ -184,7 +184,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
     st.body, st.setup, st.method_used, st.note, st.error = body, setup, method, note, ""
     st.geometry = timed("overlay geometry", overlay_geometry, view, setup, body.faces)
     recomputed.append("overlays")
-    st.footprint = timed("footprint", footprint_estimate, setup, view, _r_sample(body))
+    st.footprint = timed("footprint", footprint_estimate, setup, view, light, _r_sample(body))
     st.timings, st.recomputed = timings, tuple(recomputed)
     st.generation += 1
     log.debug("Lixel: %s recomputed %s in %.1f ms", scene.name, recomputed, st.total_ms())
@@ -266,7 +266,7 @@ def compare_methods(st: LiveState, methods=None) -> list[dict]:
         d = setup.diagnostics
         row.update(theta=d.theta, gamma=d.gamma, n_opt=d.n_opt, lam=d.lam, maps=len(setup.maps),
                    fallbacks=[f"{w}: {r}" for w, r in d.fallbacks])
-        fp = footprint_estimate(setup, st.view, _r_sample(st.body))
+        fp = footprint_estimate(setup, st.view, st.light, _r_sample(st.body))
         row["footprint_median_px"] = None if fp is None else fp["median"]
         row["footprint_max_px"] = None if fp is None else fp["max"]
         row["setup"] = setup

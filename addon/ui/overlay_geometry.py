@@ -15,7 +15,7 @@ from typing import Optional
 import numpy as np
 
 from ..warp.geometry import UNIT_CUBE_CORNERS, clip_volume_corners, normalize
-from ..warp.types import ShadowSetup, View
+from ..warp.types import Light, ShadowSetup, View
 
 HEXAHEDRON_EDGES = np.array(
     [(0, 1), (2, 3), (4, 5), (6, 7),   # x edges
@@ -145,17 +145,23 @@ def overlay_geometry(view: View, setup: Optional[ShadowSetup], body_faces=None) 
 
 # --- texel footprint readout ----------------------------------------------------------------------------------
 
-def footprint_estimate(setup: ShadowSetup, view: View, points) -> Optional[dict]:
+def footprint_estimate(setup: ShadowSetup, view: View, light: Light, points) -> Optional[dict]:
     """Median and maximum texel footprint (screen pixels spanned by one texel,
     ``addon.measure.footprint``) over world ``points`` (e.g. samples of the
-    visible part R of B) on surfaces facing the camera, each point in the map
-    that serves it. None when no point is served."""
+    visible part R of B), each point in the map that serves it. The surface at
+    each point is taken to face halfway between the camera and the light, so
+    the estimate shows perspective aliasing without the projection aliasing of
+    surfaces grazing the light or the camera (Stamminger-Drettakis §1.1: the
+    cos β / cos α factor is then 1). None when no point is served."""
     from ..measure.footprint import setup_footprints
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if len(p) == 0 or setup is None or not setup.maps:
         return None
-    normals = view.position[None, :] - p
-    keep = np.linalg.norm(normals, axis=1) > 0
+    to_camera = view.position[None, :] - p
+    to_camera /= np.maximum(np.linalg.norm(to_camera, axis=1, keepdims=True), 1e-300)
+    to_light = -light.rays_to(p)
+    normals = to_camera + to_light
+    keep = (np.linalg.norm(normals, axis=1) > 1e-9) & np.all(np.isfinite(normals), axis=1)
     p, normals = p[keep], normals[keep]
     idx = setup.map_index(p, view, tol=1e-6)
     linear, _area = setup_footprints(view, setup, p, normals, map_index=idx)

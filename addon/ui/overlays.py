@@ -182,6 +182,7 @@ def remove_draw_handlers() -> None:
             bpy.types.SpaceView3D.draw_handler_remove(h, "WINDOW")
     _batches.clear()
     _receivers.clear()
+    _pip.clear()
 
 
 def draw_handlers_active() -> tuple[str, ...]:
@@ -452,20 +453,67 @@ def draw_pixel():
 
 
 def gpu_pipeline():
-    """The gpu pipeline's public module if it is built (``addon/gpu``), else None."""
+    """The gpu pipeline's module (``addon.gpu.pipeline``) if it is built, else None."""
     try:
-        from .. import gpu as pipeline
+        from ..gpu import pipeline
     except ImportError:
         return None
-    return pipeline if hasattr(pipeline, "render_shadow_map") else None
+    return pipeline if hasattr(pipeline, "render_shadows") else None
+
+
+_pip: dict = {}
+"""scene name -> (key, {"map"|"scene": GPUTexture}) for the picture-in-picture overlays."""
+
+
+def _pip_textures(scene, st, props) -> dict:
+    """GPU textures of the PiP images, re-rendered only when the setup (generation)
+    or what is shown changed."""
+    import gpu
+    from . import renders
+    key = (st.generation, props.map_pip_size, props.show_map, props.show_shadowed)
+    hit = _pip.get(scene.name)
+    if hit is not None and hit[0] == key:
+        return hit[1]
+    images = renders.pip_images(st, bpy.context.evaluated_depsgraph_get(), props.map_pip_size,
+                                props.show_map, props.show_shadowed)
+    textures = {}
+    for name, rgba in images.items():
+        h, w = rgba.shape[:2]
+        buf = gpu.types.Buffer("FLOAT", w * h * 4, np.ascontiguousarray(rgba, dtype=np.float32).ravel())
+        textures[name] = gpu.types.GPUTexture((w, h), format="RGBA32F", data=buf)
+    _pip[scene.name] = (key, textures)
+    return textures
+
+
+def _draw_texture(texture, x, y, w, h):
+    from gpu_extras.batch import batch_for_shader
+    shader = builtin_shader("IMAGE", "2D_IMAGE")
+    batch = batch_for_shader(shader, "TRI_FAN", {"pos": ((x, y), (x + w, y), (x + w, y + h), (x, y + h)),
+                                                 "texCoord": ((0, 0), (1, 0), (1, 1), (0, 1))})
+    shader.bind()
+    shader.uniform_sampler("image", texture)
+    batch.draw(shader)
 
 
 def _draw_gpu_overlays(scene, st, props) -> str:
-    """The shadow map PiP and the shadowed scene need the gpu pipeline; returns a
-    note for the status line when it is not available."""
-    pipeline = gpu_pipeline()
-    if pipeline is None:
-        return "shadow map / shadowed scene overlays need the gpu pipeline (addon/gpu), not built yet"
+    """The shadow map and the shadowed camera view, picture-in-picture at the
+    bottom right. Returns a note for the status line when they cannot be drawn."""
+    if gpu_pipeline() is None:
+        return "shadow map / shadowed scene overlays need the gpu pipeline (addon/gpu), not available"
+    from ..warp.types import WarpError
+    try:
+        textures = _pip_textures(scene, st, props)
+    except WarpError as exc:
+        return f"Lixel render: {exc}"
+    region = bpy.context.region
+    x = region.width - 20 if region is not None else 400
+    for name in ("scene", "map"):
+        tex = textures.get(name)
+        if tex is None:
+            continue
+        x -= tex.width
+        _draw_texture(tex, x, 60, tex.width, tex.height)
+        x -= 10
     return ""
 
 

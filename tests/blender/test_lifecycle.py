@@ -31,7 +31,8 @@ def lixel_functions(modules):
 
 def registered_state():
     root = sys.modules[ADDON_MODULE]
-    names = ("addon.ui.properties", "addon.ui.preferences", "operators", "addon.ui.panel", "addon.ui.overlays")
+    names = ("addon.ui.properties", "addon.ui.preferences", "operators", "addon.ui.panel", "addon.ui.overlays",
+             "addon.render.engine")
     mods = [importlib.import_module(f"{root.__name__}.{n}") for n in names]
     classes = [c for m in mods for c in getattr(m, "classes", ())]
     return mods, classes
@@ -48,6 +49,8 @@ def assert_clean(mods, classes):
     assert not hasattr(bpy.types.Scene, "lixel")
     assert "lixel" not in bpy.types.Scene.bl_rna.properties.keys()
     assert not hasattr(bpy.types, "LIXEL_OT_refresh")
+    assert "LIXEL" not in {getattr(e, "bl_idname", None) for e in bpy.types.RenderEngine.__subclasses__()
+                          if e.is_registered}
 
 
 def test_fifty_register_unregister_cycles_leave_nothing(lixel):
@@ -64,8 +67,10 @@ def test_fifty_register_unregister_cycles_leave_nothing(lixel):
                 overlays = next(m for m in mods if m.__name__.endswith("overlays"))
                 assert overlays.draw_handlers_active() == ("pixel", "view")
             disable_lixel()
-            assert_clean(mods, classes)
-            enable_lixel()
+            try:
+                assert_clean(mods, classes)
+            finally:
+                enable_lixel()  # the other tests need it enabled whatever happens here
     assert hasattr(bpy.types.Scene, "lixel")
 
 

@@ -102,12 +102,24 @@ def test_export_reports_an_unwritable_path(scene, tmp_path):
         bpy.ops.lixel.export_json(filepath=str(tmp_path / "missing_dir" / "x.json"))
 
 
-def test_compare_lists_every_method(scene, mods):
-    assert bpy.ops.lixel.compare() == {"FINISHED"}
+def test_compare_lists_and_renders_every_method(scene, mods):
+    assert bpy.ops.lixel.compare(longest_side=64) == {"FINISHED"}
     text = bpy.data.texts["Lixel Comparison"].as_string()
     for name in mods.warp.METHODS:
         assert f"\n{name} " in text
+    rendered = [n for n in mods.warp.METHODS if f"\n{n} " in text and f"\n{n}  error" not in text
+                and f"\n{n} error" not in text]
+    img = bpy.data.images["Lixel Comparison"]
+    # a grid of 64x36 pictures, 3 per row, 4 px apart
+    cols = min(3, len(rendered))
+    rows = -(-len(rendered) // 3)
+    assert tuple(img.size) == (cols * 64 + (cols - 1) * 4, rows * 36 + (rows - 1) * 4)
+    px = np.empty(img.size[0] * img.size[1] * 4, dtype=np.float32)
+    img.pixels.foreach_get(px)
+    first = px.reshape(img.size[1], img.size[0], 4)[-36:, :64, :3]
+    assert first.std() > 0.01  # a picture of the scene, not a blank
     bpy.data.texts.remove(bpy.data.texts["Lixel Comparison"])
+    bpy.data.images.remove(img)
 
 
 def test_planes_from_selected_objects_and_faces(scene):

@@ -147,3 +147,24 @@ def test_classify_updates(lixel, m):
         finally:
             m.live.update = original
         del overlays
+
+
+def test_footprint_readout_of_a_top_down_sun(m):
+    """Camera and sun straight down, both orthographic: one texel of a 20 m /
+    2048-texel map spans (20/2048) / (10/1000) pixels of a 10 m / 1000-pixel view."""
+    g = m.geometry
+    cam_to_world = np.eye(4)
+    cam_to_world[:3, 3] = (0.0, 0.0, 10.0)
+    view = m.types.View(cam_to_world, g.ortho_matrix(-5, 5, -2.5, 2.5, 1.0, 20.0), 1.0, 20.0, resolution=(1000, 500),
+                        orthographic=True)
+    light = m.types.Light("SUN", direction=[0.0, 0.0, -1.0])
+    light_matrix = g.ortho_matrix(-10, 10, -10, 10, 1.0, 30.0) @ g.look_along(
+        np.array([0.0, 0.0, 15.0]), np.array([0.0, 0.0, -1.0]), np.array([0.0, 1.0, 0.0]))
+    setup = m.types.ShadowSetup([m.types.ShadowMap(light_matrix, (2048, 2048))], m.types.Diagnostics("uniform"))
+    pts = np.array([[0.0, 0.0, 0.0], [1.0, -2.0, 0.0], [-3.0, 1.0, 2.0]])
+    fp = m.og.footprint_estimate(setup, view, light, pts)
+    assert fp["count"] == 3
+    assert fp["median"] == pytest.approx((20 / 2048) / (10 / 1000), rel=1e-9)
+    assert fp["max"] == pytest.approx(fp["median"], rel=1e-9)
+    # a point no map serves is left out
+    assert m.og.footprint_estimate(setup, view, light, np.array([[50.0, 0.0, 0.0]])) is None

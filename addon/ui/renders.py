@@ -1,0 +1,133 @@
+"""Lixel renders for the UI and the scripts, through the gpu pipeline's public
+``addon.gpu.pipeline.render_shadows``: the shadowed scene and the shadow map
+picture-in-picture, the comparison mosaic of every method, PNG output.
+
+Images are float32 numpy (H, W, 4) with row 0 at the bottom (Blender's order).
+"""
+from __future__ import annotations
+
+import math
+from typing import Optional
+
+import numpy as np
+
+from .live import LiveState, is_debug_object
+
+
+def scene_geometry(depsgraph):
+    """The evaluated scene's triangles without Lixel's debug objects (shared cache)."""
+    from ..scene.geometry import shared_cache
+    return shared_cache().update(depsgraph, exclude=is_debug_object)
+
+
+def render_state(st: LiveState, depsgraph, resolution, setup=None, settings=None, geometry=None) -> dict:
+    """Render the state's camera view with ``setup`` (default: the state's).
+    Starts the GPU context when needed (background mode); raises WarpError
+    (GPUUnavailableError) with a message for the user."""
+    from ..gpu.context import ensure_gpu_context
+    from ..gpu.pipeline import render_shadows
+    ensure_gpu_context()
+    geometry = geometry if geometry is not None else scene_geometry(depsgraph)
+    return render_shadows(st.view, st.light, setup if setup is not None else st.setup, geometry,
+                          settings if settings is not None else st.settings, tuple(int(v) for v in resolution),
+                          body=st.body)
+
+
+def fit_resolution(resolution, longest: int) -> tuple[int, int]:
+    """``resolution`` scaled so its longer side is ``longest`` pixels."""
+    w, h = (int(v) for v in resolution)
+    s = longest / max(w, h)
+    return max(1, round(w * s)), max(1, round(h * s))
+
+
+def depth_to_rgba(depth: np.ndarray) -> np.ndarray:
+    """A window-depth map as a grey picture, stretched over the depths written
+    (cleared texels, depth 1, show as a dark blue background)."""
+    d = np.asarray(depth, dtype=np.float32)
+    written = d < 1.0
+    out = np.zeros(d.shape + (4,), dtype=np.float32)
+    out[..., 3] = 1.0
+    out[~written] = (0.05, 0.05, 0.15, 1.0)
+    if written.any():
+        lo, hi = float(d[written].min()), float(d[written].max())
+        g = (d - lo) / (hi - lo) if hi > lo else np.full_like(d, 0.5)
+        g = 1.0 - 0.85 * np.clip(g, 0.0, 1.0)  # near the light = bright
+        out[written, :3] = g[written][:, None]
+    return out
+
+
+def mosaic(images: list, columns: int, gap: int = 4, background=(0.0, 0.0, 0.0, 1.0)) -> np.ndarray:
+    """Equal-size (H, W, 4) images in a grid, first image top-left (rows bottom-up in memory)."""
+    h, w = images[0].shape[:2]
+    rows = math.ceil(len(images) / columns)
+    out = np.empty((rows * h + (rows - 1) * gap, columns * w + (columns - 1) * gap, 4), dtype=np.float32)
+    out[:] = background
+    for i, img in enumerate(images):
+        r, c = divmod(i, columns)
+        y0 = (rows - 1 - r) * (h + gap)
+        x0 = c * (w + gap)
+        out[y0:y0 + h, x0:x0 + w] = img
+    return out
+
+
+def pip_images(st: LiveState, depsgraph, longest: int, want_map: bool, want_scene: bool) -> dict:
+    """The picture-in-picture images: ``"map"`` (the first shadow map's depth) and
+    ``"scene"`` (the camera view shaded with Lixel's shadows), each fitted to
+    ``longest`` pixels."""
+    out = {}
+    if not (want_map or want_scene):
+        return out
+    res = render_state(st, depsgraph, fit_resolution(st.view.resolution, longest))
+    if want_scene:
+        out["scene"] = np.ascontiguousarray(res["combined"], dtype=np.float32)
+    if want_map and res["shadow_maps"]:
+        depth = res["shadow_maps"][0]
+        h, w = depth.shape
+        step = max(1, math.ceil(max(w, h) / longest))
+        out["map"] = depth_to_rgba(depth[::step, ::step])
+    return out
+
+
+def compare_renders(st: LiveState, depsgraph, rows: list, longest: int = 320) -> tuple[np.ndarray, list]:
+    """Render each computed method of ``rows`` (from ``live.compare_methods``) and
+    put them in a mosaic (methods in row order, left to right, top to bottom).
+    Returns (mosaic, [method names drawn])."""
+    geometry = scene_geometry(depsgraph)
+    res = fit_resolution(st.view.resolution, longest)
+    images, names = [], []
+    for row in rows:
+        if "setup" not in row:
+            continue
+        out = render_state(st, depsgraph, res, setup=row["setup"], geometry=geometry)
+        images.append(np.ascontiguousarray(out["combined"], dtype=np.float32))
+        names.append(row["method"])
+    if not images:
+        raise ValueError("no method produced a setup to render")
+    return mosaic(images, columns=min(3, len(images))), names
+
+
+def to_image(name: str, rgba: np.ndarray, existing_ok: bool = True):
+    """A Blender Image datablock holding ``rgba`` (replaced if it exists)."""
+    import bpy
+    h, w = rgba.shape[:2]
+    img = bpy.data.images.get(name) if existing_ok else None
+    if img is not None and tuple(img.size) != (w, h):
+        bpy.data.images.remove(img)
+        img = None
+    if img is None:
+        img = bpy.data.images.new(name, w, h, alpha=True, float_buffer=True)
+    img.pixels.foreach_set(np.ascontiguousarray(rgba, dtype=np.float32).ravel())
+    img.update()
+    return img
+
+
+def save_png(rgba: np.ndarray, path: str, name: Optional[str] = None) -> None:
+    """Write an image (linear float, row 0 at the bottom) to a PNG file."""
+    import bpy
+    img = to_image(name or "Lixel output", rgba, existing_ok=False)
+    try:
+        img.filepath_raw = str(path)
+        img.file_format = "PNG"
+        img.save()
+    finally:
+        bpy.data.images.remove(img)
