@@ -1,0 +1,276 @@
+"""The intersection body B (Scherzer §4.1): it contains every visible receiver
+point and every caster point that can shadow one, it is closed, deterministic,
+relative to the scene's scale, and empty bodies are reported with the reason.
+
+Every named hard case of ``hard_cases.py`` is checked."""
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from addon.warp import EmptyBodyError, Light, SceneBounds, View, intersection_body
+from addon.warp.body import BoxIndex, boxes_meeting_arrays, _stack_of
+from addon.warp.polyhedron import ConvexPolytope
+
+from hard_cases import EMPTY_CASES, HARD_CASES, NONEMPTY_CASES, camera, point, spot, sun, town
+
+CONTAIN_TOL = 1e-9
+"""Containment slack, relative to B's scale."""
+
+
+def in_view(view: View, pts: np.ndarray) -> np.ndarray:
+    h = np.hstack([pts, np.ones((len(pts), 1))]) @ view.world_to_clip.T
+    w = h[:, 3]
+    ok = w > 0
+    ndc = h[:, :3] / np.where(ok, w, 1.0)[:, None]
+    return ok & np.all(np.abs(ndc) <= 1.0, axis=1)
+
+
+def in_light_cone(light: Light, pts: np.ndarray) -> np.ndarray:
+    """The exact spot cone (B uses a circumscribed pyramid, so this is tighter)."""
+    if light.type != "SPOT":
+        return np.ones(len(pts), dtype=bool)
+    d = pts - light.position
+    n = np.linalg.norm(d, axis=1)
+    return d @ light.direction >= np.cos(light.spot_angle / 2) * n
+
+
+def visible_receiver_points(view, light, scene, n=4000, seed=0) -> np.ndarray:
+    """Random points of V ∩ L inside receiver boxes (plus the boxes' corners that are)."""
+    rng = np.random.default_rng(seed)
+    boxes = scene.receivers
+    # Sample inside the receivers that meet the view's bounding box (big scenes: skip the rest).
+    corners = view.corners()
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    near = np.all((boxes[:, 0] <= hi) & (boxes[:, 1] >= lo), axis=1)
+    boxes = boxes[near]
+    if len(boxes) == 0:
+        return np.zeros((0, 3))
+    b = np.stack([np.maximum(boxes[:, 0], lo), np.minimum(boxes[:, 1], hi)], axis=1)
+    which = rng.integers(0, len(b), n)
+    u = rng.random((n, 3))
+    pts = b[which, 0] + u * (b[which, 1] - b[which, 0])
+    # Points on the boxes' faces too (flat scenes have only faces).
+    face = rng.integers(0, 3, n // 2)
+    side = rng.integers(0, 2, n // 2)
+    pts2 = pts[: n // 2].copy()
+    pts2[np.arange(n // 2), face] = b[which[: n // 2], side, face]
+    cube = np.array([[i & 1, (i >> 1) & 1, (i >> 2) & 1] for i in range(8)])
+    cpts = (b[:, None, 0] + cube[None] * (b[:, None, 1] - b[:, None, 0])).reshape(-1, 3)
+    pts = np.concatenate([pts, pts2, cpts])
+    return pts[in_view(view, pts) & in_light_cone(light, pts)]
+
+
+def shadowing_caster_points(light, scene, receivers_pts, steps=64) -> np.ndarray:
+    """Points inside caster boxes on the segments from visible receiver points towards the light."""
+    p = receivers_pts[:, None, :]
+    t = np.linspace(0.0, 1.0, steps)[None, :, None]
+    if light.is_directional:
+        span = 2.0 * scene.scale()
+        q = p - t * span * light.direction
+    else:
+        q = p + t * (light.position - p)
+    q = q.reshape(-1, 3)
+    c = scene.casters
+    inside = np.zeros(len(q), dtype=bool)
+    for box in c:
+        inside |= np.all((q >= box[0]) & (q <= box[1]), axis=1)
+    return q[inside]
+
+
+def assert_contains(body, pts, what):
+    if len(pts) == 0:
+        return
+    tol = CONTAIN_TOL * max(body.scale, float(np.abs(body.origin).max()))
+    ok = body.contains(pts, tol)
+    assert ok.all(), f"{(~ok).sum()} of {len(pts)} {what} outside B, e.g. {pts[~ok][:3].tolist()}"
+
+
+def hausdorff(a, b) -> float:
+    d = np.linalg.norm(a[:, None] - b[None], axis=2)
+    return float(max(d.min(axis=0).max(), d.min(axis=1).max()))
+
+
+def assert_closed(body):
+    """Every edge of every face is shared by exactly two faces; Euler V - E + F = 2; faces planar."""
+    tol = 10 * body.tolerance
+    verts = body.vertices
+    def vid(p):
+        d = np.linalg.norm(verts - p, axis=1)
+        assert d.min() <= tol
+        return int(d.argmin())
+    count = {}
+    for f in body.faces:
+        assert len(f) >= 3
+        ids = [vid(p) for p in f]
+        n = np.cross(f[1] - f[0], f[2] - f[0])
+        for k in range(len(ids)):
+            e = tuple(sorted((ids[k], ids[(k + 1) % len(ids)])))
+            count[e] = count.get(e, 0) + 1
+        c = f.mean(axis=0)
+        # Planar: distance to the face's best plane below the tolerance.
+        u, s, vt = np.linalg.svd(f - c)
+        assert s[-1] <= 1e-6 * max(body.scale, 1e-9) * math.sqrt(len(f))
+    assert all(v == 2 for v in count.values()), "open body: an edge is not shared by exactly two faces"
+    assert len(verts) - len(count) + len(body.faces) == 2
+
+
+# ----------------------------------------------------------------------------- the hard cases
+
+@pytest.mark.parametrize("name", NONEMPTY_CASES)
+def test_hard_case_body_contains_what_the_view_needs(name):
+    view, light, scene = HARD_CASES[name]
+    body = intersection_body(view, light, scene)
+    assert np.all(np.isfinite(body.vertices)) and len(body.vertices) >= 4
+    recv = visible_receiver_points(view, light, scene)
+    assert len(recv) > 0, "the case should show some receiver"
+    assert_contains(body, recv, "visible receiver points")
+    assert_contains(body, shadowing_caster_points(light, scene, recv[:400]), "shadowing caster points")
+    assert_closed(body)
+
+
+@pytest.mark.parametrize("name", sorted(EMPTY_CASES))
+def test_hard_case_empty_body_raises_with_a_reason(name):
+    view, light, scene = HARD_CASES[name]
+    with pytest.raises(EmptyBodyError, match="receiver"):
+        intersection_body(view, light, scene)
+
+
+def test_empty_scene_is_reported():
+    view, light, _ = HARD_CASES["sun_behind_camera"]
+    with pytest.raises(EmptyBodyError, match="no shadow casters or receivers"):
+        intersection_body(view, light, SceneBounds.from_boxes(np.zeros((0, 2, 3))))
+
+
+@pytest.mark.parametrize("name", NONEMPTY_CASES)
+def test_deterministic(name):
+    view, light, scene = HARD_CASES[name]
+    a = intersection_body(view, light, scene)
+    b = intersection_body(view, light, SceneBounds(scene.casters.copy(), scene.receivers.copy()))
+    assert np.array_equal(a.vertices, b.vertices)
+    assert len(a.faces) == len(b.faces) and all(np.array_equal(f, g) for f, g in zip(a.faces, b.faces))
+    assert np.array_equal(a.caster_mask, b.caster_mask) and np.array_equal(a.receiver_mask, b.receiver_mask)
+    assert all(np.array_equal(p.normal, q.normal) and p.offset == q.offset for p, q in zip(a.hull_planes, b.hull_planes))
+
+
+def test_flat_scene_gives_a_closed_body_of_positive_volume():
+    view, light, scene = HARD_CASES["flat_scene"]
+    body = intersection_body(view, light, scene)
+    assert_closed(body)
+    z = body.vertices[:, 2]
+    assert z.max() - z.min() > 0
+
+
+# ----------------------------------------------------------------------------- scale and translation
+
+@pytest.mark.parametrize("factor", [1e-3, 1e3])
+def test_tolerances_are_relative_to_the_scene_scale(factor):
+    """Scaling the whole configuration scales B (same vertex count, same shape)."""
+    base = intersection_body(*HARD_CASES["sun_behind_camera"])
+    view, light, scene = HARD_CASES["sun_behind_camera"]
+    c2w = view.camera_to_world.copy()
+    c2w[:3, 3] *= factor
+    scaled_view = View.perspective(c2w, view.fov_y, view.projection[1, 1] / view.projection[0, 0],
+                                   view.near * factor, view.far * factor)
+    scaled = intersection_body(scaled_view, light, SceneBounds.from_boxes(scene.casters * factor))
+    assert len(scaled.vertices) == len(base.vertices)
+    assert hausdorff(scaled.vertices / factor, base.vertices) <= 1e-9 * base.scale
+    assert scaled.tolerance == pytest.approx(base.tolerance * factor, rel=1e-9)
+
+
+def test_translation_by_1e5_gives_the_same_body():
+    off = np.array([1e5, -1e5, 1e5])
+    a = intersection_body(camera([0.0, -20.0, 5.0], [0.0, 10.0, 0.0]), sun([0.4, 0.3, -0.6]), town())
+    view, light, scene = HARD_CASES["scene_offset_1e5"]
+    b = intersection_body(view, light, scene)
+    assert len(a.vertices) == len(b.vertices)
+    assert hausdorff(b.vertices - off, a.vertices) <= 1e-9 * a.scale + 1e5 * 4e-16
+
+
+def test_body_masks():
+    view, light, scene = HARD_CASES["sun_behind_camera"]
+    body = intersection_body(view, light, scene)
+    assert body.receiver_mask.shape == (len(scene.receivers),) and body.receiver_mask.any()
+    assert np.array_equal(body.receiver_boxes, scene.receivers[body.receiver_mask])
+    # A caster far outside the light-extruded view is dropped; one between the view and the sun is kept.
+    behind = np.array([[[-300.0, -300.0, 0.0], [-299.0, -299.0, 1.0]]])
+    above = body.visible_vertices.mean(axis=0) - 10.0 * light.direction
+    over = np.array([[above - 0.5, above + 0.5]])
+    s2 = SceneBounds(np.concatenate([scene.casters, behind, over]), scene.receivers)
+    b2 = intersection_body(view, light, s2)
+    assert not b2.caster_mask[-2] and b2.caster_mask[-1]
+    assert_contains(b2, over[0], "the caster between the view and the sun")
+
+
+# ----------------------------------------------------------------------------- the culling index
+
+def test_box_index_equals_the_plain_test():
+    rng = np.random.default_rng(3)
+    c = rng.uniform(-100, 100, (3000, 3))
+    h = rng.uniform(0.01, 3, (3000, 3))
+    boxes = np.stack([c - h, c + h], axis=1)
+    boxes[7] = [[-500, -500, -1], [500, 500, 0]]                 # one huge box
+    index = BoxIndex(boxes)
+    for _ in range(100):
+        n = rng.normal(size=(rng.integers(1, 20), 3))
+        o = rng.normal(size=len(n)) * 60
+        mask, box = index.cull(n, o, 1e-9)
+        ref = boxes_meeting_arrays(n, o, _stack_of(boxes), 1e-9)
+        assert np.array_equal(mask, ref)
+        if ref.any():
+            assert np.array_equal(box, [boxes[ref, 0].min(axis=0), boxes[ref, 1].max(axis=0)])
+        else:
+            assert box is None
+
+
+def test_polytope_clip_matches_brute_force():
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        poly = ConvexPolytope.box([-1, -2, -3], [2, 1, 3], 1e-12)
+        n = rng.normal(size=(rng.integers(1, 8), 3))
+        o = rng.uniform(0.1, 2.0, len(n))
+        out = poly.clip(n, o)
+        pts = rng.uniform([-1, -2, -3], [2, 1, 3], (4000, 3))
+        inside = np.all(pts @ (n / np.linalg.norm(n, axis=1, keepdims=True)).T
+                        <= o / np.linalg.norm(n, axis=1), axis=1)
+        assert out is not None
+        assert np.array_equal(out.contains(pts, 0.0), inside)
+        # Vertices lie inside every half-space and on at least three facets.
+        assert np.all(out.vertices @ out.normals.T - out.offsets <= 1e-9)
+        assert np.all(out.incidence.sum(axis=1) >= 3)
+
+
+# ----------------------------------------------------------------------------- generated configurations
+
+@st.composite
+def configurations(draw):
+    f = st.floats
+    eye = np.array([draw(f(-30, 30)), draw(f(-30, 30)), draw(f(0.05, 30))])
+    yaw = draw(f(0, 2 * math.pi))
+    pitch = draw(f(-1.4, 0.3))
+    fwd = np.array([math.cos(pitch) * math.cos(yaw), math.cos(pitch) * math.sin(yaw), math.sin(pitch)])
+    near = 10 ** draw(f(-3, 0))
+    far = near * 10 ** draw(f(1.5, 4))
+    view = camera(eye, forward=fwd, fov=draw(f(20, 100)), near=near, far=far)
+    kind = draw(st.sampled_from(["SUN", "POINT", "SPOT"]))
+    d = np.array([draw(f(-1, 1)), draw(f(-1, 1)), draw(f(-1, -0.02))])
+    pos = np.array([draw(f(-40, 40)), draw(f(-40, 40)), draw(f(0.5, 40))])
+    light = {"SUN": lambda: sun(d), "POINT": lambda: point(pos),
+             "SPOT": lambda: spot(pos, d, math.radians(draw(f(10, 170))))}[kind]()
+    return view, light, town(flat=draw(st.booleans()))
+
+
+@settings(derandomize=True, max_examples=120, deadline=None)
+@given(configurations())
+def test_generated_bodies_contain_what_the_view_needs(config):
+    view, light, scene = config
+    try:
+        body = intersection_body(view, light, scene)
+    except EmptyBodyError:
+        assert len(visible_receiver_points(view, light, scene, n=2000)) == 0
+        return
+    recv = visible_receiver_points(view, light, scene, n=1500)
+    assert_contains(body, recv, "visible receiver points")
+    assert_contains(body, shadowing_caster_points(light, scene, recv[:200], steps=32), "shadowing caster points")
+    assert_closed(body)
