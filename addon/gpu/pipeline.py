@@ -19,6 +19,7 @@ import numpy as np
 
 from ..settings import LixelSettings, ShadowSettings
 from ..warp.body import boxes_meeting, intersection_body
+from ..warp.geometry import perpendicular
 from ..warp.polyhedron import face_planes, hexahedron_faces
 from ..warp.types import EmptyBodyError, Light, SceneBounds, ShadowSetup, View, WarpError
 from . import shaders
@@ -67,10 +68,37 @@ class BiasParams:
         return cls(sign, float(c), float(s), shadow_map.depth_row is not None, max(1.0, shadow.pcf_kernel / 2.0))
 
 
-def _orientation_flips(matrix: np.ndarray) -> bool:
-    """Whether a world -> clip matrix mirrors (reverses triangle winding) for
-    points in front of it (w > 0): the sign of its determinant."""
-    return bool(np.linalg.det(matrix) < 0)
+def light_facing_winds_clockwise(shadow_map) -> bool:
+    """Whether a triangle facing the map's centre of projection (the light)
+    winds clockwise in the map's window coordinates.
+
+    OpenGL calls counter-clockwise triangles front-facing; Blender meshes wind
+    counter-clockwise seen from outside. For a camera-like matrix a triangle
+    facing the light is counter-clockwise, but a map may mirror x or y, and the
+    determinant alone cannot tell (a GREATER map flips z as well), so a small
+    triangle facing the light is projected and its signed area checked.
+    """
+    m = np.asarray(shadow_map.matrix, dtype=np.float64)
+    inv = np.linalg.inv(m)
+
+    def unproject(ndc):
+        h = inv @ np.append(ndc, 1.0)
+        return h[:3] / h[3]
+
+    def project(p):
+        h = m @ np.append(p, 1.0)
+        return h[:2] / h[3]
+
+    near, far = unproject((0.0, 0.0, -0.5)), unproject((0.0, 0.0, 0.5))
+    away = far - near if shadow_map.depth_test != "GREATER" else near - far
+    size = float(np.linalg.norm(away))
+    n = -away / size  # towards the light
+    u = perpendicular(n)
+    v = np.cross(n, u)  # u x v = n
+    a = project(near)
+    b, c = project(near + u * size * 1e-3), project(near + v * size * 1e-3)
+    area = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+    return bool(area < 0)
 
 
 def depth_pass(setup: ShadowSetup, geometry, table, shadow: ShadowSettings, batches: BatchCache,
@@ -103,7 +131,7 @@ def depth_pass(setup: ShadowSetup, geometry, table, shadow: ShadowSettings, batc
             if bias.linear_z:
                 shader.uniform_float("u_depth_row", tuple(float(v) for v in m.depth_row))
             cull = "FRONT" if (shadow.back_faces and not bare) else "NONE"
-            draw_table(shader, batches, geometry, table, cull=cull, flip=_orientation_flips(m.matrix))
+            draw_table(shader, batches, geometry, table, cull=cull, flip=light_facing_winds_clockwise(m))
             gpu.state.depth_mask_set(False)
             gpu.state.depth_test_set("NONE")
         out.append((tex, fb))
@@ -208,7 +236,6 @@ def shading_pass(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSet
     depth = gpu.types.GPUTexture((w, h), format="DEPTH_COMPONENT32F")
     fb = gpu.types.GPUFrameBuffer(depth_slot=depth, color_slots=(direct, data, world))
     view_proj = _gl_matrix(view.world_to_clip)
-    flip = _orientation_flips(view.world_to_clip)
     mdsm = shadow.mdsm_depths > 1
     ubo = gpu.types.GPUUniformBuf(shade_block(view, light, setup, shadow, albedo).tobytes())
     with fb.bind():
@@ -220,7 +247,7 @@ def shading_pass(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSet
         gpu.state.color_mask_set(False, False, False, False)
         pre.bind()
         pre.uniform_float("u_view_proj", view_proj)
-        draw_table(pre, batches, geometry, table, flip=flip)
+        draw_table(pre, batches, geometry, table)
         gpu.state.color_mask_set(True, True, True, True)
         gpu.state.depth_mask_set(False)
         sh = shaders.shade_shader(mdsm)
@@ -230,7 +257,7 @@ def shading_pass(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSet
         dummy = _dummy("RGBA32F" if mdsm else "DEPTH_COMPONENT32F")
         for i in range(shaders.MAX_MAPS):
             sh.uniform_sampler(f"u_map{i}", maps[i][0] if i < len(maps) else dummy)
-        draw_table(sh, batches, geometry, table, flip=flip)
+        draw_table(sh, batches, geometry, table)
         gpu.state.depth_test_set("NONE")
     return fb, (direct, data, world)
 

@@ -17,7 +17,7 @@ SHADER_DIR = Path(__file__).resolve().parents[2] / "gpu_shaders"
 
 MAX_MAPS = 8
 """Shadow maps one shading pass can select from (sampler slots 0..7)."""
-MAX_POLYGON = 8
+MAX_POLYGON = 32
 """Vertices of a plane map's region polygon passed to the shader."""
 INSTANCES_PER_ROW = 4096
 """Instance matrices per row of the instance texture (4 texels each: 16384 wide)."""
