@@ -21,7 +21,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from addon.scene.instances import walk_instances
 from addon.warp.types import Light, View
 
 
@@ -36,43 +35,31 @@ class Triangles:
         return len(self.tris)
 
 
-def _local_triangles(ob_eval) -> np.ndarray:
-    me = ob_eval.data if ob_eval.type == "MESH" else ob_eval.to_mesh()
-    try:
-        me.calc_loop_triangles()
-        n = len(me.loop_triangles)
-        idx = np.empty(n * 3, dtype=np.int32)
-        me.loop_triangles.foreach_get("vertices", idx)
-        co = np.empty(len(me.vertices) * 3, dtype=np.float64)
-        me.vertices.foreach_get("co", co)
-        return co.reshape(-1, 3)[idx.reshape(-1, 3)]
-    finally:
-        if ob_eval.type != "MESH":
-            ob_eval.to_mesh_clear()
-
-
-def scene_triangles(depsgraph) -> Triangles:
-    """Every triangle the evaluated scene draws (real objects and GN instances)."""
+def world_triangles(geometry) -> Triangles:
+    """Every triangle of an ``addon.scene.geometry.SceneGeometry`` (what the gpu
+    pipeline draws: real objects and GN instances) in world space."""
     t0 = time.perf_counter()
-    local: dict = {}
-
-    def on_geometry(key, ob_eval):
-        tri = _local_triangles(ob_eval)
-        local[key] = tri
-        return len(tri) > 0
-
-    inst = walk_instances(depsgraph, on_geometry)
-    parts = []
+    inst = geometry.instances
     by_key: dict = {}
     for i, key in enumerate(inst.keys):
         by_key.setdefault(key, []).append(i)
+    parts = []
     for key, rows in by_key.items():
-        tri = local[key]                                         # (t, 3, 3)
-        mats = inst.matrices[rows]                               # (k, 4, 4)
+        mesh = geometry.meshes[key]
+        tri = np.asarray(mesh.positions, dtype=np.float64)[mesh.triangles]      # (t, 3, 3) local
+        mats = inst.matrices[rows]                                              # (k, 4, 4)
         w = np.einsum("kij,tvj->ktvi", mats[:, :3, :3], tri) + mats[:, None, None, :3, 3]
         parts.append(w.reshape(-1, 3, 3))
     tris = np.concatenate(parts) if parts else np.zeros((0, 3, 3))
     return Triangles(tris, time.perf_counter() - t0)
+
+
+def scene_triangles(depsgraph) -> Triangles:
+    """World triangles of the evaluated scene, read by the scene layer's own
+    extraction (``addon.scene.geometry``) so the ground truth sees exactly what
+    the pipeline draws."""
+    from addon.scene.geometry import GeometryCache
+    return world_triangles(GeometryCache().update(depsgraph))
 
 
 def build_bvh(tris: Triangles):
@@ -109,6 +96,7 @@ class GroundTruth:
     normals: np.ndarray      # (H, W, 3) unit geometric normal facing the camera
     shadow: np.ndarray       # bool: the point is in shadow (or faces away from the light)
     valid: np.ndarray        # bool: counted by the metrics (hit, faces the light, inside a spot cone)
+    camera: np.ndarray = field(default_factory=lambda: np.zeros(3))   # the camera position
     timings: dict = field(default_factory=dict)
 
     @property
@@ -174,5 +162,5 @@ def ground_truth(view: View, light: Light, bvh, scene_scale: float) -> GroundTru
             shadow[idx[k]] = True
     t2 = time.perf_counter()
     return GroundTruth(hit=hit.reshape(h, w), points=pts.reshape(h, w, 3), normals=nrm.reshape(h, w, 3),
-                       shadow=shadow.reshape(h, w), valid=valid.reshape(h, w),
+                       shadow=shadow.reshape(h, w), valid=valid.reshape(h, w), camera=view.position,
                        timings={"camera_rays": t1 - t0, "shadow_rays": t2 - t1})
