@@ -1,0 +1,143 @@
+"""The LIXEL render engine through ``bpy.ops.render.render`` (what F12 and
+``blender -b file.blend -E LIXEL -f 1`` run)."""
+import importlib
+import math
+from pathlib import Path
+
+import bpy
+import numpy as np
+import pytest
+from mathutils import Vector
+
+
+@pytest.fixture(scope="module")
+def engine(lixel):
+    return importlib.import_module(lixel.__name__ + ".addon.render.engine")
+
+
+@pytest.fixture
+def scene(fresh_scene):
+    fresh_scene.render.engine = "LIXEL"
+    fresh_scene.render.resolution_x, fresh_scene.render.resolution_y = 96, 64
+    fresh_scene.render.resolution_percentage = 100
+    yield fresh_scene
+    obs = list(fresh_scene.objects)
+    datas = [ob.data for ob in obs if ob.data is not None]
+    bpy.data.batch_remove(obs)
+    alive = []
+    for d in datas:
+        try:
+            if d.users == 0:
+                alive.append(d)
+        except ReferenceError:
+            pass
+    bpy.data.batch_remove(alive)
+
+
+def add(scene, name, data):
+    ob = bpy.data.objects.new(name, data)
+    scene.collection.objects.link(ob)
+    return ob
+
+
+def cube_mesh(name, size, z):
+    me = bpy.data.meshes.new(name)
+    h = size / 2
+    me.from_pydata([(x, y, z + zz) for x in (-h, h) for y in (-h, h) for zz in (-h, h)], [],
+                   [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)])
+    return me
+
+
+def build(scene, with_light=True, with_mesh=True, with_camera=True):
+    if with_mesh:
+        ground = bpy.data.meshes.new("Ground")
+        ground.from_pydata([(-5, -5, 0), (5, -5, 0), (5, 5, 0), (-5, 5, 0)], [], [(0, 1, 2, 3)])
+        add(scene, "Ground", ground)
+        add(scene, "Box", cube_mesh("Box", 1.5, 1.2))
+    if with_camera:
+        cam = add(scene, "Cam", bpy.data.cameras.new("Cam"))
+        cam.location = (0, -7, 6)
+        cam.rotation_euler = (Vector((0, 0, 0)) - cam.location).to_track_quat("-Z", "Y").to_euler()
+        scene.camera = cam
+    if with_light:
+        sun = add(scene, "Sun", bpy.data.lights.new("Sun", "SUN"))
+        sun.rotation_euler = (math.radians(30), 0, math.radians(20))
+        sun.data.energy = 3.0
+
+
+def test_render_writes_lixel_shadows(engine, scene, tmp_path):
+    build(scene)
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.filepath = str(tmp_path / "frame.exr")
+    assert bpy.ops.render.render(write_still=True, scene=scene.name) == {"FINISHED"}
+    last = engine.last_render()
+    assert last["scene"] == scene.name
+    res = last["result"]
+    assert res["combined"].shape == (64, 96, 4)
+    assert 0.01 < res["shadow_mask"][res["covered"]].mean() < 0.5
+    assert res["counts"]["casters_drawn"] == 2
+    assert len(res["shadow_maps"]) == len(last["setup"].maps)
+    img = bpy.data.images.load(str(tmp_path / "frame.exr"))
+    try:
+        px = np.empty(img.size[0] * img.size[1] * img.channels, dtype=np.float32)
+        img.pixels.foreach_get(px)
+        np.testing.assert_allclose(px.reshape(64, 96, -1)[..., :3], res["combined"][..., :3], atol=1e-5)
+    finally:
+        bpy.data.images.remove(img)
+
+
+def test_settings_come_from_the_scene(engine, scene):
+    build(scene)
+    props = getattr(scene, "lixel", None)
+    if props is None:
+        assert engine.scene_settings(scene) == engine.LixelSettings()
+        return
+    props.method = "uniform"
+    props.pcf_kernel = 1
+    props.shadow_map_size = (512, 512)
+    bpy.ops.render.render(scene=scene.name)
+    last = engine.last_render()
+    assert last["method"] == "uniform"
+    assert last["settings"].shadow.pcf_kernel == 1
+    assert tuple(last["setup"].maps[0].size) == (512, 512)
+    assert set(np.unique(last["result"]["shadow_mask"])) <= {0.0, 1.0}  # k = 1: no PCF levels
+
+
+def test_second_render_uploads_nothing(engine, scene):
+    build(scene)
+    bpy.ops.render.render(scene=scene.name)
+    first = engine.last_render()["result"]
+    bpy.ops.render.render(scene=scene.name)
+    second = engine.last_render()["result"]
+    assert second["counts"]["uploads"] == 0
+    np.testing.assert_array_equal(first["shadow_mask"], second["shadow_mask"])
+
+
+@pytest.mark.parametrize("missing,message", [
+    ("light", r"Lixel: Scene 'lixel_test[.\d]*' has no light: add a Sun, Point, Spot or Area light"),
+    ("mesh", r"Lixel: Scene 'lixel_test[.\d]*' has no visible mesh"),
+])
+def test_bad_input_ends_the_render_with_a_report(engine, scene, capfd, missing, message):
+    build(scene, with_light=missing != "light", with_mesh=missing != "mesh")
+    with pytest.raises(RuntimeError, match=message):
+        bpy.ops.render.render(scene=scene.name)
+    assert "Traceback" not in capfd.readouterr().err
+
+
+def test_no_gpu_context_is_reported(engine, scene, capfd, monkeypatch, lixel):
+    build(scene)
+    ctx = importlib.import_module(lixel.__name__ + ".addon.gpu.context")
+
+    def no_gpu():
+        raise ctx.GPUUnavailableError("Lixel could not get a GPU context: test")
+
+    monkeypatch.setattr(ctx, "ensure_gpu_context", no_gpu)
+    with pytest.raises(RuntimeError, match="could not get a GPU context"):
+        bpy.ops.render.render(scene=scene.name)
+    assert "Traceback" not in capfd.readouterr().err
+
+
+def test_engine_is_registered_with_gpu_context(engine):
+    cls = bpy.types.RenderEngine.bl_rna_get_subclass_py("LIXEL")
+    assert cls is not None and cls.bl_use_gpu_context
+    assert "LIXEL" in bpy.types.RENDER_PT_format.COMPAT_ENGINES
