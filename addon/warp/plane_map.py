@@ -147,8 +147,8 @@ def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
         mx = m @ x
         nm = float(np.linalg.norm(mx))
         if nm <= 1e-12 * float(np.linalg.norm(m)) * float(np.linalg.norm(x)):
-            residual = math.inf
-            break
+            raise WarpError("the five point constraints are degenerate (the solution maps a constrained point to "
+                            "nothing: four of the points are coplanar)")
         u, v = mx / nm, _unit(y)
         residual = max(residual, float(min(np.linalg.norm(u - v), np.linalg.norm(u + v))))
     if not residual <= RESIDUAL_TOL:
