@@ -1,0 +1,126 @@
+"""addon.scene.geometry: triangles from the evaluated depsgraph."""
+import importlib
+import math
+
+import bpy
+import numpy as np
+import pytest
+
+
+@pytest.fixture(scope="module")
+def geom(lixel):
+    return importlib.import_module(lixel.__name__ + ".addon.scene.geometry")
+
+
+@pytest.fixture
+def scene(fresh_scene):
+    yield fresh_scene
+    obs = list(fresh_scene.objects)
+    datas = [ob.data for ob in obs if ob.data is not None]
+    bpy.data.batch_remove(obs)
+    alive = []
+    for d in datas:
+        try:
+            if d.users == 0:
+                alive.append(d)
+        except ReferenceError:
+            pass
+    bpy.data.batch_remove(alive)
+
+
+def mesh(scene, name, verts, faces):
+    me = bpy.data.meshes.new(name)
+    me.from_pydata(verts, [], faces)
+    me.update()
+    ob = bpy.data.objects.new(name, me)
+    scene.collection.objects.link(ob)
+    return ob
+
+
+def depsgraph(scene):
+    dg = scene.view_layers[0].depsgraph
+    dg.update()
+    return dg
+
+
+def tri_area(pos, tris):
+    p = pos.astype(np.float64)
+    return 0.5 * np.linalg.norm(np.cross(p[tris[:, 1]] - p[tris[:, 0]], p[tris[:, 2]] - p[tris[:, 0]]), axis=1).sum()
+
+
+def test_quads_triangles_and_concave_quads_keep_their_area(geom, scene):
+    # A concave quad (dart): only the diagonal through the reflex corner (index 3) is right.
+    dart = [(0, 0, 0), (2, 1, 0), (0, 2, 0), (0.5, 1, 0)]
+    ob = mesh(scene, "Dart", dart + [(3, 0, 0), (4, 0, 0), (3, 1, 0)], [(0, 1, 2, 3), (4, 5, 6)])
+    # The dart's corners start at a convex corner, so a blind 0-2 split would be wrong.
+    got = geom.read_object(ob.evaluated_get(depsgraph(scene)))
+    pos, tris, _ = got
+    assert tris.shape == (3, 3)
+    expect = sum(p.area for p in ob.data.polygons)
+    assert tri_area(pos, tris) == pytest.approx(expect, rel=1e-6)
+
+
+def test_ngons_use_blenders_triangulation(geom, scene):
+    # An L-shaped hexagon (concave n-gon).
+    ob = mesh(scene, "L", [(0, 0, 0), (2, 0, 0), (2, 1, 0), (1, 1, 0), (1, 2, 0), (0, 2, 0)], [(0, 1, 2, 3, 4, 5)])
+    pos, tris, _ = geom.read_object(ob.evaluated_get(depsgraph(scene)))
+    assert len(tris) == 4
+    assert tri_area(pos, tris) == pytest.approx(3.0, rel=1e-6)
+
+
+def test_modifiers_are_applied_and_the_cache_reuses_meshes(geom, scene):
+    ob = mesh(scene, "Quad", [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)], [(0, 1, 2, 3)])
+    twin = bpy.data.objects.new("Twin", ob.data)  # shares the mesh: one batch for both
+    scene.collection.objects.link(twin)
+    twin.location.x = 5
+    sub = ob.modifiers.new("sub", "SUBSURF")
+    sub.levels = 2
+    sub.subdivision_type = "SIMPLE"
+    cache = geom.GeometryCache()
+    g = cache.update(depsgraph(scene))
+    keys = set(g.instances.keys)
+    assert ("OB", "Quad") in keys and ("ME", "Quad") in keys
+    assert g.meshes[("OB", "Quad")].triangle_count == 32  # 16 quads after two simple subdivisions
+    assert g.meshes[("ME", "Quad")].triangle_count == 2
+    assert cache.extractions == 2
+    g2 = cache.update(depsgraph(scene))
+    assert cache.extractions == 2 and cache.reused == 2
+    assert g2.meshes[("OB", "Quad")] is g.meshes[("OB", "Quad")]
+    sub.levels = 1
+    g3 = cache.update(depsgraph(scene))
+    assert cache.extractions == 3 and g3.meshes[("OB", "Quad")].triangle_count == 8
+    assert g3.meshes[("OB", "Quad")].version == 2
+
+
+def test_geometry_nodes_instances_share_one_mesh(geom, scene):
+    host = mesh(scene, "Host", [(0, 0, 0), (1, 0, 0), (1, 1, 0)], [(0, 1, 2)])
+    ng = bpy.data.node_groups.new("lixel_geom_test", "GeometryNodeTree")
+    try:
+        ng.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+        ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+        go = ng.nodes.new("NodeGroupOutput")
+        grid = ng.nodes.new("GeometryNodeMeshGrid")
+        grid.inputs["Vertices X"].default_value = 5
+        grid.inputs["Vertices Y"].default_value = 4
+        cube = ng.nodes.new("GeometryNodeMeshCube")
+        iop = ng.nodes.new("GeometryNodeInstanceOnPoints")
+        ng.links.new(grid.outputs["Mesh"], iop.inputs["Points"])
+        ng.links.new(cube.outputs["Mesh"], iop.inputs["Instance"])
+        ng.links.new(iop.outputs["Instances"], go.inputs[0])
+        host.modifiers.new("gn", "NODES").node_group = ng
+        g = geom.GeometryCache().update(depsgraph(scene))
+        assert len(g.instances) == 20
+        assert len(set(g.instances.keys)) == 1
+        assert g.triangle_count == 20 * 12
+        assert len({tuple(m[:3, 3]) for m in g.instances.matrices}) == 20  # matrices copied, all distinct
+    finally:
+        bpy.data.node_groups.remove(ng)
+
+
+def test_text_objects_are_triangulated(geom, scene):
+    curve = bpy.data.curves.new("Txt", "FONT")
+    curve.body = "L"
+    ob = bpy.data.objects.new("Txt", curve)
+    scene.collection.objects.link(ob)
+    g = geom.GeometryCache().update(depsgraph(scene))
+    assert ("OB", "Txt") in g.meshes and g.meshes[("OB", "Txt")].triangle_count > 0
