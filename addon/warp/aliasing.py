@@ -31,8 +31,9 @@ The λ selections, each a function of (θ, n, f, φ):
   positive solution below (GMNPR §3: "λ = 0 is obviously disastrous"). GLPR's
   paper is not in our corpus, so Lixel keeps it usable the way GMNPR treats its
   own degenerate range (Eq. 5-7): λ is floored at ``GLPR_FLOOR`` times its
-  ideal-case value n/(f - n), and for θ < φ that floor grows like Eq. 7,
-  floor / tan(θπ/(4φ)), to ∞ at θ = 0 (convergence to the uniform map).
+  ideal-case value n/(f - n), and for θ < φ it moves log-linearly in θ from that
+  floor (at φ) to GMNPR's λ2* (Eq. 7), reaching ∞ at θ = 0 (convergence to the
+  uniform map) no more abruptly than GMNPR does.
 
 :func:`lispsm_inverse_n_opt` is Scherzer §4.4 Eq. 1 written as 1 / n_opt, finite
 for every γ (0 at γ = 0, the uniform limit).
@@ -160,7 +161,7 @@ def lispsm_inverse_n_opt(z_n, delta_z, gamma) -> float:
     root = z_n + math.sqrt(z_n * (z_n + max(float(delta_z), 0.0)))
     if root <= 0.0:
         return math.inf
-    return abs(math.sin(gamma)) / root
+    return abs(math.sin(min(gamma, math.pi - gamma))) / root    # folded: exactly 0 at γ = π too
 
 
 def lambda_lispsm(theta, n, f, phi) -> float:
@@ -183,14 +184,17 @@ def lambda_gmnpr(theta, n, f, phi) -> float:
 
 def lambda_glpr(theta, n, f, phi) -> float:
     """GLPR: F(z) ~ z, φ(λ, θ) = 0 -> λ = n(1 - t)/(f - n + (f + n)t), floored at
-    ``GLPR_FLOOR``·n/(f - n); below θ = φ the floor grows like GMNPR Eq. 7,
-    floor / tan(θπ/(4φ)), to ∞ at θ = 0. Continuous everywhere."""
+    ``GLPR_FLOOR``·n/(f - n); below θ = φ, log-linear in θ from that floor (at φ)
+    to GMNPR's λ2* (Eq. 7, ∞ at θ = 0). Continuous everywhere."""
     floor = GLPR_FLOOR * n / max(f - n, 1e-300 * max(n, 1.0))
     if theta >= phi:
         t = float(_t(theta, phi))
         return max(n * (1.0 - t) / (f - n + (f + n) * t), floor)
-    q = math.tan(theta * math.pi / (4.0 * phi))
-    return math.inf if q <= 0.0 else floor / q
+    g = lambda_gmnpr(theta, n, f, phi)
+    if not math.isfinite(g):
+        return math.inf
+    w = theta / phi
+    return math.exp(w * math.log(floor) + (1.0 - w) * math.log(g))
 
 
 LAMBDA_RULES = {"lispsm": lambda_lispsm, "gmnpr": lambda_gmnpr, "glpr": lambda_glpr}

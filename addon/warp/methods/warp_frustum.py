@@ -65,8 +65,10 @@ perspective aliasing: their maps are uniform. Every such case is recorded in
 ``diagnostics.fallbacks``.
 
 **Options.** ``middle_vector``: V_P is the direction from the eye to the middle
-of B (the mean of its vertices, Scherzer's summed vectors) projected
-perpendicular to the light. ``linear_z`` (Scherzer §4.2): ``ShadowMap.depth_row``
+of B projected perpendicular to the light. Scherzer sums the vectors from the eye
+to B's vertices (their mean); that jumps whenever a vertex of B appears or
+merges, so Lixel takes the centre of B's volume ("the middle of the volume of
+the body", §4.4), which moves continuously. ``linear_z`` (Scherzer §4.2): ``ShadowMap.depth_row``
 stores light-space depth linearly (the frame's z for a sun, the distance along
 the light's axis for a point light), fitted so B spans [-1, 1]. ``lam`` forces
 λ (gmnpr, glpr).
@@ -139,6 +141,21 @@ def _sin_to(v: np.ndarray, ell: np.ndarray) -> float:
         return 0.0
     u = v / nv
     return float(np.linalg.norm(u - (u @ ell) * ell))
+
+
+def volume_centroid(body: IntersectionBody) -> np.ndarray:
+    """The centre of B's volume (continuous in B, unlike the mean of its vertices,
+    which jumps when a vertex appears or merges)."""
+    ref = body.vertices.mean(axis=0)
+    total, moment = 0.0, np.zeros(3)
+    for f in body.faces:
+        a = f[0] - ref
+        for j in range(1, len(f) - 1):
+            b, c = f[j] - ref, f[j + 1] - ref
+            vol = abs(float(np.dot(a, np.cross(b, c)))) / 6.0
+            total += vol
+            moment += vol * (a + b + c) / 4.0
+    return ref + moment / total if total > 0 else ref
 
 
 def eye_depth_range(view: View, body: IntersectionBody, options: WarpOptions, diag: Diagnostics) -> WarpContext:
@@ -215,14 +232,13 @@ def frame_geometry(view: View, light: Light, frame: LightFrame, options: WarpOpt
         fade = float(np.clip((FADE_END - rho) / (FADE_END - FADE_START), 0.0, 1.0))
         lin = None
     if options.middle_vector:
-        centre = frame.points.mean(axis=0)   # Scherzer: the sum of the vectors from the eye to B's points
-        mv = centre - eye
+        mv = volume_centroid(body) - eye
         s = _sin_to(mv, ell)
         if frame.directional:
             v = lin[:2] @ mv
-        else:
-            ch = t @ np.append(centre, 1.0)
-            v = ch[:2] / ch[3] - eye_ls[:2]
+        else:                                # the image of the middle vector at the eye
+            mh = t[:, :3] @ mv
+            v = (mh[:2] * eh[3] - eh[:2] * mh[3]) / eh[3] ** 2
     a = v / np.linalg.norm(v) if (frame.directional and not options.middle_vector) else _blend(v, s)
     b = np.array([a[1], -a[0]])
     h = pts[:, :2] @ a
@@ -324,7 +340,7 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
     diag.extra["z_n"] = ctx.z_n
     diag.extra["delta_z"] = ctx.delta_z
     diag.extra["frames"] = [f.role for f in frames]
-    middle = body.centroid - view.position
+    middle = volume_centroid(body) - view.position
     diag.extra["middle_vector"] = middle / np.linalg.norm(middle) if np.linalg.norm(middle) > 0 else np.zeros(3)
     maps: list[ShadowMap] = []
     reported = False
