@@ -6,11 +6,13 @@ post-perspective space. The paper moves the camera back along its view
 direction ("virtual camera shift") until the body H (our B) lies entirely in
 front of its near plane, keeping the near distance unchanged (§4.2), and wants
 that near plane as far away as possible: it reads back the depth buffer to put
-it at the nearest visible depth (§6). Lixel combines the two with what B already
-tells us: the nearest visible point is R's nearest eye depth ``d_R`` (R = the
-visible part of B, ``IntersectionBody.visible_vertices``; d_R >= the camera's
-near distance) and B's nearest eye depth is ``d_B <= d_R`` (casters between the
-camera and R, or behind the camera). The virtual eye moves back by
+it at the nearest visible depth (§6). Lixel combines the two. ``d_R`` is the
+nearest visible depth (:func:`nearest_visible_depth`): the caller's depth
+readback ``WarpOptions.visible_depth_range`` when given, else the nearest point
+of V ∩ L ∩ (a receiver box), which is never nearer than the camera's near
+distance and never farther than what is really visible. B's nearest eye depth
+is ``d_B <= d_R`` (casters between the camera and R, or behind the camera).
+The virtual eye moves back by
 
     s = d_R - d_B  >= 0,
 
@@ -62,11 +64,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .body import IntersectionBody
+from .body import IntersectionBody, light_halfspaces
 from .fit import fit_to_unit_cube
 from .frame import image_up
 from .geometry import normalize
-from .types import View
+from .polyhedron import ConvexPolytope
+from .types import Light, View, WarpOptions
 
 PPS_VIEW_DIRECTION = np.array([0.0, 0.0, 1.0])
 """The view direction in PPS (NDC z grows with eye depth)."""
@@ -95,14 +98,60 @@ class VirtualCamera:
     visible_near: float
 
 
-def virtual_camera(view: View, body: IntersectionBody) -> VirtualCamera:
-    """The shifted camera whose PPS PSM works in (module docstring; §4.2, §6)."""
+NEAREST_BOX_CLIPS = 256
+"""At most this many receiver boxes are clipped by V ∩ L to find the nearest
+visible depth; beyond that the remaining boxes' lower bound is used (safe)."""
+
+
+def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
+                          options: WarpOptions | None = None) -> float:
+    """The nearest eye depth at which a receiver can be seen (PSM §6's near
+    plane "as far as possible"). A depth readback given as
+    ``options.visible_depth_range`` wins; otherwise the minimum over the
+    receiver boxes meeting V ∩ L of the nearest point of V ∩ L ∩ box, visiting
+    boxes by a lower bound (their nearest corner) and stopping when no box can
+    be nearer. Always in [view.near, true nearest visible depth]."""
+    origin = view.position
+    to_cam = np.linalg.inv(view.camera_to_world[:3, :3])
+    coarse = float(max((-((body.visible_vertices - origin) @ to_cam[2])).min(), view.near))
+    if options is not None and options.visible_depth_range is not None:
+        return max(float(options.visible_depth_range[0]), view.near)
+    boxes = np.asarray(body.receiver_boxes, dtype=np.float64).reshape(-1, 2, 3) - origin
+    if len(boxes) == 0:
+        return coarse
+    axis = -to_cam[2]
+    corner_depth = np.minimum(boxes[:, 0] * axis, boxes[:, 1] * axis).sum(axis=1)
+    lower = np.maximum(corner_depth, coarse)
+    order = np.argsort(lower, kind="stable")
+    corners = view.corners() - origin
+    frustum = ConvexPolytope.from_corners(corners, body.tolerance)
+    ln, lo = light_halfspaces(light, origin)
+    eye3 = np.eye(3)
+    best = math.inf
+    for count, i in enumerate(order):
+        if lower[i] >= best:
+            break
+        if count >= NEAREST_BOX_CLIPS:
+            best = float(lower[i])
+            break
+        piece = frustum.clip(np.concatenate([-eye3, eye3, ln]), np.concatenate([-boxes[i, 0], boxes[i, 1], lo]))
+        if piece is not None:
+            best = min(best, float((piece.vertices @ axis).min()))
+    if not math.isfinite(best):
+        return coarse
+    return max(best, coarse)
+
+
+def virtual_camera(view: View, body: IntersectionBody, visible_near: float | None = None) -> VirtualCamera:
+    """The shifted camera whose PPS PSM works in (module docstring; §4.2, §6).
+    ``visible_near``: d_R (default: R's nearest depth, a safe lower bound)."""
     origin = view.position
     to_cam = np.linalg.inv(view.camera_to_world[:3, :3])          # camera-relative world -> camera axes
     rel = body.vertices - origin
     depth = -(rel @ to_cam[2])
-    visible_depth = -((body.visible_vertices - origin) @ to_cam[2])
-    d_r = float(max(visible_depth.min(), view.near))
+    if visible_near is None:
+        visible_near = (-((body.visible_vertices - origin) @ to_cam[2])).min()
+    d_r = float(max(visible_near, view.near))
     d_b = float(depth.min())
     shift = max(0.0, d_r - d_b)
     near = d_b + shift
@@ -209,8 +258,11 @@ def pps_light_matrix(light_h, points) -> PPSLight:
         return PPSLight(None, lh, kind, half, k)
     centre = pts.mean(axis=0)
     b = image_up(PPS_VIEW_DIRECTION, PPS_UP, k)
-    a = normalize(np.cross(k, b))                   # a x b = -k, like frame.FLIP_Z @ look_along
-    b = np.cross(a, k)
+    # (a, b, k) right-handed: the camera's projection already reverses orientation, so
+    # the composed world -> light NDC map reverses it once, like frame.FLIP_Z @ look_along
+    # (a uniform map): triangles facing the light keep their winding (back-face biasing).
+    a = normalize(np.cross(b, k))
+    b = np.cross(k, a)
     rot = np.stack([a, b, k])
     lam = rot @ (l - wp * centre)                    # L' in the (a, b, k) frame centred at c, times w'
     # lam[2] = -k·(w' c - l) < 0: c is a mean of B', every k·(w' p - l) > 0.

@@ -326,16 +326,25 @@ def test_point_light_crossing_the_camera_plane_is_continuous_and_covering():
             check_all(view, light, scene)
 
 
-def test_point_light_entering_b_switches_to_uniform_finite_and_covering_on_both_sides():
-    """The one switch PSM cannot avoid: the light reaching B (§3.3, no single
-    frustum from L' covers B'). Both sides are finite and cover B."""
+def test_point_light_approaching_b_switches_to_uniform_finite_and_covering_on_both_sides():
+    """The switch PSM cannot avoid: a point light coming close to B needs a PPS
+    frustum wider than max_frustum_angle and, inside B, no single frustum at
+    all (§3.3); Lixel hands over to the uniform map's cube faces. Every step
+    is finite and covers B, and the fallback is recorded."""
     view = camera(**VIEW)
     scene = town()
-    outside = point([0.5, 8.0, 3.0 + 1e-3])
-    inside = point([0.5, 8.0, 3.0 - 1e-3])
-    a, _ = check_all(view, outside, scene)
-    b, _ = check_all(view, inside, scene, applied=False)
-    assert not a.diagnostics.fallbacks and b.diagnostics.fallbacks
+    kinds = []
+    for z in (40.0, 12.0, 6.0, 3.5, 3.0 + 1e-3, 3.0 - 1e-3, 1.5):
+        light = point([0.5, 8.0, z])
+        setup, _ = run(view, light, scene)
+        assert_finite_and_covering(setup, intersection_body(view, light, scene), view)
+        applied = setup.diagnostics.extra["psm_applied"]
+        setup, _ = check_all(view, light, scene, applied=applied)
+        if not applied:
+            assert {w for w, _ in setup.diagnostics.fallbacks} & {"PPS light frustum", "light inside B"}
+        kinds.append(applied)
+    assert kinds[0] and not kinds[-1]
+    assert kinds == sorted(kinds, reverse=True), kinds      # one switch, no flicker back
 
 
 # ----------------------------------------------------------------------------- generated configurations

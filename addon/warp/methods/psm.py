@@ -33,6 +33,12 @@ Where PSM is still discontinuous:
   because PSM's gain is small when the light sits inside the visible region
   (§3.3: a light near the eye converges to the uniform setting) and the cube
   faces already exist, tested, in one place;
+* a point or spot light whose PPS frustum would be wider than
+  ``WarpOptions.max_frustum_angle`` (a light close to B, e.g. low over a large
+  terrain): the same hand-over to the uniform map's faces. Suns never need it:
+  their PPS light lies beyond the PPS image of infinity, and even a sun shining
+  straight into the camera (a PPS frustum close to 180°) measured better than
+  the uniform map (tests/warp/test_psm_footprint.py);
 * an orthographic camera has an affine PPS: PSM *is* the uniform map (§1.1,
   "for an orthogonal view"), so the uniform map is returned (recorded).
 
@@ -51,7 +57,7 @@ from ..body import IntersectionBody
 from ..fit import fit_to_unit_cube
 from ..frame import light_angles
 from ..geometry import UNIT_CUBE_CORNERS, homogeneous, translation
-from ..post_perspective import pps_light_matrix, virtual_camera
+from ..post_perspective import nearest_visible_depth, pps_light_matrix, virtual_camera
 from ..types import Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpOptions
 from .uniform import uniform
 
@@ -109,7 +115,7 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
 
     origin = view.position
     rel = body.vertices - origin
-    cam = virtual_camera(view, body)
+    cam = virtual_camera(view, body, nearest_visible_depth(view, light, body, options))
     light_h = light.homogeneous_position.copy()
     if light_h[3] != 0:
         light_h[:3] -= origin
@@ -134,6 +140,11 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
                                  f"light '{light.name}' touches B in post-perspective space "
                                  f"(cone half-angle {math.degrees(pl.cone_half_angle):.4f} deg): no single frustum")
 
+    if not light.is_directional and 2 * pl.cone_half_angle > options.max_frustum_angle:
+        return _uniform_fallback(view, light, body, options, diag, "PPS light frustum",
+                                 f"light '{light.name}' needs a {math.degrees(2 * pl.cone_half_angle):.0f} deg frustum "
+                                 f"in post-perspective space (max {math.degrees(options.max_frustum_angle):.0f}); "
+                                 "using the uniform map's cube faces")
     relative = fit_to_unit_cube(pl.matrix @ cam.to_pps, rel)
     matrix = relative @ translation(-origin)
     if not (np.all(np.isfinite(matrix)) and covers(relative, rel)):
