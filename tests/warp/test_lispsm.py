@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import assume, given, settings, strategies as st
 
 from addon.warp import Light, SceneBounds, View, WarpOptions, compute, intersection_body
 from addon.warp.geometry import look_along, transform_h
@@ -352,6 +352,13 @@ def test_generated_sun_configurations(yaw, pitch, lat, lon, method, mid):
     view = camera([1.0, -3.0, 2.0], fwd)
     d = [math.cos(lat) * math.cos(lon), math.cos(lat) * math.sin(lon), math.sin(lat)]
     s, body = run(method, view, sun(d), options=WarpOptions(middle_vector=mid))
+    from addon.warp.methods.warp_frustum import volume_centroid
+    c0 = volume_centroid(body)
+    for eps in (1e-7, 1e-9):
+        b1 = intersection_body(view, sun(rotation([0.2, 0.9, 0.1], eps) @ np.array(d)), SCENE)
+        # B itself jumps when a caster box starts to touch hull(R ∪ light) (S_c grows by a whole
+        # box): the warp cannot be continuous across that and it is not the warp's doing
+        assume(np.linalg.norm(volume_centroid(b1) - c0) < 1e-4 * body.scale)
 
     def turned(p):
         light = sun(d if p is None else rotation(p[0], p[1]) @ np.array(d))
@@ -471,13 +478,15 @@ def test_spot_cone_that_barely_contains_the_view(method):
 
 
 @pytest.mark.parametrize("method", WARPS)
-def test_point_light_crossing_behind_the_eye_changes_the_map_continuously(method):
-    """A frame's warp fades to uniform before the eye reaches its light plane."""
+@pytest.mark.parametrize("y", [-10.5, -10.0, -9.97, -9.5])
+def test_point_light_near_the_eye_plane_changes_the_map_continuously(method, y):
+    """Frames whose light plane passes near the eye fade to uniform instead of jumping."""
     view = camera([0.0, -10.0, 2.0], [0.0, 1.0, -0.1])
-    prev = None
-    for y in np.linspace(-10.5, -9.5, 11):
-        light = Light("POINT", position=np.array([0.0, y, 12.0]))
-        s, body = run(method, view, light)
-        if prev is not None and [m.role for m in prev.maps] == [m.role for m in s.maps]:
-            assert max_ndc_change(prev, s, body.vertices) < 0.2
-        prev = s
+    pos = np.array([0.0, y, 12.0])
+    body = intersection_body(view, Light("POINT", position=pos), SCENE)
+
+    def moved(p):
+        shift = np.zeros(3) if p is None else 10.0 * p[1] * np.asarray(p[0])
+        return run(method, view, Light("POINT", position=pos + shift))[0]
+
+    assert_continuous(moved, method, ([0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.6, 0.8]), body.vertices)

@@ -231,6 +231,15 @@ def frame_geometry(view: View, light: Light, frame: LightFrame, options: WarpOpt
         rho = float(np.linalg.norm(eye_ls[:2] - (lo + hi) / 2)) / half
         fade = float(np.clip((FADE_END - rho) / (FADE_END - FADE_START), 0.0, 1.0))
         lin = None
+        # Keep the eye's image finite for the construction: clamping it to a box that contains
+        # the whole fade region changes nothing where the warp acts (fade > 0), and where
+        # fade = 0 (μ = 0) its lateral offset is absorbed by the fit - no cancellation
+        # against an image at 1e9 when the eye nears the light plane.
+        zlo, zhi = pts[:, 2].min(), pts[:, 2].max()
+        box = FADE_END * half
+        eye_ls = np.array([np.clip(eye_ls[0], (lo[0] + hi[0]) / 2 - box, (lo[0] + hi[0]) / 2 + box),
+                           np.clip(eye_ls[1], (lo[1] + hi[1]) / 2 - box, (lo[1] + hi[1]) / 2 + box),
+                           np.clip(eye_ls[2], zlo - FADE_END * (zhi - zlo), zhi + FADE_END * (zhi - zlo))])
     if options.middle_vector:
         mv = volume_centroid(body) - eye
         s = _sin_to(mv, ell)
@@ -240,6 +249,11 @@ def frame_geometry(view: View, light: Light, frame: LightFrame, options: WarpOpt
             mh = t[:, :3] @ mv
             v = (mh[:2] * eh[3] - eh[:2] * mh[3]) / eh[3] ** 2
     a = v / np.linalg.norm(v) if (frame.directional and not options.middle_vector) else _blend(v, s)
+    if fade < 1.0:
+        # a fading warp also turns its axes back to the frame's, so that at fade = 0 the map is
+        # exactly the frame's uniform map (the fallback used behind the light plane)
+        alpha = fade * math.atan2(a[0], a[1])
+        a = np.array([math.sin(alpha), math.cos(alpha)])
     b = np.array([a[1], -a[0]])
     h = pts[:, :2] @ a
     h_min = float(h.min())
