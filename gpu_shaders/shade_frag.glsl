@@ -26,22 +26,24 @@ vec4 lixel_fetch(int i, ivec2 t)
   }
 }
 
-bool lixel_region_contains(LixelMap m, vec3 p)
+/* Maps are read in place (lixel.maps[i].member): copying a LixelMap (with its
+ * polygon) per fragment is slow on software rasterizers. */
+bool lixel_region_contains(int i, vec3 p)
 {
-  int nv = int(m.range.w);
+  int nv = int(lixel.maps[i].range.w);
   if (nv == 0) {
     return true;
   }
-  vec3 n = m.plane.xyz;
-  float tol = m.extra.x;
-  float dist = dot(n, p) - m.plane.w;
+  vec3 n = lixel.maps[i].plane.xyz;
+  float tol = lixel.maps[i].extra.x;
+  float dist = dot(n, p) - lixel.maps[i].plane.w;
   if (abs(dist) > tol) {
     return false;
   }
   vec3 q = p - dist * n;
   for (int j = 0; j < nv; j++) {
-    vec3 a = m.polygon[j].xyz;
-    vec3 b = m.polygon[(j + 1) % nv].xyz;
+    vec3 a = lixel.maps[i].polygon[j].xyz;
+    vec3 b = lixel.maps[i].polygon[(j + 1) % nv].xyz;
     if (dot(cross(b - a, q - a), n) < -tol * length(b - a)) {
       return false;
     }
@@ -62,9 +64,9 @@ void main()
     if (h.w <= 0.0) continue;
     vec3 c = h.xyz / h.w;
     if (any(greaterThan(abs(c), vec3(1.0)))) continue;
-    LixelMap m = lixel.maps[i];
-    if (m.range.z > 0.5 && (eye_depth < m.range.x || eye_depth > m.range.y)) continue;
-    if (!lixel_region_contains(m, P)) continue;
+    vec4 range = lixel.maps[i].range;
+    if (range.z > 0.5 && (eye_depth < range.x || eye_depth > range.y)) continue;
+    if (!lixel_region_contains(i, P)) continue;
     index = i;
     ndc = c;
     break;
@@ -73,10 +75,10 @@ void main()
   float shadow = 0.0;
   float texels_per_pixel = 0.0;
   if (index >= 0) {
-    LixelMap m = lixel.maps[index];
-    ivec2 size = ivec2(m.info.xy);
-    bool greater = m.info.z > 0.5;
-    float z = m.info.w > 0.5 ? dot(m.depth_row, vec4(P, 1.0)) : ndc.z;
+    vec4 info = lixel.maps[index].info;
+    ivec2 size = ivec2(info.xy);
+    bool greater = info.z > 0.5;
+    float z = info.w > 0.5 ? dot(lixel.maps[index].depth_row, vec4(P, 1.0)) : ndc.z;
     float d = z * 0.5 + 0.5;
     float ref = greater ? 1.0 - d : d;
     vec2 tc = (ndc.xy * 0.5 + 0.5) * vec2(size);

@@ -33,10 +33,15 @@ DEFAULT_AMBIENT = (0.05, 0.05, 0.05)
 """World colour when none is given (Blender's default world)."""
 
 
-def _sync(fb) -> None:
-    """Wait for the GPU (no gpu.finish in the API: read one pixel)."""
+def _sync(fb, color: bool = False) -> None:
+    """Wait for the GPU (no gpu.finish in the API: read one pixel). Mesa's
+    llvmpipe finishes only what the read depends on: read colour after a pass
+    that writes colour but not depth."""
     with fb.bind():
-        fb.read_depth(0, 0, 1, 1)
+        if color:
+            fb.read_color(0, 0, 1, 1, 4, 0, "FLOAT")
+        else:
+            fb.read_depth(0, 0, 1, 1)
 
 
 def _buffer(array: np.ndarray):
@@ -408,13 +413,12 @@ def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, setti
     t = time.perf_counter()
     keys = mdsm_pass(maps, setup, shadow) if shadow.mdsm_depths > 1 else None
     if keys:
-        with keys[-1][1].bind():
-            keys[-1][1].read_color(0, 0, 1, 1, 4, 0, "FLOAT")
+        _sync(keys[-1][1], color=True)
     timings["mdsm"] = time.perf_counter() - t
 
     t = time.perf_counter()
     fb, _ = shading_pass(view, light, setup, shadow, geometry, receivers, batches, keys or maps, (w, h), albedo)
-    _sync(fb)
+    _sync(fb, color=True)
     timings["shading"] = time.perf_counter() - t
 
     t = time.perf_counter()

@@ -192,6 +192,22 @@ def pick_light(scene, depsgraph=None, active=None):
     raise WarpError(f"Scene '{scene.name}' has no light: add a Sun, Point, Spot or Area light (Add > Light)")
 
 
+def evaluated_depsgraph(scene, view_layer=None):
+    """The evaluated depsgraph of any scene (not only the window's): the view
+    layer's own, created through a context override when it does not exist yet
+    (a scene never shown has none)."""
+    import bpy
+    view_layer = view_layer or scene.view_layers[0]
+    if bpy.context.scene == scene and bpy.context.view_layer == view_layer:
+        return bpy.context.evaluated_depsgraph_get()
+    dg = view_layer.depsgraph
+    if dg is None:
+        with bpy.context.temp_override(scene=scene, view_layer=view_layer):
+            return bpy.context.evaluated_depsgraph_get()
+    dg.update()
+    return dg
+
+
 def _resolve(obj_or_name):
     if isinstance(obj_or_name, str):
         import bpy
@@ -225,8 +241,7 @@ def describe_scene(context_or_scene, depsgraph=None, camera=None, light=None,
         scene = context_or_scene
         view_layer = depsgraph.view_layer if depsgraph is not None else scene.view_layers[0]
         if depsgraph is None:
-            depsgraph = scene.view_layers[0].depsgraph if bpy.context.scene != scene else bpy.context.evaluated_depsgraph_get()
-            depsgraph.update()
+            depsgraph = evaluated_depsgraph(scene, view_layer)
     active = view_layer.objects.active if view_layer is not None else None
 
     cam = _resolve(camera) if camera is not None else scene.camera

@@ -430,3 +430,25 @@ def test_too_many_maps_is_a_clear_error(lx, scene):
     setup.maps = setup.maps * 9
     with pytest.raises(lx.types.WarpError, match="at most 8"):
         lx.pipeline.render_shadows(view, lt, setup, lx.geometry.GeometryCache().update(dg))
+
+
+def test_eye_space_blur_is_strongest_near_the_viewer(lx):
+    """Scherzer §4.3: near shadows are blurred most, distant detail is kept."""
+    h, w = 40, 80
+    shadow = np.zeros((h, w), np.float32)
+    shadow[:, 40:] = 1.0                                   # one vertical shadow edge
+    depth = np.repeat(np.linspace(1.0, 10.0, h)[:, None], w, 1).astype(np.float32)  # row 0 nearest
+    covered = np.ones((h, w), bool)
+    out = lx.pipeline.eye_space_blur(shadow, depth, covered, 6.0)
+    width = lambda row: int(((out[row] > 0.01) & (out[row] < 0.99)).sum())  # noqa: E731
+    assert width(0) >= 10 and width(h - 1) <= 2 and width(0) > width(h // 2) >= width(h - 1)
+    np.testing.assert_array_equal(lx.pipeline.eye_space_blur(shadow, depth, covered, 0.0), shadow)
+
+
+def test_eye_blur_setting_reaches_the_render(lx, scene):
+    shadow_scene(scene, "SUN")
+    sharp, *_ = render(lx, scene, "uniform", 512, shadow=dict(pcf_kernel=1))
+    soft, *_ = render(lx, scene, "uniform", 512, shadow=dict(pcf_kernel=1, eye_blur=4.0))
+    partial = lambda o: int(((o["shadow_mask"] > 0.01) & (o["shadow_mask"] < 0.99)).sum())  # noqa: E731
+    assert partial(sharp) == 0 and partial(soft) > 100
+    np.testing.assert_array_equal(soft["shadow_raw"], sharp["shadow_raw"])
