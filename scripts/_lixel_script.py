@@ -1,0 +1,205 @@
+"""What the background scripts share: argument parsing in both ways of running,
+loading the .blend, registering Lixel (so the file's Lixel settings apply) and
+unregistering it before exit (Blender 4.2 crashes at exit otherwise).
+
+Two ways to run every script::
+
+    blender -b file.blend --python scripts/X.py -- [args]
+    python scripts/X.py file.blend [args]          # with the bpy module
+
+Arguments come after ``--`` when it is present, else after the script name.
+Bad arguments print the usage and exit with status 2; a scene Lixel cannot
+handle (no camera, no light, ...) prints ``lixel: error: ...`` and exits 1.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+import os
+import sys
+import traceback
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = "lixel"
+"""The package name this checkout is imported under when Blender has not
+already enabled Lixel as an extension."""
+
+
+class ScriptError(Exception):
+    """A problem with the scene, reported as ``lixel: error: ...`` (exit status 1)."""
+
+
+def script_args(argv=None) -> tuple[list, bool]:
+    """(arguments, inside_blender): the arguments after ``--`` if present (Blender's
+    convention), else everything after the script."""
+    argv = list(sys.argv if argv is None else argv)
+    if "--" in argv:
+        return argv[argv.index("--") + 1:], True
+    return argv[1:], False
+
+
+def base_parser(prog: str, description: str) -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog=prog, description=description,
+        epilog=f"Run as: blender -b FILE.blend --python scripts/{prog} -- [options]  or  "
+               f"python scripts/{prog} FILE.blend [options]")
+    p.add_argument("blend", nargs="?", help="the .blend file (optional inside Blender, where -b loaded it)")
+    p.add_argument("--scene", help="scene name (default: the file's active scene)")
+    p.add_argument("--camera", help="camera object (default: the scene camera)")
+    p.add_argument("--light", help="light object (default: the scene's Lixel light, else the active light, "
+                                   "else the first sun)")
+    p.add_argument("--size", type=int, help="shadow map size in texels per side (default: the scene's setting)")
+    return p
+
+
+def parse(parser: argparse.ArgumentParser, argv=None):
+    """Parse and check the arguments; errors print usage and exit 2."""
+    args_list, inside = script_args(argv)
+    args = parser.parse_args(args_list)
+    if args.blend is None and not inside:
+        parser.error("the .blend file is required (python scripts/X.py FILE.blend ...)")
+    if args.blend is not None:
+        if not args.blend.endswith(".blend"):
+            parser.error(f"{args.blend!r} is not a .blend file")
+        if not os.path.isfile(args.blend):
+            parser.error(f"no such .blend file: {args.blend}")
+    if args.size is not None and not 1 <= args.size <= 16384:
+        parser.error(f"--size {args.size} is out of range: use 1..16384 texels per side")
+    return args
+
+
+class Session:
+    """Opens the file, registers Lixel if Blender has not, and always unregisters."""
+
+    def __init__(self, args):
+        self.args = args
+        self.package = None
+        self.registered = False
+
+    def __enter__(self):
+        import bpy
+        self.bpy = bpy
+        if hasattr(bpy.types.Scene, "lixel"):  # Lixel already enabled in this Blender: use its registration
+            self.package = _import_checkout()
+        else:
+            self.package = _import_checkout()
+            self.package.register()
+            self.registered = True
+        try:
+            if self.args.blend is not None:
+                try:
+                    bpy.ops.wm.open_mainfile(filepath=os.path.abspath(self.args.blend))
+                except RuntimeError as exc:
+                    raise ScriptError(f"cannot open {self.args.blend}: {str(exc).strip()} (a file saved by a newer "
+                                      f"Blender cannot be read by an older one)") from None
+            elif not bpy.data.filepath:
+                raise ScriptError("no .blend file is loaded: pass one (blender -b FILE.blend --python ...)")
+        except BaseException:
+            self.__exit__(None, None, None)
+            raise
+        return self
+
+    def __exit__(self, *exc):
+        if self.registered:
+            self.package.unregister()
+            self.registered = False
+        return False
+
+    def module(self, name: str):
+        return importlib.import_module(f"{self.package.__name__}.{name}")
+
+    def scene(self):
+        bpy = self.bpy
+        if self.args.scene:
+            sc = bpy.data.scenes.get(self.args.scene)
+            if sc is None:
+                raise ScriptError(f"there is no scene named '{self.args.scene}' "
+                                  f"(scenes: {', '.join(s.name for s in bpy.data.scenes)})")
+            if bpy.context.window is not None:
+                bpy.context.window.scene = sc
+            return sc
+        return bpy.context.scene
+
+    def objects(self, scene):
+        """(camera, light) objects from --camera/--light, or None for the scene's choice."""
+        bpy = self.bpy
+        out = []
+        for opt, kind in ((self.args.camera, "CAMERA"), (self.args.light, "LIGHT")):
+            if opt is None:
+                out.append(None)
+                continue
+            ob = bpy.data.objects.get(opt)
+            if ob is None:
+                raise ScriptError(f"there is no object named '{opt}'")
+            if ob.type != kind:
+                raise ScriptError(f"object '{opt}' is a {ob.type.lower()}, not a {kind.lower()}")
+            out.append(ob)
+        return tuple(out)
+
+    def settings(self, scene, method=None):
+        """The scene's LixelSettings with --size and ``method`` applied."""
+        from dataclasses import replace
+        live = self.module("addon.ui.live")
+        settings = live.scene_settings(scene)
+        if method is not None:
+            settings = replace(settings, method=method)
+        if self.args.size is not None:
+            settings = replace(settings, warp=replace(settings.warp, shadow_map_size=(self.args.size, self.args.size)))
+        return settings
+
+    def state(self, scene, settings):
+        """The live state for the scene (camera/light from the arguments); ScriptError on failure."""
+        live = self.module("addon.ui.live")
+        camera, light = self.objects(scene)
+        depsgraph = self.bpy.context.evaluated_depsgraph_get()
+        st = live.update(scene, depsgraph, settings=settings, camera=camera, light_obj=light, changed=None,
+                         active=self.bpy.context.view_layer.objects.active)
+        if st.error:
+            raise ScriptError(st.error)
+        return st
+
+
+def _import_checkout():
+    """This checkout as the package ``lixel`` (its modules use relative imports)."""
+    if PACKAGE in sys.modules:
+        return sys.modules[PACKAGE]
+    spec = importlib.util.spec_from_file_location(PACKAGE, ROOT / "__init__.py",
+                                                  submodule_search_locations=[str(ROOT)])
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[PACKAGE] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def run(main) -> None:
+    """Run ``main()``; map ScriptError and the warp core's errors to exit status 1.
+
+    The process ends with ``os._exit`` after flushing: the Blender 4.2 bpy module
+    segfaults at interpreter exit once a class with Python property callbacks
+    (``update=``, ``poll=``) has been registered, even after it was unregistered
+    (measured; 5.0 exits cleanly). Everything is unregistered and every file
+    closed before this point.
+    """
+    try:
+        code = main()
+    except SystemExit as exc:  # argparse errors (status 2) and explicit exits
+        code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+        if exc.code is not None and not isinstance(exc.code, int):
+            print(exc.code, file=sys.stderr)
+    except ScriptError as exc:
+        print(f"lixel: error: {exc}", file=sys.stderr)
+        code = 1
+    except ValueError as exc:  # WarpError is a ValueError with a message for the user
+        if type(exc).__name__ in ("WarpError", "EmptyBodyError", "GPUUnavailableError", "ShaderBuildError"):
+            print(f"lixel: error: {exc}", file=sys.stderr)
+        else:
+            traceback.print_exc()
+        code = 1
+    except Exception:  # a bug: show it, and still end cleanly
+        traceback.print_exc()
+        code = 1
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code or 0)

@@ -1,0 +1,155 @@
+"""The background scripts run both ways - ``python scripts/X.py file.blend args``
+with the bpy module, and as Blender runs them (``blender -b file.blend --python
+scripts/X.py -- args``, reproduced with the bpy module: the file is opened first
+and the arguments follow ``--``) - with good arguments (correct output) and bad
+ones (usage, non-zero exit), on both Blender versions, exiting cleanly."""
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import bpy
+import numpy as np
+import pytest
+
+from ui_scenes import active_scene
+
+ROOT = Path(__file__).resolve().parents[2]
+SCRIPTS = ROOT / "scripts"
+
+BLENDER_MODE = """
+import runpy, sys
+import bpy
+bpy.ops.wm.open_mainfile(filepath=sys.argv[1])
+script = sys.argv[2]
+sys.argv = ["blender", "-b", sys.argv[1], "--python", script, "--"] + sys.argv[3:]
+runpy.run_path(script, run_name="__main__")
+"""
+
+
+@pytest.fixture(scope="module")
+def blend(tmp_path_factory, lixel):
+    """A tiny .blend: ground, cube, camera moving over 5 frames, sun."""
+    path = tmp_path_factory.mktemp("blends") / "tiny.blend"
+    with active_scene("tiny") as scene:
+        cam = scene.camera
+        cam.keyframe_insert("location", frame=1)
+        cam.location.x -= 3.0
+        cam.keyframe_insert("location", frame=5)
+        scene.frame_start, scene.frame_end = 1, 5
+        scene.lixel.pcf_kernel = 1
+        bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    return path
+
+
+def run(mode, script, blend_path, *args, timeout=240):
+    env = dict(os.environ)
+    scratch = Path(blend_path).parent if blend_path else Path(tempfile.gettempdir())
+    env.setdefault("XDG_CACHE_HOME", str(scratch / "xdg"))
+    env.setdefault("BLENDER_USER_RESOURCES", str(scratch / "user"))
+    script_path = str(SCRIPTS / script)
+    if mode == "module":
+        cmd = [sys.executable, script_path] + ([str(blend_path)] if blend_path else []) + list(args)
+    else:
+        cmd = [sys.executable, "-c", BLENDER_MODE, str(blend_path), script_path] + list(args)
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env, cwd=str(ROOT))
+
+
+MODES = ["module", "blender"]
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_export_animation(mode, blend, tmp_path):
+    out = tmp_path / "anim.json"
+    r = run(mode, "export_animation.py", blend, "--output", str(out), "--frames", "1:5:2", "--method", "uniform")
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(out.read_text())
+    assert doc["scene"] == "tiny" and doc["method"] == "uniform"
+    assert [f["frame"] for f in doc["frames"]] == [1, 3, 5]
+    first, last = doc["frames"][0], doc["frames"][-1]
+    assert set(first) == {"frame", "maps", "diagnostics"}
+    # the camera moves, so the (camera-fitted) matrices differ between frames
+    assert not np.allclose(first["maps"][0]["matrix"], last["maps"][0]["matrix"])
+    # B (diagnostics) contains the cube's top corners seen from every frame: it is B of the scene, in world space
+    for f in doc["frames"]:
+        body = np.array(f["diagnostics"]["body_vertices"])
+        assert body[:, 2].max() >= 1.0 - 1e-6 and body[:, 2].min() <= 1e-6
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_render_method_writes_pictures_and_json(mode, blend, tmp_path):
+    png, mask, js = tmp_path / "r.png", tmp_path / "mask.png", tmp_path / "r.json"
+    r = run(mode, "render_method.py", blend, "--method", "lispsm", "--resolution", "48x27", "--size", "256",
+            "--output", str(png), "--shadow-output", str(mask), "--json", str(js))
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(js.read_text())
+    assert set(doc) == {"maps", "diagnostics"} and doc["maps"][0]["size"] == [256, 256]
+    assert doc["diagnostics"]["method"] == "lispsm"
+    img = bpy.data.images.load(str(mask))
+    try:
+        assert tuple(img.size) == (48, 27)
+        px = np.empty(48 * 27 * 4, dtype=np.float32)
+        img.pixels.foreach_get(px)
+        shadowed = px.reshape(27, 48, 4)[..., 0] > 0.5
+        assert 0 < shadowed.sum() < shadowed.size  # the cube's shadow is there, not everything
+    finally:
+        bpy.data.images.remove(img)
+    assert png.stat().st_size > 0
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_compare_methods_numbers_only(mode, blend, tmp_path):
+    out = tmp_path / "cmp"
+    r = run(mode, "compare_methods.py", blend, "--output-dir", str(out), "--no-render", "--methods", "uniform,lispsm")
+    assert r.returncode == 0, r.stderr
+    doc = json.loads((out / "comparison.json").read_text())
+    assert list(doc["methods"]) == ["uniform", "lispsm"]
+    assert doc["methods"]["lispsm"]["n_opt"] > 0
+    assert "uniform" in r.stdout and "lispsm" in r.stdout
+
+
+def test_compare_methods_renders_each(blend, tmp_path):
+    out = tmp_path / "cmp"
+    r = run("module", "compare_methods.py", blend, "--output-dir", str(out), "--longest", "32",
+            "--methods", "uniform,psm")
+    assert r.returncode == 0, r.stderr
+    assert (out / "uniform.png").is_file() and (out / "psm.png").is_file() and (out / "comparison.png").is_file()
+
+
+BAD = [
+    ("render_method.py", ["--method", "nope", "--output", "x.png"], "choose one of"),
+    ("render_method.py", ["--output", "x.png", "--size", "100000"], "out of range"),
+    ("render_method.py", ["--output", "x.png", "--resolution", "big"], "WxH"),
+    ("render_method.py", [], "nothing to write"),
+    ("export_animation.py", ["--output", "x.json", "--frames", "5:1"], "START <= END"),
+    ("export_animation.py", ["--frames", "1:2"], "--output"),
+    ("compare_methods.py", ["--output-dir", "d", "--methods", "uniform,bogus"], "unknown bogus"),
+    ("compare_methods.py", ["--output-dir", "d", "--bogus-flag"], "unrecognized arguments"),
+]
+
+
+@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize("script,args,message", BAD)
+def test_bad_arguments_print_usage_and_fail(mode, blend, tmp_path, script, args, message):
+    r = run(mode, script, blend, *args)
+    assert r.returncode == 2, (r.returncode, r.stderr)
+    assert "usage:" in r.stderr and message in r.stderr
+
+
+def test_missing_blend_file(tmp_path):
+    r = run("module", "render_method.py", None, "--output", "x.png")
+    assert r.returncode == 2 and "the .blend file is required" in r.stderr
+    r = run("module", "render_method.py", tmp_path / "missing.blend", "--output", "x.png")
+    assert r.returncode == 2 and "no such .blend file" in r.stderr
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_scene_problems_are_errors_not_tracebacks(mode, blend, tmp_path):
+    r = run(mode, "render_method.py", blend, "--camera", "tiny light", "--json", str(tmp_path / "x.json"))
+    assert r.returncode == 1
+    assert "lixel: error: object 'tiny light' is a light, not a camera" in r.stderr
+    assert "Traceback" not in r.stderr
+    r = run(mode, "export_animation.py", blend, "--scene", "nope", "--output", str(tmp_path / "y.json"))
+    assert r.returncode == 1 and "there is no scene named 'nope'" in r.stderr
