@@ -26,8 +26,11 @@ DEFINITIONS = [
                   "fraction where the method's state changes."),
     ("footprint", "screen pixels spanned by one texel in its worst direction (largest singular value of the "
                   "texel-to-pixel Jacobian on the surface); above 1 means blocky shadow edges."),
-    ("m_min", "Lloyd's physical limit: the smallest maximum footprint any parameterization can reach with the "
-              "method's texel count N, sqrt(N_min / N); max/m_min = how far the method is from it."),
+    ("m_min", "Lloyd's physical limit: the smallest maximum perspective footprint any parameterization can reach "
+              "with the method's texel count N, sqrt(N_min / N). persp max/m_min: the method's largest perspective "
+              "footprint (pixel density K/z² needed over texel density given, both on the plane perpendicular to the "
+              "light, so the surface orientation drops out) over that limit; 1 is the best possible over the whole "
+              "frustum (a method can go below 1 on the visible part only)."),
     ("times", "Lixel: CPU setup (warp matrices and body), depth pass, shading pass on the GPU (llvmpipe here); "
               "peers: one render with shadows (EEVEE's first render, which compiles shaders, is not counted)."),
 ]
@@ -46,7 +49,7 @@ def _num(x, fmt="{:.2f}"):
 
 
 TABLE_HEAD = ["method", "map", "status", "error %", "false shadow", "false light", "edge %", "flicker %",
-              "fp max", "fp p95", "fp mean", "fp>1 %", "m_min", "max/m_min", "setup ms", "depth ms",
+              "fp max", "fp p95", "fp mean", "fp>1 %", "m_min", "persp max/m_min", "setup ms", "depth ms",
               "shading ms", "total ms", "excluded"]
 
 
@@ -144,7 +147,8 @@ def write(result: dict, out: Path, progress=print, readme_picture: Path | None =
     if readme_picture is not None:
         for scene in result["scenes"]:
             if scene.get("status") == "ok" and any(m.get("status") == "ok" for m in scene["methods"]):
-                size = max(m["size"] for m in scene["methods"])
+                sizes = sorted({m["size"] for m in scene["methods"] if m.get("status") == "ok"})
+                size = sizes[len(sizes) // 2]
                 readme_picture.parent.mkdir(parents=True, exist_ok=True)
                 methods = list(dict.fromkeys(m["method"] for m in scene["methods"]))
                 figures.comparison(scene, methods, size, readme_picture)
@@ -161,6 +165,8 @@ def _header(result: dict) -> tuple[str, list[str]]:
              f"{', '.join(str(s) for s in o['sizes'])}; {o['resolution'][0]}×{o['resolution'][1]} pixels; "
              f"{o['frames']} frame(s) of camera animation; EEVEE {o['eevee_samples']} spp, Cycles {o['cycles_samples']} spp "
              f"(direct light only). Took {result.get('seconds', 0):.0f} s."]
+    if o["quick"]:
+        lines.append("Quick run: EEVEE's time is its first render, shader compilation included.")
     return title, lines
 
 

@@ -74,10 +74,12 @@ def _render_to_array(scene, path: str) -> tuple[np.ndarray, float]:
     return lum.astype(np.float64), dt
 
 
-def render_shadow_term(scene, light_obj, peer: str, samples: int = 1) -> PeerResult:
+def render_shadow_term(scene, light_obj, peer: str, samples: int = 1, timed_rerender: bool = True) -> PeerResult:
     """Render ``scene`` with ``peer`` ("eevee" or "cycles") twice and return its shadow term.
     The scene's render settings are restored afterwards (materials via the view
-    layer override, which is cleared)."""
+    layer override, which is cleared). ``timed_rerender``: render EEVEE once more
+    to time it without its shader compilation (otherwise the first render's
+    time is reported)."""
     import bpy
     r = scene.render
     saved = dict(engine=r.engine, filepath=r.filepath, fmt=r.image_settings.file_format,
@@ -119,7 +121,7 @@ def render_shadow_term(scene, light_obj, peer: str, samples: int = 1) -> PeerRes
         light_obj.data.use_shadow = False
         open_, _ = _render_to_array(scene, os.path.join(tmp, "open.exr"))
         seconds = t_first
-        if peer == "eevee":  # the first EEVEE render compiles shaders: time a second one
+        if peer == "eevee" and timed_rerender:  # the first EEVEE render compiles shaders: time a second one
             light_obj.data.use_shadow = True
             shadowed, seconds = _render_to_array(scene, os.path.join(tmp, "shadowed2.exr"))
         lit = open_ > 1e-4 * max(float(open_.max()), 1e-12)

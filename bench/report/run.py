@@ -110,6 +110,7 @@ def comparable_mask(gt, result, tol_rel=2e-3) -> np.ndarray:
 def run_scene(name: str, opts: Options, progress, workdir: Path) -> dict:
     import bpy
     from addon.measure import classify, flicker, footprint_stats, lloyd, setup_footprints
+    from addon.measure.footprint import perspective_footprints
     from addon.scene.describe import describe_scene, pick_light
     from addon.scene.geometry import GeometryCache
     from addon.settings import ShadowSettings
@@ -217,11 +218,12 @@ def run_scene(name: str, opts: Options, progress, workdir: Path) -> dict:
                             excluded_pixels=int((gt.valid & ~comp).sum()),
                             fallbacks=[list(x) for x in setup.diagnostics.fallbacks],
                         )
+                        persp = footprint_stats(perspective_footprints(view, light, setup, gt.points[gt.valid]))
+                        rec["perspective_footprint"] = persp.to_json()
                         if out.get("n_min"):
                             mm = lloyd.m_min(out["n_min"], texels)
                             rec["m_min"] = mm
-                            rec["max_over_limit"] = stats.max / mm if mm > 0 else None
-                            rec["p95_over_limit"] = stats.p95 / mm if mm > 0 else None
+                            rec["max_over_limit"] = persp.max / mm if mm > 0 else None
                         rec["_images"] = {"render": res["combined"][..., 0], "shadow": sh, "comparable": comp,
                                           "footprint": fp_img, "maps": res["shadow_maps"][:4],
                                           "map_roles": [m.role for m in setup.maps][:4]}
@@ -245,7 +247,7 @@ def run_scene(name: str, opts: Options, progress, workdir: Path) -> dict:
         out["peers"].append(rec)
         try:
             samples = opts.eevee_samples if peer == "eevee" else opts.cycles_samples
-            res = P.render_shadow_term(scene, light_obj, peer, samples=samples)
+            res = P.render_shadow_term(scene, light_obj, peer, samples=samples, timed_rerender=not opts.quick)
             comp = gt.valid & res.lit
             errs = classify(res.shadow, gt.shadow, comp, opts.band_radius)
             rec.update(samples=samples, total_ms=1000 * res.seconds, first_render_ms=1000 * res.seconds_first,

@@ -68,3 +68,23 @@ def test_footprint_stats():
     assert s.mean == pytest.approx(3.5 / 3)
     m = footprint_stats(np.array([0.5, 3.0]), mask=np.array([True, False]))
     assert (m.max, m.count, m.frac_above_1) == (0.5, 1, 0.0)
+
+
+def test_perspective_footprint_removes_the_surface_orientation():
+    # top-down camera, sun straight down, uniform map: on the ground the perspective factor
+    # equals the plain footprint; on a wall (normal along x) the plain footprint is infinite
+    # (texels edge-on) but the perspective factor is finite and matches Lloyd's density ratio.
+    from addon.measure.footprint import perspective_footprints
+    from addon.warp.types import Light
+    view = _top_down_view(10.0, 60, (400, 400))
+    setup = ShadowSetup([ShadowMap(_uniform_sun_map(20.0, 512), (512, 512))], Diagnostics("uniform"))
+    sun = Light("SUN", direction=[0, 0, -1])
+    ground = np.array([[1.0, 2.0, 0.0]])
+    wall = np.array([[1.0, 2.0, 4.0]])
+    lin, _ = setup_footprints(view, setup, ground, np.array([[0, 0, 1.0]]))
+    persp = perspective_footprints(view, sun, setup, np.vstack([ground, wall]))
+    assert persp[0] == pytest.approx(lin[0], rel=1e-9)
+    lin_wall, _ = setup_footprints(view, setup, wall, np.array([[1.0, 0, 0]]))
+    assert not np.isfinite(lin_wall[0]) or lin_wall[0] > 1e6
+    # at eye depth 6 the needed pixel density is (10/6)^2 times that at depth 10
+    assert persp[1] == pytest.approx(lin[0] * 10 / 6, rel=1e-9)
