@@ -62,7 +62,9 @@ def run(view, light, sc=None, **opts):
     sc = scene() if sc is None else sc
     options = WarpOptions(**{"shadow_map_size": (2048, 2048), "planes": (FLOOR_PLANE,), **opts})
     body = intersection_body(view, light, sc)
-    return compute("plane_optimal", view, light, sc, options, body=body), body
+    setup = compute("plane_optimal", view, light, sc, options, body=body)
+    setup.inputs = (light, sc)   # test bookkeeping: what the setup was computed for
+    return setup, body
 
 
 def try_run(view, light, sc=None, **opts):
@@ -132,3 +134,36 @@ def body_samples(body, count=800, seed=1) -> np.ndarray:
     v = body.vertices
     wts = rng.dirichlet(np.full(len(v), 0.3), size=count)
     return np.concatenate([v, wts @ v])
+
+
+def check_coverage(view, light, sc, setup, body, samples=(160, 90)):
+    """The coverage rule, measured independently (``addon.measure.box_scene``):
+    every visible point of the box scene (ray-cast from a pixel grid) is served
+    by a map (w > 0, NDC in [-1, 1]), every caster box crossing its shadow ray
+    lies in that same map with a nearer depth, and every point of B on the
+    shadow ray of a visible point lies in the serving map's clip volume: the
+    plane maps hold what shadows their region, the fallback the rest of B."""
+    from addon.measure.box_scene import judge, visible_points
+    verdict = judge(view, light, sc, setup, samples)
+    assert verdict.visible > 0
+    assert verdict.uncovered == 0, f"{verdict.uncovered} of {verdict.visible} visible points unserved"
+    assert verdict.casters_uncovered == 0, f"{verdict.casters_uncovered} casters outside their receiver's map"
+    assert verdict.depth_order_wrong == 0
+    pts, _ = visible_points(view, sc, samples)
+    if light.type == "SPOT":
+        lit = light.rays_to(pts) @ light.direction >= math.cos(light.spot_angle / 2)
+        pts = pts[lit]
+    idx = setup.map_index(pts, view)
+    rng = np.random.default_rng(7)
+    t = rng.uniform(0, 1, size=len(pts))
+    if light.is_directional:
+        reach = np.abs(body.vertices - view.position).max() * 4
+        ray_pts = pts - (t * reach)[:, None] * light.direction
+    else:
+        ray_pts = light.position + t[:, None] * (pts - light.position)
+    ok = body.contains(ray_pts, tol=0.0)
+    for i, m in enumerate(setup.maps):
+        sel = ok & (idx == i)
+        if sel.any():
+            assert np.all(m.contains(ray_pts[sel], 1e-9)), f"{m.role}: points of B on shadow rays outside the map"
+    return verdict

@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from addon.warp import WarpError, WarpOptions
 from addon.warp.plane_map import (PlaneOfInterest, default_plane, five_point_matrix, min_area_twist, plane_light_rows,
                                   plane_section, rotation2d)
-from plane_optimal_helpers import (FLOOR_PLANE, body_samples, camera, camera_yaw_pitch, homography_jacobian, ndc,
+from plane_optimal_helpers import (FLOOR_PLANE, check_coverage, camera, camera_yaw_pitch, homography_jacobian, ndc,
                                    pixel_to_texel_homography, plane_maps, point, region_pixels, run, scene, sun,
                                    sun_at, try_run)
 
@@ -212,17 +212,8 @@ def test_coverage_region_casters_and_the_rest_of_b(name):
     dr, _ = ndc(m.matrix, pts[sel])
     assert np.all(dc[:, 2] <= dr[:, 2] + 1e-12)                         # caster nearer the light
     assert np.allclose(dc[:, :2], dr[:, :2], atol=1e-9)                 # on the same texel ray
-    # the fallback covers the rest of B
-    samples = body_samples(body)
-    got = setup.map_index(samples, view)
-    assert np.all(got >= 0)
-    in_region = m.region.contains(samples)
-    for i in np.unique(got[~in_region]):
-        assert setup.maps[i].role.startswith("fallback")
-    for i in np.unique(got):
-        mm = setup.maps[i]
-        d, w = ndc(mm.matrix, samples[got == i])
-        assert np.all(w > 0) and np.all(np.abs(d) <= 1)
+    # every visible point served, its casters and the points of B on its shadow ray in the same map
+    check_coverage(view, light, scene(), setup, body)
 
 
 def test_selection_order_and_budget_report():

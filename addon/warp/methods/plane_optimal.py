@@ -53,13 +53,13 @@ import math
 
 import numpy as np
 
-from ..body import IntersectionBody
+from ..body import BOX_PAD, IntersectionBody, hull_halfspaces, light_halfspaces
 from ..fit import ndc_bounds, window_matrix
 from ..frame import light_angles, light_frames
 from ..geometry import translation
-from ..plane_map import (PlaneOfInterest, clip_polygon, default_plane, min_area_twist, offset_polygon, plane_light_rows,
+from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_polygon, default_plane, min_area_twist, offset_polygon, plane_light_rows,
                          plane_section, polygon_area, rotation2d)
-from ..polyhedron import Plane, clip_faces, unique_points
+from ..polyhedron import ConvexPolytope, Plane, clip_faces, unique_points
 from ..types import Diagnostics, Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .uniform import frame_map
 
@@ -229,20 +229,124 @@ def _casters(grown, n, height, l_h, tol, body, origin):
         if p.distance(centre[None])[0] > 0:
             p = Plane(-p.normal, -p.offset)
         planes.append(p)
+    poly = _clip_body(body, origin, planes)
+    if poly is None:
+        return np.zeros((0, 3)), False
+    near_clamped = False
+    if l_h[3] != 0:
+        top = float(height @ l_h) / l_h[3] - NEAR_FRACTION * body.scale
+        if float((poly @ hv).max()) + h0 > top:
+            near_clamped = True
+            poly = _clip_body(body, origin, planes + [Plane(hv, top - h0)])
+            if poly is None:
+                return np.zeros((0, 3)), near_clamped
+    return poly, near_clamped
+
+
+def _clip_body(body: IntersectionBody, origin: np.ndarray, planes: list[Plane]) -> np.ndarray | None:
+    """Vertices (relative to ``origin``) of B ∩ the half-spaces, or None if empty."""
+    if getattr(body, "polytope", None) is not None and np.allclose(body.origin, origin, rtol=0, atol=0):
+        poly = body.polytope.clip(np.array([p.normal for p in planes]), np.array([p.offset for p in planes]))
+        return None if poly is None else poly.vertices
     faces = [f - origin for f in body.faces]
     for p in planes:
         faces = clip_faces(faces, p, body.tolerance)
         if not faces:
-            return np.zeros((0, 3)), False
-    near_clamped = False
-    if l_h[3] != 0:
-        top = float(height @ l_h) / l_h[3] - NEAR_FRACTION * body.scale
-        if max(float((f @ hv).max()) for f in faces) + h0 > top:
-            near_clamped = True
-            faces = clip_faces(faces, Plane(hv, top - h0), body.tolerance)
-            if not faces:
-                return np.zeros((0, 3)), near_clamped
-    return unique_points(np.concatenate(faces), body.tolerance * 10), near_clamped
+            return None
+    return unique_points(np.concatenate(faces), body.tolerance * 10)
+
+
+def _box_shown_only_on(box: np.ndarray, jobs: list[_PlaneJob], view: View, tol: float) -> bool:
+    """Whether a receiver box is, as the camera sees it, nothing but plane
+    regions: it is a slab (flat, as ``default_plane`` assumes: its faces are
+    its surfaces) and every face of it turned towards the camera lies in some
+    plane (within ``tol``) and inside that plane's extent. Such a box needs
+    no fallback (§3: C_fallback = hull(C_tot - C_planes))."""
+    lo, hi = box
+    ext = hi - lo
+    if np.sort(ext)[0] > FLAT_RATIO * np.sort(ext)[1]:
+        return False
+    # the near plane cutting into the box shows its inside
+    near = view.corners()[:4][[0, 1, 3, 2]]
+    for axis in range(3):
+        for sign, coord in ((-1.0, lo[axis]), (1.0, hi[axis])):
+            e = np.zeros(3)
+            e[axis] = sign
+            near = clip_polygon(near, Plane(e, sign * coord - tol), 0.0)
+            if len(near) == 0:
+                break
+        if len(near) == 0:
+            break
+    if len(near) >= 3:
+        return False
+    cam = view.position
+    for axis in range(3):
+        for sign, coord in ((-1.0, lo[axis]), (1.0, hi[axis])):
+            e = np.zeros(3)
+            e[axis] = sign
+            facing = (sign * (cam[axis] - coord) > tol) if not view.orthographic else (e @ -view.direction > 1e-12)
+            if not facing:
+                continue
+            corners = np.array([[(hi if (i >> k) & 1 else lo)[k] if k != axis else coord for k in range(3)]
+                                for i in range(8)])
+            if not any(_face_in_region(corners, j, tol) for j in jobs):
+                return False
+    return True
+
+
+def _face_in_region(corners: np.ndarray, job: _PlaneJob, tol: float) -> bool:
+    n, off = job.plane.normal, job.plane.offset
+    if np.any(np.abs(corners @ n - off) > tol):
+        return False
+    ext = job.plane.extent
+    if ext is None:
+        return True
+    k = len(ext)
+    centre = ext.mean(axis=0)
+    for i in range(k):
+        a, b = ext[i], ext[(i + 1) % k]
+        out = np.cross(b - a, n)
+        if out @ (centre - a) > 0:
+            out = -out
+        out = out / np.linalg.norm(out)
+        if np.any((corners - a) @ out > tol):
+            return False
+    return True
+
+
+def _fallback_body(view: View, light: Light, body: IntersectionBody, jobs: list[_PlaneJob], tol: float,
+                   diag: Diagnostics) -> IntersectionBody:
+    """The fallback's body (§3, C_fallback = hull(C_tot - C_planes)): B ∩ hull(R_f ∪ light),
+    R_f = V ∩ L ∩ the box around the receivers that are not just plane regions.
+    Every visible point off the planes and every caster that can shadow one is
+    in it. B itself when nothing can be left out."""
+    boxes = getattr(body, "receiver_boxes", None)
+    if not jobs or boxes is None or len(boxes) == 0 or getattr(body, "polytope", None) is None:
+        return body
+    keep = np.array([not _box_shown_only_on(b, jobs, view, tol) for b in boxes])
+    if keep.all() or not keep.any():
+        return body
+    origin = body.origin
+    rest = boxes[keep]
+    s_r = np.array([rest[:, 0].min(axis=0), rest[:, 1].max(axis=0)]) - origin
+    s_r = np.array([s_r[0] - BOX_PAD * body.scale, s_r[1] + BOX_PAD * body.scale])
+    v_poly = ConvexPolytope.from_corners(view.corners() - origin, body.tolerance)
+    ln, lo = light_halfspaces(light, origin)
+    eye = np.eye(3)
+    r_f = v_poly.clip(np.concatenate([-eye, eye, ln.reshape(-1, 3)]), np.concatenate([-s_r[0], s_r[1], lo]))
+    if r_f is None:
+        return body
+    l_h = _light_h(light, origin)
+    hn, ho = hull_halfspaces(r_f, l_h, body.tolerance)
+    poly = body.polytope.clip(hn, ho)
+    if poly is None:
+        return body
+    diag.extra["fallback_receivers"] = int(keep.sum())
+    return IntersectionBody(
+        vertices=poly.vertices + origin, faces=[f + origin for f in poly.faces()],
+        visible_vertices=r_f.vertices + origin, caster_mask=body.caster_mask, receiver_mask=body.receiver_mask,
+        receiver_boxes=rest, hull_planes=[], tolerance=body.tolerance, scale=body.scale, polytope=poly,
+        origin=origin)
 
 
 def _unit3(v):
@@ -344,7 +448,8 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
     maps = [_plane_map(j, s, origin, tol, options) for j in jobs]
     used = sum(m.size[0] * m.size[1] for m in maps)
 
-    frames = light_frames(view, light, body, options)
+    fb_body = _fallback_body(view, light, body, jobs, tol, diag)
+    frames = light_frames(view, light, fb_body, options)
     remaining = max(total - used, 1)
     f = math.sqrt(remaining / total)
     fb_size = (max(1, int(options.shadow_map_size[0] * f)), max(1, int(options.shadow_map_size[1] * f)))
