@@ -108,14 +108,20 @@ def _quads_and_tris(positions: np.ndarray, starts: np.ndarray, sizes: np.ndarray
     if quad.any():
         s = starts[quad]
         a, b, c, d = corners[s], corners[s + 1], corners[s + 2], corners[s + 3]
-        p = positions.astype(np.float64)
-        n1 = np.cross(p[b] - p[a], p[c] - p[a])
-        n2 = np.cross(p[c] - p[a], p[d] - p[a])
-        flip = np.einsum("ij,ij->i", n1, n2) < 0
-        t1 = np.where(flip[:, None], np.stack([b, c, d], 1), np.stack([a, b, c], 1))
-        t2 = np.where(flip[:, None], np.stack([b, d, a], 1), np.stack([a, c, d], 1))
+        pa = positions[a]
+        ac = positions[c] - pa
+        n1 = np.cross(positions[b] - pa, ac)
+        n2 = np.cross(ac, positions[d] - pa)
+        flip = np.einsum("ij,ij->i", n1, n2) < 0  # float32 is plenty for a sign
+        t1 = np.stack([a, b, c], axis=1)
+        t2 = np.stack([a, c, d], axis=1)
+        if flip.any():
+            t1[flip] = np.stack([b[flip], c[flip], d[flip]], axis=1)
+            t2[flip] = np.stack([b[flip], d[flip], a[flip]], axis=1)
         out += [t1, t2]
-    return np.concatenate(out).astype(np.int32) if out else np.zeros((0, 3), np.int32)
+    if not out:
+        return np.zeros((0, 3), np.int32)
+    return np.ascontiguousarray(np.concatenate(out), dtype=np.int32)
 
 
 def read_mesh(mesh) -> tuple[np.ndarray, np.ndarray, tuple]:

@@ -255,6 +255,21 @@ def test_shadow_is_lambert_lit_in_light_colour(lx, scene):
                                0.8 * np.array(lx.pipeline.DEFAULT_AMBIENT), atol=1e-4)
 
 
+def test_point_light_irradiance_falls_with_distance_squared(lx, scene):
+    plane(scene)
+    cam = camera(scene, (0, -7, 6), (0, 0, 0))
+    aim(cam, (0, 0, 0))
+    light(scene, "POINT", (1.0, 0.5, 3.0), energy=500.0)
+    out, view, lt, setup, dg = render(lx, scene, "uniform", 256)
+    sel = out["covered"] & (out["shadow_mask"] == 0)
+    p = out["world_position"][sel].astype(np.float64)
+    to_light = lt.position - p
+    r2 = (to_light ** 2).sum(1)
+    ndl = to_light[:, 2] / np.sqrt(r2)
+    expect = 0.8 * 500.0 / (4 * math.pi * r2) * ndl / math.pi + 0.8 * lx.pipeline.DEFAULT_AMBIENT[0]
+    np.testing.assert_allclose(out["combined"][sel][:, 0], expect, rtol=2e-3, atol=1e-5)
+
+
 def acne_scene(scene, closed=False):
     """A plane (or a 20 cm slab) whose normal is 80° from a straight-down sun."""
     if closed:
@@ -327,7 +342,7 @@ def test_mdsm_gives_more_shadow_levels_than_pcf(lx, scene, selection):
     edge_ramp_scene(scene)
     k = 3
     counts = {}
-    for n in (1, 2, 3):
+    for n in (1, 2, 3, 4):
         out, *_ = render(lx, scene, "uniform", RAMP_MAP,
                          shadow=dict(pcf_kernel=k, mdsm_depths=n, mdsm_selection=selection, mdsm_neighbourhood=3))
         lv = levels(out)
@@ -336,7 +351,7 @@ def test_mdsm_gives_more_shadow_levels_than_pcf(lx, scene, selection):
         np.testing.assert_allclose(lv * n * k * k, np.round(lv * n * k * k), atol=1e-3)
         assert len(lv) <= n * k * k + 1
     assert counts[1] <= k * k + 1
-    assert counts[2] > counts[1] and counts[3] > counts[1], counts
+    assert counts[2] > counts[1] and counts[3] > counts[1] and counts[4] > counts[1], counts
 
 
 def test_pcf_levels_follow_kernel_size(lx, scene):
