@@ -69,6 +69,11 @@ def uniform_colour_shader():
     return builtin_shader("UNIFORM_COLOR", "3D_UNIFORM_COLOR")
 
 
+def line_shader():
+    """Wide lines (uniforms ``viewportSize``, ``lineWidth``, ``color``)."""
+    return builtin_shader("POLYLINE_UNIFORM_COLOR", "3D_POLYLINE_UNIFORM_COLOR")
+
+
 _TEXEL_SHADER = None
 
 TEXEL_VERTEX = """
@@ -331,30 +336,45 @@ def line_sets(props, geometry) -> list:
 
 def draw_view():
     """POST_VIEW: B, the frusta, P and its vectors, texels/heatmap on receivers."""
-    import gpu
     try:
         scene, st = _scene_state()
         if st is None or st.geometry is None:
             return
-        props = scene.lixel
-        geometry = st.geometry
-        shader = uniform_colour_shader()
-        gpu.state.blend_set("ALPHA")
-        gpu.state.depth_test_set("LESS_EQUAL")
-        gpu.state.depth_mask_set(False)
+        region_data = bpy.context.region_data
+        if region_data is None:
+            return
+        draw_scene_overlays(scene, st, scene.lixel, np.array(region_data.perspective_matrix, dtype=np.float64))
+    except Exception:  # a draw callback must never raise into Blender's draw loop
+        log.exception("Lixel overlay drawing failed")
+
+
+def draw_scene_overlays(scene, st, props, view_projection) -> None:
+    """Draw the 3D overlays with the current GPU matrices (the built-in shader)
+    and ``view_projection`` (world -> clip, for the receiver shader)."""
+    import gpu
+    geometry = st.geometry
+    shader = uniform_colour_shader()
+    gpu.state.blend_set("ALPHA")
+    gpu.state.depth_test_set("LESS_EQUAL")
+    gpu.state.depth_mask_set(False)
+    try:
         if props.show_texels or props.show_footprint:
-            _draw_receivers(scene, st, props)
+            _draw_receivers(scene, st, props, view_projection)
         shader.bind()
         if props.show_body and len(geometry["body_triangles"]):
             batch = _cached(scene.name, "body_triangles", st.generation,
                             lambda: _tri_batch(shader, geometry["body_triangles"]))
             shader.uniform_float("color", (*COLOURS["body_face"], props.body_alpha))
             batch.draw(shader)
-        gpu.state.line_width_set(2.0)
+        lines = line_shader()
+        lines.bind()
+        lines.uniform_float("viewportSize", tuple(float(v) for v in gpu.state.viewport_get()[2:]))
+        lines.uniform_float("lineWidth", 2.0)
         for name, colour, segments in line_sets(props, geometry):
-            batch = _cached(scene.name, name, st.generation, lambda s=segments: _line_batch(shader, s))
-            shader.uniform_float("color", COLOURS[colour])
-            batch.draw(shader)
+            batch = _cached(scene.name, name, st.generation, lambda s=segments: _line_batch(lines, s))
+            lines.uniform_float("color", COLOURS[colour])
+            batch.draw(lines)
+        shader.bind()
         if props.show_warp and geometry["points"]:
             gpu.state.point_size_set(8.0)
             pts = np.array(list(geometry["points"].values()))
@@ -362,11 +382,9 @@ def draw_view():
             shader.uniform_float("color", COLOURS["point"])
             batch.draw(shader)
             gpu.state.point_size_set(1.0)
-        gpu.state.line_width_set(1.0)
+    finally:
         gpu.state.depth_test_set("NONE")
         gpu.state.blend_set("NONE")
-    except Exception:  # a draw callback must never raise into Blender's draw loop
-        log.exception("Lixel overlay drawing failed")
 
 
 def receiver_triangles(depsgraph) -> np.ndarray:
@@ -394,26 +412,27 @@ def receiver_triangles(depsgraph) -> np.ndarray:
     return np.concatenate(out) if out else np.zeros((0, 3, 3))
 
 
-def _draw_receivers(scene, st, props):
+def _draw_receivers(scene, st, props, view_projection):
+    """The texel-parity checker and/or footprint heatmap on every receiver, with
+    the receiver shader (per-fragment map selection and divide)."""
     import gpu
+    import mathutils
     from gpu_extras.batch import batch_for_shader
     shader = texel_shader()
     hit = _receivers.get(scene.name)
-    bounds_key = id(st.bounds)
-    if hit is None or hit[0] != bounds_key:
+    if hit is None or hit[0] is not st.bounds:  # re-read triangles only when the scene bounds changed
         tris = receiver_triangles(bpy.context.evaluated_depsgraph_get())
         batch = batch_for_shader(shader, "TRIS", {"pos": tris.reshape(-1, 3).astype(np.float32)}) if len(tris) else None
-        _receivers[scene.name] = hit = (bounds_key, batch)
+        _receivers[scene.name] = hit = (st.bounds, batch)
     batch = hit[1]
     if batch is None:
         return
-    import mathutils
     maps = st.setup.maps[:MAX_SHADER_MAPS]
     shader.bind()
-    shader.uniform_float("u_view_projection", bpy.context.region_data.perspective_matrix)
+    shader.uniform_float("u_view_projection", mathutils.Matrix(np.asarray(view_projection, dtype=np.float64).tolist()))
     flat = np.zeros((MAX_SHADER_MAPS, 16), dtype=np.float32)
     for i, m in enumerate(maps):
-        flat[i] = np.asarray(m.matrix, dtype=np.float64).T.ravel()
+        flat[i] = np.asarray(m.matrix, dtype=np.float64).T.ravel()  # column-major for GLSL
     shader.uniform_vector_float(shader.uniform_from_name("u_light"),
                                 gpu.types.Buffer("FLOAT", MAX_SHADER_MAPS * 16, flat.ravel()), 16, MAX_SHADER_MAPS)
     shader.uniform_float("u_size", tuple(float(v) for v in maps[0].size))
@@ -423,7 +442,6 @@ def _draw_receivers(scene, st, props):
         if on:
             shader.uniform_int("u_mode", mode)
             batch.draw(shader)
-    del mathutils
 
 
 def draw_pixel():

@@ -1,0 +1,117 @@
+"""The overlay draw code runs on a real GPU context (llvmpipe, offscreen) and
+draws what it should: B in its colour, the frusta's lines, the texel-parity
+checker (both parities, about half each) and the footprint heatmap on the
+receivers; the picture-in-picture images have the right sizes."""
+import importlib
+import os
+
+import bpy
+import numpy as np
+import pytest
+
+from ui_scenes import active_scene
+
+W, H = 96, 64
+DEBUG_PNG = os.environ.get("LIXEL_DEBUG_PNG")
+
+
+@pytest.fixture(scope="module")
+def m(lixel):
+    class M:
+        pass
+    ns = M()
+    for name in ("live", "overlays", "renders"):
+        setattr(ns, name, importlib.import_module(f"{lixel.__name__}.addon.ui.{name}"))
+    ns.geometry = importlib.import_module(f"{lixel.__name__}.addon.warp.geometry")
+    importlib.import_module(f"{lixel.__name__}.addon.gpu.context").ensure_gpu_context()
+    return ns
+
+
+def observer(m):
+    """A camera above and to the side of the test scene, looking at its centre."""
+    world_to_eye = m.geometry.look_along(np.array([9.0, -10.0, 9.0]), np.array([-9.0, 10.0, -9.0]),
+                                         np.array([0.0, 0.0, 1.0]))
+    return m.geometry.perspective_matrix(np.radians(50), W / H, 0.5, 100.0) @ world_to_eye
+
+
+def draw(m, scene, st, view_projection, **flags):
+    import gpu
+    import mathutils
+    props = scene.lixel
+    for name in ("show_body", "show_frusta", "show_warp", "show_texels", "show_footprint"):
+        setattr(props, name, flags.get(name, False))
+    offscreen = gpu.types.GPUOffScreen(W, H)
+    try:
+        with offscreen.bind():
+            fb = gpu.state.active_framebuffer_get()
+            fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+            with gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
+                gpu.matrix.load_identity()
+                gpu.matrix.load_projection_matrix(mathutils.Matrix(view_projection.tolist()))
+                m.overlays.draw_scene_overlays(scene, st, props, view_projection)
+            buf = fb.read_color(0, 0, W, H, 4, 0, "FLOAT")
+        return np.array(buf.to_list(), dtype=np.float32).reshape(H, W, 4)
+    finally:
+        offscreen.free()
+
+
+def near(img, rgb, tol=0.08):
+    return np.all(np.abs(img[..., :3] - np.asarray(rgb)) < tol, axis=-1) & (img[..., 3] > 0)
+
+
+def test_body_and_frusta_are_drawn(m):
+    with active_scene("lixel_draw") as scene:
+        st = m.live.update(scene, bpy.context.evaluated_depsgraph_get())
+        assert st.ok, st.error
+        vp = observer(m)
+        empty = draw(m, scene, st, vp)
+        assert not (empty[..., 3] > 0).any()
+        body = draw(m, scene, st, vp, show_body=True)
+        covered = body[..., 3] > 0
+        assert 0.02 < covered.mean() < 0.98
+        assert (body[covered][:, 0] > body[covered][:, 2]).all()  # orange: red over blue
+        frusta = draw(m, scene, st, vp, show_frusta=True)
+        assert near(frusta, m.overlays.COLOURS["light"][:3], 0.1).sum() > 20
+        assert near(frusta, m.overlays.COLOURS["view"][:3], 0.1).sum() > 20
+
+
+def test_texel_checker_and_heatmap_on_receivers(m):
+    with active_scene("lixel_draw_texels") as scene:
+        scene.lixel.initialised = True
+        scene.lixel.method = "uniform"
+        scene.lixel.shadow_map_size = (8, 8)  # texels much larger than pixels
+        st = m.live.update(scene, bpy.context.evaluated_depsgraph_get())
+        assert st.ok, st.error
+        vp = observer(m)
+        img = draw(m, scene, st, vp, show_texels=True)
+        if DEBUG_PNG:
+            m.renders.save_png(img, DEBUG_PNG)
+        drawn = img[..., 3] > 0
+        assert drawn.mean() > 0.1
+        # drawn at alpha 0.85 over black: a light texel reads ~0.8, a dark one ~0.1; "no map" has alpha ~0.2
+        served = img[..., 3] > 0.5
+        light = served & (img[..., 0] > 0.5)
+        dark = served & (img[..., 0] < 0.3)
+        assert served.sum() > 50 and (light | dark).sum() == served.sum()
+        assert 0.25 < dark.sum() / served.sum() < 0.75  # a checker: both parities, about as often
+        heat = draw(m, scene, st, vp, show_footprint=True)
+        hot = heat[heat[..., 3] > 0.5][:, :3]
+        assert len(hot) == served.sum()  # the same receivers are served
+        # 8x8 texels on a ~10 m ground seen over ~96 px: each texel spans several pixels -> the red end
+        assert (hot[:, 0] > hot[:, 2]).mean() > 0.9
+        scene.lixel.shadow_map_size = (4096, 4096)  # now texels are far smaller than pixels -> the blue end
+        st = m.live.update(scene, bpy.context.evaluated_depsgraph_get())
+        fine = draw(m, scene, st, vp, show_footprint=True)
+        cold = fine[fine[..., 3] > 0.5][:, :3]
+        assert (cold[:, 2] > cold[:, 0]).mean() > 0.9
+
+
+def test_picture_in_picture_images(m):
+    with active_scene("lixel_draw_pip") as scene:
+        st = m.live.update(scene, bpy.context.evaluated_depsgraph_get())
+        images = m.renders.pip_images(st, bpy.context.evaluated_depsgraph_get(), 40, True, True)
+        assert images["scene"].shape == (22, 40, 4)  # 640x360 fitted to 40 px
+        assert images["map"].shape[2] == 4 and max(images["map"].shape[:2]) <= 40
+        d = m.renders.depth_to_rgba(np.array([[0.2, 0.6], [1.0, 0.4]], dtype=np.float32))
+        assert d[0, 0, 0] > d[1, 1, 0] > d[0, 1, 0]  # nearer the light = brighter
+        np.testing.assert_allclose(d[1, 0], (0.05, 0.05, 0.15, 1.0))
