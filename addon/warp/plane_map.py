@@ -241,6 +241,11 @@ def plane_section(vertices, normal, offset: float, tol: float) -> Optional[np.nd
     return _polygon_on_plane(pts, normal, tol)
 
 
+def convex_polygon_on_plane(points, normal, tol: float) -> Optional[np.ndarray]:
+    """The convex hull (CCW about ``normal``) of points lying on one plane, or None if it has no area."""
+    return _polygon_on_plane(np.asarray(points, dtype=np.float64).reshape(-1, 3), np.asarray(normal, dtype=np.float64), tol)
+
+
 def polygon_area(poly, normal) -> float:
     poly = np.asarray(poly, dtype=np.float64)
     s = np.zeros(3)

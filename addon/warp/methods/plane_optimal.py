@@ -57,7 +57,7 @@ from ..body import BOX_PAD, IntersectionBody, hull_halfspaces, light_halfspaces
 from ..fit import ndc_bounds, window_matrix
 from ..frame import light_angles, light_frames
 from ..geometry import translation
-from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_polygon, default_plane, min_area_twist, offset_polygon, plane_light_rows,
+from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_polygon, convex_polygon_on_plane, default_plane, min_area_twist, offset_polygon, plane_light_rows,
                          plane_section, polygon_area, rotation2d)
 from ..polyhedron import ConvexPolytope, Plane, clip_faces, unique_points
 from ..types import Diagnostics, Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
@@ -145,8 +145,7 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
     poly = plane_section(body.visible_vertices - origin, n, off, body.tolerance)
     if poly is not None and plane.extent is not None:
         ext = np.asarray(plane.extent) - origin
-        from ..polyhedron import _polygon_on_plane
-        ext = _polygon_on_plane(ext, n, body.tolerance)
+        ext = convex_polygon_on_plane(ext, n, body.tolerance)
         if ext is None:
             poly = None
         else:
