@@ -41,10 +41,7 @@ class LightFrame:
     near_clamped: bool = False
 
 
-def image_up(view_direction, view_up, light_direction) -> np.ndarray:
-    """The map's +y: the view direction projected perpendicular to the light
-    (Scherzer Eq. 3, V_P = (V_light x V_eye) x V_light up to sign), blended
-    with the projected camera up when the projection vanishes."""
+def _image_up_raw(view_direction, view_up, light_direction) -> np.ndarray:
     d = normalize(light_direction)
     pv = view_direction - (view_direction @ d) * d
     pu = view_up - (view_up @ d) * d
@@ -52,9 +49,32 @@ def image_up(view_direction, view_up, light_direction) -> np.ndarray:
     up = pv.copy()
     if s < PARALLEL_BLEND and np.linalg.norm(pu) > 0:
         up = up + (PARALLEL_BLEND - s) * normalize(pu)
+    return up
+
+
+def image_up(view_direction, view_up, light_direction) -> np.ndarray:
+    """The map's +y: the view direction projected perpendicular to the light
+    (Scherzer Eq. 3, V_P = (V_light x V_eye) x V_light up to sign), blended
+    with the projected camera up when the projection vanishes.
+
+    The blend is continuous everywhere except at one point per camera roll:
+    where the projected view direction has length PARALLEL_BLEND / 2 and points
+    against the projected camera up (see ``image_up_singularity``). No
+    continuous choice can avoid such a point: around the light direction V_P
+    turns once, so the map's up vector must turn by 180° somewhere. Exactly
+    parallel light and view (e.g. a top-down camera under a zenith sun) are
+    on the smooth side: the camera's up is used."""
+    up = _image_up_raw(view_direction, view_up, light_direction)
     if np.linalg.norm(up) < 1e-300:
         return np.zeros(3)
     return normalize(up)
+
+
+def image_up_singularity(view_direction, view_up, light_direction) -> float:
+    """How far ``image_up`` is from its singular point (the length of the
+    unnormalised up vector; ~PARALLEL_BLEND or more away from it, 0 at it).
+    Within a distance ε of it a rotation by δ turns the map by about δ / ε."""
+    return float(np.linalg.norm(_image_up_raw(view_direction, view_up, light_direction)))
 
 
 def light_angles(view: View, light_direction) -> tuple[float, float]:
@@ -72,22 +92,39 @@ def sun_frame(view: View, light: Light, body: IntersectionBody) -> LightFrame:
     return LightFrame(m, body.vertices, "main", True)
 
 
+SURROUND_BLEND = 0.2
+"""Below this length of the direction-box centre (B nearly surrounds the light)
+the cone axis blends continuously towards ``SURROUND_AXIS``."""
+SURROUND_AXIS = np.array([0.0, 0.0, -1.0])
+"""The cube axis for a light surrounded by B: world down (Blender is Z-up)."""
+
+
 def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]:
     """Axis and half-angle of a cone from ``apex`` containing ``points``.
 
-    The axis points at the centre of the bounding box of the unit directions to
-    the points: unlike a mean over vertices it does not jump when a vertex of B
-    splits in two, so the light frame moves continuously with the view. A
-    half-angle of π means no single cone (directions all around the apex)."""
+    The axis points at the centre c of the bounding box of the unit directions
+    to the points: unlike a mean over vertices it does not jump when a vertex
+    of B splits in two, so the light frame moves continuously with the view.
+    When B nearly surrounds the light, c is short and its direction
+    meaningless, so the axis blends continuously into world down:
+    axis = c + max(0, SURROUND_BLEND - |c|) * down (singular only where c points
+    up with length SURROUND_BLEND / 2). A half-angle near π means no single
+    cone holds the points. Points within 1e-7 of the farthest distance from
+    the apex are ignored (a perspective map cannot hold its own centre)."""
     dirs = np.asarray(points, dtype=np.float64) - apex
     norms = np.linalg.norm(dirs, axis=1)
-    far = norms > 0
+    if len(norms) == 0 or norms.max() == 0:
+        return SURROUND_AXIS.copy(), math.pi
+    # Points at the apex itself (B has the light as a vertex when the light is
+    # outside R) have no direction: a rounding error would give them any.
+    far = norms > 1e-7 * norms.max()
     dirs = dirs[far] / norms[far, None]
-    if len(dirs) == 0:
-        return np.array([0.0, 0.0, -1.0]), math.pi
     mid = (dirs.min(axis=0) + dirs.max(axis=0)) / 2
-    if np.linalg.norm(mid) < 1e-9:
-        return normalize(dirs[0]), math.pi
+    short = SURROUND_BLEND - float(np.linalg.norm(mid))
+    if short > 0:
+        mid = mid + short * SURROUND_AXIS
+    if np.linalg.norm(mid) < 1e-12:
+        mid = SURROUND_AXIS
     axis = normalize(mid)
     half = float(np.arccos(np.clip((dirs @ axis).min(), -1.0, 1.0)))
     return axis, half

@@ -137,6 +137,12 @@ def _build() -> tuple[dict, dict]:
         "a point light inside the view frustum among the boxes: B surrounds it, cube faces")
     add("point_light_high_above", cam, point([0.0, 10.0, 60.0]), scene,
         "a point light high above the scene: one perspective map")
+    add("spot_at_camera", cam, spot(cam.position, cam.direction, math.radians(80.0)), scene,
+        "a flashlight: a spot exactly at the eye along the view (PSM: the light at the eye is singular)")
+    add("point_light_at_camera", cam, point(cam.position), scene,
+        "a point light exactly at the eye (a headlamp)")
+    add("point_light_near_camera", cam, point(cam.position + np.array([0.3, 0.0, 0.2])), scene,
+        "a point light 36 cm from the eye")
     diag_half = math.atan(math.hypot(math.tan(PHI), math.tan(PHI) * 1280 / 720))
     add("spot_barely_contains_view", cam, spot(cam.position - 0.5 * cam.direction, cam.direction,
                                                2 * diag_half + math.radians(1.0)), scene,

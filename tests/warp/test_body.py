@@ -261,7 +261,7 @@ def configurations(draw):
     return view, light, town(flat=draw(st.booleans()))
 
 
-@settings(derandomize=True, max_examples=120, deadline=None)
+@settings(derandomize=True, database=None, max_examples=120, deadline=None)
 @given(configurations())
 def test_generated_bodies_contain_what_the_view_needs(config):
     view, light, scene = config
