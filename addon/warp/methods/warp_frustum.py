@@ -55,12 +55,18 @@ In Eq. 1 and in GMNPR's (n, f):
 **Point and spot lights.** Each frame is the light's post-perspective space;
 V_P is the image of the view ray at the eye (blended towards the frame's +y as
 the view becomes parallel to the light ray through the eye, as in
-``frame.image_up``), λ is computed from the world-space quantities above (it is
-dimensionless) and applied to B's extent in that space. When the eye is behind
-the frame's light plane (w <= 0) the construction is undefined and that frame
-is uniform; when the eye's image lies far outside B's image the warp fades to
-uniform continuously (``FADE_START``..``FADE_END`` half-diagonals of B's image),
-so the eye crossing the light plane causes no jump. Orthographic cameras have no
+``frame.image_up``). λ comes from the world-space quantities above, with the
+world V_P perpendicular to the light ray through the eye: P_n = λ·(all of B's
+extent along it) in world units, then λ_frame = P_n / (this frame's part of B
+along it), which is dimensionless and is applied to the frame's extent in its
+own space (one frame: λ_frame = λ; a cube face holding a slice of B gets a
+proportionally weaker warp). When the eye is behind the frame's light plane
+(w <= 0) the construction is undefined and that frame is uniform; when the eye's
+image lies far outside B's image the warp - its strength μ and the rotation of
+its axes away from the frame's - fades to exactly that uniform map
+(``FADE_START``..``FADE_END`` half-diagonals of B's image), so the eye crossing
+the light plane causes no jump. This is a heuristic transfer: the papers' model
+is for directional lights only (GMNPR §5). Orthographic cameras have no
 perspective aliasing: their maps are uniform. Every such case is recorded in
 ``diagnostics.fallbacks``.
 
