@@ -422,3 +422,57 @@ def test_pps_light_rows_vanish_at_the_light_for_all_three_kinds():
         assert np.abs(img[[0, 1, 3]]).max() < 1e-12 and abs(img[2]) > 1e-3
         _, w = ndc(pl.matrix, pts)
         assert np.all(w > 0)
+
+
+def _rotated_view(view, axis, angle):
+    c2w = view.camera_to_world.copy()
+    for j in range(3):
+        c2w[:3, j] = _rotated(c2w[:3, j], axis, angle)
+    return View(c2w, view.projection, view.near, view.far, view.resolution)
+
+
+@pytest.mark.parametrize("direction", [[0.2, -0.6, -0.5], [0.2, 0.6, -0.5], [0.6, 0.05, -0.8]])
+def test_small_camera_rotations_move_the_map_a_little(direction):
+    view = camera((0, -10, 2), (0, 10, 1))
+    scene, light = town(), sun(direction)
+    a, body = run(view, light, scene)
+    for axis in ([1, 0, 0], [0, 0, 1], [0.3, 0.5, 0.8]):
+        b, _ = run(_rotated_view(view, axis, 1e-6), light, scene)
+        pa, _ = ndc(a.maps[0].matrix, body.visible_vertices)
+        pb, _ = ndc(b.maps[0].matrix, body.visible_vertices)
+        assert np.abs(pa - pb).max() < 1e-3
+
+
+def test_warp_frustum_corners_are_the_clip_volume_corners():
+    from addon.warp.geometry import UNIT_CUBE_CORNERS
+    for light in (sun([0.2, -0.6, -0.5]), sun([0.2, 0.6, -0.5]), point([3.0, -25.0, 12.0])):
+        setup, _ = run(camera(**VIEW), light, town())
+        corners = setup.diagnostics.warp_frustum_corners
+        m = setup.maps[0].matrix
+        pre = np.hstack([UNIT_CUBE_CORNERS, np.ones((8, 1))]) @ np.linalg.inv(m).T
+        if light.is_directional:
+            assert corners is not None
+        if corners is None:             # the clip volume reaches infinity: a corner's preimage has w <= 0
+            assert np.any(pre[:, 3] <= 0)
+            continue
+        assert corners.shape == (8, 3)
+        p, w = ndc(m, corners)
+        assert np.all(w > 0) and np.allclose(p, UNIT_CUBE_CORNERS, atol=1e-6)
+
+
+def test_nearest_visible_depth_is_between_the_near_plane_and_what_is_seen():
+    from addon.warp.post_perspective import nearest_visible_depth
+    view = camera((0, -10, 2), (0, 10, 1))
+    light = sun([0.2, 0.6, -0.5])
+    body = intersection_body(view, light, town())
+    d = nearest_visible_depth(view, light, body)
+    # the ground is first seen along the bottom edge of the view: depth of the ray hitting z = 0
+    inv = np.linalg.inv(view.world_to_clip)
+    xs = np.linspace(-1, 1, 41)
+    a = np.column_stack([xs, -np.ones_like(xs), -np.ones_like(xs), np.ones_like(xs)]) @ inv.T
+    b = np.column_stack([xs, -np.ones_like(xs), np.ones_like(xs), np.ones_like(xs)]) @ inv.T
+    a, b = a[:, :3] / a[:, 3:], b[:, :3] / b[:, 3:]
+    hit = a + ((0 - a[:, 2]) / (b[:, 2] - a[:, 2]))[:, None] * (b - a)
+    assert view.near < d <= view.eye_depth(hit).min() + 1e-9
+    assert d == pytest.approx(view.eye_depth(hit).min(), rel=1e-3)    # the ground slab is the nearest receiver
+    assert nearest_visible_depth(view, light, body, WarpOptions(visible_depth_range=(4.5, 60.0))) == 4.5

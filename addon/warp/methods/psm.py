@@ -39,8 +39,18 @@ Where PSM is still discontinuous:
   their PPS light lies beyond the PPS image of infinity, and even a sun shining
   straight into the camera (a PPS frustum close to 180°) measured better than
   the uniform map (tests/warp/test_psm_footprint.py);
+* the near plane pushed to the nearest visible receiver (§6) drops when a
+  nearer receiver box enters the view: the virtual eye, and so the map, jump
+  then (the paper's depth readback does the same). The jump is bounded by how
+  much nearer the new box is; a caller that wants smooth motion can pass a
+  smoothed ``WarpOptions.visible_depth_range``;
 * an orthographic camera has an affine PPS: PSM *is* the uniform map (§1.1,
   "for an orthogonal view"), so the uniform map is returned (recorded).
+
+``Diagnostics.warp_frustum_corners`` are the 8 world corners of the map's clip
+volume, or None when that volume reaches infinity (a corner's preimage has
+w <= 0; this happens for some point lights, whose clip volume is a frustum cut
+by the camera's plane at infinity).
 
 Light exactly at the camera plane (w' = 0), a sun exactly along or against the
 view direction (the PPS light at the centre of the infinity plane, §3.3's worst
