@@ -53,13 +53,13 @@ import math
 
 import numpy as np
 
-from ..body import BOX_PAD, IntersectionBody, hull_halfspaces, light_halfspaces
+from ..body import IntersectionBody
 from ..fit import ndc_bounds, window_matrix
 from ..frame import light_angles, light_frames
 from ..geometry import translation
-from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_polygon, convex_polygon_on_plane, default_plane, min_area_twist, offset_polygon, plane_light_rows,
-                         plane_section, polygon_area, rotation2d)
-from ..polyhedron import ConvexPolytope, Plane, clip_faces, unique_points
+from ..plane_map import (PlaneOfInterest, clip_polygon, convex_polygon_on_plane, default_plane, min_area_twist,
+                         offset_polygon, plane_light_rows, plane_section, polygon_area, rotation2d)
+from ..polyhedron import Plane, clip_faces, unique_points
 from ..types import Diagnostics, Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .uniform import frame_map
 
@@ -81,15 +81,15 @@ class _PlaneJob:
 
     index: int
     plane: PlaneOfInterest
-    polygon: np.ndarray          # needed polygon on P (relative)
-    rows: np.ndarray             # 3x4: x, y, w rows (viewer NDC on P), relative coords
-    pixel: np.ndarray            # 3x3: viewer NDC (x, y, w) -> pixel (px, py, 1)
-    bound_pts: np.ndarray        # region prism + casters (relative), all must be inside the map
-    fit_pts: np.ndarray
-    pixels: np.ndarray           # (K, 2) pixel coords of the tolerance-grown polygon
+    polygon: np.ndarray          # the needed polygon on P
+    rows: np.ndarray             # 3x4: x, y, w rows; on P they equal the viewer's clip x, y, w
+    pixel: np.ndarray            # 3x3: viewer clip (x, y, w) -> pixel (px, py, 1)
+    height: np.ndarray           # 4-vector: height above P on the light's side, h(x) = height · (x, 1)
+    fit_pts: np.ndarray          # region slab + casters: all inside the map's clip volume
+    pixels: np.ndarray           # (K, 2) pixel coordinates of the tolerance-grown polygon
     info: dict
     twist: float = 0.0
-    rect: tuple = (0, 0, 1, 1)
+    rect: tuple = (0, 0, 1, 1)   # (i0, j0, i1, j1) in texels of the scaled, twisted image
 
 
 def _light_h(light: Light, origin: np.ndarray) -> np.ndarray:
@@ -132,12 +132,10 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
     height = side * pi                                # h(X) = height · (x, 1)
     # The camera on the plane: it is seen edge-on and covers no pixel.
     cam = np.linalg.svd(view.world_to_clip[[0, 1, 3]])[2][-1]     # the camera centre (homogeneous)
-    cam_rel = cam.copy()
     if abs(cam[3]) > 1e-12 * np.linalg.norm(cam[:3]):
-        cam_rel = np.append(cam[:3] / cam[3] - origin, 1.0)
-        edge_on = abs(float(pi @ cam_rel)) <= max(tol, 1e-9 * scale)
-    else:
-        edge_on = abs(float(n @ _unit3(cam[:3]))) <= 1e-9
+        edge_on = abs(float(pi @ np.append(cam[:3] / cam[3] - origin, 1.0))) <= max(tol, 1e-9 * scale)
+    else:                                                           # orthographic: the centre is a direction
+        edge_on = abs(float(n @ cam[:3])) <= 1e-9 * float(np.linalg.norm(cam[:3]))
     if edge_on:
         diag.fallback(role, f"{plane.name} passes through the camera (seen edge-on): it covers no pixel")
         return None
@@ -192,10 +190,12 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
                       [0, 0, 1.0]])
     g = np.column_stack([grown, np.ones(len(grown))]) @ (pixel @ rows).T
     pixels = g[:, :2] / g[:, 2:3]
-    info = dict(info, pixel_area=float(_area2d(pixels)), near_clamped=near_clamped)
-    job = _PlaneJob(k, plane, poly, rows, pixel, pts, pts, pixels, info)
-    job.info["height_row"] = height
-    return job
+    area = _area2d(pixels)
+    if area < 1.0:
+        diag.fallback(role, f"{plane.name} covers less than one pixel of the view ({area:.3g})")
+        return None
+    info = dict(info, pixel_area=float(area), near_clamped=near_clamped)
+    return _PlaneJob(k, plane, poly, rows, pixel, height, pts, pixels, info)
 
 
 def _casters(grown, n, height, l_h, tol, body, origin):
@@ -255,104 +255,6 @@ def _clip_body(body: IntersectionBody, origin: np.ndarray, planes: list[Plane]) 
     return unique_points(np.concatenate(faces), body.tolerance * 10)
 
 
-def _box_shown_only_on(box: np.ndarray, jobs: list[_PlaneJob], view: View, tol: float) -> bool:
-    """Whether a receiver box is, as the camera sees it, nothing but plane
-    regions: it is a slab (flat, as ``default_plane`` assumes: its faces are
-    its surfaces) and every face of it turned towards the camera lies in some
-    plane (within ``tol``) and inside that plane's extent. Such a box needs
-    no fallback (§3: C_fallback = hull(C_tot - C_planes))."""
-    lo, hi = box
-    ext = hi - lo
-    if np.sort(ext)[0] > FLAT_RATIO * np.sort(ext)[1]:
-        return False
-    # the near plane cutting into the box shows its inside
-    near = view.corners()[:4][[0, 1, 3, 2]]
-    for axis in range(3):
-        for sign, coord in ((-1.0, lo[axis]), (1.0, hi[axis])):
-            e = np.zeros(3)
-            e[axis] = sign
-            near = clip_polygon(near, Plane(e, sign * coord - tol), 0.0)
-            if len(near) == 0:
-                break
-        if len(near) == 0:
-            break
-    if len(near) >= 3:
-        return False
-    cam = view.position
-    for axis in range(3):
-        for sign, coord in ((-1.0, lo[axis]), (1.0, hi[axis])):
-            e = np.zeros(3)
-            e[axis] = sign
-            facing = (sign * (cam[axis] - coord) > tol) if not view.orthographic else (e @ -view.direction > 1e-12)
-            if not facing:
-                continue
-            corners = np.array([[(hi if (i >> k) & 1 else lo)[k] if k != axis else coord for k in range(3)]
-                                for i in range(8)])
-            if not any(_face_in_region(corners, j, tol) for j in jobs):
-                return False
-    return True
-
-
-def _face_in_region(corners: np.ndarray, job: _PlaneJob, tol: float) -> bool:
-    n, off = job.plane.normal, job.plane.offset
-    if np.any(np.abs(corners @ n - off) > tol):
-        return False
-    ext = job.plane.extent
-    if ext is None:
-        return True
-    k = len(ext)
-    centre = ext.mean(axis=0)
-    for i in range(k):
-        a, b = ext[i], ext[(i + 1) % k]
-        out = np.cross(b - a, n)
-        if out @ (centre - a) > 0:
-            out = -out
-        out = out / np.linalg.norm(out)
-        if np.any((corners - a) @ out > tol):
-            return False
-    return True
-
-
-def _fallback_body(view: View, light: Light, body: IntersectionBody, jobs: list[_PlaneJob], tol: float,
-                   diag: Diagnostics) -> IntersectionBody:
-    """The fallback's body (§3, C_fallback = hull(C_tot - C_planes)): B ∩ hull(R_f ∪ light),
-    R_f = V ∩ L ∩ the box around the receivers that are not just plane regions.
-    Every visible point off the planes and every caster that can shadow one is
-    in it. B itself when nothing can be left out."""
-    boxes = getattr(body, "receiver_boxes", None)
-    if not jobs or boxes is None or len(boxes) == 0 or getattr(body, "polytope", None) is None:
-        return body
-    keep = np.array([not _box_shown_only_on(b, jobs, view, tol) for b in boxes])
-    if keep.all() or not keep.any():
-        return body
-    origin = body.origin
-    rest = boxes[keep]
-    s_r = np.array([rest[:, 0].min(axis=0), rest[:, 1].max(axis=0)]) - origin
-    s_r = np.array([s_r[0] - BOX_PAD * body.scale, s_r[1] + BOX_PAD * body.scale])
-    v_poly = ConvexPolytope.from_corners(view.corners() - origin, body.tolerance)
-    ln, lo = light_halfspaces(light, origin)
-    eye = np.eye(3)
-    r_f = v_poly.clip(np.concatenate([-eye, eye, ln.reshape(-1, 3)]), np.concatenate([-s_r[0], s_r[1], lo]))
-    if r_f is None:
-        return body
-    l_h = _light_h(light, origin)
-    hn, ho = hull_halfspaces(r_f, l_h, body.tolerance)
-    poly = body.polytope.clip(hn, ho)
-    if poly is None:
-        return body
-    diag.extra["fallback_receivers"] = int(keep.sum())
-    return IntersectionBody(
-        vertices=poly.vertices + origin, faces=[f + origin for f in poly.faces()],
-        visible_vertices=r_f.vertices + origin, caster_mask=body.caster_mask, receiver_mask=body.receiver_mask,
-        receiver_boxes=rest, hull_planes=[], tolerance=body.tolerance, scale=body.scale, polytope=poly,
-        origin=origin)
-
-
-def _unit3(v):
-    n = float(np.linalg.norm(v))
-    return v / n if n > 0 else v
-
-
 def _area2d(p: np.ndarray) -> float:
     x, y = p[:, 0], p[:, 1]
     return 0.5 * abs(float(x @ np.roll(y, -1) - y @ np.roll(x, -1)))
@@ -408,7 +310,7 @@ def _plane_map(job: _PlaneJob, s: float, origin: np.ndarray, tol: float, options
     a[:2, 2] = (-i0, -j0)
     to_ndc = np.array([[2.0 / wm, 0, -1.0], [0, 2.0 / hm, -1.0], [0, 0, 1.0]])
     xyw = to_ndc @ a @ job.pixel @ job.rows
-    height = job.info["height_row"]
+    height = job.height
     m = np.zeros((4, 4))
     m[0], m[1], m[3] = xyw
     m[2] = -height
@@ -447,8 +349,7 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
     maps = [_plane_map(j, s, origin, tol, options) for j in jobs]
     used = sum(m.size[0] * m.size[1] for m in maps)
 
-    fb_body = _fallback_body(view, light, body, jobs, tol, diag)
-    frames = light_frames(view, light, fb_body, options)
+    frames = light_frames(view, light, body, options)
     remaining = max(total - used, 1)
     f = math.sqrt(remaining / total)
     fb_size = (max(1, int(options.shadow_map_size[0] * f)), max(1, int(options.shadow_map_size[1] * f)))
