@@ -153,15 +153,18 @@ def volume_centroid(body: IntersectionBody) -> np.ndarray:
     """The centre of B's volume (continuous in B, unlike the mean of its vertices,
     which jumps when a vertex appears or merges)."""
     ref = body.vertices.mean(axis=0)
-    total, moment = 0.0, np.zeros(3)
-    for f in body.faces:
-        a = f[0] - ref
-        for j in range(1, len(f) - 1):
-            b, c = f[j] - ref, f[j + 1] - ref
-            vol = abs(float(np.dot(a, np.cross(b, c)))) / 6.0
-            total += vol
-            moment += vol * (a + b + c) / 4.0
-    return ref + moment / total if total > 0 else ref
+    fans = [(f[0], f[j], f[j + 1]) for f in body.faces for j in range(1, len(f) - 1)]
+    if not fans:
+        return ref
+    tri = np.asarray(fans, dtype=np.float64) - ref                    # (T, 3 corners, 3)
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    cr = np.stack([b[:, 1] * c[:, 2] - b[:, 2] * c[:, 1], b[:, 2] * c[:, 0] - b[:, 0] * c[:, 2],
+                   b[:, 0] * c[:, 1] - b[:, 1] * c[:, 0]], axis=1)
+    vol = np.abs(np.einsum("ij,ij->i", a, cr)) / 6.0                  # tetrahedra (ref, a, b, c)
+    total = float(vol.sum())
+    if not total > 0:
+        return ref
+    return ref + (vol[:, None] * (a + b + c) / 4.0).sum(axis=0) / total
 
 
 def eye_depth_range(view: View, body: IntersectionBody, options: WarpOptions, diag: Diagnostics) -> WarpContext:
