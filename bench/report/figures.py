@@ -16,7 +16,8 @@ PANEL_W = 3.0   # inches per panel
 
 
 def _figure(rows: int, cols: int, aspect: float):
-    fig = Figure(figsize=(PANEL_W * cols, PANEL_W * aspect * rows + 0.45 * rows + 0.3), dpi=90)
+    fig = Figure(figsize=(PANEL_W * cols, PANEL_W * aspect * rows + 0.45 * rows + 0.3), dpi=90,
+                 layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(rows, cols, squeeze=False)
     for ax in axes.ravel():
@@ -26,7 +27,6 @@ def _figure(rows: int, cols: int, aspect: float):
 
 
 def _save(fig, path: Path) -> Path:
-    fig.tight_layout()
     fig.savefig(path)
     return path
 
@@ -139,11 +139,11 @@ def footprints(scene: dict, path: Path) -> Path:
                 last = ax.imshow(np.ma.masked_invalid(lg), origin="lower", cmap="RdBu_r", vmin=-4, vmax=4)
                 ax.set_facecolor("black")
                 f = rec["footprint"]
-                ax.set_title(f"{name} {size}²: max {f['max']:.1f}, p95 {f['p95']:.2f}", fontsize=8)
+                ax.set_title(f"{name} {size}²\nmax {f['max']:.1f}, p95 {f['p95']:.2f}", fontsize=8)
             else:
                 _failed(ax, rec)
     if last is not None:
-        cb = fig.colorbar(last, ax=axes.ravel().tolist(), shrink=0.6, pad=0.01)
+        cb = fig.colorbar(last, ax=axes.ravel().tolist(), shrink=0.8, pad=0.01)
         cb.set_label("log2 pixels per texel")
     fig.savefig(path)
     return path
@@ -192,7 +192,7 @@ def pareto_front(points):
 
 def speed_error(scene: dict, path: Path) -> Path:
     """Error rate against time per frame; the Pareto front is joined and ringed."""
-    fig = Figure(figsize=(7.5, 4.8), dpi=90)
+    fig = Figure(figsize=(7.5, 4.8), dpi=90, layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.subplots()
     pts, labels, kinds = [], [], []

@@ -4,8 +4,9 @@ The shadow term is measured as a ratio of two renders of the scene with every
 material overridden by one white diffuse material, a black world and only the
 scene's one light: the render with shadows divided by the render with the
 light's shadows switched off (``Light.use_shadow``). A pixel is in shadow when
-the ratio is below 0.5. The reported time is that of the render *with* shadows
-(the shadowless one is only our measuring device).
+the ratio is below 0.5. The reported time is that of the render *with* shadows,
+made second so that EEVEE's shader compilation falls on the shadowless one
+(which is only our measuring device).
 
 Cycles renders direct light only (no bounces) with one sample and a tiny pixel
 filter, which is exact for a sun/spot of zero size. EEVEE's samples are a
@@ -36,7 +37,7 @@ class PeerResult:
     lit: np.ndarray           # (H, W) bool: the unshadowed render has light here (ratio is meaningful)
     image: np.ndarray         # (H, W) the shadowed render's luminance
     seconds: float            # time of the render with shadows
-    seconds_first: float      # the first render's time (includes shader compilation for EEVEE)
+    seconds_first: float      # the shadowless render's time (includes EEVEE's shader compilation)
 
 
 def _override_material(scene):
@@ -74,12 +75,10 @@ def _render_to_array(scene, path: str) -> tuple[np.ndarray, float]:
     return lum.astype(np.float64), dt
 
 
-def render_shadow_term(scene, light_obj, peer: str, samples: int = 1, timed_rerender: bool = True) -> PeerResult:
+def render_shadow_term(scene, light_obj, peer: str, samples: int = 1) -> PeerResult:
     """Render ``scene`` with ``peer`` ("eevee" or "cycles") twice and return its shadow term.
     The scene's render settings are restored afterwards (materials via the view
-    layer override, which is cleared). ``timed_rerender``: render EEVEE once more
-    to time it without its shader compilation (otherwise the first render's
-    time is reported)."""
+    layer override, which is cleared)."""
     import bpy
     r = scene.render
     saved = dict(engine=r.engine, filepath=r.filepath, fmt=r.image_settings.file_format,
@@ -116,14 +115,12 @@ def render_shadow_term(scene, light_obj, peer: str, samples: int = 1, timed_rere
                     setattr(e, attr, val)
         else:
             raise ValueError(f"unknown peer {peer!r}; choose from {', '.join(PEERS)}")
-        light_obj.data.use_shadow = True
-        shadowed, t_first = _render_to_array(scene, os.path.join(tmp, "shadowed.exr"))
+        # the shadowless render goes first: it absorbs EEVEE's shader compilation, so the
+        # timed render (with shadows) is a warm one
         light_obj.data.use_shadow = False
-        open_, _ = _render_to_array(scene, os.path.join(tmp, "open.exr"))
-        seconds = t_first
-        if peer == "eevee" and timed_rerender:  # the first EEVEE render compiles shaders: time a second one
-            light_obj.data.use_shadow = True
-            shadowed, seconds = _render_to_array(scene, os.path.join(tmp, "shadowed2.exr"))
+        open_, t_first = _render_to_array(scene, os.path.join(tmp, "open.exr"))
+        light_obj.data.use_shadow = True
+        shadowed, seconds = _render_to_array(scene, os.path.join(tmp, "shadowed.exr"))
         lit = open_ > 1e-4 * max(float(open_.max()), 1e-12)
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = np.where(lit, shadowed / np.where(lit, open_, 1.0), 1.0)

@@ -44,7 +44,7 @@ def quick_defaults() -> dict:
 
 
 def full_defaults() -> dict:
-    return dict(resolution=(480, 270), frames=6, eevee_samples=4)
+    return dict(resolution=(480, 270), frames=4, eevee_samples=4)
 
 
 DEFAULT_SIZES = (512, 1024, 2048)
@@ -247,7 +247,7 @@ def run_scene(name: str, opts: Options, progress, workdir: Path) -> dict:
         out["peers"].append(rec)
         try:
             samples = opts.eevee_samples if peer == "eevee" else opts.cycles_samples
-            res = P.render_shadow_term(scene, light_obj, peer, samples=samples, timed_rerender=not opts.quick)
+            res = P.render_shadow_term(scene, light_obj, peer, samples=samples)
             comp = gt.valid & res.lit
             errs = classify(res.shadow, gt.shadow, comp, opts.band_radius)
             rec.update(samples=samples, total_ms=1000 * res.seconds, first_render_ms=1000 * res.seconds_first,

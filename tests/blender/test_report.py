@@ -70,3 +70,9 @@ def test_table_has_methods_peers_limit_and_failures(report):
     html = (out / "report.html").read_text()
     assert html.count("class='failed'") == 2 and "16384" in html
     assert "tiny: uniform @ 128" in stdout            # progress is printed
+
+
+def test_pareto_front_keeps_only_undominated_points():
+    from bench.report.figures import pareto_front
+    pts = [(10, 5.0), (20, 1.0), (15, 6.0), (5, 9.0), (30, 1.0), (25, 0.5)]
+    assert sorted(pareto_front(pts)) == [0, 1, 3, 5]
