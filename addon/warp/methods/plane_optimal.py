@@ -332,6 +332,12 @@ def _plane_map(job: _PlaneJob, s: float, origin: np.ndarray, tol: float, options
     return ShadowMap(world, (wm, hm), "LESS", f"plane:{job.index}", region=region, depth_row=depth_row)
 
 
+def _fallback_size(texels: float, options: WarpOptions) -> tuple[int, int]:
+    """A fallback map of at most ``texels`` texels, shaped like ``shadow_map_size``."""
+    f = math.sqrt(texels / (options.shadow_map_size[0] * options.shadow_map_size[1]))
+    return (max(1, int(options.shadow_map_size[0] * f)), max(1, int(options.shadow_map_size[1] * f)))
+
+
 def plane_optimal(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
     diag = Diagnostics("plane_optimal", body_vertices=body.vertices)
     if light.is_directional:
@@ -351,11 +357,11 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
 
     frames = light_frames(view, light, body, options)
     remaining = max(total - used, 1)
-    f = math.sqrt(remaining / total)
-    fb_size = (max(1, int(options.shadow_map_size[0] * f)), max(1, int(options.shadow_map_size[1] * f)))
-    fb_options = dataclasses.replace(options, shadow_map_size=fb_size)
+    fb_sizes = []
     for fr in frames:
-        fm = frame_map(fr, fb_options, options.texel_snapping)
+        size = _fallback_size(remaining, options)
+        fb_sizes.append(list(size))
+        fm = frame_map(fr, dataclasses.replace(options, shadow_map_size=size), options.texel_snapping)
         fm.role = "fallback" if len(frames) == 1 else f"fallback:{fr.role}"
         maps.append(fm)
         if fr.near_clamped:
@@ -368,7 +374,7 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
     } for j in jobs]
     diag.extra["budget"] = {
         "plane_budget": options.plane_budget, "total_texels": total, "plane_texels": used,
-        "plane_share": used / total, "fallback_size": list(fb_size), "fallback_maps": len(frames),
+        "plane_share": used / total, "fallback_sizes": fb_sizes, "fallback_maps": len(frames),
         "lixels_per_pixel": s if jobs else None,
     }
     diag.extra["frames"] = [m.role for m in maps]
