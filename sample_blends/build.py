@@ -1,10 +1,14 @@
 """Rebuild the sample .blend files from sample_blends/scenes.py.
 
-    .venv/bin/python sample_blends/build.py            # all scenes
+    .venv-4.2/bin/python sample_blends/build.py        # all scenes, readable by every supported Blender
+    .venv/bin/python sample_blends/build.py            # the same with Blender 5.0
     .venv/bin/python sample_blends/build.py forest     # some
     .venv/bin/python sample_blends/build.py --out DIR  # somewhere else
 
 Each file is saved compressed next to this script (``<name>.blend``).
+The committed files are built with Blender 4.2: Blender 4.2 cannot open files
+saved by 5.0 ("not a blend file"), while 5.0 opens 4.2's. Both versions evaluate
+the scenes identically (instance transforms agree to float32 rounding).
 """
 from __future__ import annotations
 
