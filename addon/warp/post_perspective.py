@@ -122,21 +122,29 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     axis = -to_cam[2]
     corner_depth = np.minimum(boxes[:, 0] * axis, boxes[:, 1] * axis).sum(axis=1)
     lower = np.maximum(corner_depth, coarse)
-    order = np.argsort(lower, kind="stable")
-    corners = view.corners() - origin
-    frustum = ConvexPolytope.from_corners(corners, body.tolerance)
+    # visit boxes by increasing lower bound; sort a first chunk only, the rest if ever needed
+    first = min(len(lower), 32)
+    order = np.argpartition(lower, first - 1)[:first] if first < len(lower) else np.arange(len(lower))
+    order = order[np.argsort(lower[order], kind="stable")]
+    visited = np.zeros(len(lower), dtype=bool)
+    frustum = ConvexPolytope.from_corners(view.corners() - origin, body.tolerance)
     ln, lo = light_halfspaces(light, origin)
     eye3 = np.eye(3)
     best = math.inf
-    for count, i in enumerate(order):
-        if lower[i] >= best:
-            break
-        if count >= NEAREST_BOX_CLIPS:
-            best = float(lower[i])
-            break
-        piece = frustum.clip(np.concatenate([-eye3, eye3, ln]), np.concatenate([-boxes[i, 0], boxes[i, 1], lo]))
-        if piece is not None:
-            best = min(best, float((piece.vertices @ axis).min()))
+    clips = 0
+    while len(order):
+        for i in order:
+            if lower[i] >= best:
+                return max(best, coarse)
+            if clips >= NEAREST_BOX_CLIPS:
+                return max(min(best, float(lower[i])), coarse)
+            clips += 1
+            visited[i] = True
+            piece = frustum.clip(np.concatenate([-eye3, eye3, ln]), np.concatenate([-boxes[i, 0], boxes[i, 1], lo]))
+            if piece is not None:
+                best = min(best, float((piece.vertices @ axis).min()))
+        rest = np.flatnonzero(~visited & (lower < best))
+        order = rest[np.argsort(lower[rest], kind="stable")]
     if not math.isfinite(best):
         return coarse
     return max(best, coarse)
@@ -188,7 +196,10 @@ def min_norm_point(points, max_iter: int = 200) -> np.ndarray:
             a[n, n] = 0.0
             rhs = np.zeros(n + 1)
             rhs[n] = 1.0
-            alpha = np.linalg.lstsq(a, rhs, rcond=None)[0][:n]
+            try:
+                alpha = np.linalg.solve(a, rhs)[:n]
+            except np.linalg.LinAlgError:                  # affinely dependent support
+                alpha = np.linalg.lstsq(a, rhs, rcond=None)[0][:n]
             if np.all(alpha > 1e-15):
                 weights = alpha
                 x = alpha @ q
