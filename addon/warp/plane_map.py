@@ -268,6 +268,35 @@ def offset_polygon(poly: np.ndarray, normal: np.ndarray, dist: float) -> np.ndar
     return out
 
 
+def enclosing_polygon(poly: np.ndarray, normal: np.ndarray, max_vertices: int) -> np.ndarray:
+    """A convex polygon of at most ``max_vertices`` vertices containing the convex
+    ``poly`` (CCW about ``normal``): edges are removed one at a time by extending
+    their neighbours to meet, always the one that adds the least area."""
+    p = np.asarray(poly, dtype=np.float64)
+    while len(p) > max(max_vertices, 3):
+        k = len(p)
+        best, best_area, best_pt = -1, math.inf, None
+        for i in range(k):
+            a0, a1 = p[i - 1], p[i]                   # edge before
+            b0, b1 = p[(i + 1) % k], p[(i + 2) % k]   # edge after; edge (a1, b0) is removed
+            d1, d2 = a1 - a0, b1 - b0
+            cr = np.cross(d1, d2) @ normal
+            if cr <= 1e-15 * np.linalg.norm(d1) * np.linalg.norm(d2):
+                continue                              # the neighbours do not meet beyond the edge
+            t = np.cross(b0 - a0, d2) @ normal / cr
+            x = a0 + t * d1
+            area = 0.5 * abs(float(np.cross(x - a1, b0 - a1) @ normal))
+            if area < best_area:
+                best, best_area, best_pt = i, area, x
+        if best < 0:
+            break
+        keep = [j for j in range(k) if j not in (best, (best + 1) % k)]
+        pts = [p[j] for j in keep]
+        pts.insert(keep.index((best + 2) % k) if (best + 2) % k in keep else len(pts), best_pt)
+        p = np.asarray(pts)
+    return p
+
+
 def min_area_twist(points2d: np.ndarray) -> float:
     """The rotation θ in (-π/4, π/4] whose rotated points R(θ)·p have the
     smallest axis-aligned bounding rectangle (rotating calipers: the best

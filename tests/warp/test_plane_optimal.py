@@ -298,3 +298,27 @@ def test_cli_outputs_a_map_per_plane_and_the_fallback_with_regions(tmp_path):
     out = subprocess.run([sys.executable, "-m", "addon.warp", "--method", "all", str(path)],
                          cwd=ROOT, capture_output=True, text=True, check=True)
     assert "plane_optimal" in json.loads(out.stdout)["methods"]
+
+
+def test_at_most_eight_maps_largest_planes_kept():
+    view, light = CONFIGS["sun_oblique"]
+    planes = tuple(((0.0, 0.0, 0.4 * k), (0.0, 0.0, 1.0)) for k in range(9))   # floor and 8 levels above it
+    setup, _ = run(view, light, planes=planes)
+    assert len(setup.maps) == 8 and setup.maps[-1].role == "fallback"
+    kept = [m.role for m in setup.maps[:-1]]
+    assert kept == sorted(kept, key=lambda r: int(r.split(":")[1]))      # plane order kept
+    dropped = [w for w, r in setup.diagnostics.fallbacks if "at most 8 maps" in r]
+    assert len(dropped) == 2 and set(dropped).isdisjoint(kept)
+    assert_uniform_on_plane(view, setup, expect_scale=plane_scale(setup))
+
+
+def test_enclosing_polygon_contains_and_limits_vertices():
+    from addon.warp.plane_map import enclosing_polygon, polygon_area
+    from addon.warp.types import Region
+    n = np.array([0, 0, 1.0])
+    ang = np.linspace(0, 2 * np.pi, 50, endpoint=False)
+    circle = np.column_stack([np.cos(ang), np.sin(ang), np.zeros(50)])
+    e = enclosing_polygon(circle, n, 32)
+    assert len(e) == 32
+    assert Region(n, 0.0, e, 1e-12).contains(circle).all()
+    assert polygon_area(e, n) < polygon_area(circle, n) * 1.01

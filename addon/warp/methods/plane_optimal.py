@@ -57,13 +57,20 @@ from ..body import IntersectionBody
 from ..fit import ndc_bounds, window_matrix
 from ..frame import light_angles, light_frames
 from ..geometry import translation
-from ..plane_map import (PlaneOfInterest, clip_polygon, convex_polygon_on_plane, default_plane, min_area_twist,
+from ..plane_map import (PlaneOfInterest, clip_polygon, convex_polygon_on_plane, default_plane, enclosing_polygon,
+                         min_area_twist,
                          offset_polygon, plane_light_rows, plane_section, polygon_area, rotation2d)
 from ..polyhedron import Plane, clip_faces, unique_points
 from ..types import Diagnostics, Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .uniform import frame_map
 
 MAX_SIDE = 16384
+MAX_REGION_VERTICES = 32
+"""A region polygon has at most this many vertices (the shader's limit,
+``addon.gpu.shaders.MAX_POLYGON``); a larger one is replaced by an enclosing one."""
+MAX_MAPS = 8
+"""Maps one shading pass can select from (``addon.gpu.shaders.MAX_MAPS``): plane
+maps beyond what this leaves next to the fallback maps are left out, smallest first."""
 REGION_TOLERANCE = 1e-6
 """A point belongs to a plane's region within this fraction of the scene scale
 (at least 100x the body tolerance)."""
@@ -153,6 +160,8 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
                 if len(poly) < 3:
                     poly = None
                     break
+    if poly is not None and len(poly) > MAX_REGION_VERTICES:
+        poly = enclosing_polygon(poly, n, MAX_REGION_VERTICES)
     if poly is None or polygon_area(poly, n) <= (tol * tol):
         diag.fallback(role, f"{plane.name} has no visible part (behind the camera, outside the view, the spot "
                             f"cone or the receivers' bounds)")
@@ -349,13 +358,19 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
     planes = _planes_of(options, body, diag)
     jobs = [j for j in (_prepare(k, p, view, light, body, origin, tol, diag) for k, p in enumerate(planes))
             if j is not None]
+    frames = light_frames(view, light, body, options)
+    room = MAX_MAPS - len(frames)
+    if len(jobs) > room:
+        ranked = sorted(jobs, key=lambda j: -j.info["pixel_area"])
+        for j in ranked[max(room, 0):]:
+            diag.fallback(f"plane:{j.index}", f"{j.plane.name}: at most {MAX_MAPS} maps fit one shading pass "
+                                              f"({len(frames)} fallback maps); its map is left out, smallest first")
+        jobs = sorted(ranked[:max(room, 0)], key=lambda j: j.index)
     total = options.shadow_map_size[0] * options.shadow_map_size[1]
     plane_budget = options.plane_budget * total
     s = _share_budget(jobs, plane_budget, options.plane_twist)
     maps = [_plane_map(j, s, origin, tol, options) for j in jobs]
     used = sum(m.size[0] * m.size[1] for m in maps)
-
-    frames = light_frames(view, light, body, options)
     remaining = max(total - used, 1)
     fb_sizes = []
     for fr in frames:
