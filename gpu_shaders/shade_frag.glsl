@@ -12,18 +12,33 @@
  * optional eye-space blur of the shadow channel (Scherzer §4.3). */
 #define LIXEL_PI 3.14159265358979
 
+/* Only the samplers of maps that exist are reachable (LIXEL_MAP_COUNT is the
+ * setup's map count): a software rasterizer runs every branch a SIMD group
+ * disagrees on, so an 8-way switch would cost 8 fetches per tap. */
 vec4 lixel_fetch(int i, ivec2 t)
 {
-  switch (i) {
-    case 0: return texelFetch(u_map0, t, 0);
-    case 1: return texelFetch(u_map1, t, 0);
-    case 2: return texelFetch(u_map2, t, 0);
-    case 3: return texelFetch(u_map3, t, 0);
-    case 4: return texelFetch(u_map4, t, 0);
-    case 5: return texelFetch(u_map5, t, 0);
-    case 6: return texelFetch(u_map6, t, 0);
-    default: return texelFetch(u_map7, t, 0);
-  }
+#if LIXEL_MAP_COUNT > 1
+  if (i == 1) return texelFetch(u_map1, t, 0);
+#endif
+#if LIXEL_MAP_COUNT > 2
+  if (i == 2) return texelFetch(u_map2, t, 0);
+#endif
+#if LIXEL_MAP_COUNT > 3
+  if (i == 3) return texelFetch(u_map3, t, 0);
+#endif
+#if LIXEL_MAP_COUNT > 4
+  if (i == 4) return texelFetch(u_map4, t, 0);
+#endif
+#if LIXEL_MAP_COUNT > 5
+  if (i == 5) return texelFetch(u_map5, t, 0);
+#endif
+#if LIXEL_MAP_COUNT > 6
+  if (i == 6) return texelFetch(u_map6, t, 0);
+#endif
+#if LIXEL_MAP_COUNT > 7
+  if (i == 7) return texelFetch(u_map7, t, 0);
+#endif
+  return texelFetch(u_map0, t, 0);
 }
 
 /* Maps are read in place (lixel.maps[i].member): copying a LixelMap (with its

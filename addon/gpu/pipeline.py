@@ -255,7 +255,7 @@ def shading_pass(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSet
         draw_table(pre, batches, geometry, table)
         gpu.state.color_mask_set(True, True, True, True)
         gpu.state.depth_mask_set(False)
-        sh = shaders.shade_shader(mdsm)
+        sh = shaders.shade_shader(mdsm, len(setup.maps))
         sh.bind()
         sh.uniform_float("u_view_proj", view_proj)
         sh.uniform_block("lixel", ubo)

@@ -79,10 +79,11 @@ def depth_shader(write_depth: bool, linear_z: bool):
     return _create(info, "depth pass")
 
 
-def _shade_info(prepass: bool, mdsm: bool):
+def _shade_info(prepass: bool, mdsm: bool, map_count: int = 1):
     import gpu
     info = gpu.types.GPUShaderCreateInfo()
     _common_defines(info)
+    info.define("LIXEL_MAP_COUNT", str(int(map_count)))
     if mdsm:
         info.define("LIXEL_MDSM")
     iface = gpu.types.GPUStageInterfaceInfo("lixel_shade_iface")
@@ -108,9 +109,12 @@ def _shade_info(prepass: bool, mdsm: bool):
 
 
 @functools.lru_cache(maxsize=None)
-def shade_shader(mdsm: bool):
-    """Shading pass from the camera; ``mdsm`` samples RGBA32F key maps."""
-    return _create(_shade_info(False, mdsm), "shading pass")
+def shade_shader(mdsm: bool, map_count: int = 1):
+    """Shading pass from the camera for ``map_count`` maps (1..MAX_MAPS);
+    ``mdsm`` samples RGBA32F key maps."""
+    if not 1 <= map_count <= MAX_MAPS:
+        raise ShaderBuildError(f"the shading pass takes 1 to {MAX_MAPS} maps (got {map_count})")
+    return _create(_shade_info(False, mdsm, map_count), "shading pass")
 
 
 @functools.lru_cache(maxsize=None)
