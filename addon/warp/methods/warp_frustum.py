@@ -296,16 +296,16 @@ def warp_matrix(g: FrameGeometry, mu: float) -> np.ndarray:
     ])
 
 
-def linear_depth_row(frame: LightFrame) -> np.ndarray:
+def linear_depth_row(frame: LightFrame, points=None) -> np.ndarray:
     """Scherzer §4.2 linear z: a row r with r @ [x, y, z, 1] in [-1, 1] over the
-    frame's points, increasing away from the light (light-space z for a sun,
-    the distance along the light's axis, W, for a point light)."""
+    frame's points (or ``points``), increasing away from the light (light-space
+    z for a sun, the distance along the light's axis, W, for a point light)."""
     t = frame.to_light
     lin = t.copy()
     if not frame.directional:
         lin[2] = t[3]
         lin[3] = np.array([0.0, 0.0, 0.0, 1.0])
-    lo, hi = ndc_bounds(lin, frame.points)
+    lo, hi = ndc_bounds(lin, frame.points if points is None else points)
     return (window_matrix(lo, hi) @ lin)[2]
 
 
@@ -393,6 +393,15 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
             diag.fallback(f"{frame.role}: uniform limit", "light parallel to the view direction (γ = 0): "
                                                          "n_opt = ∞, the warp is the uniform map")
         matrix = fit_to_unit_cube(warp_matrix(geo, mu) @ frame.to_light, frame.points)
+        if len(frames) > 1:
+            matrix, closure, held = ray_closed(matrix, body)
+            if held is not None and depth_row is not None:
+                depth_row = linear_depth_row(frame, np.concatenate([frame.points, held]))
+            if matrix is None:
+                diag.fallback(f"{frame.role}: uniform", closure)
+                m = frame_map(frame, options)
+                maps.append(ShadowMap(m.matrix, m.size, "LESS", frame.role, depth_row=depth_row))
+                continue
         maps.append(ShadowMap(matrix, options.shadow_map_size, "LESS", frame.role, depth_row=depth_row))
         if reported:
             continue
@@ -411,6 +420,40 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
         diag.extra["v_p"] = geo.v_p_world if geo.v_p_world is not None else np.zeros(3)
         diag.extra["projection_centre"] = projection_centre(frame, geo, lam_frame)
     return ShadowSetup(maps, diag)
+
+
+def window_halfspaces(matrix) -> tuple[np.ndarray, np.ndarray]:
+    """World half-spaces (normals, offsets) of a map's image window, |x| <= w and
+    |y| <= w. Each plane contains the light (light rays have constant x, y)."""
+    m = np.asarray(matrix, dtype=np.float64)
+    rows = np.stack([m[0] - m[3], -m[0] - m[3], m[1] - m[3], -m[1] - m[3]])
+    return rows[:, :3], -rows[:, 3]
+
+
+def ray_closed(matrix, body: IntersectionBody) -> tuple[Optional[np.ndarray], str, Optional[np.ndarray]]:
+    """Make one map of a multi-map setup *ray-closed* over B.
+
+    A point is served by the first map whose clip volume holds it, so a map must
+    hold every point of B on the light rays its image window claims: those are
+    the casters of what it serves. A warped cube-face map's window reaches past
+    its face's pyramid, so its depth range is widened to B ∩ window. Returns the
+    (possibly re-fitted) matrix, a note, and the vertices of B ∩ window it now
+    holds; or None and the reason when that part of B touches the light (w = 0)
+    and cannot be held."""
+    if body.polytope is None:
+        return None, "B has no polytope to close the warped map's rays over", None
+    n, o = window_halfspaces(matrix)
+    o = o - n @ body.origin
+    part = body.polytope.clip(n, o)
+    if part is None:
+        return matrix, "", None
+    pts = part.vertices + body.origin
+    w = transform_h(matrix, pts)[:, 3]
+    if np.any(w <= 1e-9 * np.max(np.abs(w))):
+        return None, "the warped map's window reaches the light itself; a uniform face map is ray-closed", None
+    if ShadowMap(matrix, (1, 1)).contains(pts, 1e-9).all():
+        return matrix, "", pts
+    return fit_to_unit_cube(matrix, pts), "depth widened to B within the map's window", pts
 
 
 def projection_centre(frame: LightFrame, g: FrameGeometry, lam: float) -> Optional[np.ndarray]:
