@@ -7,9 +7,9 @@
 from __future__ import annotations
 
 from .errors import ErrorCounts, Flicker, classify, edge_band, error_image, flicker
-from .footprint import FootprintStats, footprint_stats, footprints, setup_footprints
+from .footprint import FootprintStats, footprint_stats, perspective_footprints, setup_footprints
 from .lloyd import m_min, n_min, n_min_parallel, n_min_perpendicular
 
 __all__ = ["ErrorCounts", "Flicker", "classify", "edge_band", "error_image", "flicker", "FootprintStats",
-           "footprint_stats", "footprints", "setup_footprints", "m_min", "n_min", "n_min_parallel",
+           "footprint_stats", "perspective_footprints", "setup_footprints", "m_min", "n_min", "n_min_parallel",
            "n_min_perpendicular"]

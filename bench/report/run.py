@@ -191,8 +191,7 @@ def run_scene(name: str, opts: Options, progress, workdir: Path) -> dict:
                 continue
             try:
                 states, valids = [], []
-                for k, f in enumerate(frames):
-                    scene.frame_set(f)
+                for k in range(len(frames)):
                     v, l, b = views[k]
                     t0 = time.perf_counter()
                     setup = compute(method, v, l, b, WarpOptions(shadow_map_size=(int(size), int(size))))

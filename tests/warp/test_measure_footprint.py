@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from addon.measure.footprint import footprint_stats, footprints, setup_footprints
+from addon.measure.footprint import footprint_stats, setup_footprints
 from addon.warp.geometry import look_along, ortho_matrix
 from addon.warp.types import Diagnostics, ShadowMap, ShadowSetup, View
 
@@ -29,7 +29,8 @@ def test_top_down_sun_over_a_plane_with_a_uniform_map_has_constant_known_footpri
     pts = np.column_stack([rng.uniform(-half_h * res[0] / res[1], half_h * res[0] / res[1], 500),
                            rng.uniform(-half_h, half_h, 500), np.zeros(500)])
     normals = np.tile([0.0, 0.0, 1.0], (500, 1))
-    lin, area = footprints(view.world_to_clip, res, _uniform_sun_map(a, size), (size, size), pts, normals)
+    setup = ShadowSetup([ShadowMap(_uniform_sun_map(a, size), (size, size))], Diagnostics("uniform"))
+    lin, area = setup_footprints(view, setup, pts, normals)
     texel = 2 * a / size                     # world length of a texel
     pixel = 2 * half_h / res[1]               # world length of a pixel at depth `height`
     assert np.allclose(lin, texel / pixel, rtol=1e-9)
@@ -45,7 +46,8 @@ def test_oblique_receiver_footprint_is_the_worst_direction():
     w2l = look_along(-50 * d, d, [0, 1, 0])
     m = ortho_matrix(-10, 10, -10, 10, 1, 100) @ w2l
     pts = np.array([[0.5, -1.0, 0.0], [2.0, 3.0, 0.0]])
-    lin, area = footprints(view.world_to_clip, (400, 400), m, (500, 500), pts, np.tile([0, 0, 1.0], (2, 1)))
+    setup = ShadowSetup([ShadowMap(m, (500, 500))], Diagnostics("uniform"))
+    lin, area = setup_footprints(view, setup, pts, np.tile([0, 0, 1.0], (2, 1)))
     pixel = 2 * 10 * math.tan(math.radians(30)) / 400
     texel = 20 / 500
     assert np.allclose(lin, 2 * texel / pixel, rtol=1e-9)
