@@ -23,7 +23,7 @@ def method_parameters(method: str, light_type: str = "") -> tuple[str, ...]:
     if method in LAMBDA_METHODS:
         names += ["use_lambda", "lam"]
     if method in PLANE_METHODS:
-        names += ["plane_budget"]
+        names += ["plane_budget", "plane_twist"]
     if light_type in ("POINT", ""):
         names.append("max_frustum_angle")
     return tuple(names)

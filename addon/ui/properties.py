@@ -123,7 +123,14 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
     planes: CollectionProperty(type=LixelPlane, name="Planes of Interest")
     active_plane: IntProperty(name="Active Plane", default=0, min=0)
     plane_budget: FloatProperty(name="Plane Budget", default=0.75, min=0.01, max=1.0, subtype="FACTOR",
-                                description="Fraction of the texel budget given to the plane maps (rest: fallback)")
+                                description="The most of the texel budget the plane maps may take; they take only "
+                                            "what one lixel per pixel needs, the fallback map gets the rest")
+    plane_twist: EnumProperty(
+        name="Plane Twist", default="auto",
+        items=(("auto", "Auto", "Rotate a plane map's image when the budget forces fewer lixels than pixels and the "
+                                "rotated rectangle is tighter (Chong-Gortler §2)"),
+               ("on", "On", "Always fit the rotated (twisted) rectangle (Chong-Gortler §2)"),
+               ("off", "Off", "Never rotate the plane map's image")))
 
     # ShadowSettings
     bias_mode: EnumProperty(
@@ -183,7 +190,7 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
             shadow_map_size=(w, h), texel_snapping=self.texel_snapping, delta_z=self.delta_z,
             visible_depth_range=vis, middle_vector=self.middle_vector, linear_z=self.linear_z,
             lam=float(self.lam) if self.use_lambda else None, max_frustum_angle=float(self.max_frustum_angle),
-            planes=planes, plane_budget=float(self.plane_budget))
+            planes=planes, plane_budget=float(self.plane_budget), plane_twist=self.plane_twist)
 
     def shadow_settings(self) -> ShadowSettings:
         return ShadowSettings(
@@ -214,6 +221,7 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
             self.lam = wo.lam
         self.max_frustum_angle = wo.max_frustum_angle
         self.plane_budget = wo.plane_budget
+        self.plane_twist = wo.plane_twist
         self.planes.clear()
         for point, normal in wo.planes:
             p = self.planes.add()
@@ -249,7 +257,7 @@ def _touched(self, _context):
 
 SETTING_NAMES = ("light", "method", "shadow_map_size", "texel_snapping", "delta_z", "use_visible_depth_range",
                  "visible_depth_range", "middle_vector", "linear_z", "use_lambda", "lam", "max_frustum_angle",
-                 "plane_budget", "bias_mode", "constant_bias", "slope_bias", "back_faces", "pcf_kernel",
+                 "plane_budget", "plane_twist", "bias_mode", "constant_bias", "slope_bias", "back_faces", "pcf_kernel",
                  "mdsm_depths", "mdsm_selection", "mdsm_neighbourhood", "eye_blur")
 for _name in SETTING_NAMES:  # one update callback for every setting (before registration)
     LixelSceneSettings.__annotations__[_name].keywords["update"] = _touched

@@ -1,0 +1,91 @@
+"""``scene.lixel`` mirrors LixelSettings / WarpOptions / ShadowSettings field
+for field: a round trip through the properties keeps every value, the
+preferences give new scenes their defaults, and a user's edit is never
+overwritten by them."""
+import dataclasses
+import importlib
+import math
+
+import bpy
+import pytest
+
+from ui_scenes import active_scene
+
+
+@pytest.fixture(scope="module")
+def mods(lixel):
+    class M:
+        pass
+    m = M()
+    m.settings = importlib.import_module(f"{lixel.__name__}.addon.settings")
+    m.types = importlib.import_module(f"{lixel.__name__}.addon.warp.types")
+    m.properties = importlib.import_module(f"{lixel.__name__}.addon.ui.properties")
+    m.preferences = importlib.import_module(f"{lixel.__name__}.addon.ui.preferences")
+    return m
+
+
+def custom_settings(mods):
+    """Every field away from its default."""
+    warp = mods.types.WarpOptions(
+        shadow_map_size=(1024, 512), texel_snapping=True, delta_z="visible", visible_depth_range=(0.5, 40.0),
+        middle_vector=True, linear_z=True, lam=0.25, max_frustum_angle=math.radians(95.0),
+        planes=(((0.0, 0.0, 0.5), (0.0, 0.0, 1.0)), ((1.0, 0.0, 0.0), (1.0, 0.0, 0.0))), plane_budget=0.5,
+        plane_twist="off")
+    shadow = mods.settings.ShadowSettings(
+        bias_mode="SLOPE", constant_bias=0.002, slope_bias=2.5, back_faces=True, pcf_kernel=5, mdsm_depths=3,
+        mdsm_selection="SORT", mdsm_neighbourhood=5, eye_blur=2.0)
+    return mods.settings.LixelSettings(method="gmnpr", warp=warp, shadow=shadow)
+
+
+def test_every_field_is_mirrored(mods):
+    s = custom_settings(mods)
+    defaults = mods.settings.LixelSettings()
+    for group in ("warp", "shadow"):
+        for f in dataclasses.fields(getattr(s, group)):
+            assert getattr(getattr(s, group), f.name) != getattr(getattr(defaults, group), f.name), \
+                f"{group}.{f.name} is new: mirror it in addon/ui/properties.py and set it in custom_settings()"
+
+
+def test_round_trip_keeps_every_value(lixel, mods):
+    with active_scene("lixel_props") as scene:
+        s = custom_settings(mods)
+        scene.lixel.from_settings(s)
+        back = scene.lixel.to_settings()
+        assert back.method == s.method
+        for group in ("warp", "shadow"):  # Blender stores floats as float32
+            for f in dataclasses.fields(getattr(s, group)):
+                a, b = getattr(getattr(back, group), f.name), getattr(getattr(s, group), f.name)
+                if isinstance(b, float):
+                    assert a == pytest.approx(b, rel=1e-6), f.name
+                elif f.name == "planes":
+                    assert [(tuple(map(float, p)), tuple(map(float, n))) for p, n in a] == list(b)
+                elif f.name == "visible_depth_range":
+                    assert a == pytest.approx(b), f.name
+                else:
+                    assert a == b, f.name
+
+
+def test_preferences_apply_to_new_scenes_only(lixel, mods):
+    prefs = mods.preferences.preferences()
+    assert prefs is not None and type(prefs).bl_idname == mods.preferences.ROOT_PACKAGE == lixel.__name__
+    old = (prefs.method, prefs.map_size, prefs.pcf_kernel)
+    prefs.method, prefs.map_size, prefs.pcf_kernel = "uniform", 512, 2
+    try:
+        with active_scene("lixel_prefs_new") as scene:
+            assert mods.properties.ensure_defaults(scene)
+            got = scene.lixel.to_settings()
+            assert (got.method, got.warp.shadow_map_size, got.shadow.pcf_kernel) == ("uniform", (512, 512), 2)
+            assert not mods.properties.ensure_defaults(scene)  # only once
+        with active_scene("lixel_prefs_edited") as scene:
+            scene.lixel.method = "psm"  # the user's choice, before any refresh
+            assert not mods.properties.ensure_defaults(scene)
+            assert scene.lixel.method == "psm" and scene.lixel.pcf_kernel == 3
+    finally:
+        prefs.method, prefs.map_size, prefs.pcf_kernel = old
+
+
+def test_light_poll_accepts_only_lights(lixel):
+    with active_scene("lixel_props_light") as scene:
+        poll = type(scene.lixel).__annotations__["light"].keywords["poll"]
+        assert poll(scene.lixel, scene.objects["lixel_props_light light"])
+        assert not poll(scene.lixel, scene.camera)
