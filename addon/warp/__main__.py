@@ -2,17 +2,29 @@
 
 Plain Python and numpy, no bpy. A malformed config prints one line naming the
 field and exits with status 2. An empty intersection body is reported in the
-output (no maps, ``diagnostics.empty_body`` says why), not crashed on.
+output (no maps, ``diagnostics.empty_body`` says why, plus a note on stderr),
+not crashed on. An unexpected exception (a bug) is one line on stderr too
+(``LIXEL_DEBUG=1`` prints the traceback); with ``--method all`` the other
+methods' results are still printed.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+import traceback
 
 from . import METHODS, compute, intersection_body
 from .config import ConfigError, parse_config
 from .types import EmptyBodyError, WarpError
+
+
+def _internal(exc: BaseException) -> str:
+    """One line for an unexpected exception (a bug): LIXEL_DEBUG=1 shows the traceback."""
+    if os.environ.get("LIXEL_DEBUG"):
+        traceback.print_exception(exc, file=sys.stderr)
+    return f"internal error ({type(exc).__name__}: {exc}); set LIXEL_DEBUG=1 for the traceback"
 
 
 def run_method(name, view, light, scene, options, body):
@@ -22,6 +34,8 @@ def run_method(name, view, light, scene, options, body):
         return compute(name, view, light, scene, options, body=body).to_json()
     except WarpError as exc:
         return {"maps": [], "diagnostics": {"method": name, "error": str(exc), "fallbacks": []}}
+    except Exception as exc:  # a bug in one method must not hide the others' results
+        return {"maps": [], "diagnostics": {"method": name, "error": _internal(exc), "fallbacks": []}}
 
 
 def main(argv=None) -> int:
@@ -39,9 +53,15 @@ def main(argv=None) -> int:
     except OSError as exc:
         print(f"lixel: error: config: cannot read {args.config}: {exc.strerror}", file=sys.stderr)
         return 2
+    except UnicodeDecodeError:
+        print(f"lixel: error: config: {args.config} is not UTF-8 text", file=sys.stderr)
+        return 2
     try:
         config = json.loads(text)
-    except json.JSONDecodeError as exc:
+    except (json.JSONDecodeError, RecursionError) as exc:
+        if isinstance(exc, RecursionError):
+            print("lixel: error: config: nested too deeply", file=sys.stderr)
+            return 2
         print(f"lixel: error: config: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})", file=sys.stderr)
         return 2
     try:
@@ -49,10 +69,20 @@ def main(argv=None) -> int:
     except WarpError as exc:
         print(f"lixel: error: {exc}", file=sys.stderr)
         return 2
+    except Exception as exc:
+        print(f"lixel: error: config: {_internal(exc)}", file=sys.stderr)
+        return 2
     try:
         body = intersection_body(view, light, scene)
     except EmptyBodyError as exc:
         body = exc
+        print(f"lixel: note: the intersection body is empty: {exc}", file=sys.stderr)
+    except WarpError as exc:
+        print(f"lixel: error: {exc}", file=sys.stderr)
+        return 1
+    except Exception as exc:
+        print(f"lixel: error: intersection body: {_internal(exc)}", file=sys.stderr)
+        return 1
     names = list(METHODS) if args.method == "all" else [args.method]
     results = {n: run_method(n, view, light, scene, options, body) for n in names}
     if args.method == "all":

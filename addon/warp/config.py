@@ -63,7 +63,10 @@ def _matrix(value, field: str) -> np.ndarray:
         raise ConfigError(f"{field}: must be a 4x4 list of numbers") from None
     if a.shape != (4, 4) or not np.all(np.isfinite(a)):
         raise ConfigError(f"{field}: must be a 4x4 list of finite numbers")
-    if abs(np.linalg.det(a[:3, :3])) < 1e-12:
+    if not np.array_equal(a[3], [0.0, 0.0, 0.0, 1.0]):
+        raise ConfigError(f"{field}: the last row must be [0, 0, 0, 1] (an affine transform)")
+    scale = float(np.abs(a[:3, :3]).max())
+    if scale == 0 or abs(np.linalg.det(a[:3, :3])) < 1e-12 * scale ** 3:
         raise ConfigError(f"{field}: the rotation part is singular")
     return a
 
@@ -90,8 +93,11 @@ def parse_view(cam: dict) -> View:
         raise ConfigError(f"camera.far: must be greater than camera.near ({far} <= {near})")
     res = _size(_get(cam, "resolution", "camera", [1920, 1080]), "camera.resolution")
     aspect = _number(_get(cam, "aspect", "camera", res[0] / res[1]), "camera.aspect", positive=True)
+    ortho = _get(cam, "orthographic", "camera", False)
+    if not isinstance(ortho, bool):
+        raise ConfigError(f"camera.orthographic: must be true or false (got {ortho!r})")
     try:
-        if _get(cam, "orthographic", "camera", False):
+        if ortho:
             h = _number(_get(cam, "ortho_height", "camera"), "camera.ortho_height", positive=True)
             proj = ortho_matrix(-h * aspect / 2, h * aspect / 2, -h / 2, h / 2, near, far)
             return View(m, proj, near, far, res, orthographic=True)
@@ -112,8 +118,9 @@ def parse_light(light: dict) -> Light:
     kw: dict[str, Any] = {"type": kind, "name": str(light.get("name", "light"))}
     if kind in ("SUN", "SPOT"):
         d = _vector(_get(light, "direction", "light"), "light.direction")
-        if not np.any(d):
-            raise ConfigError("light.direction: must not be zero")
+        length = float(np.linalg.norm(d))
+        if not (length > 0 and math.isfinite(length)) or not np.all(np.isfinite(d / length)):
+            raise ConfigError("light.direction: must be a non-zero vector")
         kw["direction"] = d
     if kind in ("POINT", "SPOT"):
         kw["position"] = _vector(_get(light, "position", "light"), "light.position")
@@ -151,6 +158,38 @@ def parse_planes(planes) -> tuple:
     return tuple(out)
 
 
+def _option(key: str, value, annotation: str):
+    """Check one ``options`` entry against its WarpOptions field type."""
+    field = f"options.{key}"
+    if key == "max_frustum_angle":
+        deg = _number(value, field, positive=True)
+        if deg >= 180:
+            raise ConfigError(f"{field}: must be below 180 degrees (got {value!r})")
+        return math.radians(deg)
+    optional = annotation.startswith("Optional[")
+    kind = annotation[len("Optional["):-1] if optional else annotation
+    if value is None:
+        if optional:
+            return None
+        raise ConfigError(f"{field}: must not be null")
+    if kind == "bool":
+        if not isinstance(value, bool):
+            raise ConfigError(f"{field}: must be true or false (got {value!r})")
+        return value
+    if kind == "str":
+        if not isinstance(value, str):
+            raise ConfigError(f"{field}: must be a string (got {value!r})")
+        return value
+    if kind == "float":
+        return _number(value, field)
+    if kind == "tuple[float, float]":
+        a = _vector(value, field, 2)
+        if a[0] > a[1]:
+            raise ConfigError(f"{field}: must be [low, high] with low <= high (got {value!r})")
+        return (float(a[0]), float(a[1]))
+    return tuple(value) if isinstance(value, list) else value
+
+
 def parse_options(config: dict) -> WarpOptions:
     kw: dict[str, Any] = {}
     if "shadow_map_size" in config:
@@ -160,18 +199,19 @@ def parse_options(config: dict) -> WarpOptions:
     extra = config.get("options", {})
     if not isinstance(extra, dict):
         raise ConfigError("options: must be an object")
-    names = {f.name for f in dataclasses.fields(WarpOptions)} - {"shadow_map_size", "planes"}
+    fields = {f.name: str(f.type) for f in dataclasses.fields(WarpOptions)}
+    names = set(fields) - {"shadow_map_size", "planes"}
     for key, value in extra.items():
         if key not in names:
             raise ConfigError(f"options.{key}: unknown option; known: {', '.join(sorted(names))}")
-        if key in ("max_frustum_angle",):
-            value = math.radians(_number(value, f"options.{key}", positive=True))
-        kw[key] = tuple(value) if isinstance(value, list) else value
+        kw[key] = _option(key, value, fields[key])
+        try:
+            WarpOptions(**{key: kw[key]})
+        except (WarpError, TypeError, ValueError) as exc:
+            raise ConfigError(f"options.{key}: {exc}") from None
     try:
         return WarpOptions(**kw)
-    except WarpError as exc:
-        raise ConfigError(f"options: {exc}") from None
-    except TypeError as exc:
+    except (WarpError, TypeError, ValueError) as exc:
         raise ConfigError(f"options: {exc}") from None
 
 

@@ -1,0 +1,314 @@
+"""``python -m addon.warp``: the JSON it prints, one-line errors for malformed
+configs (never a traceback), empty bodies reported, and no bpy anywhere.
+
+Run with plain ``python3`` (numpy only) in a subprocess, as a user would."""
+import copy
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = sorted((ROOT / "examples").glob("*.json"))
+
+
+def _plain_python() -> str:
+    """Plain ``python3`` when it has numpy (as a user runs the CLI), else this
+    interpreter (a Blender venv: bpy is installed there, but the core must not
+    import it, which the tests check through ``sys.modules``)."""
+    exe = shutil.which("python3")
+    if exe and subprocess.run([exe, "-c", "import numpy"], capture_output=True).returncode == 0:
+        return exe
+    return sys.executable
+
+
+PLAIN_PYTHON = _plain_python()
+
+
+def run_cli(*args, stdin=None, python=None):
+    env = dict(os.environ)
+    env.pop("LIXEL_DEBUG", None)
+    env["PYTHONPATH"] = str(ROOT)
+    return subprocess.run([python or PLAIN_PYTHON, "-m", "addon.warp", *args], input=stdin, capture_output=True,
+                          text=True, cwd=ROOT, env=env, timeout=120)
+
+
+def base_config():
+    return json.loads((ROOT / "examples" / "outdoor_sun.json").read_text())
+
+
+def methods():
+    from addon.warp import METHODS
+    return list(METHODS)
+
+
+def check_setup_json(obj):
+    assert set(obj) == {"maps", "diagnostics"}
+    for m in obj["maps"]:
+        mat = np.asarray(m["matrix"], dtype=float)
+        assert mat.shape == (4, 4) and np.all(np.isfinite(mat))
+        assert len(m["size"]) == 2 and all(isinstance(v, int) and v >= 1 for v in m["size"])
+        assert m["depth_test"] in ("LESS", "GREATER")
+        assert isinstance(m["role"], str)
+        if "view_depth_range" in m:
+            a, b = m["view_depth_range"]
+            assert a <= b
+    d = obj["diagnostics"]
+    assert "method" in d and isinstance(d["fallbacks"], list)
+
+
+# ----------------------------------------------------------------------------- the happy path
+
+@pytest.mark.parametrize("module", ["addon", "addon.warp", "addon.warp.__main__", "addon.warp.config"])
+def test_importing_the_core_does_not_import_bpy(module):
+    r = subprocess.run([PLAIN_PYTHON, "-c", f"import {module}, sys; assert 'bpy' not in sys.modules, 'bpy imported'"],
+                       capture_output=True, text=True, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert r.returncode == 0, r.stderr
+
+
+@pytest.mark.parametrize("example", EXAMPLES, ids=[p.stem for p in EXAMPLES])
+def test_all_methods_on_every_example(example):
+    r = run_cli("--method", "all", str(example))
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert list(out) == ["methods"] and list(out["methods"]) == methods()
+    for name, obj in out["methods"].items():
+        check_setup_json(obj)
+        assert obj["diagnostics"]["method"] == name
+        assert "error" not in obj["diagnostics"], obj["diagnostics"]["error"]
+        assert obj["maps"], f"{name}: no maps"
+
+
+def test_single_method_matches_compute():
+    from addon.warp import compute
+    from addon.warp.config import parse_config
+    config = base_config()
+    r = run_cli("--method", "uniform", "-", stdin=json.dumps(config))
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    check_setup_json(out)
+    view, light, scene, options = parse_config(config)
+    ref = compute("uniform", view, light, scene, options)
+    assert np.allclose(out["maps"][0]["matrix"], ref.maps[0].matrix, rtol=1e-12, atol=1e-15)
+    assert out["maps"][0]["size"] == [1024, 1024]
+    d = out["diagnostics"]
+    assert d["theta_deg"] == pytest.approx(math.degrees(ref.diagnostics.theta))
+    assert len(d["body_vertices"]) == len(ref.diagnostics.body_vertices)
+
+
+def test_empty_body_is_reported_not_crashed_on():
+    config = base_config()
+    config["camera"]["matrix_world"] = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 50], [0, 0, 0, 1]]  # looks down -Z from 50 m up... at the ground
+    config["boxes"] = [{"min": [500, 500, 0], "max": [501, 501, 1]}]                            # ...which is elsewhere
+    r = run_cli("--method", "all", "-", stdin=json.dumps(config))
+    assert r.returncode == 0, r.stderr
+    assert r.stderr.count("\n") == 1 and "empty" in r.stderr
+    out = json.loads(r.stdout)
+    for obj in out["methods"].values():
+        assert obj["maps"] == [] and "receiver" in obj["diagnostics"]["empty_body"]
+    r = run_cli("--method", "uniform", "-", stdin=json.dumps(config))
+    assert r.returncode == 0 and json.loads(r.stdout)["diagnostics"]["empty_body"]
+
+
+def test_no_boxes_is_an_empty_body():
+    config = base_config()
+    config["boxes"] = []
+    r = run_cli("--method", "uniform", "-", stdin=json.dumps(config))
+    assert r.returncode == 0
+    assert "no shadow casters or receivers" in json.loads(r.stdout)["diagnostics"]["empty_body"]
+
+
+# ----------------------------------------------------------------------------- malformed input
+
+def _set(path, value):
+    def f(c):
+        obj = c
+        for k in path[:-1]:
+            obj = obj[k]
+        obj[path[-1]] = value
+    return f
+
+
+def _drop(path):
+    def f(c):
+        obj = c
+        for k in path[:-1]:
+            obj = obj[k]
+        del obj[path[-1]]
+    return f
+
+
+MALFORMED = {
+    # name: (mutation, the field the one-line error must name)
+    "camera_missing": (_drop(["camera"]), "camera"),
+    "camera_not_an_object": (_set(["camera"], 5), "camera"),
+    "matrix_missing": (_drop(["camera", "matrix_world"]), "camera.matrix_world"),
+    "matrix_3x3": (_set(["camera", "matrix_world"], [[1, 0, 0], [0, 1, 0], [0, 0, 1]]), "camera.matrix_world"),
+    "matrix_string": (_set(["camera", "matrix_world"], "eye"), "camera.matrix_world"),
+    "matrix_nan": (_set(["camera", "matrix_world"], [[float("nan")] * 4] * 4), "camera.matrix_world"),
+    "matrix_ragged": (_set(["camera", "matrix_world"], [[1, 2], [1, 2, 3, 4], [0, 0, 1, 0], [0, 0, 0, 1]]),
+                      "camera.matrix_world"),
+    "matrix_objects": (_set(["camera", "matrix_world"], [[{"a": 1}] * 4] * 4), "camera.matrix_world"),
+    "matrix_singular": (_set(["camera", "matrix_world"], [[0, 0, 0, 0]] * 3 + [[0, 0, 0, 1]]), "camera.matrix_world"),
+    "matrix_projective_row": (_set(["camera", "matrix_world"], [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 1, 1]]),
+                              "camera.matrix_world"),
+    "fov_missing": (_drop(["camera", "fov_y_deg"]), "camera.fov_y_deg"),
+    "fov_zero": (_set(["camera", "fov_y_deg"], 0), "camera.fov_y_deg"),
+    "fov_180": (_set(["camera", "fov_y_deg"], 180), "camera.fov_y_deg"),
+    "fov_string": (_set(["camera", "fov_y_deg"], "60"), "camera.fov_y_deg"),
+    "fov_bool": (_set(["camera", "fov_y_deg"], True), "camera.fov_y_deg"),
+    "near_negative": (_set(["camera", "near"], -1), "camera.near"),
+    "near_beyond_far": (_set(["camera", "near"], 100), "camera.far"),
+    "far_infinite": (_set(["camera", "far"], float("inf")), "camera.far"),
+    "far_missing": (_drop(["camera", "far"]), "camera.far"),
+    "aspect_zero": (_set(["camera", "aspect"], 0), "camera.aspect"),
+    "resolution_float": (_set(["camera", "resolution"], [1280.5, 720]), "camera.resolution"),
+    "resolution_negative": (_set(["camera", "resolution"], [-1, 720]), "camera.resolution"),
+    "resolution_absurd": (_set(["camera", "resolution"], [10 ** 9, 720]), "camera.resolution"),
+    "resolution_three": (_set(["camera", "resolution"], [1, 2, 3]), "camera.resolution"),
+    "ortho_without_height": (_set(["camera", "orthographic"], True), "camera.ortho_height"),
+    "ortho_not_bool": (_set(["camera", "orthographic"], "yes"), "camera.orthographic"),
+    "light_missing": (_drop(["light"]), "light"),
+    "light_type_area": (_set(["light", "type"], "AREA"), "light.type"),
+    "light_type_lowercase": (_set(["light", "type"], "sun"), "light.type"),
+    "light_type_missing": (_drop(["light", "type"]), "light.type"),
+    "light_direction_zero": (_set(["light", "direction"], [0, 0, 0]), "light.direction"),
+    "light_direction_denormal": (_set(["light", "direction"], [0, 0, -1e-320]), "light.direction"),
+    "light_direction_two": (_set(["light", "direction"], [0, 1]), "light.direction"),
+    "light_direction_string": (_set(["light", "direction"], "down"), "light.direction"),
+    "light_direction_missing": (_drop(["light", "direction"]), "light.direction"),
+    "point_without_position": (_set(["light"], {"type": "POINT"}), "light.position"),
+    "point_position_nan": (_set(["light"], {"type": "POINT", "position": [0, float("nan"), 1]}), "light.position"),
+    "spot_without_angle": (_set(["light"], {"type": "SPOT", "position": [0, 0, 5], "direction": [0, 0, -1]}),
+                           "light.spot_angle_deg"),
+    "spot_angle_200": (_set(["light"], {"type": "SPOT", "position": [0, 0, 5], "direction": [0, 0, -1],
+                                        "spot_angle_deg": 200}), "light.spot_angle_deg"),
+    "boxes_missing": (_drop(["boxes"]), "boxes"),
+    "boxes_object": (_set(["boxes"], {"min": [0, 0, 0]}), "boxes"),
+    "box_without_max": (_drop(["boxes", 0, "max"]), "boxes[0].max"),
+    "box_inverted": (_set(["boxes", 0, "min"], [100, 100, 100]), "boxes[0]"),
+    "box_not_an_object": (_set(["boxes", 0], [1, 2, 3]), "boxes[0]"),
+    "box_string_coordinate": (_set(["boxes", 0, "min"], ["a", 0, 0]), "boxes[0].min"),
+    "box_infinite": (_set(["boxes", 1, "max"], [1, 1, float("inf")]), "boxes[1].max"),
+    "size_zero": (_set(["shadow_map_size"], 0), "shadow_map_size"),
+    "size_float": (_set(["shadow_map_size"], 1024.0), "shadow_map_size"),
+    "size_string": (_set(["shadow_map_size"], "1024"), "shadow_map_size"),
+    "size_absurd": (_set(["shadow_map_size"], 10 ** 6), "shadow_map_size"),
+    "size_three": (_set(["shadow_map_size"], [1, 2, 3]), "shadow_map_size"),
+    "options_not_an_object": (_set(["options"], [1]), "options"),
+    "option_unknown": (_set(["options"], {"foo": 1}), "options.foo"),
+    "option_delta_z": (_set(["options"], {"delta_z": "far"}), "options.delta_z"),
+    "option_lam_string": (_set(["options"], {"lam": "x"}), "options.lam"),
+    "option_linear_z_string": (_set(["options"], {"linear_z": "yes"}), "options.linear_z"),
+    "option_snapping_number": (_set(["options"], {"texel_snapping": 3}), "options.texel_snapping"),
+    "option_depth_range_short": (_set(["options"], {"visible_depth_range": [1]}), "options.visible_depth_range"),
+    "option_depth_range_string": (_set(["options"], {"visible_depth_range": "near"}), "options.visible_depth_range"),
+    "option_depth_range_reversed": (_set(["options"], {"visible_depth_range": [5, 1]}), "options.visible_depth_range"),
+    "option_budget_string": (_set(["options"], {"plane_budget": "x"}), "options.plane_budget"),
+    "option_budget_zero": (_set(["options"], {"plane_budget": 0}), "options.plane_budget"),
+    "option_angle_negative": (_set(["options"], {"max_frustum_angle": -5}), "options.max_frustum_angle"),
+    "option_angle_400": (_set(["options"], {"max_frustum_angle": 400}), "options.max_frustum_angle"),
+    "planes_object": (_set(["planes"], {"point": [0, 0, 0]}), "planes"),
+    "plane_without_normal": (_set(["planes"], [{"point": [0, 0, 0]}]), "planes[0].normal"),
+    "plane_zero_normal": (_set(["planes"], [{"point": [0, 0, 0], "normal": [0, 0, 0]}]), "planes[0].normal"),
+    "plane_not_an_object": (_set(["planes"], [[0, 0, 0]]), "planes[0]"),
+}
+
+
+def malformed(name):
+    mutate, field = MALFORMED[name]
+    config = base_config()
+    config["boxes"] = config["boxes"][:3]
+    mutate(config)
+    return json.dumps(config), field
+
+
+def check_one_line(code, stdout, stderr, field):
+    assert code == 2, (code, stdout[:200], stderr)
+    assert "Traceback" not in stderr
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith("lixel: error: ")
+    assert field in lines[0], f"{lines[0]!r} should name {field!r}"
+    assert stdout == ""
+
+
+@pytest.mark.parametrize("name", list(MALFORMED))
+def test_malformed_config_gets_one_line_naming_the_field(name, tmp_path, capsys):
+    """In-process (fast) for every malformed config: ``main`` returns 2 and
+    prints one line; an exception escaping ``main`` would fail the test."""
+    from addon.warp.__main__ import main
+    text, field = malformed(name)
+    path = tmp_path / "config.json"
+    path.write_text(text)
+    for method in ("uniform", "all"):
+        code = main(["--method", method, str(path)])
+        out = capsys.readouterr()
+        check_one_line(code, out.out, out.err, field)
+
+
+SUBPROCESS_SAMPLE = ["camera_missing", "matrix_nan", "matrix_projective_row", "fov_string", "near_beyond_far",
+                     "light_type_area", "light_direction_denormal", "box_inverted", "size_absurd", "option_lam_string",
+                     "option_depth_range_short", "plane_zero_normal"]
+
+
+@pytest.mark.parametrize("name", SUBPROCESS_SAMPLE)
+def test_malformed_config_in_a_real_process(name):
+    text, field = malformed(name)
+    r = run_cli("--method", "all", "-", stdin=text)
+    check_one_line(r.returncode, r.stdout, r.stderr, field)
+
+
+@pytest.mark.parametrize("text,expect", [
+    ("", "not valid JSON"),
+    ("{", "not valid JSON"),
+    ("[1, 2]", "config: must be a JSON object"),
+    ("null", "config: must be a JSON object"),
+    ("\"camera\"", "config: must be a JSON object"),
+    ("[" * 100000 + "]" * 100000, "config"),
+], ids=["empty", "unclosed", "list", "null", "string", "deeply_nested"])
+def test_not_a_config_at_all(text, expect):
+    r = run_cli("--method", "all", "-", stdin=text)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and expect in r.stderr
+
+
+def test_unreadable_files(tmp_path):
+    r = run_cli("--method", "all", str(tmp_path / "missing.json"))
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "cannot read" in r.stderr
+    r = run_cli("--method", "all", str(tmp_path))
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "cannot read" in r.stderr
+    binary = tmp_path / "binary.json"
+    binary.write_bytes(b"\xff\xfe\x00garbage")
+    r = run_cli("--method", "all", str(binary))
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr
+
+
+def test_unknown_method():
+    r = run_cli("--method", "nope", str(EXAMPLES[0]))
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "--method" in r.stderr
+
+
+def test_a_broken_method_does_not_hide_the_others(tmp_path):
+    """A bug in one method is one line in its diagnostics; the rest still print."""
+    script = tmp_path / "run.py"
+    script.write_text(
+        "import sys, runpy\n"
+        "from addon.warp import METHODS\n"
+        "def broken(*a):\n    raise ZeroDivisionError('boom')\n"
+        "METHODS['uniform'] = broken\n"
+        "sys.argv = ['addon.warp', '--method', 'all', sys.argv[1]]\n"
+        "runpy.run_module('addon.warp', run_name='__main__')\n")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env.pop("LIXEL_DEBUG", None)
+    r = subprocess.run([PLAIN_PYTHON, str(script), str(EXAMPLES[0])], capture_output=True, text=True, cwd=ROOT, env=env)
+    assert r.returncode == 0 and "Traceback" not in r.stderr
+    out = json.loads(r.stdout)["methods"]
+    assert "ZeroDivisionError" in out["uniform"]["diagnostics"]["error"]
+    assert all(out[m]["maps"] for m in out if m != "uniform")
