@@ -131,6 +131,8 @@ def shadow_scene(scene, kind):
     if kind == "SUN":
         lt = light(scene, "SUN", (0, 0, 10), energy=3.0)
         lt.rotation_euler = (math.radians(35), 0, math.radians(25))
+    elif kind == "POINT":
+        lt = light(scene, "POINT", (2.0, -1.0, 4.5), energy=800.0)
     else:
         lt = light(scene, "SPOT", (2.5, -1.5, 6.0), spot_size=math.radians(70), energy=800.0)
         aim(lt, (0, 0, 0))
@@ -225,7 +227,7 @@ def agreement(out, lt, dg, texels=2.0):
 
 # ---------------------------------------------------------------- tests
 
-@pytest.mark.parametrize("kind", ["SUN", "SPOT"])
+@pytest.mark.parametrize("kind", ["SUN", "SPOT", "POINT"])
 @pytest.mark.parametrize("method", METHOD_NAMES)
 def test_shadows_agree_with_ray_casting(lx, scene, kind, method):
     lt = shadow_scene(scene, kind)
@@ -317,6 +319,33 @@ def test_back_face_rendering_removes_acne_on_a_closed_slab(lx, scene):
     front = acne_fraction(out)
     out, *_ = render(lx, scene, "uniform", 1024, shadow=dict(bias_mode="NONE", pcf_kernel=1, back_faces=True))
     assert front > 0.2 and acne_fraction(out) < 0.005
+
+
+@pytest.mark.parametrize("variant", ["GREATER", "MIRRORED"])
+def test_reversed_and_mirrored_maps_cull_the_right_faces(lx, scene, variant):
+    """A reversed depth test (clear 0, GREATER) or a map that mirrors x gives the
+    same shadows as the plain map, and back-face rendering still culls the faces
+    that face the light (no acne without bias on a closed slab)."""
+    acne_scene(scene, closed=True)
+    dg = scene.view_layers[0].depsgraph
+    dg.update()
+    view, lt, bounds = lx.describe.describe_scene(scene, dg)
+    plain = lx.warp.compute("uniform", view, lt, bounds, lx.warp.WarpOptions(shadow_map_size=(1024, 1024)))
+    m = plain.maps[0]
+    flip = np.diag([1.0, 1.0, -1.0, 1.0]) if variant == "GREATER" else np.diag([-1.0, 1.0, 1.0, 1.0])
+    other = lx.types.ShadowMap(flip @ m.matrix, m.size, "GREATER" if variant == "GREATER" else "LESS", m.role)
+    setup = lx.types.ShadowSetup([other], plain.diagnostics)
+    shadow = dict(bias_mode="NONE", pcf_kernel=1, back_faces=True)
+    ref, *_ = render(lx, scene, setup=plain, shadow=shadow)
+    out, *_ = render(lx, scene, setup=setup, shadow=shadow)
+    assert acne_fraction(ref) < 0.005 and acne_fraction(out) < 0.005
+    out, *_ = render(lx, scene, setup=setup, shadow=dict(bias_mode="NONE", pcf_kernel=1))
+    assert acne_fraction(out) > 0.2, "drawing the light-facing faces (no culling) must show acne"
+    ref, *_ = render(lx, scene, setup=plain, shadow=dict(bias_mode="NONE", pcf_kernel=1))
+    if variant == "GREATER":  # z negated: the GREATER test must keep the same (nearest) surface
+        np.testing.assert_allclose(out["shadow_maps"][0], 1.0 - ref["shadow_maps"][0], atol=1e-5)
+    else:
+        np.testing.assert_allclose(out["shadow_maps"][0], ref["shadow_maps"][0][:, ::-1], atol=1e-5)
 
 
 def edge_ramp_scene(scene):
