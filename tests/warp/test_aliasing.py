@@ -192,21 +192,6 @@ def test_footprint_is_inf_edge_on_to_the_map_and_nan_behind_the_camera():
     assert math.isnan(fp[1])
 
 
-def test_footprint_agrees_with_the_measure_module():
-    from addon.measure.footprint import footprints
-    view = _top_down_view(7.0, 50.0, (640, 480))
-    rng = np.random.default_rng(3)
-    d = np.array([0.3, -0.2, -1.0]) / np.linalg.norm([0.3, -0.2, -1.0])
-    w2l = look_along(-40 * d, d, [0, 1, 0])
-    persp = np.array([[2.0, 0, 0.3, 0], [0, 2.0, 0, 0], [0, 0, -1.01, -0.2], [0, 0, -1, 0]]) @ w2l
-    sm = ShadowMap(persp, (777, 333))
-    pts = rng.uniform(-3, 3, (50, 3)) * [1, 1, 0.2]
-    nrm = rng.normal(size=(50, 3))
-    lin, area = footprints(view.world_to_clip, view.resolution, sm.matrix, sm.size, pts, nrm)
-    assert np.allclose(al.texel_footprint(view, sm, pts, nrm), lin, rtol=1e-9)
-    assert np.allclose(al.texel_footprint_area(view, sm, pts, nrm), area, rtol=1e-9)
-
-
 @pytest.mark.parametrize("theta_deg", [5.0, 20.0, 29.0, 31.0, 55.0, 90.0])
 def test_eq2_at_near_and_far_matches_the_papers_case_values(theta_deg):
     """GMNPR §3's closed forms of F(λ, θ, n) and F(λ, θ, f) (Case 1 and Case 2)."""
