@@ -15,9 +15,11 @@ the carrier's matrices change, every group using it follows.
   the texel coordinate ((x/w)·½+½)·W, ((y/w)·½+½)·H with the homogeneous divide
   done explicitly (Project Point divides by |w|, so it is not used), and
   ``lixel_map_size``; per face corner ``lixel_texel_color``, the texel parity
-  at the face centre (for Workbench's Attribute colour). The material "Lixel
-  Texel Grid" divides per pixel and draws the parity checker exactly in EEVEE
-  and Cycles.
+  at the face centre (for Workbench's Attribute colour, which shows it when
+  the mesh has no colour attribute of its own: it is made the active one). The
+  material "Lixel Texel Grid" divides per pixel and draws the parity checker
+  exactly in EEVEE and Cycles. Verified by rendering in all three engines
+  (tests/blender/test_nodes.py).
 * **Lixel Frustum From Matrix** builds the clip volume of a map as a mesh: the
   unit cube's corners through the inverse matrix, divided by w.
 """
@@ -255,7 +257,7 @@ def ensure_texel_material():
     """The "Lixel Texel Grid" material: per-pixel texel parity from the
     interpolated clip coordinates (x, y, w) with the divide done per pixel, so
     texel edges are exact in EEVEE and Cycles. Workbench shows the per-face
-    ``lixel_texel_color`` (Viewport Shading > Color > Attribute)."""
+    ``lixel_texel_color`` (Viewport Shading > Color > Attribute; ``color_type`` 'VERTEX' in the API)."""
     mat = bpy.data.materials.get(TEXEL_MATERIAL)
     if mat is not None and mat.get(VERSION_KEY) == MATERIAL_VERSION:
         return mat
@@ -373,6 +375,11 @@ def add_texel_grid(ob, carrier, map_index: int = 0):
     _set_input(mod, group, "Material", mat)
     if not any(s.material == mat for s in ob.material_slots):
         ob.data.materials.append(mat)
+    attrs = ob.data.attributes
+    if not attrs.active_color_name and not attrs.default_color_name:
+        # Workbench's Attribute colour shows the active colour attribute; the mesh has none of its own,
+        # so point it at the one the modifier makes (the name is all that is stored).
+        attrs.active_color_name = attrs.default_color_name = PARITY_COLOR_ATTRIBUTE
     ob.update_tag()
     return mod
 
@@ -382,6 +389,16 @@ def remove_texel_grid(ob) -> bool:
     if mod is None:
         return False
     ob.modifiers.remove(mod)
+    attrs = ob.data.attributes
+    if attrs.active_color_name == PARITY_COLOR_ATTRIBUTE:
+        attrs.active_color_name = ""
+    if attrs.default_color_name == PARITY_COLOR_ATTRIBUTE:
+        attrs.default_color_name = ""
+    mat = bpy.data.materials.get(TEXEL_MATERIAL)
+    if mat is not None:
+        idx = ob.data.materials.find(mat.name)
+        if idx >= 0:
+            ob.data.materials.pop(index=idx)
     return True
 
 

@@ -158,3 +158,54 @@ def test_groups_are_idempotent_and_versioned(scene, nodes):
     assert len(bpy.data.node_groups) == n_groups
     m1 = nodes.ensure_texel_material()
     assert nodes.ensure_texel_material() == m1
+
+
+EEVEE = "BLENDER_EEVEE" if bpy.app.version >= (5, 0, 0) else "BLENDER_EEVEE_NEXT"
+
+
+@pytest.mark.parametrize("engine", ["BLENDER_WORKBENCH", "CYCLES", EEVEE])
+def test_texels_show_in_renders(scene, nodes, wg, engine, tmp_path):
+    """A 4x4-texel map over the 10 m ground, seen from straight above by an
+    orthographic camera framing the ground: the render is a 4x4 checker.
+    (EEVEE's first render compiles its shaders: 5-30 s on llvmpipe.)"""
+    ground = scene.objects["lixel_nodes ground"]
+    scene.objects["lixel_nodes cube"].hide_render = True
+    cam = scene.camera
+    cam.location, cam.rotation_euler = (0.0, 0.0, 12.0), (0.0, 0.0, 0.0)
+    cam.data.type, cam.data.ortho_scale = "ORTHO", 10.0
+    m = wg.ortho_matrix(-5, 5, -5, 5, 1, 30) @ wg.look_along(np.array([0, 0, 15.0]), np.array([0, 0, -1.0]),
+                                                             np.array([0, 1.0, 0]))
+    nodes.add_texel_grid(ground, nodes.ensure_carrier(scene, _Setup(_Map(m, (4, 4)))))
+    world = bpy.data.worlds.new("lixel_nodes_world")
+    world.color = (1.0, 1.0, 1.0)
+    scene.world = world
+    r = scene.render
+    r.engine, r.resolution_x, r.resolution_y, r.resolution_percentage = engine, 32, 32, 100
+    r.filepath = str(tmp_path / "texels.png")
+    scene.view_settings.view_transform = "Standard"
+    if engine != "BLENDER_WORKBENCH":
+        if engine == "CYCLES":
+            scene.cycles.samples, scene.cycles.use_denoising, scene.cycles.device = 4, False, "CPU"
+        else:
+            scene.eevee.taa_render_samples = 1
+        if bpy.app.version < (5, 0, 0):
+            world.use_nodes = True
+        world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
+    else:
+        scene.display.shading.color_type = "VERTEX"  # "Attribute" in the UI
+        scene.display.shading.light = "FLAT"
+    try:
+        bpy.ops.render.render(write_still=True, scene=scene.name)
+        img = bpy.data.images.load(r.filepath)
+        px = np.empty(32 * 32 * 4, dtype=np.float32)
+        img.pixels.foreach_get(px)
+        bpy.data.images.remove(img)
+    finally:
+        scene.world = None
+        bpy.data.worlds.remove(world)
+    lum = px.reshape(32, 32, 4)[..., :3].mean(axis=2)
+    cells = np.array([[lum[8 * j + 3:8 * j + 5, 8 * i + 3:8 * i + 5].mean() for i in range(4)] for j in range(4)])
+    parity = (np.add.outer(np.arange(4), np.arange(4)) % 2).astype(bool)
+    a, b = cells[parity], cells[~parity]
+    hi, lo = (a, b) if a.mean() > b.mean() else (b, a)
+    assert hi.min() - lo.max() > 0.1, cells  # every light cell is lighter than every dark one
