@@ -101,9 +101,11 @@ def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Instanc
     met, while the evaluated object is still valid; it may return False to
     drop every instance of that key (e.g. a mesh with no faces).
     """
-    keys, names, mats, boxes, casts, receives = [], [], [], [], [], []
-    accepted: dict = {}
+    keys, names, casts = [], [], []
+    mats = np.empty((256, 4, 4), dtype=np.float64)
+    accepted: dict = {}   # key -> None (dropped) or its object-space box
     generated: dict = {}
+    n = 0
     for inst in depsgraph.object_instances:
         ob = inst.object
         if ob is None or ob.type not in GEOMETRY_TYPES:
@@ -113,26 +115,30 @@ def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Instanc
         if ob.type == "MESH" and len(ob.data.polygons) == 0:
             continue  # nothing to draw (e.g. a node tree that outputs only instances)
         key = geometry_key(inst, ob, generated)
-        ok = accepted.get(key)
-        if ok is None:
+        if key not in accepted:
             ok = True if on_geometry is None else bool(on_geometry(key, ob))
-            accepted[key] = ok
-        if not ok:
+            if ok:
+                bb = np.array(ob.bound_box, dtype=np.float64)
+                accepted[key] = (bb.min(axis=0), bb.max(axis=0))
+            else:
+                accepted[key] = None
+        if accepted[key] is None:
             continue
+        if n == len(mats):
+            mats = np.concatenate([mats, np.empty_like(mats)])
+        mats[n] = inst.matrix_world  # copied now: the Matrix is only valid during this step
+        n += 1
         keys.append(key)
         names.append(ob.name if not inst.is_instance or inst.parent is None else f"{inst.parent.name}/{ob.name}")
-        mats.append(np.array(inst.matrix_world, dtype=np.float64))  # copies: the Matrix is only valid now
-        bb = np.array(ob.bound_box, dtype=np.float64)
-        boxes.append((bb.min(axis=0), bb.max(axis=0)))
         casts.append(bool(getattr(ob, "visible_shadow", True)))
-        receives.append(True)
     if not keys:
         return InstanceSet()
+    boxes = np.array([accepted[k] for k in keys], dtype=np.float64).reshape(-1, 2, 3)
     return InstanceSet(
         keys=keys,
         names=names,
-        matrices=np.asarray(mats, dtype=np.float64).reshape(-1, 4, 4),
-        local_boxes=np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3),
+        matrices=mats[:n].copy(),
+        local_boxes=boxes,
         casts=np.asarray(casts, dtype=bool),
-        receives=np.asarray(receives, dtype=bool),
+        receives=np.ones(n, dtype=bool),
     )
