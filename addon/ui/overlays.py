@@ -48,6 +48,8 @@ COLOURS = {
 }
 
 GPU_OVERLAYS = ("show_map", "show_shadowed")
+PIP_BOTTOM = 60
+"""Pixels between the region's bottom and the picture-in-picture images (room for the status line)."""
 """Overlays that need the gpu pipeline (``addon/gpu``)."""
 
 
@@ -506,8 +508,8 @@ def _pip_textures(scene, st, props) -> dict:
 def _draw_texture(texture, x, y, w, h):
     from gpu_extras.batch import batch_for_shader
     shader = builtin_shader("IMAGE", "2D_IMAGE")
-    batch = batch_for_shader(shader, "TRI_FAN", {"pos": ((x, y), (x + w, y), (x + w, y + h), (x, y + h)),
-                                                 "texCoord": ((0, 0), (1, 0), (1, 1), (0, 1))})
+    batch = batch_for_shader(shader, "TRI_STRIP", {"pos": ((x, y), (x + w, y), (x, y + h), (x + w, y + h)),
+                                                   "texCoord": ((0, 0), (1, 0), (0, 1), (1, 1))})
     shader.bind()
     shader.uniform_sampler("image", texture)
     batch.draw(shader)
@@ -523,14 +525,15 @@ def _draw_gpu_overlays(scene, st, props) -> str:
         textures = _pip_textures(scene, st, props)
     except WarpError as exc:
         return f"Lixel render: {exc}"
+    import gpu
     region = bpy.context.region
-    x = region.width - 20 if region is not None else 400
+    x = (region.width if region is not None else gpu.state.viewport_get()[2]) - 20
     for name in ("scene", "map"):
         tex = textures.get(name)
         if tex is None:
             continue
         x -= tex.width
-        _draw_texture(tex, x, 60, tex.width, tex.height)
+        _draw_texture(tex, x, PIP_BOTTOM, tex.width, tex.height)
         x -= 10
     return ""
 

@@ -115,3 +115,34 @@ def test_picture_in_picture_images(m):
         d = m.renders.depth_to_rgba(np.array([[0.2, 0.6], [1.0, 0.4]], dtype=np.float32))
         assert d[0, 0, 0] > d[1, 1, 0] > d[0, 1, 0]  # nearer the light = brighter
         np.testing.assert_allclose(d[1, 0], (0.05, 0.05, 0.15, 1.0))
+
+
+def test_picture_in_picture_is_drawn_bottom_right(m):
+    import gpu
+    import mathutils
+    with active_scene("lixel_draw_pip2") as scene:
+        props = scene.lixel
+        props.map_pip_size = 64
+        props.show_map, props.show_shadowed = True, False
+        st = m.live.update(scene, bpy.context.evaluated_depsgraph_get())
+        w, h = 200, 140
+        offscreen = gpu.types.GPUOffScreen(w, h)
+        try:
+            with offscreen.bind():
+                fb = gpu.state.active_framebuffer_get()
+                fb.clear(color=(0.0, 0.0, 0.0, 0.0))
+                with gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
+                    gpu.matrix.load_identity()
+                    ortho = m.geometry.ortho_matrix(0, w, 0, h, -1, 1)  # pixel space, as in POST_PIXEL
+                    gpu.matrix.load_projection_matrix(mathutils.Matrix(ortho.tolist()))
+                    note = m.overlays._draw_gpu_overlays(scene, st, props)
+                img = np.array(fb.read_color(0, 0, w, h, 4, 0, "FLOAT").to_list(), dtype=np.float32).reshape(h, w, 4)
+        finally:
+            offscreen.free()
+        assert note == ""
+        drawn = img[..., 3] > 0
+        ys, xs = np.nonzero(drawn)
+        # a 64-pixel map, 20 px from the right edge, PIP_BOTTOM px from the bottom
+        assert xs.max() == w - 21 and xs.min() == w - 20 - 64
+        assert ys.min() == m.overlays.PIP_BOTTOM and ys.max() == m.overlays.PIP_BOTTOM + 63
+        assert img[drawn][:, :3].std() > 0.05  # the map's picture, not a flat colour
