@@ -73,6 +73,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     """Describe, compute and render an evaluated scene (what the engine does);
     usable by scripts and operators. Needs a GPU context. Returns
     :func:`last_render`'s dict. Raises ``WarpError`` with a user-facing message."""
+    from ..gpu.batches import shared_batches
     from ..gpu.pipeline import render_shadows
     from ..scene.describe import describe_scene
     from ..scene.geometry import shared_cache
@@ -81,7 +82,9 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     settings = settings or scene_settings(scene)
     timings = {}
     t = time.perf_counter()
-    geometry = shared_cache().update(depsgraph, exclude=_debug_filter())
+    cache = shared_cache()
+    geometry = cache.update(depsgraph, exclude=_debug_filter())
+    shared_batches().prune(cache.meshes)
     timings["extraction"] = time.perf_counter() - t
     t = time.perf_counter()
     view, light, bounds = describe_scene(scene, depsgraph, instances=geometry.instances)

@@ -190,14 +190,20 @@ class GeometryCache:
     (re-)read, ``reused`` those taken from the cache as they were.
     """
 
+    KEEP_UNUSED = 8
+    """Updates a mesh may go unused before it is forgotten."""
+
     def __init__(self):
         self.meshes: dict = {}
         self.extractions = 0
         self.reused = 0
         self._last_depsgraph = None
+        self._generation = 0
+        self._last_used: dict = {}
 
     def clear(self) -> None:
         self.meshes.clear()
+        self._last_used.clear()
         self._last_depsgraph = None
 
     def update(self, depsgraph, exclude=None, trust_updates: bool = False) -> SceneGeometry:
@@ -230,8 +236,15 @@ class GeometryCache:
             return True
 
         instances = walk_instances(depsgraph, on_geometry)
-        # Keep entries of objects not drawn this time (hidden, other scenes) for later reuse.
+        # Keep entries of objects not drawn this time (hidden, another scene) for a
+        # while, then forget them (deleted objects must not pin memory).
+        self._generation += 1
+        for k in used:
+            self._last_used[k] = self._generation
         self.meshes.update(used)
+        for k in [k for k, g in self._last_used.items() if self._generation - g > self.KEEP_UNUSED]:
+            del self._last_used[k]
+            self.meshes.pop(k, None)
         self._last_depsgraph = depsgraph.as_pointer()
         return SceneGeometry(instances, used)
 

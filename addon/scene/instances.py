@@ -45,11 +45,11 @@ def geometry_key(inst, ob, generated: dict) -> tuple:
     parent = inst.parent if inst.is_instance else None
     if parent is not None and ob.original == parent.original:
         uid = data.session_uid
-        pkey = _id_key(parent.original)
         key = generated.get(uid)
         if key is None:
-            n = sum(1 for k in generated.values() if k[1] == pkey and k[2] == data.name)
-            key = generated[uid] = ("GN", pkey, data.name, n)
+            base = ("GN", _id_key(parent.original), data.name)
+            n = generated[base] = generated.get(base, -1) + 1
+            key = generated[uid] = base + (n,)
         return key
     if ob.type == "MESH" and len(ob.modifiers) == 0 and data is not None and data.original is not None:
         return ("ME", _id_key(data.original))

@@ -124,3 +124,18 @@ def test_text_objects_are_triangulated(geom, scene):
     scene.collection.objects.link(ob)
     g = geom.GeometryCache().update(depsgraph(scene))
     assert ("OB", "Txt") in g.meshes and g.meshes[("OB", "Txt")].triangle_count > 0
+
+
+def test_cache_forgets_meshes_unused_for_a_while(geom, scene):
+    ob = mesh(scene, "Gone", [(0, 0, 0), (1, 0, 0), (1, 1, 0)], [(0, 1, 2)])
+    keep = mesh(scene, "Kept", [(0, 0, 0), (1, 0, 0), (1, 1, 0)], [(0, 1, 2)])
+    cache = geom.GeometryCache()
+    cache.update(depsgraph(scene))
+    assert ("ME", "Gone") in cache.meshes
+    ob.hide_viewport = True
+    for _ in range(cache.KEEP_UNUSED):
+        cache.update(depsgraph(scene))
+    assert ("ME", "Gone") in cache.meshes  # hidden for a while: still cached
+    cache.update(depsgraph(scene))
+    assert ("ME", "Gone") not in cache.meshes and ("ME", "Kept") in cache.meshes
+    assert keep.name == "Kept"
