@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .polyhedron import ConvexPolytope, Plane
+from .polyhedron import ConvexPolytope, Plane, cross_rows
 from .types import EmptyBodyError, Light, SceneBounds, View
 
 CONE_SIDES = 16
@@ -57,7 +57,7 @@ class IntersectionBody:
     """World-space boxes of the receivers that meet V ∩ L (``scene.receivers[receiver_mask]``),
     e.g. for plane_optimal's default plane of interest."""
     hull_planes: list[Plane] = field(default_factory=list)
-    """World-space half-spaces of hull(R ∪ light) ∩ L: the light-extruded body."""
+    """World-space half-spaces of hull(R ∪ light) (⊂ L): the light-extruded body."""
     tolerance: float = 0.0
     scale: float = 1.0
     polytope: ConvexPolytope | None = None
@@ -187,11 +187,13 @@ class BoxIndex:
     @classmethod
     def of(cls, scene: SceneBounds, which: str) -> "BoxIndex":
         """The index of ``scene.casters`` or ``scene.receivers`` (built once per scene)."""
-        boxes = getattr(scene, which)
-        other = scene.receivers if which == "casters" else scene.casters
-        if other is boxes or (other.shape == boxes.shape and np.array_equal(other, boxes)):
-            which = "boxes"
-        return scene.cached(("BoxIndex", which), lambda: cls(boxes))
+        def build():
+            boxes = getattr(scene, which)
+            other = scene.receivers if which == "casters" else scene.casters
+            if other is boxes or (other.shape == boxes.shape and np.array_equal(other, boxes)):
+                return scene.cached(("BoxIndex", "boxes"), lambda: cls(boxes))
+            return cls(boxes)
+        return scene.cached(("BoxIndex", which), build)
 
     def cull(self, normals, offsets, tol: float = 0.0) -> tuple[np.ndarray, np.ndarray | None]:
         """(mask over the boxes in their original order, the (2, 3) bounding box
@@ -220,10 +222,8 @@ class BoxIndex:
         mask[self.perm] = sorted_mask
         if not sorted_mask.any():
             return mask, None
-        los = [self.c_lo[c_in], self.lo[idx]]
-        his = [self.c_hi[c_in], self.hi[idx]]
-        lo = np.min([x.min(axis=0) for x in los if len(x)], axis=0)
-        hi = np.max([x.max(axis=0) for x in his if len(x)], axis=0)
+        lo = np.concatenate([self.c_lo[c_in], self.lo[idx]]).min(axis=0)
+        hi = np.concatenate([self.c_hi[c_in], self.hi[idx]]).max(axis=0)
         return mask, np.array([lo, hi])
 
 
@@ -276,7 +276,7 @@ def hull_halfspaces(poly: ConvexPolytope, light_h: np.ndarray, tol: float) -> tu
     a = poly.vertices[edges[sil, 0]]
     b = poly.vertices[edges[sil, 1]]
     to_light = light_h[:3] - a * light_h[3]
-    sn = np.cross(b - a, to_light)
+    sn = cross_rows(b - a, to_light)
     length = np.linalg.norm(sn, axis=1)
     ok = length > 1e-12 * np.linalg.norm(b - a, axis=1) * np.linalg.norm(to_light, axis=1)
     sn = sn[ok] / length[ok, None]
@@ -332,8 +332,9 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
     light_h = light.homogeneous_position.copy()
     if light_h[3] != 0:
         light_h[:3] -= origin
+    # hull(R ∪ light) ⊂ L already (L is a convex cone with its apex at the light and R ⊂ L),
+    # so L's planes would only repeat what the hull says.
     hn, ho = hull_halfspaces(visible, light_h, tol)
-    hn, ho = np.concatenate([hn, ln]), np.concatenate([ho, lo])
     caster_mask, cast_box = BoxIndex.of(scene, "casters").cull(hn, ho + hn @ origin, tol)
     s_c = np.array([visible.vertices.min(axis=0), visible.vertices.max(axis=0)])
     if cast_box is not None:

@@ -193,13 +193,16 @@ def _combinations3(m: int) -> np.ndarray:
     return c
 
 
-def _cross_table(n: np.ndarray) -> np.ndarray:
-    """(m * m, 3): row a * m + b is n[a] x n[b]."""
-    a = np.repeat(n, len(n), axis=0)
-    b = np.tile(n, (len(n), 1))
+def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross products of (N, 3) arrays (np.cross without its overhead)."""
     return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
                      a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
                      a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
+
+
+def _cross_table(n: np.ndarray) -> np.ndarray:
+    """(m * m, 3): row a * m + b is n[a] x n[b]."""
+    return cross_rows(np.repeat(n, len(n), axis=0), np.tile(n, (len(n), 1)))
 
 
 def _perpendiculars(n: np.ndarray) -> np.ndarray:
@@ -208,8 +211,8 @@ def _perpendiculars(n: np.ndarray) -> np.ndarray:
     axis = np.argmin(np.abs(n), axis=1)
     e = np.zeros_like(n)
     e[np.arange(len(n)), axis] = 1.0
-    u = np.cross(n, e)
-    return u / np.linalg.norm(u, axis=1, keepdims=True)
+    u = cross_rows(n, e)
+    return u / np.sqrt((u * u).sum(axis=1))[:, None]
 
 
 def _unit_rows(normals, offsets) -> tuple[np.ndarray, np.ndarray]:
@@ -278,16 +281,18 @@ class ConvexPolytope:
         c = np.asarray(corners, dtype=np.float64).reshape(8, 3)
         q = np.array(_HEX_QUADS)
         pts = c[q]                                   # (6, 4, 3)
-        nxt = np.roll(pts, -1, axis=1)
-        newell = np.stack([((pts[..., 1] - nxt[..., 1]) * (pts[..., 2] + nxt[..., 2])).sum(1),
-                           ((pts[..., 2] - nxt[..., 2]) * (pts[..., 0] + nxt[..., 0])).sum(1),
-                           ((pts[..., 0] - nxt[..., 0]) * (pts[..., 1] + nxt[..., 1])).sum(1)], axis=1)
-        n = newell / np.linalg.norm(newell, axis=1, keepdims=True)
-        o = np.einsum("ij,ij->i", n, pts.mean(axis=1))
+        # A quad's normal is the cross product of its diagonals (exact for planar quads).
+        n = cross_rows(pts[:, 2] - pts[:, 0], pts[:, 3] - pts[:, 1])
+        n /= np.sqrt((n * n).sum(axis=1))[:, None]
+        o = (n * pts.mean(axis=1)).sum(axis=1)
         centre = c.mean(axis=0)
         flip = n @ centre - o > 0
         n[flip], o[flip] = -n[flip], -o[flip]
-        poly = cls._finish(c[_merge_points(c, 4.0 * tol)] + 0.0, n, o, tol)
+        edges = c[list(_HEX_EDGES[0])] - c[list(_HEX_EDGES[1])]
+        if float((edges * edges).sum(axis=1).min()) > (8.0 * tol) ** 2:
+            poly = cls._finish(c[np.lexsort((c[:, 2], c[:, 1], c[:, 0]))] + 0.0, n, o, tol)   # 8 distinct corners
+        else:
+            poly = cls._finish(c[_merge_points(c, 4.0 * tol)] + 0.0, n, o, tol)
         if poly is None or len(poly.normals) != 6:
             poly = cls.from_halfspaces(n, o, tol)      # e.g. corners not quite planar per face
         if poly is None:
@@ -328,7 +333,8 @@ class ConvexPolytope:
             x = (o[i, None] * cjk + o[j, None] * cross[k * m + i] + o[k, None] * cross[i * m + j]) / det[:, None]
             # Rounding error of the solve grows as the planes get closer to sharing a line.
             slack = tol + 16.0 * EPS * float(np.abs(o).max() + tol) / np.abs(det)
-            feasible = (x @ n.T - o).max(axis=1) <= slack
+            # (planes, points) layout: numpy reduces across rows far faster than along a short last axis.
+            feasible = (n @ x.T - o[:, None]).max(axis=0) <= slack
             cand = np.concatenate([kept, x[feasible]])
         else:
             cand = kept
@@ -381,7 +387,7 @@ class ConvexPolytope:
     def contains(self, points, tol: float | None = None) -> np.ndarray:
         t = 10.0 * self.tol if tol is None else tol
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        return np.all(p @ self.normals.T - self.offsets <= t, axis=1)
+        return (self.normals @ p.T - self.offsets[:, None]).max(axis=0, initial=-np.inf) <= t
 
     @property
     def centroid(self) -> np.ndarray:
@@ -415,7 +421,7 @@ class ConvexPolytope:
         centre = np.stack([np.bincount(f, weights=pts[:, c], minlength=len(counts)) for c in range(3)], axis=1)
         centre /= counts[:, None]
         u = _perpendiculars(self.normals)
-        w = np.cross(self.normals, u)
+        w = cross_rows(self.normals, u)
         rel = pts - centre[f]
         ang = np.arctan2(np.einsum("ij,ij->i", rel, w[f]), np.einsum("ij,ij->i", rel, u[f]))
         order = np.lexsort((ang, f))
@@ -423,3 +429,5 @@ class ConvexPolytope:
 
 
 _HEX_QUADS = ((0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5))
+_HEX_EDGES = ((0, 2, 3, 1, 4, 6, 7, 5, 0, 1, 2, 3), (2, 3, 1, 0, 6, 7, 5, 4, 4, 5, 6, 7))
+"""The 12 edges (from, to) of a hexahedron with UNIT_CUBE_CORNERS ordering."""
