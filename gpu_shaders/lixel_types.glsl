@@ -26,7 +26,8 @@ struct LixelMap {
  * light_pos:   (position.xyz, type: 0 sun, 1 point, 2 spot)
  * light_dir:   (travel direction.xyz, cos of the spot's half angle)
  * light_color: (colour * energy, albedo)
- * params:      (PCF kernel k, MDSM depth count n, map count, unused) */
+ * params:      (PCF kernel k, MDSM depth count n, map count, unused)
+ * bias:        (constant c, slope factor s, PCF reach r, largest slope term), NDC depth units */
 struct LixelShade {
   vec4 camera;
   vec4 view_dir;
@@ -35,5 +36,6 @@ struct LixelShade {
   vec4 light_dir;
   vec4 light_color;
   vec4 params;
+  vec4 bias;
   LixelMap maps[LIXEL_MAX_MAPS];
 };

@@ -5,6 +5,16 @@
  * giving n + 1 outcomes per sample and n*k*k + 1 per PCF(k*k, n)), and Lambert
  * lighting in the light's colour.
  *
+ * Biasing (Scherzer §4.2) is applied to the fragment's depth before the test,
+ * in NDC depth units: z -= c + s * r * (|dz/du| + |dz/dv|) towards the light,
+ * with dz/du, dz/dv the depth slope of the fragment's own triangle per map
+ * texel (the polygon-offset slope, which the gpu module cannot set on the depth
+ * pass). It is computed exactly from the triangle's normal and the map's
+ * Jacobian at the fragment (see lixel_depth_slope), so the depth pass stays a
+ * bare draw. r = max(1, k / 2) is the PCF reach: the farthest tap centre lies
+ * k/2 texels away along each axis, where the surface's own depth differs by up
+ * to r * (|dz/du| + |dz/dv|).
+ *
  * Outputs: out_direct = (unshadowed direct light * albedo / pi, coverage),
  *          out_data   = (shadow 0..1, map index or -1, shadow-map texels per pixel, eye depth),
  *          out_world  = (world position, 1).
@@ -66,14 +76,51 @@ bool lixel_region_contains(int i, vec3 p)
   return true;
 }
 
+vec3 lixel_row(mat4 m, int r)
+{
+  return vec3(m[0][r], m[1][r], m[2][r]);
+}
+
+/* |dz/du| + |dz/dv|: how much the stored depth (NDC units, hyperbolic or
+ * linear) of the plane through P with normal N changes per map texel, from
+ * two tangents of the plane pushed through the map's Jacobian at P. */
+float lixel_depth_slope(int i, vec3 P, vec3 N, vec4 h, vec3 ndc, vec2 size)
+{
+  mat4 M = lixel.maps[i].matrix;
+  vec3 w_row = lixel_row(M, 3);
+  vec3 gx = (lixel_row(M, 0) - ndc.x * w_row) / h.w;
+  vec3 gy = (lixel_row(M, 1) - ndc.y * w_row) / h.w;
+  vec3 gz = lixel.maps[i].info.w > 0.5 ? lixel.maps[i].depth_row.xyz : (lixel_row(M, 2) - ndc.z * w_row) / h.w;
+  vec3 t1 = normalize(abs(N.x) < 0.9 ? cross(N, vec3(1.0, 0.0, 0.0)) : cross(N, vec3(0.0, 1.0, 0.0)));
+  vec3 t2 = cross(N, t1);
+  float x1 = dot(gx, t1), y1 = dot(gy, t1), z1 = dot(gz, t1);
+  float x2 = dot(gx, t2), y2 = dot(gy, t2), z2 = dot(gz, t2);
+  float det = x1 * y2 - x2 * y1;
+  float limit = lixel.bias.w;
+  if (abs(det) < 1e-30) {
+    return limit; /* the plane contains the light ray: unbounded slope */
+  }
+  float a = (z1 * y2 - z2 * y1) / det; /* dz / dx_ndc */
+  float b = (x1 * z2 - x2 * z1) / det; /* dz / dy_ndc */
+  return min(abs(a) * 2.0 / size.x + abs(b) * 2.0 / size.y, limit);
+}
+
 void main()
 {
   vec3 P = v_world;
+  /* Geometric normal from screen derivatives (exact per triangle: helper
+   * invocations interpolate the same triangle), turned towards the viewer. */
+  vec3 N = normalize(cross(dFdx(P), dFdy(P)));
+  vec3 V = lixel.camera.w > 0.5 ? -lixel.view_dir.xyz : lixel.camera.xyz - P;
+  if (dot(N, V) < 0.0) {
+    N = -N;
+  }
   float eye_depth = -dot(lixel.eye_row, vec4(P, 1.0));
   int map_count = int(lixel.params.z);
 
   int index = -1;
   vec3 ndc = vec3(0.0);
+  vec4 hsel = vec4(1.0);
   for (int i = 0; i < map_count; i++) {
     vec4 h = lixel.maps[i].matrix * vec4(P, 1.0);
     if (h.w <= 0.0) continue;
@@ -84,6 +131,7 @@ void main()
     if (!lixel_region_contains(i, P)) continue;
     index = i;
     ndc = c;
+    hsel = h;
     break;
   }
 
@@ -94,6 +142,11 @@ void main()
     ivec2 size = ivec2(info.xy);
     bool greater = info.z > 0.5;
     float z = info.w > 0.5 ? dot(lixel.maps[index].depth_row, vec4(P, 1.0)) : ndc.z;
+    float bias = lixel.bias.x;
+    if (lixel.bias.y > 0.0) {
+      bias += lixel.bias.y * lixel.bias.z * lixel_depth_slope(index, P, N, hsel, ndc, vec2(size));
+    }
+    z += greater ? bias : -bias; /* towards the light */
     float d = z * 0.5 + 0.5;
     float ref = greater ? 1.0 - d : d;
     vec2 tc = (ndc.xy * 0.5 + 0.5) * vec2(size);
@@ -122,12 +175,6 @@ void main()
     shadow = hits / float(k * k);
   }
 
-  /* Geometric normal from screen derivatives, turned towards the viewer. */
-  vec3 N = normalize(cross(dFdx(P), dFdy(P)));
-  vec3 V = lixel.camera.w > 0.5 ? -lixel.view_dir.xyz : lixel.camera.xyz - P;
-  if (dot(N, V) < 0.0) {
-    N = -N;
-  }
   int type = int(lixel.light_pos.w);
   vec3 L;
   float irradiance = 1.0;

@@ -49,28 +49,19 @@ def _buffer(array: np.ndarray):
     return gpu.types.Buffer("FLOAT", array.shape, array)
 
 
-@dataclass
-class BiasParams:
-    """Depth-pass biasing (Scherzer §4.2) for one map: u_bias = (sign, c, s, reach);
-    see gpu_shaders/depth_frag.glsl for the slope term and the PCF reach."""
+SLOPE_LIMIT = 1.0
+"""Largest slope-bias term (NDC depth units): only a surface edge-on to the
+light reaches it, where the polygon-offset slope is unbounded."""
 
-    sign: float
-    constant: float
-    slope: float
-    linear_z: bool
-    reach: float = 1.0
 
-    @property
-    def write_depth(self) -> bool:
-        return self.slope != 0.0 or self.linear_z
-
-    @classmethod
-    def of(cls, shadow: ShadowSettings, shadow_map) -> "BiasParams":
-        mode = shadow.bias_mode
-        c = shadow.constant_bias if mode in ("CONSTANT", "CONSTANT_SLOPE") else 0.0
-        s = shadow.slope_bias if mode in ("SLOPE", "CONSTANT_SLOPE") else 0.0
-        sign = -1.0 if shadow_map.depth_test == "GREATER" else 1.0
-        return cls(sign, float(c), float(s), shadow_map.depth_row is not None, max(1.0, shadow.pcf_kernel / 2.0))
+def bias_vector(shadow: ShadowSettings) -> tuple[float, float, float, float]:
+    """The shading pass's bias uniform (Scherzer §4.2), NDC depth units:
+    (constant c, slope factor s, PCF reach r = max(1, k/2), slope limit);
+    see gpu_shaders/shade_frag.glsl."""
+    mode = shadow.bias_mode
+    c = shadow.constant_bias if mode in ("CONSTANT", "CONSTANT_SLOPE") else 0.0
+    s = shadow.slope_bias if mode in ("SLOPE", "CONSTANT_SLOPE") else 0.0
+    return float(c), float(s), max(1.0, shadow.pcf_kernel / 2.0), SLOPE_LIMIT
 
 
 def light_facing_winds_clockwise(shadow_map) -> bool:
@@ -111,10 +102,12 @@ def depth_pass(setup: ShadowSetup, geometry, table, shadow: ShadowSettings, batc
     """Draw every map of ``setup``: returns [(depth texture, framebuffer)].
 
     Per map: clear to 1 (LESS) or 0 (GREATER, reversed test), depth test
-    LESS_EQUAL / GREATER_EQUAL with the depth mask on; back-face rendering culls
-    front faces (Scherzer §4.2); the bias is :class:`BiasParams`. ``bare``
-    draws the same batches with no bias, no culling and an empty fragment
-    stage (the benchmark's reference).
+    LESS_EQUAL / GREATER_EQUAL with the depth mask on; back-face rendering
+    culls the faces that face the light (Scherzer §4.2); linear z writes
+    ``depth_row . [P, 1]`` per fragment. Constant and slope-scale bias are
+    applied where depths are compared (shading pass), so otherwise this is a
+    bare draw. ``bare`` (the benchmark's reference) also drops culling and
+    linear z.
     """
     import gpu
     out = []
@@ -123,8 +116,8 @@ def depth_pass(setup: ShadowSetup, geometry, table, shadow: ShadowSettings, batc
         tex = gpu.types.GPUTexture((w, h), format="DEPTH_COMPONENT32F")
         fb = gpu.types.GPUFrameBuffer(depth_slot=tex)
         greater = m.depth_test == "GREATER"
-        bias = BiasParams(1.0, 0.0, 0.0, False) if bare else BiasParams.of(shadow, m)
-        shader = shaders.depth_shader(bias.write_depth, bias.linear_z)
+        linear = m.depth_row is not None and not bare
+        shader = shaders.depth_shader(linear)
         with fb.bind():
             gpu.state.viewport_set(0, 0, w, h)
             fb.clear(depth=0.0 if greater else 1.0)
@@ -132,8 +125,7 @@ def depth_pass(setup: ShadowSetup, geometry, table, shadow: ShadowSettings, batc
             gpu.state.depth_mask_set(True)
             shader.bind()
             shader.uniform_float("u_light", _gl_matrix(m.matrix))
-            shader.uniform_float("u_bias", (bias.sign, bias.constant, bias.slope, bias.reach))
-            if bias.linear_z:
+            if linear:
                 shader.uniform_float("u_depth_row", tuple(float(v) for v in m.depth_row))
             cull = "FRONT" if (shadow.back_faces and not bare) else "NONE"
             draw_table(shader, batches, geometry, table, cull=cull, flip=light_facing_winds_clockwise(m))
@@ -186,7 +178,8 @@ def shade_block(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSett
                 albedo: float = DEFAULT_ALBEDO) -> np.ndarray:
     """The shading pass's std140 uniform block (see gpu_shaders/lixel_types.glsl)."""
     per_map = 4 + 5 + shaders.MAX_POLYGON
-    block = np.zeros((7 + shaders.MAX_MAPS * per_map, 4), dtype=np.float64)
+    header = 8
+    block = np.zeros((header + shaders.MAX_MAPS * per_map, 4), dtype=np.float64)
     block[0] = (*view.position, 1.0 if view.orthographic else 0.0)
     block[1, :3] = view.direction
     block[2] = view.world_to_camera[2]
@@ -196,8 +189,9 @@ def shade_block(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSett
     block[4] = (*(light.direction if light.direction is not None else (0, 0, -1)), cos_half)
     block[5] = (*(np.asarray(light.color, dtype=np.float64) * light.energy), albedo)
     block[6] = (shadow.pcf_kernel, shadow.mdsm_depths, len(setup.maps), 0.0)
+    block[7] = bias_vector(shadow)
     for i, m in enumerate(setup.maps):
-        base = 7 + i * per_map
+        base = header + i * per_map
         block[base:base + 4] = np.asarray(m.matrix, dtype=np.float64).T  # columns
         if m.depth_row is not None:
             block[base + 4] = m.depth_row

@@ -1,10 +1,9 @@
 """Lixel's shaders, built from ``gpu_shaders/*.glsl`` with ``GPUShaderCreateInfo``
 (the one way Blender 4.2 through 5.0 all accept; shared notes §2).
 
-Variants are selected with ``#define`` and cached per process. The depth pass
-writes ``gl_FragDepth`` (slope-scale bias, linear z) without declaring it via
-``depth_write``, which Blender 4.2 lacks; where ``depth_write`` exists it is
-declared as "ANY".
+Variants are selected with ``#define`` and cached per process. The linear-z
+depth pass writes ``gl_FragDepth``; it is declared with ``depth_write("ANY")``
+where that exists (Blender 4.2 lacks it and compiles ``gl_FragDepth`` without).
 """
 from __future__ import annotations
 
@@ -52,30 +51,26 @@ def _common_defines(info) -> None:
 
 
 @functools.lru_cache(maxsize=None)
-def depth_shader(write_depth: bool, linear_z: bool):
-    """Depth pass. ``write_depth``: slope-scale bias / linear z in the fragment
-    stage (``gl_FragDepth``); otherwise the fragment stage is empty (the bare
-    draw, with the constant bias applied in the vertex stage)."""
+def depth_shader(linear_z: bool):
+    """Depth pass. ``linear_z`` writes ``gl_FragDepth`` from the map's depth row
+    (Scherzer §4.2); otherwise the fragment stage is empty (a bare draw)."""
     import gpu
     info = gpu.types.GPUShaderCreateInfo()
     _common_defines(info)
-    if write_depth:
-        info.define("LIXEL_WRITE_DEPTH")
-        if linear_z:
-            info.define("LIXEL_LINEAR_Z")
+    if linear_z:
+        info.define("LIXEL_LINEAR_Z")
         iface = gpu.types.GPUStageInterfaceInfo("lixel_depth_iface")
         iface.smooth("VEC3", "v_world")
         info.vertex_out(iface)
+        info.push_constant("VEC4", "u_depth_row")
         if hasattr(info, "depth_write"):
             info.depth_write("ANY")
     info.vertex_in(0, "VEC3", "pos")
     info.push_constant("MAT4", "u_light")
-    info.push_constant("VEC4", "u_bias")
-    info.push_constant("VEC4", "u_depth_row")
     info.push_constant("INT", "u_instance_offset")
     info.sampler(0, "FLOAT_2D", "u_instances")
     info.vertex_source(source("instance_lib.glsl") + source("depth_vert.glsl"))
-    info.fragment_source(source("depth_frag.glsl") if write_depth else source("bare_frag.glsl"))
+    info.fragment_source(source("depth_frag.glsl") if linear_z else source("bare_frag.glsl"))
     return _create(info, "depth pass")
 
 
