@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Optional
 
 import numpy as np
@@ -240,10 +240,6 @@ def readouts(st: Optional[LiveState]) -> list[tuple[str, str]]:
     for k, v in st.timings.items():
         rows.append((f"  {k}", f"{v:.2f} ms"))
     return rows
-
-
-def with_method(settings: LixelSettings, method: str) -> LixelSettings:
-    return replace(settings, method=method)
 
 
 def compare_methods(st: LiveState, methods=None) -> list[dict]:

@@ -169,20 +169,3 @@ def footprint_estimate(setup: ShadowSetup, view: View, light: Light, points) -> 
     if not ok.any():
         return None
     return {"median": float(np.median(linear[ok])), "max": float(linear[ok].max()), "count": int(ok.sum())}
-
-
-def sample_points(polygons, per_edge: int = 4) -> np.ndarray:
-    """Points spread over convex polygons (vertices, edge points, centroids):
-    the sample the footprint readout uses on R (no randomness: stable readouts)."""
-    pts = []
-    for f in polygons:
-        f = np.asarray(f, dtype=np.float64)
-        c = f.mean(axis=0)
-        pts.append(c[None])
-        for i in range(len(f)):
-            a, b = f[i], f[(i + 1) % len(f)]
-            t = np.linspace(0.0, 1.0, per_edge, endpoint=False)[:, None]
-            edge = a + t * (b - a)
-            pts.append(edge)
-            pts.append(0.5 * (edge + c))
-    return np.concatenate(pts) if pts else np.zeros((0, 3))

@@ -26,7 +26,6 @@ import numpy as np
 from bpy.app.handlers import persistent
 
 from . import live
-from .properties import OVERLAYS
 
 log = logging.getLogger(__name__)
 

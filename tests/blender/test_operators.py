@@ -220,3 +220,13 @@ def test_texel_grid_without_mesh_or_camera(lixel):
         with pytest.raises(RuntimeError, match="no camera"):
             bpy.ops.lixel.texel_grid_add()
         assert len(sc.objects["lixel_missing_grid ground"].modifiers) == 0
+
+
+def test_overlay_on_in_a_scene_without_camera_says_why(lixel, mods):
+    with active_scene("lixel_missing_overlay", camera=False) as sc:
+        with pytest.raises(RuntimeError, match="no camera"):
+            bpy.ops.lixel.toggle_overlay(overlay="show_body")
+        assert sc.lixel.show_body  # the overlay is on and will draw once there is a camera
+        sc.lixel.show_body = False
+        mods.overlays.sync_handlers()
+        assert mods.overlays.draw_handlers_active() == ()
