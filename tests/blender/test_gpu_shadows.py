@@ -496,3 +496,18 @@ def test_eye_blur_setting_reaches_the_render(lx, scene):
     partial = lambda o: int(((o["shadow_mask"] > 0.01) & (o["shadow_mask"] < 0.99)).sum())  # noqa: E731
     assert partial(sharp) == 0 and partial(soft) > 100
     np.testing.assert_array_equal(soft["shadow_raw"], sharp["shadow_raw"])
+
+
+@pytest.mark.parametrize("selection", ["MINMAX", "SORT"])
+def test_mdsm_on_every_map_of_a_multi_map_setup(lx, scene, selection):
+    """A point light whose maps are several frusta (or cube faces): MDSM keys are
+    built per map and the n-shadow test agrees with ray casting away from edges."""
+    shadow_scene(scene, "POINT")
+    opts = lx.warp.WarpOptions(shadow_map_size=(1024, 1024), max_frustum_angle=math.radians(60))
+    out, view, lt, setup, dg = render(lx, scene, "uniform", warp_options=opts,
+                                      shadow=dict(mdsm_depths=3, mdsm_selection=selection, pcf_kernel=3))
+    assert len(setup.maps) > 1
+    assert len(out["mdsm_keys"]) == len(setup.maps)
+    assert len(np.unique(out["map_index"][out["covered"]])) > 1
+    frac, n, _ = agreement(out, lt, dg)
+    assert frac >= 0.99
