@@ -8,7 +8,7 @@ from bpy.props import BoolProperty, IntProperty
 from ..addon.ui import nodes
 from ..addon.ui.live import DEBUG_KEY
 from ..addon.ui.overlay_geometry import HEXAHEDRON_QUADS
-from .common import current_state, initialise, scene_poll
+from .common import LixelSceneOperator
 
 BAKED = "baked"
 
@@ -84,20 +84,15 @@ def bake(scene, st) -> list:
     return made
 
 
-class LIXEL_OT_bake_debug(bpy.types.Operator):
+class LIXEL_OT_bake_debug(LixelSceneOperator, bpy.types.Operator):
     """Bake B, the view and light frusta, the warp frustum P and its vectors to meshes in the "Lixel Debug" collection (visible in any render engine and saved with the file; re-baking replaces them)"""
 
     bl_idname = "lixel.bake_debug"
     bl_label = "Bake Debug Geometry"
     bl_options = {"REGISTER", "UNDO"}
 
-    @classmethod
-    def poll(cls, context):
-        return scene_poll(cls, context)
-
     def execute(self, context):
-        initialise(context)
-        st = current_state(self, context, force=True)
+        st = self.fresh_state(context)
         if st is None:
             return {"CANCELLED"}
         try:
@@ -109,7 +104,7 @@ class LIXEL_OT_bake_debug(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class LIXEL_OT_texel_grid_add(bpy.types.Operator):
+class LIXEL_OT_texel_grid_add(LixelSceneOperator, bpy.types.Operator):
     """Put the shadow-map texel grid on the selected meshes (a geometry-nodes modifier and material); the light matrices come from the "Lixel Light Matrices" object, updated now"""
 
     bl_idname = "lixel.texel_grid_add"
@@ -118,10 +113,6 @@ class LIXEL_OT_texel_grid_add(bpy.types.Operator):
 
     map_index: IntProperty(name="Map", default=0, min=0, description="Which shadow map's texels to show")
     remove: BoolProperty(name="Remove", default=False, description="Remove the texel grid instead")
-
-    @classmethod
-    def poll(cls, context):
-        return scene_poll(cls, context)
 
     def execute(self, context):
         meshes = [ob for ob in context.selected_objects if ob.type == "MESH" and ob.get(DEBUG_KEY) is None]
@@ -132,8 +123,7 @@ class LIXEL_OT_texel_grid_add(bpy.types.Operator):
             n = sum(nodes.remove_texel_grid(ob) for ob in meshes)
             self.report({"INFO"}, f"Lixel: removed the texel grid from {n} object(s)")
             return {"FINISHED"}
-        initialise(context)
-        st = current_state(self, context, force=True)
+        st = self.fresh_state(context)
         if st is None:
             return {"CANCELLED"}
         if self.map_index >= len(st.setup.maps):
@@ -147,7 +137,7 @@ class LIXEL_OT_texel_grid_add(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class LIXEL_OT_frustum_add(bpy.types.Operator):
+class LIXEL_OT_frustum_add(LixelSceneOperator, bpy.types.Operator):
     """Add an object whose mesh is a shadow map's frustum, built by geometry nodes from the light matrix (it follows the matrix when the setup is synced)"""
 
     bl_idname = "lixel.frustum_add"
@@ -156,13 +146,8 @@ class LIXEL_OT_frustum_add(bpy.types.Operator):
 
     map_index: IntProperty(name="Map", default=0, min=0)
 
-    @classmethod
-    def poll(cls, context):
-        return scene_poll(cls, context)
-
     def execute(self, context):
-        initialise(context)
-        st = current_state(self, context, force=True)
+        st = self.fresh_state(context)
         if st is None:
             return {"CANCELLED"}
         if self.map_index >= len(st.setup.maps):
@@ -175,20 +160,15 @@ class LIXEL_OT_frustum_add(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class LIXEL_OT_sync_matrices(bpy.types.Operator):
+class LIXEL_OT_sync_matrices(LixelSceneOperator, bpy.types.Operator):
     """Write the current light matrices to the "Lixel Light Matrices" object, so texel grids and frustum objects follow"""
 
     bl_idname = "lixel.sync_matrices"
     bl_label = "Sync Light Matrices"
     bl_options = {"REGISTER", "UNDO"}
 
-    @classmethod
-    def poll(cls, context):
-        return scene_poll(cls, context)
-
     def execute(self, context):
-        initialise(context)
-        st = current_state(self, context, force=True)
+        st = self.fresh_state(context)
         if st is None:
             return {"CANCELLED"}
         nodes.ensure_carrier(context.scene, st.setup)

@@ -41,3 +41,17 @@ def current_state(op, context, force: bool = False):
 
 def initialise(context) -> None:
     ensure_defaults(context.scene)
+
+
+class LixelSceneOperator:
+    """Mixin for operators on the context scene's Lixel setup: ``poll`` needs a
+    scene with Lixel settings, ``fresh_state`` recomputes the setup or reports
+    what is missing (and returns None)."""
+
+    @classmethod
+    def poll(cls, context):
+        return scene_poll(cls, context)
+
+    def fresh_state(self, context):
+        initialise(context)
+        return current_state(self, context, force=True)

@@ -8,7 +8,7 @@ from bpy_extras.io_utils import ExportHelper
 
 from ..addon.ui import live, overlays
 from ..addon.warp import METHODS
-from .common import current_state, initialise, scene_poll
+from .common import LixelSceneOperator
 
 COMPARISON_TEXT = "Lixel Comparison"
 COMPARISON_IMAGE = "Lixel Comparison"
@@ -30,7 +30,7 @@ def export_document(st, all_methods: bool) -> dict:
     return {"methods": out}
 
 
-class LIXEL_OT_export_json(bpy.types.Operator, ExportHelper):
+class LIXEL_OT_export_json(LixelSceneOperator, bpy.types.Operator, ExportHelper):
     """Export the light matrices and diagnostics of the current setup to JSON, in the format of the command line (python -m addon.warp)"""
 
     bl_idname = "lixel.export_json"
@@ -43,13 +43,8 @@ class LIXEL_OT_export_json(bpy.types.Operator, ExportHelper):
                               description="Export every method ({\"methods\": {...}}) instead of the scene's")
     indent: BoolProperty(name="Pretty", default=True, description="Indent the JSON")
 
-    @classmethod
-    def poll(cls, context):
-        return scene_poll(cls, context)
-
     def execute(self, context):
-        initialise(context)
-        st = current_state(self, context, force=True)
+        st = self.fresh_state(context)
         if st is None:
             return {"CANCELLED"}
         doc = export_document(st, self.all_methods)
@@ -65,7 +60,7 @@ class LIXEL_OT_export_json(bpy.types.Operator, ExportHelper):
         return {"FINISHED"}
 
 
-class LIXEL_OT_compare(bpy.types.Operator):
+class LIXEL_OT_compare(LixelSceneOperator, bpy.types.Operator):
     """Compare every method for the current view: θ, γ, n_opt, λ, maps and the texel footprint, written to the "Lixel Comparison" text, plus shadow renders when the gpu pipeline is available"""
 
     bl_idname = "lixel.compare"
@@ -75,13 +70,8 @@ class LIXEL_OT_compare(bpy.types.Operator):
     longest_side: IntProperty(name="Picture Size", default=320, min=16, max=4096,
                               description="Longer side of each method's picture in the comparison image")
 
-    @classmethod
-    def poll(cls, context):
-        return scene_poll(cls, context)
-
     def execute(self, context):
-        initialise(context)
-        st = current_state(self, context, force=True)
+        st = self.fresh_state(context)
         if st is None:
             return {"CANCELLED"}
         rows = live.compare_methods(st)

@@ -6,7 +6,7 @@ import numpy as np
 from bpy.props import BoolProperty, IntProperty
 
 from ..addon.ui.live import DEBUG_KEY
-from .common import initialise, scene_poll
+from .common import LixelSceneOperator, initialise, scene_poll
 
 COPLANAR_ANGLE = 1e-4
 """Faces whose normals differ by less than this (radians) and whose planes are
@@ -58,7 +58,7 @@ def largest_face_planes(context) -> list:
     return planes
 
 
-class LIXEL_OT_planes_from_selection(bpy.types.Operator):
+class LIXEL_OT_planes_from_selection(LixelSceneOperator, bpy.types.Operator):
     """Set the planes of interest (for the plane-optimal method) from the selected faces in Edit Mode, or from the largest face of each selected mesh object"""
 
     bl_idname = "lixel.planes_from_selection"
@@ -66,10 +66,6 @@ class LIXEL_OT_planes_from_selection(bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     append: BoolProperty(name="Append", default=False, description="Add to the existing planes instead of replacing them")
-
-    @classmethod
-    def poll(cls, context):
-        return scene_poll(cls, context)
 
     def execute(self, context):
         initialise(context)

@@ -6,23 +6,18 @@ from ..addon.ui import live, overlays
 from ..addon.ui.preferences import preference_settings
 from ..addon.ui.properties import OVERLAYS
 from ..addon.settings import LixelSettings
-from .common import current_state, initialise, scene_poll
+from .common import LixelSceneOperator, current_state, initialise
 
 
-class LIXEL_OT_refresh(bpy.types.Operator):
+class LIXEL_OT_refresh(LixelSceneOperator, bpy.types.Operator):
     """Compute (or recompute) the shadow setup for the scene camera and the Lixel light"""
 
     bl_idname = "lixel.refresh"
     bl_label = "Refresh Setup"
     bl_options = {"REGISTER"}
 
-    @classmethod
-    def poll(cls, context):
-        return scene_poll(cls, context)
-
     def execute(self, context):
-        initialise(context)
-        st = current_state(self, context, force=True)
+        st = self.fresh_state(context)
         if st is None:
             return {"CANCELLED"}
         d = st.setup.diagnostics
@@ -32,16 +27,12 @@ class LIXEL_OT_refresh(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class LIXEL_OT_reset_settings(bpy.types.Operator):
+class LIXEL_OT_reset_settings(LixelSceneOperator, bpy.types.Operator):
     """Reset this scene's Lixel settings to the add-on preferences' defaults (the light and planes are kept)"""
 
     bl_idname = "lixel.reset_settings"
     bl_label = "Reset to Preferences"
     bl_options = {"REGISTER", "UNDO"}
-
-    @classmethod
-    def poll(cls, context):
-        return scene_poll(cls, context)
 
     def execute(self, context):
         props = context.scene.lixel
@@ -56,7 +47,7 @@ class LIXEL_OT_reset_settings(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class LIXEL_OT_toggle_overlay(bpy.types.Operator):
+class LIXEL_OT_toggle_overlay(LixelSceneOperator, bpy.types.Operator):
     """Show or hide a Lixel viewport overlay"""
 
     bl_idname = "lixel.toggle_overlay"
@@ -64,10 +55,6 @@ class LIXEL_OT_toggle_overlay(bpy.types.Operator):
     bl_options = {"REGISTER"}
 
     overlay: EnumProperty(name="Overlay", items=[(name, label, desc) for name, label, desc in OVERLAYS])
-
-    @classmethod
-    def poll(cls, context):
-        return scene_poll(cls, context)
 
     @classmethod
     def description(cls, context, properties):
