@@ -150,30 +150,30 @@ def footprints(scene: dict, path: Path) -> Path:
 
 
 def shadow_maps(scene: dict, path: Path) -> Path:
-    """The depth maps of each method at the largest size (up to 4 maps each)."""
+    """The depth maps of each method (columns) at the largest size, one row per map (up to 4)."""
     sizes, names = _grid(scene)
     size = max(sizes) if sizes else 0
     recs = [(n, _lookup(scene, n, size)) for n in names]
-    cols = max([len(r["_images"]["maps"]) for _, r in recs if r and r.get("status") == "ok"] + [1])
-    fig, axes = _figure(max(len(recs), 1), cols, 1.0)
-    for i, (name, rec) in enumerate(recs):
+    rows = max([len(r["_images"]["maps"]) for _, r in recs if r and r.get("status") == "ok"] + [1])
+    fig, axes = _figure(rows, max(len(recs), 1), 1.0)
+    for j, (name, rec) in enumerate(recs):
         if not (rec and rec.get("status") == "ok"):
-            axes[i, 0].set_title(f"{name} {size}²", fontsize=9)
-            _failed(axes[i, 0], rec)
-            for j in range(1, cols):
+            axes[0, j].set_title(f"{name} {size}²", fontsize=9)
+            _failed(axes[0, j], rec)
+            for i in range(1, rows):
                 axes[i, j].axis("off")
             continue
         maps = rec["_images"]["maps"]
-        for j in range(cols):
+        for i in range(rows):
             ax = axes[i, j]
-            if j < len(maps):
-                d = np.asarray(maps[j], dtype=np.float64)
-                step = max(1, d.shape[0] // 512)
+            if i < len(maps):
+                d = np.asarray(maps[i], dtype=np.float64)
+                step = max(1, max(d.shape) // 512)
                 d = d[::step, ::step]
                 finite = d[(d > 0) & (d < 1)]
                 lo, hi = (np.percentile(finite, [1, 99]) if finite.size else (0.0, 1.0))
                 ax.imshow(d, origin="lower", cmap="gray", vmin=lo, vmax=max(hi, lo + 1e-6))
-                ax.set_title(f"{name}: {rec['_images']['map_roles'][j]}", fontsize=9)
+                ax.set_title(f"{name} {size}²: {rec['_images']['map_roles'][i]}", fontsize=9)
             else:
                 ax.axis("off")
     return _save(fig, path)

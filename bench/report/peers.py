@@ -77,13 +77,14 @@ def _render_to_array(scene, path: str) -> tuple[np.ndarray, float]:
 
 def render_shadow_term(scene, light_obj, peer: str, samples: int = 1) -> PeerResult:
     """Render ``scene`` with ``peer`` ("eevee" or "cycles") twice and return its shadow term.
-    The scene's render settings are restored afterwards (materials via the view
-    layer override, which is cleared)."""
+    The scene's render settings, the light's shadow settings and the view
+    layers' material overrides are restored afterwards."""
     import bpy
     r = scene.render
     saved = dict(engine=r.engine, filepath=r.filepath, fmt=r.image_settings.file_format,
                  depth=r.image_settings.color_depth, filter=r.filter_size, use_shadow=light_obj.data.use_shadow,
-                 soft=light_obj.data.shadow_soft_size)
+                 soft=light_obj.data.shadow_soft_size,
+                 overrides=[vl.material_override for vl in scene.view_layers])
     tmp = tempfile.mkdtemp(prefix="lixel-peer-")
     try:
         _override_material(scene)
@@ -134,8 +135,8 @@ def render_shadow_term(scene, light_obj, peer: str, samples: int = 1) -> PeerRes
         r.filter_size = saved["filter"]
         light_obj.data.use_shadow = saved["use_shadow"]
         light_obj.data.shadow_soft_size = saved["soft"]
-        for vl in scene.view_layers:
-            vl.material_override = None
+        for vl, mat in zip(scene.view_layers, saved["overrides"]):
+            vl.material_override = mat
         for f in os.listdir(tmp):
             os.remove(os.path.join(tmp, f))
         os.rmdir(tmp)

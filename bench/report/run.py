@@ -29,7 +29,7 @@ class Options:
     scenes: list
     methods: list
     sizes: list
-    resolution: tuple = (480, 270)
+    resolution: tuple = (640, 360)
     frames: int = 6
     peers: tuple = ("eevee", "cycles")
     eevee_samples: int = 4
@@ -44,10 +44,10 @@ def quick_defaults() -> dict:
 
 
 def full_defaults() -> dict:
-    return dict(resolution=(480, 270), frames=4, eevee_samples=4)
+    return dict(resolution=(640, 360), frames=6, eevee_samples=8)
 
 
-DEFAULT_SIZES = (512, 1024, 2048)
+DEFAULT_SIZES = (512, 1024, 2048, 4096)
 QUICK_SIZES = (512, 2048)
 
 
