@@ -41,29 +41,42 @@ class LightFrame:
     near_clamped: bool = False
 
 
+PARALLEL_TWIST = 2.0
+"""Weight of the camera's right vector inside the blend (see ``image_up``)."""
+
+
 def _image_up_raw(view_direction, view_up, light_direction) -> np.ndarray:
     d = normalize(light_direction)
     pv = view_direction - (view_direction @ d) * d
-    pu = view_up - (view_up @ d) * d
     s = float(np.linalg.norm(pv))
-    up = pv.copy()
-    if s < PARALLEL_BLEND and np.linalg.norm(pu) > 0:
-        up = up + (PARALLEL_BLEND - s) * normalize(pu)
-    return up
+    if s >= PARALLEL_BLEND:
+        return pv / s
+    pu = view_up - (view_up @ d) * d
+    right = np.cross(view_direction, view_up)
+    pr = right - (right @ d) * d
+    if not np.linalg.norm(pu) > 0 or not np.linalg.norm(pr) > 0:
+        return pv / s if s > 0 else pv
+    t = s / PARALLEL_BLEND
+    v_p = pv / s if s > 0 else np.zeros(3)
+    return t * v_p + (1 - t) * normalize(pu) + PARALLEL_TWIST * t * (1 - t) * normalize(pr)
 
 
 def image_up(view_direction, view_up, light_direction) -> np.ndarray:
     """The map's +y: the view direction projected perpendicular to the light
     (Scherzer Eq. 3, V_P = (V_light x V_eye) x V_light up to sign), blended
-    with the projected camera up when the projection vanishes.
+    into the projected camera up when light and view are within
+    PARALLEL_BLEND (sin 1°) of parallel:
 
-    The blend is continuous everywhere except at one point per camera roll:
-    where the projected view direction has length PARALLEL_BLEND / 2 and points
-    against the projected camera up (see ``image_up_singularity``). No
-    continuous choice can avoid such a point: around the light direction V_P
-    turns once, so the map's up vector must turn by 180° somewhere. Exactly
-    parallel light and view (e.g. a top-down camera under a zenith sun) are
-    on the smooth side: the camera's up is used."""
+        up = t V_P + (1 - t) up_cam + 2 t (1 - t) right_cam,   t = |V_P| / sin 1°
+
+    (all projected across the light). At exact parallel it is the camera's up
+    (a top-down camera under a zenith sun gets a map aligned with its image);
+    at t = 1 it is V_P. Around the light direction V_P turns once, so any
+    continuous choice must turn the map by 180° somewhere inside the blend and
+    has a singular point: the right-vector term puts it at t ≈ 0.61 in a
+    diagonal direction (about 140° from the camera's up), off the paths of a
+    plain pitch or pan through the light direction, which turn the map smoothly
+    instead (``image_up_singularity`` measures the distance to it)."""
     up = _image_up_raw(view_direction, view_up, light_direction)
     if np.linalg.norm(up) < 1e-300:
         return np.zeros(3)
@@ -71,9 +84,10 @@ def image_up(view_direction, view_up, light_direction) -> np.ndarray:
 
 
 def image_up_singularity(view_direction, view_up, light_direction) -> float:
-    """How far ``image_up`` is from its singular point (the length of the
-    unnormalised up vector; ~PARALLEL_BLEND or more away from it, 0 at it).
-    Within a distance ε of it a rotation by δ turns the map by about δ / ε."""
+    """How far ``image_up`` is from its singular point: the length of the
+    unnormalised blend (about 0.5 or more on plain pitch or pan paths and 1
+    outside the blend, 0 at the point). Within a distance ε of it a rotation by
+    δ turns the map by about δ / (ε sin 1°)."""
     return float(np.linalg.norm(_image_up_raw(view_direction, view_up, light_direction)))
 
 
@@ -97,6 +111,22 @@ SURROUND_BLEND = 0.2
 the cone axis blends continuously towards ``SURROUND_AXIS``."""
 SURROUND_AXIS = np.array([0.0, 0.0, -1.0])
 """The cube axis for a light surrounded by B: world down (Blender is Z-up)."""
+
+
+WORLD_UP = np.array([0.0, 0.0, 1.0])
+WORLD_NORTH = np.array([0.0, 1.0, 0.0])
+
+
+def world_sun_frame(light: Light, body: IntersectionBody) -> LightFrame:
+    """An orthographic sun frame fixed in the world: origin at the world origin
+    and the image's +y along world up projected across the light (world +Y when
+    the sun is at the zenith, blended as in ``image_up``). It does not move with
+    the camera, so a window snapped to whole texels in it stays on the same
+    texel grid while the camera moves (texel snapping; a camera-anchored frame
+    would drag the grid along and the edges would crawl)."""
+    up = image_up(WORLD_UP, WORLD_NORTH, light.direction)
+    m = FLIP_Z @ look_along(np.zeros(3), light.direction, up)
+    return LightFrame(m, body.vertices, "main", True)
 
 
 def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]:

@@ -5,9 +5,12 @@ Scherzer [4]. For a sun the map is orthographic; for point and spot lights it
 is the light's perspective, one map per needed cube face when B does not fit a
 single frustum (see ``frame.point_frames``).
 
-Texel snapping (option): the sun map's window is quantised to a ladder of sizes
-and its origin to whole texels, so a moving camera does not make shadow edges
-crawl.
+Texel snapping (option, suns): the map is built in a light frame fixed in the
+world (``frame.world_sun_frame``), its window size is quantised to a ladder of
+sizes (8 per octave) and its origin to whole texels, so while the camera moves
+every world point keeps its texel (an integer shift of the whole map) and
+shadow edges do not crawl; the window changes size only when B's extent
+crosses a ladder step.
 """
 from __future__ import annotations
 
@@ -17,7 +20,7 @@ import numpy as np
 
 from ..body import IntersectionBody
 from ..fit import fit_to_unit_cube, ndc_bounds, window_matrix
-from ..frame import LightFrame, light_angles, light_frames
+from ..frame import LightFrame, light_angles, light_frames, world_sun_frame
 from ..types import Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpOptions
 
 SNAP_STEPS_PER_OCTAVE = 8
@@ -57,7 +60,10 @@ def frame_map(frame: LightFrame, options: WarpOptions, snap: bool = False) -> Sh
 
 def uniform(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
     diag = Diagnostics("uniform", body_vertices=body.vertices)
-    frames = light_frames(view, light, body, options)
+    if options.texel_snapping and light.is_directional:
+        frames = [world_sun_frame(light, body)]      # a texel grid fixed in the world
+    else:
+        frames = light_frames(view, light, body, options)
     maps = [frame_map(f, options, options.texel_snapping) for f in frames]
     if light.is_directional:
         diag.theta, diag.gamma = light_angles(view, light.direction)
