@@ -141,3 +141,55 @@ def test_engine_is_registered_with_gpu_context(engine):
     cls = bpy.types.RenderEngine.bl_rna_get_subclass_py("LIXEL")
     assert cls is not None and cls.bl_use_gpu_context
     assert "LIXEL" in bpy.types.RENDER_PT_format.COMPAT_ENGINES
+
+
+SUBPROCESS = r'''
+import importlib, importlib.util, sys
+import bpy
+conftest, blend, scene_name = sys.argv[1:4]
+spec = importlib.util.spec_from_file_location("bconf", conftest)
+bconf = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(bconf)
+bpy.ops.wm.open_mainfile(filepath=blend)
+bconf.enable_lixel()
+scene = bpy.data.scenes[scene_name]
+scene.render.engine = "LIXEL"                                   # -E LIXEL
+scene.frame_set(1)                                              # -f 1
+bpy.ops.render.render(write_still=True, scene=scene.name)
+last = importlib.import_module(bconf.ADDON_MODULE + ".addon.render.engine").last_render()
+print("LIXEL_RENDERED", last["scene"], float(last["result"]["shadow_mask"].mean()))
+bconf.disable_lixel()
+'''
+
+
+def test_saved_file_renders_in_a_fresh_process(engine, scene, tmp_path):
+    """What ``blender -b file.blend -E LIXEL -f 1`` does: open the file in a new
+    process, pick the engine, render frame 1 and write it."""
+    import os
+    import subprocess
+    import sys
+    build(scene)
+    blend = tmp_path / "scene.blend"
+    out = tmp_path / "frame.png"
+    scene.render.filepath = str(out)
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.engine = "BLENDER_WORKBENCH"    # the engine comes from the command line
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    script = tmp_path / "render.py"
+    script.write_text(SUBPROCESS)
+    conftest = Path(__file__).with_name("conftest.py")
+    proc = subprocess.run([sys.executable, str(script), str(conftest), str(blend), scene.name],
+                          capture_output=True, text=True, timeout=300, env=dict(os.environ))
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "Traceback" not in proc.stderr, proc.stderr[-2000:]
+    marker = [line.split() for line in proc.stdout.splitlines() if line.startswith("LIXEL_RENDERED")]
+    assert marker and marker[0][1] == scene.name and float(marker[0][2]) > 0.01
+    assert out.exists()
+    img = bpy.data.images.load(str(out))
+    try:
+        assert tuple(img.size) == (96, 64)
+        px = np.empty(96 * 64 * 4, dtype=np.float32)
+        img.pixels.foreach_get(px)
+        assert px.reshape(64, 96, 4)[..., :3].std() > 0.01  # an image, with shading and shadow
+    finally:
+        bpy.data.images.remove(img)
