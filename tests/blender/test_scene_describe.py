@@ -10,7 +10,7 @@ import math
 import bpy
 import numpy as np
 import pytest
-from mathutils import Euler, Matrix, Vector
+from mathutils import Vector
 
 
 @pytest.fixture(scope="module")

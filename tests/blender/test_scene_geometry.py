@@ -1,6 +1,5 @@
 """addon.scene.geometry: triangles from the evaluated depsgraph."""
 import importlib
-import math
 
 import bpy
 import numpy as np
