@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .geometry import cross3
 from .polyhedron import ConvexPolytope, Plane, cross_rows
 from .types import EmptyBodyError, Light, SceneBounds, View
 
@@ -93,9 +94,9 @@ def cone_halfspaces(apex, axis, full_angle) -> tuple[np.ndarray, np.ndarray]:
     (apex, axis, full angle), k = CONE_SIDES."""
     a = np.asarray(axis, dtype=np.float64)
     a = a / np.linalg.norm(a)
-    u = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
+    u = cross3(a, np.eye(3)[int(np.argmin(np.abs(a)))])
     u /= np.linalg.norm(u)
-    v = np.cross(a, u)
+    v = cross3(a, u)
     half = full_angle / 2
     # Tangent planes of a regular pyramid circumscribing the cone: the cone's
     # half-angle widened so the cone fits inside the polygon (secant of pi/k).
@@ -154,6 +155,7 @@ class BoxIndex:
             self.lo = self.hi = np.zeros((0, 3))
             self.stack = np.zeros((6, 0))
             self.c_lo = self.c_hi = np.zeros((0, 3))
+            self.lo_t = self.hi_t = self.c_lo_t = self.c_hi_t = np.zeros((3, 0))
             self.c_stack = np.zeros((6, 0))
             return
         # Clusters: leaves of a median-split k-d tree over the box centres (split
@@ -176,12 +178,15 @@ class BoxIndex:
         self.perm = np.concatenate(leaves)
         sb = b[self.perm]
         self.lo, self.hi = np.ascontiguousarray(sb[:, 0]), np.ascontiguousarray(sb[:, 1])
+        # (3, N) copies: numpy reduces along a long last axis far faster than over (N, 3) rows.
+        self.lo_t, self.hi_t = np.ascontiguousarray(self.lo.T), np.ascontiguousarray(self.hi.T)
         self.stack = _stack_of(sb)
         n_c = -(-self.count // k)
         pad = n_c * k - self.count
         plo = np.concatenate([self.lo, np.repeat(self.lo[-1:], pad, axis=0)]).reshape(n_c, k, 3)
         phi = np.concatenate([self.hi, np.repeat(self.hi[-1:], pad, axis=0)]).reshape(n_c, k, 3)
         self.c_lo, self.c_hi = plo.min(axis=1), phi.max(axis=1)
+        self.c_lo_t, self.c_hi_t = np.ascontiguousarray(self.c_lo.T), np.ascontiguousarray(self.c_hi.T)
         self.c_stack = _stack_of(np.stack([self.c_lo, self.c_hi], axis=1))
 
     @classmethod
@@ -222,8 +227,8 @@ class BoxIndex:
         mask[self.perm] = sorted_mask
         if not sorted_mask.any():
             return mask, None
-        lo = np.concatenate([self.c_lo[c_in], self.lo[idx]]).min(axis=0)
-        hi = np.concatenate([self.c_hi[c_in], self.hi[idx]]).max(axis=0)
+        lo = np.concatenate([self.c_lo_t[:, c_in], np.take(self.lo_t, idx, axis=1)], axis=1).min(axis=1)
+        hi = np.concatenate([self.c_hi_t[:, c_in], np.take(self.hi_t, idx, axis=1)], axis=1).max(axis=1)
         return mask, np.array([lo, hi])
 
 

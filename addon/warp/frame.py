@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .body import IntersectionBody
-from .geometry import look_along, normalize, perpendicular, transform_h
+from .geometry import cross3, look_along, normalize, perpendicular, transform_h
 from .types import Light, View, WarpOptions
 
 PARALLEL_BLEND = math.sin(math.radians(1.0))
@@ -52,7 +52,7 @@ def _image_up_raw(view_direction, view_up, light_direction) -> np.ndarray:
     if s >= PARALLEL_BLEND:
         return pv / s
     pu = view_up - (view_up @ d) * d
-    right = np.cross(view_direction, view_up)
+    right = cross3(view_direction, view_up)
     pr = right - (right @ d) * d
     if not np.linalg.norm(pu) > 0 or not np.linalg.norm(pr) > 0:
         return pv / s if s > 0 else pv
@@ -199,27 +199,74 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
         up = perpendicular(axis)
     if not inside and 2 * half <= options.max_frustum_angle:
         return [perspective_frame(apex, axis, up, body.vertices, "main", body.scale)]
-    basis = np.stack([normalize(np.cross(up, -axis)), normalize(up - (up @ axis) * axis), -axis])  # cube x, y, z = -axis
+    basis = np.stack([normalize(cross3(up, -axis)), normalize(up - (up @ axis) * axis), -axis])  # cube x, y, z = -axis
     poly = body.polytope_from(apex)
+    edges = poly.edges()[0]
     near_floor = 1e-6 * body.scale
     frames = []
     for name, k, sign in CUBE_FACES:
         forward = sign * basis[k]
         others = [basis[j] for j in range(3) if j != k]
-        # The face's 90-degree pyramid |o . x| <= forward . x.
-        normals = np.array([s * o - forward for o in others for s in (1.0, -1.0)])
-        part = poly.clip(normals, np.zeros(4))
-        if part is None:
+        pts = pyramid_section_points(poly, edges, forward, others)
+        if pts is None:
             continue
-        clamped = float((part.vertices @ forward).min()) < near_floor
+        depth = pts @ forward
+        clamped = float(depth.min()) < near_floor
         if clamped:
-            part = part.clip(-forward[None], [-near_floor])
-            if part is None:
-                continue
+            # B reaches the light inside this face: the whole face from the near floor on.
+            corners = np.array([near_floor * (forward + a * others[0] + b * others[1])
+                                for a in (-1.0, 1.0) for b in (-1.0, 1.0)])
+            pts = np.concatenate([pts[depth >= near_floor], corners])
         face_up = basis[1] if k != 1 else basis[2]
-        frame = perspective_frame(apex, forward, face_up, part.vertices + apex, "cube" + name, body.scale)
+        frame = perspective_frame(apex, forward, face_up, pts + apex, "cube" + name, body.scale)
         frames.append(LightFrame(frame.to_light, frame.points, frame.role, False, clamped))
     return frames
+
+
+def pyramid_section_points(poly, edges: np.ndarray, forward, others) -> np.ndarray | None:
+    """Points whose convex hull is P ∩ C for a polytope P (coordinates relative
+    to the apex) and the 90° pyramid C = {|o . x| <= forward . x for o in
+    others} (a cube face seen from its centre), or None when P ∩ C has no
+    volume. They are the vertices of P inside C, the crossings of P's edges
+    with C's four planes, where C's four corner rays enter and leave P, and the
+    apex if P holds it: every vertex of P ∩ C is among them, so a map fitted to
+    them holds P ∩ C. (Vectorised; no clipping.)"""
+    tol = poly.tol
+    n4 = np.array([s * o - forward for o in others for s in (1.0, -1.0)]) / math.sqrt(2.0)
+    v = poly.vertices
+    d = v @ n4.T                                             # (n, 4), <= 0 inside C
+    if np.any(np.all(d >= -tol, axis=0)):
+        return None                                          # P lies outside one plane of C
+    pts = [v[d.max(axis=1) <= tol]]
+    # P's edges crossing C's planes.
+    da, db = d[edges[:, 0]], d[edges[:, 1]]                  # (e, 4)
+    cross = ((da < -tol) & (db > tol)) | ((da > tol) & (db < -tol))
+    if cross.any():
+        e, p = np.nonzero(cross)
+        t = da[e, p] / (da[e, p] - db[e, p])
+        a = v[edges[e, 0]]
+        x = a + t[:, None] * (v[edges[e, 1]] - a)
+        pts.append(x[(x @ n4.T).max(axis=1) <= tol])
+    # C's corner rays through P: t-interval where n . (t r) <= o for every facet.
+    rays = np.array([forward + a * others[0] + b * others[1] for a in (-1.0, 1.0) for b in (-1.0, 1.0)])
+    denom = poly.normals @ rays.T                            # (F, 4)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = poly.offsets[:, None] / denom
+    t_hi = np.where(denom > 0, ratio, np.inf).min(axis=0)
+    t_lo = np.maximum(np.where(denom < 0, ratio, -np.inf).max(axis=0), 0.0)
+    blocked = np.any((denom == 0) & (poly.offsets[:, None] < 0), axis=0)
+    hit = (t_lo <= t_hi) & np.isfinite(t_hi) & ~blocked
+    if hit.any():
+        pts.append(np.concatenate([t_lo[hit, None] * rays[hit], t_hi[hit, None] * rays[hit]]))
+    if poly.contains(np.zeros((1, 3)), tol)[0]:
+        pts.append(np.zeros((1, 3)))
+    pts = np.concatenate(pts)
+    if len(pts) < 4:
+        return None
+    # No volume: every point on one of C's planes.
+    if np.any(np.all(np.abs(pts @ n4.T) <= tol, axis=0)):
+        return None
+    return pts
 
 
 def light_frames(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> list[LightFrame]:

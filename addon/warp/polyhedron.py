@@ -179,17 +179,18 @@ DET_MIN = 1e-9
 """Triples of planes whose normals' triple product is below this are treated as
 meeting in no single point (parallel or sharing a line)."""
 
-_COMBOS: dict[int, np.ndarray] = {}
+_COMBOS: dict[tuple[int, int], np.ndarray] = {}
 
 
-def _combinations3(m: int) -> np.ndarray:
-    """(C(m, 3), 3) index triples i < j < k in lexicographic order (cached)."""
-    c = _COMBOS.get(m)
+def _combinations3(m: int, first_new: int = 0) -> np.ndarray:
+    """(C(m, 3), 3) index triples i < j < k in lexicographic order with
+    k >= ``first_new`` (triples holding at least one new plane; cached)."""
+    c = _COMBOS.get((m, first_new))
     if c is None:
         i, j, k = np.meshgrid(np.arange(m), np.arange(m), np.arange(m), indexing="ij")
-        sel = (i < j) & (j < k)
+        sel = (i < j) & (j < k) & (k >= first_new)
         c = np.stack([i[sel], j[sel], k[sel]], axis=1)
-        _COMBOS[m] = c
+        _COMBOS[(m, first_new)] = c
     return c
 
 
@@ -198,11 +199,6 @@ def cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
                      a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
                      a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
-
-
-def _cross_table(n: np.ndarray) -> np.ndarray:
-    """(m * m, 3): row a * m + b is n[a] x n[b]."""
-    return cross_rows(np.repeat(n, len(n), axis=0), np.tile(n, (len(n), 1)))
 
 
 def _perpendiculars(n: np.ndarray) -> np.ndarray:
@@ -322,20 +318,23 @@ class ConvexPolytope:
         """Vertices = ``kept`` points plus feasible solutions of plane ``tri``ples."""
         if len(tri):
             m = len(n)
-            cross = _cross_table(n)                                  # (m * m, 3)
+            # Column layout (3, ...): gathers and reductions along long rows are what numpy does fast.
+            a, b = np.repeat(n, m, axis=0), np.tile(n, (m, 1))
+            cross = np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],       # (3, m * m): n[a] x n[b]
+                              a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+                              a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]])
             i, j, k = tri[:, 0], tri[:, 1], tri[:, 2]
-            cjk = cross[j * m + k]
-            det = (n[i] * cjk).sum(axis=1)
+            cjk = np.take(cross, j * m + k, axis=1)
+            det = (np.take(n.T, i, axis=1) * cjk).sum(axis=0)
             good = np.abs(det) > DET_MIN
             if not good.all():
-                i, j, k, cjk, det = i[good], j[good], k[good], cjk[good], det[good]
+                i, j, k, cjk, det = i[good], j[good], k[good], cjk[:, good], det[good]
             # Cramer's rule: x = (o_i (n_j x n_k) + o_j (n_k x n_i) + o_k (n_i x n_j)) / det.
-            x = (o[i, None] * cjk + o[j, None] * cross[k * m + i] + o[k, None] * cross[i * m + j]) / det[:, None]
+            x = (o[i] * cjk + o[j] * np.take(cross, k * m + i, axis=1) + o[k] * np.take(cross, i * m + j, axis=1)) / det
             # Rounding error of the solve grows as the planes get closer to sharing a line.
             slack = tol + 16.0 * EPS * float(np.abs(o).max() + tol) / np.abs(det)
-            # (planes, points) layout: numpy reduces across rows far faster than along a short last axis.
-            feasible = (n @ x.T - o[:, None]).max(axis=0) <= slack
-            cand = np.concatenate([kept, x[feasible]])
+            feasible = (n @ x - o[:, None]).max(axis=0) <= slack
+            cand = np.concatenate([kept, x[:, feasible].T])
         else:
             cand = kept
         if len(cand) < 4:
@@ -376,9 +375,7 @@ class ConvexPolytope:
         m = len(self.normals)
         n = np.concatenate([self.normals, n2])
         o = np.concatenate([self.offsets, o2])
-        tri = _combinations3(len(n))
-        tri = tri[tri[:, 2] >= m]
-        return type(self)._build(kept, n, o, tri, self.tol)
+        return type(self)._build(kept, n, o, _combinations3(len(n), m), self.tol)
 
     def translated(self, offset) -> "ConvexPolytope":
         t = np.asarray(offset, dtype=np.float64)
