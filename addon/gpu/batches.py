@@ -100,14 +100,18 @@ class InstanceTable:
         return sum(g.triangles * g.count for g in self.groups)
 
 
-def instance_table(geometry, mask: np.ndarray) -> InstanceTable:
-    """Pack the instances of ``geometry`` selected by ``mask`` (bool (N,))."""
+def instance_table(geometry, mask: np.ndarray, origin=None) -> InstanceTable:
+    """Pack the instances of ``geometry`` selected by ``mask`` (bool (N,)), with
+    matrices relative to ``origin`` (float64 subtraction before the float32
+    upload, so far-away scenes keep their precision)."""
     import gpu
     inst = geometry.instances
     idx = np.flatnonzero(mask)
     if len(idx) == 0:
         return InstanceTable(texture=None)
-    mats = inst.matrices[idx]
+    mats = inst.matrices[idx].copy()
+    if origin is not None:
+        mats[:, :3, 3] -= np.asarray(origin, dtype=np.float64)
     mirrored = np.linalg.det(mats[:, :3, :3]) < 0
     keys = [inst.keys[i] for i in idx]
     order_keys = {}

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..settings import LixelSettings, ShadowSettings
 from ..warp.body import boxes_meeting, intersection_body
-from ..warp.geometry import perpendicular
+from ..warp.geometry import perpendicular, translation
 from ..warp.polyhedron import face_planes, hexahedron_faces
 from ..warp.types import EmptyBodyError, Light, SceneBounds, ShadowSetup, View, WarpError
 from . import shaders
@@ -63,6 +63,20 @@ def bias_vector(shadow: ShadowSettings) -> tuple[float, float, float, float]:
     return float(c), float(s), max(1.0, shadow.pcf_kernel / 2.0), SLOPE_LIMIT
 
 
+def relative(matrix: np.ndarray, origin) -> np.ndarray:
+    """A world -> clip matrix for coordinates relative to ``origin``
+    (``M @ translation(origin)``). The GPU works in float32 around the camera,
+    so scenes far from the world origin keep their precision."""
+    return np.asarray(matrix, dtype=np.float64) @ translation(origin)
+
+
+def relative_row(row, origin) -> np.ndarray:
+    """A depth row (r . [p, 1]) for coordinates relative to ``origin``."""
+    r = np.asarray(row, dtype=np.float64).copy()
+    r[3] += float(r[:3] @ np.asarray(origin, dtype=np.float64))
+    return r
+
+
 def light_facing_winds_clockwise(shadow_map) -> bool:
     """Whether a triangle facing the map's centre of projection (the light)
     winds clockwise in the map's window coordinates.
@@ -97,7 +111,7 @@ def light_facing_winds_clockwise(shadow_map) -> bool:
 
 
 def depth_pass(setup: ShadowSetup, geometry, table, shadow: ShadowSettings, batches: BatchCache,
-               bare: bool = False) -> list:
+               bare: bool = False, origin=(0.0, 0.0, 0.0)) -> list:
     """Draw every map of ``setup``: returns [(depth texture, framebuffer)].
 
     Per map: clear to 1 (LESS) or 0 (GREATER, reversed test), depth test
@@ -106,7 +120,7 @@ def depth_pass(setup: ShadowSetup, geometry, table, shadow: ShadowSettings, batc
     ``depth_row . [P, 1]`` per fragment. Constant and slope-scale bias are
     applied where depths are compared (shading pass), so otherwise this is a
     bare draw. ``bare`` (the benchmark's reference) also drops culling and
-    linear z.
+    linear z. ``origin``: the table's matrices are relative to it (see :func:`relative`).
     """
     import gpu
     out = []
@@ -123,9 +137,9 @@ def depth_pass(setup: ShadowSetup, geometry, table, shadow: ShadowSettings, batc
             gpu.state.depth_test_set("GREATER_EQUAL" if greater else "LESS_EQUAL")
             gpu.state.depth_mask_set(True)
             shader.bind()
-            shader.uniform_float("u_light", _gl_matrix(m.matrix))
+            shader.uniform_float("u_light", _gl_matrix(relative(m.matrix, origin)))
             if linear:
-                shader.uniform_float("u_depth_row", tuple(float(v) for v in m.depth_row))
+                shader.uniform_float("u_depth_row", tuple(float(v) for v in relative_row(m.depth_row, origin)))
             cull = "FRONT" if (shadow.back_faces and not bare) else "NONE"
             draw_table(shader, batches, geometry, table, cull=cull, flip=light_facing_winds_clockwise(m))
             gpu.state.depth_mask_set(False)
@@ -174,16 +188,18 @@ def mdsm_pass(maps: list, setup: ShadowSetup, shadow: ShadowSettings) -> list:
 
 
 def shade_block(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSettings,
-                albedo: float = DEFAULT_ALBEDO) -> np.ndarray:
-    """The shading pass's std140 uniform block (see gpu_shaders/lixel_types.glsl)."""
+                albedo: float = DEFAULT_ALBEDO, origin=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """The shading pass's std140 uniform block (see gpu_shaders/lixel_types.glsl),
+    positions relative to ``origin``."""
+    o = np.asarray(origin, dtype=np.float64)
     per_map = 4 + 5 + shaders.MAX_POLYGON
     header = 8
     block = np.zeros((header + shaders.MAX_MAPS * per_map, 4), dtype=np.float64)
-    block[0] = (*view.position, 1.0 if view.orthographic else 0.0)
+    block[0] = (*(view.position - o), 1.0 if view.orthographic else 0.0)
     block[1, :3] = view.direction
-    block[2] = view.world_to_camera[2]
+    block[2] = relative_row(view.world_to_camera[2], o)
     kind = {"SUN": 0.0, "POINT": 1.0, "SPOT": 2.0}[light.type]
-    block[3] = (*(light.position if light.position is not None else (0, 0, 0)), kind)
+    block[3] = (*((light.position - o) if light.position is not None else (0, 0, 0)), kind)
     cos_half = math.cos(light.spot_angle / 2) if light.type == "SPOT" else -1.0
     block[4] = (*(light.direction if light.direction is not None else (0, 0, -1)), cos_half)
     block[5] = (*(np.asarray(light.color, dtype=np.float64) * light.energy), albedo)
@@ -191,9 +207,9 @@ def shade_block(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSett
     block[7] = bias_vector(shadow)
     for i, m in enumerate(setup.maps):
         base = header + i * per_map
-        block[base:base + 4] = np.asarray(m.matrix, dtype=np.float64).T  # columns
+        block[base:base + 4] = relative(m.matrix, o).T  # columns
         if m.depth_row is not None:
-            block[base + 4] = m.depth_row
+            block[base + 4] = relative_row(m.depth_row, o)
         block[base + 5] = (m.size[0], m.size[1], 1.0 if m.depth_test == "GREATER" else 0.0,
                            1.0 if m.depth_row is not None else 0.0)
         if m.view_depth_range is not None:
@@ -204,9 +220,10 @@ def shade_block(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSett
                 raise WarpError(f"map {i} ({m.role}): its region polygon has {len(poly)} vertices; "
                                 f"the shader takes at most {shaders.MAX_POLYGON}")
             block[base + 6, 3] = len(poly)
-            block[base + 7] = (*m.region.normal, m.region.offset)
+            normal = np.asarray(m.region.normal, dtype=np.float64)
+            block[base + 7] = (*normal, m.region.offset - normal @ o)
             block[base + 8, 0] = m.region.tolerance
-            block[base + 9:base + 9 + len(poly), :3] = poly
+            block[base + 9:base + 9 + len(poly), :3] = poly - o
             block[base + 9:base + 9 + len(poly), 3] = 1.0
     return block.astype(np.float32)
 
@@ -223,9 +240,11 @@ def _dummy(fmt: str):
 
 
 def shading_pass(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSettings, geometry, table,
-                 batches: BatchCache, maps: list, resolution: tuple[int, int], albedo: float = DEFAULT_ALBEDO):
+                 batches: BatchCache, maps: list, resolution: tuple[int, int], albedo: float = DEFAULT_ALBEDO,
+                 origin=(0.0, 0.0, 0.0)):
     """Camera pass: depth pre-pass, then shading with LESS_EQUAL. Returns the
-    framebuffer and its three colour textures (direct, data, world)."""
+    framebuffer and its three colour textures (direct, data, world position
+    relative to ``origin``)."""
     import gpu
     w, h = resolution
     direct = gpu.types.GPUTexture((w, h), format="RGBA32F")
@@ -233,9 +252,9 @@ def shading_pass(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSet
     world = gpu.types.GPUTexture((w, h), format="RGBA32F")
     depth = gpu.types.GPUTexture((w, h), format="DEPTH_COMPONENT32F")
     fb = gpu.types.GPUFrameBuffer(depth_slot=depth, color_slots=(direct, data, world))
-    view_proj = _gl_matrix(view.world_to_clip)
+    view_proj = _gl_matrix(relative(view.world_to_clip, origin))
     mdsm = shadow.mdsm_depths > 1
-    ubo = gpu.types.GPUUniformBuf(shade_block(view, light, setup, shadow, albedo).tobytes())
+    ubo = gpu.types.GPUUniformBuf(shade_block(view, light, setup, shadow, albedo, origin).tobytes())
     with fb.bind():
         gpu.state.viewport_set(0, 0, w, h)
         fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
@@ -356,7 +375,7 @@ def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, setti
       shadow_mask (H,W)           0 lit .. 1 fully shadowed (after the eye blur)
       shadow_raw (H,W)            the same before the eye blur
       covered (H,W) bool          a surface is visible
-      world_position (H,W,3)      NaN where not covered
+      world_position (H,W,3)      float64 (computed in float32 relative to the camera), NaN off-surface
       eye_depth (H,W)             distance along the view direction
       map_index (H,W) int         map used (-1: none serves the point / not covered)
       texels_per_pixel (H,W)      shadow-map footprint; footprint_heatmap (H,W,4)
@@ -394,12 +413,13 @@ def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, setti
     uploads_before, tris_before = batches.uploads, batches.uploaded_triangles
     for k in {inst.keys[i] for i in np.flatnonzero(caster_mask | receiver_mask)}:
         batches.get(geometry.meshes[k])
-    casters = instance_table(geometry, caster_mask)
-    receivers = instance_table(geometry, receiver_mask)
+    origin = view.position  # the GPU works in float32 relative to the camera
+    casters = instance_table(geometry, caster_mask, origin)
+    receivers = instance_table(geometry, receiver_mask, origin)
     timings["upload"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    maps = depth_pass(setup, geometry, casters, shadow, batches)
+    maps = depth_pass(setup, geometry, casters, shadow, batches, origin=origin)
     _sync(maps[-1][1])
     timings["depth_pass"] = time.perf_counter() - t
 
@@ -410,7 +430,8 @@ def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, setti
     timings["mdsm"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    fb, _ = shading_pass(view, light, setup, shadow, geometry, receivers, batches, keys or maps, (w, h), albedo)
+    fb, _ = shading_pass(view, light, setup, shadow, geometry, receivers, batches, keys or maps, (w, h), albedo,
+                         origin)
     _sync(fb, color=True)
     timings["shading"] = time.perf_counter() - t
 
@@ -434,7 +455,7 @@ def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, setti
     combined[..., :3] = np.where(covered[..., None], lit, amb)
     combined[..., 3] = 1.0
     tpp = np.where(covered, data[..., 2], 0.0).astype(np.float32)
-    world_pos = np.where(covered[..., None], world[..., :3], np.nan).astype(np.float32)
+    world_pos = np.where(covered[..., None], world[..., :3] + origin, np.nan)
     map_index = np.where(covered, np.rint(data[..., 1]), -1).astype(np.int32)
     timings["compose"] = time.perf_counter() - t
 

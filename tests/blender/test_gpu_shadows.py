@@ -511,3 +511,16 @@ def test_mdsm_on_every_map_of_a_multi_map_setup(lx, scene, selection):
     assert len(np.unique(out["map_index"][out["covered"]])) > 1
     frac, n, _ = agreement(out, lt, dg)
     assert frac >= 0.99
+
+
+def test_far_from_the_origin_shadows_keep_their_precision(lx, scene):
+    """The whole scene moved 1000 km away (float32 spacing there: 6 cm): the GPU
+    works relative to the camera, so the shadows still agree with ray casting."""
+    shadow_scene(scene, "SUN")
+    for ob in scene.objects:
+        ob.location.x += 1.0e6
+        ob.location.y -= 1.0e6
+    out, view, lt, setup, dg = render(lx, scene, "uniform", 2048)
+    frac, n, truth = agreement(out, lt, dg)
+    assert n > 5000 and truth[out["covered"]].mean() > 0.02
+    assert frac >= 0.99
