@@ -26,7 +26,7 @@ struct LixelMap {
  * light_pos:   (position.xyz, type: 0 sun, 1 point, 2 spot)
  * light_dir:   (travel direction.xyz, cos of the spot's half angle)
  * light_color: (colour * energy, albedo)
- * params:      (PCF kernel k, MDSM depth count n, map count, unused)
+ * params:      (PCF kernel k, MDSM depth count n, map count, spot blend 0..1)
  * bias:        (constant c, slope factor s, PCF reach r, largest slope term), NDC depth units */
 struct LixelShade {
   vec4 camera;

@@ -186,8 +186,12 @@ void main()
     float r2 = max(dot(to_light, to_light), 1e-12);
     L = to_light * inversesqrt(r2);
     irradiance = 1.0 / (4.0 * LIXEL_PI * r2);
-    if (type == 2 && dot(-L, lixel.light_dir.xyz) < lixel.light_dir.w) {
-      irradiance = 0.0; /* outside the spot cone */
+    if (type == 2) {
+      /* Blender's spot mask: smoothstep over the outer blend * (1 - cos half) of the cone. */
+      float cos_half = lixel.light_dir.w;
+      float x = dot(-L, lixel.light_dir.xyz) - cos_half;
+      float blend = lixel.params.w * (1.0 - cos_half);
+      irradiance *= blend > 0.0 ? smoothstep(0.0, 1.0, x / blend) : step(0.0, x);
     }
   }
   float ndl = max(dot(N, L), 0.0);

@@ -188,7 +188,7 @@ def mdsm_pass(maps: list, setup: ShadowSetup, shadow: ShadowSettings) -> list:
 
 
 def shade_block(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSettings,
-                albedo: float = DEFAULT_ALBEDO, origin=(0.0, 0.0, 0.0)) -> np.ndarray:
+                albedo: float = DEFAULT_ALBEDO, origin=(0.0, 0.0, 0.0), spot_blend: float = 0.0) -> np.ndarray:
     """The shading pass's std140 uniform block (see gpu_shaders/lixel_types.glsl),
     positions relative to ``origin``."""
     o = np.asarray(origin, dtype=np.float64)
@@ -203,7 +203,7 @@ def shade_block(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSett
     cos_half = math.cos(light.spot_angle / 2) if light.type == "SPOT" else -1.0
     block[4] = (*(light.direction if light.direction is not None else (0, 0, -1)), cos_half)
     block[5] = (*(np.asarray(light.color, dtype=np.float64) * light.energy), albedo)
-    block[6] = (shadow.pcf_kernel, shadow.mdsm_depths, len(setup.maps), 0.0)
+    block[6] = (shadow.pcf_kernel, shadow.mdsm_depths, len(setup.maps), min(max(float(spot_blend), 0.0), 1.0))
     block[7] = bias_vector(shadow)
     for i, m in enumerate(setup.maps):
         base = header + i * per_map
@@ -241,7 +241,7 @@ def _dummy(fmt: str):
 
 def shading_pass(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSettings, geometry, table,
                  batches: BatchCache, maps: list, resolution: tuple[int, int], albedo: float = DEFAULT_ALBEDO,
-                 origin=(0.0, 0.0, 0.0)):
+                 origin=(0.0, 0.0, 0.0), spot_blend: float = 0.0):
     """Camera pass: depth pre-pass, then shading with LESS_EQUAL. Returns the
     framebuffer and its three colour textures (direct, data, world position
     relative to ``origin``)."""
@@ -254,7 +254,7 @@ def shading_pass(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSet
     fb = gpu.types.GPUFrameBuffer(depth_slot=depth, color_slots=(direct, data, world))
     view_proj = _gl_matrix(relative(view.world_to_clip, origin))
     mdsm = shadow.mdsm_depths > 1
-    ubo = gpu.types.GPUUniformBuf(shade_block(view, light, setup, shadow, albedo, origin).tobytes())
+    ubo = gpu.types.GPUUniformBuf(shade_block(view, light, setup, shadow, albedo, origin, spot_blend).tobytes())
     with fb.bind():
         gpu.state.viewport_set(0, 0, w, h)
         fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
@@ -355,7 +355,7 @@ def _shadow_settings(settings) -> ShadowSettings:
 def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, settings=None,
                    resolution: Optional[tuple[int, int]] = None, *, body=None,
                    batches: Optional[BatchCache] = None, ambient=DEFAULT_AMBIENT, albedo: float = DEFAULT_ALBEDO,
-                   read_maps: bool = True) -> dict:
+                   spot_blend: float = 0.0, read_maps: bool = True) -> dict:
     """Render ``geometry`` from ``view`` with the shadow maps of ``setup``.
 
     Needs a GPU context (``addon.gpu.context.ensure_gpu_context()``; inside a
@@ -368,6 +368,8 @@ def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, setti
     ``view.resolution``. ``body``: the intersection body if already computed
     (it culls casters); computed from the geometry's boxes otherwise.
     ``batches``: a ``BatchCache`` (default: the process-wide one).
+    ``ambient``: world colour; ``albedo``: surface grey; ``spot_blend``: a spot
+    light's Blender ``spot_blend`` (softness of the cone edge, 0 = hard).
 
     Returns a dict; images are float32 numpy arrays with row 0 at the bottom
     (Blender's render-result order):
@@ -431,7 +433,7 @@ def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, setti
 
     t = time.perf_counter()
     fb, _ = shading_pass(view, light, setup, shadow, geometry, receivers, batches, keys or maps, (w, h), albedo,
-                         origin)
+                         origin, spot_blend)
     _sync(fb, color=True)
     timings["shading"] = time.perf_counter() - t
 

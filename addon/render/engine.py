@@ -96,8 +96,11 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     body = intersection_body(view, light, bounds)
     setup = compute(method, view, light, bounds, settings.warp, body=body)
     timings["warp"] = time.perf_counter() - t
+    light_obj = bpy.data.objects.get(light.name)
+    blend = float(getattr(light_obj.data, "spot_blend", 0.0)) if light_obj is not None and \
+        light_obj.type == "LIGHT" and light_obj.data.type == "SPOT" else 0.0
     result = render_shadows(view, light, setup, geometry, settings, resolution or view.resolution, body=body,
-                            ambient=_world_colour(scene))
+                            ambient=_world_colour(scene), spot_blend=blend)
     result["timings"] = {**timings, **result["timings"]}
     _last.clear()
     _last.update(setup=setup, settings=settings, result=result, scene=scene.name, method=method)

@@ -139,7 +139,8 @@ def shadow_scene(scene, kind):
     return lt
 
 
-def render(lx, scene, method="uniform", map_size=2048, shadow=None, setup=None, batches=None, warp_options=None):
+def render(lx, scene, method="uniform", map_size=2048, shadow=None, setup=None, batches=None, warp_options=None,
+           **kwargs):
     dg = scene.view_layers[0].depsgraph
     dg.update()
     geometry = lx.geometry.GeometryCache().update(dg)
@@ -151,7 +152,7 @@ def render(lx, scene, method="uniform", map_size=2048, shadow=None, setup=None, 
     if shadow is not None:
         settings = replace(settings, shadow=replace(settings.shadow, **shadow))
     out = lx.pipeline.render_shadows(view, lt, setup, geometry, settings,
-                                     batches=batches or lx.batches.BatchCache())
+                                     batches=batches or lx.batches.BatchCache(), **kwargs)
     return out, view, lt, setup, dg
 
 
@@ -270,6 +271,30 @@ def test_point_light_irradiance_falls_with_distance_squared(lx, scene):
     ndl = to_light[:, 2] / np.sqrt(r2)
     expect = 0.8 * 500.0 / (4 * math.pi * r2) * ndl / math.pi + 0.8 * lx.pipeline.DEFAULT_AMBIENT[0]
     np.testing.assert_allclose(out["combined"][sel][:, 0], expect, rtol=2e-3, atol=1e-5)
+
+
+@pytest.mark.parametrize("blend", [0.0, 0.4])
+def test_spot_cone_follows_blenders_spot_mask(lx, scene, blend):
+    plane(scene, size=12)
+    cam = camera(scene, (0, 0, 12), (0, 0, 0), res=(128, 128), ortho_scale=12.0)
+    spot = light(scene, "SPOT", (0, 0, 4), spot_size=math.radians(80), energy=1000.0)
+    out, view, lt, setup, dg = render(lx, scene, "uniform", 512, spot_blend=blend)
+    sel = out["covered"]
+    p = out["world_position"][sel].astype(np.float64)
+    to_light = lt.position - p
+    r2 = (to_light ** 2).sum(1)
+    cos_angle = to_light[:, 2] / np.sqrt(r2)        # the spot points straight down; the ground normal is +Z
+    cos_half = math.cos(math.radians(40))
+    x = cos_angle - cos_half
+    if blend:
+        t = np.clip(x / (blend * (1 - cos_half)), 0, 1)
+        mask = t * t * (3 - 2 * t)
+    else:
+        mask = (x >= 0).astype(np.float64)
+    expect = 0.8 * 1000.0 / (4 * math.pi * r2) * cos_angle * mask / math.pi + 0.8 * lx.pipeline.DEFAULT_AMBIENT[0]
+    away = np.abs(x) > 2e-3  # pixels straddling a hard edge may go either way
+    np.testing.assert_allclose(out["combined"][sel][:, 0][away], expect[away], rtol=2e-3, atol=2e-5)
+    assert (mask == 0).any() and (mask == 1).any() and (blend == 0 or ((mask > 0) & (mask < 1)).any())
 
 
 def acne_scene(scene, closed=False):
