@@ -44,7 +44,7 @@ def quick_defaults() -> dict:
 
 
 def full_defaults() -> dict:
-    return dict(resolution=(640, 360), frames=6, eevee_samples=8)
+    return dict(resolution=(640, 360), frames=6, eevee_samples=16)
 
 
 DEFAULT_SIZES = (512, 1024, 2048, 4096)
