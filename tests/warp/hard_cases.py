@@ -20,7 +20,7 @@ import math
 import numpy as np
 
 from addon.warp import Light, SceneBounds, View
-from addon.warp.geometry import look_along
+from addon.warp.geometry import look_along, ortho_matrix
 
 FOV_DEG = 60.0
 PHI = math.radians(FOV_DEG) / 2
@@ -149,6 +149,23 @@ def _build() -> tuple[dict, dict]:
         "a spot just behind the camera whose cone is 1° wider than the view's diagonal")
     add("spot_over_scene", cam, spot([-10.0, -10.0, 25.0], [0.4, 0.6, -1.0], math.radians(70.0)), scene,
         "an ordinary spot light above the scene")
+    ortho = View(street.camera_to_world, ortho_matrix(-16.0, 16.0, -9.0, 9.0, 0.1, 100.0), 0.1, 100.0,
+                 (1280, 720), orthographic=True)
+    add("orthographic_camera", ortho, sun([0.4, 0.3, -0.6]), scene, "an orthographic camera (PSM has no perspective to warp)")
+    ortho_top = View(np.linalg.inv(look_along([0.0, 10.0, 50.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0])),
+                     ortho_matrix(-30.0, 30.0, -20.0, 20.0, 1.0, 100.0), 1.0, 100.0, (1280, 720), orthographic=True)
+    add("orthographic_top_down_zenith", ortho_top, sun([0.0, 0.0, -1.0]), scene,
+        "an orthographic top-down camera under a zenith sun")
+    add("sun_on_horizon", street, sun([0.3, 1.0, 0.0]), scene, "a sun exactly on the horizon (rays parallel to the ground)")
+    add("sun_from_below", street, sun([0.3, 0.2, 1.0]), scene, "light travelling upwards (from under the ground)")
+    add("single_point_box", street, sun([0.4, 0.3, -0.6]), SceneBounds.from_boxes([[[0.0, 10.0, 0.0], [0.0, 10.0, 0.0]]]),
+        "the only box is a point in the middle of the view")
+    add("huge_ground", street, sun([0.4, 0.3, -0.6]), SceneBounds.from_boxes([[[-1e6, -1e6, -1.0], [1e6, 1e6, 0.0]]]),
+        "one 2000 km ground box")
+    add("spot_narrow_1deg", street, spot([0.0, -20.0, 30.0], [0.0, 0.5, -1.0], math.radians(1.0)), scene,
+        "a 1° spot: B is a thin cone")
+    add("spot_179deg", street, spot([0.0, 5.0, 10.0], [0.0, 0.0, -1.0], math.radians(179.0)), scene,
+        "a 179° spot (almost a half-space): cube faces")
     return cases, why
 
 

@@ -58,8 +58,33 @@ def visible_receiver_points(view, light, scene, n=4000, seed=0) -> np.ndarray:
     pts2[np.arange(n // 2), face] = b[which[: n // 2], side, face]
     cube = np.array([[i & 1, (i >> 1) & 1, (i >> 2) & 1] for i in range(8)])
     cpts = (b[:, None, 0] + cube[None] * (b[:, None, 1] - b[:, None, 0])).reshape(-1, 3)
-    pts = np.concatenate([pts, pts2, cpts])
+    pts = np.concatenate([pts, pts2, cpts, lit_receiver_points(light, boxes, rng)])
     return pts[in_view(view, pts) & in_light_cone(light, pts)]
+
+
+def lit_receiver_points(light, boxes, rng, n=3000) -> np.ndarray:
+    """Where rays from a spot (inside its cone) first enter a receiver box: a
+    narrow cone would be missed by sampling the boxes."""
+    if light.type != "SPOT":
+        return np.zeros((0, 3))
+    a = light.direction
+    u = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
+    u /= np.linalg.norm(u)
+    w = np.cross(a, u)
+    cos_max = math.cos(light.spot_angle / 2)
+    c = rng.uniform(cos_max, 1.0, n)
+    phi = rng.uniform(0, 2 * math.pi, n)
+    sn = np.sqrt(1 - c * c)
+    d = c[:, None] * a + (sn * np.cos(phi))[:, None] * u + (sn * np.sin(phi))[:, None] * w
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t0 = (boxes[None, :, 0] - light.position) / d[:, None]          # (n, boxes, 3)
+        t1 = (boxes[None, :, 1] - light.position) / d[:, None]
+    enter = np.nanmax(np.minimum(t0, t1), axis=2)
+    leave = np.nanmin(np.maximum(t0, t1), axis=2)
+    hit = (enter <= leave) & (leave >= 0)
+    t = np.where(hit, np.maximum(enter, 0), np.inf).min(axis=1)
+    ok = np.isfinite(t)
+    return light.position + t[ok, None] * d[ok]
 
 
 def shadowing_caster_points(light, scene, receivers_pts, steps=64) -> np.ndarray:
