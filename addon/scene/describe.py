@@ -138,8 +138,8 @@ def describe_light(light_obj, depsgraph=None) -> Light:
 def describe_bounds(depsgraph, instances: Optional[InstanceSet] = None) -> SceneBounds:
     """World AABBs of the evaluated scene's drawable instances.
 
-    Casters are the instances whose object casts shadows (``visible_shadow``);
-    every drawable instance receives. Geometry-nodes, particle and collection
+    Casters are the instances whose object casts shadows (``visible_shadow``),
+    receivers those the camera sees (``visible_camera``). Geometry-nodes, particle and collection
     instances are included (``depsgraph.object_instances``) with their own
     matrices. Pass the ``instances`` of an earlier :func:`walk_instances` to
     avoid walking the depsgraph again.

@@ -62,8 +62,9 @@ class InstanceSet:
 
     ``keys[i]`` names the triangles instance ``i`` draws (see :func:`geometry_key`),
     ``matrices[i]`` its object -> world matrix, ``local_boxes[i]`` its
-    object-space bounding box ``[[min], [max]]``, ``casts``/``receives`` its
-    shadow visibility, ``names[i]`` the object (for messages and counts).
+    object-space bounding box ``[[min], [max]]``, ``casts`` whether it casts
+    shadows (``visible_shadow``), ``receives`` whether the camera sees it
+    (``visible_camera``), ``names[i]`` the object (for messages and counts).
     """
 
     keys: list = field(default_factory=list)
@@ -101,7 +102,7 @@ def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Instanc
     met, while the evaluated object is still valid; it may return False to
     drop every instance of that key (e.g. a mesh with no faces).
     """
-    keys, names, casts = [], [], []
+    keys, names, casts, receives = [], [], [], []
     mats = np.empty((256, 4, 4), dtype=np.float64)
     accepted: dict = {}   # key -> None (dropped) or its object-space box
     generated: dict = {}
@@ -131,6 +132,7 @@ def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Instanc
         keys.append(key)
         names.append(ob.name if not inst.is_instance or inst.parent is None else f"{inst.parent.name}/{ob.name}")
         casts.append(bool(getattr(ob, "visible_shadow", True)))
+        receives.append(bool(getattr(ob, "visible_camera", True)))
     if not keys:
         return InstanceSet()
     boxes = np.array([accepted[k] for k in keys], dtype=np.float64).reshape(-1, 2, 3)
@@ -140,5 +142,5 @@ def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Instanc
         matrices=mats[:n].copy(),
         local_boxes=boxes,
         casts=np.asarray(casts, dtype=bool),
-        receives=np.ones(n, dtype=bool),
+        receives=np.asarray(receives, dtype=bool),
     )

@@ -483,11 +483,17 @@ def test_caster_culling_counts(lx, scene):
     far = box(scene, "FarAway", location=(60, 60, 1))
     hidden = box(scene, "NoShadow", location=(-1.5, 1.5, 0.5))
     hidden.visible_shadow = False
-    out, *_ = render(lx, scene, "uniform", 512)
+    ghost = box(scene, "Ghost", location=(-1.5, -1.5, 0.5))  # casts, but the camera does not see it
+    ghost.visible_camera = False
+    out, view, lt, setup, dg = render(lx, scene, "uniform", 512)
     c = out["counts"]
-    assert c["casters_drawn"] == 2
+    assert c["casters_drawn"] == 3
     assert c["casters_culled"] == 1 and c["caster_triangles_culled"] == 12
     assert c["non_casters"] == 1
+    assert c["receivers_drawn"] == 3  # ground, box, NoShadow (FarAway is outside the view)
+    on_ghost = out["covered"] & (np.abs(out["world_position"][..., 0] + 1.5) < 0.45) & \
+        (np.abs(out["world_position"][..., 1] + 1.5) < 0.45) & (out["world_position"][..., 2] > 0.05)
+    assert not on_ghost.any(), "an object hidden from the camera must not be drawn"
 
 
 def test_too_many_maps_is_a_clear_error(lx, scene):
