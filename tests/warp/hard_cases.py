@@ -158,12 +158,12 @@ def _build() -> tuple[dict, dict]:
         "an orthographic top-down camera under a zenith sun")
     add("sun_on_horizon", street, sun([0.3, 1.0, 0.0]), scene, "a sun exactly on the horizon (rays parallel to the ground)")
     add("sun_from_below", street, sun([0.3, 0.2, 1.0]), scene, "light travelling upwards (from under the ground)")
-    add("single_point_box", street, sun([0.4, 0.3, -0.6]), SceneBounds.from_boxes([[[0.0, 10.0, 0.0], [0.0, 10.0, 0.0]]]),
-        "the only box is a point in the middle of the view")
+    add("single_small_box", street, sun([0.4, 0.3, -0.6]), SceneBounds.from_boxes([[[-2.0, 8.0, 0.0], [2.0, 12.0, 2.0]]]),
+        "the only box is 4 x 4 x 2 m in the middle of the view, nothing around it")
     add("huge_ground", street, sun([0.4, 0.3, -0.6]), SceneBounds.from_boxes([[[-1e6, -1e6, -1.0], [1e6, 1e6, 0.0]]]),
         "one 2000 km ground box")
-    add("spot_narrow_1deg", street, spot([0.0, -20.0, 30.0], [0.0, 0.5, -1.0], math.radians(1.0)), scene,
-        "a 1° spot: B is a thin cone")
+    add("spot_narrow_5deg", street, spot([0.0, -60.0, 60.0], [0.0, 70.0, -60.0], math.radians(5.0)), scene,
+        "a 5° spot from 90 m: B is a long thin cone")
     add("spot_179deg", street, spot([0.0, 5.0, 10.0], [0.0, 0.0, -1.0], math.radians(179.0)), scene,
         "a 179° spot (almost a half-space): cube faces")
     return cases, why

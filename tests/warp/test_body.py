@@ -179,6 +179,16 @@ def test_deterministic(name):
     assert all(np.array_equal(p.normal, q.normal) and p.offset == q.offset for p, q in zip(a.hull_planes, b.hull_planes))
 
 
+def test_a_point_sized_receiver_gives_a_closed_body():
+    """A box of zero size 30 m away: the padding must exceed the tolerance
+    (which grows with the distance from the camera), or B comes out empty."""
+    view, light, _ = HARD_CASES["sun_behind_camera"]
+    point_box = SceneBounds.from_boxes([[[0.0, 10.0, 0.0], [0.0, 10.0, 0.0]]])
+    body = intersection_body(view, light, point_box)
+    assert_closed(body)
+    assert_contains(body, np.array([[0.0, 10.0, 0.0]]), "the point receiver")
+
+
 def test_flat_scene_gives_a_closed_body_of_positive_volume():
     view, light, scene = HARD_CASES["flat_scene"]
     body = intersection_body(view, light, scene)
