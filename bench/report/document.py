@@ -161,6 +161,31 @@ def write(result: dict, out: Path, progress=print, readme_picture: Path | None =
     return paths
 
 
+def summary_rows(result: dict) -> list[list[str]]:
+    """One row per scene: for each map size the Lixel method with the fewest errors
+    (its error % and time), then each peer."""
+    sizes = sorted({m["size"] for s in result["scenes"] for m in s.get("methods", []) if m.get("status") == "ok"})
+    rows = []
+    for scene in result["scenes"]:
+        if scene.get("status") != "ok":
+            rows.append([scene["name"], "failed: " + scene.get("reason", "")] + [""] * (len(sizes) + 1))
+            continue
+        row = [scene["name"]]
+        for size in sizes:
+            cands = [m for m in scene["methods"] if m.get("status") == "ok" and m["size"] == size]
+            if cands:
+                b = min(cands, key=lambda m: m["errors"]["error_rate"])
+                row.append(f"{b['method']} {100 * b['errors']['error_rate']:.2f}% ({b['total_ms']:.0f} ms)")
+            else:
+                row.append("")
+        for peer in ("eevee", "cycles"):
+            p = next((x for x in scene["peers"] if x["method"] == peer), None)
+            row.append("" if p is None else (f"{100 * p['errors']['error_rate']:.2f}% ({p['total_ms'] / 1000:.1f} s)"
+                                             if p.get("status") == "ok" else "failed"))
+        rows.append(row)
+    return [["scene"] + [f"best at {s}²" for s in sizes] + ["EEVEE", "Cycles"]] + rows
+
+
 def _header(result: dict) -> tuple[str, list[str]]:
     o = result["options"]
     title = "Lixel: speed against error"
@@ -176,6 +201,9 @@ def _markdown(result: dict, pics: dict) -> str:
     title, intro = _header(result)
     md = [f"# {title}", ""] + intro + ["", "## How to read it", ""]
     md += [f"- **{k}**: {v}" for k, v in DEFINITIONS] + [""]
+    summary = summary_rows(result)
+    md += ["## Summary", "", "| " + " | ".join(summary[0]) + " |", "|" + "---|" * len(summary[0])]
+    md += ["| " + " | ".join(c.replace("|", "/") for c in row) + " |" for row in summary[1:]] + [""]
     for scene in result["scenes"]:
         md.append(f"## Scene: {scene['name']}")
         md.append("")
@@ -208,6 +236,10 @@ def _html(result: dict, pics: dict) -> str:
     h = [f"<!doctype html><html><head><meta charset='utf-8'><title>{e(title)}</title><style>{_CSS}</style></head><body>",
          f"<h1>{e(title)}</h1>"] + [f"<p>{e(x)}</p>" for x in intro]
     h.append("<h2>How to read it</h2><ul>" + "".join(f"<li><b>{e(k)}</b>: {e(v)}</li>" for k, v in DEFINITIONS) + "</ul>")
+    summary = summary_rows(result)
+    h.append("<h2>Summary</h2><table><tr>" + "".join(f"<th>{e(c)}</th>" for c in summary[0]) + "</tr>"
+             + "".join("<tr>" + "".join(f"<td>{e(c)}</td>" for c in row) + "</tr>" for row in summary[1:])
+             + "</table>")
     h.append("<p>Scenes: " + " · ".join(f"<a href='#{e(s['name'])}'>{e(s['name'])}</a>" for s in result["scenes"]) + "</p>")
     for scene in result["scenes"]:
         h.append(f"<h2 id='{e(scene['name'])}'>Scene: {e(scene['name'])}</h2>")

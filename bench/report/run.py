@@ -175,14 +175,14 @@ def run_scene(name: str, opts: Options, progress, workdir: Path) -> dict:
     except Exception as exc:  # noqa: BLE001 - every method is then reported failed with this reason
         gpu_error = f"GPU pipeline unavailable: {exc}"
     shadow_settings = ShadowSettings(pcf_kernel=1)
-    if not gpu_error:
-        # warm-up: shader compilation and the geometry upload are not part of any method's time
-        try:
-            warm = compute("uniform", view, light, bounds, WarpOptions(shadow_map_size=(256, 256)))
-            render_shadows(view, light, warm, geometry, shadow_settings, opts.resolution, read_maps=False)
-        except Exception as exc:  # noqa: BLE001 - the methods below report their own failures
-            progress(f"{name}: warm-up render failed: {exc}")
     for method in opts.methods:
+        if not gpu_error:
+            # warm-up: shader variants, uploads and first-call costs are not part of any time below
+            try:
+                warm = compute(method, view, light, bounds, WarpOptions(shadow_map_size=(256, 256)))
+                render_shadows(view, light, warm, geometry, shadow_settings, opts.resolution, read_maps=False)
+            except Exception:  # noqa: BLE001 - the measured runs below report their own failures
+                pass
         for size in opts.sizes:
             rec = {"method": method, "size": int(size), "status": "ok"}
             out["methods"].append(rec)

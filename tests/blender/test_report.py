@@ -31,6 +31,7 @@ def test_every_section_in_both_documents(report):
     html = (out / "report.html").read_text()
     md = (out / "report.md").read_text()
     assert "Scene: tiny" in html and "## Scene: tiny" in md
+    assert "<h2>Summary</h2>" in html and "## Summary" in md
     for section in SECTIONS:
         assert f"<h3>{section}</h3>" in html
         assert f"### {section}" in md
