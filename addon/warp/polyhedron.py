@@ -267,6 +267,11 @@ class ConvexPolytope:
     @classmethod
     def box(cls, lo, hi, tol: float) -> "ConvexPolytope":
         lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+        if np.all(hi - lo > 8.0 * tol):
+            # Corners in lexicographic order (bit 2: x, bit 1: y, bit 0: z) and the
+            # facets -x, -y, -z, +x, +y, +z with their known incidence.
+            verts = np.where(_BOX_BITS, hi, lo) + 0.0
+            return cls(verts, _BOX_NORMALS.copy(), np.concatenate([-lo, hi]), _BOX_INCIDENCE.copy(), tol)
         return cls.from_corners(np.array([[hi[0] if i & 1 else lo[0], hi[1] if i & 2 else lo[1],
                                            hi[2] if i & 4 else lo[2]] for i in range(8)]), tol)
 
@@ -275,8 +280,7 @@ class ConvexPolytope:
         """A hexahedron (box, frustum) from 8 corners ordered like
         ``geometry.UNIT_CUBE_CORNERS``; planes from each face's Newell normal."""
         c = np.asarray(corners, dtype=np.float64).reshape(8, 3)
-        q = np.array(_HEX_QUADS)
-        pts = c[q]                                   # (6, 4, 3)
+        pts = c[_HEX_QUAD_INDEX]                     # (6, 4, 3)
         # A quad's normal is the cross product of its diagonals (exact for planar quads).
         n = cross_rows(pts[:, 2] - pts[:, 0], pts[:, 3] - pts[:, 1])
         n /= np.sqrt((n * n).sum(axis=1))[:, None]
@@ -284,7 +288,7 @@ class ConvexPolytope:
         centre = c.mean(axis=0)
         flip = n @ centre - o > 0
         n[flip], o[flip] = -n[flip], -o[flip]
-        edges = c[list(_HEX_EDGES[0])] - c[list(_HEX_EDGES[1])]
+        edges = c[_HEX_EDGE_INDEX[0]] - c[_HEX_EDGE_INDEX[1]]
         if float((edges * edges).sum(axis=1).min()) > (8.0 * tol) ** 2:
             poly = cls._finish(c[np.lexsort((c[:, 2], c[:, 1], c[:, 0]))] + 0.0, n, o, tol)   # 8 distinct corners
         else:
@@ -428,3 +432,8 @@ class ConvexPolytope:
 _HEX_QUADS = ((0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5))
 _HEX_EDGES = ((0, 2, 3, 1, 4, 6, 7, 5, 0, 1, 2, 3), (2, 3, 1, 0, 6, 7, 5, 4, 4, 5, 6, 7))
 """The 12 edges (from, to) of a hexahedron with UNIT_CUBE_CORNERS ordering."""
+_HEX_QUAD_INDEX = np.array(_HEX_QUADS)
+_HEX_EDGE_INDEX = np.array(_HEX_EDGES)
+_BOX_BITS = np.array([[(i >> 2) & 1, (i >> 1) & 1, i & 1] for i in range(8)], dtype=bool)
+_BOX_NORMALS = np.concatenate([-np.eye(3), np.eye(3)])
+_BOX_INCIDENCE = np.concatenate([~_BOX_BITS, _BOX_BITS], axis=1)
