@@ -314,6 +314,13 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
     v_poly = ConvexPolytope.from_corners(corners, v_tol)
     ln, lo = light_halfspaces(light, origin)
     cone = " and the spot cone" if len(ln) else ""
+    if len(ln):
+        # Only the cone's planes that cut V matter for V ∩ L (V is convex).
+        d = ln @ v_poly.vertices.T - lo[:, None]
+        if np.any(d.min(axis=1) >= 0):
+            raise EmptyBodyError("no shadow receiver is lit in view: the view frustum is outside the spot cone")
+        cuts = d.max(axis=1) > 0
+        ln, lo = ln[cuts], lo[cuts]
 
     # Receivers meeting V ∩ L (planes moved to world space for the culling).
     vn = np.concatenate([v_poly.normals, ln])
