@@ -200,6 +200,12 @@ def test_light_choice_prefers_sun_then_any(describe, fresh_scene):
     assert light.name == "Z_sun"
     _, light, _ = describe.describe_scene(scene, light="A_point")
     assert light.name == "A_point"
+    props = getattr(scene, "lixel", None)
+    if props is not None and hasattr(props, "light"):  # the Lixel light setting wins over the sun
+        props.light = scene.objects["A_point"]
+        _, light, _ = describe.describe_scene(scene)
+        assert light.name == "A_point"
+        props.light = None
 
 
 def test_bounds_cover_modifiers_instances_and_shadow_visibility(describe, fresh_scene):
