@@ -88,7 +88,10 @@ def light_facing_winds_clockwise(shadow_map) -> bool:
     triangle facing the light is projected and its signed area checked.
     """
     m = np.asarray(shadow_map.matrix, dtype=np.float64)
-    inv = np.linalg.inv(m)
+    try:
+        inv = np.linalg.inv(m)
+    except np.linalg.LinAlgError:
+        return False  # a degenerate map draws nothing: no winding to speak of
 
     def unproject(ndc):
         h = inv @ np.append(ndc, 1.0)

@@ -25,7 +25,7 @@ import numpy as np
 from ..settings import LixelSettings
 from ..warp import compute, intersection_body
 from ..warp.methods import METHODS
-from ..warp.types import WarpError
+from ..warp.types import Diagnostics, EmptyBodyError, ShadowMap, ShadowSetup, WarpError
 
 log = logging.getLogger(__name__)
 
@@ -51,6 +51,14 @@ def scene_settings(scene) -> LixelSettings:
     if props is not None and hasattr(props, "to_settings"):
         return props.to_settings()
     return LixelSettings()
+
+
+def no_shadow_setup(method: str) -> ShadowSetup:
+    """A setup whose single 1x1 map serves no point (its w is always -1): the
+    shading pass then lights everything without shadows."""
+    none = np.zeros((4, 4))
+    none[3, 3] = -1.0
+    return ShadowSetup([ShadowMap(none, (1, 1), role="none")], Diagnostics(method))
 
 
 def _debug_filter():
@@ -93,8 +101,16 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         if warnings is not None:
             warnings.append(f"Lixel method '{method}' is not available in this build; rendering with 'uniform'")
         method = "uniform"
-    body = intersection_body(view, light, bounds)
-    setup = compute(method, view, light, bounds, settings.warp, body=body)
+    try:
+        body = intersection_body(view, light, bounds)
+        setup = compute(method, view, light, bounds, settings.warp, body=body)
+    except EmptyBodyError as exc:
+        # Nothing the camera sees can be shadowed (it looks at the sky, or no visible
+        # surface is inside the spot cone): render the lighting without shadows.
+        if warnings is not None:
+            warnings.append(f"Lixel: no shadows in this view ({exc})")
+        body = None
+        setup = no_shadow_setup(method)
     timings["warp"] = time.perf_counter() - t
     light_obj = bpy.data.objects.get(light.name)
     blend = float(getattr(light_obj.data, "spot_blend", 0.0)) if light_obj is not None and \

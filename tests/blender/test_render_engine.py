@@ -193,3 +193,32 @@ def test_saved_file_renders_in_a_fresh_process(engine, scene, tmp_path):
         assert px.reshape(64, 96, 4)[..., :3].std() > 0.01  # an image, with shading and shadow
     finally:
         bpy.data.images.remove(img)
+
+
+def test_a_view_with_nothing_to_shadow_renders_with_a_warning(engine, scene, capfd):
+    build(scene)
+    cam = scene.camera
+    cam.rotation_euler = (0.0, math.pi, 0.0)  # straight up at the sky
+    cam.location = (0, 0, 10)
+    assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    res = engine.last_render()["result"]
+    assert not res["covered"].any()
+    captured = capfd.readouterr()
+    assert "no shadows in this view" in captured.err + captured.out
+    np.testing.assert_allclose(res["combined"][..., :3], np.broadcast_to(
+        np.array(scene.world.color if scene.world else (0, 0, 0), dtype=np.float32), (64, 96, 3)), atol=1e-6)
+
+
+def test_a_spot_lighting_nothing_visible_renders_ambient_only(engine, scene, capfd):
+    build(scene, with_light=False)
+    spot = add(scene, "Spot", bpy.data.lights.new("Spot", "SPOT"))
+    spot.location = (0, 0, 5)
+    spot.rotation_euler = (0.0, math.pi, 0.0)  # pointing up, away from everything
+    assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    res = engine.last_render()["result"]
+    assert res["covered"].any() and not res["shadow_mask"].any()
+    ambient = np.array(scene.world.color if scene.world else (0, 0, 0), dtype=np.float32) * 0.8
+    np.testing.assert_allclose(res["combined"][res["covered"]][:, :3], np.broadcast_to(ambient, (res["covered"].sum(), 3)),
+                               atol=1e-6)
+    captured = capfd.readouterr()
+    assert "no shadows in this view" in captured.err + captured.out
