@@ -201,15 +201,14 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
         return [perspective_frame(apex, axis, up, body.vertices, "main", body.scale)]
     basis = np.stack([normalize(cross3(up, -axis)), normalize(up - (up @ axis) * axis), -axis])  # cube x, y, z = -axis
     poly = body.polytope_from(apex)
-    edges = poly.edges()[0]
     near_floor = 1e-6 * body.scale
     frames = []
-    for name, k, sign in CUBE_FACES:
-        forward = sign * basis[k]
-        others = [basis[j] for j in range(3) if j != k]
-        pts = pyramid_section_points(poly, edges, forward, others)
+    sections = cube_section_points(poly, poly.edges()[0], basis)
+    for (name, k, sign), pts in zip(CUBE_FACES, sections):
         if pts is None:
             continue
+        forward = sign * basis[k]
+        others = [basis[j] for j in range(3) if j != k]
         depth = pts @ forward
         clamped = float(depth.min()) < near_floor
         if clamped:
@@ -221,6 +220,63 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
         frame = perspective_frame(apex, forward, face_up, pts + apex, "cube" + name, body.scale)
         frames.append(LightFrame(frame.to_light, frame.points, frame.role, False, clamped))
     return frames
+
+
+_CUBE_SIGNS = np.array([[sx, sy, sz] for sx in (-1.0, 1.0) for sy in (-1.0, 1.0) for sz in (-1.0, 1.0)])
+"""The 8 corner directions of the cube (in its basis): a face's corner rays are the 4 whose sign on its axis matches."""
+
+
+def cube_section_points(poly, edges: np.ndarray, basis: np.ndarray) -> list:
+    """For each face of the cube with axes ``basis`` (rows) centred on the
+    apex, points whose convex hull is P ∩ C_face (``pyramid_section_points``,
+    all six at once), or None when that part has no volume."""
+    tol = poly.tol
+    v = poly.vertices
+    normals = []
+    for name, k, sign in CUBE_FACES:
+        forward = sign * basis[k]
+        normals.extend(s * basis[j] - forward for j in range(3) if j != k for s in (1.0, -1.0))
+    n24 = np.array(normals) / math.sqrt(2.0)                 # (24, 3): face f owns rows 4f .. 4f + 3
+    d = v @ n24.T                                            # (n, 24)
+    d3 = d.reshape(len(v), 6, 4)
+    outside = np.all(d3 >= -tol, axis=0).any(axis=1)         # (6,): P wholly outside one plane of the face
+    inside_v = d3.max(axis=2) <= tol                         # (n, 6)
+    # P's edges crossing the 24 planes, each kept if inside its face's pyramid.
+    da, db = d[edges[:, 0]], d[edges[:, 1]]
+    crossing = ((da < -tol) & (db > tol)) | ((da > tol) & (db < -tol))
+    e, p = np.nonzero(crossing)
+    t = da[e, p] / (da[e, p] - db[e, p])
+    a = v[edges[e, 0]]
+    x = a + t[:, None] * (v[edges[e, 1]] - a)
+    face_of = p // 4
+    n_face = n24.reshape(6, 4, 3)[face_of]                   # (c, 4, 3)
+    keep = np.einsum("ij,ikj->ik", x, n_face).max(axis=1) <= tol if len(x) else np.zeros(0, dtype=bool)
+    x, face_of = x[keep], face_of[keep]
+    # The cube's 8 corner rays through P: t-interval where n . (t r) <= o for every facet.
+    rays = _CUBE_SIGNS @ basis
+    denom = poly.normals @ rays.T                            # (F, 8)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = poly.offsets[:, None] / denom
+    t_hi = np.where(denom > 0, ratio, np.inf).min(axis=0)
+    t_lo = np.maximum(np.where(denom < 0, ratio, -np.inf).max(axis=0), 0.0)
+    blocked = np.any((denom == 0) & (poly.offsets[:, None] < 0), axis=0)
+    hit = (t_lo <= t_hi) & np.isfinite(t_hi) & ~blocked
+    ray_pts = np.concatenate([t_lo[:, None] * rays, t_hi[:, None] * rays])      # (16, 3)
+    ray_ok = np.concatenate([hit, hit])
+    ray_sign = np.concatenate([_CUBE_SIGNS, _CUBE_SIGNS])
+    apex = np.zeros((1, 3)) if poly.contains(np.zeros((1, 3)), tol)[0] else np.zeros((0, 3))
+    out = []
+    for f, (name, k, sign) in enumerate(CUBE_FACES):
+        if outside[f]:
+            out.append(None)
+            continue
+        pts = np.concatenate([v[inside_v[:, f]], x[face_of == f], ray_pts[ray_ok & (ray_sign[:, k] == sign)], apex])
+        # No volume: too few points, or all on one of the face's planes.
+        if len(pts) < 4 or np.any(np.all(np.abs(pts @ n24[4 * f: 4 * f + 4].T) <= tol, axis=0)):
+            out.append(None)
+            continue
+        out.append(pts)
+    return out
 
 
 def pyramid_section_points(poly, edges: np.ndarray, forward, others) -> np.ndarray | None:

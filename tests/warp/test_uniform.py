@@ -227,3 +227,27 @@ def test_point_cube_frames_move_continuously_with_the_camera():
         a, _ = ndc(m.matrix, pts[idx == i])
         b, _ = ndc(other[0].matrix, pts[idx == i])
         assert np.abs(a - b).max() < 1e-4
+
+
+@pytest.mark.parametrize("name", ["point_light_inside_view", "camera_inside_scene_box_point", "spot_179deg",
+                                  "point_light_in_camera_plane"])
+def test_cube_sections_at_once_equal_face_by_face(name):
+    """The six cube faces' section points computed together equal the per-face
+    construction (vertices inside, edge crossings, corner rays, apex)."""
+    from addon.warp.frame import CUBE_FACES, cube_section_points, pyramid_section_points
+    from addon.warp.geometry import cross3, normalize
+    view, light, scene = HARD_CASES[name]
+    body = intersection_body(view, light, scene)
+    poly = body.polytope_from(light.position)
+    edges = poly.edges()[0]
+    axis, _ = light_cone(body.vertices, light.position)
+    up = image_up(view.direction, view.up, axis)
+    basis = np.stack([normalize(cross3(up, -axis)), normalize(up - (up @ axis) * axis), -axis])
+    together = cube_section_points(poly, edges, basis)
+    assert sum(p is not None for p in together) >= 2
+    for (face, k, sign), pts in zip(CUBE_FACES, together):
+        alone = pyramid_section_points(poly, edges, sign * basis[k], [basis[j] for j in range(3) if j != k])
+        assert (alone is None) == (pts is None), face
+        if pts is not None:
+            a, b = np.unique(np.round(alone, 9), axis=0), np.unique(np.round(pts, 9), axis=0)
+            assert a.shape == b.shape and np.allclose(a, b), face
