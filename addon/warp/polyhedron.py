@@ -1,9 +1,15 @@
-"""Convex polyhedra as face lists, clipped by half-spaces (float64, deterministic).
+"""Convex polyhedra in float64, deterministic, with tolerances passed in
+(relative to the scene's scale).
 
-A polyhedron is a list of planar convex faces, each an ordered (K, 3) array of
-points (outward counter-clockwise). Clipping by ``n . x <= o`` is Sutherland-
-Hodgman on every face plus one cap face on the plane, so a clipped body is never
-left open. Tolerances are always passed in, relative to the scene's scale.
+* :class:`ConvexPolytope` - what the warp core uses: vertices, facet planes and
+  their incidence, built by vectorised vertex enumeration from half-spaces
+  (``from_halfspaces``, ``clip``, ``box``, ``from_corners``); ``faces()`` gives
+  the facets as ordered loops, ``edges()`` the edges with their two facets.
+* Face lists - a polyhedron as a list of planar convex faces, each an ordered
+  (K, 3) array (outward counter-clockwise); ``clip_faces`` clips one by a
+  half-space (Sutherland-Hodgman per face plus a cap, so the body is never left
+  open). Kept for callers that work on face lists (e.g. plane maps); about a
+  hundred times slower than ``ConvexPolytope.clip``.
 """
 from __future__ import annotations
 

@@ -139,6 +139,11 @@ def _build() -> tuple[dict, dict]:
         "a point light high above the scene: one perspective map")
     add("spot_at_camera", cam, spot(cam.position, cam.direction, math.radians(80.0)), scene,
         "a flashlight: a spot exactly at the eye along the view (PSM: the light at the eye is singular)")
+    low = camera([0.0, 0.0, 1.0], forward=[1.0, 0.0, 0.0], fov=2 * math.degrees(math.atan(1 / 4.5107085)),
+                 near=1.0, far=100.0)
+    add("spot_at_eye_aimed_aside", low, spot(low.position, [1.0, 0.35, -0.3], math.radians(63.0)), scene,
+        "a spot at the eye of a level camera, aimed 19° aside and 16° down (a spot at the eye aimed 45° aside "
+        "once made psm jump under a 1e-8 move)")
     add("point_light_at_camera", cam, point(cam.position), scene,
         "a point light exactly at the eye (a headlamp)")
     add("point_light_near_camera", cam, point(cam.position + np.array([0.3, 0.0, 0.2])), scene,
