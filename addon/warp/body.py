@@ -22,6 +22,7 @@ scene's scale. The 10,000-box culling is one matrix product per box set.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -43,12 +44,38 @@ SUN_FACING = 1e-12
 """A facet faces a sun when cos(angle to the direction towards it) exceeds this."""
 
 
+class LazyFaces(Sequence):
+    """B's faces (world-space vertex loops), computed on first use: methods
+    that only need the vertices never pay for ordering the loops."""
+
+    def __init__(self, poly: ConvexPolytope, origin: np.ndarray):
+        self._poly, self._origin, self._faces = poly, origin, None
+
+    def _get(self) -> list[np.ndarray]:
+        if self._faces is None:
+            self._faces = [f + self._origin for f in self._poly.faces()]
+        return self._faces
+
+    def __getitem__(self, i):
+        return self._get()[i]
+
+    def __len__(self) -> int:
+        return len(self._poly.normals)
+
+    def __iter__(self):
+        return iter(self._get())
+
+    def __repr__(self) -> str:
+        return f"LazyFaces({len(self)} faces)"
+
+
 @dataclass
 class IntersectionBody:
     """B and what it was built from. ``vertices``/``faces`` are in world space."""
 
     vertices: np.ndarray
-    faces: list[np.ndarray]
+    faces: Sequence[np.ndarray]
+    """B's faces as world-space vertex loops (counter-clockwise seen from outside)."""
     visible_vertices: np.ndarray
     """R = V ∩ S_r ∩ L: the part of the view that holds receivers."""
     caster_mask: np.ndarray
@@ -360,7 +387,7 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
         raise EmptyBodyError("the light-extruded view does not meet the scene")
     return IntersectionBody(
         vertices=body.vertices + origin,
-        faces=[f + origin for f in body.faces()],
+        faces=LazyFaces(body, origin),
         visible_vertices=visible.vertices + origin,
         caster_mask=caster_mask,
         receiver_mask=receiver_mask,

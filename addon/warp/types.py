@@ -102,7 +102,8 @@ class View:
     def corners(self) -> np.ndarray:
         """(8, 3) world-space corners of the view frustum V: near face first
         (x fastest, then y), then far face; see ``geometry.UNIT_CUBE_CORNERS``."""
-        inv = np.linalg.inv(self.world_to_clip)
+        # camera_to_world @ projection⁻¹: one inverse instead of inverting world_to_clip.
+        inv = self.camera_to_world @ np.linalg.inv(self.projection)
         return transform_points(inv, UNIT_CUBE_CORNERS)
 
     def eye_depth(self, points) -> np.ndarray:
