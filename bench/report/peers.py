@@ -14,7 +14,6 @@ parameter (it is slow on llvmpipe: 10-25 s a render at 16 samples).
 """
 from __future__ import annotations
 
-import math
 import os
 import tempfile
 import time

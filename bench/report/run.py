@@ -6,13 +6,13 @@ turn it into the report.
 from __future__ import annotations
 
 import math
-import os
+import shutil
 import tempfile
 import time
 import traceback
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Optional
+from typing import Callable
 
 import numpy as np
 
@@ -279,5 +279,6 @@ def run(opts: Options, log: Callable[[str], None] = print) -> dict:
             progress(f"scene {name} FAILED: {exc}")
             result["scenes"].append({"name": str(name), "status": "failed", "reason": f"{type(exc).__name__}: {exc}",
                                      "trace": traceback.format_exc(limit=4), "methods": [], "peers": []})
+    shutil.rmtree(workdir, ignore_errors=True)
     result["seconds"] = time.perf_counter() - progress.t0
     return result
