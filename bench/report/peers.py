@@ -100,6 +100,10 @@ def render_shadow_term(scene, light_obj, peer: str, samples: int = 1) -> PeerRes
             c.samples = max(1, int(samples))
             c.use_adaptive_sampling = False
             c.use_denoising = False
+            # no Russian roulette on dim light samples: the default light threshold
+            # (0.01) terminates shadow rays at random where the light is weak, which
+            # makes the shadow term noisy (e.g. under a spot light)
+            c.light_sampling_threshold = 0.0
             c.max_bounces = 0
             c.diffuse_bounces = 0
             c.caustics_reflective = c.caustics_refractive = False
