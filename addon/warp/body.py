@@ -17,7 +17,12 @@ with its apex at the light and R ⊂ L, hull(R ∪ light) ⊂ L already.
 Polytopes are :class:`~.polyhedron.ConvexPolytope` (vertex enumeration from
 half-spaces, vectorised), computed relative to the camera position (so
 coordinates at 1e5 keep their precision) with tolerances relative to the
-scene's scale. The 10,000-box culling is one matrix product per box set.
+scene's scale. Boxes are culled through a two-level index (``BoxIndex``:
+clusters of 32 boxes with their bounds, built once per scene), which gives the
+same masks as testing every box.
+
+Cost on a 10,000-box scene (``python -m bench.warp_speed``): about 0.8 ms for a
+sun or point light, 1-1.5 ms for a spot, in plain Python and numpy.
 """
 from __future__ import annotations
 
