@@ -107,7 +107,8 @@ def _depth(shadow_map, points) -> np.ndarray:
     if shadow_map.depth_row is not None:
         return transform_h(np.vstack([np.zeros((2, 4)), shadow_map.depth_row, [0, 0, 0, 1]]), points)[:, 2]
     h = shadow_map.clip(points)
-    return h[:, 2] / h[:, 3]
+    with np.errstate(divide="ignore", invalid="ignore"):   # w <= 0: not contained, never compared
+        return h[:, 2] / h[:, 3]
 
 
 @dataclass
