@@ -34,6 +34,10 @@ DEFINITIONS = [
               "footprint (pixel density K/z² needed over texel density given, both on the plane perpendicular to the "
               "light, so the surface orientation drops out) over that limit; 1 is the best possible over the whole "
               "frustum (a method can go below 1 on the visible part only)."),
+    ("peers", "EEVEE and Cycles with one white diffuse material, black world, the scene's light only: the render "
+              "with shadows divided by the one without, below 0.5 = shadow. Known: Cycles under the chess scene's "
+              "spot light darkens some board pixels near the camera that both this ground truth and Blender's "
+              "own scene.ray_cast see lit (cause not found)."),
     ("times", "Lixel: CPU setup (warp matrices and body), depth pass, shading pass on the GPU (llvmpipe here); "
               "peers: one render with shadows, made after a shadowless one that absorbs EEVEE's shader compilation."),
 ]
