@@ -41,9 +41,9 @@ CONE_SIDES = 16
 
 RELATIVE_TOLERANCE = 1e-10
 BOX_PAD = 1e-7
-"""Boxes are padded by this fraction of the scene scale (and at least 64
+"""Boxes are padded by this fraction of the scene scale (and at least 512
 tolerances) so a flat scene, or a single point-sized box, still gives a closed
-body of positive volume."""
+body at least 1000 tolerances thick."""
 
 SUN_FACING = 1e-12
 """A facet faces a sun when cos(angle to the direction towards it) exceeds this."""
@@ -363,7 +363,7 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
     s_r = s_r - origin
     scale = float(max(np.linalg.norm(s_r[1] - s_r[0]), view_size * 1e-6, 1e-9))
     tol = RELATIVE_TOLERANCE * max(scale, float(np.abs(s_r).max()))
-    s_r = _pad(s_r, max(BOX_PAD * scale, 64 * tol))
+    s_r = _pad(s_r, max(BOX_PAD * scale, 512 * tol))
 
     # R = V ∩ S_r ∩ L.
     eye3 = np.eye(3)
@@ -389,7 +389,7 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
     if cast_box is not None:
         s_c = np.array([np.minimum(s_c[0], cast_box[0] - origin), np.maximum(s_c[1], cast_box[1] - origin)])
     scale = float(max(np.linalg.norm(s_c[1] - s_c[0]), scale))
-    s_c = _pad(s_c, max(BOX_PAD * scale, 64 * tol))
+    s_c = _pad(s_c, max(BOX_PAD * scale, 512 * tol))
 
     body = ConvexPolytope.box(s_c[0], s_c[1], tol).clip(hn, ho)
     if body is None:

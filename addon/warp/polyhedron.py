@@ -181,7 +181,12 @@ def face_edges(faces: list[np.ndarray], tol: float) -> list[tuple[np.ndarray, np
 # ConvexPolytope: vertices + facet half-spaces + incidence, fully vectorised.
 # ---------------------------------------------------------------------------
 
-DET_MIN = 1e-9
+SNAP = 4.0
+"""Vertices closer than SNAP tolerances are one vertex, and a vertex within SNAP
+tolerances of a plane lies on it: one scale for both, so near-degenerate
+corners (a plane passing a vertex at a few tolerances) give consistent faces."""
+
+DET_MIN = 1e-13
 """Triples of planes whose normals' triple product is below this are treated as
 meeting in no single point (parallel or sharing a line)."""
 
@@ -234,18 +239,39 @@ def _dedupe_planes(n: np.ndarray, o: np.ndarray, tol: float) -> tuple[np.ndarray
     return n[keep], o[keep]
 
 
-def _merge_points(p: np.ndarray, tol: float) -> np.ndarray:
-    """Indices of the points to keep after merging points closer than ``tol``,
-    sorted lexicographically (deterministic); a point is dropped when an earlier
-    point (in that order) lies within ``tol``."""
+def _merge_groups(p: np.ndarray, tol, radius: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Merge points closer than ``tol`` (plus the larger of their ``radius``
+    entries, e.g. rounding-error bounds). Returns (indices of the points kept,
+    in lexicographic order - deterministic; for every point, the position of
+    its group's kept point in that list). Each point joins the first point (in
+    lexicographic order) within reach, transitively."""
     if len(p) == 0:
-        return np.zeros(0, dtype=np.int64)
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     order = np.lexsort((p[:, 2], p[:, 1], p[:, 0]))
     q = p[order]
     diff = q[:, None, :] - q[None, :, :]
-    close = np.einsum("ijk,ijk->ij", diff, diff) <= tol * tol
-    keep = ~np.any(np.tril(close, -1), axis=1)
-    return order[keep]
+    reach = np.full((len(q), len(q)), float(tol))
+    if radius is not None:
+        r = radius[order]
+        reach = reach + np.maximum(r[:, None], r[None, :])
+    close = np.einsum("ijk,ijk->ij", diff, diff) <= reach * reach
+    rep = np.argmax(close, axis=1)                 # first point within reach (itself at the latest)
+    while True:                                    # follow chains to their first point
+        nxt = rep[rep]
+        if np.array_equal(nxt, rep):
+            break
+        rep = nxt
+    roots = np.nonzero(rep == np.arange(len(q)))[0]
+    slot = np.zeros(len(q), dtype=np.int64)
+    slot[roots] = np.arange(len(roots))
+    group = np.empty(len(q), dtype=np.int64)
+    group[order] = slot[rep]
+    return order[roots], group
+
+
+def _merge_points(p: np.ndarray, tol, radius: np.ndarray | None = None) -> np.ndarray:
+    """Indices of the points kept by ``_merge_groups`` (lexicographic order)."""
+    return _merge_groups(p, tol, radius)[0]
 
 
 @dataclass(frozen=True)
@@ -298,7 +324,7 @@ class ConvexPolytope:
         if float((edges * edges).sum(axis=1).min()) > (8.0 * tol) ** 2:
             poly = cls._finish(c[np.lexsort((c[:, 2], c[:, 1], c[:, 0]))] + 0.0, n, o, tol)   # 8 distinct corners
         else:
-            poly = cls._finish(c[_merge_points(c, 4.0 * tol)] + 0.0, n, o, tol)
+            poly = cls._finish(c[_merge_points(c, SNAP * tol)] + 0.0, n, o, tol)
         if poly is None or len(poly.normals) != 6:
             poly = cls.from_halfspaces(n, o, tol)      # e.g. corners not quite planar per face
         if poly is None:
@@ -324,10 +350,22 @@ class ConvexPolytope:
         return cls._build(np.zeros((0, 3)), n, o, _combinations3(len(n)), tol)
 
     @classmethod
-    def _build(cls, kept: np.ndarray, n: np.ndarray, o: np.ndarray, tri: np.ndarray, tol: float):
-        """Vertices = ``kept`` points plus feasible solutions of plane ``tri``ples."""
+    def _build(cls, kept: np.ndarray, n: np.ndarray, o: np.ndarray, tri: np.ndarray, tol: float,
+               kept_inc: np.ndarray | None = None):
+        """Vertices = ``kept`` points (on the planes ``kept_inc`` says, columns
+        for the first planes of ``n``) plus the feasible solutions of plane
+        ``tri``ples. A vertex lies on the planes it was solved from, on the planes
+        it lay on before, and on any plane within rounding error of it: the
+        incidence comes from the construction, so planes that pass a vertex at a
+        few tolerances (nearly degenerate corners) do not tangle the faces."""
+        m = len(n)
+        scale_o = float(np.abs(o).max()) + tol
+        tight = 64.0 * EPS * scale_o
+        cand, radius = kept, np.zeros(len(kept))
+        inc = np.zeros((len(kept), m), dtype=bool)
+        if kept_inc is not None and len(kept):
+            inc[:, : kept_inc.shape[1]] = kept_inc
         if len(tri):
-            m = len(n)
             # Column layout (3, ...): gathers and reductions along long rows are what numpy does fast.
             a, b = np.repeat(n, m, axis=0), np.tile(n, (m, 1))
             cross = np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],       # (3, m * m): n[a] x n[b]
@@ -341,25 +379,71 @@ class ConvexPolytope:
                 i, j, k, cjk, det = i[good], j[good], k[good], cjk[:, good], det[good]
             # Cramer's rule: x = (o_i (n_j x n_k) + o_j (n_k x n_i) + o_k (n_i x n_j)) / det.
             x = (o[i] * cjk + o[j] * np.take(cross, k * m + i, axis=1) + o[k] * np.take(cross, i * m + j, axis=1)) / det
-            # Rounding error of the solve grows as the planes get closer to sharing a line.
-            slack = tol + 16.0 * EPS * float(np.abs(o).max() + tol) / np.abs(det)
-            feasible = (n @ x - o[:, None]).max(axis=0) <= slack
-            cand = np.concatenate([kept, x[:, feasible].T])
-        else:
-            cand = kept
+            # Rounding error of the solve grows as the planes get closer to sharing a line;
+            # it widens the feasibility test, and (capped, so an ill-conditioned point
+            # cannot swallow distinct vertices) the merge and incidence reach.
+            err = 16.0 * EPS * scale_o / np.abs(det)
+            feasible = (n @ x - o[:, None]).max(axis=0) <= tol + err
+            err = np.minimum(err, SNAP * tol)
+            i, j, k, x, err = i[feasible], j[feasible], k[feasible], x[:, feasible].T, err[feasible]
+            solved = np.zeros((len(x), m), dtype=bool)
+            rows = np.arange(len(x))
+            solved[rows, i] = solved[rows, j] = solved[rows, k] = True
+            cand = np.concatenate([kept, x])
+            radius = np.concatenate([radius, err])
+            inc = np.concatenate([inc, solved])
         if len(cand) < 4:
             return None
-        verts = cand[_merge_points(cand, 4.0 * tol)] + 0.0   # + 0.0: no negative zeros
-        return cls._finish(verts, n, o, tol)
+        inc |= np.abs(cand @ n.T - o) <= (tight + radius)[:, None]
+        # Duplicates (a vertex on more than three planes is solved several times) and
+        # vertices closer than SNAP tol merge (plus their rounding-error bound), with
+        # the planes of all of them.
+        keep, group = _merge_groups(cand, SNAP * tol, radius)
+        if len(keep) == len(cand):
+            merged = inc[keep]
+        else:
+            member = np.zeros((len(keep), len(cand)), dtype=np.uint8)
+            member[group, np.arange(len(cand))] = 1
+            merged = (member @ inc.astype(np.uint8)) > 0
+        return cls._finish(cand[keep] + 0.0, n, o, tol, merged)   # + 0.0: no negative zeros
 
     @classmethod
-    def _finish(cls, verts: np.ndarray, n: np.ndarray, o: np.ndarray, tol: float):
-        if len(verts) < 4:
-            return None
-        dist = verts @ n.T - o
-        inc = np.abs(dist) <= 4.0 * tol
-        facet = inc.sum(axis=0) >= 3
-        if facet.sum() < 4:
+    def _finish(cls, verts: np.ndarray, n: np.ndarray, o: np.ndarray, tol: float, inc: np.ndarray | None = None):
+        if inc is None:
+            inc = np.abs(verts @ n.T - o) <= 4.0 * tol
+        inc = inc.copy()
+        facet = np.ones(len(n), dtype=bool)
+        for _ in range(4):
+            if len(verts) < 4:
+                return None
+            facet &= inc.sum(axis=0) >= 3
+            # Nearly coincident planes (within ~1.4e-6 rad) that meet on the polytope
+            # are one facet, the first (older) plane's, with the vertices of both.
+            close = (n @ n.T > 1.0 - 1e-12) & np.outer(facet, facet)
+            np.fill_diagonal(close, False)
+            shared = inc.T.astype(np.int64) @ inc
+            if close.any():
+                for a, b in zip(*np.nonzero(np.triu(close & (shared >= 1), 1))):
+                    if facet[a] and facet[b]:
+                        inc[:, a] |= inc[:, b]
+                        facet[b] = False
+                shared = inc.T.astype(np.int64) @ inc
+            # A facet whose vertices all lie on another facet is a sliver within the
+            # tolerance (two true facets share at most an edge): drop it (of two equal
+            # vertex sets, the later plane).
+            count = np.diag(shared)
+            within = (shared == count[None, :]) & np.outer(facet, facet)
+            np.fill_diagonal(within, False)
+            idx = np.arange(len(n))
+            bigger = (count[:, None] > count[None, :]) | ((count[:, None] == count[None, :]) & (idx[:, None] < idx[None, :]))
+            facet &= ~np.any(within & bigger, axis=0)
+            inc &= facet[None, :]
+            # A vertex left on fewer than three facets lies on a face (within the tolerance).
+            corner = inc.sum(axis=1) >= 3
+            if corner.all():
+                break
+            verts, inc = verts[corner], inc[corner]
+        if facet.sum() < 4 or len(verts) < 4:
             return None
         n, o, inc = n[facet], o[facet], inc[:, facet]
         # No volume: every vertex on one facet plane.
@@ -381,11 +465,12 @@ class ConvexPolytope:
         if not cut.any():
             return self
         n2, o2 = _dedupe_planes(n2[cut], o2[cut], self.tol)
-        kept = self.vertices[np.all(d[:, cut] <= self.tol, axis=1)]
+        inside = np.all(d[:, cut] <= self.tol, axis=1)
         m = len(self.normals)
         n = np.concatenate([self.normals, n2])
         o = np.concatenate([self.offsets, o2])
-        return type(self)._build(kept, n, o, _combinations3(len(n), m), self.tol)
+        return type(self)._build(self.vertices[inside], n, o, _combinations3(len(n), m), self.tol,
+                                 self.incidence[inside])
 
     def translated(self, offset) -> "ConvexPolytope":
         t = np.asarray(offset, dtype=np.float64)
@@ -405,23 +490,9 @@ class ConvexPolytope:
     def planes(self) -> list[Plane]:
         return [Plane(n, float(o)) for n, o in zip(self.normals, self.offsets)]
 
-    def edges(self) -> tuple[np.ndarray, np.ndarray]:
-        """(e, 2) vertex index pairs of the edges, and (e, 2) the two facets
-        meeting along each (two vertices on two common facets span an edge)."""
-        a = self.incidence.astype(np.int64)
-        shared = a @ a.T
-        i, j = np.nonzero(np.triu(shared >= 2, 1))
-        both = self.incidence[i] & self.incidence[j]
-        # The first two shared facets (exactly two on a polytope without redundant planes).
-        first = np.argmax(both, axis=1)
-        rest = both.copy()
-        rest[np.arange(len(i)), first] = False
-        second = np.argmax(rest, axis=1)
-        return np.stack([i, j], axis=1), np.stack([first, second], axis=1)
-
-    def faces(self) -> list[np.ndarray]:
-        """The facets as (K, 3) vertex loops, counter-clockwise seen from outside,
-        in facet order."""
+    def _loops(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(facet id, vertex id) of every incidence, ordered counter-clockwise
+        (seen from outside) around each facet, facets in order; and the counts."""
         f, v = np.nonzero(self.incidence.T)
         counts = np.bincount(f, minlength=len(self.normals))
         pts = self.vertices[v]
@@ -432,7 +503,35 @@ class ConvexPolytope:
         rel = pts - centre[f]
         ang = np.arctan2(np.einsum("ij,ij->i", rel, w[f]), np.einsum("ij,ij->i", rel, u[f]))
         order = np.lexsort((ang, f))
-        return np.split(pts[order], np.cumsum(counts)[:-1])
+        return f[order], v[order], counts
+
+    def edges(self) -> tuple[np.ndarray, np.ndarray]:
+        """(e, 2) vertex index pairs of the edges, and (e, 2) the two facets
+        meeting along each: consecutive vertices of the facet loops. (From the
+        loops rather than from shared planes, so a vertex lying on an edge within
+        the tolerance splits it instead of making a triangle of "edges".)"""
+        f, v, counts = self._loops()
+        start = np.repeat(np.cumsum(counts) - counts, counts)
+        nxt = np.arange(len(v)) + 1
+        wrap = nxt == start + np.repeat(counts, counts)
+        nxt[wrap] = start[wrap]
+        a, b = v, v[nxt]
+        key = np.minimum(a, b) * len(self.vertices) + np.maximum(a, b)
+        order = np.argsort(key, kind="stable")
+        key, f = key[order], f[order]
+        first = np.ones(len(key), dtype=bool)
+        first[1:] = key[1:] != key[:-1]
+        idx = np.nonzero(first)[0]
+        second = np.minimum(idx + 1, len(key) - 1)
+        second = np.where(key[second] == key[idx], second, idx)     # (an open loop: one facet only)
+        pair = np.stack([key[idx] // len(self.vertices), key[idx] % len(self.vertices)], axis=1)
+        return pair, np.stack([f[idx], f[second]], axis=1)
+
+    def faces(self) -> list[np.ndarray]:
+        """The facets as (K, 3) vertex loops, counter-clockwise seen from outside,
+        in facet order."""
+        f, v, counts = self._loops()
+        return np.split(self.vertices[v], np.cumsum(counts)[:-1])
 
 
 _HEX_QUADS = ((0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5))

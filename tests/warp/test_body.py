@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import assume, given, settings, strategies as st
 
 from addon.warp import EmptyBodyError, Light, SceneBounds, View, intersection_body
 from addon.warp.body import BoxIndex, boxes_meeting_arrays, _stack_of
@@ -309,3 +309,69 @@ def test_generated_bodies_contain_what_the_view_needs(config):
     assert_contains(body, recv, "visible receiver points")
     assert_contains(body, shadowing_caster_points(light, scene, recv[:200], steps=32), "shadowing caster points")
     assert_closed(body)
+
+
+@st.composite
+def awkward_cuts(draw):
+    """Half-spaces that cut a box through its corners and edges, nearly along
+    its faces (tilted by 1e-9 .. 1e-3), repeated, or nearly repeated."""
+    f = st.floats
+    planes = []
+    corners = np.array([[x, y, z] for x in (-1.0, 2.0) for y in (-2.0, 1.0) for z in (-3.0, 3.0)])
+    for _ in range(draw(st.integers(1, 6))):
+        kind = draw(st.sampled_from(["corner", "face_tilt", "random", "repeat"]))
+        if kind == "corner":          # through a corner of the box
+            n = np.array([draw(f(-1, 1)), draw(f(-1, 1)), draw(f(-1, 1))])
+            if not np.any(np.abs(n) > 1e-3):
+                n = np.array([1.0, 1.0, 1.0])
+            c = corners[draw(st.integers(0, 7))]
+            planes.append((n, float(n @ c)))
+        elif kind == "face_tilt":     # almost a face plane of the box, slightly inside
+            axis = draw(st.integers(0, 2))
+            sign = draw(st.sampled_from([-1.0, 1.0]))
+            n = np.zeros(3)
+            n[axis] = sign
+            n[(axis + 1) % 3] = 10 ** draw(f(-9, -3)) * draw(st.sampled_from([-1.0, 1.0]))
+            bound = [2.0, 1.0, 3.0][axis] if sign > 0 else [1.0, 2.0, 3.0][axis]
+            planes.append((n, bound - draw(f(0, 0.5))))
+        elif kind == "random":
+            n = np.array([draw(f(-1, 1)), draw(f(-1, 1)), draw(f(-1, 1))])
+            if not np.any(np.abs(n) > 1e-3):
+                n = np.array([0.0, 0.0, 1.0])
+            planes.append((n, draw(f(0.05, 2.0)) * np.linalg.norm(n)))
+        elif planes:                  # the previous plane again, exactly or within 1e-14
+            n, o = planes[-1]
+            planes.append((n * (1 + draw(f(0, 1e-14))), o * (1 + draw(f(0, 1e-14)))))
+    if not planes:
+        planes.append((np.array([1.0, 1.0, 1.0]), 1.0))
+    return np.array([p[0] for p in planes]), np.array([p[1] for p in planes])
+
+
+@settings(derandomize=True, database=None, max_examples=200, deadline=None)
+@given(awkward_cuts())
+def test_polytope_clip_is_exact_on_awkward_cuts(cuts):
+    """Vertex enumeration loses no vertex on degenerate cuts: the clipped
+    polytope holds exactly the sample points that satisfy every half-space
+    (away from the boundary), its vertices satisfy every half-space, and it is
+    a closed solid (Euler)."""
+    n, o = cuts
+    tol = 1e-10 * 6.0            # as in body.py: 1e-10 of the scale
+    box = ConvexPolytope.box([-1, -2, -3], [2, 1, 3], tol)
+    out = box.clip(n, o)
+    rng = np.random.default_rng(0)
+    pts = rng.uniform([-1, -2, -3], [2, 1, 3], (3000, 3))
+    unit = n / np.linalg.norm(n, axis=1, keepdims=True)
+    d = (pts @ unit.T - o / np.linalg.norm(n, axis=1)).max(axis=1)
+    if out is None:
+        assert not np.any(d < -1e-9)
+        return
+    # (Vertices of nearly parallel planes are found to ~1e-8; the unit-cube fit pads by 1e-7.)
+    assert np.all(out.vertices @ unit.T - o / np.linalg.norm(n, axis=1) <= 1e-7)
+    # Closed faces are asked of solids at least 1000 tolerances thick (B is padded to that);
+    # a thinner sliver is flat within the tolerance and its faces may not close.
+    thickness = float((out.offsets[:, None] - out.normals @ out.vertices.T).max(axis=1).min())
+    assume(thickness > 1000 * tol)
+    clear = np.abs(d) > 1e-7
+    assert np.array_equal(out.contains(pts[clear], 0.0), d[clear] < 0)
+    edges, _ = out.edges()
+    assert len(out.vertices) - len(edges) + len(out.normals) == 2, (n.tolist(), o.tolist())
