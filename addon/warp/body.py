@@ -369,11 +369,8 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
     eye3 = np.eye(3)
     box_n = np.concatenate([-eye3, eye3])
     v_poly = ConvexPolytope(v_poly.vertices, v_poly.normals, v_poly.offsets, v_poly.incidence, tol)
-    # (In two steps: V ∩ S_r drops the S_r and V planes that do not bound R, and
-    # then fewer cone planes cut, so fewer plane triples are solved.)
-    visible = v_poly.clip(box_n, np.concatenate([-s_r[0], s_r[1]]))
-    if visible is not None and len(ln):
-        visible = visible.clip(ln, lo)
+    # (One clip: each clip costs more in fixed overhead than in the plane triples it solves.)
+    visible = v_poly.clip(np.concatenate([box_n, ln]), np.concatenate([-s_r[0], s_r[1], lo]))
     if visible is None:
         raise EmptyBodyError("the view frustum does not meet the receivers" + (" inside the spot cone" if len(ln) else ""))
 
