@@ -250,11 +250,11 @@ def _merge_groups(p: np.ndarray, tol, radius: np.ndarray | None = None) -> tuple
     order = np.lexsort((p[:, 2], p[:, 1], p[:, 0]))
     q = p[order]
     diff = q[:, None, :] - q[None, :, :]
-    reach = np.full((len(q), len(q)), float(tol))
-    if radius is not None:
-        r = radius[order]
-        reach = reach + np.maximum(r[:, None], r[None, :])
-    close = np.einsum("ijk,ijk->ij", diff, diff) <= reach * reach
+    if radius is None:
+        close = np.einsum("ijk,ijk->ij", diff, diff) <= float(tol) ** 2
+    else:
+        r = tol + radius[order]
+        close = np.einsum("ijk,ijk->ij", diff, diff) <= np.square(np.maximum.outer(r, r))
     rep = np.argmax(close, axis=1)                 # first point within reach (itself at the latest)
     while True:                                    # follow chains to their first point
         nxt = rep[rep]
@@ -409,35 +409,40 @@ class ConvexPolytope:
 
     @classmethod
     def _finish(cls, verts: np.ndarray, n: np.ndarray, o: np.ndarray, tol: float, inc: np.ndarray | None = None):
+        """The polytope of these vertices and planes: facets are the planes with
+        three vertices or more, tidied at the tolerance's scale (see below)."""
         if inc is None:
             inc = np.abs(verts @ n.T - o) <= 4.0 * tol
         inc = inc.copy()
-        facet = np.ones(len(n), dtype=bool)
+        m = len(n)
+        near = n @ n.T > 1.0 - 1e-12                    # nearly coincident planes (~1.4e-6 rad)
+        np.fill_diagonal(near, False)
+        has_near = bool(near.any())
+        rank = m - np.arange(m)                         # ties: the earlier (older) plane wins
+        facet = np.ones(m, dtype=bool)
         for _ in range(4):
             if len(verts) < 4:
                 return None
-            facet &= inc.sum(axis=0) >= 3
-            # Nearly coincident planes (within ~1.4e-6 rad) that meet on the polytope
-            # are one facet, the first (older) plane's, with the vertices of both.
-            close = (n @ n.T > 1.0 - 1e-12) & np.outer(facet, facet)
-            np.fill_diagonal(close, False)
-            shared = inc.T.astype(np.int64) @ inc
-            if close.any():
-                for a, b in zip(*np.nonzero(np.triu(close & (shared >= 1), 1))):
+            count = inc.sum(axis=0)
+            facet &= count >= 3
+            incf = inc.astype(np.float64)
+            shared = incf.T @ incf
+            if has_near:
+                # Nearly coincident planes meeting on the polytope are one facet (the
+                # older plane's) with the vertices of both.
+                for a, b in zip(*np.nonzero(np.triu(near & (shared >= 1) & np.outer(facet, facet), 1))):
                     if facet[a] and facet[b]:
                         inc[:, a] |= inc[:, b]
                         facet[b] = False
-                shared = inc.T.astype(np.int64) @ inc
+                count = inc.sum(axis=0)
+                incf = inc.astype(np.float64)
+                shared = incf.T @ incf
             # A facet whose vertices all lie on another facet is a sliver within the
             # tolerance (two true facets share at most an edge): drop it (of two equal
-            # vertex sets, the later plane).
-            count = np.diag(shared)
-            within = (shared == count[None, :]) & np.outer(facet, facet)
-            np.fill_diagonal(within, False)
-            idx = np.arange(len(n))
-            bigger = (count[:, None] > count[None, :]) | ((count[:, None] == count[None, :]) & (idx[:, None] < idx[None, :]))
-            facet &= ~np.any(within & bigger, axis=0)
-            inc &= facet[None, :]
+            # vertex sets, the later plane's).
+            key = count * (m + 1) + rank
+            facet &= ~((shared == count[None, :]) & (key[:, None] > key[None, :]) & facet[:, None]).any(axis=0)
+            inc &= facet
             # A vertex left on fewer than three facets lies on a face (within the tolerance).
             corner = inc.sum(axis=1) >= 3
             if corner.all():
