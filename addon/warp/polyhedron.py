@@ -322,7 +322,13 @@ class ConvexPolytope:
         n[flip], o[flip] = -n[flip], -o[flip]
         edges = c[_HEX_EDGE_INDEX[0]] - c[_HEX_EDGE_INDEX[1]]
         if float((edges * edges).sum(axis=1).min()) > (8.0 * tol) ** 2:
-            poly = cls._finish(c[np.lexsort((c[:, 2], c[:, 1], c[:, 0]))] + 0.0, n, o, tol)   # 8 distinct corners
+            # 8 distinct corners: each on the 3 faces the corner ordering says (when they are planar).
+            order = np.lexsort((c[:, 2], c[:, 1], c[:, 0]))
+            verts = c[order] + 0.0
+            inc = _HEX_INCIDENCE[order]
+            if np.all(np.abs((verts @ n.T - o)[inc]) <= 4.0 * tol):
+                return cls(verts, n, o, inc.copy(), tol)
+            poly = cls._finish(verts, n, o, tol)
         else:
             poly = cls._finish(c[_merge_points(c, SNAP * tol)] + 0.0, n, o, tol)
         if poly is None or len(poly.normals) != 6:
@@ -543,6 +549,9 @@ _HEX_QUADS = ((0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 
 _HEX_EDGES = ((0, 2, 3, 1, 4, 6, 7, 5, 0, 1, 2, 3), (2, 3, 1, 0, 6, 7, 5, 4, 4, 5, 6, 7))
 """The 12 edges (from, to) of a hexahedron with UNIT_CUBE_CORNERS ordering."""
 _HEX_QUAD_INDEX = np.array(_HEX_QUADS)
+_HEX_INCIDENCE = np.zeros((8, 6), dtype=bool)
+_HEX_INCIDENCE[_HEX_QUAD_INDEX.T, np.arange(6)] = True
+"""Which of the 6 quads (``_HEX_QUADS``) each of the 8 corners belongs to."""
 _HEX_EDGE_INDEX = np.array(_HEX_EDGES)
 _BOX_BITS = np.array([[(i >> 2) & 1, (i >> 1) & 1, i & 1] for i in range(8)], dtype=bool)
 _BOX_NORMALS = np.concatenate([-np.eye(3), np.eye(3)])
