@@ -253,8 +253,8 @@ def _casters(grown, n, height, l_h, tol, body, origin):
 
 def _clip_body(body: IntersectionBody, origin: np.ndarray, planes: list[Plane]) -> np.ndarray | None:
     """Vertices (relative to ``origin``) of B ∩ the half-spaces, or None if empty."""
-    if getattr(body, "polytope", None) is not None and np.allclose(body.origin, origin, rtol=0, atol=0):
-        poly = body.polytope.clip(np.array([p.normal for p in planes]), np.array([p.offset for p in planes]))
+    if getattr(body, "polytope", None) is not None:
+        poly = body.polytope_from(origin).clip(np.array([p.normal for p in planes]), np.array([p.offset for p in planes]))
         return None if poly is None else poly.vertices
     faces = [f - origin for f in body.faces]
     for p in planes:
