@@ -218,11 +218,5 @@ class LIXEL_PT_tools(LixelPanel, bpy.types.Panel):
 classes = (LIXEL_PT_main, LIXEL_PT_method, LIXEL_PT_shadows, LIXEL_PT_readouts, LIXEL_PT_overlays, LIXEL_PT_tools)
 
 
-def register():
-    for cls in classes:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(classes):
-        bpy.utils.unregister_class(cls)
+# Registered in order, unregistered in reverse.
+register, unregister = bpy.utils.register_classes_factory(classes)

@@ -66,9 +66,25 @@ def lixel():
     disable_lixel()
 
 
+def remove_objects_and_orphans(scene) -> None:
+    """Remove the scene's objects and the data they leave without users."""
+    obs = list(scene.objects)
+    datas = [ob.data for ob in obs if ob.data is not None]
+    bpy.data.batch_remove(obs)
+    orphans = []
+    for d in datas:
+        try:
+            if d.users == 0:
+                orphans.append(d)
+        except ReferenceError:   # already freed with its object
+            pass
+    bpy.data.batch_remove(orphans)
+
+
 @pytest.fixture
 def fresh_scene():
-    """An empty scene made active for the test, removed afterwards."""
+    """An empty scene made active for the test; it, its objects and their
+    orphaned data are removed afterwards."""
     old = bpy.context.window.scene if bpy.context.window else bpy.context.scene
     scene = bpy.data.scenes.new("lixel_test")
     if bpy.context.window:
@@ -76,4 +92,5 @@ def fresh_scene():
     yield scene
     if bpy.context.window:
         bpy.context.window.scene = old
+    remove_objects_and_orphans(scene)
     bpy.data.scenes.remove(scene)

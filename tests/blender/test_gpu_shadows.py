@@ -46,17 +46,6 @@ def lx(lixel):
 def scene(fresh_scene):
     """An empty scene; the objects and data made in it are removed afterwards."""
     yield fresh_scene
-    obs = list(fresh_scene.objects)
-    datas = [ob.data for ob in obs if ob.data is not None]
-    bpy.data.batch_remove(obs)
-    alive = []
-    for d in datas:
-        try:
-            if d.users == 0:
-                alive.append(d)
-        except ReferenceError:
-            pass
-    bpy.data.batch_remove(alive)
 
 
 def named(scene, prefix):

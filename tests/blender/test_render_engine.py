@@ -21,17 +21,6 @@ def scene(fresh_scene):
     fresh_scene.render.resolution_x, fresh_scene.render.resolution_y = 96, 64
     fresh_scene.render.resolution_percentage = 100
     yield fresh_scene
-    obs = list(fresh_scene.objects)
-    datas = [ob.data for ob in obs if ob.data is not None]
-    bpy.data.batch_remove(obs)
-    alive = []
-    for d in datas:
-        try:
-            if d.users == 0:
-                alive.append(d)
-        except ReferenceError:
-            pass
-    bpy.data.batch_remove(alive)
 
 
 def add(scene, name, data):

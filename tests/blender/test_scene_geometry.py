@@ -14,17 +14,6 @@ def geom(lixel):
 @pytest.fixture
 def scene(fresh_scene):
     yield fresh_scene
-    obs = list(fresh_scene.objects)
-    datas = [ob.data for ob in obs if ob.data is not None]
-    bpy.data.batch_remove(obs)
-    alive = []
-    for d in datas:
-        try:
-            if d.users == 0:
-                alive.append(d)
-        except ReferenceError:
-            pass
-    bpy.data.batch_remove(alive)
 
 
 def mesh(scene, name, verts, faces):
