@@ -254,13 +254,7 @@ def cube_section_points(poly, edges: np.ndarray, basis: np.ndarray) -> list:
     x, face_of = x[keep], face_of[keep]
     # The cube's 8 corner rays through P: t-interval where n . (t r) <= o for every facet.
     rays = _CUBE_SIGNS @ basis
-    denom = poly.normals @ rays.T                            # (F, 8)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = poly.offsets[:, None] / denom
-    t_hi = np.where(denom > 0, ratio, np.inf).min(axis=0)
-    t_lo = np.maximum(np.where(denom < 0, ratio, -np.inf).max(axis=0), 0.0)
-    blocked = np.any((denom == 0) & (poly.offsets[:, None] < 0), axis=0)
-    hit = (t_lo <= t_hi) & np.isfinite(t_hi) & ~blocked
+    t_lo, t_hi, hit = ray_interval(poly, rays)
     ray_pts = np.concatenate([t_lo[:, None] * rays, t_hi[:, None] * rays])      # (16, 3)
     ray_ok = np.concatenate([hit, hit])
     ray_sign = np.concatenate([_CUBE_SIGNS, _CUBE_SIGNS])
@@ -277,6 +271,18 @@ def cube_section_points(poly, edges: np.ndarray, basis: np.ndarray) -> list:
             continue
         out.append(pts)
     return out
+
+
+def ray_interval(poly, rays) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where rays t·r (t >= 0, from the origin, e.g. a point light) run inside the
+    polytope: (t_lo, t_hi, hit) with n . (t r) <= o for every facet on [t_lo, t_hi]."""
+    denom = poly.normals @ rays.T                            # (F, R)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = poly.offsets[:, None] / denom
+    t_hi = np.where(denom > 0, ratio, np.inf).min(axis=0)
+    t_lo = np.maximum(np.where(denom < 0, ratio, -np.inf).max(axis=0), 0.0)
+    blocked = np.any((denom == 0) & (poly.offsets[:, None] < 0), axis=0)
+    return t_lo, t_hi, (t_lo <= t_hi) & np.isfinite(t_hi) & ~blocked
 
 
 def pyramid_section_points(poly, edges: np.ndarray, forward, others) -> np.ndarray | None:
@@ -305,13 +311,7 @@ def pyramid_section_points(poly, edges: np.ndarray, forward, others) -> np.ndarr
         pts.append(x[(x @ n4.T).max(axis=1) <= tol])
     # C's corner rays through P: t-interval where n . (t r) <= o for every facet.
     rays = np.array([forward + a * others[0] + b * others[1] for a in (-1.0, 1.0) for b in (-1.0, 1.0)])
-    denom = poly.normals @ rays.T                            # (F, 4)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = poly.offsets[:, None] / denom
-    t_hi = np.where(denom > 0, ratio, np.inf).min(axis=0)
-    t_lo = np.maximum(np.where(denom < 0, ratio, -np.inf).max(axis=0), 0.0)
-    blocked = np.any((denom == 0) & (poly.offsets[:, None] < 0), axis=0)
-    hit = (t_lo <= t_hi) & np.isfinite(t_hi) & ~blocked
+    t_lo, t_hi, hit = ray_interval(poly, rays)
     if hit.any():
         pts.append(np.concatenate([t_lo[hit, None] * rays[hit], t_hi[hit, None] * rays[hit]]))
     if poly.contains(np.zeros((1, 3)), tol)[0]:
