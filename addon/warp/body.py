@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .geometry import cross3
-from .polyhedron import ConvexPolytope, Plane, cross_rows
+from .polyhedron import COINCIDENT, ConvexPolytope, Plane, cross_rows
 from .types import EmptyBodyError, Light, SceneBounds, View
 
 CONE_SIDES = 16
@@ -321,6 +321,11 @@ def hull_halfspaces(poly: ConvexPolytope, light_h: np.ndarray, tol: float) -> tu
     so = np.einsum("ij,ij->i", sn, a[ok])
     flip = sn @ poly.centroid - so > 0
     sn[flip], so[flip] = -sn[flip], -so[flip]
+    # A true silhouette plane supports P (all of P on its inner side). One that
+    # cuts P can only come from an edge of faces that did not close on a
+    # near-degenerate cut (polyhedron.COINCIDENT); leaving it out is conservative.
+    supports = (poly.vertices @ sn.T - so).max(axis=0, initial=-np.inf) <= COINCIDENT * tol
+    sn, so = sn[supports], so[supports]
     return np.concatenate([n[~facing], sn]), np.concatenate([o[~facing], so])
 
 

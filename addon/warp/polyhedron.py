@@ -186,6 +186,13 @@ SNAP = 4.0
 tolerances of a plane lies on it: one scale for both, so near-degenerate
 corners (a plane passing a vertex at a few tolerances) give consistent faces."""
 
+COINCIDENT = 1000.0
+"""Facet planes whose signed distances differ by less than this many tolerances
+at every vertex are one facet. It is the scale below which a solid counts as
+flat (B is padded to at least this thickness); measured on 3000 random awkward
+cuts of a box, it leaves no falsely empty clip and no vertex outside a cut, where
+an angle test alone (1.4e-6 rad) emptied nearly whole boxes."""
+
 DET_MIN = 1e-13
 """Triples of planes whose normals' triple product is below this are treated as
 meeting in no single point (parallel or sharing a line)."""
@@ -230,12 +237,26 @@ def _unit_rows(normals, offsets) -> tuple[np.ndarray, np.ndarray]:
     return n[good] / length[good, None], o[good] / length[good]
 
 
-def _dedupe_planes(n: np.ndarray, o: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
-    """Drop planes equal (within ``tol``) to an earlier one."""
+def coincident_planes(n: np.ndarray, o: np.ndarray, points: np.ndarray | None, tol: float) -> np.ndarray:
+    """(m, m) which planes are one plane where it matters: nearly the same
+    normal, and signed distances within ``tol`` of each other at every one of
+    ``points`` (the polytope's vertices; without points, equal offsets). An
+    angle alone is no test: planes 1e-6 rad apart through one line are 1e-6 of
+    the extent apart at its far end, a real (shallow) edge, not a duplicate."""
+    near = n @ n.T > 1.0 - 1e-12
+    if points is None or len(points) == 0:
+        return near & (np.abs(o[:, None] - o[None, :]) <= tol)
+    dist = points @ n.T - o                                   # (v, m)
+    spread = np.abs(dist[:, :, None] - dist[:, None, :]).max(axis=0)
+    return near & (spread <= tol)
+
+
+def _dedupe_planes(n: np.ndarray, o: np.ndarray, tol: float,
+                   points: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Drop planes equal (within ``tol`` over ``points``) to an earlier one."""
     if len(n) < 2:
         return n, o
-    same = (n @ n.T > 1.0 - 1e-12) & (np.abs(o[:, None] - o[None, :]) <= tol)
-    keep = ~np.any(np.tril(same, -1), axis=1)
+    keep = ~np.any(np.tril(coincident_planes(n, o, points, tol), -1), axis=1)
     return n[keep], o[keep]
 
 
@@ -421,7 +442,7 @@ class ConvexPolytope:
             inc = np.abs(verts @ n.T - o) <= 4.0 * tol
         inc = inc.copy()
         m = len(n)
-        near = n @ n.T > 1.0 - 1e-12                    # nearly coincident planes (~1.4e-6 rad)
+        near = coincident_planes(n, o, verts, COINCIDENT * tol)   # one plane over these vertices
         np.fill_diagonal(near, False)
         has_near = bool(near.any())
         rank = m - np.arange(m)                         # ties: the earlier (older) plane wins
@@ -475,7 +496,7 @@ class ConvexPolytope:
         cut = np.any(d > self.tol, axis=0)
         if not cut.any():
             return self
-        n2, o2 = _dedupe_planes(n2[cut], o2[cut], self.tol)
+        n2, o2 = _dedupe_planes(n2[cut], o2[cut], self.tol, self.vertices)
         inside = np.all(d[:, cut] <= self.tol, axis=1)
         m = len(self.normals)
         n = np.concatenate([self.normals, n2])
