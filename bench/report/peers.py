@@ -40,18 +40,9 @@ class PeerResult:
 
 
 def _override_material(scene):
-    import bpy
-    mat = bpy.data.materials.get("Lixel report white")
-    if mat is None:
-        mat = bpy.data.materials.new("Lixel report white")
-        mat.use_nodes = True
-        nt = mat.node_tree
-        for n in list(nt.nodes):
-            nt.nodes.remove(n)
-        out = nt.nodes.new("ShaderNodeOutputMaterial")
-        bsdf = nt.nodes.new("ShaderNodeBsdfDiffuse")
-        bsdf.inputs["Color"].default_value = (1, 1, 1, 1)
-        nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    """Every surface white diffuse (the sample scenes' material) for the peers' shadow term."""
+    from sample_blends.scenes import white_material
+    mat = white_material()
     for vl in scene.view_layers:
         vl.material_override = mat
 
