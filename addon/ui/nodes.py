@@ -362,16 +362,23 @@ def _set_input(mod, tree, name, value):
     raise KeyError(name)
 
 
+def _matrix_modifier(ob, name: str, group, carrier, map_index: int):
+    """The object's geometry-nodes modifier ``name`` (made if missing) running
+    ``group`` on the light matrices of ``carrier``, map ``map_index``."""
+    mod = ob.modifiers.get(name)
+    if mod is None or mod.type != "NODES":
+        mod = ob.modifiers.new(name, "NODES")
+    mod.node_group = group
+    _set_input(mod, group, "Light Matrices", carrier)
+    _set_input(mod, group, "Map Index", int(map_index))
+    return mod
+
+
 def add_texel_grid(ob, carrier, map_index: int = 0):
     """Add (or update) the texel-grid modifier on mesh object ``ob``."""
     group = ensure_texel_grid_group()
     mat = ensure_texel_material()
-    mod = ob.modifiers.get(TEXEL_MODIFIER)
-    if mod is None or mod.type != "NODES":
-        mod = ob.modifiers.new(TEXEL_MODIFIER, "NODES")
-    mod.node_group = group
-    _set_input(mod, group, "Light Matrices", carrier)
-    _set_input(mod, group, "Map Index", int(map_index))
+    mod = _matrix_modifier(ob, TEXEL_MODIFIER, group, carrier, map_index)
     _set_input(mod, group, "Material", mat)
     if not any(s.material == mat for s in ob.material_slots):
         ob.data.materials.append(mat)
@@ -408,12 +415,7 @@ def add_frustum_object(scene, carrier, map_index: int = 0):
     name = f"Lixel Frustum (map {map_index})"
     mesh = bpy.data.meshes.get(name) or bpy.data.meshes.new(name)
     ob = debug_object(scene, name, "frustum_nodes", mesh)
-    mod = ob.modifiers.get(FRUSTUM_MODIFIER)
-    if mod is None or mod.type != "NODES":
-        mod = ob.modifiers.new(FRUSTUM_MODIFIER, "NODES")
-    mod.node_group = group
-    _set_input(mod, group, "Light Matrices", carrier)
-    _set_input(mod, group, "Map Index", int(map_index))
+    mod = _matrix_modifier(ob, FRUSTUM_MODIFIER, group, carrier, map_index)
     ob.display_type = "WIRE"
     ob.update_tag()
     return ob
