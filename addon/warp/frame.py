@@ -15,11 +15,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from .body import IntersectionBody
-from .geometry import cross3, look_along, normalize, perpendicular, transform_h
+from .geometry import cross3, homogeneous, look_along, normalize, perpendicular
 from .types import Light, View, WarpOptions
 
 PARALLEL_BLEND = math.sin(math.radians(1.0))
@@ -39,6 +40,11 @@ class LightFrame:
     role: str
     directional: bool
     near_clamped: bool = False
+
+    @cached_property
+    def points_h(self) -> np.ndarray:
+        """``points`` with w = 1 (N, 4), made once for the several fits of one setup."""
+        return homogeneous(self.points)
 
 
 PARALLEL_TWIST = 2.0
@@ -166,22 +172,43 @@ def perspective_frame(apex, axis, up_hint, points, role, scale) -> LightFrame:
     The near plane is the nearest point's depth, clamped to a scale-relative
     minimum when the light sits inside the body."""
     view = look_along(apex, axis, up_hint)
-    depth = -transform_h(view, points)[:, 2]
-    floor = 1e-6 * scale
-    near = float(depth.min())
-    clamped = near < floor
-    near = max(near, floor)
-    far = max(float(depth.max()), near * (1 + 1e-9) + floor)
-    proj = np.array([
-        [1.0, 0.0, 0.0, 0.0],
-        [0.0, 1.0, 0.0, 0.0],
-        [0.0, 0.0, -(far + near) / (far - near), -2 * far * near / (far - near)],
-        [0.0, 0.0, -1.0, 0.0],
-    ])
-    return LightFrame(proj @ view, points, role, False, clamped)
+    depth = (points - apex) @ -view[2, :3]                   # along the axis (the eye looks down -z)
+    near, far, clamped = near_far(float(depth.min()), float(depth.max()), 1e-6 * scale)
+    return LightFrame(perspective_of(view, near, far), points, role, False, clamped)
+
+
+def near_far(nearest: float, farthest: float, floor: float) -> tuple[float, float, bool]:
+    """A perspective frame's (near, far, clamped) from its points' depth range:
+    near is the nearest depth, clamped to ``floor`` (the light inside B), and
+    far stays a little beyond near so the depth range never collapses."""
+    near = max(nearest, floor)
+    return near, max(farthest, near * (1 + 1e-9) + floor), nearest < floor
+
+
+def perspective_of(view: np.ndarray, near, far) -> np.ndarray:
+    """``proj @ view`` for the OpenGL perspective with the given near and far
+    (unit image plane), written out row by row: x, y pass through, z_gl =
+    A z + B and w = -z with A = -(f + n)/(f - n), B = -2fn/(f - n). Works on a
+    stack of views (..., 4, 4) with matching arrays of near and far."""
+    near, far = np.asarray(near, dtype=np.float64), np.asarray(far, dtype=np.float64)
+    a = -(far + near) / (far - near)
+    b = -2 * far * near / (far - near)
+    m = view.copy()
+    m[..., 2, :] = a[..., None] * view[..., 2, :]
+    m[..., 2, 3] += b
+    m[..., 3, :] = -view[..., 2, :]
+    return m
 
 
 CUBE_FACES = (("+X", 0, 1.0), ("-X", 0, -1.0), ("+Y", 1, 1.0), ("-Y", 1, -1.0), ("+Z", 2, 1.0), ("-Z", 2, -1.0))
+
+_FACE_ROWS = np.array([[2, 1, 0], [2, 1, 0], [0, 2, 1], [0, 2, 1], [0, 1, 2], [0, 1, 2]])
+_FACE_ROW_SIGNS = np.array([[1.0, 1.0, -1.0], [-1.0, 1.0, 1.0], [1.0, 1.0, -1.0],
+                            [-1.0, 1.0, 1.0], [-1.0, 1.0, -1.0], [1.0, 1.0, 1.0]])
+"""Each cube face's eye rotation as signed rows of the cube's (right-handed,
+orthonormal) basis: ``look_along(apex, forward, face_up)`` with forward =
+sign·basis[k] and face_up = basis[1] (basis[2] for the ±Y faces) has rows
+x = forward × face_up, y = x × forward and -forward; e.g. +X: (b2, b1, -b0)."""
 
 
 def point_frames(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> list[LightFrame]:
@@ -202,28 +229,45 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
     basis = np.stack([normalize(cross3(up, -axis)), normalize(up - (up @ axis) * axis), -axis])  # cube x, y, z = -axis
     poly = body.polytope_from(apex)
     near_floor = 1e-6 * body.scale
-    frames = []
+    faces, points, ranges = [], [], []
     sections = cube_section_points(poly, poly.edges()[0], basis)
-    for (name, k, sign), pts in zip(CUBE_FACES, sections):
+    for f, ((name, k, sign), pts) in enumerate(zip(CUBE_FACES, sections)):
         if pts is None:
             continue
         forward = sign * basis[k]
-        others = [basis[j] for j in range(3) if j != k]
         depth = pts @ forward
-        clamped = float(depth.min()) < near_floor
-        if clamped:
+        if float(depth.min()) < near_floor:
             # B reaches the light inside this face: the whole face from the near floor on.
-            corners = np.array([near_floor * (forward + a * others[0] + b * others[1])
-                                for a in (-1.0, 1.0) for b in (-1.0, 1.0)])
+            a, b = (basis[j] for j in range(3) if j != k)
+            corners = near_floor * (forward + _FACE_CORNERS[:, :1] * a + _FACE_CORNERS[:, 1:] * b)
             pts = np.concatenate([pts[depth >= near_floor], corners])
-        face_up = basis[1] if k != 1 else basis[2]
-        frame = perspective_frame(apex, forward, face_up, pts + apex, "cube" + name, body.scale)
-        frames.append(LightFrame(frame.to_light, frame.points, frame.role, False, clamped))
-    return frames
+            ranges.append(near_far(near_floor, float((pts @ forward).max()), near_floor)[:2] + (True,))
+        else:
+            ranges.append(near_far(float(depth.min()), float(depth.max()), near_floor))
+        faces.append(f)
+        points.append(pts + apex)
+    # All the faces' perspectives in one pass: eye rotations, then proj @ view.
+    views = np.zeros((len(faces), 4, 4))
+    views[:, :3, :3] = basis[_FACE_ROWS[faces]] * _FACE_ROW_SIGNS[faces][:, :, None]
+    views[:, :3, 3] = -views[:, :3, :3] @ apex
+    views[:, 3, 3] = 1.0
+    near, far, clamped = zip(*ranges) if faces else ((), (), ())
+    to_light = perspective_of(views, near, far)
+    return [LightFrame(m, pts, "cube" + CUBE_FACES[f][0], False, c)
+            for f, m, pts, c in zip(faces, to_light, points, clamped)]
 
 
+_FACE_CORNERS = np.array([[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]])
+"""(a, b) of a cube face's 4 corner rays forward + a·others[0] + b·others[1]."""
 _CUBE_SIGNS = np.array([[sx, sy, sz] for sx in (-1.0, 1.0) for sy in (-1.0, 1.0) for sz in (-1.0, 1.0)])
 """The 8 corner directions of the cube (in its basis): a face's corner rays are the 4 whose sign on its axis matches."""
+_FACE_PLANES = np.array([[s if j == o else (-sign if j == k else 0.0) for j in range(3)]
+                         for _, k, sign in CUBE_FACES for o in range(3) if o != k for s in (1.0, -1.0)])
+"""Coefficients (in the cube's basis) of the 4 side planes of each face's
+pyramid, s·other - forward (not yet unit): face f owns rows 4f .. 4f + 3."""
+_FACE_OF_PLANE = np.repeat(np.arange(6), 4)
+_CORNER_ON_FACE = np.array([[c[k] == sign for _, k, sign in CUBE_FACES] for c in _CUBE_SIGNS])
+"""(8, 6): which of the cube's corner rays bound which face."""
 
 
 def cube_section_points(poly, edges: np.ndarray, basis: np.ndarray) -> list:
@@ -232,45 +276,34 @@ def cube_section_points(poly, edges: np.ndarray, basis: np.ndarray) -> list:
     all six at once), or None when that part has no volume."""
     tol = poly.tol
     v = poly.vertices
-    normals = []
-    for name, k, sign in CUBE_FACES:
-        forward = sign * basis[k]
-        normals.extend(s * basis[j] - forward for j in range(3) if j != k for s in (1.0, -1.0))
-    n24 = np.array(normals) / math.sqrt(2.0)                 # (24, 3): face f owns rows 4f .. 4f + 3
+    n24 = (_FACE_PLANES @ basis) / math.sqrt(2.0)           # (24, 3) unit normals, <= 0 inside the pyramid
     d = v @ n24.T                                            # (n, 24)
     d3 = d.reshape(len(v), 6, 4)
     outside = np.all(d3 >= -tol, axis=0).any(axis=1)         # (6,): P wholly outside one plane of the face
-    inside_v = d3.max(axis=2) <= tol                         # (n, 6)
     # P's edges crossing the 24 planes, each kept if inside its face's pyramid.
     da, db = d[edges[:, 0]], d[edges[:, 1]]
-    crossing = ((da < -tol) & (db > tol)) | ((da > tol) & (db < -tol))
-    e, p = np.nonzero(crossing)
+    e, p = np.nonzero(((da < -tol) & (db > tol)) | ((da > tol) & (db < -tol)))
     t = da[e, p] / (da[e, p] - db[e, p])
     a = v[edges[e, 0]]
     x = a + t[:, None] * (v[edges[e, 1]] - a)
-    face_of = p // 4
-    n_face = n24.reshape(6, 4, 3)[face_of]                   # (c, 4, 3)
-    keep = np.einsum("ij,ikj->ik", x, n_face).max(axis=1) <= tol if len(x) else np.zeros(0, dtype=bool)
+    face_of = _FACE_OF_PLANE[p]
+    keep = np.einsum("ij,ikj->ik", x, n24.reshape(6, 4, 3)[face_of]).max(axis=1) <= tol if len(x) else face_of > 0
     x, face_of = x[keep], face_of[keep]
     # The cube's 8 corner rays through P: t-interval where n . (t r) <= o for every facet.
     rays = _CUBE_SIGNS @ basis
     t_lo, t_hi, hit = ray_interval(poly, rays)
-    ray_pts = np.concatenate([t_lo[:, None] * rays, t_hi[:, None] * rays])      # (16, 3)
-    ray_ok = np.concatenate([hit, hit])
-    ray_sign = np.concatenate([_CUBE_SIGNS, _CUBE_SIGNS])
-    apex = np.zeros((1, 3)) if poly.contains(np.zeros((1, 3)), tol)[0] else np.zeros((0, 3))
-    out = []
-    for f, (name, k, sign) in enumerate(CUBE_FACES):
-        if outside[f]:
-            out.append(None)
-            continue
-        pts = np.concatenate([v[inside_v[:, f]], x[face_of == f], ray_pts[ray_ok & (ray_sign[:, k] == sign)], apex])
-        # No volume: too few points, or all on one of the face's planes.
-        if len(pts) < 4 or np.any(np.all(np.abs(pts @ n24[4 * f: 4 * f + 4].T) <= tol, axis=0)):
-            out.append(None)
-            continue
-        out.append(pts)
-    return out
+    apex = poly.contains(np.zeros((1, 3)), tol)
+    # Every candidate point once, and which faces it belongs to: vertices inside
+    # the face's pyramid, its edge crossings, its corner rays' ends, the apex.
+    pts = np.concatenate([v, x, t_lo[:, None] * rays, t_hi[:, None] * rays, np.zeros((1, 3))])
+    member = np.concatenate([d3.max(axis=2) <= tol, face_of[:, None] == np.arange(6),
+                             _CORNER_ON_FACE & hit[:, None], _CORNER_ON_FACE & hit[:, None],
+                             np.repeat(apex[:, None], 6, axis=1)])
+    # No volume: too few points, or all on one of the face's planes.
+    on_plane = (np.abs(pts @ n24.T) <= tol) | ~member[:, _FACE_OF_PLANE]
+    flat = on_plane.all(axis=0).reshape(6, 4).any(axis=1)
+    ok = ~outside & (member.sum(axis=0) >= 4) & ~flat
+    return [pts[member[:, f]] if ok[f] else None for f in range(6)]
 
 
 def ray_interval(poly, rays) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
