@@ -18,24 +18,30 @@ NDC_PAD = 1e-7
 
 def ndc_bounds(transform, points) -> tuple[np.ndarray, np.ndarray]:
     """Min and max of the divided coordinates of ``points`` under ``transform``."""
-    h = transform_h(transform, points)
-    w = h[:, 3]
-    if not np.all(w > 0):
+    return ndc_box(transform_h(transform, points))
+
+
+def ndc_box(h) -> tuple[np.ndarray, np.ndarray]:
+    """Min and max of the divided coordinates of homogeneous points ``h`` (N, 4)."""
+    w = h[:, 3:]
+    if not (w > 0).all():
         raise WarpError("internal: a point of B is behind the projection (w <= 0)")
-    ndc = h[:, :3] / w[:, None]
+    ndc = h[:, :3] / w
     return ndc.min(axis=0), ndc.max(axis=0)
 
 
 def window_matrix(lo, hi) -> np.ndarray:
     """The affine NDC map taking the box [lo, hi] onto [-1, 1]^3."""
-    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
-    ext = np.maximum(hi - lo, 0.0)
-    pad = NDC_PAD * np.maximum(ext, np.max(ext) * 1e-6) + 1e-300
-    lo, hi = lo - pad, hi + pad
-    a = np.eye(4)
-    a[[0, 1, 2], [0, 1, 2]] = 2.0 / (hi - lo)
-    a[:3, 3] = -(hi + lo) / (hi - lo)
-    return a
+    lo, hi = np.asarray(lo, dtype=np.float64).tolist(), np.asarray(hi, dtype=np.float64).tolist()
+    ext = [max(b - a, 0.0) for a, b in zip(lo, hi)]
+    least = max(ext) * 1e-6
+    m = np.eye(4)
+    for i in range(3):
+        pad = NDC_PAD * max(ext[i], least) + 1e-300
+        a, b = lo[i] - pad, hi[i] + pad
+        m[i, i] = 2.0 / (b - a)
+        m[i, 3] = -(b + a) / (b - a)
+    return m
 
 
 def fit_to_unit_cube(transform, points) -> np.ndarray:

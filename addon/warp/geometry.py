@@ -6,6 +6,8 @@ or light "eye" space looks down its local -Z with +Y up.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 EPS = np.finfo(np.float64).eps
@@ -19,8 +21,8 @@ def cross3(a, b) -> np.ndarray:
 def normalize(v) -> np.ndarray:
     """Unit vector along ``v``; raises ValueError for a zero or non-finite vector."""
     v = np.asarray(v, dtype=np.float64)
-    n = float(np.sqrt(v @ v)) if v.ndim == 1 else float(np.linalg.norm(v))
-    if not np.isfinite(n) or n == 0.0:
+    n = math.sqrt(v @ v) if v.ndim == 1 else float(np.linalg.norm(v))
+    if not math.isfinite(n) or n == 0.0:
         raise ValueError(f"cannot normalize vector {v.tolist()}")
     return v / n
 
@@ -28,7 +30,10 @@ def normalize(v) -> np.ndarray:
 def homogeneous(points) -> np.ndarray:
     """(N, 3) points -> (N, 4) with w = 1."""
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    return np.hstack([p, np.ones((len(p), 1))])
+    h = np.empty((len(p), 4))
+    h[:, :3] = p
+    h[:, 3] = 1.0
+    return h
 
 
 def transform_h(matrix, points) -> np.ndarray:

@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from ..body import IntersectionBody
-from ..fit import fit_to_unit_cube, ndc_bounds, window_matrix
+from ..fit import ndc_bounds, ndc_box, window_matrix
 from ..frame import LightFrame, light_angles, light_frames, world_sun_frame
 from ..types import Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpOptions
 
@@ -54,7 +54,7 @@ def frame_map(frame: LightFrame, options: WarpOptions, snap: bool = False) -> Sh
         lo, hi = snapped_window(lo, hi, options.shadow_map_size)
         matrix = window_matrix(lo, hi) @ frame.to_light
     else:
-        matrix = fit_to_unit_cube(frame.to_light, frame.points)
+        matrix = window_matrix(*ndc_box(frame.points_h @ frame.to_light.T)) @ frame.to_light
     return ShadowMap(matrix, options.shadow_map_size, "LESS", frame.role)
 
 

@@ -89,7 +89,7 @@ import numpy as np
 
 from ..aliasing import lambda_glpr, lambda_gmnpr, lispsm_inverse_n_opt
 from ..body import IntersectionBody
-from ..fit import fit_to_unit_cube, ndc_bounds, window_matrix
+from ..fit import ndc_bounds, ndc_box, window_matrix
 from ..frame import PARALLEL_BLEND, LightFrame, light_angles, light_frames
 from ..geometry import clip_volume_corners, transform_h
 from ..types import Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
@@ -114,6 +114,20 @@ class WarpContext:
 
 
 @dataclass
+class LightAtEye:
+    """The light as the eye sees it, in world space: what every frame of one
+    setup shares (computed once per setup)."""
+
+    ell: np.ndarray        # the light ray at the eye (unit): a sun's direction, or from the light through the eye
+    dist: float            # point lights: the eye's distance from the light (0 for a sun)
+    gamma: float           # angle between the view direction and ell
+    vector: np.ndarray     # the world vector whose image is V_P: the view direction or the middle vector
+    s: float               # sin of the angle between ``vector`` and ell (the blend weight of ``_blend``)
+    v_p: Optional[np.ndarray] = None  # point lights: the view direction perpendicular to ell (None if parallel)
+    body_extent: float = 0.0          # point lights: all of B's extent along v_p
+
+
+@dataclass
 class FrameGeometry:
     """One frame's warp geometry, in that frame's (divided) light space."""
 
@@ -128,17 +142,21 @@ class FrameGeometry:
     v_p_world: Optional[np.ndarray]
     light_dir: np.ndarray  # the light ray at the eye (world, unit)
     fade: float = 1.0
+    points_h: Optional[np.ndarray] = None  # the frame's points in its light space, homogeneous (N, 4)
 
 
-def _blend(v: np.ndarray, s: float) -> np.ndarray:
+def _blend(v, s: float) -> tuple[float, float]:
     """A unit image-plane direction along ``v`` (weight s = sin of its angle to
     the light), blended continuously with the frame's +y when s < PARALLEL_BLEND."""
-    y = np.array([0.0, 1.0])
-    nv = float(np.linalg.norm(v))
-    vh = v / nv if nv > 0 and np.isfinite(nv) else y
-    out = s * vh + max(0.0, PARALLEL_BLEND - s) * y
-    n = float(np.linalg.norm(out))
-    return out / n if n > 1e-12 else y
+    vx, vy = v
+    nv = math.hypot(vx, vy)
+    if nv > 0 and math.isfinite(nv):
+        vx, vy = vx / nv, vy / nv
+    else:
+        vx, vy = 0.0, 1.0
+    ox, oy = s * vx, s * vy + max(0.0, PARALLEL_BLEND - s)
+    n = math.hypot(ox, oy)
+    return (ox / n, oy / n) if n > 1e-12 else (0.0, 1.0)
 
 
 def _sin_to(v: np.ndarray, ell: np.ndarray) -> float:
@@ -153,11 +171,14 @@ def volume_centroid(body: IntersectionBody) -> np.ndarray:
     """The centre of B's volume (continuous in B, unlike the mean of its vertices,
     which jumps when a vertex appears or merges)."""
     ref = body.vertices.mean(axis=0)
-    fans = [(f[0], f[j], f[j + 1]) for f in body.faces for j in range(1, len(f) - 1)]
+    faces = list(body.faces)
+    fans, start = [], 0                                               # each face as a fan of triangles
+    for f in faces:
+        fans.extend((start, start + j, start + j + 1) for j in range(1, len(f) - 1))
+        start += len(f)
     if not fans:
         return ref
-    tri = np.asarray(fans, dtype=np.float64) - ref                    # (T, 3 corners, 3)
-    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    a, b, c = (np.concatenate(faces) - ref)[np.array(fans).T]        # the fans' corners, (T, 3) each
     cr = np.stack([b[:, 1] * c[:, 2] - b[:, 2] * c[:, 1], b[:, 2] * c[:, 0] - b[:, 0] * c[:, 2],
                    b[:, 0] * c[:, 1] - b[:, 1] * c[:, 0]], axis=1)
     vol = np.abs(np.einsum("ij,ij->i", a, cr)) / 6.0                  # tetrahedra (ref, a, b, c)
@@ -208,78 +229,87 @@ def half_fov_towards(view: View, light_dir) -> float:
     return math.atan(max(dist, 1e-9))
 
 
-def frame_geometry(view: View, light: Light, frame: LightFrame, options: WarpOptions,
-                   body: IntersectionBody) -> tuple[Optional[FrameGeometry], str]:
-    """The warp geometry of one frame, or (None, reason) when undefined."""
-    t = frame.to_light
-    eye, d = view.position, view.direction
-    ph = transform_h(t, frame.points)
-    pts = ph[:, :3] / ph[:, 3:4]
-    eh = t @ np.append(eye, 1.0)
-    fade = 1.0
-    if frame.directional:
-        ell = light.direction
-        eye_ls = eh[:3] / eh[3]
-        v = np.array([0.0, 1.0])             # the frame's +y is Eq. 3's V_P (blended near parallel)
-        s = 1.0
-        lin = t[:3, :3]
+def light_at_eye(view: View, light: Light, options: WarpOptions, body: IntersectionBody,
+                 middle: np.ndarray) -> tuple[Optional[LightAtEye], str]:
+    """The world-space quantities every frame shares (``middle``: the middle
+    vector, used when ``options.middle_vector``), or (None, reason) when the
+    light ray through the eye is undefined."""
+    d = view.direction
+    if light.is_directional:
+        ell, dist = light.direction, 0.0
     else:
-        to_eye = eye - light.position
+        to_eye = view.position - light.position
         dist = float(np.linalg.norm(to_eye))
         if dist <= 1e-9 * body.scale:
             return None, "the eye is at the light: the light ray through the eye is undefined"
         ell = to_eye / dist
-        if not eh[3] > 1e-12 * dist:
+    vector = middle if options.middle_vector else d
+    s = _sin_to(vector, ell) if (options.middle_vector or not light.is_directional) else 1.0
+    c = float(np.clip(d @ ell, -1.0, 1.0))
+    at = LightAtEye(ell, dist, math.acos(c), vector, s)
+    if not light.is_directional:
+        perp = d - c * ell
+        n = float(np.linalg.norm(perp))
+        if n > 0:
+            at.v_p = perp / n
+            along = body.vertices @ at.v_p
+            at.body_extent = float(along.max() - along.min())
+    return at, ""
+
+
+def frame_geometry(view: View, at: LightAtEye, frame: LightFrame, options: WarpOptions,
+                   body: IntersectionBody) -> tuple[Optional[FrameGeometry], str]:
+    """The warp geometry of one frame, or (None, reason) when undefined."""
+    t = frame.to_light
+    ph = frame.points_h @ t.T
+    pts = ph[:, :3] / ph[:, 3:]
+    ex, ey, ez, ew = (t[:, :3] @ view.position + t[:, 3]).tolist()
+    fade = 1.0
+    if frame.directional:
+        eye_ls = (ex / ew, ey / ew, ez / ew)
+        if options.middle_vector:
+            a = _blend((t[:2, :3] @ at.vector).tolist(), at.s)
+        else:
+            a = (0.0, 1.0)                   # the frame's +y is Eq. 3's V_P (blended near parallel)
+    else:
+        if not ew > 1e-12 * at.dist:
             return None, "the eye is behind this frame's light plane: no warp in its post-perspective space"
-        eye_ls = eh[:3] / eh[3]
-        dh = t[:, :3] @ d
-        v = (dh[:2] * eh[3] - eh[:2] * dh[3]) / eh[3] ** 2    # image of the view ray at the eye
-        s = _sin_to(d, ell)
-        lo, hi = pts[:, :2].min(axis=0), pts[:, :2].max(axis=0)
-        half = max(float(np.linalg.norm(hi - lo)) / 2, 1e-300)
-        rho = float(np.linalg.norm(eye_ls[:2] - (lo + hi) / 2)) / half
-        fade = float(np.clip((FADE_END - rho) / (FADE_END - FADE_START), 0.0, 1.0))
-        lin = None
+        vx, vy, _, vw = (t[:, :3] @ at.vector).tolist()
+        v = ((vx * ew - ex * vw) / ew ** 2, (vy * ew - ey * vw) / ew ** 2)   # image of the vector at the eye
+        (xlo, ylo, zlo), (xhi, yhi, zhi) = pts.min(axis=0).tolist(), pts.max(axis=0).tolist()
+        cx, cy = (xlo + xhi) / 2, (ylo + yhi) / 2
+        half = max(math.hypot(xhi - xlo, yhi - ylo) / 2, 1e-300)
+        ex, ey, ez = ex / ew, ey / ew, ez / ew
+        rho = math.hypot(ex - cx, ey - cy) / half
+        fade = min(max((FADE_END - rho) / (FADE_END - FADE_START), 0.0), 1.0)
         # Keep the eye's image finite for the construction: clamping it to a box that contains
         # the whole fade region changes nothing where the warp acts (fade > 0), and where
         # fade = 0 (μ = 0) its lateral offset is absorbed by the fit - no cancellation
         # against an image at 1e9 when the eye nears the light plane.
-        zlo, zhi = pts[:, 2].min(), pts[:, 2].max()
-        box = FADE_END * half
-        eye_ls = np.array([np.clip(eye_ls[0], (lo[0] + hi[0]) / 2 - box, (lo[0] + hi[0]) / 2 + box),
-                           np.clip(eye_ls[1], (lo[1] + hi[1]) / 2 - box, (lo[1] + hi[1]) / 2 + box),
-                           np.clip(eye_ls[2], zlo - FADE_END * (zhi - zlo), zhi + FADE_END * (zhi - zlo))])
-    if options.middle_vector:
-        mv = volume_centroid(body) - eye
-        s = _sin_to(mv, ell)
-        if frame.directional:
-            v = lin[:2] @ mv
-        else:                                # the image of the middle vector at the eye
-            mh = t[:, :3] @ mv
-            v = (mh[:2] * eh[3] - eh[:2] * mh[3]) / eh[3] ** 2
-    a = v / np.linalg.norm(v) if (frame.directional and not options.middle_vector) else _blend(v, s)
+        box, dz = FADE_END * half, FADE_END * (zhi - zlo)
+        eye_ls = (min(max(ex, cx - box), cx + box), min(max(ey, cy - box), cy + box),
+                  min(max(ez, zlo - dz), zhi + dz))
+        a = _blend(v, at.s)
     if fade < 1.0:
         # a fading warp also turns its axes back to the frame's, so that at fade = 0 the map is
         # exactly the frame's uniform map (the fallback used behind the light plane)
         alpha = fade * math.atan2(a[0], a[1])
-        a = np.array([math.sin(alpha), math.cos(alpha)])
-    b = np.array([a[1], -a[0]])
+        a = (math.sin(alpha), math.cos(alpha))
+    a = np.array(a)
     h = pts[:, :2] @ a
     h_min = float(h.min())
     extent = float(h.max() - h_min)
-    c = float(np.clip(d @ ell, -1.0, 1.0))
-    gamma = math.acos(c)
     if frame.directional:
-        v_p = a[0] * lin[0] + a[1] * lin[1]
+        v_p = a[0] * t[0, :3] + a[1] * t[1, :3]
         extent_world = extent
-        body_extent = float(np.ptp(body.vertices @ v_p))
+        along = body.vertices @ v_p
+        body_extent = float(along.max() - along.min())
     else:
-        perp = d - c * ell
-        n = float(np.linalg.norm(perp))
-        v_p = perp / n if n > 0 else None
-        extent_world = float(np.ptp(frame.points @ v_p)) if v_p is not None else 0.0
-        body_extent = float(np.ptp(body.vertices @ v_p)) if v_p is not None else 0.0
-    return FrameGeometry(a, b, eye_ls, h_min, extent, extent_world, body_extent, gamma, v_p, ell, fade), ""
+        v_p, body_extent = at.v_p, at.body_extent
+        along = frame.points @ v_p if v_p is not None else None
+        extent_world = float(along.max() - along.min()) if v_p is not None else 0.0
+    return FrameGeometry(a, np.array([a[1], -a[0]]), np.array(eye_ls), h_min, extent, extent_world,
+                         body_extent, at.gamma, v_p, at.ell, fade, ph), ""
 
 
 def warp_matrix(g: FrameGeometry, mu: float) -> np.ndarray:
@@ -364,7 +394,13 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
     diag.extra["delta_z"] = ctx.delta_z
     diag.extra["frames"] = [f.role for f in frames]
     middle = volume_centroid(body) - view.position
-    diag.extra["middle_vector"] = middle / np.linalg.norm(middle) if np.linalg.norm(middle) > 0 else np.zeros(3)
+    length = float(np.linalg.norm(middle))
+    diag.extra["middle_vector"] = middle / length if length > 0 else np.zeros(3)
+    if view.orthographic:
+        at, reason = None, "orthographic camera: no perspective aliasing to redistribute"
+    else:
+        at, reason = light_at_eye(view, light, options, body, middle)
+    phi = half_fov_towards(view, at.ell) if at is not None else None
     maps: list[ShadowMap] = []
     reported = False
     for frame in frames:
@@ -372,16 +408,12 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
             diag.fallback(f"{frame.role}: near plane",
                           "the light is inside B; points nearer than 1e-6 of the scene scale are not covered")
         depth_row = linear_depth_row(frame) if options.linear_z else None
-        if view.orthographic:
-            geo, reason = None, "orthographic camera: no perspective aliasing to redistribute"
-        else:
-            geo, reason = frame_geometry(view, light, frame, options, body)
+        geo, why = frame_geometry(view, at, frame, options, body) if at is not None else (None, reason)
         if geo is None:
-            diag.fallback(f"{frame.role}: uniform", reason)
+            diag.fallback(f"{frame.role}: uniform", why)
             m = frame_map(frame, options)
             maps.append(ShadowMap(m.matrix, m.size, "LESS", frame.role, depth_row=depth_row))
             continue
-        phi = half_fov_towards(view, geo.light_dir)
         lam = rule(geo, ctx, phi, options)
         p_n = lam * geo.body_extent_world if math.isfinite(lam) else math.inf     # P_n in world units
         lam_frame = p_n / geo.extent_world if geo.extent_world > 0 else math.inf  # λ for this frame's part of B
@@ -392,7 +424,9 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
         if mu == 0.0 and geo.fade > 0.0:
             diag.fallback(f"{frame.role}: uniform limit", "light parallel to the view direction (γ = 0): "
                                                          "n_opt = ∞, the warp is the uniform map")
-        matrix = fit_to_unit_cube(warp_matrix(geo, mu) @ frame.to_light, frame.points)
+        warp = warp_matrix(geo, mu)
+        lo, hi = ndc_box(geo.points_h @ warp.T)            # the unit-cube fit on the frame's light-space points
+        matrix = window_matrix(lo, hi) @ (warp @ frame.to_light)
         if len(frames) > 1:
             matrix, closure, held = ray_closed(matrix, body)
             if held is not None and depth_row is not None:
@@ -422,11 +456,14 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
     return ShadowSetup(maps, diag)
 
 
+_WINDOW_SIDES = np.array([1.0, -1.0, 1.0, -1.0])
+
+
 def window_halfspaces(matrix) -> tuple[np.ndarray, np.ndarray]:
     """World half-spaces (normals, offsets) of a map's image window, |x| <= w and
     |y| <= w. Each plane contains the light (light rays have constant x, y)."""
     m = np.asarray(matrix, dtype=np.float64)
-    rows = np.stack([m[0] - m[3], -m[0] - m[3], m[1] - m[3], -m[1] - m[3]])
+    rows = _WINDOW_SIDES[:, None] * m[[0, 0, 1, 1]] - m[3]        # ±x - w, ±y - w
     return rows[:, :3], -rows[:, 3]
 
 
@@ -448,12 +485,15 @@ def ray_closed(matrix, body: IntersectionBody) -> tuple[Optional[np.ndarray], st
     if part is None:
         return matrix, "", None
     pts = part.vertices + body.origin
-    w = transform_h(matrix, pts)[:, 3]
-    if np.any(w <= 1e-9 * np.max(np.abs(w))):
+    h = transform_h(matrix, pts)
+    w = h[:, 3:]
+    if (w <= 1e-9 * np.abs(w).max()).any():
         return None, "the warped map's window reaches the light itself; a uniform face map is ray-closed", None
-    if ShadowMap(matrix, (1, 1)).contains(pts, 1e-9).all():
+    ndc = h[:, :3] / w
+    lo, hi = ndc.min(axis=0), ndc.max(axis=0)
+    if lo.min() >= -1.0 - 1e-9 and hi.max() <= 1.0 + 1e-9:     # the map already holds B ∩ window
         return matrix, "", pts
-    return fit_to_unit_cube(matrix, pts), "depth widened to B within the map's window", pts
+    return window_matrix(lo, hi) @ matrix, "depth widened to B within the map's window", pts
 
 
 def projection_centre(frame: LightFrame, g: FrameGeometry, lam: float) -> Optional[np.ndarray]:
