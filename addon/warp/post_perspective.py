@@ -67,7 +67,7 @@ import numpy as np
 from .body import IntersectionBody, light_halfspaces
 from .fit import fit_to_unit_cube
 from .frame import image_up
-from .geometry import normalize
+from .geometry import cross3, normalize
 from .polyhedron import ConvexPolytope
 from .types import Light, View, WarpOptions
 
@@ -284,11 +284,11 @@ def smallest_cone(directions) -> tuple[np.ndarray, float]:
     direction of the hull's point nearest the origin, and the margin is that
     point's norm (0 when the directions surround the origin)."""
     x = min_norm_point(directions)
-    norm = float(np.linalg.norm(x))
+    norm = math.sqrt(x @ x)
     if norm <= 1e-15:
         return np.array([0.0, 0.0, 1.0]), 0.0
     k = x / norm
-    return k, float(np.min(np.asarray(directions) @ k))
+    return k, float((np.asarray(directions) @ k).min())
 
 
 @dataclass(frozen=True)
@@ -316,15 +316,15 @@ def pps_light_matrix(light_h, points) -> PPSLight:
     """The light frustum from the homogeneous PPS light ``light_h`` over the
     PPS points ``points`` (B'), see the module docstring."""
     lh = np.asarray(light_h, dtype=np.float64)
-    lh = lh / np.linalg.norm(lh)
+    lh = lh / math.sqrt(lh @ lh)
     l, wp = lh[:3], float(lh[3])
-    if abs(wp) <= DIRECTIONAL_TOLERANCE * max(float(np.linalg.norm(l)), 1e-300):
+    if abs(wp) <= DIRECTIONAL_TOLERANCE * max(math.sqrt(l @ l), 1e-300):
         kind = "directional"
     else:
         kind = "point" if wp > 0 else "inverted"
     pts = np.asarray(points, dtype=np.float64)
     rays = wp * pts - l
-    lengths = np.linalg.norm(rays, axis=1)
+    lengths = np.sqrt(np.einsum("ij,ij->i", rays, rays))
     if lengths.min() <= 1e-12 * max(float(lengths.max()), 1e-300):
         return PPSLight(None, lh, kind, math.pi, np.array([0.0, 0.0, 1.0]))
     k, margin = smallest_cone(rays / lengths[:, None])
@@ -336,14 +336,17 @@ def pps_light_matrix(light_h, points) -> PPSLight:
     # (a, b, k) right-handed: the camera's projection already reverses orientation, so
     # the composed world -> light NDC map reverses it once, like frame.FLIP_Z @ look_along
     # (a uniform map): triangles facing the light keep their winding (back-face biasing).
-    a = normalize(np.cross(b, k))
-    b = np.cross(k, a)
-    rot = np.stack([a, b, k])
-    lam = rot @ (l - wp * centre)                    # L' in the (a, b, k) frame centred at c, times w'
+    a = normalize(cross3(b, k))
+    b = cross3(k, a)
+    m = np.zeros((4, 4))                             # the (a, b, k) frame centred at c
+    m[0, :3], m[1, :3], m[2, :3] = a, b, k
+    m[:3, 3] = -(m[:3, :3] @ centre)
+    m[3, 3] = 1.0
+    lam = m[:3, :3] @ (l - wp * centre)              # L' in that frame, times w'
     # lam[2] = -k·(w' c - l) < 0: c is a mean of B', every k·(w' p - l) > 0.
     gx, gy, rho = -lam[0] / lam[2], -lam[1] / lam[2], -wp / lam[2]
-    shear = np.array([[1.0, 0.0, gx, 0.0], [0.0, 1.0, gy, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, rho, 1.0]])
-    frame = np.eye(4)
-    frame[:3, :3] = rot
-    frame[:3, 3] = -rot @ centre
-    return PPSLight(shear @ frame, lh, kind, half, k)
+    # The shear: the x, y and w rows gain γx, γy and ρ times the depth row, so they vanish at L'.
+    m[0] += gx * m[2]
+    m[1] += gy * m[2]
+    m[3] += rho * m[2]
+    return PPSLight(m, lh, kind, half, k)
