@@ -28,12 +28,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 
 from .geometry import cross3
-from .polyhedron import COINCIDENT, ConvexPolytope, Plane, cross_rows
+from . import brep
+from .brep import Brep, OpenCut, directed_edges
+from .polyhedron import ConvexPolytope, Plane
 from .types import EmptyBodyError, Light, SceneBounds, View
 
 CONE_SIDES = 16
@@ -74,30 +77,78 @@ class LazyFaces(Sequence):
         return f"LazyFaces({len(self)} faces)"
 
 
+class Selection(NamedTuple):
+    """The boxes of a ``BoxIndex`` that meet a convex region, kept in the
+    index's own order; the mask over the scene's boxes is made on demand."""
+
+    index: "BoxIndex"
+    selected: np.ndarray
+    """Which boxes meet the region, in the index's (cluster) order."""
+    box: np.ndarray | None
+    """The (2, 3) bounding box of those boxes, or None when there are none."""
+
+    @property
+    def mask(self) -> np.ndarray:
+        """Which of the indexed boxes (in their original order) meet the region."""
+        mask = np.zeros(self.index.count, dtype=bool)
+        mask[self.index.perm] = self.selected
+        return mask
+
+
 @dataclass
 class IntersectionBody:
-    """B and what it was built from. ``vertices``/``faces`` are in world space."""
+    """B and what it was built from. ``vertices``/``faces`` are in world space.
+    The culling results (``caster_mask``, ``receiver_mask``, ``receiver_boxes``,
+    ``hull_planes``) are made on first use."""
 
     vertices: np.ndarray
     faces: Sequence[np.ndarray]
     """B's faces as world-space vertex loops (counter-clockwise seen from outside)."""
     visible_vertices: np.ndarray
     """R = V ∩ S_r ∩ L: the part of the view that holds receivers."""
-    caster_mask: np.ndarray
-    """Which of ``scene.casters`` meet hull(R ∪ light) ∩ L (can shadow what is seen)."""
-    receiver_mask: np.ndarray
-    """Which of ``scene.receivers`` meet V ∩ L."""
-    receiver_boxes: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 3)))
-    """World-space boxes of the receivers that meet V ∩ L (``scene.receivers[receiver_mask]``),
-    e.g. for plane_optimal's default plane of interest."""
-    hull_planes: list[Plane] = field(default_factory=list)
-    """World-space half-spaces of hull(R ∪ light) (⊂ L): the light-extruded body."""
+    casters: Selection
+    """The casters that meet hull(R ∪ light) ∩ L (can shadow what is seen)."""
+    receivers: Selection
+    """The receivers that meet V ∩ L."""
+    receiver_source: np.ndarray
+    """``scene.receivers``, for ``receiver_boxes``."""
+    hull_halfspaces: tuple[np.ndarray, np.ndarray]
+    """World-space (normals, offsets) of hull(R ∪ light) (⊂ L): the light-extruded body."""
     tolerance: float = 0.0
     scale: float = 1.0
     polytope: ConvexPolytope | None = None
     """B as a polytope relative to ``origin`` (facet planes, incidence)."""
     origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
     """The point B's ``polytope`` is expressed relative to (the camera position)."""
+
+    @property
+    def caster_mask(self) -> np.ndarray:
+        """Which of ``scene.casters`` meet hull(R ∪ light) ∩ L."""
+        return self._memo("_caster_mask", lambda: self.casters.mask)
+
+    @property
+    def receiver_mask(self) -> np.ndarray:
+        """Which of ``scene.receivers`` meet V ∩ L."""
+        return self._memo("_receiver_mask", lambda: self.receivers.mask)
+
+    @property
+    def receiver_boxes(self) -> np.ndarray:
+        """World-space boxes of the receivers that meet V ∩ L (``scene.receivers[receiver_mask]``),
+        e.g. for plane_optimal's default plane of interest."""
+        # (np.compress copies; 4x faster than a boolean gather)
+        return self._memo("_receiver_boxes", lambda: np.compress(self.receiver_mask, self.receiver_source, axis=0))
+
+    @property
+    def hull_planes(self) -> list[Plane]:
+        """World-space half-spaces of hull(R ∪ light) (⊂ L)."""
+        n, o = self.hull_halfspaces
+        return [Plane(ni, float(oi)) for ni, oi in zip(n, o)]
+
+    def _memo(self, name: str, make):
+        value = self.__dict__.get(name)
+        if value is None:
+            value = self.__dict__[name] = make()
+        return value
 
     @property
     def centroid(self) -> np.ndarray:
@@ -141,12 +192,6 @@ def cone_halfspaces(apex, axis, full_angle) -> tuple[np.ndarray, np.ndarray]:
     return n, n @ np.asarray(apex, dtype=np.float64)
 
 
-def cone_planes(apex, axis, full_angle) -> list[Plane]:
-    """Half-spaces of a pyramid circumscribing the cone (apex, axis, full angle)."""
-    n, o = cone_halfspaces(apex, axis, full_angle)
-    return [Plane(ni, float(oi)) for ni, oi in zip(n, o)]
-
-
 def _stack_of(boxes: np.ndarray) -> np.ndarray:
     """(6, N): rows 0-2 the boxes' centres, rows 3-5 their half extents."""
     return np.ascontiguousarray(np.concatenate([(boxes[:, 0] + boxes[:, 1]).T / 2, (boxes[:, 1] - boxes[:, 0]).T / 2]))
@@ -183,16 +228,29 @@ class BoxIndex:
         b = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3)
         self.count = len(b)
         k = CLUSTER_SIZE
+        n_c = -(-self.count // k)
         if self.count == 0:
             self.perm = np.zeros(0, dtype=np.int64)
-            self.lo = self.hi = np.zeros((0, 3))
-            self.stack = np.zeros((6, 0))
-            self.c_lo = self.c_hi = np.zeros((0, 3))
-            self.lo_t = self.hi_t = self.c_lo_t = self.c_hi_t = np.zeros((3, 0))
-            self.c_stack = np.zeros((6, 0))
-            return
-        # Clusters: leaves of a median-split k-d tree over the box centres (split
-        # along the widest axis of the boxes' extent), so each cluster is compact.
+            b = np.zeros((1, 2, 3))
+        else:
+            self.perm = self._clusters(b, k)
+        # Each cluster's boxes, the last padded with copies of its last box: (3, clusters, k) corners, ...
+        sb = b[np.concatenate([self.perm, np.repeat(self.perm[-1:], n_c * k - self.count)])] if self.count else b[:0]
+        lo, hi = sb[:, 0].reshape(n_c, k, 3), sb[:, 1].reshape(n_c, k, 3)
+        self.c_box_lo_t = np.ascontiguousarray(lo.transpose(2, 0, 1))
+        self.c_box_hi_t = np.ascontiguousarray(hi.transpose(2, 0, 1))
+        # ... and (6, clusters, k) centres and half extents.
+        self.c_boxes = _stack_of(sb).reshape(6, n_c, k)
+        # The clusters' bounds, (3, clusters) and (6, clusters) centres and half extents
+        # (numpy reduces along a long last axis far faster than over (N, 3) rows).
+        self.c_lo_t, self.c_hi_t = self.c_box_lo_t.min(axis=2), self.c_box_hi_t.max(axis=2)
+        self.c_stack = _stack_of(np.stack([self.c_lo_t.T, self.c_hi_t.T], axis=1))
+
+    @staticmethod
+    def _clusters(b: np.ndarray, k: int) -> np.ndarray:
+        """The boxes' order by cluster: leaves of a median-split k-d tree over
+        the box centres (split along the widest axis of the boxes' extent), so
+        each cluster is compact. Every leaf but the last is full."""
         centre = (b[:, 0] + b[:, 1]) / 2
         leaves: list[np.ndarray] = []
         todo = [np.arange(len(b))]
@@ -207,20 +265,8 @@ class BoxIndex:
             part = np.argpartition(centre[ids, axis], half - 1)
             todo.append(ids[part[half:]])
             todo.append(ids[part[:half]])
-        # Leaves come depth-first, left part first: every leaf but the last is full.
-        self.perm = np.concatenate(leaves)
-        sb = b[self.perm]
-        self.lo, self.hi = np.ascontiguousarray(sb[:, 0]), np.ascontiguousarray(sb[:, 1])
-        # (3, N) copies: numpy reduces along a long last axis far faster than over (N, 3) rows.
-        self.lo_t, self.hi_t = np.ascontiguousarray(self.lo.T), np.ascontiguousarray(self.hi.T)
-        self.stack = _stack_of(sb)
-        n_c = -(-self.count // k)
-        pad = n_c * k - self.count
-        plo = np.concatenate([self.lo, np.repeat(self.lo[-1:], pad, axis=0)]).reshape(n_c, k, 3)
-        phi = np.concatenate([self.hi, np.repeat(self.hi[-1:], pad, axis=0)]).reshape(n_c, k, 3)
-        self.c_lo, self.c_hi = plo.min(axis=1), phi.max(axis=1)
-        self.c_lo_t, self.c_hi_t = np.ascontiguousarray(self.c_lo.T), np.ascontiguousarray(self.c_hi.T)
-        self.c_stack = _stack_of(np.stack([self.c_lo, self.c_hi], axis=1))
+        # Leaves come depth-first, left part first.
+        return np.concatenate(leaves)
 
     @classmethod
     def of(cls, scene: SceneBounds, which: str) -> "BoxIndex":
@@ -236,33 +282,39 @@ class BoxIndex:
     def cull(self, normals, offsets, tol: float = 0.0) -> tuple[np.ndarray, np.ndarray | None]:
         """(mask over the boxes in their original order, the (2, 3) bounding box
         of the boxes that meet the region or None)."""
+        sel = self.select(normals, offsets, tol)
+        return sel.mask, sel.box
+
+    def select(self, normals, offsets, tol: float = 0.0) -> Selection:
+        """The boxes that meet the region ``normals @ x <= offsets``. A box is
+        tested only against the planes that cross its cluster: a cluster wholly
+        inside a half-space has every box inside it."""
         n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
-        o = np.asarray(offsets, dtype=np.float64).reshape(-1, 1)
-        mask = np.zeros(self.count, dtype=bool)
+        o = np.asarray(offsets, dtype=np.float64).reshape(-1)
         if self.count == 0:
-            return mask, None
-        an = np.abs(n)
-        centre_part = n @ self.c_stack[:3] - o
-        spread = an @ self.c_stack[3:]
-        c_out = (centre_part - spread).max(axis=0) > tol      # wholly outside some half-space
-        c_in = (centre_part + spread).max(axis=0) <= tol      # wholly inside every half-space
-        k = CLUSTER_SIZE
-        sorted_mask = np.repeat(c_in, k)[: self.count]
-        edge = np.nonzero(~c_out & ~c_in)[0]
-        if len(edge):
-            idx = (edge[:, None] * k + np.arange(k)).ravel()
-            idx = idx[idx < self.count]
-            hit = boxes_meeting_arrays(n, o[:, 0], np.take(self.stack, idx, axis=1), tol)
-            sorted_mask[idx[hit]] = True
-            idx = idx[hit]
-        else:
-            idx = edge
-        mask[self.perm] = sorted_mask
-        if not sorted_mask.any():
-            return mask, None
-        lo = np.concatenate([self.c_lo_t[:, c_in], np.take(self.lo_t, idx, axis=1)], axis=1).min(axis=1)
-        hi = np.concatenate([self.c_hi_t[:, c_in], np.take(self.hi_t, idx, axis=1)], axis=1).max(axis=1)
-        return mask, np.array([lo, hi])
+            return Selection(self, np.zeros(0, dtype=bool), None)
+        centre_part = n @ self.c_stack[:3] - o[:, None]       # (planes, clusters)
+        spread = np.abs(n) @ self.c_stack[3:]
+        c_out = (centre_part - spread > tol).any(axis=0)      # wholly outside some half-space
+        crossing = (centre_part + spread > tol) & ~c_out      # not wholly inside this one
+        c_in = ~c_out & ~crossing.any(axis=0)                 # wholly inside every half-space
+        selected = np.repeat(c_in, CLUSTER_SIZE).reshape(-1, CLUSTER_SIZE)
+        lo, hi = self.c_lo_t[:, c_in], self.c_hi_t[:, c_in]
+        cluster, plane = np.nonzero(crossing.T)               # (cluster, plane) pairs, by cluster
+        if len(cluster):
+            first = np.flatnonzero(np.concatenate([[True], cluster[1:] != cluster[:-1]]))
+            edge = cluster[first]
+            box = self.c_boxes[:, cluster]                    # (6, pairs, CLUSTER_SIZE)
+            nearest = (np.einsum("pi,ipk->pk", n[plane], box[:3]) - np.einsum("pi,ipk->pk", np.abs(n[plane]), box[3:])
+                       - o[plane, None])
+            hit = ~np.logical_or.reduceat(nearest > tol, first, axis=0)       # (edge clusters, CLUSTER_SIZE)
+            selected[edge] = hit
+            lo = np.concatenate([lo, np.where(hit, self.c_box_lo_t[:, edge], np.inf).reshape(3, -1)], axis=1)
+            hi = np.concatenate([hi, np.where(hit, self.c_box_hi_t[:, edge], -np.inf).reshape(3, -1)], axis=1)
+        selected = selected.ravel()[: self.count]
+        if not selected.any():
+            return Selection(self, selected, None)
+        return Selection(self, selected, np.array([lo.min(axis=1), hi.max(axis=1)]))
 
 
 def boxes_meeting(planes: list[Plane], boxes: np.ndarray, tol: float = 0.0) -> np.ndarray:
@@ -283,60 +335,138 @@ def light_halfspaces(light: Light, origin: np.ndarray) -> tuple[np.ndarray, np.n
     return cone_halfspaces(light.position - origin, light.direction, light.spot_angle)
 
 
-def light_planes(light: Light, origin: np.ndarray) -> list[Plane]:
-    """L: the half-spaces of the light's frustum (only spots have one)."""
-    n, o = light_halfspaces(light, origin)
-    return [Plane(ni, float(oi)) for ni, oi in zip(n, o)]
+class LightHull(NamedTuple):
+    """hull(P ∪ light) for a convex polytope P: its half-spaces, and the
+    pieces its boundary is made of (see ``light_hull``)."""
+
+    normals: np.ndarray
+    offsets: np.ndarray
+    """The half-spaces ``normals @ x <= offsets``: P's facets that do not face the light, then one per side."""
+    body: Brep
+    """P's boundary, whose facets and vertices the other fields refer to."""
+    kept: list
+    """Indices of P's facets that do not face the light."""
+    sides: list | None
+    """(a, c) per silhouette edge: P's edge a -> c in the loop of a facet that does not face the light
+    while the facet across the edge does; its side's half-space is row ``len(kept) + i``.
+    None when P's loops do not close."""
+    light: tuple
+    """The light in homogeneous coordinates."""
+
+    def brep(self, cap: float | None = None) -> Brep:
+        """The boundary of hull(P ∪ light): P's facets that do not face the
+        light and the sides, each side a triangle (a point light) or a strip
+        to the plane ``u . x = cap`` (a sun, u the direction towards it; ``cap``
+        must lie beyond P), which closes the body. P itself when no facet faces
+        the light (a point light inside or on P)."""
+        b = self.body
+        if self.sides is None:
+            raise OpenCut("P's loops do not close: the hull has no boundary")
+        if not self.sides:
+            return b
+        used = sorted({v for f in self.kept for v in b.loops[f]})
+        index = {v: k for k, v in enumerate(used)}
+        verts = [b.vertices[v] for v in used]
+        normals = [b.normals[f] for f in self.kept] + self.normals[len(self.kept):].tolist()
+        offsets = [b.offsets[f] for f in self.kept] + self.offsets[len(self.kept):].tolist()
+        loops = [[index[v] for v in b.loops[f]] for f in self.kept]
+        x, y, z, w = self.light
+        if w != 0:
+            apex = len(verts)
+            verts.append((x / w, y / w, z / w))
+            loops.extend([index[c], index[a], apex] for a, c in self.sides)
+            return Brep(verts, normals, offsets, loops)
+        # A sun: every silhouette vertex v gets v' = v moved towards the light onto the cap plane.
+        raised: dict = {}
+        for a, c in self.sides:
+            for v in (a, c):
+                if v not in raised:
+                    px, py, pz = b.vertices[v]
+                    h = cap - (x * px + y * py + z * pz)
+                    raised[v] = len(verts)
+                    verts.append((px + h * x, py + h * y, pz + h * z))
+        cap_next = {}
+        for a, c in self.sides:
+            loops.append([index[c], index[a], raised[a], raised[c]])
+            cap_next[raised[c]] = raised[a]
+        start = min(cap_next)
+        ring, v = [start], cap_next[start]
+        while v != start:
+            if len(ring) > len(cap_next):
+                break
+            ring.append(v)
+            v = cap_next[v]
+        if len(ring) != len(cap_next):
+            raise OpenCut("the silhouette is not one loop")
+        normals.append((x, y, z))
+        offsets.append(cap)
+        loops.append(ring)
+        return Brep(verts, normals, offsets, loops)
 
 
-def hull_with_light(faces: list[np.ndarray], light_h: np.ndarray, tol: float) -> list[Plane]:
-    """Half-spaces of hull(P ∪ light) for a convex polyhedron P given as faces
-    (see ``hull_halfspaces``), light in homogeneous coordinates (x, y, z, w)."""
-    poly = ConvexPolytope.from_faces(faces, tol)
-    if poly is None:
-        return []
-    n, o = hull_halfspaces(poly, light_h, tol)
-    return [Plane(ni, float(oi)) for ni, oi in zip(n, o)]
+def light_hull(b: Brep, light_h, tol: float) -> LightHull:
+    """hull(P ∪ light) for a convex polyhedron P (its boundary ``b``), the
+    light in homogeneous coordinates (x, y, z, w), w = 0 for a light at
+    infinity (then (x, y, z) is the unit direction towards it).
+
+    Its half-spaces are P's facets that do not face the light plus, through
+    each silhouette edge (a facet g that does not face the light next to one, f,
+    that does), the plane through that edge and the light. With F(x) = n_f . x - o_f
+    and G likewise, that plane is the positive combination
+
+        σ = -G(light) · F + F(light) · G,     σ(light) = 0,
+
+    of two half-spaces that hold P, so it holds P exactly, however short the
+    edge (no cross product of its endpoints); any such σ holds hull(P ∪ light).
+    A facet within the tolerance of the light counts as not facing it. When
+    P's loops do not close (a near-degenerate clip), facets sharing two
+    vertices count as neighbours and the hull has half-spaces but no boundary
+    (``LightHull.sides`` is None)."""
+    x, y, z, w = (float(c) for c in light_h)
+    s = [nx * x + ny * y + nz * z - o * w for (nx, ny, nz), o in zip(b.normals, b.offsets)]
+    threshold = tol if w != 0 else SUN_FACING
+    facing = [v > threshold for v in s]
+    kept = [g for g in range(len(b.loops)) if not facing[g]]
+    owner = directed_edges(b.loops)
+    pairs, sides = [], []
+    for g in kept:
+        loop = b.loops[g]
+        for i in range(len(loop)):
+            a, c = loop[i - 1], loop[i]
+            f = owner.get((c, a))
+            if f is None:
+                sides = None
+                break
+            if facing[f]:
+                pairs.append((f, g))
+                sides.append((a, c))
+        if sides is None:
+            break
+    if sides is None:
+        loops = [set(loop) for loop in b.loops]
+        pairs = [(f, g) for g in kept for f in range(len(b.loops)) if facing[f] and len(loops[f] & loops[g]) >= 2]
+    normals = [b.normals[g] for g in kept]
+    offsets = [b.offsets[g] for g in kept]
+    for f, g in pairs:
+        wf, wg = max(-s[g], 0.0), s[f]
+        (fx, fy, fz), (gx, gy, gz) = b.normals[f], b.normals[g]
+        nx, ny, nz = wf * fx + wg * gx, wf * fy + wg * gy, wf * fz + wg * gz
+        length = math.sqrt(nx * nx + ny * ny + nz * nz)
+        if length == 0.0:               # f and g opposite: P is flat there, and g alone bounds it
+            nx, ny, nz, length, wf, wg = gx, gy, gz, 1.0, 0.0, 1.0
+        normals.append((nx / length, ny / length, nz / length))
+        offsets.append((wf * b.offsets[f] + wg * b.offsets[g]) / length)
+    return LightHull(np.array(normals, dtype=np.float64).reshape(-1, 3), np.array(offsets, dtype=np.float64),
+                     b, kept, sides, (x, y, z, w))
 
 
-def hull_halfspaces(poly: ConvexPolytope, light_h: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
-    """Half-spaces (normals, offsets) of hull(P ∪ light) for a convex polytope P,
-    the light in homogeneous coordinates (x, y, z, w), w = 0 for a light at
-    infinity: P's facets not facing the light plus a plane through each
-    silhouette edge (facing facet on one side, non-facing on the other) and the
-    light. A silhouette plane too ill-defined to orient (light on the edge's
-    line) is left out, which only makes the hull larger (conservative)."""
-    n, o = poly.normals, poly.offsets
-    s = n @ light_h[:3] - o * light_h[3]
-    facing = s > (tol if light_h[3] != 0 else SUN_FACING)
-    edges, facets = poly.edges()
-    sil = facing[facets[:, 0]] != facing[facets[:, 1]]
-    a = poly.vertices[edges[sil, 0]]
-    b = poly.vertices[edges[sil, 1]]
-    to_light = light_h[:3] - a * light_h[3]
-    sn = cross_rows(b - a, to_light)
-    length = np.linalg.norm(sn, axis=1)
-    ok = length > 1e-12 * np.linalg.norm(b - a, axis=1) * np.linalg.norm(to_light, axis=1)
-    sn = sn[ok] / length[ok, None]
-    so = np.einsum("ij,ij->i", sn, a[ok])
-    flip = sn @ poly.centroid - so > 0
-    sn[flip], so[flip] = -sn[flip], -so[flip]
-    # A true silhouette plane supports P (all of P on its inner side). One that
-    # cuts P can only come from an edge of faces that did not close on a
-    # near-degenerate cut (polyhedron.COINCIDENT); leaving it out is conservative.
-    supports = (poly.vertices @ sn.T - so).max(axis=0, initial=-np.inf) <= COINCIDENT * tol
-    sn, so = sn[supports], so[supports]
-    return np.concatenate([n[~facing], sn]), np.concatenate([o[~facing], so])
+_BOX_NORMALS = np.concatenate([-np.eye(3), np.eye(3)])
+"""Outward normals of a box's facets -x, -y, -z, +x, +y, +z (offsets: -lo, hi)."""
+_BOX_NORMALS_LIST = _BOX_NORMALS.tolist()
 
 
 def _pad(box: np.ndarray, amount: float) -> np.ndarray:
     return np.array([box[0] - amount, box[1] + amount])
-
-
-def _view_halfspaces(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Outward (normals, offsets) of the view frustum's six faces from its corners."""
-    poly = ConvexPolytope.from_corners(corners, 0.0)
-    return poly.normals, poly.offsets
 
 
 def intersection_body(view: View, light: Light, scene: SceneBounds) -> IntersectionBody:
@@ -347,37 +477,42 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
     origin = view.position
     corners = view.corners() - origin
     view_size = float(np.linalg.norm(corners[0] - corners[7]))
-    v_tol = RELATIVE_TOLERANCE * view_size
-    v_poly = ConvexPolytope.from_corners(corners, v_tol)
+    try:
+        frustum = brep.hexahedron(corners)
+    except OpenCut:
+        frustum = ConvexPolytope.from_corners(corners, RELATIVE_TOLERANCE * view_size).brep()
     ln, lo = light_halfspaces(light, origin)
     cone = " and the spot cone" if len(ln) else ""
     if len(ln):
         # Only the cone's planes that cut V matter for V ∩ L (V is convex).
-        d = ln @ v_poly.vertices.T - lo[:, None]
+        d = ln @ corners.T - lo[:, None]
         if np.any(d.min(axis=1) >= 0):
             raise EmptyBodyError("no shadow receiver is lit in view: the view frustum is outside the spot cone")
         cuts = d.max(axis=1) > 0
         ln, lo = ln[cuts], lo[cuts]
 
     # Receivers meeting V ∩ L (planes moved to world space for the culling).
-    vn = np.concatenate([v_poly.normals, ln])
-    vo = np.concatenate([v_poly.offsets, lo])
-    receiver_mask, s_r = BoxIndex.of(scene, "receivers").cull(vn, vo + vn @ origin)
-    if s_r is None:
+    vn = np.concatenate([frustum.normals, ln])
+    vo = np.concatenate([frustum.offsets, lo])
+    receivers = BoxIndex.of(scene, "receivers").select(vn, vo + vn @ origin)
+    if receivers.box is None:
         raise EmptyBodyError("no shadow receiver is inside the view frustum" + cone)
-    s_r = s_r - origin
+    s_r = receivers.box - origin
     scale = float(max(np.linalg.norm(s_r[1] - s_r[0]), view_size * 1e-6, 1e-9))
     tol = RELATIVE_TOLERANCE * max(scale, float(np.abs(s_r).max()))
     s_r = _pad(s_r, max(BOX_PAD * scale, 512 * tol))
 
     # R = V ∩ S_r ∩ L.
-    eye3 = np.eye(3)
-    box_n = np.concatenate([-eye3, eye3])
-    v_poly = ConvexPolytope(v_poly.vertices, v_poly.normals, v_poly.offsets, v_poly.incidence, tol)
-    # (One clip: each clip costs more in fixed overhead than in the plane triples it solves.)
-    visible = v_poly.clip(np.concatenate([box_n, ln]), np.concatenate([-s_r[0], s_r[1], lo]))
+    planes_n = np.concatenate([_BOX_NORMALS, ln])
+    planes_o = np.concatenate([-s_r[0], s_r[1], lo])
+    try:
+        visible = brep.clip(frustum, planes_n.tolist(), planes_o.tolist(), tol)
+    except OpenCut:
+        poly = ConvexPolytope.from_corners(corners, tol).clip(planes_n, planes_o)
+        visible = None if poly is None else poly.brep()
     if visible is None:
         raise EmptyBodyError("the view frustum does not meet the receivers" + (" inside the spot cone" if len(ln) else ""))
+    visible_vertices = np.array(visible.vertices, dtype=np.float64)
 
     # hull(R ∪ light) ∩ L, and the casters meeting it.
     light_h = light.homogeneous_position.copy()
@@ -385,25 +520,33 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
         light_h[:3] -= origin
     # hull(R ∪ light) ⊂ L already (L is a convex cone with its apex at the light and R ⊂ L),
     # so L's planes would only repeat what the hull says.
-    hn, ho = hull_halfspaces(visible, light_h, tol)
-    caster_mask, cast_box = BoxIndex.of(scene, "casters").cull(hn, ho + hn @ origin, tol)
-    s_c = np.array([visible.vertices.min(axis=0), visible.vertices.max(axis=0)])
-    if cast_box is not None:
-        s_c = np.array([np.minimum(s_c[0], cast_box[0] - origin), np.maximum(s_c[1], cast_box[1] - origin)])
+    hull = light_hull(visible, light_h, tol)
+    hn, ho = hull.normals, hull.offsets + hull.normals @ origin
+    casters = BoxIndex.of(scene, "casters").select(hull.normals, ho, tol)
+    s_c = np.array([visible_vertices.min(axis=0), visible_vertices.max(axis=0)])
+    if casters.box is not None:
+        s_c = np.array([np.minimum(s_c[0], casters.box[0] - origin), np.maximum(s_c[1], casters.box[1] - origin)])
     scale = float(max(np.linalg.norm(s_c[1] - s_c[0]), scale))
     s_c = _pad(s_c, max(BOX_PAD * scale, 512 * tol))
 
-    body = ConvexPolytope.box(s_c[0], s_c[1], tol).clip(hn, ho)
+    # B = hull(R ∪ light) ∩ S_c; a sun's hull is closed beyond S_c, and the clip cuts that cap away.
+    box_o = np.concatenate([-s_c[0], s_c[1]])
+    try:
+        cap = float(np.maximum(light_h[:3] * s_c[0], light_h[:3] * s_c[1]).sum()) + scale if light_h[3] == 0 else None
+        body = brep.clip(hull.brep(cap), _BOX_NORMALS_LIST, box_o.tolist(), tol)
+        body = None if body is None else ConvexPolytope.from_brep(body, tol)
+    except OpenCut:
+        body = ConvexPolytope.box(s_c[0], s_c[1], tol).clip(hull.normals, hull.offsets)
     if body is None:
         raise EmptyBodyError("the light-extruded view does not meet the scene")
     return IntersectionBody(
         vertices=body.vertices + origin,
         faces=LazyFaces(body, origin),
-        visible_vertices=visible.vertices + origin,
-        caster_mask=caster_mask,
-        receiver_mask=receiver_mask,
-        receiver_boxes=np.compress(receiver_mask, scene.receivers, axis=0),   # a copy; 4x faster than a boolean gather
-        hull_planes=[Plane(n, float(o)) for n, o in zip(hn, ho + hn @ origin)],
+        visible_vertices=visible_vertices + origin,
+        casters=casters,
+        receivers=receivers,
+        receiver_source=scene.receivers,
+        hull_halfspaces=(hn, ho),
         tolerance=tol,
         scale=scale,
         polytope=body,

@@ -13,9 +13,12 @@
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+
+from . import brep as _brep
+from .brep import Brep, OpenCut
 
 EPS = float(np.finfo(np.float64).eps)
 
@@ -299,15 +302,21 @@ def _merge_points(p: np.ndarray, tol, radius: np.ndarray | None = None) -> np.nd
 class ConvexPolytope:
     """A closed convex polytope with both descriptions, in float64.
 
-    ``vertices`` (n, 3), sorted lexicographically; ``normals``/``offsets`` the
-    facet half-spaces ``normals @ x <= offsets`` (unit outward normals, no
-    redundant planes); ``incidence`` (n, m) which vertex lies on which facet.
-    ``tol`` is the length below which points and planes are considered to meet.
+    ``vertices`` (n, 3); ``normals``/``offsets`` the facet half-spaces
+    ``normals @ x <= offsets`` (unit outward normals); ``incidence`` (n, m)
+    which vertex lies on which facet; ``loops`` each facet's vertex indices
+    counter-clockwise seen from outside (derived from the incidence when not
+    given). ``tol`` is the length below which points and planes are considered
+    to meet. Every construction is deterministic.
 
-    Built by vertex enumeration from half-spaces: every triple of planes is
-    solved at once (vectorised), infeasible and duplicate solutions dropped. Only
-    the planes that cut are enumerated when clipping (``clip``), so a clip with
-    k cutting planes on an m-facet polytope solves C(m+k, 3) - C(m, 3) triples.
+    ``clip`` cuts the boundary plane by plane (:mod:`.brep`, a dozen plain
+    Python operations per vertex and no numpy overhead), so its faces close by
+    construction. ``from_halfspaces``, and ``clip`` when a cut is too
+    degenerate for the face walk (``brep.OpenCut``), use vertex enumeration:
+    every triple of planes is solved at once (vectorised), infeasible and
+    duplicate solutions dropped, so a clip with k cutting planes on an m-facet
+    polytope solves C(m+k, 3) - C(m, 3) triples; its vertices come sorted
+    lexicographically and its planes without redundant ones.
     """
 
     vertices: np.ndarray
@@ -315,6 +324,7 @@ class ConvexPolytope:
     offsets: np.ndarray
     incidence: np.ndarray
     tol: float
+    loops: tuple | None = field(default=None, compare=False, repr=False)
 
     # -- construction --------------------------------------------------------
     @classmethod
@@ -324,7 +334,8 @@ class ConvexPolytope:
             # Corners in lexicographic order (bit 2: x, bit 1: y, bit 0: z) and the
             # facets -x, -y, -z, +x, +y, +z with their known incidence.
             verts = np.where(_BOX_BITS, hi, lo) + 0.0
-            return cls(verts, _BOX_NORMALS.copy(), np.concatenate([-lo, hi]), _BOX_INCIDENCE.copy(), tol)
+            return cls(verts, _BOX_NORMALS.copy(), np.concatenate([-lo, hi]), _BOX_INCIDENCE.copy(), tol,
+                       _BOX_LOOPS)
         return cls.from_corners(np.array([[hi[0] if i & 1 else lo[0], hi[1] if i & 2 else lo[1],
                                            hi[2] if i & 4 else lo[2]] for i in range(8)]), tol)
 
@@ -348,7 +359,10 @@ class ConvexPolytope:
             verts = c[order] + 0.0
             inc = _HEX_INCIDENCE[order]
             if np.all(np.abs((verts @ n.T - o)[inc]) <= 4.0 * tol):
-                return cls(verts, n, o, inc.copy(), tol)
+                # Quads whose normal had to be flipped run the other way round.
+                at = np.argsort(order).tolist()
+                loops = tuple(tuple(at[i] for i in (q[::-1] if f else q)) for q, f in zip(_HEX_QUADS, flip.tolist()))
+                return cls(verts, n, o, inc.copy(), tol, loops)
             poly = cls._finish(verts, n, o, tol)
         else:
             poly = cls._finish(c[_merge_points(c, SNAP * tol)] + 0.0, n, o, tol)
@@ -357,6 +371,22 @@ class ConvexPolytope:
         if poly is None:
             raise ValueError("degenerate hexahedron")
         return poly
+
+    @classmethod
+    def from_brep(cls, b: Brep, tol: float) -> "ConvexPolytope":
+        """The polytope of a boundary representation (:mod:`.brep`)."""
+        verts = np.array(b.vertices, dtype=np.float64).reshape(-1, 3)
+        flat = [v for loop in b.loops for v in loop]
+        owner = [f for f, loop in enumerate(b.loops) for _ in loop]
+        inc = np.zeros((len(verts), len(b.loops)), dtype=bool)
+        inc[flat, owner] = True
+        return cls(verts + 0.0, np.array(b.normals, dtype=np.float64).reshape(-1, 3),
+                   np.array(b.offsets, dtype=np.float64), inc, tol, tuple(map(tuple, b.loops)))
+
+    def brep(self) -> Brep:
+        """This polytope's boundary as plain lists (:mod:`.brep`)."""
+        return Brep(self.vertices.tolist(), self.normals.tolist(), self.offsets.tolist(),
+                    [list(loop) for loop in self.facet_loops()])
 
     @classmethod
     def from_faces(cls, faces: list[np.ndarray], tol: float) -> "ConvexPolytope | None":
@@ -496,8 +526,23 @@ class ConvexPolytope:
         cut = np.any(d > self.tol, axis=0)
         if not cut.any():
             return self
-        n2, o2 = _dedupe_planes(n2[cut], o2[cut], self.tol, self.vertices)
-        inside = np.all(d[:, cut] <= self.tol, axis=1)
+        n2, o2 = n2[cut], o2[cut]
+        try:
+            b = self.brep()
+            for n, o in zip(n2.tolist(), o2.tolist()):
+                b = _brep.cut(b, n, o, self.tol)
+                if b is None:
+                    return None
+            return ConvexPolytope.from_brep(b, self.tol)
+        except OpenCut:
+            return self._clip_by_enumeration(n2, o2, d[:, cut])
+
+    def _clip_by_enumeration(self, n2: np.ndarray, o2: np.ndarray, d: np.ndarray) -> "ConvexPolytope | None":
+        """``clip`` by vertex enumeration, for half-spaces that all cut (``d``:
+        the vertices' signed distances to them)."""
+        n2, o2 = _dedupe_planes(n2, o2, self.tol, self.vertices)
+        d = self.vertices @ n2.T - o2
+        inside = np.all(d <= self.tol, axis=1)
         m = len(self.normals)
         n = np.concatenate([self.normals, n2])
         o = np.concatenate([self.offsets, o2])
@@ -506,7 +551,8 @@ class ConvexPolytope:
 
     def translated(self, offset) -> "ConvexPolytope":
         t = np.asarray(offset, dtype=np.float64)
-        return ConvexPolytope(self.vertices + t, self.normals, self.offsets + self.normals @ t, self.incidence, self.tol)
+        return ConvexPolytope(self.vertices + t, self.normals, self.offsets + self.normals @ t, self.incidence, self.tol,
+                              self.loops)
 
     def contains(self, points, tol: float | None = None) -> np.ndarray:
         t = 10.0 * self.tol if tol is None else tol
@@ -522,48 +568,49 @@ class ConvexPolytope:
     def planes(self) -> list[Plane]:
         return [Plane(n, float(o)) for n, o in zip(self.normals, self.offsets)]
 
-    def _loops(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(facet id, vertex id) of every incidence, ordered counter-clockwise
-        (seen from outside) around each facet, facets in order; and the counts."""
+    def facet_loops(self) -> tuple:
+        """Each facet's vertex indices, counter-clockwise seen from outside."""
+        if self.loops is None:
+            object.__setattr__(self, "loops", self._loops_from_incidence())
+        return self.loops
+
+    def _loops_from_incidence(self) -> tuple:
+        """The facet loops of an enumerated polytope: each facet's vertices
+        ordered by angle about its centre."""
         f, v = np.nonzero(self.incidence.T)
         counts = np.bincount(f, minlength=len(self.normals))
         pts = self.vertices[v]
         centre = np.stack([np.bincount(f, weights=pts[:, c], minlength=len(counts)) for c in range(3)], axis=1)
-        centre /= counts[:, None]
+        centre /= np.maximum(counts, 1)[:, None]
         u = _perpendiculars(self.normals)
         w = cross_rows(self.normals, u)
         rel = pts - centre[f]
         ang = np.arctan2(np.einsum("ij,ij->i", rel, w[f]), np.einsum("ij,ij->i", rel, u[f]))
         order = np.lexsort((ang, f))
-        return f[order], v[order], counts
+        ids = v[order].tolist()
+        ends = np.cumsum(counts).tolist()
+        return tuple(tuple(ids[e - c: e]) for e, c in zip(ends, counts.tolist()))
 
     def edges(self) -> tuple[np.ndarray, np.ndarray]:
-        """(e, 2) vertex index pairs of the edges, and (e, 2) the two facets
-        meeting along each: consecutive vertices of the facet loops. (From the
-        loops rather than from shared planes, so a vertex lying on an edge within
-        the tolerance splits it instead of making a triangle of "edges".)"""
-        f, v, counts = self._loops()
-        start = np.repeat(np.cumsum(counts) - counts, counts)
-        nxt = np.arange(len(v)) + 1
-        wrap = nxt == start + np.repeat(counts, counts)
-        nxt[wrap] = start[wrap]
-        a, b = v, v[nxt]
-        key = np.minimum(a, b) * len(self.vertices) + np.maximum(a, b)
-        order = np.argsort(key, kind="stable")
-        key, f = key[order], f[order]
-        first = np.ones(len(key), dtype=bool)
-        first[1:] = key[1:] != key[:-1]
-        idx = np.nonzero(first)[0]
-        second = np.minimum(idx + 1, len(key) - 1)
-        second = np.where(key[second] == key[idx], second, idx)     # (an open loop: one facet only)
-        pair = np.stack([key[idx] // len(self.vertices), key[idx] % len(self.vertices)], axis=1)
-        return pair, np.stack([f[idx], f[second]], axis=1)
+        """(e, 2) vertex index pairs of the edges (lower index first, sorted),
+        and (e, 2) the two facets meeting along each: consecutive vertices of
+        the facet loops. (From the loops rather than from shared planes, so a
+        vertex lying on an edge within the tolerance splits it instead of making
+        a triangle of "edges"; an edge of an open loop has its one facet twice.)"""
+        facets: dict = {}
+        for f, loop in enumerate(self.facet_loops()):
+            for i in range(len(loop)):
+                a, b = loop[i - 1], loop[i]
+                facets.setdefault((a, b) if a < b else (b, a), []).append(f)
+        keys = sorted(facets)
+        pairs = np.array(keys, dtype=np.int64).reshape(-1, 2)
+        owners = np.array([(fs[0], fs[-1]) for fs in (facets[k] for k in keys)], dtype=np.int64).reshape(-1, 2)
+        return pairs, owners
 
     def faces(self) -> list[np.ndarray]:
         """The facets as (K, 3) vertex loops, counter-clockwise seen from outside,
         in facet order."""
-        f, v, counts = self._loops()
-        return np.split(self.vertices[v], np.cumsum(counts)[:-1])
+        return [self.vertices[list(loop)] for loop in self.facet_loops()]
 
 
 _HEX_QUADS = ((0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5))
@@ -577,3 +624,5 @@ _HEX_EDGE_INDEX = np.array(_HEX_EDGES)
 _BOX_BITS = np.array([[(i >> 2) & 1, (i >> 1) & 1, i & 1] for i in range(8)], dtype=bool)
 _BOX_NORMALS = np.concatenate([-np.eye(3), np.eye(3)])
 _BOX_INCIDENCE = np.concatenate([~_BOX_BITS, _BOX_BITS], axis=1)
+_BOX_LOOPS = ((0, 1, 3, 2), (0, 4, 5, 1), (0, 2, 6, 4), (4, 6, 7, 5), (2, 3, 7, 6), (1, 5, 7, 3))
+"""The box's facet loops (-x, -y, -z, +x, +y, +z), counter-clockwise seen from outside."""

@@ -1,0 +1,176 @@
+"""A convex polyhedron as its boundary, in plain Python floats, and the plane cut.
+
+B and the polytopes around it have a dozen or two vertices, so numpy's fixed
+cost per call outweighs the arithmetic; walking the faces in plain Python is
+faster, and it keeps the faces closed by construction (every edge of the cut
+has two faces), which vertex enumeration only approximates on near-degenerate
+cuts.
+
+A :class:`Brep` holds the vertices and, per facet, its plane (unit outward
+normal, offset: ``normal . x <= offset`` inside) and its vertex loop,
+counter-clockwise seen from outside. :func:`cut` intersects it with a
+half-space. Facet planes are carried over, never recomputed from the
+(possibly tiny) clipped polygons; only the cap gets the cutting plane.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+
+class Brep(NamedTuple):
+    """A closed convex polyhedron: ``vertices`` [(x, y, z)], and per facet
+    ``normals`` [(nx, ny, nz)], ``offsets`` [o] and ``loops`` [[vertex index]]."""
+
+    vertices: list
+    normals: list
+    offsets: list
+    loops: list
+
+
+class OpenCut(ValueError):
+    """A cut whose new boundary does not close into one loop: the half-space
+    passes through the polyhedron within the tolerance in a way the face walk
+    cannot order (callers fall back to vertex enumeration)."""
+
+
+def cut(b: Brep, normal, offset: float, tol: float) -> Brep | None:
+    """``b`` ∩ {normal . x <= offset} (unit ``normal``); ``b`` itself when the
+    half-space holds it, None when nothing with volume is left.
+
+    Vertices within ``tol`` of the plane lie on it. Each facet is walked once:
+    kept, dropped, or cut where its edges cross the plane (a crossing point is
+    shared by the two facets of its edge). The facets' new edges on the plane,
+    reversed, chain into the cap."""
+    nx, ny, nz = normal
+    d = [nx * x + ny * y + nz * z - offset for x, y, z in b.vertices]
+    if max(d) <= tol:
+        return b
+    if min(d) >= -tol:
+        return None
+    side = [1 if e > tol else (-1 if e < -tol else 0) for e in d]
+
+    verts: list = []
+    index: list = []                       # old vertex -> new index (-1: cut away)
+    on_plane: set = set()                  # new indices of the vertices on the cutting plane
+    for v, s in zip(b.vertices, side):
+        if s > 0:
+            index.append(-1)
+            continue
+        if s == 0:
+            on_plane.add(len(verts))
+        index.append(len(verts))
+        verts.append(v)
+    crossing: dict = {}                    # (lower, higher old index) -> new index
+
+    normals, offsets, loops = [], [], []
+    touching = []                          # the new loops with a vertex on the plane
+    for fn, fo, loop in zip(b.normals, b.offsets, b.loops):
+        s = [side[v] for v in loop]
+        if max(s) <= 0:
+            new = [index[v] for v in loop]
+            if 0 in s:
+                touching.append(new)
+        elif min(s) >= 0:
+            continue
+        else:
+            new = []
+            k = len(loop)
+            for i in range(k):
+                sa, sc = s[i], s[i + 1 - k]
+                if sa <= 0:
+                    new.append(index[loop[i]])
+                if sa * sc < 0:
+                    a, c = loop[i], loop[i + 1 - k]
+                    key = (a, c) if a < c else (c, a)
+                    x = crossing.get(key)
+                    if x is None:
+                        # From the endpoint with the lower index, so both facets get the same point.
+                        (px, py, pz), (qx, qy, qz) = b.vertices[key[0]], b.vertices[key[1]]
+                        t = d[key[0]] / (d[key[0]] - d[key[1]])
+                        x = crossing[key] = len(verts)
+                        verts.append((px + t * (qx - px), py + t * (qy - py), pz + t * (qz - pz)))
+                        on_plane.add(x)
+                    new.append(x)
+            touching.append(new)
+        normals.append(fn)
+        offsets.append(fo)
+        loops.append(new)
+
+    # The cap: every facet edge p -> q lying on the plane is a cap edge q -> p.
+    cap_next: dict = {}
+    for loop in touching:
+        for i in range(len(loop)):
+            p, q = loop[i - 1], loop[i]
+            if p in on_plane and q in on_plane:
+                if q in cap_next:
+                    raise OpenCut("two cap edges leave one vertex")
+                cap_next[q] = p
+    if len(cap_next) < 3:
+        raise OpenCut("the cut leaves no cap")
+    start = min(cap_next)
+    cap = [start]
+    nxt = cap_next[start]
+    while nxt != start:
+        if len(cap) > len(cap_next):
+            raise OpenCut("the cap's edges do not close into one loop")
+        cap.append(nxt)
+        nxt = cap_next[nxt]
+    if len(cap) != len(cap_next):
+        raise OpenCut("the cap's edges form more than one loop")
+    normals.append(tuple(normal))
+    offsets.append(offset)
+    loops.append(cap)
+    return Brep(verts, normals, offsets, loops)
+
+
+def clip(b: Brep, normals, offsets, tol: float) -> Brep | None:
+    """``b`` cut by each half-space ``normal . x <= offset`` in turn (unit
+    normals, as lists); None when nothing with volume is left."""
+    for n, o in zip(normals, offsets):
+        b = cut(b, n, o, tol)
+        if b is None:
+            return None
+    return b
+
+
+HEXAHEDRON_LOOPS = ((0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5))
+"""The six quads of a hexahedron whose corners are ordered like
+``geometry.UNIT_CUBE_CORNERS`` (near face first, x fastest, then y)."""
+
+
+def hexahedron(corners) -> Brep:
+    """A hexahedron (a view frustum, a box) from its 8 corners ordered like
+    ``geometry.UNIT_CUBE_CORNERS``. A facet's normal is the cross product of
+    its quad's diagonals (exact for a planar quad), turned outwards."""
+    c = [tuple(map(float, p)) for p in corners]
+    cx = sum(p[0] for p in c) / 8
+    cy = sum(p[1] for p in c) / 8
+    cz = sum(p[2] for p in c) / 8
+    normals, offsets, loops = [], [], []
+    for quad in HEXAHEDRON_LOOPS:
+        a, b, e, f = (c[i] for i in quad)
+        ux, uy, uz = e[0] - a[0], e[1] - a[1], e[2] - a[2]
+        vx, vy, vz = f[0] - b[0], f[1] - b[1], f[2] - b[2]
+        nx, ny, nz = uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx
+        length = (nx * nx + ny * ny + nz * nz) ** 0.5
+        if length == 0.0:
+            raise OpenCut("a face of the hexahedron has no area")
+        nx, ny, nz = nx / length, ny / length, nz / length
+        mx = (a[0] + b[0] + e[0] + f[0]) / 4
+        my = (a[1] + b[1] + e[1] + f[1]) / 4
+        mz = (a[2] + b[2] + e[2] + f[2]) / 4
+        if nx * (cx - mx) + ny * (cy - my) + nz * (cz - mz) > 0:      # pointing inwards
+            nx, ny, nz, quad = -nx, -ny, -nz, quad[::-1]
+        normals.append((nx, ny, nz))
+        offsets.append(nx * mx + ny * my + nz * mz)
+        loops.append(list(quad))
+    return Brep(c, normals, offsets, loops)
+
+
+def directed_edges(loops) -> dict:
+    """(from, to) vertex pair -> the facet whose loop runs along it."""
+    owner = {}
+    for f, loop in enumerate(loops):
+        for i in range(len(loop)):
+            owner[(loop[i - 1], loop[i])] = f
+    return owner
