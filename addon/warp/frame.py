@@ -174,15 +174,16 @@ def perspective_frame(apex, axis, up_hint, points, role, scale) -> LightFrame:
     view = look_along(apex, axis, up_hint)
     depth = (points - apex) @ -view[2, :3]                   # along the axis (the eye looks down -z)
     near, far, clamped = near_far(float(depth.min()), float(depth.max()), 1e-6 * scale)
-    return LightFrame(perspective_of(view, near, far), points, role, False, clamped)
+    return LightFrame(perspective_of(view, near, far), points, role, False, bool(clamped))
 
 
-def near_far(nearest: float, farthest: float, floor: float) -> tuple[float, float, bool]:
-    """A perspective frame's (near, far, clamped) from its points' depth range:
-    near is the nearest depth, clamped to ``floor`` (the light inside B), and
-    far stays a little beyond near so the depth range never collapses."""
-    near = max(nearest, floor)
-    return near, max(farthest, near * (1 + 1e-9) + floor), nearest < floor
+def near_far(nearest, farthest, floor):
+    """A perspective frame's (near, far, clamped) from its points' depth range
+    (floats or arrays): near is the nearest depth, clamped to ``floor`` (the
+    light inside B), and far stays a little beyond near so the depth range
+    never collapses."""
+    near = np.maximum(nearest, floor)
+    return near, np.maximum(farthest, near * (1 + 1e-9) + floor), nearest < floor
 
 
 def perspective_of(view: np.ndarray, near, far) -> np.ndarray:
@@ -229,32 +230,33 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
     basis = np.stack([normalize(cross3(up, -axis)), normalize(up - (up @ axis) * axis), -axis])  # cube x, y, z = -axis
     poly = body.polytope_from(apex)
     near_floor = 1e-6 * body.scale
-    faces, points, ranges = [], [], []
-    sections = cube_section_points(poly, poly.edges()[0], basis)
-    for f, ((name, k, sign), pts) in enumerate(zip(CUBE_FACES, sections)):
-        if pts is None:
-            continue
-        forward = sign * basis[k]
-        depth = pts @ forward
-        if float(depth.min()) < near_floor:
-            # B reaches the light inside this face: the whole face from the near floor on.
-            a, b = (basis[j] for j in range(3) if j != k)
-            corners = near_floor * (forward + _FACE_CORNERS[:, :1] * a + _FACE_CORNERS[:, 1:] * b)
-            pts = np.concatenate([pts[depth >= near_floor], corners])
-            ranges.append(near_far(near_floor, float((pts @ forward).max()), near_floor)[:2] + (True,))
-        else:
-            ranges.append(near_far(float(depth.min()), float(depth.max()), near_floor))
-        faces.append(f)
-        points.append(pts + apex)
-    # All the faces' perspectives in one pass: eye rotations, then proj @ view.
+    pts, member = cube_sections(poly, poly.edges()[0], basis)
+    faces = np.flatnonzero(member.any(axis=0))
+    # All the faces at once: eye rotations, depth ranges along each face's forward, proj @ view.
     views = np.zeros((len(faces), 4, 4))
     views[:, :3, :3] = basis[_FACE_ROWS[faces]] * _FACE_ROW_SIGNS[faces][:, :, None]
     views[:, :3, 3] = -views[:, :3, :3] @ apex
     views[:, 3, 3] = 1.0
-    near, far, clamped = zip(*ranges) if faces else ((), (), ())
+    forward = -views[:, 2, :3]
+    member = member[:, faces]
+    depth = pts @ forward.T                                  # (n, faces)
+    nearest = np.where(member, depth, np.inf).min(axis=0)
+    farthest = np.where(member, depth, -np.inf).max(axis=0)
+    clamped = nearest < near_floor
+    points = []
+    for i, f in enumerate(faces):
+        face_pts = pts[member[:, i]]
+        if clamped[i]:
+            # B reaches the light inside this face: the whole face from the near floor on.
+            others = np.delete(basis, CUBE_FACES[f][1], axis=0)
+            corners = near_floor * (forward[i] + _FACE_CORNERS @ others)
+            face_pts = np.concatenate([face_pts[depth[member[:, i], i] >= near_floor], corners])
+            nearest[i], farthest[i] = near_floor, (face_pts @ forward[i]).max()
+        points.append(face_pts + apex)
+    near, far, _ = near_far(nearest, farthest, near_floor)
     to_light = perspective_of(views, near, far)
-    return [LightFrame(m, pts, "cube" + CUBE_FACES[f][0], False, c)
-            for f, m, pts, c in zip(faces, to_light, points, clamped)]
+    return [LightFrame(m, p, "cube" + CUBE_FACES[f][0], False, bool(c))
+            for f, m, p, c in zip(faces, to_light, points, clamped)]
 
 
 _FACE_CORNERS = np.array([[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]])
@@ -265,7 +267,8 @@ _FACE_PLANES = np.array([[s if j == o else (-sign if j == k else 0.0) for j in r
                          for _, k, sign in CUBE_FACES for o in range(3) if o != k for s in (1.0, -1.0)])
 """Coefficients (in the cube's basis) of the 4 side planes of each face's
 pyramid, s·other - forward (not yet unit): face f owns rows 4f .. 4f + 3."""
-_FACE_OF_PLANE = np.repeat(np.arange(6), 4)
+_FACES = np.arange(6)
+_FACE_OF_PLANE = np.repeat(_FACES, 4)
 _CORNER_ON_FACE = np.array([[c[k] == sign for _, k, sign in CUBE_FACES] for c in _CUBE_SIGNS])
 """(8, 6): which of the cube's corner rays bound which face."""
 
@@ -274,20 +277,29 @@ def cube_section_points(poly, edges: np.ndarray, basis: np.ndarray) -> list:
     """For each face of the cube with axes ``basis`` (rows) centred on the
     apex, points whose convex hull is P ∩ C_face (``pyramid_section_points``,
     all six at once), or None when that part has no volume."""
+    pts, member = cube_sections(poly, edges, basis)
+    return [pts[member[:, f]] if member[:, f].any() else None for f in range(6)]
+
+
+def cube_sections(poly, edges: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``cube_section_points`` as candidate points (n, 3) and which faces each
+    belongs to (n, 6), a face's column all False when its part has no volume."""
     tol = poly.tol
     v = poly.vertices
     n24 = (_FACE_PLANES @ basis) / math.sqrt(2.0)           # (24, 3) unit normals, <= 0 inside the pyramid
     d = v @ n24.T                                            # (n, 24)
     d3 = d.reshape(len(v), 6, 4)
-    outside = np.all(d3 >= -tol, axis=0).any(axis=1)         # (6,): P wholly outside one plane of the face
+    outside = (d3 >= -tol).all(axis=0).any(axis=1)           # (6,): P wholly outside one plane of the face
     # P's edges crossing the 24 planes, each kept if inside its face's pyramid.
-    da, db = d[edges[:, 0]], d[edges[:, 1]]
-    e, p = np.nonzero(((da < -tol) & (db > tol)) | ((da > tol) & (db < -tol)))
-    t = da[e, p] / (da[e, p] - db[e, p])
+    side = (d > tol).astype(np.int8) - (d < -tol)            # +1 out, -1 in, 0 on the plane
+    de = d[edges]                                            # (e, 2, 24)
+    e, p = np.nonzero(side[edges[:, 0]] * side[edges[:, 1]] < 0)
+    da = de[e, 0, p]
+    t = da / (da - de[e, 1, p])
     a = v[edges[e, 0]]
     x = a + t[:, None] * (v[edges[e, 1]] - a)
     face_of = _FACE_OF_PLANE[p]
-    keep = np.einsum("ij,ikj->ik", x, n24.reshape(6, 4, 3)[face_of]).max(axis=1) <= tol if len(x) else face_of > 0
+    keep = (x @ n24.T).reshape(-1, 6, 4)[np.arange(len(x)), face_of].max(axis=1, initial=-np.inf) <= tol
     x, face_of = x[keep], face_of[keep]
     # The cube's 8 corner rays through P: t-interval where n . (t r) <= o for every facet.
     rays = _CUBE_SIGNS @ basis
@@ -296,25 +308,24 @@ def cube_section_points(poly, edges: np.ndarray, basis: np.ndarray) -> list:
     # Every candidate point once, and which faces it belongs to: vertices inside
     # the face's pyramid, its edge crossings, its corner rays' ends, the apex.
     pts = np.concatenate([v, x, t_lo[:, None] * rays, t_hi[:, None] * rays, np.zeros((1, 3))])
-    member = np.concatenate([d3.max(axis=2) <= tol, face_of[:, None] == np.arange(6),
-                             _CORNER_ON_FACE & hit[:, None], _CORNER_ON_FACE & hit[:, None],
+    on_ray = _CORNER_ON_FACE & hit[:, None]
+    member = np.concatenate([d3.max(axis=2) <= tol, face_of[:, None] == _FACES, on_ray, on_ray,
                              np.repeat(apex[:, None], 6, axis=1)])
     # No volume: too few points, or all on one of the face's planes.
     on_plane = (np.abs(pts @ n24.T) <= tol) | ~member[:, _FACE_OF_PLANE]
     flat = on_plane.all(axis=0).reshape(6, 4).any(axis=1)
-    ok = ~outside & (member.sum(axis=0) >= 4) & ~flat
-    return [pts[member[:, f]] if ok[f] else None for f in range(6)]
+    return pts, member & (~outside & (member.sum(axis=0) >= 4) & ~flat)
 
 
 def ray_interval(poly, rays) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Where rays t·r (t >= 0, from the origin, e.g. a point light) run inside the
     polytope: (t_lo, t_hi, hit) with n . (t r) <= o for every facet on [t_lo, t_hi]."""
     denom = poly.normals @ rays.T                            # (F, R)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = poly.offsets[:, None] / denom
+    o = poly.offsets[:, None]
+    ratio = np.divide(o, denom, out=np.zeros_like(denom), where=denom != 0)
     t_hi = np.where(denom > 0, ratio, np.inf).min(axis=0)
     t_lo = np.maximum(np.where(denom < 0, ratio, -np.inf).max(axis=0), 0.0)
-    blocked = np.any((denom == 0) & (poly.offsets[:, None] < 0), axis=0)
+    blocked = ((denom == 0) & (o < 0)).any(axis=0)
     return t_lo, t_hi, (t_lo <= t_hi) & np.isfinite(t_hi) & ~blocked
 
 
