@@ -54,7 +54,7 @@ PARALLEL_TWIST = 2.0
 def _image_up_raw(view_direction, view_up, light_direction) -> np.ndarray:
     d = normalize(light_direction)
     pv = view_direction - (view_direction @ d) * d
-    s = float(np.linalg.norm(pv))
+    s = math.sqrt(pv @ pv)
     if s >= PARALLEL_BLEND:
         return pv / s
     pu = view_up - (view_up @ d) * d
@@ -84,7 +84,7 @@ def image_up(view_direction, view_up, light_direction) -> np.ndarray:
     plain pitch or pan through the light direction, which turn the map smoothly
     instead (``image_up_singularity`` measures the distance to it)."""
     up = _image_up_raw(view_direction, view_up, light_direction)
-    if np.linalg.norm(up) < 1e-300:
+    if math.sqrt(up @ up) < 1e-300:
         return np.zeros(3)
     return normalize(up)
 
@@ -148,7 +148,7 @@ def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]
     cone holds the points. Points within 1e-7 of the farthest distance from
     the apex are ignored (a perspective map cannot hold its own centre)."""
     dirs = np.asarray(points, dtype=np.float64) - apex
-    norms = np.linalg.norm(dirs, axis=1)
+    norms = np.sqrt((dirs * dirs).sum(axis=1))
     if len(norms) == 0 or norms.max() == 0:
         return SURROUND_AXIS.copy(), math.pi
     # Points at the apex itself (B has the light as a vertex when the light is
@@ -156,13 +156,13 @@ def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]
     far = norms > 1e-7 * norms.max()
     dirs = dirs[far] / norms[far, None]
     mid = (dirs.min(axis=0) + dirs.max(axis=0)) / 2
-    short = SURROUND_BLEND - float(np.linalg.norm(mid))
+    short = SURROUND_BLEND - math.sqrt(mid @ mid)
     if short > 0:
         mid = mid + short * SURROUND_AXIS
-    if np.linalg.norm(mid) < 1e-12:
+    if math.sqrt(mid @ mid) < 1e-12:
         mid = SURROUND_AXIS
     axis = normalize(mid)
-    half = float(np.arccos(np.clip((dirs @ axis).min(), -1.0, 1.0)))
+    half = math.acos(min(max(float((dirs @ axis).min()), -1.0), 1.0))
     return axis, half
 
 

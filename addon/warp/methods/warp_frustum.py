@@ -170,7 +170,7 @@ def _sin_to(v: np.ndarray, ell: np.ndarray) -> float:
 def volume_centroid(body: IntersectionBody) -> np.ndarray:
     """The centre of B's volume (continuous in B, unlike the mean of its vertices,
     which jumps when a vertex appears or merges)."""
-    ref = body.vertices.mean(axis=0)
+    ref = body.vertices.sum(axis=0) / len(body.vertices)             # their mean
     faces = list(body.faces)
     fans, start = [], 0                                               # each face as a fan of triangles
     for f in faces:
@@ -314,15 +314,16 @@ def frame_geometry(view: View, at: LightAtEye, frame: LightFrame, options: WarpO
 
 def warp_matrix(g: FrameGeometry, mu: float) -> np.ndarray:
     """P acting on the frame's homogeneous output [X, Y, Z, W] (module docs)."""
-    a, b = g.a, g.b
+    (a0, a1), (b0, b1) = g.a.tolist(), g.b.tolist()
+    ex, ey, ez = g.eye.tolist()
     inv_d = 1.0 / g.extent if g.extent > 0 else 0.0
-    q_e = float(g.eye[:2] @ b)
-    delta = np.array([a[0] * inv_d, a[1] * inv_d, 0.0, -g.h_min * inv_d])
+    q_e = ex * b0 + ey * b1
+    dx, dy, dw = a0 * inv_d, a1 * inv_d, -g.h_min * inv_d          # δ = (h - h_min) / D
     return np.array([
-        [b[0], b[1], 0.0, -q_e],
-        delta,
-        [0.0, 0.0, 1.0, -float(g.eye[2])],
-        mu * delta + np.array([0.0, 0.0, 0.0, 1.0]),
+        [b0, b1, 0.0, -q_e],
+        [dx, dy, 0.0, dw],
+        [0.0, 0.0, 1.0, -ez],
+        [mu * dx, mu * dy, 0.0, mu * dw + 1.0],
     ])
 
 
