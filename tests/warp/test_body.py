@@ -351,13 +351,15 @@ AWKWARD_SAMPLES = 600
 
 
 def test_polytope_clip_is_exact_on_awkward_cuts():
-    """Vertex enumeration on degenerate cuts (a fixed, seeded sample, so every
-    run checks the same cases): a clip is never falsely empty, its vertices
-    satisfy every half-space to the flatness scale, it holds exactly the sample points that satisfy
-    them (away from the boundary), and its faces close (Euler) on at least 99%
-    of the cuts. Faces that do not close are a known limitation on thin wedges
-    between planes a few 1e-6 rad apart (about 0.1-0.2% of such cuts); B
-    guards against it (body.hull_halfspaces keeps only supporting planes)."""
+    """Clipping on degenerate cuts (a fixed, seeded sample, so every run checks
+    the same cases): a clip is never falsely empty, its vertices satisfy every
+    half-space to the flatness scale, it holds exactly the sample points that
+    satisfy them (away from the boundary), and its faces close (Euler) on at
+    least 99% of the cuts. The face walk (``brep.cut``) closes them by
+    construction; a cut it cannot order falls back to vertex enumeration,
+    whose faces may not close on thin wedges between planes a few 1e-6 rad
+    apart (B's light hull then takes its planes from shared vertices, see
+    ``body.light_hull``)."""
     rng = np.random.default_rng(20261122)
     tol = 1e-10 * 6.0            # as in body.py: 1e-10 of the scale
     pts = np.random.default_rng(0).uniform(BOX_LO, BOX_HI, (3000, 3))
