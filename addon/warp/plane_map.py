@@ -34,7 +34,7 @@ from typing import Optional
 
 import numpy as np
 
-from .polyhedron import Plane, _polygon_on_plane
+from .polyhedron import Plane, _polygon_on_plane, cross_rows
 from .types import WarpError
 
 RANK_TOL = 1e-10
@@ -111,6 +111,16 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / n if n > 0 else v
 
 
+def _row_norms(a: np.ndarray) -> np.ndarray:
+    return np.sqrt(np.einsum("ij,ij->i", a, a))
+
+
+def next_vertices(poly: np.ndarray) -> np.ndarray:
+    """Each vertex's successor around the polygon (``np.roll(poly, -1, axis=0)``
+    without its fixed cost)."""
+    return np.concatenate([poly[1:], poly[:1]])
+
+
 def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
     """The 4x4 projective M with M·src_i ∝ dst_i for five homogeneous
     correspondences (no four of ``src`` coplanar; Chong-Gortler §2 after
@@ -124,17 +134,14 @@ def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
     "residual"})."""
     src = np.asarray(src, dtype=np.float64).reshape(5, 4)
     dst = np.asarray(dst, dtype=np.float64).reshape(5, 4)
-    rows = []
-    for x, y in zip(src, dst):
-        m = int(np.argmax(np.abs(y)))
-        for j in range(4):
-            if j == m:
-                continue
-            r = np.zeros((4, 4))
-            r[j] = y[m] * x
-            r[m] = -y[j] * x
-            rows.append(r.ravel())
-    a = np.asarray(rows)
+    # Rows (correspondence i, j != m_i): the 4x4 unknowns with y_m x in row j and -y_j x in row m.
+    big = np.argmax(np.abs(dst), axis=1)
+    others = np.array([[j for j in range(4) if j != m] for m in big.tolist()])     # (5, 3)
+    i, k = np.arange(5)[:, None], np.arange(3)[None, :]
+    a = np.zeros((5, 3, 4, 4))
+    a[i, k, others] = dst[np.arange(5), big][:, None, None] * src[:, None, :]
+    a[i, k, big[:, None]] = -dst[i, others][:, :, None] * src[:, None, :]
+    a = a.reshape(15, 16)
     if not np.all(np.isfinite(a)):
         raise WarpError("the five point constraints are not finite")
     _, sv, vt = np.linalg.svd(a)
@@ -142,15 +149,13 @@ def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
     if not condition > RANK_TOL:
         raise WarpError(f"the five point constraints are degenerate (rank < 15, relative singular value {condition:.3g})")
     m = vt[-1].reshape(4, 4)
-    residual = 0.0
-    for x, y in zip(src, dst):
-        mx = m @ x
-        nm = float(np.linalg.norm(mx))
-        if nm <= 1e-12 * float(np.linalg.norm(m)) * float(np.linalg.norm(x)):
-            raise WarpError("the five point constraints are degenerate (the solution maps a constrained point to "
-                            "nothing: four of the points are coplanar)")
-        u, v = mx / nm, _unit(y)
-        residual = max(residual, float(min(np.linalg.norm(u - v), np.linalg.norm(u + v))))
+    mx = src @ m.T
+    nm = _row_norms(mx)
+    if np.any(nm <= 1e-12 * float(np.linalg.norm(m)) * _row_norms(src)):
+        raise WarpError("the five point constraints are degenerate (the solution maps a constrained point to "
+                        "nothing: four of the points are coplanar)")
+    u, v = mx / nm[:, None], dst / _row_norms(dst)[:, None]
+    residual = float(np.minimum(_row_norms(u - v), _row_norms(u + v)).max())
     if not residual <= RESIDUAL_TOL:
         raise WarpError(f"the five point solve missed its constraints (residual {residual:.3g})")
     return m, {"condition": condition, "residual": residual}
@@ -193,7 +198,8 @@ def plane_light_rows(view_clip, plane_vec, light_h, length_scale: float) -> tupl
     sigma = float(np.sqrt(np.mean(dist[finite] ** 2))) if finite.any() else 0.0
     sigma = min(sigma, 1e6 * length_scale) if sigma > 0 else length_scale
     nrm = np.diag([1.0 / sigma, 1.0 / sigma, 1.0 / sigma, 1.0])
-    pts = np.array([_unit(nrm @ q) for q in p])
+    pts = p @ nrm                                    # (nrm is diagonal)
+    pts /= _row_norms(pts)[:, None]
     light = _unit(nrm @ l_h)
     raised = _unit(pts[3] + light)  # p̂^4: another point of the line through p^4 and l (Fig. 2)
     src = np.array([pts[0], pts[1], pts[2], raised, light])
@@ -248,23 +254,22 @@ def convex_polygon_on_plane(points, normal, tol: float) -> Optional[np.ndarray]:
 
 def polygon_area(poly, normal) -> float:
     poly = np.asarray(poly, dtype=np.float64)
-    s = np.zeros(3)
-    for i in range(len(poly)):
-        s += np.cross(poly[i], poly[(i + 1) % len(poly)])
+    s = cross_rows(poly, next_vertices(poly)).sum(axis=0)
     return 0.5 * abs(float(s @ normal))
 
 
 def offset_polygon(poly: np.ndarray, normal: np.ndarray, dist: float) -> np.ndarray:
     """The convex polygon (CCW about ``normal``) with every edge moved out by
     ``dist``: exactly the set ``Region.contains`` accepts with tolerance ``dist``."""
-    k = len(poly)
-    out = np.empty_like(poly)
-    for i in range(k):
-        a, b, c = poly[i - 1], poly[i], poly[(i + 1) % k]
-        e1, e2 = _unit(b - a), _unit(c - b)
-        n1, n2 = np.cross(e1, normal), np.cross(e2, normal)  # outward for CCW
-        s = 1.0 + float(n1 @ n2)
-        out[i] = b + dist * (n1 + n2) / s if s > 1e-9 else b + dist * _unit(n1 + n2 if np.any(n1 + n2) else n1)
+    edge = next_vertices(poly) - poly                       # edge i runs from vertex i to i + 1
+    length = np.sqrt(np.einsum("ij,ij->i", edge, edge))
+    out_n = cross_rows(edge / np.where(length > 0, length, 1.0)[:, None],
+                       np.broadcast_to(normal, edge.shape))  # outward for CCW
+    n1, n2 = np.concatenate([out_n[-1:], out_n[:-1]]), out_n   # the edges before and after each vertex
+    s = 1.0 + np.einsum("ij,ij->i", n1, n2)
+    out = poly + dist * (n1 + n2) / np.where(s > 1e-9, s, 1.0)[:, None]
+    for i in np.flatnonzero(s <= 1e-9):                     # the polygon turns back on itself there
+        out[i] = poly[i] + dist * _unit(n1[i] + n2[i] if np.any(n1[i] + n2[i]) else n1[i])
     return out
 
 
@@ -337,8 +342,8 @@ def default_plane(receiver_boxes) -> Optional[PlaneOfInterest]:
         return None
     area = np.where(flat, ext[:, 0] * ext[:, 1], -1.0)
     # widest first, then thinnest, then lowest index (deterministic)
-    order = np.lexsort((np.arange(len(b)), ext[:, 2], -area))
-    i = int(order[0])
+    widest = np.flatnonzero(area == area.max())
+    i = int(widest[np.argmin(ext[widest, 2])])
     lo, hi = b[i]
     top = hi[2]
     face = np.array([[lo[0], lo[1], top], [hi[0], lo[1], top], [hi[0], hi[1], top], [lo[0], hi[1], top]])

@@ -56,11 +56,11 @@ import numpy as np
 from ..body import IntersectionBody
 from ..fit import ndc_bounds, window_matrix
 from ..frame import light_angles, light_frames
-from ..geometry import translation
+from ..geometry import cross3, homogeneous, translation
 from ..plane_map import (PlaneOfInterest, clip_polygon, convex_polygon_on_plane, default_plane, enclosing_polygon,
-                         min_area_twist,
+                         min_area_twist, next_vertices,
                          offset_polygon, plane_light_rows, plane_section, polygon_area, rotation2d)
-from ..polyhedron import Plane, clip_faces, unique_points
+from ..polyhedron import Plane, clip_faces, cross_rows, unique_points
 from ..types import Diagnostics, Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .uniform import frame_map
 
@@ -138,7 +138,8 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
     side = 1.0 if light_side > 0 else -1.0
     height = side * pi                                # h(X) = height · (x, 1)
     # The camera on the plane: it is seen edge-on and covers no pixel.
-    cam = np.linalg.svd(view.world_to_clip[[0, 1, 3]])[2][-1]     # the camera centre (homogeneous)
+    world_to_clip = view.world_to_clip
+    cam = np.linalg.svd(world_to_clip[[0, 1, 3]])[2][-1]          # the camera centre (homogeneous)
     if abs(cam[3]) > 1e-12 * np.linalg.norm(cam[:3]):
         edge_on = abs(float(pi @ np.append(cam[:3] / cam[3] - origin, 1.0))) <= max(tol, 1e-9 * scale)
     else:                                                           # orthographic: the centre is a direction
@@ -156,7 +157,7 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
         else:
             for i in range(len(ext)):
                 a, b = ext[i], ext[(i + 1) % len(ext)]
-                poly = clip_polygon(poly, Plane.through(a, np.cross(b - a, n)), body.tolerance)
+                poly = clip_polygon(poly, Plane.through(a, cross3(b - a, n)), body.tolerance)
                 if len(poly) < 3:
                     poly = None
                     break
@@ -166,7 +167,7 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
         diag.fallback(role, f"{plane.name} has no visible part (behind the camera, outside the view, the spot "
                             f"cone or the receivers' bounds)")
         return None
-    view_rel = view.world_to_clip @ translation(origin)
+    view_rel = world_to_clip @ translation(origin)
     try:
         m, info = plane_light_rows(view_rel, pi, l_h, scale)
     except WarpError as exc:
@@ -188,7 +189,7 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
         diag.fallback(f"{role}: near plane", "the light is inside B; casters nearer than 1e-6 of the scene scale "
                                              "to the light's height are not in the plane map")
     pts = np.concatenate([prism_pts, casters])
-    hw = np.column_stack([pts, np.ones(len(pts))])
+    hw = homogeneous(pts)
     w = hw @ rows[2]
     if not np.all(w > 0):
         keep = w > 0
@@ -197,7 +198,7 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
     pixel = np.array([[view.resolution[0] / 2, 0, view.resolution[0] / 2],
                       [0, view.resolution[1] / 2, view.resolution[1] / 2],
                       [0, 0, 1.0]])
-    g = np.column_stack([grown, np.ones(len(grown))]) @ (pixel @ rows).T
+    g = homogeneous(grown) @ (pixel @ rows).T
     pixels = g[:, :2] / g[:, 2:3]
     area = _area2d(pixels)
     if area < 1.0:
@@ -226,18 +227,18 @@ def _casters(grown, n, height, l_h, tol, body, origin):
     tan = float(np.max(np.sqrt(np.maximum(1 - cos ** 2, 0)) / np.maximum(cos, 1e-300)))
     poly = offset_polygon(grown, n, tol * (1 + min(tan, 1e12)))
     centre = poly.mean(axis=0)
-    planes = [Plane(-hv, tol + h0)]                       # h(x) >= -tol
-    for i in range(len(poly)):
-        a, b = poly[i], poly[(i + 1) % len(poly)]
-        towards = l_h[:3] - a * l_h[3]                    # from a towards the light (homogeneous)
-        normal = np.cross(b - a, towards)
-        if not np.any(normal):
-            continue
-        p = Plane.through(a, normal)
-        if p.distance(centre[None])[0] > 0:
-            p = Plane(-p.normal, -p.offset)
-        planes.append(p)
-    poly = _clip_body(body, origin, planes)
+    # The side planes of C: through each edge (a, b) and the light, facing away from the centre.
+    towards = l_h[:3] - poly * l_h[3]                     # from each a towards the light (homogeneous)
+    side = cross_rows(next_vertices(poly) - poly, towards)
+    spans = np.any(side != 0, axis=1)                     # (an edge pointing at the light spans no plane)
+    side, through = side[spans], poly[spans]
+    side /= np.sqrt(np.einsum("ij,ij->i", side, side))[:, None]
+    side_offsets = np.einsum("ij,ij->i", side, through)
+    away = side @ centre - side_offsets > 0
+    side[away], side_offsets[away] = -side[away], -side_offsets[away]
+    normals = np.concatenate([-hv[None], side])           # h(x) >= -tol, then the sides
+    offsets = np.concatenate([[tol + h0], side_offsets])
+    poly = _clip_body(body, origin, normals, offsets)
     if poly is None:
         return np.zeros((0, 3)), False
     near_clamped = False
@@ -245,28 +246,29 @@ def _casters(grown, n, height, l_h, tol, body, origin):
         top = float(height @ l_h) / l_h[3] - NEAR_FRACTION * body.scale
         if float((poly @ hv).max()) + h0 > top:
             near_clamped = True
-            poly = _clip_body(body, origin, planes + [Plane(hv, top - h0)])
+            poly = _clip_body(body, origin, np.concatenate([normals, hv[None]]), np.append(offsets, top - h0))
             if poly is None:
                 return np.zeros((0, 3)), near_clamped
     return poly, near_clamped
 
 
-def _clip_body(body: IntersectionBody, origin: np.ndarray, planes: list[Plane]) -> np.ndarray | None:
-    """Vertices (relative to ``origin``) of B ∩ the half-spaces, or None if empty."""
+def _clip_body(body: IntersectionBody, origin: np.ndarray, normals: np.ndarray,
+               offsets: np.ndarray) -> np.ndarray | None:
+    """Vertices (relative to ``origin``) of B ∩ {normals @ x <= offsets}, or None if empty."""
     if getattr(body, "polytope", None) is not None:
-        poly = body.polytope_from(origin).clip(np.array([p.normal for p in planes]), np.array([p.offset for p in planes]))
+        poly = body.polytope_from(origin).clip(normals, offsets)
         return None if poly is None else poly.vertices
     faces = [f - origin for f in body.faces]
-    for p in planes:
-        faces = clip_faces(faces, p, body.tolerance)
+    for n, o in zip(normals, offsets):
+        faces = clip_faces(faces, Plane(n, float(o)), body.tolerance)
         if not faces:
             return None
     return unique_points(np.concatenate(faces), body.tolerance * 10)
 
 
 def _area2d(p: np.ndarray) -> float:
-    x, y = p[:, 0], p[:, 1]
-    return 0.5 * abs(float(x @ np.roll(y, -1) - y @ np.roll(x, -1)))
+    q = next_vertices(p)
+    return 0.5 * abs(float(p[:, 0] @ q[:, 1] - p[:, 1] @ q[:, 0]))
 
 
 def _rect(pixels: np.ndarray, s: float, theta: float) -> tuple[int, int, int, int]:
