@@ -35,13 +35,14 @@ def window_matrix(lo, hi) -> np.ndarray:
     lo, hi = np.asarray(lo, dtype=np.float64).tolist(), np.asarray(hi, dtype=np.float64).tolist()
     ext = [max(b - a, 0.0) for a, b in zip(lo, hi)]
     least = max(ext) * 1e-6
-    m = np.eye(4)
+    rows = []
     for i in range(3):
         pad = NDC_PAD * max(ext[i], least) + 1e-300
         a, b = lo[i] - pad, hi[i] + pad
-        m[i, i] = 2.0 / (b - a)
-        m[i, 3] = -(b + a) / (b - a)
-    return m
+        row = [0.0, 0.0, 0.0, -(b + a) / (b - a)]
+        row[i] = 2.0 / (b - a)
+        rows.append(row)
+    return np.array(rows + [[0.0, 0.0, 0.0, 1.0]])
 
 
 def fit_to_unit_cube(transform, points) -> np.ndarray:

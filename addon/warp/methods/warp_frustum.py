@@ -81,6 +81,7 @@ the light's axis for a point light), fitted so B spans [-1, 1]. ``lam`` forces
 """
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from typing import Callable, Optional
@@ -172,10 +173,9 @@ def volume_centroid(body: IntersectionBody) -> np.ndarray:
     which jumps when a vertex appears or merges)."""
     ref = body.vertices.sum(axis=0) / len(body.vertices)             # their mean
     faces = list(body.faces)
-    fans, start = [], 0                                               # each face as a fan of triangles
-    for f in faces:
-        fans.extend((start, start + j, start + j + 1) for j in range(1, len(f) - 1))
-        start += len(f)
+    sizes = [len(f) for f in faces]
+    fans = [(s, s + j, s + j + 1)                                     # each face as a fan of triangles
+            for s, n in zip(itertools.accumulate([0] + sizes), sizes) for j in range(1, n - 1)]
     if not fans:
         return ref
     a, b, c = (np.concatenate(faces) - ref)[np.array(fans).T]        # the fans' corners, (T, 3) each
@@ -261,9 +261,11 @@ def frame_geometry(view: View, at: LightAtEye, frame: LightFrame, options: WarpO
                    body: IntersectionBody) -> tuple[Optional[FrameGeometry], str]:
     """The warp geometry of one frame, or (None, reason) when undefined."""
     t = frame.to_light
+    ex, ey, ez, ew = (t[:, :3] @ view.position + t[:, 3]).tolist()
+    if not frame.directional and not ew > 1e-12 * at.dist:
+        return None, "the eye is behind this frame's light plane: no warp in its post-perspective space"
     ph = frame.points_h @ t.T
     pts = ph[:, :3] / ph[:, 3:]
-    ex, ey, ez, ew = (t[:, :3] @ view.position + t[:, 3]).tolist()
     fade = 1.0
     if frame.directional:
         eye_ls = (ex / ew, ey / ew, ez / ew)
@@ -272,8 +274,6 @@ def frame_geometry(view: View, at: LightAtEye, frame: LightFrame, options: WarpO
         else:
             a = (0.0, 1.0)                   # the frame's +y is Eq. 3's V_P (blended near parallel)
     else:
-        if not ew > 1e-12 * at.dist:
-            return None, "the eye is behind this frame's light plane: no warp in its post-perspective space"
         vx, vy, _, vw = (t[:, :3] @ at.vector).tolist()
         v = ((vx * ew - ex * vw) / ew ** 2, (vy * ew - ey * vw) / ew ** 2)   # image of the vector at the eye
         (xlo, ylo, zlo), (xhi, yhi, zhi) = pts.min(axis=0).tolist(), pts.max(axis=0).tolist()
