@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any, Optional
 
 import numpy as np
@@ -32,6 +33,11 @@ def _mat4(m, name) -> np.ndarray:
     a = np.asarray(m, dtype=np.float64)
     if a.shape != (4, 4) or not np.all(np.isfinite(a)):
         raise WarpError(f"{name} must be a finite 4x4 matrix")
+    return a
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
     return a
 
 
@@ -69,13 +75,14 @@ class View:
             raise WarpError(f"fov_y must be in (0, 180) degrees (got {math.degrees(fov_y)})")
         return cls(camera_to_world, perspective_matrix(fov_y, aspect, near, far), near, far, resolution)
 
-    @property
+    # A View is immutable, so what is derived from it is computed once (read-only arrays).
+    @cached_property
     def world_to_camera(self) -> np.ndarray:
-        return np.linalg.inv(self.camera_to_world)
+        return _frozen(np.linalg.inv(self.camera_to_world))
 
-    @property
+    @cached_property
     def world_to_clip(self) -> np.ndarray:
-        return self.projection @ self.world_to_camera
+        return _frozen(self.projection @ self.world_to_camera)
 
     @property
     def position(self) -> np.ndarray:
@@ -102,9 +109,13 @@ class View:
     def corners(self) -> np.ndarray:
         """(8, 3) world-space corners of the view frustum V: near face first
         (x fastest, then y), then far face; see ``geometry.UNIT_CUBE_CORNERS``."""
+        return self._corners
+
+    @cached_property
+    def _corners(self) -> np.ndarray:
         # camera_to_world @ projection⁻¹: one inverse instead of inverting world_to_clip.
         inv = self.camera_to_world @ np.linalg.inv(self.projection)
-        return transform_points(inv, UNIT_CUBE_CORNERS)
+        return _frozen(transform_points(inv, UNIT_CUBE_CORNERS))
 
     def eye_depth(self, points) -> np.ndarray:
         """Distance along the view direction (positive in front) of (N, 3) points."""
