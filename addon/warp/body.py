@@ -9,20 +9,23 @@ the scene box S tightened to what the view needs: a caster outside
 hull(R ∪ light) cannot shadow a visible receiver, and a receiver outside V is not
 seen. "Model only what a scene needs."
 
-hull(R ∪ light) is built exactly from half-spaces with the light in homogeneous
-coordinates (w = 0 for a sun): R's facets that do not face the light, plus one
-plane through every silhouette edge and the light. Since L is a convex cone
+hull(R ∪ light) is built exactly, with the light in homogeneous coordinates
+(w = 0 for a sun): R's facets that do not face the light, plus through every
+silhouette edge the plane through that edge and the light, a positive
+combination of the edge's two facets (``light_hull``). Since L is a convex cone
 with its apex at the light and R ⊂ L, hull(R ∪ light) ⊂ L already.
 
-Polytopes are :class:`~.polyhedron.ConvexPolytope` (vertex enumeration from
-half-spaces, vectorised), computed relative to the camera position (so
-coordinates at 1e5 keep their precision) with tolerances relative to the
-scene's scale. Boxes are culled through a two-level index (``BoxIndex``:
-clusters of 32 boxes with their bounds, built once per scene), which gives the
-same masks as testing every box.
+The polyhedra are face loops in plain Python floats (:mod:`.brep`): R is the
+frustum cut by S_r's and L's planes, the hull is R's silhouette joined to the
+light (for a sun, extruded to a cap beyond S_c), and B is the hull cut by S_c's
+planes; each cut closes its faces by construction. A cut too degenerate for the
+face walk falls back to vertex enumeration (:class:`~.polyhedron.ConvexPolytope`).
+Everything is computed relative to the camera position (so coordinates at 1e5
+keep their precision) with tolerances relative to the scene's scale. Boxes are
+culled through a two-level index (``BoxIndex``: clusters of 32 boxes with their
+bounds, built once per scene), which gives the same masks as testing every box.
 
-Cost on a 10,000-box scene (``python -m bench.warp_speed``): about 1 ms for a
-sun or point light, 1.7 ms for a spot, in plain Python and numpy.
+Cost on a 10,000-box scene (``make bench``): see docs/performance.md.
 """
 from __future__ import annotations
 
