@@ -168,6 +168,10 @@ def _sin_to(v: np.ndarray, ell: np.ndarray) -> float:
     return float(np.linalg.norm(u - (u @ ell) * ell))
 
 
+_YZX, _ZXY = np.array([1, 2, 0]), np.array([2, 0, 1])
+"""Index orders for row-wise cross products: b × c = b_yzx c_zxy - b_zxy c_yzx."""
+
+
 def volume_centroid(body: IntersectionBody) -> np.ndarray:
     """The centre of B's volume (continuous in B, unlike the mean of its vertices,
     which jumps when a vertex appears or merges)."""
@@ -179,8 +183,7 @@ def volume_centroid(body: IntersectionBody) -> np.ndarray:
     if not fans:
         return ref
     a, b, c = (np.concatenate(faces) - ref)[np.array(fans).T]        # the fans' corners, (T, 3) each
-    cr = np.stack([b[:, 1] * c[:, 2] - b[:, 2] * c[:, 1], b[:, 2] * c[:, 0] - b[:, 0] * c[:, 2],
-                   b[:, 0] * c[:, 1] - b[:, 1] * c[:, 0]], axis=1)
+    cr = b[:, _YZX] * c[:, _ZXY] - b[:, _ZXY] * c[:, _YZX]               # b × c
     vol = np.abs(np.einsum("ij,ij->i", a, cr)) / 6.0                  # tetrahedra (ref, a, b, c)
     total = float(vol.sum())
     if not total > 0:
