@@ -242,8 +242,8 @@ class BoxIndex:
         lo, hi = sb[:, 0].reshape(n_c, k, 3), sb[:, 1].reshape(n_c, k, 3)
         self.c_box_lo_t = np.ascontiguousarray(lo.transpose(2, 0, 1))
         self.c_box_hi_t = np.ascontiguousarray(hi.transpose(2, 0, 1))
-        # ... and (6, clusters, k) centres and half extents.
-        self.c_boxes = _stack_of(sb).reshape(6, n_c, k)
+        # ... and (clusters, 6, k) centres and half extents.
+        self.c_boxes = np.ascontiguousarray(_stack_of(sb).reshape(6, n_c, k).transpose(1, 0, 2))
         # The clusters' bounds, (3, clusters) and (6, clusters) centres and half extents
         # (numpy reduces along a long last axis far faster than over (N, 3) rows).
         self.c_lo_t, self.c_hi_t = self.c_box_lo_t.min(axis=2), self.c_box_hi_t.max(axis=2)
@@ -296,21 +296,21 @@ class BoxIndex:
         o = np.asarray(offsets, dtype=np.float64).reshape(-1)
         if self.count == 0:
             return Selection(self, np.zeros(0, dtype=bool), None)
-        centre_part = n @ self.c_stack[:3] - o[:, None]       # (planes, clusters)
-        spread = np.abs(n) @ self.c_stack[3:]
-        c_out = (centre_part - spread > tol).any(axis=0)      # wholly outside some half-space
-        crossing = (centre_part + spread > tol) & ~c_out      # not wholly inside this one
-        c_in = ~c_out & ~crossing.any(axis=0)                 # wholly inside every half-space
+        # A plane's least and greatest value over a box: n . centre -/+ |n| . half extent.
+        an = np.abs(n)
+        w = np.concatenate([np.concatenate([n, -an], axis=1), np.concatenate([n, an], axis=1)])
+        bounds = w @ self.c_stack - np.concatenate([o, o])[:, None]       # (2 planes, clusters)
+        c_out = (bounds[: len(n)] > tol).any(axis=0)          # wholly outside some half-space
+        crossing = (bounds[len(n):] > tol) & ~c_out           # not wholly inside this one
+        c_in = ~(c_out | crossing.any(axis=0))                # wholly inside every half-space
         selected = np.repeat(c_in, CLUSTER_SIZE).reshape(-1, CLUSTER_SIZE)
         lo, hi = self.c_lo_t[:, c_in], self.c_hi_t[:, c_in]
         cluster, plane = np.nonzero(crossing.T)               # (cluster, plane) pairs, by cluster
         if len(cluster):
             first = np.flatnonzero(np.concatenate([[True], cluster[1:] != cluster[:-1]]))
             edge = cluster[first]
-            box = self.c_boxes[:, cluster]                    # (6, pairs, CLUSTER_SIZE)
-            nearest = (np.einsum("pi,ipk->pk", n[plane], box[:3]) - np.einsum("pi,ipk->pk", np.abs(n[plane]), box[3:])
-                       - o[plane, None])
-            hit = ~np.logical_or.reduceat(nearest > tol, first, axis=0)       # (edge clusters, CLUSTER_SIZE)
+            least = np.matmul(w[plane, None, :], self.c_boxes[cluster])[:, 0] - o[plane, None]
+            hit = ~np.logical_or.reduceat(least > tol, first, axis=0)        # (edge clusters, CLUSTER_SIZE)
             selected[edge] = hit
             lo = np.concatenate([lo, np.where(hit, self.c_box_lo_t[:, edge], np.inf).reshape(3, -1)], axis=1)
             hi = np.concatenate([hi, np.where(hit, self.c_box_hi_t[:, edge], -np.inf).reshape(3, -1)], axis=1)
