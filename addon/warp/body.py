@@ -123,6 +123,16 @@ class IntersectionBody:
     """B as a polytope relative to ``origin`` (facet planes, incidence)."""
     origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
     """The point B's ``polytope`` is expressed relative to (the camera position)."""
+    visible_boundary: Brep | None = None
+    """R's boundary relative to ``origin`` (see ``visible_polytope``)."""
+
+    @property
+    def visible_polytope(self) -> ConvexPolytope | None:
+        """R = V ∩ S_r ∩ L as a polytope relative to ``origin``: every receiver
+        box that meets V ∩ L lies in S_r, so R ∩ box = V ∩ L ∩ box."""
+        if self.visible_boundary is None:
+            return None
+        return self._memo("_visible_polytope", lambda: ConvexPolytope.from_brep(self.visible_boundary, self.tolerance))
 
     @property
     def caster_mask(self) -> np.ndarray:
@@ -554,4 +564,5 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
         scale=scale,
         polytope=body,
         origin=origin,
+        visible_boundary=visible,
     )

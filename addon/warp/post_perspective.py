@@ -185,8 +185,11 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     order = np.argpartition(lower, first - 1)[:first] if first < len(lower) else np.arange(len(lower))
     order = order[np.argsort(lower[order], kind="stable")]
     visited = np.zeros(len(lower), dtype=bool)
-    ln, lo = light_halfspaces(light, origin)
-    region = ConvexPolytope.from_corners(view.corners() - origin, body.tolerance).clip(ln, lo)      # V ∩ L
+    # V ∩ L ∩ box = R ∩ box for every receiver box (R = V ∩ S_r ∩ L, each box inside S_r).
+    region = body.visible_polytope
+    if region is None or not np.array_equal(body.origin, origin):
+        ln, lo = light_halfspaces(light, origin)
+        region = ConvexPolytope.from_corners(view.corners() - origin, body.tolerance).clip(ln, lo)      # V ∩ L
     best = math.inf
     count = 0
     while len(order):

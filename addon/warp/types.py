@@ -88,14 +88,14 @@ class View:
     def position(self) -> np.ndarray:
         return self.camera_to_world[:3, 3].copy()
 
-    @property
+    @cached_property
     def direction(self) -> np.ndarray:
         """Unit view direction in world space (the camera's local -Z)."""
-        return normalize(-self.camera_to_world[:3, 2])
+        return _frozen(normalize(-self.camera_to_world[:3, 2]))
 
-    @property
+    @cached_property
     def up(self) -> np.ndarray:
-        return normalize(self.camera_to_world[:3, 1])
+        return _frozen(normalize(self.camera_to_world[:3, 1]))
 
     @property
     def fov_y(self) -> float:
