@@ -549,10 +549,64 @@ class ConvexPolytope:
         return type(self)._build(self.vertices[inside], n, o, _combinations3(len(n), m), self.tol,
                                  self.incidence[inside])
 
+    def section(self, normals, offsets) -> np.ndarray | None:
+        """Points whose convex hull is this polytope ∩ {normals @ x <= offsets}
+        (every vertex of it among them, none outside it by more than the
+        tolerance), or None when the half-spaces leave nothing of it. For when
+        only the extent of a clip is needed: no faces are built.
+
+        A vertex of the intersection is a vertex of P inside the half-spaces, or
+        where an edge of P crosses one of their planes, or on the line where two
+        of their planes meet, at an end of that line's stretch inside P and the
+        other half-spaces; all three kinds are found at once."""
+        n2, o2 = _unit_rows(normals, offsets)
+        tol, v = self.tol, self.vertices
+        d = v @ n2.T - o2                                          # (vertices, planes)
+        if np.any(np.all(d >= -tol, axis=0)):
+            return None
+        if not np.any(d > tol):
+            return v
+        pts = [v[d.max(axis=1) <= tol]]
+        edges = self.edges()[0]
+        da, db = d[edges[:, 0]], d[edges[:, 1]]
+        e, p = np.nonzero(((da < -tol) & (db > tol)) | ((da > tol) & (db < -tol)))
+        if len(e):
+            t = da[e, p] / (da[e, p] - db[e, p])
+            a = v[edges[e, 0]]
+            x = a + t[:, None] * (v[edges[e, 1]] - a)
+            pts.append(x[(x @ n2.T - o2).max(axis=1) <= tol])
+        if len(n2) >= 2:
+            i, j = np.triu_indices(len(n2), 1)
+            c = np.einsum("ij,ij->i", n2[i], n2[j])
+            u = cross_rows(n2[i], n2[j])
+            keep = 1.0 - c * c > 1e-12                              # planes not parallel
+            i, j, c, u = i[keep], j[keep], c[keep], u[keep]
+            s = 1.0 - c * c
+            base = (((o2[i] - o2[j] * c) / s)[:, None] * n2[i] + ((o2[j] - o2[i] * c) / s)[:, None] * n2[j])
+            # The stretch t of base + t u inside P's facets and every half-space.
+            an = np.concatenate([self.normals, n2])
+            ao = np.concatenate([self.offsets, o2])
+            rate = u @ an.T                                          # (lines, planes)
+            room = ao - base @ an.T
+            along = np.abs(rate) > 1e-12
+            with np.errstate(divide="ignore", invalid="ignore"):
+                bound = room / np.where(along, rate, 1.0)
+            t_hi = np.where(along & (rate > 0), bound, np.inf).min(axis=1)
+            t_lo = np.where(along & (rate < 0), bound, -np.inf).max(axis=1)
+            ok = (t_lo <= t_hi) & np.isfinite(t_lo) & np.isfinite(t_hi) & ~np.any(~along & (room < -tol), axis=1)
+            if ok.any():
+                pts.append(base[ok] + t_lo[ok, None] * u[ok])
+                pts.append(base[ok] + t_hi[ok, None] * u[ok])
+        pts = np.concatenate(pts)
+        return pts if len(pts) else None
+
     def translated(self, offset) -> "ConvexPolytope":
         t = np.asarray(offset, dtype=np.float64)
-        return ConvexPolytope(self.vertices + t, self.normals, self.offsets + self.normals @ t, self.incidence, self.tol,
-                              self.loops)
+        moved = ConvexPolytope(self.vertices + t, self.normals, self.offsets + self.normals @ t, self.incidence, self.tol,
+                               self.loops)
+        if "_edges" in self.__dict__:
+            object.__setattr__(moved, "_edges", self.__dict__["_edges"])
+        return moved
 
     def contains(self, points, tol: float | None = None) -> np.ndarray:
         t = 10.0 * self.tol if tol is None else tol

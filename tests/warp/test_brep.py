@@ -210,3 +210,29 @@ def test_a_body_whose_loops_do_not_close_still_gets_hull_planes():
     along = (v + np.linspace(0.0, 1.0, 7)[:, None, None] * (p - v)).reshape(-1, 3)
     assert np.all(along @ hull.normals.T - hull.offsets <= 1e-9)
     assert len(hull.normals) == len(light_hull(b, light_h, TOL).normals)
+
+
+def test_a_section_has_every_corner_of_the_clip_and_nothing_outside_it():
+    """ConvexPolytope.section (the extent of a clip without its faces): every
+    vertex of P ∩ H is among its points and every point is in P ∩ H, for random
+    half-spaces and for pyramids through an apex (a map's window)."""
+    rng = np.random.default_rng(1)
+    checked = 0
+    for trial in range(300):
+        p = ConvexPolytope.box(BOX_LO, BOX_HI, TOL)
+        for _ in range(3):
+            n = rng.normal(size=(1, 3))
+            p = p.clip(n, [rng.uniform(0.2, 1.5) * np.linalg.norm(n)])
+        n = rng.normal(size=(int(rng.integers(1, 6)), 3))
+        o = rng.uniform(-0.5, 1.5, len(n)) * np.linalg.norm(n, axis=1)
+        if trial % 3 == 0:
+            o = n @ (rng.normal(size=3) * 4.0)
+        clipped, section = p.clip(n, o), p.section(n, o)
+        if clipped is None:
+            continue
+        checked += 1
+        assert section is not None
+        gap = np.linalg.norm(clipped.vertices[:, None] - section[None], axis=2).min(axis=1)
+        assert gap.max() <= 1e-9
+        assert np.all(clipped.contains(section, 1e-9))
+    assert checked > 100

@@ -254,10 +254,10 @@ def _casters(grown, n, height, l_h, tol, body, origin):
 
 def _clip_body(body: IntersectionBody, origin: np.ndarray, normals: np.ndarray,
                offsets: np.ndarray) -> np.ndarray | None:
-    """Vertices (relative to ``origin``) of B ∩ {normals @ x <= offsets}, or None if empty."""
+    """Points (relative to ``origin``) whose convex hull is B ∩ {normals @ x <= offsets}
+    (its vertices among them), or None if empty."""
     if getattr(body, "polytope", None) is not None:
-        poly = body.polytope_from(origin).clip(normals, offsets)
-        return None if poly is None else poly.vertices
+        return body.polytope_from(origin).section(normals, offsets)
     faces = [f - origin for f in body.faces]
     for n, o in zip(normals, offsets):
         faces = clip_faces(faces, Plane(n, float(o)), body.tolerance)

@@ -485,10 +485,10 @@ def ray_closed(matrix, body: IntersectionBody) -> tuple[Optional[np.ndarray], st
         return None, "B has no polytope to close the warped map's rays over", None
     n, o = window_halfspaces(matrix)
     o = o - n @ body.origin
-    part = body.polytope.clip(n, o)
+    part = body.polytope.section(n, o)           # the corners of B ∩ window (no faces needed)
     if part is None:
         return matrix, "", None
-    pts = part.vertices + body.origin
+    pts = part + body.origin
     h = transform_h(matrix, pts)
     w = h[:, 3:]
     if (w <= 1e-9 * np.abs(w).max()).any():
