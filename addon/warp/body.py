@@ -366,11 +366,13 @@ class LightHull(NamedTuple):
     light: tuple
     """The light in homogeneous coordinates."""
 
-    def brep(self, cap: float | None = None) -> Brep:
+    def brep(self, cap: tuple | None = None) -> Brep:
         """The boundary of hull(P ∪ light): P's facets that do not face the
-        light and the sides, each side a triangle (a point light) or a strip
-        to the plane ``u . x = cap`` (a sun, u the direction towards it; ``cap``
-        must lie beyond P), which closes the body. P itself when no facet faces
+        light and the sides, each side a triangle (a point light) or, for a sun
+        (u the direction towards it), a strip along u to the plane ``cap`` =
+        (m, h), m . x = h, which closes the body (m . u > 0, and P strictly on
+        the side m . x < h: B uses the face of S_c the light leaves it by, so
+        S_c's own clip has one plane less to cut). P itself when no facet faces
         the light (a point light inside or on P)."""
         b = self.body
         if self.sides is None:
@@ -389,15 +391,17 @@ class LightHull(NamedTuple):
             verts.append((x / w, y / w, z / w))
             loops.extend([index[c], index[a], apex] for a, c in self.sides)
             return Brep(verts, normals, offsets, loops)
-        # A sun: every silhouette vertex v gets v' = v moved towards the light onto the cap plane.
+        # A sun: every silhouette vertex v gets v' = v moved along u onto the cap plane.
+        (mx, my, mz), h = cap
+        rate = mx * x + my * y + mz * z
         raised: dict = {}
         for a, c in self.sides:
             for v in (a, c):
                 if v not in raised:
                     px, py, pz = b.vertices[v]
-                    h = cap - (x * px + y * py + z * pz)
+                    t = (h - (mx * px + my * py + mz * pz)) / rate
                     raised[v] = len(verts)
-                    verts.append((px + h * x, py + h * y, pz + h * z))
+                    verts.append((px + t * x, py + t * y, pz + t * z))
         cap_next = {}
         for a, c in self.sides:
             loops.append([index[c], index[a], raised[a], raised[c]])
@@ -411,8 +415,8 @@ class LightHull(NamedTuple):
             v = cap_next[v]
         if len(ring) != len(cap_next):
             raise OpenCut("the silhouette is not one loop")
-        normals.append((x, y, z))
-        offsets.append(cap)
+        normals.append((mx, my, mz))
+        offsets.append(h)
         loops.append(ring)
         return Brep(verts, normals, offsets, loops)
 
@@ -542,10 +546,13 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
     scale = float(max(np.linalg.norm(s_c[1] - s_c[0]), scale))
     s_c = _pad(s_c, max(BOX_PAD * scale, 512 * tol))
 
-    # B = hull(R ∪ light) ∩ S_c; a sun's hull is closed beyond S_c, and the clip cuts that cap away.
+    # B = hull(R ∪ light) ∩ S_c; a sun's hull is closed on the face of S_c the light leaves it by.
     box_o = np.concatenate([-s_c[0], s_c[1]])
     try:
-        cap = float(np.maximum(light_h[:3] * s_c[0], light_h[:3] * s_c[1]).sum()) + scale if light_h[3] == 0 else None
+        cap = None
+        if light_h[3] == 0:
+            exit_face = int(np.argmax(_BOX_NORMALS @ light_h[:3]))
+            cap = (_BOX_NORMALS_LIST[exit_face], float(box_o[exit_face]))
         body = brep.clip(hull.brep(cap), _BOX_NORMALS_LIST, box_o.tolist(), tol)
         body = None if body is None else ConvexPolytope.from_brep(body, tol)
     except OpenCut:

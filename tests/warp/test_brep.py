@@ -173,7 +173,10 @@ def test_the_light_hull_holds_the_body_and_its_light_rays(name):
     along = (v + t * (target - v)).reshape(-1, 3)
     assert np.all(along @ hull.normals.T - hull.offsets <= 1e-9)
     # Its boundary is closed, with P's vertices (those not hidden from the light) and the light or the cap.
-    cap = float((v @ light_h[:3]).max()) + 10.0 if light_h[3] == 0 else None
+    cap = None
+    if light_h[3] == 0:         # the plane beyond P that faces the light most, as B's exit face of S_c
+        m = np.eye(3)[int(np.argmax(np.abs(light_h[:3])))] * np.sign(light_h[:3][np.argmax(np.abs(light_h[:3]))])
+        cap = (m.tolist(), float((v @ m).max()) + 10.0)
     h = hull.brep(cap)
     assert_closed_convex(h)
     if light_h[3]:
@@ -182,7 +185,7 @@ def test_the_light_hull_holds_the_body_and_its_light_rays(name):
         expected = np.concatenate([v[sorted(hidden)], p[None]])
         assert sorted(map(tuple, np.round(h.vertices, 12))) == sorted(map(tuple, np.round(expected, 12)))
     else:
-        assert np.isclose(max(np.array(h.vertices) @ light_h[:3]), cap)
+        assert np.isclose(max(np.array(h.vertices) @ np.array(cap[0])), cap[1])
 
 
 def test_a_point_light_inside_the_body_gives_the_body():
