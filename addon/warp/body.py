@@ -247,17 +247,16 @@ class BoxIndex:
             b = np.zeros((1, 2, 3))
         else:
             self.perm = self._clusters(b, k)
-        # Each cluster's boxes, the last padded with copies of its last box: (3, clusters, k) corners, ...
+        # Each cluster's boxes, the last padded with copies of its last box: (6, clusters, k) lo and -hi, ...
         sb = b[np.concatenate([self.perm, np.repeat(self.perm[-1:], n_c * k - self.count)])] if self.count else b[:0]
         lo, hi = sb[:, 0].reshape(n_c, k, 3), sb[:, 1].reshape(n_c, k, 3)
-        self.c_box_lo_t = np.ascontiguousarray(lo.transpose(2, 0, 1))
-        self.c_box_hi_t = np.ascontiguousarray(hi.transpose(2, 0, 1))
+        self.c_box_bounds = np.ascontiguousarray(np.concatenate([lo, -hi], axis=2).transpose(2, 0, 1))   # lo, -hi
         # ... and (clusters, 6, k) centres and half extents.
         self.c_boxes = np.ascontiguousarray(_stack_of(sb).reshape(6, n_c, k).transpose(1, 0, 2))
-        # The clusters' bounds, (3, clusters) and (6, clusters) centres and half extents
+        # The clusters' bounds, (6, clusters) lo and -hi, and (6, clusters) centres and half extents
         # (numpy reduces along a long last axis far faster than over (N, 3) rows).
-        self.c_lo_t, self.c_hi_t = self.c_box_lo_t.min(axis=2), self.c_box_hi_t.max(axis=2)
-        self.c_stack = _stack_of(np.stack([self.c_lo_t.T, self.c_hi_t.T], axis=1))
+        self.c_bounds = self.c_box_bounds.min(axis=2)       # (6, clusters): lo, -hi
+        self.c_stack = _stack_of(np.stack([self.c_bounds[:3].T, -self.c_bounds[3:].T], axis=1))
 
     @staticmethod
     def _clusters(b: np.ndarray, k: int) -> np.ndarray:
@@ -314,7 +313,7 @@ class BoxIndex:
         crossing = (bounds[len(n):] > tol) & ~c_out           # not wholly inside this one
         c_in = ~(c_out | crossing.any(axis=0))                # wholly inside every half-space
         selected = np.repeat(c_in, CLUSTER_SIZE).reshape(-1, CLUSTER_SIZE)
-        lo, hi = self.c_lo_t[:, c_in], self.c_hi_t[:, c_in]
+        bounds = self.c_bounds[:, c_in]                      # (6, clusters inside): lo, then -hi
         cluster, plane = np.nonzero(crossing.T)               # (cluster, plane) pairs, by cluster
         if len(cluster):
             first = np.flatnonzero(np.concatenate([[True], cluster[1:] != cluster[:-1]]))
@@ -322,12 +321,12 @@ class BoxIndex:
             least = np.matmul(w[plane, None, :], self.c_boxes[cluster])[:, 0] - o[plane, None]
             hit = ~np.logical_or.reduceat(least > tol, first, axis=0)        # (edge clusters, CLUSTER_SIZE)
             selected[edge] = hit
-            lo = np.concatenate([lo, np.where(hit, self.c_box_lo_t[:, edge], np.inf).reshape(3, -1)], axis=1)
-            hi = np.concatenate([hi, np.where(hit, self.c_box_hi_t[:, edge], -np.inf).reshape(3, -1)], axis=1)
+            bounds = np.concatenate([bounds, np.where(hit, self.c_box_bounds[:, edge], np.inf).reshape(6, -1)], axis=1)
         selected = selected.ravel()[: self.count]
         if not selected.any():
             return Selection(self, selected, None)
-        return Selection(self, selected, np.array([lo.min(axis=1), hi.max(axis=1)]))
+        least = bounds.min(axis=1)
+        return Selection(self, selected, np.array([least[:3], -least[3:]]))
 
 
 def boxes_meeting(planes: list[Plane], boxes: np.ndarray, tol: float = 0.0) -> np.ndarray:
