@@ -226,21 +226,30 @@ def clip_polygon(poly: np.ndarray, plane: Plane, tol: float = 0.0) -> np.ndarray
     return np.asarray(out).reshape(-1, 3)
 
 
-def plane_section(vertices, normal, offset: float, tol: float) -> Optional[np.ndarray]:
+def plane_section(vertices, normal, offset: float, tol: float, edges=None) -> Optional[np.ndarray]:
     """hull(vertices) ∩ P as a convex polygon (CCW about ``normal``), or None
     when it has no area: the section of a convex hull by a plane is the hull of
     its vertices on the plane and of the crossings of every segment between
-    vertices on opposite sides."""
+    vertices on opposite sides. ``edges``, (e, 2) vertex index pairs, when the
+    vertices are a polytope's with those edges: then its edges are the only
+    segments needed (a vertex of the section lies on an edge)."""
     v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
     h = v @ normal - offset
     on = np.abs(h) <= tol
-    pos, neg = np.where(h > tol)[0], np.where(h < -tol)[0]
     pts = [v[on] - np.outer(h[on], normal)]
-    if len(pos) and len(neg):
-        hp, hn = h[pos][:, None], h[neg][None, :]
-        t = hp / (hp - hn)
-        cross = v[pos][:, None, :] + t[..., None] * (v[neg][None, :, :] - v[pos][:, None, :])
-        pts.append(cross.reshape(-1, 3))
+    if edges is None:
+        pos, neg = np.where(h > tol)[0], np.where(h < -tol)[0]
+        if len(pos) and len(neg):
+            hp, hn = h[pos][:, None], h[neg][None, :]
+            t = hp / (hp - hn)
+            cross = v[pos][:, None, :] + t[..., None] * (v[neg][None, :, :] - v[pos][:, None, :])
+            pts.append(cross.reshape(-1, 3))
+    else:
+        a, b = edges[:, 0], edges[:, 1]
+        ha, hb = h[a], h[b]
+        crosses = ((ha > tol) & (hb < -tol)) | ((ha < -tol) & (hb > tol))
+        a, b, ha, hb = a[crosses], b[crosses], ha[crosses], hb[crosses]
+        pts.append(v[a] + (ha / (ha - hb))[:, None] * (v[b] - v[a]))
     pts = np.concatenate(pts)
     if len(pts) < 3:
         return None

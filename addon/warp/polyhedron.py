@@ -61,35 +61,40 @@ def _polygon_on_plane(points: np.ndarray, normal: np.ndarray, tol: float) -> np.
     pts = unique_points(points, tol)
     if len(pts) < 3:
         return None
-    centre = pts.mean(axis=0)
-    u = pts[np.argmax(np.linalg.norm(pts - centre, axis=1))] - centre
-    if np.linalg.norm(u) <= tol:
+    rel = pts - pts.mean(axis=0)
+    far = np.einsum("ij,ij->i", rel, rel)
+    i = int(np.argmax(far))
+    length = float(far[i]) ** 0.5
+    if length <= tol:
         return None
-    u /= np.linalg.norm(u)
-    v = np.cross(normal, u)
-    xy = np.stack([(pts - centre) @ u, (pts - centre) @ v], axis=1)
+    # In-plane axes: u towards the farthest point, v = normal x u.
+    ux, uy, uz = (rel[i] / length).tolist()
+    nx, ny, nz = (float(c) for c in normal)
+    axes = np.array([[ux, uy, uz], [ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux]])
+    xy = rel @ axes.T
     order = np.lexsort((xy[:, 1], xy[:, 0]))
-    xy, pts = xy[order], pts[order]
+    xy = xy[order]
+    q = xy.tolist()
+    # Andrew's monotone chain (plain floats), dropping collinear points within tolerance.
+    area_tol = tol * max(float((xy.max(axis=0) - xy.min(axis=0)).max()), tol)
 
-    def cross(o, a, b):
-        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+    def chain(indices) -> list:
+        kept: list = []
+        for k in indices:
+            bx, by = q[k]
+            while len(kept) >= 2:
+                ox, oy = q[kept[-2]]
+                ax, ay = q[kept[-1]]
+                if (ax - ox) * (by - oy) - (ay - oy) * (bx - ox) > area_tol:
+                    break
+                kept.pop()
+            kept.append(k)
+        return kept
 
-    # Andrew's monotone chain, dropping collinear points within tolerance.
-    area_tol = tol * max(float(np.ptp(xy, axis=0).max()), tol)
-    lower: list[int] = []
-    for i in range(len(xy)):
-        while len(lower) >= 2 and cross(xy[lower[-2]], xy[lower[-1]], xy[i]) <= area_tol:
-            lower.pop()
-        lower.append(i)
-    upper: list[int] = []
-    for i in reversed(range(len(xy))):
-        while len(upper) >= 2 and cross(xy[upper[-2]], xy[upper[-1]], xy[i]) <= area_tol:
-            upper.pop()
-        upper.append(i)
-    hull = lower[:-1] + upper[:-1]
+    hull = chain(range(len(q)))[:-1] + chain(range(len(q) - 1, -1, -1))[:-1]
     if len(hull) < 3:
         return None
-    return pts[hull]
+    return pts[order[hull]]
 
 
 def unique_points(points, tol: float) -> np.ndarray:

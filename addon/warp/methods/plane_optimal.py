@@ -148,7 +148,11 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
         diag.fallback(role, f"{plane.name} passes through the camera (seen edge-on): it covers no pixel")
         return None
     # Less of the plane: P ∩ R (R = V ∩ S_r ∩ L), within the plane's extent.
-    poly = plane_section(body.visible_vertices - origin, n, off, body.tolerance)
+    region = getattr(body, "visible_polytope", None)
+    if region is None:
+        poly = plane_section(body.visible_vertices - origin, n, off, body.tolerance)
+    else:
+        poly = plane_section(region.vertices + (body.origin - origin), n, off, body.tolerance, region.edges()[0])
     if poly is not None and plane.extent is not None:
         ext = np.asarray(plane.extent) - origin
         ext = convex_polygon_on_plane(ext, n, body.tolerance)
