@@ -47,16 +47,20 @@ def cut(b: Brep, normal, offset: float, tol: float) -> Brep | None:
         return b
     if min(d) >= -tol:
         return None
-    side = [1 if e > tol else (-1 if e < -tol else 0) for e in d]
 
     verts: list = []
     index: list = []                       # old vertex -> new index (-1: cut away)
-    on_plane: set = set()                  # new indices of the vertices on the cutting plane
-    for v, s in zip(b.vertices, side):
-        if s > 0:
+    beyond, within, on = set(), set(), set()     # old vertices by side of the plane
+    on_plane: set = set()                  # new indices of the vertices on the plane
+    for i, (v, e) in enumerate(zip(b.vertices, d)):
+        if e > tol:
+            beyond.add(i)
             index.append(-1)
             continue
-        if s == 0:
+        if e < -tol:
+            within.add(i)
+        else:
+            on.add(i)
             on_plane.add(len(verts))
         index.append(len(verts))
         verts.append(v)
@@ -65,22 +69,20 @@ def cut(b: Brep, normal, offset: float, tol: float) -> Brep | None:
     normals, offsets, loops = [], [], []
     touching = []                          # the new loops with a vertex on the plane
     for fn, fo, loop in zip(b.normals, b.offsets, b.loops):
-        s = [side[v] for v in loop]
-        if max(s) <= 0:
+        if beyond.isdisjoint(loop):        # kept whole
             new = [index[v] for v in loop]
-            if 0 in s:
+            if not on.isdisjoint(loop):
                 touching.append(new)
-        elif min(s) >= 0:
+        elif within.isdisjoint(loop):      # cut away (touching the plane at most)
             continue
         else:
             new = []
             k = len(loop)
             for i in range(k):
-                sa, sc = s[i], s[i + 1 - k]
-                if sa <= 0:
-                    new.append(index[loop[i]])
-                if sa * sc < 0:
-                    a, c = loop[i], loop[i + 1 - k]
+                a, c = loop[i], loop[i + 1 - k]
+                if index[a] >= 0:
+                    new.append(index[a])
+                if (a in within and c in beyond) or (a in beyond and c in within):
                     key = (a, c) if a < c else (c, a)
                     x = crossing.get(key)
                     if x is None:
@@ -99,12 +101,15 @@ def cut(b: Brep, normal, offset: float, tol: float) -> Brep | None:
     # The cap: every facet edge p -> q lying on the plane is a cap edge q -> p.
     cap_next: dict = {}
     for loop in touching:
-        for i in range(len(loop)):
-            p, q = loop[i - 1], loop[i]
-            if p in on_plane and q in on_plane:
+        p = loop[-1]
+        p_on = p in on_plane
+        for q in loop:
+            q_on = q in on_plane
+            if p_on and q_on:
                 if q in cap_next:
                     raise OpenCut("two cap edges leave one vertex")
                 cap_next[q] = p
+            p, p_on = q, q_on
     if len(cap_next) < 3:
         raise OpenCut("the cut leaves no cap")
     start = min(cap_next)
