@@ -267,10 +267,11 @@ _FACE_PLANES = np.array([[s if j == o else (-sign if j == k else 0.0) for j in r
                          for _, k, sign in CUBE_FACES for o in range(3) if o != k for s in (1.0, -1.0)])
 """Coefficients (in the cube's basis) of the 4 side planes of each face's
 pyramid, s·other - forward (not yet unit): face f owns rows 4f .. 4f + 3."""
-_FACES = np.arange(6)
-_FACE_OF_PLANE = np.repeat(_FACES, 4)
+_FACE_OF_PLANE = np.repeat(np.arange(6), 4)
 _CORNER_ON_FACE = np.array([[c[k] == sign for _, k, sign in CUBE_FACES] for c in _CUBE_SIGNS])
 """(8, 6): which of the cube's corner rays bound which face."""
+_FACE_CORNER_SIGNS = np.concatenate([_CUBE_SIGNS[_CORNER_ON_FACE[:, f]] for f in range(6)])
+"""(24, 3): each face's 4 corner rays (``_CUBE_SIGNS`` in the cube's basis), face by face."""
 
 
 def cube_section_points(poly, edges: np.ndarray, basis: np.ndarray) -> list:
@@ -285,36 +286,53 @@ def cube_sections(poly, edges: np.ndarray, basis: np.ndarray) -> tuple[np.ndarra
     """``cube_section_points`` as candidate points (n, 3) and which faces each
     belongs to (n, 6), a face's column all False when its part has no volume."""
     tol = poly.tol
+    sides = ((_FACE_PLANES @ basis) / math.sqrt(2.0)).reshape(6, 4, 3)   # unit normals, <= 0 inside
+    pts, member = pyramid_sections(poly, edges, sides, (_FACE_CORNER_SIGNS @ basis).reshape(6, 4, 3))
+    # No volume: too few points, or all on one of the face's planes.
+    on_plane = (np.abs(pts @ sides.reshape(24, 3).T) <= tol) | ~member[:, _FACE_OF_PLANE]
+    flat = on_plane.all(axis=0).reshape(6, 4).any(axis=1)
+    return pts, member & ((member.sum(axis=0) >= 4) & ~flat)
+
+
+def pyramid_sections(poly, edges: np.ndarray, sides: np.ndarray, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """P ∩ C_k for k four-sided pyramids C_k = {x : n . x <= 0 for its sides n}
+    with their apex at the origin (P relative to the apex, e.g. a point light),
+    all at once, without clipping. ``sides`` (k, 4, 3) are unit outward normals,
+    ``rays`` (k, 4, 3) the corner rays where neighbouring sides meet (pointing
+    into C_k). Returns candidate points (n, 3) and which pyramids each belongs
+    to (n, k), a column all False when P lies outside one side of C_k.
+
+    Every vertex of P ∩ C_k is among its points: P's vertices inside C_k, the
+    crossings of P's edges with C_k's sides (kept if inside C_k), where C_k's
+    corner rays enter and leave P, and the apex if P holds it."""
+    k = len(sides)
+    tol = poly.tol
     v = poly.vertices
-    n24 = (_FACE_PLANES @ basis) / math.sqrt(2.0)           # (24, 3) unit normals, <= 0 inside the pyramid
-    d = v @ n24.T                                            # (n, 24)
-    d3 = d.reshape(len(v), 6, 4)
-    outside = (d3 >= -tol).all(axis=0).any(axis=1)           # (6,): P wholly outside one plane of the face
-    # P's edges crossing the 24 planes, each kept if inside its face's pyramid.
+    n = sides.reshape(4 * k, 3)
+    face_of_plane = np.repeat(np.arange(k), 4)
+    d = v @ n.T                                              # (vertices, 4k)
+    d3 = d.reshape(len(v), k, 4)
+    outside = (d3 >= -tol).all(axis=0).any(axis=1)           # (k,): P wholly outside one side
+    # P's edges crossing the 4k planes, each kept if inside its own pyramid.
     side = (d > tol).astype(np.int8) - (d < -tol)            # +1 out, -1 in, 0 on the plane
-    de = d[edges]                                            # (e, 2, 24)
+    de = d[edges]                                            # (e, 2, 4k)
     e, p = np.nonzero(side[edges[:, 0]] * side[edges[:, 1]] < 0)
     da = de[e, 0, p]
     t = da / (da - de[e, 1, p])
     a = v[edges[e, 0]]
     x = a + t[:, None] * (v[edges[e, 1]] - a)
-    face_of = _FACE_OF_PLANE[p]
-    keep = (x @ n24.T).reshape(-1, 6, 4)[np.arange(len(x)), face_of].max(axis=1, initial=-np.inf) <= tol
+    face_of = face_of_plane[p]
+    keep = (x @ n.T).reshape(-1, k, 4)[np.arange(len(x)), face_of].max(axis=1, initial=-np.inf) <= tol
     x, face_of = x[keep], face_of[keep]
-    # The cube's 8 corner rays through P: t-interval where n . (t r) <= o for every facet.
-    rays = _CUBE_SIGNS @ basis
+    # The corner rays through P: t-interval where n . (t r) <= o for every facet.
+    rays = rays.reshape(4 * k, 3)
     t_lo, t_hi, hit = ray_interval(poly, rays)
     apex = poly.contains(np.zeros((1, 3)), tol)
-    # Every candidate point once, and which faces it belongs to: vertices inside
-    # the face's pyramid, its edge crossings, its corner rays' ends, the apex.
     pts = np.concatenate([v, x, t_lo[:, None] * rays, t_hi[:, None] * rays, np.zeros((1, 3))])
-    on_ray = _CORNER_ON_FACE & hit[:, None]
-    member = np.concatenate([d3.max(axis=2) <= tol, face_of[:, None] == _FACES, on_ray, on_ray,
-                             np.repeat(apex[:, None], 6, axis=1)])
-    # No volume: too few points, or all on one of the face's planes.
-    on_plane = (np.abs(pts @ n24.T) <= tol) | ~member[:, _FACE_OF_PLANE]
-    flat = on_plane.all(axis=0).reshape(6, 4).any(axis=1)
-    return pts, member & (~outside & (member.sum(axis=0) >= 4) & ~flat)
+    on_ray = (face_of_plane[:, None] == np.arange(k)) & hit[:, None]
+    member = np.concatenate([d3.max(axis=2) <= tol, face_of[:, None] == np.arange(k), on_ray, on_ray,
+                             np.repeat(apex[:, None], k, axis=1)])
+    return pts, member & ~outside
 
 
 def ray_interval(poly, rays) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

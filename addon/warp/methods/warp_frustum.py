@@ -91,8 +91,8 @@ import numpy as np
 from ..aliasing import lambda_glpr, lambda_gmnpr, lispsm_inverse_n_opt
 from ..body import IntersectionBody
 from ..fit import ndc_bounds, ndc_box, window_matrix
-from ..frame import PARALLEL_BLEND, LightFrame, light_angles, light_frames
-from ..geometry import clip_volume_corners, transform_h
+from ..frame import PARALLEL_BLEND, LightFrame, light_angles, light_frames, pyramid_sections
+from ..geometry import clip_volume_corners, homogeneous
 from ..types import Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .uniform import frame_map
 
@@ -386,9 +386,53 @@ def _finite_or_none(x: float) -> Optional[float]:
     return float(x) if math.isfinite(x) else None
 
 
+@dataclass
+class FrameWarp:
+    """One frame's warped map before ray closure, or the reason it is uniform."""
+
+    frame: LightFrame
+    notes: list                            # fallbacks (what, reason), in order
+    geo: Optional[FrameGeometry] = None    # None: the frame's map is uniform
+    lam: float = math.inf
+    p_n: float = math.inf
+    lam_frame: float = math.inf
+    mu: float = 0.0
+    matrix: Optional[np.ndarray] = None
+    held: Optional[np.ndarray] = None      # after ray closure: the vertices of B ∩ window the map holds
+
+
+def frame_warp(frame: LightFrame, view: View, at: Optional[LightAtEye], reason: str, rule: LambdaRule,
+               ctx: WarpContext, phi: Optional[float], options: WarpOptions, body: IntersectionBody) -> FrameWarp:
+    """The warp of one frame (``at`` None: uniform for ``reason``)."""
+    w = FrameWarp(frame, [])
+    if frame.near_clamped:
+        w.notes.append((f"{frame.role}: near plane",
+                        "the light is inside B; points nearer than 1e-6 of the scene scale are not covered"))
+    geo, why = frame_geometry(view, at, frame, options, body) if at is not None else (None, reason)
+    if geo is None:
+        w.notes.append((f"{frame.role}: uniform", why))
+        return w
+    lam = rule(geo, ctx, phi, options)
+    p_n = lam * geo.body_extent_world if math.isfinite(lam) else math.inf     # P_n in world units
+    lam_frame = p_n / geo.extent_world if geo.extent_world > 0 else math.inf  # λ for this frame's part of B
+    mu = 0.0 if not math.isfinite(lam_frame) else geo.fade / lam_frame
+    if geo.fade < 1.0:
+        w.notes.append((f"{frame.role}: warp faded", f"the eye's image is far outside B's image in this frame; "
+                                                    f"warp strength x{geo.fade:.3g}" + (" (uniform)" if geo.fade == 0 else "")))
+    if mu == 0.0 and geo.fade > 0.0:
+        w.notes.append((f"{frame.role}: uniform limit", "light parallel to the view direction (γ = 0): "
+                                                       "n_opt = ∞, the warp is the uniform map"))
+    warp = warp_matrix(geo, mu)
+    lo, hi = ndc_box(geo.points_h @ warp.T)            # the unit-cube fit on the frame's light-space points
+    w.geo, w.lam, w.p_n, w.lam_frame, w.mu = geo, lam, p_n, lam_frame, mu
+    w.matrix = window_matrix(lo, hi) @ (warp @ frame.to_light)
+    return w
+
+
 def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: IntersectionBody,
                  options: WarpOptions) -> ShadowSetup:
-    """The maps of one warp method: one warped map per light frame."""
+    """The maps of one warp method: one warped map per light frame, each
+    ray-closed over B when there are several (``ray_closed``)."""
     diag = Diagnostics(name, body_vertices=body.vertices)
     frames = light_frames(view, light, body, options)
     axis = light.direction if light.is_directional else body.centroid - light.position
@@ -405,99 +449,90 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
     else:
         at, reason = light_at_eye(view, light, options, body, middle)
     phi = half_fov_towards(view, at.ell) if at is not None else None
+    warps = [frame_warp(f, view, at, reason, rule, ctx, phi, options, body) for f in frames]
+    warped = [w for w in warps if w.geo is not None]
+    if len(frames) > 1 and warped:
+        for w, (matrix, closure, held) in zip(warped, ray_closed([w.matrix for w in warped], body, light.position)):
+            w.matrix, w.held = matrix, held
+            if matrix is None:
+                w.geo = None
+                w.notes.append((f"{w.frame.role}: uniform", closure))
     maps: list[ShadowMap] = []
     reported = False
-    for frame in frames:
-        if frame.near_clamped:
-            diag.fallback(f"{frame.role}: near plane",
-                          "the light is inside B; points nearer than 1e-6 of the scene scale are not covered")
-        depth_row = linear_depth_row(frame) if options.linear_z else None
-        geo, why = frame_geometry(view, at, frame, options, body) if at is not None else (None, reason)
-        if geo is None:
-            diag.fallback(f"{frame.role}: uniform", why)
+    for w in warps:
+        frame = w.frame
+        for note in w.notes:
+            diag.fallback(*note)
+        depth_row = None
+        if options.linear_z:
+            depth_row = linear_depth_row(frame, None if w.held is None else np.concatenate([frame.points, w.held]))
+        if w.geo is None:
             m = frame_map(frame, options)
             maps.append(ShadowMap(m.matrix, m.size, "LESS", frame.role, depth_row=depth_row))
             continue
-        lam = rule(geo, ctx, phi, options)
-        p_n = lam * geo.body_extent_world if math.isfinite(lam) else math.inf     # P_n in world units
-        lam_frame = p_n / geo.extent_world if geo.extent_world > 0 else math.inf  # λ for this frame's part of B
-        mu = 0.0 if not math.isfinite(lam_frame) else geo.fade / lam_frame
-        if geo.fade < 1.0:
-            diag.fallback(f"{frame.role}: warp faded", f"the eye's image is far outside B's image in this frame; "
-                                                       f"warp strength x{geo.fade:.3g}" + (" (uniform)" if geo.fade == 0 else ""))
-        if mu == 0.0 and geo.fade > 0.0:
-            diag.fallback(f"{frame.role}: uniform limit", "light parallel to the view direction (γ = 0): "
-                                                         "n_opt = ∞, the warp is the uniform map")
-        warp = warp_matrix(geo, mu)
-        lo, hi = ndc_box(geo.points_h @ warp.T)            # the unit-cube fit on the frame's light-space points
-        matrix = window_matrix(lo, hi) @ (warp @ frame.to_light)
-        if len(frames) > 1:
-            matrix, closure, held = ray_closed(matrix, body)
-            if held is not None and depth_row is not None:
-                depth_row = linear_depth_row(frame, np.concatenate([frame.points, held]))
-            if matrix is None:
-                diag.fallback(f"{frame.role}: uniform", closure)
-                m = frame_map(frame, options)
-                maps.append(ShadowMap(m.matrix, m.size, "LESS", frame.role, depth_row=depth_row))
-                continue
-        maps.append(ShadowMap(matrix, options.shadow_map_size, "LESS", frame.role, depth_row=depth_row))
+        maps.append(ShadowMap(w.matrix, options.shadow_map_size, "LESS", frame.role, depth_row=depth_row))
         if reported:
             continue
         reported = True
+        geo = w.geo
         theta = min(geo.gamma, math.pi - geo.gamma)
         diag.theta, diag.gamma = theta, geo.gamma
         if name == "lispsm":
-            diag.n_opt = _finite_or_none(p_n)
-            diag.extra["lambda"] = _finite_or_none(lam)
+            diag.n_opt = _finite_or_none(w.p_n)
+            diag.extra["lambda"] = _finite_or_none(w.lam)
         else:
-            diag.lam = _finite_or_none(lam)
-            diag.extra["n_opt"] = _finite_or_none(p_n)
+            diag.lam = _finite_or_none(w.lam)
+            diag.extra["n_opt"] = _finite_or_none(w.p_n)
             diag.extra["phi"] = phi
-        diag.extra["warp_strength_mu"] = mu
-        diag.warp_frustum_corners = clip_volume_corners(matrix)
+        diag.extra["warp_strength_mu"] = w.mu
+        diag.warp_frustum_corners = clip_volume_corners(w.matrix)
         diag.extra["v_p"] = geo.v_p_world if geo.v_p_world is not None else np.zeros(3)
-        diag.extra["projection_centre"] = projection_centre(frame, geo, lam_frame)
+        diag.extra["projection_centre"] = projection_centre(frame, geo, w.lam_frame)
     return ShadowSetup(maps, diag)
 
 
-_WINDOW_SIDES = np.array([1.0, -1.0, 1.0, -1.0])
-
-
-def window_halfspaces(matrix) -> tuple[np.ndarray, np.ndarray]:
-    """World half-spaces (normals, offsets) of a map's image window, |x| <= w and
-    |y| <= w. Each plane contains the light (light rays have constant x, y)."""
-    m = np.asarray(matrix, dtype=np.float64)
-    rows = _WINDOW_SIDES[:, None] * m[[0, 0, 1, 1]] - m[3]        # ±x - w, ±y - w
-    return rows[:, :3], -rows[:, 3]
-
-
-def ray_closed(matrix, body: IntersectionBody) -> tuple[Optional[np.ndarray], str, Optional[np.ndarray]]:
-    """Make one map of a multi-map setup *ray-closed* over B.
+def ray_closed(matrices, body: IntersectionBody, light_position) -> list:
+    """Make the maps of a multi-map setup (a point light's cube faces) *ray-closed* over B.
 
     A point is served by the first map whose clip volume holds it, so a map must
     hold every point of B on the light rays its image window claims: those are
     the casters of what it serves. A warped cube-face map's window reaches past
-    its face's pyramid, so its depth range is widened to B ∩ window. Returns the
-    (possibly re-fitted) matrix, a note, and the vertices of B ∩ window it now
-    holds; or None and the reason when that part of B touches the light (w = 0)
-    and cannot be held."""
-    if body.polytope is None:
-        return None, "B has no polytope to close the warped map's rays over", None
-    n, o = window_halfspaces(matrix)
-    o = o - n @ body.origin
-    part = body.polytope.section(n, o)           # the corners of B ∩ window (no faces needed)
-    if part is None:
-        return matrix, "", None
-    pts = part + body.origin
-    h = transform_h(matrix, pts)
-    w = h[:, 3:]
-    if (w <= 1e-9 * np.abs(w).max()).any():
-        return None, "the warped map's window reaches the light itself; a uniform face map is ray-closed", None
-    ndc = h[:, :3] / w
-    lo, hi = ndc.min(axis=0), ndc.max(axis=0)
-    if lo.min() >= -1.0 - 1e-9 and hi.max() <= 1.0 + 1e-9:     # the map already holds B ∩ window
-        return matrix, "", pts
-    return window_matrix(lo, hi) @ matrix, "depth widened to B within the map's window", pts
+    its face's pyramid, so its depth range is widened to B ∩ window. The window
+    |x| <= w, |y| <= w is a pyramid with its apex at the light (light rays have
+    constant x, y), so B ∩ window of every map is found at once
+    (``frame.pyramid_sections``). For each map returns the (possibly re-fitted)
+    matrix, a note, and the vertices of B ∩ window it now holds; or None and
+    the reason when that part of B touches the light (w = 0) and cannot be held."""
+    m = np.asarray(matrices, dtype=np.float64)                   # (k, 4, 4)
+    x, y, w = m[:, 0, :3], m[:, 1, :3], m[:, 3, :3]
+    sides = np.stack([x - w, -x - w, y - w, -y - w], axis=1)     # the window's planes through the light
+    sides /= np.sqrt((sides * sides).sum(axis=2))[..., None]
+    # Its corner rays: where x = ±w meets y = ±w, on the side where w > 0.
+    px = np.stack([x - w, x - w, x + w, x + w], axis=1)
+    py = np.stack([y - w, y + w, y - w, y + w], axis=1)
+    rays = px[..., _YZX] * py[..., _ZXY] - px[..., _ZXY] * py[..., _YZX]
+    rays *= np.sign((rays * w[:, None]).sum(axis=2))[..., None]
+    poly = body.polytope_from(light_position)
+    pts, member = pyramid_sections(poly, poly.edges()[0], sides, rays)
+    pts = pts + light_position
+    h = homogeneous(pts) @ m.transpose(0, 2, 1)                 # (k, n, 4)
+    out = []
+    for i in range(len(m)):
+        if not member[:, i].any():
+            out.append((m[i], "", None))
+            continue
+        hi_ = h[i][member[:, i]]
+        wi = hi_[:, 3:]
+        if (wi <= 1e-9 * np.abs(wi).max()).any():
+            out.append((None, "the warped map's window reaches the light itself; a uniform face map is ray-closed", None))
+            continue
+        ndc = hi_[:, :3] / wi
+        lo, hi = ndc.min(axis=0), ndc.max(axis=0)
+        if lo.min() >= -1.0 - 1e-9 and hi.max() <= 1.0 + 1e-9:     # the map already holds B ∩ window
+            out.append((m[i], "", pts[member[:, i]]))
+        else:
+            out.append((window_matrix(lo, hi) @ m[i], "depth widened to B within the map's window", pts[member[:, i]]))
+    return out
 
 
 def projection_centre(frame: LightFrame, g: FrameGeometry, lam: float) -> Optional[np.ndarray]:
