@@ -161,11 +161,12 @@ def _blend(v, s: float) -> tuple[float, float]:
 
 
 def _sin_to(v: np.ndarray, ell: np.ndarray) -> float:
-    nv = float(np.linalg.norm(v))
+    nv = math.sqrt(v @ v)
     if nv == 0.0:
         return 0.0
     u = v / nv
-    return float(np.linalg.norm(u - (u @ ell) * ell))
+    p = u - (u @ ell) * ell
+    return math.sqrt(p @ p)
 
 
 _YZX, _ZXY = np.array([1, 2, 0]), np.array([2, 0, 1])
@@ -174,21 +175,26 @@ _YZX, _ZXY = np.array([1, 2, 0]), np.array([2, 0, 1])
 
 def volume_centroid(body: IntersectionBody) -> np.ndarray:
     """The centre of B's volume (continuous in B, unlike the mean of its vertices,
-    which jumps when a vertex appears or merges)."""
-    ref = body.vertices.sum(axis=0) / len(body.vertices)             # their mean
-    faces = list(body.faces)
-    sizes = [len(f) for f in faces]
-    fans = [(s, s + j, s + j + 1)                                     # each face as a fan of triangles
-            for s, n in zip(itertools.accumulate([0] + sizes), sizes) for j in range(1, n - 1)]
+    which jumps when a vertex appears or merges): B's faces as fans of
+    triangles, each the base of a tetrahedron from the vertices' mean."""
+    if body.polytope is not None:           # vertex loops by index into the polytope's vertices
+        v, loops, origin = body.polytope.vertices, body.polytope.facet_loops(), body.origin
+    else:
+        faces = list(body.faces)
+        v, origin = np.concatenate(faces), 0.0
+        starts = list(itertools.accumulate([0] + [len(f) for f in faces]))
+        loops = [range(s, s + len(f)) for s, f in zip(starts, faces)]
+    ref = v.sum(axis=0) / len(v)                                     # their mean
+    fans = [(loop[0], loop[j], loop[j + 1]) for loop in loops for j in range(1, len(loop) - 1)]
     if not fans:
-        return ref
-    a, b, c = (np.concatenate(faces) - ref)[np.array(fans).T]        # the fans' corners, (T, 3) each
-    cr = b[:, _YZX] * c[:, _ZXY] - b[:, _ZXY] * c[:, _YZX]               # b × c
+        return ref + origin
+    a, b, c = (v - ref)[np.array(fans).T]                            # the fans' corners, (T, 3) each
+    cr = b[:, _YZX] * c[:, _ZXY] - b[:, _ZXY] * c[:, _YZX]           # b × c
     vol = np.abs(np.einsum("ij,ij->i", a, cr)) / 6.0                  # tetrahedra (ref, a, b, c)
     total = float(vol.sum())
     if not total > 0:
-        return ref
-    return ref + (vol[:, None] * (a + b + c) / 4.0).sum(axis=0) / total
+        return ref + origin
+    return ref + origin + (vol[:, None] * (a + b + c) / 4.0).sum(axis=0) / total
 
 
 def eye_depth_range(view: View, body: IntersectionBody, options: WarpOptions, diag: Diagnostics) -> WarpContext:
@@ -209,20 +215,17 @@ def eye_depth_range(view: View, body: IntersectionBody, options: WarpOptions, di
 def half_fov_towards(view: View, light_dir) -> float:
     """GMNPR's φ: the angle from the view axis to the side of the view frustum
     in the direction of the (folded) light direction's projection."""
-    ell = np.asarray(light_dir, dtype=np.float64)
     r = view.camera_to_world[:3, :3]
-    r = r / np.linalg.norm(r, axis=0, keepdims=True)
-    c = r.T @ ell
-    if c[2] > 0:                         # fold: the light line's half that points along the view (-Z)
-        c = -c
-    u = c[:2]
-    p = view.projection
-    bounds_x = ((-1.0 + p[0, 2]) / p[0, 0], (1.0 + p[0, 2]) / p[0, 0])
-    bounds_y = ((-1.0 + p[1, 2]) / p[1, 1], (1.0 + p[1, 2]) / p[1, 1])
-    nu = float(np.linalg.norm(u))
+    cx, cy, cz = ((np.asarray(light_dir, dtype=np.float64) @ r) / np.sqrt((r * r).sum(axis=0))).tolist()
+    if cz > 0:                           # fold: the light line's half that points along the view (-Z)
+        cx, cy = -cx, -cy
+    (p00, _, p02, _), (_, p11, p12, _) = view.projection[:2].tolist()
+    bounds_x = ((-1.0 + p02) / p00, (1.0 + p02) / p00)
+    bounds_y = ((-1.0 + p12) / p11, (1.0 + p12) / p11)
+    nu = math.hypot(cx, cy)
     if nu < 1e-300:
         return math.atan(max(min(abs(v) for v in bounds_x + bounds_y), 1e-9))
-    u = u / nu
+    u = (cx / nu, cy / nu)
     dist = math.inf
     for k, (lo, hi) in enumerate((bounds_x, bounds_y)):
         if u[k] > 0:
@@ -242,17 +245,17 @@ def light_at_eye(view: View, light: Light, options: WarpOptions, body: Intersect
         ell, dist = light.direction, 0.0
     else:
         to_eye = view.position - light.position
-        dist = float(np.linalg.norm(to_eye))
+        dist = math.sqrt(to_eye @ to_eye)
         if dist <= 1e-9 * body.scale:
             return None, "the eye is at the light: the light ray through the eye is undefined"
         ell = to_eye / dist
     vector = middle if options.middle_vector else d
     s = _sin_to(vector, ell) if (options.middle_vector or not light.is_directional) else 1.0
-    c = float(np.clip(d @ ell, -1.0, 1.0))
+    c = min(max(float(d @ ell), -1.0), 1.0)
     at = LightAtEye(ell, dist, math.acos(c), vector, s)
     if not light.is_directional:
         perp = d - c * ell
-        n = float(np.linalg.norm(perp))
+        n = math.sqrt(perp @ perp)
         if n > 0:
             at.v_p = perp / n
             along = body.vertices @ at.v_p
@@ -442,7 +445,7 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
     diag.extra["delta_z"] = ctx.delta_z
     diag.extra["frames"] = [f.role for f in frames]
     middle = volume_centroid(body) - view.position
-    length = float(np.linalg.norm(middle))
+    length = math.sqrt(middle @ middle)
     diag.extra["middle_vector"] = middle / length if length > 0 else np.zeros(3)
     if view.orthographic:
         at, reason = None, "orthographic camera: no perspective aliasing to redistribute"
