@@ -213,17 +213,18 @@ def clip_polygon(poly: np.ndarray, plane: Plane, tol: float = 0.0) -> np.ndarray
     """Sutherland-Hodgman: the part of a convex polygon with ``plane.distance <= 0``."""
     if len(poly) == 0:
         return poly
-    d = plane.distance(poly)
-    d = np.where(np.abs(d) <= tol, 0.0, d)
+    d = [0.0 if abs(e) <= tol else e for e in plane.distance(poly).tolist()]
+    if max(d) <= 0:
+        return poly
+    pts = poly.tolist()
     out = []
-    k = len(poly)
-    for i in range(k):
-        a, b, da, db = poly[i], poly[(i + 1) % k], d[i], d[(i + 1) % k]
+    for a, b, da, db in zip(pts, pts[1:] + pts[:1], d, d[1:] + d[:1]):
         if da <= 0:
             out.append(a)
         if (da < 0 < db) or (db < 0 < da):
-            out.append(a + da / (da - db) * (b - a))
-    return np.asarray(out).reshape(-1, 3)
+            t = da / (da - db)
+            out.append((a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2])))
+    return np.array(out, dtype=np.float64).reshape(-1, 3)
 
 
 def plane_section(vertices, normal, offset: float, tol: float, edges=None) -> Optional[np.ndarray]:
@@ -270,15 +271,21 @@ def polygon_area(poly, normal) -> float:
 def offset_polygon(poly: np.ndarray, normal: np.ndarray, dist: float) -> np.ndarray:
     """The convex polygon (CCW about ``normal``) with every edge moved out by
     ``dist``: exactly the set ``Region.contains`` accepts with tolerance ``dist``."""
+    return poly + dist * offset_directions(poly, normal)
+
+
+def offset_directions(poly: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Per vertex of the convex polygon (CCW about ``normal``), how it moves when
+    every edge moves out by 1: ``offset_polygon(poly, normal, d) = poly + d * offset_directions(poly, normal)``."""
     edge = next_vertices(poly) - poly                       # edge i runs from vertex i to i + 1
     length = np.sqrt(np.einsum("ij,ij->i", edge, edge))
     out_n = cross_rows(edge / np.where(length > 0, length, 1.0)[:, None],
                        np.broadcast_to(normal, edge.shape))  # outward for CCW
     n1, n2 = np.concatenate([out_n[-1:], out_n[:-1]]), out_n   # the edges before and after each vertex
     s = 1.0 + np.einsum("ij,ij->i", n1, n2)
-    out = poly + dist * (n1 + n2) / np.where(s > 1e-9, s, 1.0)[:, None]
+    out = (n1 + n2) / np.where(s > 1e-9, s, 1.0)[:, None]
     for i in np.flatnonzero(s <= 1e-9):                     # the polygon turns back on itself there
-        out[i] = poly[i] + dist * _unit(n1[i] + n2[i] if np.any(n1[i] + n2[i]) else n1[i])
+        out[i] = _unit(n1[i] + n2[i] if np.any(n1[i] + n2[i]) else n1[i])
     return out
 
 

@@ -56,10 +56,10 @@ import numpy as np
 from ..body import IntersectionBody
 from ..fit import ndc_bounds, window_matrix
 from ..frame import light_angles, light_frames
-from ..geometry import cross3, homogeneous, translation
+from ..geometry import homogeneous, translation
 from ..plane_map import (PlaneOfInterest, clip_polygon, convex_polygon_on_plane, default_plane, enclosing_polygon,
-                         min_area_twist, next_vertices,
-                         offset_polygon, plane_light_rows, plane_section, polygon_area, rotation2d)
+                         min_area_twist, next_vertices, offset_directions, plane_light_rows, plane_section,
+                         polygon_area, rotation2d)
 from ..polyhedron import Plane, clip_faces, cross_rows, unique_points
 from ..types import Diagnostics, Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .uniform import frame_map
@@ -139,11 +139,10 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
     height = side * pi                                # h(X) = height · (x, 1)
     # The camera on the plane: it is seen edge-on and covers no pixel.
     world_to_clip = view.world_to_clip
-    cam = np.linalg.svd(world_to_clip[[0, 1, 3]])[2][-1]          # the camera centre (homogeneous)
-    if abs(cam[3]) > 1e-12 * np.linalg.norm(cam[:3]):
-        edge_on = abs(float(pi @ np.append(cam[:3] / cam[3] - origin, 1.0))) <= max(tol, 1e-9 * scale)
-    else:                                                           # orthographic: the centre is a direction
-        edge_on = abs(float(n @ cam[:3])) <= 1e-9 * float(np.linalg.norm(cam[:3]))
+    if view.orthographic:                                           # the centre of projection is a direction
+        edge_on = abs(float(n @ view.direction)) <= 1e-9
+    else:
+        edge_on = abs(float(n @ (view.position - origin)) - off) <= max(tol, 1e-9 * scale)
     if edge_on:
         diag.fallback(role, f"{plane.name} passes through the camera (seen edge-on): it covers no pixel")
         return None
@@ -159,9 +158,11 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
         if ext is None:
             poly = None
         else:
-            for i in range(len(ext)):
-                a, b = ext[i], ext[(i + 1) % len(ext)]
-                poly = clip_polygon(poly, Plane.through(a, cross3(b - a, n)), body.tolerance)
+            # The extent's edges as lines on P: outward normals (edge x n, CCW about n) and offsets.
+            out = cross_rows(next_vertices(ext) - ext, np.broadcast_to(n, ext.shape))
+            out /= np.sqrt(np.einsum("ij,ij->i", out, out))[:, None]
+            for o_n, o_o in zip(out, np.einsum("ij,ij->i", out, ext).tolist()):
+                poly = clip_polygon(poly, Plane(o_n, o_o), body.tolerance)
                 if len(poly) < 3:
                     poly = None
                     break
@@ -186,9 +187,10 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
         return None
     rows = m[[0, 1, 3]] * (w_view / w_light)
     # The region (what Region.contains accepts) and its casters in B.
-    grown = offset_polygon(poly, n, tol)
+    outwards = offset_directions(poly, n)
+    grown = poly + tol * outwards
     prism_pts = np.concatenate([grown - tol * n, grown + tol * n])
-    casters, near_clamped = _casters(grown, n, height, l_h, tol, body, origin)
+    casters, near_clamped = _casters(poly, outwards, grown, n, height, l_h, tol, body, origin)
     if near_clamped:
         diag.fallback(f"{role}: near plane", "the light is inside B; casters nearer than 1e-6 of the scene scale "
                                              "to the light's height are not in the plane map")
@@ -212,24 +214,22 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
     return _PlaneJob(k, plane, poly, rows, pixel, height, pts, pixels, info)
 
 
-def _casters(grown, n, height, l_h, tol, body, origin):
+def _casters(poly, outwards, grown, n, height, l_h, tol, body, origin):
     """Vertices of B ∩ C: B's points on the needed rays C (the light rays through
     the region, §2 Fig. 5-6) from the light down to just beyond the plane.
 
-    C is the cone (a prism for a sun) from the light over the region polygon,
-    grown by tol·(1 + tan α) so that the slab points of the region (whose
-    light rays meet P up to tol·tan α away, α = the light's incidence) are on
-    it. For a point light inside B the part within NEAR_FRACTION of the
-    scene scale below the light's height is cut off (returned flag)."""
+    C is the cone (a prism for a sun) from the light over the region polygon
+    ``grown`` (``poly`` moved out by tol along ``outwards``), grown by
+    tol·(1 + tan α) so that the slab points of the region (whose light rays
+    meet P up to tol·tan α away, α = the light's incidence) are on it. For a
+    point light inside B the part within NEAR_FRACTION of the scene scale
+    below the light's height is cut off (returned flag)."""
     hv, h0 = height[:3], height[3]
-    if l_h[3] == 0:
-        rays = np.broadcast_to(-l_h[:3], grown.shape)
-    else:
-        rays = grown - l_h[:3] / l_h[3]
-    rays = rays / np.linalg.norm(rays, axis=1, keepdims=True)
-    cos = np.abs(rays @ n)
-    tan = float(np.max(np.sqrt(np.maximum(1 - cos ** 2, 0)) / np.maximum(cos, 1e-300)))
-    poly = offset_polygon(grown, n, tol * (1 + min(tan, 1e12)))
+    rays = -l_h[None, :3] if l_h[3] == 0 else grown - l_h[:3] / l_h[3]
+    along = np.abs(rays @ n)                              # |ray| cos α
+    across = np.sqrt(np.maximum(np.einsum("ij,ij->i", rays, rays) - along * along, 0.0))     # |ray| sin α
+    tan = float(np.max(across / np.maximum(along, 1e-300)))
+    poly = poly + (tol * (2 + min(tan, 1e12))) * outwards
     centre = poly.mean(axis=0)
     # The side planes of C: through each edge (a, b) and the light, facing away from the centre.
     towards = l_h[:3] - poly * l_h[3]                     # from each a towards the light (homogeneous)
