@@ -353,15 +353,18 @@ class LightHull(NamedTuple):
 
     normals: np.ndarray
     offsets: np.ndarray
-    """The half-spaces ``normals @ x <= offsets``: P's facets that do not face the light, then one per side."""
+    """The half-spaces ``normals @ x <= offsets``: P's facets that do not face the light, then one per
+    side (each silhouette edge whose facet does not hold the light)."""
     body: Brep
     """P's boundary, whose facets and vertices the other fields refer to."""
     kept: list
     """Indices of P's facets that do not face the light."""
     sides: list | None
-    """(a, c) per silhouette edge: P's edge a -> c in the loop of a facet that does not face the light
-    while the facet across the edge does; its side's half-space is row ``len(kept) + i``.
-    None when P's loops do not close."""
+    """(a, c, g) per silhouette edge: P's edge a -> c in the loop of facet g, which does not face the
+    light while the facet across the edge does. None when P's loops do not close."""
+    holding: set
+    """The kept facets whose plane holds the light (within the tolerance): their sides lie in their own
+    plane, so each such facet grows over them instead of getting separate sides."""
     light: tuple
     """The light in homogeneous coordinates."""
 
@@ -371,53 +374,87 @@ class LightHull(NamedTuple):
         (u the direction towards it), a strip along u to the plane ``cap`` =
         (m, h), m . x = h, which closes the body (m . u > 0, and P strictly on
         the side m . x < h: B uses the face of S_c the light leaves it by, so
-        S_c's own clip has one plane less to cut). P itself when no facet faces
-        the light (a point light inside or on P)."""
+        S_c's own clip has one plane less to cut). A facet holding the light
+        takes its sides into its own loop (its run of silhouette edges a1 ...
+        ak becomes a1, light, ak, or a1, a1', ak', ak for a sun), so no two
+        facets share a plane. P itself when no facet faces the light (a point
+        light inside or on P)."""
         b = self.body
         if self.sides is None:
             raise OpenCut("P's loops do not close: the hull has no boundary")
         if not self.sides:
             return b
-        used = sorted({v for f in self.kept for v in b.loops[f]})
-        index = {v: k for k, v in enumerate(used)}
-        verts = [b.vertices[v] for v in used]
-        normals = [b.normals[f] for f in self.kept] + self.normals[len(self.kept):].tolist()
-        offsets = [b.offsets[f] for f in self.kept] + self.offsets[len(self.kept):].tolist()
-        loops = [[index[v] for v in b.loops[f]] for f in self.kept]
         x, y, z, w = self.light
-        if w != 0:
-            apex = len(verts)
-            verts.append((x / w, y / w, z / w))
-            loops.extend([index[c], index[a], apex] for a, c in self.sides)
-            return Brep(verts, normals, offsets, loops)
-        # A sun: every silhouette vertex v gets v' = v moved along u onto the cap plane.
-        (mx, my, mz), h = cap
-        rate = mx * x + my * y + mz * z
-        raised: dict = {}
-        for a, c in self.sides:
-            for v in (a, c):
-                if v not in raised:
-                    px, py, pz = b.vertices[v]
+        sun = w == 0
+        apex = -1                                  # ids < 0: the light, and -2 - v for v raised to the cap
+        silhouette = {(a, c) for a, c, _ in self.sides}
+        normals = [b.normals[g] for g in self.kept]
+        offsets = [b.offsets[g] for g in self.kept]
+        loops, cap_next = [], {}
+        for g in self.kept:
+            loop = b.loops[g]
+            if g not in self.holding:
+                loops.append(list(loop))
+                continue
+            k = len(loop)
+            on = [(loop[i - 1], loop[i]) in silhouette for i in range(k)]     # edge into loop[i]
+            starts = [i for i in range(k) if on[i] and not on[i - 1]]
+            if not any(on):
+                loops.append(list(loop))
+                continue
+            if len(starts) != 1:
+                raise OpenCut("a facet holding the light sees it across more than one run of edges")
+            i = starts[0] - 1                      # the run is loop[i] -> ... -> loop[j]
+            j = i + 1
+            while on[(j + 1) % k]:
+                j += 1
+            first, last = loop[i % k], loop[j % k]
+            grown = [first, -2 - first, -2 - last, last] if sun else [first, apex, last]
+            grown += [loop[(j + 1 + t) % k] for t in range(k - (j - i) - 1)]
+            loops.append(grown)
+            if sun:
+                cap_next[-2 - last] = -2 - first
+        rows = iter(zip(self.normals[len(self.kept):].tolist(), self.offsets[len(self.kept):].tolist()))
+        for a, c, g in self.sides:
+            if g in self.holding:
+                continue
+            n, o = next(rows)
+            normals.append(tuple(n))
+            offsets.append(o)
+            if sun:
+                loops.append([c, a, -2 - a, -2 - c])
+                cap_next[-2 - c] = -2 - a
+            else:
+                loops.append([c, a, apex])
+        if sun:
+            (mx, my, mz), h = cap
+            start = min(cap_next)
+            ring, v = [start], cap_next[start]
+            while v != start and len(ring) <= len(cap_next):
+                ring.append(v)
+                v = cap_next.get(v, start)
+            if len(ring) != len(cap_next) or v != start:
+                raise OpenCut("the silhouette is not one loop")
+            normals.append((mx, my, mz))
+            offsets.append(h)
+            loops.append(ring)
+            rate = mx * x + my * y + mz * z
+        # Number the vertices the loops use: P's, then the light or the raised ones.
+        index, verts = {}, []
+        for loop in loops:
+            for v in loop:
+                if v in index:
+                    continue
+                index[v] = len(verts)
+                if v >= 0:
+                    verts.append(b.vertices[v])
+                elif v == apex:
+                    verts.append((x / w, y / w, z / w))
+                else:                              # v moved along u onto the cap plane
+                    px, py, pz = b.vertices[-2 - v]
                     t = (h - (mx * px + my * py + mz * pz)) / rate
-                    raised[v] = len(verts)
                     verts.append((px + t * x, py + t * y, pz + t * z))
-        cap_next = {}
-        for a, c in self.sides:
-            loops.append([index[c], index[a], raised[a], raised[c]])
-            cap_next[raised[c]] = raised[a]
-        start = min(cap_next)
-        ring, v = [start], cap_next[start]
-        while v != start:
-            if len(ring) > len(cap_next):
-                break
-            ring.append(v)
-            v = cap_next[v]
-        if len(ring) != len(cap_next):
-            raise OpenCut("the silhouette is not one loop")
-        normals.append((mx, my, mz))
-        offsets.append(h)
-        loops.append(ring)
-        return Brep(verts, normals, offsets, loops)
+        return Brep(verts, normals, offsets, [[index[v] for v in loop] for loop in loops])
 
 
 def light_hull(b: Brep, light_h, tol: float) -> LightHull:
@@ -434,15 +471,17 @@ def light_hull(b: Brep, light_h, tol: float) -> LightHull:
 
     of two half-spaces that hold P, so it holds P exactly, however short the
     edge (no cross product of its endpoints); any such σ holds hull(P ∪ light).
-    A facet within the tolerance of the light counts as not facing it. When
-    P's loops do not close (a near-degenerate clip), facets sharing two
-    vertices count as neighbours and the hull has half-spaces but no boundary
-    (``LightHull.sides`` is None)."""
+    A facet within the tolerance of the light counts as not facing it, and
+    holds it: its σ is its own plane, so it adds none. When P's loops do not
+    close (a near-degenerate clip), facets sharing two vertices count as
+    neighbours and the hull has half-spaces but no boundary (``LightHull.sides``
+    is None)."""
     x, y, z, w = (float(c) for c in light_h)
     s = [nx * x + ny * y + nz * z - o * w for (nx, ny, nz), o in zip(b.normals, b.offsets)]
     threshold = tol if w != 0 else SUN_FACING
     facing = [v > threshold for v in s]
     kept = [g for g in range(len(b.loops)) if not facing[g]]
+    holding = {g for g in kept if s[g] >= -threshold}
     owner = directed_edges(b.loops)
     pairs, sides = [], []
     for g in kept:
@@ -454,17 +493,19 @@ def light_hull(b: Brep, light_h, tol: float) -> LightHull:
                 sides = None
                 break
             if facing[f]:
-                pairs.append((f, g))
-                sides.append((a, c))
+                sides.append((a, c, g))
+                if g not in holding:
+                    pairs.append((f, g))
         if sides is None:
             break
     if sides is None:
         loops = [set(loop) for loop in b.loops]
-        pairs = [(f, g) for g in kept for f in range(len(b.loops)) if facing[f] and len(loops[f] & loops[g]) >= 2]
+        pairs = [(f, g) for g in kept if g not in holding
+                 for f in range(len(b.loops)) if facing[f] and len(loops[f] & loops[g]) >= 2]
     normals = [b.normals[g] for g in kept]
     offsets = [b.offsets[g] for g in kept]
     for f, g in pairs:
-        wf, wg = max(-s[g], 0.0), s[f]
+        wf, wg = -s[g], s[f]
         (fx, fy, fz), (gx, gy, gz) = b.normals[f], b.normals[g]
         nx, ny, nz = wf * fx + wg * gx, wf * fy + wg * gy, wf * fz + wg * gz
         length = math.sqrt(nx * nx + ny * ny + nz * nz)
@@ -473,7 +514,7 @@ def light_hull(b: Brep, light_h, tol: float) -> LightHull:
         normals.append((nx / length, ny / length, nz / length))
         offsets.append((wf * b.offsets[f] + wg * b.offsets[g]) / length)
     return LightHull(np.array(normals, dtype=np.float64).reshape(-1, 3), np.array(offsets, dtype=np.float64),
-                     b, kept, sides, (x, y, z, w))
+                     b, kept, sides, holding, (x, y, z, w))
 
 
 _BOX_NORMALS = np.concatenate([-np.eye(3), np.eye(3)])

@@ -239,3 +239,31 @@ def test_a_section_has_every_corner_of_the_clip_and_nothing_outside_it():
         assert gap.max() <= 1e-9
         assert np.all(clipped.contains(section, 1e-9))
     assert checked > 100
+
+
+@pytest.mark.parametrize("light_h", [
+    np.array([2.0, 0.5, 1.0, 1.0]),            # a point light in the plane of the box's top facet
+    np.array([2.0, 1.0, 1.0, 1.0]),            # ... and on the line of one of its edges
+    np.array([1.0, 0.0, 0.0, 0.0]),            # a sun along x: four facets parallel to its rays
+    np.array([0.6, 0.8, 0.0, 0.0]),            # a sun in the xy plane: the top and bottom facets hold it
+])
+def test_facets_holding_the_light_grow_over_their_sides(light_h):
+    """A facet whose plane holds the light (a point light in its plane, a sun
+    parallel to it) takes its sides into its own loop: the hull is closed and
+    no two of its facets share a plane."""
+    b = ConvexPolytope.box([0.0, 0.0, 0.0], [1.0, 1.0, 1.0], TOL).brep()
+    hull = light_hull(b, light_h, TOL)
+    assert hull.holding
+    cap = None
+    if light_h[3] == 0:
+        axis = int(np.argmax(np.abs(light_h[:3])))
+        m = np.eye(3)[axis] * np.sign(light_h[axis])
+        cap = (m.tolist(), float(np.max(np.array(b.vertices) @ m)) + 3.0)
+    h = hull.brep(cap)
+    assert_closed_convex(h)
+    planes = np.round(np.c_[np.array(h.normals), np.array(h.offsets)], 9)
+    assert len(np.unique(planes, axis=0)) == len(planes), "two facets in one plane"
+    v = np.array(b.vertices)
+    target = light_h[:3] / light_h[3] if light_h[3] else v + 5.0 * light_h[:3]
+    along = (v + np.linspace(0.0, 1.0, 7)[:, None, None] * (target - v)).reshape(-1, 3)
+    assert np.all(along @ hull.normals.T - hull.offsets <= 1e-9)
