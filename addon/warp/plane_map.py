@@ -48,6 +48,13 @@ VIEW_CORNERS = ((-1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (1.0, -1.0))
 """The four viewer-image points of Eq. 2 (the image corners, in NDC, in the
 paper's order (0,0), (0,h-1), (g-1,h-1), (g-1,0))."""
 
+_FIVE_POINT_TARGETS = np.array([[*VIEW_CORNERS[0], 1.0, 1.0], [*VIEW_CORNERS[1], 1.0, 1.0], [*VIEW_CORNERS[2], 1.0, 1.0],
+                                [*VIEW_CORNERS[3], -1.0, 1.0], [0.0, 0.0, 1.0, 0.0]])
+"""The light-image targets of p^1..p^3, p̂^4 and l (see :func:`plane_light_rows`)."""
+
+_OTHER_AXES = np.array([[j for j in range(4) if j != m] for m in range(4)])
+"""For each homogeneous axis m, the other three."""
+
 FLAT_RATIO = 0.1
 """A receiver box is flat (a floor, a table top, terrain) when its height is at
 most this fraction of its smaller horizontal side."""
@@ -136,7 +143,7 @@ def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
     dst = np.asarray(dst, dtype=np.float64).reshape(5, 4)
     # Rows (correspondence i, j != m_i): the 4x4 unknowns with y_m x in row j and -y_j x in row m.
     big = np.argmax(np.abs(dst), axis=1)
-    others = np.array([[j for j in range(4) if j != m] for m in big.tolist()])     # (5, 3)
+    others = _OTHER_AXES[big]                                                       # (5, 3)
     i, k = np.arange(5)[:, None], np.arange(3)[None, :]
     a = np.zeros((5, 3, 4, 4))
     a[i, k, others] = dst[np.arange(5), big][:, None, None] * src[:, None, :]
@@ -169,11 +176,14 @@ def ray_plane_points(view_clip, plane_vec, ndc_xy) -> np.ndarray:
     lying in P gives the zero vector."""
     inv = np.linalg.inv(np.asarray(view_clip, dtype=np.float64))
     xy = np.asarray(ndc_xy, dtype=np.float64).reshape(-1, 2)
-    ones = np.ones(len(xy))
-    a = np.column_stack([xy, -ones, ones]) @ inv.T
-    b = np.column_stack([xy, ones, ones]) @ inv.T
-    pa, pb = a @ plane_vec, b @ plane_vec
-    return pb[:, None] * a - pa[:, None] * b
+    k = len(xy)
+    ends = np.ones((2 * k, 4))                      # the near points (z = -1), then the far ones (z = 1)
+    ends[:k, :2] = ends[k:, :2] = xy
+    ends[:k, 2] = -1.0
+    ends = ends @ inv.T
+    a, b = ends[:k], ends[k:]
+    side = ends @ plane_vec
+    return side[k:, None] * a - side[:k, None] * b
 
 
 def plane_light_rows(view_clip, plane_vec, light_h, length_scale: float) -> tuple[np.ndarray, dict]:
@@ -187,26 +197,23 @@ def plane_light_rows(view_clip, plane_vec, light_h, length_scale: float) -> tupl
     a camera 1 cm above a 100 m floor. Raises WarpError naming the reason."""
     pi = np.asarray(plane_vec, dtype=np.float64)
     l_h = np.asarray(light_h, dtype=np.float64)
-    corners = np.array(VIEW_CORNERS)
-    p = ray_plane_points(view_clip, pi, corners)
-    norms = np.linalg.norm(p, axis=1)
-    if np.any(norms <= 1e-300) or not np.all(np.isfinite(p)):
+    p = ray_plane_points(view_clip, pi, _FIVE_POINT_TARGETS[:4, :2])
+    if not np.all(np.isfinite(p)) or _row_norms(p).min() <= 1e-300:
         raise WarpError("a corner ray of the view lies in the plane (the plane is seen edge-on)")
-    finite = np.abs(p[:, 3]) > 1e-12 * np.linalg.norm(p[:, :3], axis=1)
-    dist = np.zeros(4)
-    dist[finite] = np.linalg.norm(p[finite, :3] / p[finite, 3:4], axis=1)
-    sigma = float(np.sqrt(np.mean(dist[finite] ** 2))) if finite.any() else 0.0
+    # The spread of the finite p^i: their root mean square distance from the camera.
+    dist = [math.sqrt(x * x + y * y + z * z) / abs(w) for x, y, z, w in p.tolist()
+            if abs(w) > 1e-12 * math.sqrt(x * x + y * y + z * z)]
+    sigma = math.sqrt(sum(d * d for d in dist) / len(dist)) if dist else 0.0
     sigma = min(sigma, 1e6 * length_scale) if sigma > 0 else length_scale
-    nrm = np.diag([1.0 / sigma, 1.0 / sigma, 1.0 / sigma, 1.0])
-    pts = p @ nrm                                    # (nrm is diagonal)
-    pts /= _row_norms(pts)[:, None]
-    light = _unit(nrm @ l_h)
-    raised = _unit(pts[3] + light)  # p̂^4: another point of the line through p^4 and l (Fig. 2)
-    src = np.array([pts[0], pts[1], pts[2], raised, light])
-    dst = np.array([[*corners[0], 1.0, 1.0], [*corners[1], 1.0, 1.0], [*corners[2], 1.0, 1.0],
-                    [*corners[3], -1.0, 1.0], [0.0, 0.0, 1.0, 0.0]])
-    m, info = five_point_matrix(src, dst)
-    return m @ nrm, info
+    nrm = np.array([1.0 / sigma, 1.0 / sigma, 1.0 / sigma, 1.0])      # the diagonal of the normalising scale
+    src = np.empty((5, 4))
+    src[:4] = p * nrm
+    src[4] = l_h * nrm
+    src /= _row_norms(src)[:, None]
+    raised = src[3] + src[4]        # p̂^4: another point of the line through p^4 and l (Fig. 2)
+    src[3] = _unit(raised)
+    m, info = five_point_matrix(src, _FIVE_POINT_TARGETS)
+    return m * nrm, info
 
 
 def clip_polygon(poly: np.ndarray, plane: Plane, tol: float = 0.0) -> np.ndarray:
