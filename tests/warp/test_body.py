@@ -155,6 +155,27 @@ def test_hard_case_body_contains_what_the_view_needs(name):
     assert_closed(body)
 
 
+@pytest.mark.parametrize("name", ["sun_behind_camera", "spot_over_scene", "point_light_inside_view", "theta_equals_phi"])
+def test_when_the_face_walk_gives_up_vertex_enumeration_builds_the_same_body(name, monkeypatch):
+    """Every face-loop cut refusing (brep.OpenCut, as on a cut too degenerate
+    to order) sends B through vertex enumeration: the same body, still holding
+    what the view needs."""
+    from addon.warp import brep
+    view, light, scene = HARD_CASES[name]
+    walked = intersection_body(view, light, scene)
+
+    def refuse(*args, **kwargs):
+        raise brep.OpenCut("refused for the test")
+    monkeypatch.setattr(brep, "cut", refuse)
+    enumerated = intersection_body(view, light, scene)
+    assert enumerated.polytope.loops is None         # built by enumeration: no face loops yet
+    tol = 10 * walked.tolerance
+    assert enumerated.contains(walked.vertices, tol).all() and walked.contains(enumerated.vertices, tol).all()
+    recv = visible_receiver_points(view, light, scene)
+    assert_contains(enumerated, recv, "visible receiver points")
+    assert_contains(enumerated, shadowing_caster_points(light, scene, recv[:400]), "shadowing caster points")
+
+
 @pytest.mark.parametrize("name", sorted(EMPTY_CASES))
 def test_hard_case_empty_body_raises_with_a_reason(name):
     view, light, scene = HARD_CASES[name]
