@@ -286,10 +286,10 @@ def cube_sections(poly, edges: np.ndarray, basis: np.ndarray) -> tuple[np.ndarra
     """``cube_section_points`` as candidate points (n, 3) and which faces each
     belongs to (n, 6), a face's column all False when its part has no volume."""
     tol = poly.tol
-    sides = ((_FACE_PLANES @ basis) / math.sqrt(2.0)).reshape(6, 4, 3)   # unit normals, <= 0 inside
-    pts, member = pyramid_sections(poly, edges, sides, (_FACE_CORNER_SIGNS @ basis).reshape(6, 4, 3))
+    n24 = (_FACE_PLANES @ basis) / math.sqrt(2.0)           # (24, 3) unit normals, <= 0 inside the pyramids
+    pts, member = pyramid_sections(poly, edges, n24.reshape(6, 4, 3), (_FACE_CORNER_SIGNS @ basis).reshape(6, 4, 3))
     # No volume: too few points, or all on one of the face's planes.
-    on_plane = (np.abs(pts @ sides.reshape(24, 3).T) <= tol) | ~member[:, _FACE_OF_PLANE]
+    on_plane = (np.abs(pts @ n24.T) <= tol) | ~member[:, _FACE_OF_PLANE]
     flat = on_plane.all(axis=0).reshape(6, 4).any(axis=1)
     return pts, member & ((member.sum(axis=0) >= 4) & ~flat)
 
@@ -309,7 +309,8 @@ def pyramid_sections(poly, edges: np.ndarray, sides: np.ndarray, rays: np.ndarra
     tol = poly.tol
     v = poly.vertices
     n = sides.reshape(4 * k, 3)
-    face_of_plane = np.repeat(np.arange(k), 4)
+    pyramid = np.arange(k)
+    face_of_plane = pyramid.repeat(4)
     d = v @ n.T                                              # (vertices, 4k)
     d3 = d.reshape(len(v), k, 4)
     outside = (d3 >= -tol).all(axis=0).any(axis=1)           # (k,): P wholly outside one side
@@ -329,8 +330,8 @@ def pyramid_sections(poly, edges: np.ndarray, sides: np.ndarray, rays: np.ndarra
     t_lo, t_hi, hit = ray_interval(poly, rays)
     apex = poly.contains(np.zeros((1, 3)), tol)
     pts = np.concatenate([v, x, t_lo[:, None] * rays, t_hi[:, None] * rays, np.zeros((1, 3))])
-    on_ray = (face_of_plane[:, None] == np.arange(k)) & hit[:, None]
-    member = np.concatenate([d3.max(axis=2) <= tol, face_of[:, None] == np.arange(k), on_ray, on_ray,
+    on_ray = (face_of_plane[:, None] == pyramid) & hit[:, None]
+    member = np.concatenate([d3.max(axis=2) <= tol, face_of[:, None] == pyramid, on_ray, on_ray,
                              np.repeat(apex[:, None], k, axis=1)])
     return pts, member & ~outside
 
