@@ -168,7 +168,7 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     corner) and stopping when no box can be nearer. Always in [view.near, true
     nearest visible depth]."""
     origin = view.position
-    to_cam = np.linalg.inv(view.camera_to_world[:3, :3])
+    to_cam = view.world_to_camera[:3, :3]          # camera-relative world -> camera axes
     coarse = float(max((-((body.visible_vertices - origin) @ to_cam[2])).min(), view.near))
     if options is not None and options.visible_depth_range is not None:
         return max(float(options.visible_depth_range[0]), view.near)
@@ -221,7 +221,7 @@ def virtual_camera(view: View, body: IntersectionBody, visible_near: float | Non
     """The shifted camera whose PPS PSM works in (module docstring; §4.2, §6).
     ``visible_near``: d_R (default: R's nearest depth, a safe lower bound)."""
     origin = view.position
-    to_cam = np.linalg.inv(view.camera_to_world[:3, :3])          # camera-relative world -> camera axes
+    to_cam = view.world_to_camera[:3, :3]          # camera-relative world -> camera axes
     rel = body.vertices - origin
     depth = -(rel @ to_cam[2])
     if visible_near is None:
