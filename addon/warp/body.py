@@ -180,10 +180,17 @@ class IntersectionBody:
         return ok
 
     def polytope_from(self, apex) -> ConvexPolytope:
-        """B relative to ``apex`` (e.g. a point light), for clipping in its frame."""
+        """B relative to ``apex`` (e.g. a point light), for clipping in its
+        frame; made once per apex, sharing B's edges."""
         if self.polytope is None:
             raise ValueError("this body has no polytope")
-        return self.polytope.translated(self.origin - np.asarray(apex, dtype=np.float64))
+        apex = np.asarray(apex, dtype=np.float64)
+        moved = self.__dict__.setdefault("_polytope_from", {})
+        key = tuple(apex.tolist())
+        if key not in moved:
+            self.polytope.edges()
+            moved[key] = self.polytope.translated(self.origin - apex)
+        return moved[key]
 
 
 def cone_halfspaces(apex, axis, full_angle) -> tuple[np.ndarray, np.ndarray]:

@@ -655,7 +655,17 @@ class ConvexPolytope:
         and (e, 2) the two facets meeting along each: consecutive vertices of
         the facet loops. (From the loops rather than from shared planes, so a
         vertex lying on an edge within the tolerance splits it instead of making
-        a triangle of "edges"; an edge of an open loop has its one facet twice.)"""
+        a triangle of "edges"; an edge of an open loop has its one facet twice.)
+        Computed once per polytope (read-only arrays; ``translated`` copies share them)."""
+        cached = self.__dict__.get("_edges")
+        if cached is None:
+            cached = self._edges_from_loops()
+            for a in cached:
+                a.flags.writeable = False
+            object.__setattr__(self, "_edges", cached)
+        return cached
+
+    def _edges_from_loops(self) -> tuple[np.ndarray, np.ndarray]:
         facets: dict = {}
         for f, loop in enumerate(self.facet_loops()):
             for i in range(len(loop)):
