@@ -261,7 +261,8 @@ def _clip_body(body: IntersectionBody, origin: np.ndarray, normals: np.ndarray,
     """Points (relative to ``origin``) whose convex hull is B ∩ {normals @ x <= offsets}
     (its vertices among them), or None if empty."""
     if getattr(body, "polytope", None) is not None:
-        return body.polytope_from(origin).section(normals, offsets)
+        same = np.array_equal(body.origin, origin)        # (then B's own polytope, its edges found once)
+        return (body.polytope if same else body.polytope_from(origin)).section(normals, offsets)
     faces = [f - origin for f in body.faces]
     for n, o in zip(normals, offsets):
         faces = clip_faces(faces, Plane(n, float(o)), body.tolerance)
