@@ -64,7 +64,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .body import IntersectionBody, light_halfspaces
+from .body import CLUSTER_SIZE, IntersectionBody, light_halfspaces
 from .fit import fit_to_unit_cube
 from .frame import image_up
 from .geometry import cross3, normalize
@@ -164,27 +164,28 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     plane "as far as possible"). A depth readback given as
     ``options.visible_depth_range`` wins; otherwise the minimum over the
     receiver boxes meeting V ∩ L of the nearest point of V ∩ L ∩ box
-    (``lowest_in_boxes``), visiting boxes by a lower bound (their nearest
-    corner) and stopping when no box can be nearer. Always in [view.near, true
-    nearest visible depth]."""
+    (``lowest_in_boxes``), visiting the culling index's clusters and then
+    their boxes by a lower bound (the nearest corner of their bounds) and
+    stopping when none can be nearer, so only the boxes near the camera are
+    touched. Always in [view.near, true nearest visible depth]."""
     origin = view.position
     to_cam = view.world_to_camera[:3, :3]          # camera-relative world -> camera axes
     coarse = float(max((-((body.visible_vertices - origin) @ to_cam[2])).min(), view.near))
     if options is not None and options.visible_depth_range is not None:
         return max(float(options.visible_depth_range[0]), view.near)
-    boxes = np.asarray(body.receiver_boxes, dtype=np.float64).reshape(-1, 2, 3)
-    if len(boxes) == 0:
+    index, selected = body.receivers.index, body.receivers.selected
+    if not selected.any():
         return coarse
     axis = -to_cam[2]
-    # A box's nearest corner: per coordinate lo or hi, whichever is nearer along the axis.
-    nearest_corner = np.concatenate([np.maximum(axis, 0.0), np.minimum(axis, 0.0)])
-    corner_depth = boxes.reshape(-1, 6) @ nearest_corner - float(origin @ axis)
-    lower = np.maximum(corner_depth, coarse)
-    # visit boxes by increasing lower bound; sort a first chunk only, the rest if ever needed
-    first = min(len(lower), 32)
-    order = np.argpartition(lower, first - 1)[:first] if first < len(lower) else np.arange(len(lower))
-    order = order[np.argsort(lower[order], kind="stable")]
-    visited = np.zeros(len(lower), dtype=bool)
+    # The nearest corner of bounds (lo, -hi): per coordinate lo where the axis is positive, else hi.
+    nearest = np.concatenate([np.maximum(axis, 0.0), -np.minimum(axis, 0.0)])
+    shift = float(origin @ axis)
+    picked = np.zeros(index.c_bounds.shape[1] * CLUSTER_SIZE, dtype=bool)
+    picked[: index.count] = selected
+    picked = picked.reshape(-1, CLUSTER_SIZE)
+    c_lower = np.where(picked.any(axis=1), np.maximum(nearest @ index.c_bounds - shift, coarse), np.inf)
+    clusters = np.argsort(c_lower, kind="stable")
+    c_lower = c_lower[clusters].tolist()
     # V ∩ L ∩ box = R ∩ box for every receiver box (R = V ∩ S_r ∩ L, each box inside S_r).
     region = body.visible_polytope
     if region is None or not np.array_equal(body.origin, origin):
@@ -192,26 +193,31 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
         region = ConvexPolytope.from_corners(view.corners() - origin, body.tolerance).clip(ln, lo)      # V ∩ L
     best = math.inf
     count = 0
-    while len(order):
-        # (never more than the box that hits the limit)
-        order = order[:NEAREST_BOX_CLIPS + 1 - count]
+    for rank, c in enumerate(clusters.tolist()):
+        if c_lower[rank] >= best:
+            break
+        bounds = index.c_box_bounds[:, c, picked[c]]                  # (6, boxes): lo, -hi
+        lower = np.maximum(nearest @ bounds - shift, coarse)
+        order = np.argsort(lower, kind="stable")
+        lower = lower[order].tolist()
+        later = c_lower[rank + 1] if rank + 1 < len(c_lower) else math.inf
         for s in range(0, len(order), NEAREST_BOX_BATCH):
             batch = order[s:s + NEAREST_BOX_BATCH]
-            near = boxes[batch] - origin
             if region is None:
                 depths = [math.inf] * len(batch)
             else:
-                depths = lowest_in_boxes(region, near[:, 0], near[:, 1], axis).tolist()
-            for i, bound, depth in zip(batch.tolist(), lower[batch].tolist(), depths):
+                depths = lowest_in_boxes(region, bounds[:3, batch].T - origin, -bounds[3:, batch].T - origin,
+                                         axis).tolist()
+            for bound, depth in zip(lower[s:s + NEAREST_BOX_BATCH], depths):
                 if bound >= best:
-                    return max(best, coarse)
-                if count >= NEAREST_BOX_CLIPS:
-                    return max(min(best, bound), coarse)
+                    break
+                if count >= NEAREST_BOX_CLIPS:            # the nearest unvisited box is no nearer than this
+                    return max(min(best, bound, later), coarse)
                 count += 1
-                visited[i] = True
                 best = min(best, depth)
-        rest = np.flatnonzero(~visited & (lower < best))
-        order = rest[np.argsort(lower[rest], kind="stable")]
+            else:
+                continue
+            break
     if not math.isfinite(best):
         return coarse
     return max(best, coarse)
