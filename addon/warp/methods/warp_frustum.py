@@ -507,35 +507,43 @@ def ray_closed(matrices, body: IntersectionBody, light_position) -> list:
     matrix, a note, and the vertices of B ∩ window it now holds; or None and
     the reason when that part of B touches the light (w = 0) and cannot be held."""
     m = np.asarray(matrices, dtype=np.float64)                   # (k, 4, 4)
-    x, y, w = m[:, 0, :3], m[:, 1, :3], m[:, 3, :3]
-    sides = np.stack([x - w, -x - w, y - w, -y - w], axis=1)     # the window's planes through the light
+    # The window's edges x = ±w and y = ±w: rows x ∓ w, y ∓ w as (k, sign -/+, axis x/y, 3).
+    e = m[:, None, :2, :3] + _MINUS_PLUS[:, None, None] * m[:, None, 3:, :3]
+    sides = e[:, _SIDE_SIGN, _SIDE_AXIS] * _SIDE_FLIP[:, None]   # x - w, -x - w, y - w, -y - w
     sides /= np.sqrt((sides * sides).sum(axis=2))[..., None]
     # Its corner rays: where x = ±w meets y = ±w, on the side where w > 0.
-    px = np.stack([x - w, x - w, x + w, x + w], axis=1)
-    py = np.stack([y - w, y + w, y - w, y + w], axis=1)
+    px, py = e[:, _CORNER_X, 0], e[:, _CORNER_Y, 1]
     rays = px[..., _YZX] * py[..., _ZXY] - px[..., _ZXY] * py[..., _YZX]
-    rays *= np.sign((rays * w[:, None]).sum(axis=2))[..., None]
+    rays *= np.sign((rays * m[:, None, 3, :3]).sum(axis=2))[..., None]
     poly = body.polytope_from(light_position)
     pts, member = pyramid_sections(poly, poly.edges()[0], sides, rays)
     pts = pts + light_position
+    # Every map's image of every candidate, each map looking only at its own members.
     h = homogeneous(pts) @ m.transpose(0, 2, 1)                 # (k, n, 4)
+    inside = member.T                                           # (k, n)
+    w = np.where(inside, h[..., 3], 1.0)
+    reaches = (w <= 1e-9 * np.abs(w).max(axis=1, keepdims=True)).any(axis=1)   # w = 0 on B ∩ window
+    ndc = h[..., :3] / np.where(reaches[:, None], 1.0, w)[..., None]         # (those maps are not fitted)
+    lo = np.where(inside[..., None], ndc, np.inf).min(axis=1).tolist()
+    hi = np.where(inside[..., None], ndc, -np.inf).max(axis=1).tolist()
     out = []
-    for i in range(len(m)):
-        if not member[:, i].any():
+    for i, held in enumerate(inside.any(axis=1).tolist()):
+        if not held:
             out.append((m[i], "", None))
-            continue
-        hi_ = h[i][member[:, i]]
-        wi = hi_[:, 3:]
-        if (wi <= 1e-9 * np.abs(wi).max()).any():
+        elif reaches[i]:
             out.append((None, "the warped map's window reaches the light itself; a uniform face map is ray-closed", None))
-            continue
-        ndc = hi_[:, :3] / wi
-        lo, hi = ndc.min(axis=0), ndc.max(axis=0)
-        if lo.min() >= -1.0 - 1e-9 and hi.max() <= 1.0 + 1e-9:     # the map already holds B ∩ window
-            out.append((m[i], "", pts[member[:, i]]))
+        elif min(lo[i]) >= -1.0 - 1e-9 and max(hi[i]) <= 1.0 + 1e-9:     # the map already holds B ∩ window
+            out.append((m[i], "", pts[inside[i]]))
         else:
-            out.append((window_matrix(lo, hi) @ m[i], "depth widened to B within the map's window", pts[member[:, i]]))
+            out.append((window_matrix(lo[i], hi[i]) @ m[i], "depth widened to B within the map's window", pts[inside[i]]))
     return out
+
+
+_MINUS_PLUS = np.array([-1.0, 1.0])
+_SIDE_SIGN, _SIDE_AXIS, _SIDE_FLIP = np.array([0, 1, 0, 1]), np.array([0, 0, 1, 1]), np.array([1.0, -1.0, 1.0, -1.0])
+"""The window's four side planes as (sign, axis) of ``ray_closed``'s edge rows, negated for +w: outward normals."""
+_CORNER_X, _CORNER_Y = np.array([0, 0, 1, 1]), np.array([0, 1, 0, 1])
+"""The window's corner rays meet x = ∓w (first index) with y = ∓w (second)."""
 
 
 def projection_centre(frame: LightFrame, g: FrameGeometry, lam: float) -> Optional[np.ndarray]:
