@@ -112,11 +112,11 @@ def _lowest_on_segments(base, rate, num, den) -> np.ndarray:
     objective along them, ``base`` = k·a and ``rate`` = k·d (S, K): per column
     K, the least k·x over the clipped parts of the S segments (inf when nothing
     is left). A linear k is least at one end of a segment."""
-    ratio = num / (den + 0.0)          # (+ 0.0 turns -0.0 into +0.0: num/0 has the sign of num)
+    # A half-space parallel to the segment (den = 0) keeps all of it (num >= 0: ratio +inf)
+    # or none of it (-inf).
+    ratio = np.divide(num, den, out=np.where(num >= 0, np.inf, -np.inf), where=den != 0)
     enter = np.where(den < 0, ratio, -np.inf).max(axis=0, initial=0.0)
-    # A half-space parallel to the segment (den = 0) keeps all of it (num/den = +inf or,
-    # num = 0, NaN, which fmin skips) or none of it (-inf).
-    leave = np.fmin.reduce(np.where(den >= 0, ratio, np.inf), axis=0, initial=1.0)
+    leave = np.where(den >= 0, ratio, np.inf).min(axis=0, initial=1.0)
     value = base + np.where(rate >= 0, enter, leave) * rate
     return np.where(enter <= leave, value, np.inf).min(axis=0)
 
@@ -143,18 +143,15 @@ def lowest_in_boxes(region: ConvexPolytope, lo: np.ndarray, hi: np.ndarray, axis
     # Box edges clipped by the region's m facets: (m, 12, K).
     start = np.where(_BOX_EDGE_START, hi, lo)                  # (12, K, 3)
     step = _BOX_EDGE_AXIS * size
-    with np.errstate(divide="ignore", invalid="ignore"):
-        box_side = _lowest_on_segments(start @ axis, step @ axis, o[:, None, None] - np.inner(n, start),
-                                       np.inner(n, step))
-        # Region edges (vertex pairs on two common facets: an edge, or a stretch of one)
-        # clipped by the box's six faces x <= hi, -x <= -lo: (6, e, K).
-        inc = region.incidence.astype(np.float64)
-        a, b = np.nonzero(inc @ inc.T >= 2)
-        a, b = a[a < b], b[a < b]
-        p, d = region.vertices[a], region.vertices[b] - region.vertices[a]
-        pt, dt = p.T[:, :, None], d.T[:, :, None]                # (3, e, 1)
-        num = np.concatenate([hi.T[:, None, :] - pt, pt - lo.T[:, None, :]])
-        region_side = _lowest_on_segments((p @ axis)[:, None], (d @ axis)[:, None], num, np.concatenate([dt, -dt]))
+    box_side = _lowest_on_segments(start @ axis, step @ axis, o[:, None, None] - np.inner(n, start),
+                                   np.inner(n, step))
+    # Region edges clipped by the box's six faces x <= hi, -x <= -lo: (6, e, K).
+    a, b = region.edges()[0].T
+    p, d = region.vertices[a], region.vertices[b] - region.vertices[a]
+    pt, dt = p.T[:, :, None], d.T[:, :, None]                # (3, e, 1)
+    num = np.concatenate([hi.T[:, None, :] - pt, pt - lo.T[:, None, :]])
+    den = np.broadcast_to(np.concatenate([dt, -dt]), num.shape).copy()      # (full shape: a broadcast
+    region_side = _lowest_on_segments((p @ axis)[:, None], (d @ axis)[:, None], num, den)   # divide is slow)
     return np.minimum(box_side, region_side)
 
 
@@ -191,33 +188,42 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     if region is None or not np.array_equal(body.origin, origin):
         ln, lo = light_halfspaces(light, origin)
         region = ConvexPolytope.from_corners(view.corners() - origin, body.tolerance).clip(ln, lo)      # V ∩ L
+    # Boxes are drawn from the clusters into a pool in the order of their bounds, and
+    # examined NEAREST_BOX_BATCH at a time, nearest bound first, until no pending box
+    # (in the pool or in a cluster not yet opened) can be nearer than the best found.
+    clusters = clusters.tolist()
+    opened = 0
+    pool_bounds, pool_lower = np.zeros((6, 0)), np.zeros(0)
     best = math.inf
     count = 0
-    for rank, c in enumerate(clusters.tolist()):
-        if c_lower[rank] >= best:
+    while True:
+        while opened < len(clusters) and (len(pool_lower) < NEAREST_BOX_BATCH or c_lower[opened] < pool_lower.min()):
+            if c_lower[opened] >= best:
+                opened = len(clusters)
+                break
+            c = clusters[opened]
+            opened += 1
+            more = index.c_box_bounds[:, c, picked[c]]                 # (6, boxes): lo, -hi
+            pool_bounds = np.concatenate([pool_bounds, more], axis=1)
+            pool_lower = np.concatenate([pool_lower, np.maximum(nearest @ more - shift, coarse)])
+        unopened = c_lower[opened] if opened < len(clusters) else math.inf
+        if not len(pool_lower) or min(float(pool_lower.min()), unopened) >= best:
             break
-        bounds = index.c_box_bounds[:, c, picked[c]]                  # (6, boxes): lo, -hi
-        lower = np.maximum(nearest @ bounds - shift, coarse)
-        order = np.argsort(lower, kind="stable")
-        lower = lower[order].tolist()
-        later = c_lower[rank + 1] if rank + 1 < len(c_lower) else math.inf
-        for s in range(0, len(order), NEAREST_BOX_BATCH):
-            batch = order[s:s + NEAREST_BOX_BATCH]
-            if region is None:
-                depths = [math.inf] * len(batch)
-            else:
-                depths = lowest_in_boxes(region, bounds[:3, batch].T - origin, -bounds[3:, batch].T - origin,
-                                         axis).tolist()
-            for bound, depth in zip(lower[s:s + NEAREST_BOX_BATCH], depths):
-                if bound >= best:
-                    break
-                if count >= NEAREST_BOX_CLIPS:            # the nearest unvisited box is no nearer than this
-                    return max(min(best, bound, later), coarse)
-                count += 1
-                best = min(best, depth)
-            else:
-                continue
-            break
+        order = np.argsort(pool_lower, kind="stable")
+        batch, keep = order[:NEAREST_BOX_BATCH], order[NEAREST_BOX_BATCH:]
+        if region is None:
+            depths = [math.inf] * len(batch)
+        else:
+            depths = lowest_in_boxes(region, pool_bounds[:3, batch].T - origin, -pool_bounds[3:, batch].T - origin,
+                                     axis).tolist()
+        for bound, depth in zip(pool_lower[batch].tolist(), depths):
+            if bound >= best:
+                break
+            if count >= NEAREST_BOX_CLIPS:                # the nearest unvisited box is no nearer than this
+                return max(min(best, bound, unopened), coarse)
+            count += 1
+            best = min(best, depth)
+        pool_bounds, pool_lower = pool_bounds[:, keep], pool_lower[keep]
     if not math.isfinite(best):
         return coarse
     return max(best, coarse)
