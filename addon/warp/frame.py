@@ -314,14 +314,13 @@ def pyramid_sections(poly, edges: np.ndarray, sides: np.ndarray, rays: np.ndarra
     d = v @ n.T                                              # (vertices, 4k)
     d3 = d.reshape(len(v), k, 4)
     outside = (d3 >= -tol).all(axis=0).any(axis=1)           # (k,): P wholly outside one side
-    # P's edges crossing the 4k planes, each kept if inside its own pyramid.
-    side = (d > tol).astype(np.int8) - (d < -tol)            # +1 out, -1 in, 0 on the plane
-    de = d[edges]                                            # (e, 2, 4k)
-    e, p = np.nonzero(side[edges[:, 0]] * side[edges[:, 1]] < 0)
-    da = de[e, 0, p]
-    t = da / (da - de[e, 1, p])
-    a = v[edges[e, 0]]
-    x = a + t[:, None] * (v[edges[e, 1]] - a)
+    # P's edges crossing the 4k planes (one end beyond tol on each side), each kept if inside its own pyramid.
+    da, db = d[edges.T]                                      # (e, 4k) at either end
+    e, p = np.nonzero((np.minimum(da, db) < -tol) & (np.maximum(da, db) > tol))
+    da = da[e, p]
+    t = da / (da - db[e, p])
+    a, b = v[edges[e].T]
+    x = a + t[:, None] * (b - a)
     face_of = face_of_plane[p]
     keep = (x @ n.T).reshape(-1, k, 4)[np.arange(len(x)), face_of].max(axis=1, initial=-np.inf) <= tol
     x, face_of = x[keep], face_of[keep]
