@@ -126,5 +126,8 @@ def clip_volume_corners(matrix) -> np.ndarray:
     the NDC unit cube), ordered like ``UNIT_CUBE_CORNERS``. Points at infinity
     (orthographic limits) are returned as very far finite points only if the
     matrix is invertible; callers check ``np.isfinite``."""
-    inv = np.linalg.inv(np.asarray(matrix, dtype=np.float64))
-    return transform_points(inv, UNIT_CUBE_CORNERS)
+    h = _UNIT_CUBE_CORNERS_H @ np.linalg.inv(np.asarray(matrix, dtype=np.float64)).T
+    return h[:, :3] / h[:, 3:]
+
+
+_UNIT_CUBE_CORNERS_H = homogeneous(UNIT_CUBE_CORNERS)

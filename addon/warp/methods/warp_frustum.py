@@ -185,10 +185,14 @@ def volume_centroid(body: IntersectionBody) -> np.ndarray:
         starts = list(itertools.accumulate([0] + [len(f) for f in faces]))
         loops = [range(s, s + len(f)) for s, f in zip(starts, faces)]
     ref = v.sum(axis=0) / len(v)                                     # their mean
-    fans = [(loop[0], loop[j], loop[j + 1]) for loop in loops for j in range(1, len(loop) - 1)]
-    if not fans:
+    first, second, third = [], [], []                                # loop (p0, p1, ..) -> (p0, pj, pj+1)
+    for loop in loops:
+        first += [loop[0]] * (len(loop) - 2)
+        second += loop[1:-1]
+        third += loop[2:]
+    if not first:
         return ref + origin
-    a, b, c = (v - ref)[np.array(fans).T]                            # the fans' corners, (T, 3) each
+    a, b, c = (v - ref)[np.array([first, second, third])]            # the fans' corners, (T, 3) each
     cr = b[:, _YZX] * c[:, _ZXY] - b[:, _ZXY] * c[:, _YZX]           # b × c
     vol = np.abs(np.einsum("ij,ij->i", a, cr)) / 6.0                  # tetrahedra (ref, a, b, c)
     total = float(vol.sum())
@@ -438,8 +442,6 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
     ray-closed over B when there are several (``ray_closed``)."""
     diag = Diagnostics(name, body_vertices=body.vertices)
     frames = light_frames(view, light, body, options)
-    axis = light.direction if light.is_directional else body.centroid - light.position
-    diag.theta, diag.gamma = light_angles(view, axis)
     ctx = eye_depth_range(view, body, options, diag)
     diag.extra["z_n"] = ctx.z_n
     diag.extra["delta_z"] = ctx.delta_z
@@ -491,6 +493,9 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
         diag.warp_frustum_corners = clip_volume_corners(w.matrix)
         diag.extra["v_p"] = geo.v_p_world if geo.v_p_world is not None else np.zeros(3)
         diag.extra["projection_centre"] = projection_centre(frame, geo, w.lam_frame)
+    if not reported:                     # no warped map: the angles to the light's axis, as for a uniform map
+        axis = light.direction if light.is_directional else body.centroid - light.position
+        diag.theta, diag.gamma = light_angles(view, axis)
     return ShadowSetup(maps, diag)
 
 
