@@ -529,8 +529,10 @@ _BOX_NORMALS = np.concatenate([-np.eye(3), np.eye(3)])
 _BOX_NORMALS_LIST = _BOX_NORMALS.tolist()
 
 
-def _pad(box: np.ndarray, amount: float) -> np.ndarray:
-    return np.array([box[0] - amount, box[1] + amount])
+def _box_offsets(box, pad: float) -> list[float]:
+    """The offsets of the facets -x, -y, -z, +x, +y, +z (``_BOX_NORMALS``) of
+    the box [lo, hi] widened by ``pad``."""
+    return [pad - c for c in box[0]] + [c + pad for c in box[1]]
 
 
 def intersection_body(view: View, light: Light, scene: SceneBounds) -> IntersectionBody:
@@ -540,7 +542,7 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
         raise EmptyBodyError("the scene has no shadow casters or receivers")
     origin = view.position
     corners = view.corners() - origin
-    view_size = float(np.linalg.norm(corners[0] - corners[7]))
+    view_size = math.dist(corners[0], corners[7])
     try:
         frustum = brep.hexahedron(corners)
     except OpenCut:
@@ -561,22 +563,20 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
     receivers = BoxIndex.of(scene, "receivers").select(vn, vo + vn @ origin)
     if receivers.box is None:
         raise EmptyBodyError("no shadow receiver is inside the view frustum" + cone)
-    s_r = receivers.box - origin
-    scale = float(max(np.linalg.norm(s_r[1] - s_r[0]), view_size * 1e-6, 1e-9))
-    tol = RELATIVE_TOLERANCE * max(scale, float(np.abs(s_r).max()))
-    s_r = _pad(s_r, max(BOX_PAD * scale, 512 * tol))
+    s_r = (receivers.box - origin).tolist()
+    scale = max(math.dist(*s_r), view_size * 1e-6, 1e-9)
+    tol = RELATIVE_TOLERANCE * max(scale, max(abs(c) for corner in s_r for c in corner))
 
     # R = V ∩ S_r ∩ L.
-    planes_n = np.concatenate([_BOX_NORMALS, ln])
-    planes_o = np.concatenate([-s_r[0], s_r[1], lo])
+    planes_n = _BOX_NORMALS_LIST + ln.tolist()
+    planes_o = _box_offsets(s_r, max(BOX_PAD * scale, 512 * tol)) + lo.tolist()
     try:
-        visible = brep.clip(frustum, planes_n.tolist(), planes_o.tolist(), tol)
+        visible = brep.clip(frustum, planes_n, planes_o, tol)
     except OpenCut:
-        poly = ConvexPolytope.from_corners(corners, tol).clip(planes_n, planes_o)
+        poly = ConvexPolytope.from_corners(corners, tol).clip(np.array(planes_n), np.array(planes_o))
         visible = None if poly is None else poly.brep()
     if visible is None:
         raise EmptyBodyError("the view frustum does not meet the receivers" + (" inside the spot cone" if len(ln) else ""))
-    visible_vertices = np.array(visible.vertices, dtype=np.float64)
 
     # hull(R ∪ light) ∩ L, and the casters meeting it.
     light_h = light.homogeneous_position.copy()
@@ -587,25 +587,27 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
     hull = light_hull(visible, light_h, tol)
     hn, ho = hull.normals, hull.offsets + hull.normals @ origin
     casters = BoxIndex.of(scene, "casters").select(hull.normals, ho, tol)
-    s_c = np.array([visible_vertices.min(axis=0), visible_vertices.max(axis=0)])
+    axes = list(zip(*visible.vertices))
+    s_c = [[min(c) for c in axes], [max(c) for c in axes]]
     if casters.box is not None:
-        s_c = np.array([np.minimum(s_c[0], casters.box[0] - origin), np.maximum(s_c[1], casters.box[1] - origin)])
-    scale = float(max(np.linalg.norm(s_c[1] - s_c[0]), scale))
-    s_c = _pad(s_c, max(BOX_PAD * scale, 512 * tol))
+        lo_c, hi_c = (casters.box - origin).tolist()
+        s_c = [[min(a, b) for a, b in zip(s_c[0], lo_c)], [max(a, b) for a, b in zip(s_c[1], hi_c)]]
+    scale = max(math.dist(*s_c), scale)
+    box_o = _box_offsets(s_c, max(BOX_PAD * scale, 512 * tol))
 
     # B = hull(R ∪ light) ∩ S_c; a sun's hull is closed on the face of S_c the light leaves it by.
-    box_o = np.concatenate([-s_c[0], s_c[1]])
     try:
         cap = None
         if light_h[3] == 0:
             exit_face = int(np.argmax(_BOX_NORMALS @ light_h[:3]))
-            cap = (_BOX_NORMALS_LIST[exit_face], float(box_o[exit_face]))
-        body = brep.clip(hull.brep(cap), _BOX_NORMALS_LIST, box_o.tolist(), tol)
+            cap = (_BOX_NORMALS_LIST[exit_face], box_o[exit_face])
+        body = brep.clip(hull.brep(cap), _BOX_NORMALS_LIST, box_o, tol)
         body = None if body is None else ConvexPolytope.from_brep(body, tol)
     except OpenCut:
-        body = ConvexPolytope.box(s_c[0], s_c[1], tol).clip(hull.normals, hull.offsets)
+        body = ConvexPolytope.box(-np.array(box_o[:3]), np.array(box_o[3:]), tol).clip(hull.normals, hull.offsets)
     if body is None:
         raise EmptyBodyError("the light-extruded view does not meet the scene")
+    visible_vertices = np.array(visible.vertices, dtype=np.float64)
     return IntersectionBody(
         vertices=body.vertices + origin,
         faces=LazyFaces(body, origin),
