@@ -227,7 +227,7 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
         up = perpendicular(axis)
     if not inside and 2 * half <= options.max_frustum_angle:
         return [perspective_frame(apex, axis, up, body.vertices, "main", body.scale)]
-    basis = np.stack([normalize(cross3(up, -axis)), normalize(up - (up @ axis) * axis), -axis])  # cube x, y, z = -axis
+    basis = cube_basis(axis.tolist(), up.tolist())
     poly = body.polytope_from(apex)
     near_floor = 1e-6 * body.scale
     pts, member = cube_sections(poly, poly.edges()[0], basis)
@@ -243,20 +243,34 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
     nearest = np.where(member, depth, np.inf).min(axis=0)
     farthest = np.where(member, depth, -np.inf).max(axis=0)
     clamped = nearest < near_floor
+    world = pts + apex
     points = []
     for i, f in enumerate(faces):
-        face_pts = pts[member[:, i]]
-        if clamped[i]:
-            # B reaches the light inside this face: the whole face from the near floor on.
-            others = np.delete(basis, CUBE_FACES[f][1], axis=0)
-            corners = near_floor * (forward[i] + _FACE_CORNERS @ others)
-            face_pts = np.concatenate([face_pts[depth[member[:, i], i] >= near_floor], corners])
-            nearest[i], farthest[i] = near_floor, (face_pts @ forward[i]).max()
+        if not clamped[i]:
+            points.append(world[member[:, i]])
+            continue
+        # B reaches the light inside this face: the whole face from the near floor on.
+        others = np.delete(basis, CUBE_FACES[f][1], axis=0)
+        corners = near_floor * (forward[i] + _FACE_CORNERS @ others)
+        face_pts = np.concatenate([pts[member[:, i]][depth[member[:, i], i] >= near_floor], corners])
+        nearest[i], farthest[i] = near_floor, (face_pts @ forward[i]).max()
         points.append(face_pts + apex)
     near, far, _ = near_far(nearest, farthest, near_floor)
     to_light = perspective_of(views, near, far)
     return [LightFrame(m, p, "cube" + CUBE_FACES[f][0], False, bool(c))
             for f, m, p, c in zip(faces, to_light, points, clamped)]
+
+
+def cube_basis(axis, up) -> np.ndarray:
+    """The cube's axes (rows) for a unit cone ``axis`` and an image ``up``
+    across it (floats): x = up × -axis, y = up made perpendicular to the axis,
+    z = -axis (so the -Z face looks along the axis)."""
+    (ax, ay, az), (ux, uy, uz) = axis, up
+    x = (ay * uz - az * uy, az * ux - ax * uz, ax * uy - ay * ux)
+    k = ux * ax + uy * ay + uz * az
+    y = (ux - k * ax, uy - k * ay, uz - k * az)
+    nx, ny = math.sqrt(x[0] ** 2 + x[1] ** 2 + x[2] ** 2), math.sqrt(y[0] ** 2 + y[1] ** 2 + y[2] ** 2)
+    return np.array([[c / nx for c in x], [c / ny for c in y], [-ax, -ay, -az]])
 
 
 _FACE_CORNERS = np.array([[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]])
