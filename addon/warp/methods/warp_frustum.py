@@ -132,9 +132,9 @@ class LightAtEye:
 class FrameGeometry:
     """One frame's warp geometry, in that frame's (divided) light space."""
 
-    a: np.ndarray          # V_P in the image plane (unit 2-vector)
-    b: np.ndarray          # P's lateral axis (unit 2-vector)
-    eye: np.ndarray        # the eye in light space (3,)
+    a: tuple               # V_P in the image plane (unit 2-vector, floats)
+    b: tuple               # P's lateral axis (unit 2-vector, floats)
+    eye: tuple             # the eye in light space (3 floats)
     h_min: float
     extent: float          # D, B's extent along V_P in light space
     extent_world: float    # this frame's part of B: extent along the world V_P
@@ -305,7 +305,6 @@ def frame_geometry(view: View, at: LightAtEye, frame: LightFrame, options: WarpO
         # exactly the frame's uniform map (the fallback used behind the light plane)
         alpha = fade * math.atan2(a[0], a[1])
         a = (math.sin(alpha), math.cos(alpha))
-    a = np.array(a)
     h = pts[:, :2] @ a
     h_min = float(h.min())
     extent = float(h.max() - h_min)
@@ -318,14 +317,13 @@ def frame_geometry(view: View, at: LightAtEye, frame: LightFrame, options: WarpO
         v_p, body_extent = at.v_p, at.body_extent
         along = frame.points @ v_p if v_p is not None else None
         extent_world = float(along.max() - along.min()) if v_p is not None else 0.0
-    return FrameGeometry(a, np.array([a[1], -a[0]]), np.array(eye_ls), h_min, extent, extent_world,
+    return FrameGeometry(a, (a[1], -a[0]), eye_ls, h_min, extent, extent_world,
                          body_extent, at.gamma, v_p, at.ell, fade, ph), ""
 
 
 def warp_matrix(g: FrameGeometry, mu: float) -> np.ndarray:
     """P acting on the frame's homogeneous output [X, Y, Z, W] (module docs)."""
-    (a0, a1), (b0, b1) = g.a.tolist(), g.b.tolist()
-    ex, ey, ez = g.eye.tolist()
+    (a0, a1), (b0, b1), (ex, ey, ez) = g.a, g.b, g.eye
     inv_d = 1.0 / g.extent if g.extent > 0 else 0.0
     q_e = ex * b0 + ey * b1
     dx, dy, dw = a0 * inv_d, a1 * inv_d, -g.h_min * inv_d          # δ = (h - h_min) / D
@@ -557,9 +555,9 @@ def projection_centre(frame: LightFrame, g: FrameGeometry, lam: float) -> Option
     if not math.isfinite(lam):
         return None
     h_c = g.h_min - lam * g.extent
-    q_e = float(g.eye[:2] @ g.b)
-    xy = q_e * g.b + h_c * g.a
-    p = np.linalg.inv(frame.to_light) @ np.array([xy[0], xy[1], g.eye[2], 1.0])
+    (a0, a1), (b0, b1), (ex, ey, ez) = g.a, g.b, g.eye
+    q_e = ex * b0 + ey * b1
+    p = np.linalg.inv(frame.to_light) @ np.array([q_e * b0 + h_c * a0, q_e * b1 + h_c * a1, ez, 1.0])
     if not abs(p[3]) > 1e-300:
         return None
     w = p[:3] / p[3]
