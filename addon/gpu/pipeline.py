@@ -17,7 +17,8 @@ from typing import Optional
 import numpy as np
 
 from ..settings import LixelSettings, ShadowSettings
-from ..warp.body import boxes_meeting, intersection_body
+from ..warp.body import intersection_body
+from ..warp.culling import boxes_meeting
 from ..warp.geometry import perpendicular, translation
 from ..warp.polyhedron import face_planes, hexahedron_faces
 from ..warp.types import EmptyBodyError, Light, SceneBounds, ShadowSetup, View, WarpError

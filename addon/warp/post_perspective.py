@@ -64,7 +64,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .body import CLUSTER_SIZE, IntersectionBody, light_halfspaces
+from .body import IntersectionBody
+from .culling import CLUSTER_SIZE
+from .light_hull import light_halfspaces
 from .fit import fit_to_unit_cube
 from .frame import image_up
 from .geometry import cross3, normalize

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import assume, given, settings, strategies as st
 
 from addon.warp import EmptyBodyError, Light, SceneBounds, View, intersection_body
-from addon.warp.body import BoxIndex, boxes_meeting_arrays, _stack_of
+from addon.warp.culling import BoxIndex, boxes_meeting_arrays, _stack_of
 from addon.warp.polyhedron import COINCIDENT, ConvexPolytope
 
 from hard_cases import EMPTY_CASES, HARD_CASES, NONEMPTY_CASES, camera, point, spot, sun, town

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from addon.warp import brep
-from addon.warp.body import light_hull
+from addon.warp.light_hull import light_hull
 from addon.warp.geometry import UNIT_CUBE_CORNERS
 from addon.warp.polyhedron import ConvexPolytope
 
