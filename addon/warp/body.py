@@ -29,6 +29,7 @@ Cost on a 10,000-box scene (``make bench``): see docs/performance.md.
 """
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -41,6 +42,8 @@ from .culling import BoxIndex, Selection
 from .light_hull import light_halfspaces, light_hull
 from .polyhedron import ConvexPolytope, Plane
 from .types import EmptyBodyError, Light, SceneBounds, View
+
+log = logging.getLogger(__name__)
 
 RELATIVE_TOLERANCE = 1e-10
 BOX_PAD = 1e-7
@@ -190,7 +193,8 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
     view_size = math.dist(corners[0], corners[7])
     try:
         frustum = brep.hexahedron(corners)
-    except OpenCut:
+    except OpenCut as why:
+        log.debug("view frustum by vertex enumeration: %s", why)
         frustum = ConvexPolytope.from_corners(corners, RELATIVE_TOLERANCE * view_size).brep()
     ln, lo = light_halfspaces(light, origin)
     cone = " and the spot cone" if len(ln) else ""
@@ -217,7 +221,8 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
     planes_o = _box_offsets(s_r, max(BOX_PAD * scale, 512 * tol)) + lo.tolist()
     try:
         visible = brep.clip(frustum, planes_n, planes_o, tol)
-    except OpenCut:
+    except OpenCut as why:
+        log.debug("R by vertex enumeration: %s", why)
         poly = ConvexPolytope.from_corners(corners, tol).clip(np.array(planes_n), np.array(planes_o))
         visible = None if poly is None else poly.brep()
     if visible is None:
@@ -248,7 +253,8 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
             cap = (_BOX_NORMALS_LIST[exit_face], box_o[exit_face])
         body = brep.clip(hull.brep(cap), _BOX_NORMALS_LIST, box_o, tol)
         body = None if body is None else ConvexPolytope.from_brep(body, tol)
-    except OpenCut:
+    except OpenCut as why:
+        log.debug("B by vertex enumeration: %s", why)
         body = ConvexPolytope.box(-np.array(box_o[:3]), np.array(box_o[3:]), tol).clip(hull.normals, hull.offsets)
     if body is None:
         raise EmptyBodyError("the light-extruded view does not meet the scene")
