@@ -191,17 +191,20 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
         ln, lo = light_halfspaces(light, origin)
         region = ConvexPolytope.from_corners(view.corners() - origin, body.tolerance).clip(ln, lo)      # V ∩ L
     # Boxes are drawn from the clusters into a pool in the order of their bounds, and
-    # examined NEAREST_BOX_BATCH at a time, nearest bound first, until no pending box
-    # (in the pool or in a cluster not yet opened) can be nearer than the best found.
+    # examined NEAREST_BOX_BATCH at a time, nearest bound first (the batch is the
+    # nearest of all boxes not yet examined), until no pending box (in the pool or in
+    # a cluster not yet opened) can be nearer than the best found.
     clusters = clusters.tolist()
     opened = 0
     pool_bounds, pool_lower = np.zeros((6, 0)), np.zeros(0)
     best = math.inf
     count = 0
     while True:
-        while opened < len(clusters) and (len(pool_lower) < NEAREST_BOX_BATCH or c_lower[opened] < pool_lower.min()):
-            if c_lower[opened] >= best:
-                opened = len(clusters)
+        while opened < len(clusters):
+            # Open the next cluster while it may hold one of the next batch's boxes.
+            kth = (np.partition(pool_lower, NEAREST_BOX_BATCH - 1)[NEAREST_BOX_BATCH - 1]
+                   if len(pool_lower) >= NEAREST_BOX_BATCH else math.inf)
+            if c_lower[opened] >= min(kth, best):
                 break
             c = clusters[opened]
             opened += 1
