@@ -59,8 +59,9 @@ class View:
     orthographic: bool = False
 
     def __post_init__(self):
-        object.__setattr__(self, "camera_to_world", _mat4(self.camera_to_world, "camera matrix_world"))
-        object.__setattr__(self, "projection", _mat4(self.projection, "camera projection"))
+        # Own read-only copies: what is derived from them below is computed once.
+        object.__setattr__(self, "camera_to_world", _frozen(_mat4(self.camera_to_world, "camera matrix_world").copy()))
+        object.__setattr__(self, "projection", _frozen(_mat4(self.projection, "camera projection").copy()))
         if not (0 < self.near < self.far and math.isfinite(self.far)):
             raise WarpError(f"camera clip range must satisfy 0 < near < far (got near={self.near}, far={self.far})")
         w, h = (int(v) for v in self.resolution)
