@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import transform_h
+from .geometry import transform_h, transform_h_runs
 from .types import WarpError
 
 NDC_PAD = 1e-7
@@ -32,7 +32,11 @@ def ndc_box(h) -> tuple[np.ndarray, np.ndarray]:
 
 def window_matrix(lo, hi) -> np.ndarray:
     """The affine NDC map taking the box [lo, hi] onto [-1, 1]^3."""
-    lo, hi = np.asarray(lo, dtype=np.float64).tolist(), np.asarray(hi, dtype=np.float64).tolist()
+    return np.array(_window_rows(np.asarray(lo, dtype=np.float64).tolist(), np.asarray(hi, dtype=np.float64).tolist()))
+
+
+def _window_rows(lo: list, hi: list) -> list:
+    """``window_matrix`` for a box given as float lists, as nested lists."""
     ext = [max(b - a, 0.0) for a, b in zip(lo, hi)]
     least = max(ext) * 1e-6
     rows = []
@@ -42,10 +46,24 @@ def window_matrix(lo, hi) -> np.ndarray:
         row = [0.0, 0.0, 0.0, -(b + a) / (b - a)]
         row[i] = 2.0 / (b - a)
         rows.append(row)
-    return np.array(rows + [[0.0, 0.0, 0.0, 1.0]])
+    return rows + [[0.0, 0.0, 0.0, 1.0]]
 
 
 def fit_to_unit_cube(transform, points) -> np.ndarray:
     """A @ transform with ``points`` filling NDC [-1, 1]^3."""
     lo, hi = ndc_bounds(transform, points)
     return window_matrix(lo, hi) @ np.asarray(transform, dtype=np.float64)
+
+
+def fit_runs(matrices, points_h, starts, run) -> np.ndarray:
+    """``fit_to_unit_cube`` for several maps at once: map k (``matrices``,
+    (k, 4, 4)) is fitted to its own run of the homogeneous points (N, 4), the
+    rows from ``starts[k]`` to the next start (``geometry.point_runs``; ``run``
+    names each row's map). Returns the fitted maps (k, 4, 4)."""
+    h = transform_h_runs(matrices, points_h, run)
+    w = h[:, 3:]
+    if not (w > 0).all():
+        raise WarpError("internal: a point of B is behind the projection (w <= 0)")
+    ndc = h[:, :3] / w
+    lo, hi = np.minimum.reduceat(ndc, starts).tolist(), np.maximum.reduceat(ndc, starts).tolist()
+    return np.array([_window_rows(a, b) for a, b in zip(lo, hi)]) @ matrices

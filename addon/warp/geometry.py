@@ -6,6 +6,7 @@ or light "eye" space looks down its local -Z with +Y up.
 """
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -34,6 +35,26 @@ def homogeneous(points) -> np.ndarray:
     h[:, :3] = p
     h[:, 3] = 1.0
     return h
+
+
+def point_runs(point_sets) -> tuple[np.ndarray, list, np.ndarray]:
+    """Several (n_k, 3) point sets (none empty) as one homogeneous array (N, 4)
+    with w = 1, the row where each set starts, and the set of each row (N,):
+    the layout in which ``transform_h_runs`` and ``fit.fit_runs`` treat all the
+    sets at once."""
+    counts = [len(p) for p in point_sets]
+    starts = list(itertools.accumulate(counts[:-1], initial=0))
+    points = point_sets[0] if len(point_sets) == 1 else np.concatenate(point_sets)
+    return homogeneous(points), starts, np.repeat(np.arange(len(counts)), counts)
+
+
+def transform_h_runs(matrices, points_h, run) -> np.ndarray:
+    """Homogeneous points (N, 4), row i mapped by ``matrices[run[i]]`` of a
+    stack (k, 4, 4); no divide. (Every point by every matrix, then each row's
+    own: cheaper than a gathered stack of N matrices for a few maps.)"""
+    if len(matrices) == 1:
+        return points_h @ matrices[0].T
+    return (points_h @ matrices.transpose(0, 2, 1))[run, np.arange(len(run))]
 
 
 def transform_h(matrix, points) -> np.ndarray:

@@ -90,9 +90,9 @@ import numpy as np
 
 from ..aliasing import lambda_glpr, lambda_gmnpr, lispsm_inverse_n_opt
 from ..body import IntersectionBody
-from ..fit import ndc_bounds, ndc_box, window_matrix
+from ..fit import fit_runs, ndc_bounds, window_matrix
 from ..frame import PARALLEL_BLEND, LightFrame, light_angles, light_frames, pyramid_sections
-from ..geometry import clip_volume_corners, homogeneous
+from ..geometry import clip_volume_corners, homogeneous, point_runs, transform_h_runs
 from ..types import Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .uniform import frame_map
 
@@ -143,7 +143,6 @@ class FrameGeometry:
     v_p_world: Optional[np.ndarray]
     light_dir: np.ndarray  # the light ray at the eye (world, unit)
     fade: float = 1.0
-    points_h: Optional[np.ndarray] = None  # the frame's points in its light space, homogeneous (N, 4)
 
 
 def _blend(v, s: float) -> tuple[float, float]:
@@ -267,15 +266,15 @@ def light_at_eye(view: View, light: Light, options: WarpOptions, body: Intersect
     return at, ""
 
 
-def frame_geometry(view: View, at: LightAtEye, frame: LightFrame, options: WarpOptions,
-                   body: IntersectionBody) -> tuple[Optional[FrameGeometry], str]:
-    """The warp geometry of one frame, or (None, reason) when undefined."""
+def frame_axes(at: LightAtEye, frame: LightFrame, eye_h, box, options: WarpOptions):
+    """A frame's warp axes in its light space, in plain floats: (V_P as a unit
+    2-vector, the eye in light space, the fade), or (None, reason) when the warp
+    is undefined. ``eye_h``: the eye's homogeneous image under the frame;
+    ``box``: the (min, max) corners of a point light frame's points in its light space."""
     t = frame.to_light
-    ex, ey, ez, ew = (t[:, :3] @ view.position + t[:, 3]).tolist()
+    ex, ey, ez, ew = eye_h
     if not frame.directional and not ew > 1e-12 * at.dist:
         return None, "the eye is behind this frame's light plane: no warp in its post-perspective space"
-    ph = frame.points_h @ t.T
-    pts = ph[:, :3] / ph[:, 3:]
     fade = 1.0
     if frame.directional:
         eye_ls = (ex / ew, ey / ew, ez / ew)
@@ -286,7 +285,7 @@ def frame_geometry(view: View, at: LightAtEye, frame: LightFrame, options: WarpO
     else:
         vx, vy, _, vw = (t[:, :3] @ at.vector).tolist()
         v = ((vx * ew - ex * vw) / ew ** 2, (vy * ew - ey * vw) / ew ** 2)   # image of the vector at the eye
-        (xlo, ylo, zlo), (xhi, yhi, zhi) = pts.min(axis=0).tolist(), pts.max(axis=0).tolist()
+        (xlo, ylo, zlo), (xhi, yhi, zhi) = box
         cx, cy = (xlo + xhi) / 2, (ylo + yhi) / 2
         half = max(math.hypot(xhi - xlo, yhi - ylo) / 2, 1e-300)
         ex, ey, ez = ex / ew, ey / ew, ez / ew
@@ -305,20 +304,28 @@ def frame_geometry(view: View, at: LightAtEye, frame: LightFrame, options: WarpO
         # exactly the frame's uniform map (the fallback used behind the light plane)
         alpha = fade * math.atan2(a[0], a[1])
         a = (math.sin(alpha), math.cos(alpha))
-    h = pts[:, :2] @ a
-    h_min = float(h.min())
-    extent = float(h.max() - h_min)
+    return (a, eye_ls, fade), ""
+
+
+def frame_geometry(at: LightAtEye, frame: LightFrame, axes, h_range, world_range,
+                   body: IntersectionBody) -> FrameGeometry:
+    """One frame's warp geometry from its ``axes`` (``frame_axes``), the range
+    of its points along its V_P in light space (``h_range``) and, for a point
+    light, along the world V_P (``world_range``; a sun's frame has its own)."""
+    a, eye_ls, fade = axes
+    h_min, h_max = h_range
+    extent = h_max - h_min
     if frame.directional:
+        t = frame.to_light
         v_p = a[0] * t[0, :3] + a[1] * t[1, :3]
         extent_world = extent
         along = body.vertices @ v_p
         body_extent = float(along.max() - along.min())
     else:
         v_p, body_extent = at.v_p, at.body_extent
-        along = frame.points @ v_p if v_p is not None else None
-        extent_world = float(along.max() - along.min()) if v_p is not None else 0.0
+        extent_world = world_range[1] - world_range[0] if v_p is not None else 0.0
     return FrameGeometry(a, (a[1], -a[0]), eye_ls, h_min, extent, extent_world,
-                         body_extent, at.gamma, v_p, at.ell, fade, ph), ""
+                         body_extent, at.gamma, v_p, at.ell, fade)
 
 
 def warp_matrix(g: FrameGeometry, mu: float) -> np.ndarray:
@@ -402,36 +409,71 @@ class FrameWarp:
     p_n: float = math.inf
     lam_frame: float = math.inf
     mu: float = 0.0
-    matrix: Optional[np.ndarray] = None
+    matrix: Optional[np.ndarray] = None    # the fitted map (the frame's uniform map when geo is None)
     held: Optional[np.ndarray] = None      # after ray closure: the vertices of B ∩ window the map holds
 
 
-def frame_warp(frame: LightFrame, view: View, at: Optional[LightAtEye], reason: str, rule: LambdaRule,
-               ctx: WarpContext, phi: Optional[float], options: WarpOptions, body: IntersectionBody) -> FrameWarp:
-    """The warp of one frame (``at`` None: uniform for ``reason``)."""
-    w = FrameWarp(frame, [])
-    if frame.near_clamped:
-        w.notes.append((f"{frame.role}: near plane",
-                        "the light is inside B; points nearer than 1e-6 of the scene scale are not covered"))
-    geo, why = frame_geometry(view, at, frame, options, body) if at is not None else (None, reason)
-    if geo is None:
-        w.notes.append((f"{frame.role}: uniform", why))
-        return w
-    lam = rule(geo, ctx, phi, options)
-    p_n = lam * geo.body_extent_world if math.isfinite(lam) else math.inf     # P_n in world units
-    lam_frame = p_n / geo.extent_world if geo.extent_world > 0 else math.inf  # λ for this frame's part of B
-    mu = 0.0 if not math.isfinite(lam_frame) else geo.fade / lam_frame
-    if geo.fade < 1.0:
-        w.notes.append((f"{frame.role}: warp faded", f"the eye's image is far outside B's image in this frame; "
-                                                    f"warp strength x{geo.fade:.3g}" + (" (uniform)" if geo.fade == 0 else "")))
-    if mu == 0.0 and geo.fade > 0.0:
-        w.notes.append((f"{frame.role}: uniform limit", "light parallel to the view direction (γ = 0): "
-                                                       "n_opt = ∞, the warp is the uniform map"))
-    warp = warp_matrix(geo, mu)
-    lo, hi = ndc_box(geo.points_h @ warp.T)            # the unit-cube fit on the frame's light-space points
-    w.geo, w.lam, w.p_n, w.lam_frame, w.mu = geo, lam, p_n, lam_frame, mu
-    w.matrix = window_matrix(lo, hi) @ (warp @ frame.to_light)
-    return w
+def frame_warps(frames: list, view: View, at: Optional[LightAtEye], reason: str, rule: LambdaRule,
+                ctx: WarpContext, phi: Optional[float], options: WarpOptions, body: IntersectionBody) -> list:
+    """Every frame's warp (``at`` None: all uniform for ``reason``), in one pass
+    over all the frames' points (``geometry.point_runs``): each frame's points
+    in its light space, then per frame in plain floats its axes, extents, λ
+    and warp, and finally every map - warped, or the frame's uniform map where
+    the warp is undefined - fitted to the unit cube at once."""
+    to_light = np.array([f.to_light for f in frames])                     # (k, 4, 4)
+    points_h, starts, run = point_runs([f.points for f in frames])
+    ph = transform_h_runs(to_light, points_h, run)                       # in each frame's light space
+    pts = ph[:, :3] / ph[:, 3:]
+    boxes = itertools.repeat(None)                      # a sun's frame does not look at its box
+    if not frames[0].directional:
+        boxes = zip(np.minimum.reduceat(pts, starts).tolist(), np.maximum.reduceat(pts, starts).tolist())
+    eyes = (to_light[:, :, :3] @ view.position + to_light[:, :, 3]).tolist()
+    warps, axes = [], []
+    for frame, eye_h, box in zip(frames, eyes, boxes):
+        w = FrameWarp(frame, [])
+        if frame.near_clamped:
+            w.notes.append((f"{frame.role}: near plane",
+                            "the light is inside B; points nearer than 1e-6 of the scene scale are not covered"))
+        ax, why = frame_axes(at, frame, eye_h, box, options) if at is not None else (None, reason)
+        if ax is None:
+            w.notes.append((f"{frame.role}: uniform", why))
+        warps.append(w)
+        axes.append(ax)
+    # Each frame's range along its V_P (light space) and, for a point light, along the world V_P.
+    a = np.array([ax[0] if ax is not None else (0.0, 0.0) for ax in axes])[run]
+    h = (pts[:, :2] * a).sum(axis=1)
+    h_ranges = zip(np.minimum.reduceat(h, starts).tolist(), np.maximum.reduceat(h, starts).tolist())
+    world_ranges = itertools.repeat(None)
+    if at is not None and at.v_p is not None and not frames[0].directional:
+        along = points_h[:, :3] @ at.v_p
+        world_ranges = zip(np.minimum.reduceat(along, starts).tolist(), np.maximum.reduceat(along, starts).tolist())
+    warp_matrices = []
+    for w, ax, h_range, world_range in zip(warps, axes, h_ranges, world_ranges):
+        if ax is None:
+            warp_matrices.append(_IDENTITY)                 # the frame's uniform map
+            continue
+        geo = frame_geometry(at, w.frame, ax, h_range, world_range, body)
+        role = w.frame.role
+        lam = rule(geo, ctx, phi, options)
+        p_n = lam * geo.body_extent_world if math.isfinite(lam) else math.inf     # P_n in world units
+        lam_frame = p_n / geo.extent_world if geo.extent_world > 0 else math.inf  # λ for this frame's part of B
+        mu = 0.0 if not math.isfinite(lam_frame) else geo.fade / lam_frame
+        if geo.fade < 1.0:
+            w.notes.append((f"{role}: warp faded", f"the eye's image is far outside B's image in this frame; "
+                                                  f"warp strength x{geo.fade:.3g}" + (" (uniform)" if geo.fade == 0 else "")))
+        if mu == 0.0 and geo.fade > 0.0:
+            w.notes.append((f"{role}: uniform limit", "light parallel to the view direction (γ = 0): "
+                                                     "n_opt = ∞, the warp is the uniform map"))
+        w.geo, w.lam, w.p_n, w.lam_frame, w.mu = geo, lam, p_n, lam_frame, mu
+        warp_matrices.append(warp_matrix(geo, mu))
+    # The unit-cube fit of every map on its frame's light-space points.
+    fitted = fit_runs(np.array(warp_matrices), ph, starts, run) @ to_light
+    for w, m in zip(warps, fitted):
+        w.matrix = m
+    return warps
+
+
+_IDENTITY = np.eye(4)
 
 
 def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: IntersectionBody,
@@ -452,13 +494,13 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
     else:
         at, reason = light_at_eye(view, light, options, body, middle)
     phi = half_fov_towards(view, at.ell) if at is not None else None
-    warps = [frame_warp(f, view, at, reason, rule, ctx, phi, options, body) for f in frames]
+    warps = frame_warps(frames, view, at, reason, rule, ctx, phi, options, body)
     warped = [w for w in warps if w.geo is not None]
     if len(frames) > 1 and warped:
         for w, (matrix, closure, held) in zip(warped, ray_closed([w.matrix for w in warped], body, light.position)):
             w.matrix, w.held = matrix, held
             if matrix is None:
-                w.geo = None
+                w.geo, w.matrix = None, frame_map(w.frame, options).matrix
                 w.notes.append((f"{w.frame.role}: uniform", closure))
     maps: list[ShadowMap] = []
     reported = False
@@ -469,12 +511,8 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
         depth_row = None
         if options.linear_z:
             depth_row = linear_depth_row(frame, None if w.held is None else np.concatenate([frame.points, w.held]))
-        if w.geo is None:
-            m = frame_map(frame, options)
-            maps.append(ShadowMap(m.matrix, m.size, "LESS", frame.role, depth_row=depth_row))
-            continue
         maps.append(ShadowMap(w.matrix, options.shadow_map_size, "LESS", frame.role, depth_row=depth_row))
-        if reported:
+        if w.geo is None or reported:
             continue
         reported = True
         geo = w.geo
