@@ -351,6 +351,22 @@ def rotation2d(theta: float) -> np.ndarray:
     return np.array([[c, -s], [s, c]])
 
 
+def _flat_tops(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per box, given its corners as (3, ...) arrays: the area of its top if the
+    box is flat (height <= FLAT_RATIO x its smaller side), else -1; and its height."""
+    ext = hi - lo
+    side = np.minimum(ext[0], ext[1])
+    flat = (side > 0) & (ext[2] <= FLAT_RATIO * side)
+    return np.where(flat, ext[0] * ext[1], -1.0), ext[2]
+
+
+def _top_face(lo, hi, i: int) -> PlaneOfInterest:
+    """The top face of receiver box ``i`` (corners ``lo``, ``hi``) as a plane of interest limited to it."""
+    (x0, y0, _), (x1, y1, top) = lo, hi
+    face = np.array([[x0, y0, top], [x1, y0, top], [x1, y1, top], [x0, y1, top]], dtype=np.float64)
+    return PlaneOfInterest(np.array([0.0, 0.0, 1.0]), float(top), face, f"top of receiver box {i}")
+
+
 def default_plane(receiver_boxes) -> Optional[PlaneOfInterest]:
     """The largest upward-facing flat receiver surface: the top face of the
     widest flat box (height <= FLAT_RATIO x its smaller side; Z up), limited to
@@ -358,16 +374,52 @@ def default_plane(receiver_boxes) -> Optional[PlaneOfInterest]:
     b = np.asarray(receiver_boxes, dtype=np.float64).reshape(-1, 2, 3)
     if len(b) == 0:
         return None
-    ext = b[:, 1] - b[:, 0]
-    side = np.minimum(ext[:, 0], ext[:, 1])
-    flat = (side > 0) & (ext[:, 2] <= FLAT_RATIO * side)
-    if not flat.any():
+    area, height = _flat_tops(b[:, 0].T, b[:, 1].T)
+    if area.max() < 0:
         return None
-    area = np.where(flat, ext[:, 0] * ext[:, 1], -1.0)
     # widest first, then thinnest, then lowest index (deterministic)
     widest = np.flatnonzero(area == area.max())
-    i = int(widest[np.argmin(ext[widest, 2])])
-    lo, hi = b[i]
-    top = hi[2]
-    face = np.array([[lo[0], lo[1], top], [hi[0], lo[1], top], [hi[0], hi[1], top], [lo[0], hi[1], top]])
-    return PlaneOfInterest(np.array([0.0, 0.0, 1.0]), float(top), face, f"top of receiver box {i}")
+    i = int(widest[np.argmin(height[widest])])
+    return _top_face(b[i, 0].tolist(), b[i, 1].tolist(), i)
+
+
+def default_plane_of(receivers) -> Optional[PlaneOfInterest]:
+    """``default_plane(receiver boxes)`` for the receivers a culling index
+    selected (``culling.Selection``), without gathering every selected box: no
+    box is wider than its cluster's bounds, so clusters are opened widest bounds
+    first (in batches of doubling size) until none left can hold a box as wide
+    as the widest flat one found. Box i is named by its position among the
+    selected boxes in the scene's order, as in ``body.receiver_boxes``."""
+    index, selected = receivers.index, receivers.selected
+    clusters, size = index.c_box_bounds.shape[1:]
+    picked = np.zeros(clusters * size, dtype=bool)
+    picked[: index.count] = selected
+    picked = picked.reshape(clusters, size)
+    c_lo, c_hi = index.c_bounds[:3], -index.c_bounds[3:]           # (c_bounds: lo, -hi)
+    c_area = (c_hi[0] - c_lo[0]) * (c_hi[1] - c_lo[1])
+    order = np.argsort(-c_area, kind="stable")
+    c_area = c_area[order].tolist()
+    best, widest = -1.0, []                  # the widest flat top so far; (position, height) of its boxes
+    opened, batch = 0, 1
+    while opened < clusters and c_area[opened] >= best:
+        batch_clusters = order[opened:opened + batch]
+        opened, batch = opened + batch, 2 * batch
+        bounds = index.c_box_bounds[:, batch_clusters]                # (6, batch, size): lo, -hi
+        area, height = _flat_tops(bounds[:3], -bounds[3:])
+        area = np.where(picked[batch_clusters], area, -np.inf)
+        top = float(area.max())
+        if top >= max(best, 0.0):
+            if top > best:
+                best, widest = top, []
+            at = np.nonzero(area == top)
+            widest.append((batch_clusters[at[0]] * size + at[1], height[at]))
+    if best < 0:
+        return None
+    # widest first, then thinnest, then lowest index (deterministic)
+    position = np.concatenate([p for p, _ in widest])
+    scene_index = index.perm[position]
+    k = np.lexsort((scene_index, np.concatenate([h for _, h in widest])))[0]
+    c, j = divmod(int(position[k]), size)
+    i = int(np.count_nonzero(selected & (index.perm < scene_index[k])))
+    corners = index.c_box_bounds[:, c, j].tolist()
+    return _top_face(corners[:3], [-x for x in corners[3:]], i)

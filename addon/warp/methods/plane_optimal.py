@@ -57,9 +57,9 @@ from ..body import IntersectionBody
 from ..fit import ndc_bounds, window_matrix
 from ..frame import light_angles, light_frames
 from ..geometry import homogeneous, translation
-from ..plane_map import (PlaneOfInterest, clip_polygon, convex_polygon_on_plane, default_plane, enclosing_polygon,
-                         min_area_twist, next_vertices, offset_directions, plane_light_rows, plane_section,
-                         polygon_area, rotation2d)
+from ..plane_map import (PlaneOfInterest, clip_polygon, convex_polygon_on_plane, default_plane, default_plane_of,
+                         enclosing_polygon, min_area_twist, next_vertices, offset_directions, plane_light_rows,
+                         plane_section, polygon_area, rotation2d)
 from ..polyhedron import Plane, clip_faces, cross_rows, unique_points
 from ..types import Diagnostics, Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .uniform import frame_map
@@ -109,7 +109,11 @@ def _light_h(light: Light, origin: np.ndarray) -> np.ndarray:
 def _planes_of(options: WarpOptions, body: IntersectionBody, diag: Diagnostics) -> list[PlaneOfInterest]:
     if options.planes:
         return [PlaneOfInterest.from_option(p, i) for i, p in enumerate(options.planes)]
-    plane = default_plane(getattr(body, "receiver_boxes", np.zeros((0, 2, 3))))
+    receivers = getattr(body, "receivers", None)
+    if receivers is not None:
+        plane = default_plane_of(receivers)
+    else:
+        plane = default_plane(getattr(body, "receiver_boxes", np.zeros((0, 2, 3))))
     if plane is None:
         diag.fallback("planes", "no plane of interest given and no flat receiver box in view: "
                                 "only the fallback map is made (give \"planes\" in the config)")
