@@ -19,8 +19,9 @@ import math
 import numpy as np
 
 from ..body import IntersectionBody
-from ..fit import ndc_bounds, ndc_box, window_matrix
+from ..fit import fit_runs, ndc_bounds, ndc_box, window_matrix
 from ..frame import LightFrame, light_angles, light_frames, world_sun_frame
+from ..geometry import point_runs
 from ..types import Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpOptions
 
 SNAP_STEPS_PER_OCTAVE = 8
@@ -64,7 +65,12 @@ def uniform(view: View, light: Light, body: IntersectionBody, options: WarpOptio
         frames = [world_sun_frame(light, body)]      # a texel grid fixed in the world
     else:
         frames = light_frames(view, light, body, options)
-    maps = [frame_map(f, options, options.texel_snapping) for f in frames]
+    if len(frames) > 1:                              # a point light's cube faces: fitted all at once
+        to_light = np.array([f.to_light for f in frames])
+        fitted = fit_runs(to_light, *point_runs([f.points for f in frames]))
+        maps = [ShadowMap(m, options.shadow_map_size, "LESS", f.role) for m, f in zip(fitted, frames)]
+    else:
+        maps = [frame_map(frames[0], options, options.texel_snapping)]
     if light.is_directional:
         diag.theta, diag.gamma = light_angles(view, light.direction)
     else:
