@@ -341,11 +341,11 @@ def pyramid_sections(poly, edges: np.ndarray, sides: np.ndarray, rays: np.ndarra
     # The corner rays through P: t-interval where n . (t r) <= o for every facet.
     rays = rays.reshape(4 * k, 3)
     t_lo, t_hi, hit = ray_interval(poly, rays)
-    apex = poly.contains(np.zeros((1, 3)), tol)
+    apex = bool(poly.offsets.min() >= -tol)                  # P holds the apex: n . 0 - o <= tol for every facet
     pts = np.concatenate([v, x, t_lo[:, None] * rays, t_hi[:, None] * rays, np.zeros((1, 3))])
     on_ray = (face_of_plane[:, None] == pyramid) & hit[:, None]
     member = np.concatenate([d3.max(axis=2) <= tol, face_of[:, None] == pyramid, on_ray, on_ray,
-                             np.repeat(apex[:, None], k, axis=1)])
+                             np.full((1, k), apex)])
     return pts, member & ~outside
 
 
