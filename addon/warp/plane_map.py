@@ -52,7 +52,7 @@ _FIVE_POINT_TARGETS = np.array([[*VIEW_CORNERS[0], 1.0, 1.0], [*VIEW_CORNERS[1],
                                 [*VIEW_CORNERS[3], -1.0, 1.0], [0.0, 0.0, 1.0, 0.0]])
 """The light-image targets of p^1..p^3, p̂^4 and l (see :func:`plane_light_rows`)."""
 
-_OTHER_AXES = np.array([[j for j in range(4) if j != m] for m in range(4)])
+_OTHER_AXES = tuple(tuple(j for j in range(4) if j != m) for m in range(4))
 """For each homogeneous axis m, the other three."""
 
 FLAT_RATIO = 0.1
@@ -118,6 +118,11 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / n if n > 0 else v
 
 
+def _length(v) -> float:
+    """The Euclidean length of a short sequence of floats."""
+    return math.sqrt(sum(c * c for c in v))
+
+
 def _row_norms(a: np.ndarray) -> np.ndarray:
     return np.sqrt(np.einsum("ij,ij->i", a, a))
 
@@ -141,14 +146,16 @@ def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
     "residual"})."""
     src = np.asarray(src, dtype=np.float64).reshape(5, 4)
     dst = np.asarray(dst, dtype=np.float64).reshape(5, 4)
-    # Rows (correspondence i, j != m_i): the 4x4 unknowns with y_m x in row j and -y_j x in row m.
-    big = np.argmax(np.abs(dst), axis=1)
-    others = _OTHER_AXES[big]                                                       # (5, 3)
-    i, k = np.arange(5)[:, None], np.arange(3)[None, :]
-    a = np.zeros((5, 3, 4, 4))
-    a[i, k, others] = dst[np.arange(5), big][:, None, None] * src[:, None, :]
-    a[i, k, big[:, None]] = -dst[i, others][:, :, None] * src[:, None, :]
-    a = a.reshape(15, 16)
+    # Correspondence i, j != m: y_m (M x_i)_j - y_j (M x_i)_m = 0, over M's 16 entries row by row: the
+    # coefficient of M's row r (y_m for r = j, -y_j for r = m, else 0) times x_i.
+    coefficients = []
+    for y in dst.tolist():
+        big = max(range(4), key=lambda c: abs(y[c]))           # (the first largest, as np.argmax)
+        for j in _OTHER_AXES[big]:
+            row = [0.0] * 4
+            row[j], row[big] = y[big], -y[j]
+            coefficients.append(row)
+    a = (np.array(coefficients)[:, :, None] * np.repeat(src, 3, axis=0)[:, None, :]).reshape(15, 16)
     if not np.all(np.isfinite(a)):
         raise WarpError("the five point constraints are not finite")
     _, sv, vt = np.linalg.svd(a)
@@ -156,13 +163,15 @@ def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
     if not condition > RANK_TOL:
         raise WarpError(f"the five point constraints are degenerate (rank < 15, relative singular value {condition:.3g})")
     m = vt[-1].reshape(4, 4)
-    mx = src @ m.T
-    nm = _row_norms(mx)
-    if np.any(nm <= 1e-12 * float(np.linalg.norm(m)) * _row_norms(src)):
-        raise WarpError("the five point constraints are degenerate (the solution maps a constrained point to "
-                        "nothing: four of the points are coplanar)")
-    u, v = mx / nm[:, None], dst / _row_norms(dst)[:, None]
-    residual = float(np.minimum(_row_norms(u - v), _row_norms(u + v)).max())
+    m_norm = math.sqrt(sum(c * c for c in vt[-1].tolist()))
+    residual = 0.0
+    for x, mx, y in zip(src.tolist(), (src @ m.T).tolist(), dst.tolist()):
+        mx_norm, y_norm = _length(mx), _length(y)
+        if mx_norm <= 1e-12 * m_norm * _length(x):
+            raise WarpError("the five point constraints are degenerate (the solution maps a constrained point to "
+                            "nothing: four of the points are coplanar)")
+        u, v = [c / mx_norm for c in mx], [c / y_norm for c in y]
+        residual = max(residual, min(_length([p - q for p, q in zip(u, v)]), _length([p + q for p, q in zip(u, v)])))
     if not residual <= RESIDUAL_TOL:
         raise WarpError(f"the five point solve missed its constraints (residual {residual:.3g})")
     return m, {"condition": condition, "residual": residual}
@@ -284,16 +293,24 @@ def offset_polygon(poly: np.ndarray, normal: np.ndarray, dist: float) -> np.ndar
 def offset_directions(poly: np.ndarray, normal: np.ndarray) -> np.ndarray:
     """Per vertex of the convex polygon (CCW about ``normal``), how it moves when
     every edge moves out by 1: ``offset_polygon(poly, normal, d) = poly + d * offset_directions(poly, normal)``."""
-    edge = next_vertices(poly) - poly                       # edge i runs from vertex i to i + 1
-    length = np.sqrt(np.einsum("ij,ij->i", edge, edge))
-    out_n = cross_rows(edge / np.where(length > 0, length, 1.0)[:, None],
-                       np.broadcast_to(normal, edge.shape))  # outward for CCW
-    n1, n2 = np.concatenate([out_n[-1:], out_n[:-1]]), out_n   # the edges before and after each vertex
-    s = 1.0 + np.einsum("ij,ij->i", n1, n2)
-    out = (n1 + n2) / np.where(s > 1e-9, s, 1.0)[:, None]
-    for i in np.flatnonzero(s <= 1e-9):                     # the polygon turns back on itself there
-        out[i] = _unit(n1[i] + n2[i] if np.any(n1[i] + n2[i]) else n1[i])
-    return out
+    nx, ny, nz = (float(c) for c in normal)
+    pts = np.asarray(poly, dtype=np.float64).tolist()
+    out_n = []                                               # edge i (vertex i to i + 1): its outward unit normal
+    for (ax, ay, az), (bx, by, bz) in zip(pts, pts[1:] + pts[:1]):
+        ex, ey, ez = bx - ax, by - ay, bz - az
+        length = math.sqrt(ex * ex + ey * ey + ez * ez)
+        if length > 0:
+            ex, ey, ez = ex / length, ey / length, ez / length
+        out_n.append((ey * nz - ez * ny, ez * nx - ex * nz, ex * ny - ey * nx))     # edge x normal: outward for CCW
+    out = []
+    for n1, n2 in zip(out_n[-1:] + out_n[:-1], out_n):      # the edges before and after each vertex
+        s = 1.0 + n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]
+        if s > 1e-9:
+            out.append([(a + b) / s for a, b in zip(n1, n2)])
+        else:                                                # the polygon turns back on itself there
+            m = [a + b for a, b in zip(n1, n2)]
+            out.append(_unit(np.array(m if any(m) else n1)).tolist())
+    return np.array(out).reshape(-1, 3)
 
 
 def enclosing_polygon(poly: np.ndarray, normal: np.ndarray, max_vertices: int) -> np.ndarray:
