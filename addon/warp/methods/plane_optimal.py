@@ -229,23 +229,32 @@ def _casters(poly, outwards, grown, n, height, l_h, tol, body, origin):
     point light inside B the part within NEAR_FRACTION of the scene scale
     below the light's height is cut off (returned flag)."""
     hv, h0 = height[:3], height[3]
-    rays = -l_h[None, :3] if l_h[3] == 0 else grown - l_h[:3] / l_h[3]
-    along = np.abs(rays @ n)                              # |ray| cos α
-    across = np.sqrt(np.maximum(np.einsum("ij,ij->i", rays, rays) - along * along, 0.0))     # |ray| sin α
-    tan = float(np.max(across / np.maximum(along, 1e-300)))
-    poly = poly + (tol * (2 + min(tan, 1e12))) * outwards
-    centre = poly.mean(axis=0)
-    # The side planes of C: through each edge (a, b) and the light, facing away from the centre.
-    towards = l_h[:3] - poly * l_h[3]                     # from each a towards the light (homogeneous)
-    side = cross_rows(next_vertices(poly) - poly, towards)
-    spans = np.any(side != 0, axis=1)                     # (an edge pointing at the light spans no plane)
-    side, through = side[spans], poly[spans]
-    side /= np.sqrt(np.einsum("ij,ij->i", side, side))[:, None]
-    side_offsets = np.einsum("ij,ij->i", side, through)
-    away = side @ centre - side_offsets > 0
-    side[away], side_offsets[away] = -side[away], -side_offsets[away]
-    normals = np.concatenate([-hv[None], side])           # h(x) >= -tol, then the sides
-    offsets = np.concatenate([[tol + h0], side_offsets])
+    lx, ly, lz, lw = l_h.tolist()
+    nx, ny, nz = n.tolist()
+    tan = 0.0                                             # tan α: the steepest light ray over the region
+    for gx, gy, gz in grown.tolist():
+        rx, ry, rz = (-lx, -ly, -lz) if lw == 0 else (gx - lx / lw, gy - ly / lw, gz - lz / lw)
+        along = abs(rx * nx + ry * ny + rz * nz)                                # |ray| cos α
+        across = math.sqrt(max(rx * rx + ry * ry + rz * rz - along * along, 0.0))  # |ray| sin α
+        tan = max(tan, across / max(along, 1e-300))
+    corners = (poly + (tol * (2 + min(tan, 1e12))) * outwards).tolist()
+    cx, cy, cz = (sum(c) / len(corners) for c in zip(*corners))
+    # h(x) >= -tol, then the side planes of C: through each edge (a, b) and the light, facing away from the centre.
+    normals, offsets = [(-hv).tolist()], [tol + float(h0)]
+    for (ax, ay, az), (bx, by, bz) in zip(corners, corners[1:] + corners[:1]):
+        ex, ey, ez = bx - ax, by - ay, bz - az
+        tx, ty, tz = lx - ax * lw, ly - ay * lw, lz - az * lw     # from a towards the light (homogeneous)
+        sx, sy, sz = ey * tz - ez * ty, ez * tx - ex * tz, ex * ty - ey * tx
+        length = math.sqrt(sx * sx + sy * sy + sz * sz)
+        if length == 0:                                   # (an edge pointing at the light spans no plane)
+            continue
+        sx, sy, sz = sx / length, sy / length, sz / length
+        offset = sx * ax + sy * ay + sz * az
+        if sx * cx + sy * cy + sz * cz > offset:
+            sx, sy, sz, offset = -sx, -sy, -sz, -offset
+        normals.append((sx, sy, sz))
+        offsets.append(offset)
+    normals, offsets = np.array(normals), np.array(offsets)
     poly = _clip_body(body, origin, normals, offsets)
     if poly is None:
         return np.zeros((0, 3)), False
