@@ -34,7 +34,7 @@ from typing import Optional
 
 import numpy as np
 
-from .polyhedron import Plane, _polygon_on_plane, cross_rows
+from .polyhedron import Plane, _polygon_on_plane
 from .types import WarpError
 
 RANK_TOL = 1e-10
@@ -113,18 +113,15 @@ class PlaneOfInterest:
         return np.append(self.normal, -(self.offset - o))
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
-    n = float(np.linalg.norm(v))
-    return v / n if n > 0 else v
-
-
 def _length(v) -> float:
     """The Euclidean length of a short sequence of floats."""
     return math.sqrt(sum(c * c for c in v))
 
 
-def _row_norms(a: np.ndarray) -> np.ndarray:
-    return np.sqrt(np.einsum("ij,ij->i", a, a))
+def _unit_list(v: list) -> list:
+    """``v`` scaled to unit length (unchanged if zero)."""
+    length = _length(v)
+    return [c / length for c in v] if length > 0 else v
 
 
 def next_vertices(poly: np.ndarray) -> np.ndarray:
@@ -207,22 +204,19 @@ def plane_light_rows(view_clip, plane_vec, light_h, length_scale: float) -> tupl
     pi = np.asarray(plane_vec, dtype=np.float64)
     l_h = np.asarray(light_h, dtype=np.float64)
     p = ray_plane_points(view_clip, pi, _FIVE_POINT_TARGETS[:4, :2])
-    if not np.all(np.isfinite(p)) or _row_norms(p).min() <= 1e-300:
+    points = p.tolist()
+    if not all(math.isfinite(c) for q in points for c in q) or min(map(_length, points)) <= 1e-300:
         raise WarpError("a corner ray of the view lies in the plane (the plane is seen edge-on)")
     # The spread of the finite p^i: their root mean square distance from the camera.
-    dist = [math.sqrt(x * x + y * y + z * z) / abs(w) for x, y, z, w in p.tolist()
+    dist = [math.sqrt(x * x + y * y + z * z) / abs(w) for x, y, z, w in points
             if abs(w) > 1e-12 * math.sqrt(x * x + y * y + z * z)]
     sigma = math.sqrt(sum(d * d for d in dist) / len(dist)) if dist else 0.0
     sigma = min(sigma, 1e6 * length_scale) if sigma > 0 else length_scale
-    nrm = np.array([1.0 / sigma, 1.0 / sigma, 1.0 / sigma, 1.0])      # the diagonal of the normalising scale
-    src = np.empty((5, 4))
-    src[:4] = p * nrm
-    src[4] = l_h * nrm
-    src /= _row_norms(src)[:, None]
-    raised = src[3] + src[4]        # p̂^4: another point of the line through p^4 and l (Fig. 2)
-    src[3] = _unit(raised)
+    k = 1.0 / sigma                 # the normalising scale diag(k, k, k, 1), then each point of unit length
+    src = [_unit_list([x * k, y * k, z * k, w]) for x, y, z, w in points + [l_h.tolist()]]
+    src[3] = _unit_list([a + b for a, b in zip(src[3], src[4])])  # p̂^4: another point of the line through p^4 and l (Fig. 2)
     m, info = five_point_matrix(src, _FIVE_POINT_TARGETS)
-    return m * nrm, info
+    return m * np.array([k, k, k, 1.0]), info
 
 
 def clip_polygon(poly: np.ndarray, plane: Plane, tol: float = 0.0) -> np.ndarray:
@@ -279,9 +273,12 @@ def convex_polygon_on_plane(points, normal, tol: float) -> Optional[np.ndarray]:
 
 
 def polygon_area(poly, normal) -> float:
-    poly = np.asarray(poly, dtype=np.float64)
-    s = cross_rows(poly, next_vertices(poly)).sum(axis=0)
-    return 0.5 * abs(float(s @ normal))
+    pts = np.asarray(poly, dtype=np.float64).tolist()
+    sx = sy = sz = 0.0                                       # the sum of a x b over the edges (a, b)
+    for (ax, ay, az), (bx, by, bz) in zip(pts, pts[1:] + pts[:1]):
+        sx, sy, sz = sx + (ay * bz - az * by), sy + (az * bx - ax * bz), sz + (ax * by - ay * bx)
+    nx, ny, nz = (float(c) for c in normal)
+    return 0.5 * abs(sx * nx + sy * ny + sz * nz)
 
 
 def offset_polygon(poly: np.ndarray, normal: np.ndarray, dist: float) -> np.ndarray:
@@ -309,7 +306,7 @@ def offset_directions(poly: np.ndarray, normal: np.ndarray) -> np.ndarray:
             out.append([(a + b) / s for a, b in zip(n1, n2)])
         else:                                                # the polygon turns back on itself there
             m = [a + b for a, b in zip(n1, n2)]
-            out.append(_unit(np.array(m if any(m) else n1)).tolist())
+            out.append(_unit_list(m if any(m) else list(n1)))
     return np.array(out).reshape(-1, 3)
 
 
