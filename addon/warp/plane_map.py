@@ -214,7 +214,8 @@ def plane_light_rows(view_clip, plane_vec, light_h, length_scale: float) -> tupl
     sigma = min(sigma, 1e6 * length_scale) if sigma > 0 else length_scale
     k = 1.0 / sigma                 # the normalising scale diag(k, k, k, 1), then each point of unit length
     src = [_unit_list([x * k, y * k, z * k, w]) for x, y, z, w in points + [l_h.tolist()]]
-    src[3] = _unit_list([a + b for a, b in zip(src[3], src[4])])  # p̂^4: another point of the line through p^4 and l (Fig. 2)
+    # p̂^4: another point of the line through p^4 and l (Fig. 2).
+    src[3] = _unit_list([a + b for a, b in zip(src[3], src[4])])
     m, info = five_point_matrix(src, _FIVE_POINT_TARGETS)
     return m * np.array([k, k, k, 1.0]), info
 
@@ -270,6 +271,27 @@ def plane_section(vertices, normal, offset: float, tol: float, edges=None) -> Op
 def convex_polygon_on_plane(points, normal, tol: float) -> Optional[np.ndarray]:
     """The convex hull (CCW about ``normal``) of points lying on one plane, or None if it has no area."""
     return _polygon_on_plane(np.asarray(points, dtype=np.float64).reshape(-1, 3), np.asarray(normal, dtype=np.float64), tol)
+
+
+def is_convex_polygon(points, normal, tol: float) -> bool:
+    """Whether the points, in their order, already are a convex polygon CCW
+    about ``normal`` that ``convex_polygon_on_plane`` would keep whole (it would
+    list the same vertices, perhaps from another start): every turn strictly
+    to the left, by more than the tolerance times the perimeter (so no vertex
+    is merged or dropped as collinear), and one turn around in all."""
+    pts = np.asarray(points, dtype=np.float64).tolist()
+    if len(pts) < 3:
+        return False
+    nx, ny, nz = (float(c) for c in normal)
+    edges = [(bx - ax, by - ay, bz - az) for (ax, ay, az), (bx, by, bz) in zip(pts, pts[1:] + pts[:1])]
+    perimeter = sum(map(_length, edges))
+    turned = 0.0
+    for (ax, ay, az), (bx, by, bz) in zip(edges, edges[1:] + edges[:1]):
+        left = (ay * bz - az * by) * nx + (az * bx - ax * bz) * ny + (ax * by - ay * bx) * nz
+        if not left > tol * perimeter:
+            return False
+        turned += math.atan2(left, ax * bx + ay * by + az * bz)
+    return abs(turned - 2 * math.pi) < 1e-6
 
 
 def polygon_area(poly, normal) -> float:

@@ -58,8 +58,8 @@ from ..fit import ndc_bounds, window_matrix
 from ..frame import light_angles, light_frames
 from ..geometry import homogeneous, translation
 from ..plane_map import (PlaneOfInterest, clip_polygon, convex_polygon_on_plane, default_plane, default_plane_of,
-                         enclosing_polygon, min_area_twist, next_vertices, offset_directions, plane_light_rows,
-                         plane_section, polygon_area, rotation2d)
+                         enclosing_polygon, is_convex_polygon, min_area_twist, next_vertices, offset_directions,
+                         plane_light_rows, plane_section, polygon_area, rotation2d)
 from ..polyhedron import Plane, clip_faces, cross_rows, unique_points
 from ..types import Diagnostics, Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .uniform import frame_map
@@ -158,7 +158,8 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
         poly = plane_section(region.vertices + (body.origin - origin), n, off, body.tolerance, region.edges()[0])
     if poly is not None and plane.extent is not None:
         ext = np.asarray(plane.extent) - origin
-        ext = convex_polygon_on_plane(ext, n, body.tolerance)
+        if not is_convex_polygon(ext, n, body.tolerance):       # (a box's top, a hull: already their own hull)
+            ext = convex_polygon_on_plane(ext, n, body.tolerance)
         if ext is None:
             poly = None
         else:
