@@ -206,6 +206,15 @@ DET_MIN = 1e-13
 meeting in no single point (parallel or sharing a line)."""
 
 _COMBOS: dict[tuple[int, int], np.ndarray] = {}
+_PAIRS: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _pairs(m: int) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs i < j below ``m`` (cached)."""
+    p = _PAIRS.get(m)
+    if p is None:
+        p = _PAIRS[m] = np.triu_indices(m, 1)
+    return p
 
 
 def _combinations3(m: int, first_new: int = 0) -> np.ndarray:
@@ -240,7 +249,9 @@ def _perpendiculars(n: np.ndarray) -> np.ndarray:
 def _unit_rows(normals, offsets) -> tuple[np.ndarray, np.ndarray]:
     n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
     o = np.asarray(offsets, dtype=np.float64).reshape(-1)
-    length = np.linalg.norm(n, axis=1)
+    length = np.sqrt(np.einsum("ij,ij->i", n, n))
+    if length.all():
+        return n / length[:, None], o / length
     good = length > 0
     return n[good] / length[good, None], o[good] / length[good]
 
@@ -581,7 +592,7 @@ class ConvexPolytope:
             x = a + t[:, None] * (v[edges[e, 1]] - a)
             pts.append(x[(x @ n2.T - o2).max(axis=1) <= tol])
         if len(n2) >= 2:
-            i, j = np.triu_indices(len(n2), 1)
+            i, j = _pairs(len(n2))
             c = np.einsum("ij,ij->i", n2[i], n2[j])
             u = cross_rows(n2[i], n2[j])
             keep = 1.0 - c * c > 1e-12                              # planes not parallel
@@ -594,8 +605,7 @@ class ConvexPolytope:
             rate = u @ an.T                                          # (lines, planes)
             room = ao - base @ an.T
             along = np.abs(rate) > 1e-12
-            with np.errstate(divide="ignore", invalid="ignore"):
-                bound = room / np.where(along, rate, 1.0)
+            bound = room / np.where(along, rate, 1.0)
             t_hi = np.where(along & (rate > 0), bound, np.inf).min(axis=1)
             t_lo = np.where(along & (rate < 0), bound, -np.inf).max(axis=1)
             ok = (t_lo <= t_hi) & np.isfinite(t_lo) & np.isfinite(t_hi) & ~np.any(~along & (room < -tol), axis=1)
