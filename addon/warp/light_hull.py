@@ -15,7 +15,6 @@ from typing import NamedTuple
 import numpy as np
 
 from .brep import Brep, OpenCut, directed_edges
-from .geometry import cross3
 from .types import Light
 
 CONE_SIDES = 16
@@ -28,20 +27,26 @@ SUN_FACING = 1e-12
 def cone_halfspaces(apex, axis, full_angle) -> tuple[np.ndarray, np.ndarray]:
     """(normals (k, 3), offsets (k,)) of a pyramid circumscribing the cone
     (apex, axis, full angle), k = CONE_SIDES."""
-    a = np.asarray(axis, dtype=np.float64)
-    a = a / np.linalg.norm(a)
-    u = cross3(a, np.eye(3)[int(np.argmin(np.abs(a)))])
-    u /= np.linalg.norm(u)
-    v = cross3(a, u)
-    half = full_angle / 2
+    ax, ay, az = (float(c) for c in axis)
+    length = math.sqrt(ax * ax + ay * ay + az * az)
+    ax, ay, az = ax / length, ay / length, az / length
+    # u: perpendicular to the axis, away from the coordinate axis it is least aligned with; v = a x u.
+    e = min(range(3), key=lambda i: abs((ax, ay, az)[i]))
+    ex, ey, ez = (1.0 if i == e else 0.0 for i in range(3))
+    ux, uy, uz = ay * ez - az * ey, az * ex - ax * ez, ax * ey - ay * ex
+    length = math.sqrt(ux * ux + uy * uy + uz * uz)
+    ux, uy, uz = ux / length, uy / length, uz / length
+    v = (ay * uz - az * uy, az * ux - ax * uz, ax * uy - ay * ux)
     # Tangent planes of a regular pyramid circumscribing the cone: the cone's
     # half-angle widened so the cone fits inside the polygon (secant of pi/k).
-    widened = math.atan(math.tan(half) / math.cos(math.pi / CONE_SIDES))
-    phi = 2 * math.pi * np.arange(CONE_SIDES) / CONE_SIDES
-    radial = np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * v
-    n = math.cos(widened) * radial - math.sin(widened) * a
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    widened = math.atan(math.tan(full_angle / 2) / math.cos(math.pi / CONE_SIDES))
+    radial = _CONE_COS[:, None] * np.array([ux, uy, uz]) + _CONE_SIN[:, None] * np.array(v)
+    n = math.cos(widened) * radial - math.sin(widened) * np.array([ax, ay, az])     # unit: radial ⊥ axis
     return n, n @ np.asarray(apex, dtype=np.float64)
+
+
+_CONE_ANGLES = 2 * math.pi * np.arange(CONE_SIDES) / CONE_SIDES
+_CONE_COS, _CONE_SIN = np.cos(_CONE_ANGLES), np.sin(_CONE_ANGLES)
 
 
 def light_halfspaces(light: Light, origin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
