@@ -145,16 +145,22 @@ def lowest_in_boxes(region: ConvexPolytope, lo: np.ndarray, hi: np.ndarray, axis
     # Box edges clipped by the region's m facets: (m, 12, K).
     start = np.where(_BOX_EDGE_START, hi, lo)                  # (12, K, 3)
     step = _BOX_EDGE_AXIS * size
-    box_side = _lowest_on_segments(start @ axis, step @ axis, o[:, None, None] - np.inner(n, start),
-                                   np.inner(n, step))
+    box_num, box_den = o[:, None, None] - np.inner(n, start), np.inner(n, step)
     # Region edges clipped by the box's six faces x <= hi, -x <= -lo: (6, e, K).
     a, b = region.edges()[0].T
     p, d = region.vertices[a], region.vertices[b] - region.vertices[a]
     pt, dt = p.T[:, :, None], d.T[:, :, None]                # (3, e, 1)
-    num = np.concatenate([hi.T[:, None, :] - pt, pt - lo.T[:, None, :]])
-    den = np.broadcast_to(np.concatenate([dt, -dt]), num.shape).copy()      # (full shape: a broadcast
-    region_side = _lowest_on_segments((p @ axis)[:, None], (d @ axis)[:, None], num, den)   # divide is slow)
-    return np.minimum(box_side, region_side)
+    region_num = np.concatenate([hi.T[:, None, :] - pt, pt - lo.T[:, None, :]])
+    region_den = np.broadcast_to(np.concatenate([dt, -dt]), region_num.shape)
+    # Both sets in one pass: the shorter list of half-spaces padded with ones that keep everything.
+    rows = max(len(n), 6)
+    num = np.zeros((rows, 12 + len(a), len(lo)))
+    den = np.zeros_like(num)
+    num[: len(n), :12], den[: len(n), :12] = box_num, box_den
+    num[:6, 12:], den[:6, 12:] = region_num, region_den
+    base = np.concatenate([start @ axis, np.broadcast_to((p @ axis)[:, None], (len(a), len(lo)))])
+    rate = np.concatenate([step @ axis, np.broadcast_to((d @ axis)[:, None], (len(a), len(lo)))])
+    return _lowest_on_segments(base, rate, num, den)
 
 
 def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
