@@ -66,7 +66,7 @@ import numpy as np
 from ..body import IntersectionBody
 from ..fit import fit_to_unit_cube
 from ..frame import light_angles
-from ..geometry import UNIT_CUBE_CORNERS, homogeneous, translation
+from ..geometry import clip_volume_corners_h, homogeneous, translation
 from ..post_perspective import nearest_visible_depth, pps_light_matrix, virtual_camera
 from ..types import Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpOptions
 from .uniform import uniform
@@ -93,10 +93,9 @@ def _clip_corners(matrix: np.ndarray):
     """World corners of the clip volume (UNIT_CUBE_CORNERS order), or None when
     the volume reaches infinity (a corner's preimage has w <= 0)."""
     try:
-        inv = np.linalg.inv(matrix)
+        h = clip_volume_corners_h(matrix)
     except np.linalg.LinAlgError:
         return None
-    h = homogeneous(UNIT_CUBE_CORNERS) @ inv.T
     w = h[:, 3]
     if not np.all(np.isfinite(h)) or np.any(w <= 1e-12 * np.abs(h[:, :3]).max(axis=1)):
         return None
