@@ -35,6 +35,11 @@ def window_matrix(lo, hi) -> np.ndarray:
     return np.array(_window_rows(np.asarray(lo, dtype=np.float64).tolist(), np.asarray(hi, dtype=np.float64).tolist()))
 
 
+def window_matrices(lo: list, hi: list) -> np.ndarray:
+    """``window_matrix`` for several boxes given as lists of float 3-lists, (k, 4, 4)."""
+    return np.array([_window_rows(a, b) for a, b in zip(lo, hi)])
+
+
 def _window_rows(lo: list, hi: list) -> list:
     """``window_matrix`` for a box given as float lists, as nested lists."""
     ext = [max(b - a, 0.0) for a, b in zip(lo, hi)]
@@ -66,4 +71,4 @@ def fit_runs(matrices, points_h, starts, run) -> np.ndarray:
         raise WarpError("internal: a point of B is behind the projection (w <= 0)")
     ndc = h[:, :3] / w
     lo, hi = np.minimum.reduceat(ndc, starts).tolist(), np.maximum.reduceat(ndc, starts).tolist()
-    return np.array([_window_rows(a, b) for a, b in zip(lo, hi)]) @ matrices
+    return window_matrices(lo, hi) @ matrices

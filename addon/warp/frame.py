@@ -13,6 +13,7 @@ vector when light and view are (nearly) parallel, so the frame never jumps.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -276,16 +277,59 @@ def cube_basis(axis, up) -> np.ndarray:
 _FACE_CORNERS = np.array([[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]])
 """(a, b) of a cube face's 4 corner rays forward + a·others[0] + b·others[1]."""
 _CUBE_SIGNS = np.array([[sx, sy, sz] for sx in (-1.0, 1.0) for sy in (-1.0, 1.0) for sz in (-1.0, 1.0)])
-"""The 8 corner directions of the cube (in its basis): a face's corner rays are the 4 whose sign on its axis matches."""
+"""The cube's 8 corner rays (in its basis), each a corner ray of the 3 faces whose signs it shares."""
 _FACE_PLANES = np.array([[s if j == o else (-sign if j == k else 0.0) for j in range(3)]
                          for _, k, sign in CUBE_FACES for o in range(3) if o != k for s in (1.0, -1.0)])
 """Coefficients (in the cube's basis) of the 4 side planes of each face's
 pyramid, s·other - forward (not yet unit): face f owns rows 4f .. 4f + 3."""
-_FACE_OF_PLANE = np.repeat(np.arange(6), 4)
-_CORNER_ON_FACE = np.array([[c[k] == sign for _, k, sign in CUBE_FACES] for c in _CUBE_SIGNS])
-"""(8, 6): which of the cube's corner rays bound which face."""
-_FACE_CORNER_SIGNS = np.concatenate([_CUBE_SIGNS[_CORNER_ON_FACE[:, f]] for f in range(6)])
-"""(24, 3): each face's 4 corner rays (``_CUBE_SIGNS`` in the cube's basis), face by face."""
+_CUBE_PLANES = np.array([[1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, -1.0],
+                         [0.0, 1.0, 1.0], [-1.0, 0.0, 1.0], [1.0, 0.0, 1.0]])
+"""The planes x = ±y, y = ±z, z = ±x (in the cube's basis, not yet unit): the
+24 sides of the faces' pyramids are these 6, each shared by four faces."""
+
+
+@dataclass(frozen=True, eq=False)
+class Pyramids:
+    """How k four-sided pyramids with their apex at the origin are bounded by
+    m planes and r corner rays that neighbouring pyramids may share: pyramid j
+    is {x : signs[j, i] · n_p . x <= 0 for p = sides[j, i], i = 0..3} (n_p the
+    planes' normals); ``corners[c, j]``: ray c is one of pyramid j's corner
+    rays; ``uses[p, j]``: plane p is one of its sides."""
+
+    sides: np.ndarray      # (k, 4) plane numbers
+    signs: np.ndarray      # (k, 4) ±1
+    corners: np.ndarray    # (r, k) bool
+    uses: np.ndarray       # (m, k) bool
+
+    @classmethod
+    def of_sides(cls, sides, signs, corners) -> "Pyramids":
+        sides = np.asarray(sides)
+        uses = (sides[None] == np.arange(sides.max() + 1)[:, None, None]).any(axis=2)
+        return cls(sides, np.asarray(signs, dtype=np.float64), np.asarray(corners, dtype=bool), uses)
+
+
+@functools.lru_cache(maxsize=None)
+def separate_pyramids(k: int) -> Pyramids:
+    """k pyramids that share nothing: pyramid j has the planes and corner rays
+    4j .. 4j + 3 (made once per count; read-only)."""
+    own = np.eye(k, dtype=bool).repeat(4, axis=0)
+    pyramids = Pyramids(np.arange(4 * k).reshape(k, 4), np.ones((k, 4)), own, own)
+    for a in (pyramids.sides, pyramids.signs, pyramids.corners):
+        a.flags.writeable = False
+    return pyramids
+
+
+def _cube_pyramids() -> Pyramids:
+    side_of = [next((p, s) for p in range(6) for s in (1.0, -1.0) if (s * _CUBE_PLANES[p] == row).all())
+               for row in _FACE_PLANES]
+    corners = [[c[k] == sign for _, k, sign in CUBE_FACES] for c in _CUBE_SIGNS]
+    return Pyramids.of_sides(np.reshape([p for p, _ in side_of], (6, 4)), np.reshape([s for _, s in side_of], (6, 4)),
+                             corners)
+
+
+CUBE_PYRAMIDS = _cube_pyramids()
+"""The six faces' pyramids: their sides ``_FACE_PLANES`` as ± ``_CUBE_PLANES``,
+their corner rays among ``_CUBE_SIGNS``."""
 
 
 def cube_section_points(poly, edges: np.ndarray, basis: np.ndarray) -> list:
@@ -298,55 +342,56 @@ def cube_section_points(poly, edges: np.ndarray, basis: np.ndarray) -> list:
 
 def cube_sections(poly, edges: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``cube_section_points`` as candidate points (n, 3) and which faces each
-    belongs to (n, 6), a face's column all False when its part has no volume."""
+    belongs to (n, 6), a face's column all False when its part has no volume.
+    The faces' pyramids share their 6 planes and 8 corner rays
+    (``CUBE_PYRAMIDS``), so each crossing and each ray is found once."""
     tol = poly.tol
-    n24 = (_FACE_PLANES @ basis) / math.sqrt(2.0)           # (24, 3) unit normals, <= 0 inside the pyramids
-    pts, member = pyramid_sections(poly, edges, n24.reshape(6, 4, 3), (_FACE_CORNER_SIGNS @ basis).reshape(6, 4, 3))
-    # No volume: too few points, or all on one of the face's planes.
-    on_plane = (np.abs(pts @ n24.T) <= tol) | ~member[:, _FACE_OF_PLANE]
-    flat = on_plane.all(axis=0).reshape(6, 4).any(axis=1)
+    planes = (_CUBE_PLANES @ basis) / math.sqrt(2.0)        # (6, 3) unit normals
+    pts, member, side = pyramid_sections(poly, edges, planes, _CUBE_SIGNS @ basis, CUBE_PYRAMIDS)
+    # No volume: too few points, or all on one of the face's sides.
+    flat = ((np.abs(side) <= tol) | ~member[..., None]).all(axis=0).any(axis=1)
     return pts, member & ((member.sum(axis=0) >= 4) & ~flat)
 
 
-def pyramid_sections(poly, edges: np.ndarray, sides: np.ndarray, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """P ∩ C_k for k four-sided pyramids C_k = {x : n . x <= 0 for its sides n}
-    with their apex at the origin (P relative to the apex, e.g. a point light),
-    all at once, without clipping. ``sides`` (k, 4, 3) are unit outward normals,
-    ``rays`` (k, 4, 3) the corner rays where neighbouring sides meet (pointing
-    into C_k). Returns candidate points (n, 3) and which pyramids each belongs
-    to (n, k), a column all False when P lies outside one side of C_k.
+def pyramid_sections(poly, edges: np.ndarray, planes: np.ndarray, rays: np.ndarray,
+                     pyramids: Pyramids) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """P ∩ C_j for k four-sided pyramids C_j with their apex at the origin (P
+    relative to the apex, e.g. a point light), all at once, without clipping.
+    ``planes`` (m, 3) are the unit normals of their sides and ``rays`` (r, 3)
+    their corner rays (pointing into the pyramids they bound), shared as
+    ``pyramids`` says. Returns candidate points (n, 3), which pyramids each
+    belongs to (n, k), a column all False when P lies outside one side of C_j,
+    and the candidates' signed distances to every pyramid's sides (n, k, 4).
 
-    Every vertex of P ∩ C_k is among its points: P's vertices inside C_k, the
-    crossings of P's edges with C_k's sides (kept if inside C_k), where C_k's
+    Every vertex of P ∩ C_j is among its points: P's vertices inside C_j, the
+    crossings of P's edges with C_j's sides (kept if inside C_j), where C_j's
     corner rays enter and leave P, and the apex if P holds it."""
-    k = len(sides)
     tol = poly.tol
     v = poly.vertices
-    n = sides.reshape(4 * k, 3)
-    pyramid = np.arange(k)
-    face_of_plane = pyramid.repeat(4)
-    d = v @ n.T                                              # (vertices, 4k)
-    d3 = d.reshape(len(v), k, 4)
-    outside = (d3 >= -tol).all(axis=0).any(axis=1)           # (k,): P wholly outside one side
-    # P's edges crossing the 4k planes (one end beyond tol on each side), each kept if inside its own pyramid.
-    da, db = d[edges.T]                                      # (e, 4k) at either end
+    d = v @ planes.T                                         # (vertices, m)
+    # P's edges crossing the planes (one end beyond tol on each side).
+    da, db = d[edges.T]                                      # (e, m) at either end
     e, p = np.nonzero((np.minimum(da, db) < -tol) & (np.maximum(da, db) > tol))
     da = da[e, p]
     t = da / (da - db[e, p])
     a, b = v[edges[e].T]
     x = a + t[:, None] * (b - a)
-    face_of = face_of_plane[p]
-    keep = (x @ n.T).reshape(-1, k, 4)[np.arange(len(x)), face_of].max(axis=1, initial=-np.inf) <= tol
-    x, face_of = x[keep], face_of[keep]
     # The corner rays through P: t-interval where n . (t r) <= o for every facet.
-    rays = rays.reshape(4 * k, 3)
     t_lo, t_hi, hit = ray_interval(poly, rays)
-    apex = bool(poly.offsets.min() >= -tol)                  # P holds the apex: n . 0 - o <= tol for every facet
-    pts = np.concatenate([v, x, t_lo[:, None] * rays, t_hi[:, None] * rays, np.zeros((1, 3))])
-    on_ray = (face_of_plane[:, None] == pyramid) & hit[:, None]
-    member = np.concatenate([d3.max(axis=2) <= tol, face_of[:, None] == pyramid, on_ray, on_ray,
-                             np.full((1, k), apex)])
-    return pts, member & ~outside
+    apex = poly.offsets.min() >= -tol                        # P holds the apex: n . 0 - o <= tol for every facet
+    pts = np.concatenate([v, x, t_lo[:, None] * rays, t_hi[:, None] * rays, _ORIGIN])
+    # Each candidate belongs to the pyramids that hold it among those it was made for: a vertex
+    # to all, a crossing to those with its plane as a side, a ray's ends to those it bounds.
+    side = (pts @ planes.T)[:, pyramids.sides] * pyramids.signs          # (n, k, 4)
+    k = len(pyramids.sides)
+    on_ray = pyramids.corners & hit[:, None]
+    made_for = np.concatenate([np.ones((len(v), k), dtype=bool), pyramids.uses[p], on_ray, on_ray,
+                               np.full((1, k), apex)])
+    outside = (side[:len(v)] >= -tol).all(axis=0).any(axis=1)           # (k,): P wholly outside one side
+    return pts, (side.max(axis=2) <= tol) & made_for & ~outside, side
+
+
+_ORIGIN = np.zeros((1, 3))
 
 
 def ray_interval(poly, rays) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

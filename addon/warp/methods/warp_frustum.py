@@ -90,8 +90,9 @@ import numpy as np
 
 from ..aliasing import lambda_glpr, lambda_gmnpr, lispsm_inverse_n_opt
 from ..body import IntersectionBody
-from ..fit import fit_runs, ndc_bounds, window_matrix
-from ..frame import PARALLEL_BLEND, LightFrame, light_angles, light_frames, pyramid_sections
+from ..fit import fit_runs, ndc_bounds, window_matrices, window_matrix
+from ..frame import (PARALLEL_BLEND, LightFrame, light_angles, light_frames, pyramid_sections,
+                     separate_pyramids)
 from ..geometry import clip_volume_corners, homogeneous, point_runs, transform_h_runs
 from ..types import Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .uniform import frame_map
@@ -548,26 +549,27 @@ def ray_closed(matrices, body: IntersectionBody, light_position) -> list:
     matrix, a note, and the vertices of B ∩ window it now holds; or None and
     the reason when that part of B touches the light (w = 0) and cannot be held."""
     m = np.asarray(matrices, dtype=np.float64)                   # (k, 4, 4)
-    # The window's edges x = ±w and y = ±w: rows x ∓ w, y ∓ w as (k, sign -/+, axis x/y, 3).
-    e = m[:, None, :2, :3] + _MINUS_PLUS[:, None, None] * m[:, None, 3:, :3]
-    sides = e[:, _SIDE_SIGN, _SIDE_AXIS] * _SIDE_FLIP[:, None]   # x - w, -x - w, y - w, -y - w
+    rows = m[:, :, :3]                     # on directions from the light (every row but z vanishes at the light)
+    # The window's sides x = ±w, y = ±w, as outward normals x - w, -x - w, y - w, -y - w.
+    sides = _WINDOW_SIDES @ rows                                 # (k, 4, 3)
     sides /= np.sqrt((sides * sides).sum(axis=2))[..., None]
-    # Its corner rays: where x = ±w meets y = ±w, on the side where w > 0.
-    px, py = e[:, _CORNER_X, 0], e[:, _CORNER_Y, 1]
+    # Its corner rays: where x = ∓w meets y = ∓w, on the side where w > 0.
+    px, py = _CORNER_X @ rows, _CORNER_Y @ rows
     rays = px[..., _YZX] * py[..., _ZXY] - px[..., _ZXY] * py[..., _YZX]
-    rays *= np.sign((rays * m[:, None, 3, :3]).sum(axis=2))[..., None]
+    rays *= np.sign((rays * rows[:, None, 3]).sum(axis=2))[..., None]
     poly = body.polytope_from(light_position)
-    pts, member = pyramid_sections(poly, poly.edges()[0], sides, rays)
+    pts, member, _ = pyramid_sections(poly, poly.edges()[0], sides.reshape(-1, 3), rays.reshape(-1, 3),
+                                      separate_pyramids(len(m)))
     pts = pts + light_position
     # Every map's image of every candidate, each map looking only at its own members.
     h = homogeneous(pts) @ m.transpose(0, 2, 1)                 # (k, n, 4)
     inside = member.T                                           # (k, n)
     w = np.where(inside, h[..., 3], 1.0)
-    reaches = (w <= 1e-9 * np.abs(w).max(axis=1, keepdims=True)).any(axis=1)   # w = 0 on B ∩ window
-    ndc = h[..., :3] / np.where(reaches[:, None], 1.0, w)[..., None]         # (those maps are not fitted)
+    reaches = (w <= 1e-9 * np.abs(w).max(axis=1, keepdims=True)).any(axis=1).tolist()   # w = 0 on B ∩ window
+    ndc = h[..., :3] / np.where(np.array(reaches)[:, None], 1.0, w)[..., None]          # (those maps are not fitted)
     lo = np.where(inside[..., None], ndc, np.inf).min(axis=1).tolist()
     hi = np.where(inside[..., None], ndc, -np.inf).max(axis=1).tolist()
-    out = []
+    out, widen = [], []
     for i, held in enumerate(inside.any(axis=1).tolist()):
         if not held:
             out.append((m[i], "", None))
@@ -576,15 +578,20 @@ def ray_closed(matrices, body: IntersectionBody, light_position) -> list:
         elif min(lo[i]) >= -1.0 - 1e-9 and max(hi[i]) <= 1.0 + 1e-9:     # the map already holds B ∩ window
             out.append((m[i], "", pts[inside[i]]))
         else:
-            out.append((window_matrix(lo[i], hi[i]) @ m[i], "depth widened to B within the map's window", pts[inside[i]]))
+            widen.append(i)
+            out.append(None)
+    if widen:
+        refitted = window_matrices([lo[i] for i in widen], [hi[i] for i in widen]) @ m[widen]
+        for i, matrix in zip(widen, refitted):
+            out[i] = (matrix, "depth widened to B within the map's window", pts[inside[i]])
     return out
 
 
-_MINUS_PLUS = np.array([-1.0, 1.0])
-_SIDE_SIGN, _SIDE_AXIS, _SIDE_FLIP = np.array([0, 1, 0, 1]), np.array([0, 0, 1, 1]), np.array([1.0, -1.0, 1.0, -1.0])
-"""The window's four side planes as (sign, axis) of ``ray_closed``'s edge rows, negated for +w: outward normals."""
-_CORNER_X, _CORNER_Y = np.array([0, 0, 1, 1]), np.array([0, 1, 0, 1])
-"""The window's corner rays meet x = ∓w (first index) with y = ∓w (second)."""
+_WINDOW_SIDES = np.array([[1.0, 0.0, 0.0, -1.0], [-1.0, 0.0, 0.0, -1.0], [0.0, 1.0, 0.0, -1.0], [0.0, -1.0, 0.0, -1.0]])
+"""The window's sides x - w, -x - w, y - w, -y - w as combinations of a map's rows x, y, z, w."""
+_CORNER_X = np.array([[1.0, 0.0, 0.0, -1.0]] * 2 + [[1.0, 0.0, 0.0, 1.0]] * 2)
+_CORNER_Y = np.array([[0.0, 1.0, 0.0, -1.0], [0.0, 1.0, 0.0, 1.0]] * 2)
+"""The window's corner rays meet x ∓ w = 0 (``_CORNER_X``) with y ∓ w = 0 (``_CORNER_Y``): (-, -), (-, +), (+, -), (+, +)."""
 
 
 def projection_centre(frame: LightFrame, g: FrameGeometry, lam: float) -> Optional[np.ndarray]:
