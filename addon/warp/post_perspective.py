@@ -59,8 +59,10 @@ outside B.
 """
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
+from operator import mul
 
 import numpy as np
 
@@ -146,8 +148,11 @@ def lowest_in_boxes(region: ConvexPolytope, lo: np.ndarray, hi: np.ndarray, axis
     start = np.where(_BOX_EDGE_START, hi, lo)                  # (12, K, 3)
     step = _BOX_EDGE_AXIS * size
     box_num, box_den = o[:, None, None] - np.inner(n, start), np.inner(n, step)
-    # Region edges clipped by the box's six faces x <= hi, -x <= -lo: (6, e, K).
-    a, b = region.edges()[0].T
+    # Region edges clipped by the box's six faces x <= hi, -x <= -lo: (6, e, K). The edges
+    # are the consecutive vertices of the facet loops (each edge twice, once per facet).
+    loops = region.facet_loops()
+    a = [v for loop in loops for v in loop[-1:] + loop[:-1]]
+    b = [v for loop in loops for v in loop]
     p, d = region.vertices[a], region.vertices[b] - region.vertices[a]
     pt, dt = p.T[:, :, None], d.T[:, :, None]                # (3, e, 1)
     region_num = np.concatenate([hi.T[:, None, :] - pt, pt - lo.T[:, None, :]])
@@ -173,24 +178,28 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     their boxes by a lower bound (the nearest corner of their bounds) and
     stopping when none can be nearer, so only the boxes near the camera are
     touched. Always in [view.near, true nearest visible depth]."""
-    origin = view.position
-    to_cam = view.world_to_camera[:3, :3]          # camera-relative world -> camera axes
-    coarse = float(max((-((body.visible_vertices - origin) @ to_cam[2])).min(), view.near))
     if options is not None and options.visible_depth_range is not None:
         return max(float(options.visible_depth_range[0]), view.near)
+    origin = view.position
+    axis = -view.world_to_camera[2, :3]            # camera-relative world -> eye depth
+    coarse = float(max(((body.visible_vertices - origin) @ axis).min(), view.near))
     index, selected = body.receivers.index, body.receivers.selected
     if not selected.any():
         return coarse
-    axis = -to_cam[2]
     # The nearest corner of bounds (lo, -hi): per coordinate lo where the axis is positive, else hi.
     nearest = np.concatenate([np.maximum(axis, 0.0), -np.minimum(axis, 0.0)])
     shift = float(origin @ axis)
     picked = np.zeros(index.c_bounds.shape[1] * CLUSTER_SIZE, dtype=bool)
     picked[: index.count] = selected
     picked = picked.reshape(-1, CLUSTER_SIZE)
-    c_lower = np.where(picked.any(axis=1), np.maximum(nearest @ index.c_bounds - shift, coarse), np.inf)
-    clusters = np.argsort(c_lower, kind="stable")
+    boxes_in = picked.sum(axis=1)
+    # The clusters holding picked boxes, nearest bound first, with their bounds and box counts.
+    c_lower = np.maximum(nearest @ index.c_bounds - shift, coarse)
+    clusters = np.flatnonzero(boxes_in)
+    order = np.argsort(c_lower[clusters], kind="stable")
+    clusters = clusters[order]
     c_lower = c_lower[clusters].tolist()
+    boxes_before = np.cumsum(boxes_in[clusters]).tolist()  # boxes in the first i + 1 clusters
     # V ∩ L ∩ box = R ∩ box for every receiver box (R = V ∩ S_r ∩ L, each box inside S_r).
     region = body.visible_polytope
     if region is None or not np.array_equal(body.origin, origin):
@@ -200,23 +209,33 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     # examined NEAREST_BOX_BATCH at a time, nearest bound first (the batch is the
     # nearest of all boxes not yet examined), until no pending box (in the pool or in
     # a cluster not yet opened) can be nearer than the best found.
-    clusters = clusters.tolist()
     opened = 0
     pool_bounds, pool_lower = np.zeros((6, 0)), np.zeros(0)
     best = math.inf
     count = 0
+
+    def open_until(stop: int) -> None:
+        """Add the boxes of clusters [opened, stop) to the pool, in one pass."""
+        nonlocal opened, pool_bounds, pool_lower
+        if stop <= opened:
+            return
+        ids = clusters[opened:stop]
+        more = index.c_box_bounds[:, ids][:, picked[ids]]                # (6, boxes): lo, -hi
+        pool_bounds = np.concatenate([pool_bounds, more], axis=1)
+        pool_lower = np.concatenate([pool_lower, np.maximum(nearest @ more - shift, coarse)])
+        opened = stop
+
     while True:
-        while opened < len(clusters):
-            # Open the next cluster while it may hold one of the next batch's boxes.
-            kth = (np.partition(pool_lower, NEAREST_BOX_BATCH - 1)[NEAREST_BOX_BATCH - 1]
-                   if len(pool_lower) >= NEAREST_BOX_BATCH else math.inf)
-            if c_lower[opened] >= min(kth, best):
-                break
-            c = clusters[opened]
-            opened += 1
-            more = index.c_box_bounds[:, c, picked[c]]                 # (6, boxes): lo, -hi
-            pool_bounds = np.concatenate([pool_bounds, more], axis=1)
-            pool_lower = np.concatenate([pool_lower, np.maximum(nearest @ more - shift, coarse)])
+        # Open every cluster that may hold one of the next batch's boxes: first enough
+        # for a full batch, then all whose bound is below the batch's farthest box.
+        reach = bisect.bisect_left(c_lower, best, opened)               # clusters that can beat best
+        missing = NEAREST_BOX_BATCH - len(pool_lower)
+        if missing > 0 and opened < reach:
+            wanted = missing + (boxes_before[opened - 1] if opened else 0)
+            open_until(min(bisect.bisect_left(boxes_before, wanted, opened) + 1, reach))
+        if len(pool_lower) >= NEAREST_BOX_BATCH and opened < reach:
+            kth = float(np.partition(pool_lower, NEAREST_BOX_BATCH - 1)[NEAREST_BOX_BATCH - 1])
+            open_until(bisect.bisect_left(c_lower, kth, opened, reach))
         unopened = c_lower[opened] if opened < len(clusters) else math.inf
         if not len(pool_lower) or min(float(pool_lower.min()), unopened) >= best:
             break
@@ -262,46 +281,120 @@ def virtual_camera(view: View, body: IntersectionBody, visible_near: float | Non
     return VirtualCamera(fit_to_unit_cube(raw, rel), shift, near, float(depth.max()) + shift, d_r)
 
 
+AFFINE_DEPENDENCE = 1e-14
+"""Relative size of a pivot (or of the 2x2 determinant) below which Wolfe's
+support counts as affinely dependent and is solved by least squares."""
+
+
+def _dot(u, v) -> float:
+    """u·v for plain float sequences."""
+    return sum(map(mul, u, v))
+
+
+def _affine_min_norm(q: list) -> list | None:
+    """Weights α (Σ α_i = 1) of the point of the affine hull of ``q`` (plain
+    float vectors) nearest the origin, or None when ``q`` is affinely dependent.
+    x = q_0 + Σ_i β_i e_i with e_i = q_i - q_0 is nearest when x ⊥ every e_i:
+    the normal equations Σ_j (e_i·e_j) β_j = -e_i·q_0, solved in closed form
+    for one or two unknowns (Wolfe's usual supports) and by Gaussian
+    elimination beyond."""
+    q0 = q[0]
+    e = [[a - b for a, b in zip(qi, q0)] for qi in q[1:]]
+    m = len(e)
+    if m == 0:
+        return [1.0]
+    gram = [[_dot(ei, ej) for ej in e] for ei in e]
+    rhs = [-_dot(ei, q0) for ei in e]
+    least = AFFINE_DEPENDENCE * max(gram[i][i] for i in range(m)) ** m
+    if m == 1:
+        if gram[0][0] <= least:
+            return None
+        beta = [rhs[0] / gram[0][0]]
+    elif m == 2:
+        (g00, g01), (_, g11) = gram
+        det = g00 * g11 - g01 * g01
+        if det <= least:
+            return None
+        beta = [(rhs[0] * g11 - rhs[1] * g01) / det, (g00 * rhs[1] - g01 * rhs[0]) / det]
+    else:
+        beta = _solve(gram, rhs, AFFINE_DEPENDENCE * max(gram[i][i] for i in range(m)))
+        if beta is None:
+            return None
+    return [1.0 - sum(beta)] + beta
+
+
+def _solve(a: list, b: list, least: float) -> list | None:
+    """x with a x = b (plain float lists), Gaussian elimination with partial
+    pivoting; None when a pivot is at most ``least``."""
+    m = len(b)
+    rows = [list(r) + [v] for r, v in zip(a, b)]
+    for c in range(m):
+        p = max(range(c, m), key=lambda r: abs(rows[r][c]))
+        if abs(rows[p][c]) <= least:
+            return None
+        rows[c], rows[p] = rows[p], rows[c]
+        for r in range(c + 1, m):
+            f = rows[r][c] / rows[c][c]
+            rows[r] = [u - f * v for u, v in zip(rows[r], rows[c])]
+    x = [0.0] * m
+    for c in reversed(range(m)):
+        x[c] = (rows[c][m] - _dot(rows[c][c + 1:m], x[c + 1:])) / rows[c][c]
+    return x
+
+
+def _bordered_lstsq(q: list) -> list:
+    """The affine weights of ``_affine_min_norm`` for an affinely dependent
+    ``q``: the least-squares solution of the bordered system [Q Qᵀ 1; 1ᵀ 0]."""
+    n = len(q)
+    a = np.ones((n + 1, n + 1))
+    a[:n, :n] = [[_dot(u, v) for v in q] for u in q]
+    a[n, n] = 0.0
+    rhs = np.zeros(n + 1)
+    rhs[n] = 1.0
+    return np.linalg.lstsq(a, rhs, rcond=None)[0][:n].tolist()
+
+
+def _combination(weights, q) -> list:
+    """Σ_i weights_i q_i for plain float vectors."""
+    return [_dot(weights, column) for column in zip(*q)]
+
+
 def min_norm_point(points, max_iter: int = 200) -> np.ndarray:
     """The point of the convex hull of ``points`` (M, d) nearest the origin
-    (Wolfe's algorithm, 1976: exact up to rounding, finitely many steps)."""
+    (Wolfe's algorithm, 1976: exact up to rounding, finitely many steps). The
+    support has at most d + 1 points, so its affine solves run on plain floats
+    (``_affine_min_norm``)."""
     p = np.asarray(points, dtype=np.float64)
+    rows = p.tolist()
     sq = np.einsum("ij,ij->i", p, p)
     scale = max(float(sq.max()), 1e-300)
     support = [int(np.argmin(sq))]
-    weights = np.array([1.0])
-    x = p[support[0]].copy()
+    weights = [1.0]
+    x = rows[support[0]]
     for _ in range(max_iter):
         dots = p @ x
         j = int(np.argmin(dots))
-        if x @ x - dots[j] <= 1e-14 * scale or j in support:
+        if _dot(x, x) - float(dots[j]) <= 1e-14 * scale or j in support:
             break
         support.append(j)
-        weights = np.append(weights, 0.0)
+        weights.append(0.0)
         for _ in range(max_iter):
-            q = p[support]
-            n = len(support)
-            a = np.ones((n + 1, n + 1))
-            a[:n, :n] = q @ q.T
-            a[n, n] = 0.0
-            rhs = np.zeros(n + 1)
-            rhs[n] = 1.0
-            try:
-                alpha = np.linalg.solve(a, rhs)[:n]
-            except np.linalg.LinAlgError:                  # affinely dependent support
-                alpha = np.linalg.lstsq(a, rhs, rcond=None)[0][:n]
-            if np.all(alpha > 1e-15):
+            q = [rows[s] for s in support]
+            alpha = _affine_min_norm(q)
+            if alpha is None:                              # affinely dependent support
+                alpha = _bordered_lstsq(q)
+            if min(alpha) > 1e-15:
                 weights = alpha
-                x = alpha @ q
+                x = _combination(alpha, q)
                 break
-            neg = alpha <= 1e-15
-            theta = float(np.min(weights[neg] / (weights[neg] - alpha[neg])))
-            weights = theta * alpha + (1.0 - theta) * weights
-            keep = weights > 1e-15
-            support = [s for s, k in zip(support, keep) if k]
-            weights = weights[keep] / weights[keep].sum()
-            x = weights @ p[support]
-    return x
+            theta = min(w / (w - a) for w, a in zip(weights, alpha) if a <= 1e-15)
+            weights = [theta * a + (1.0 - theta) * w for a, w in zip(alpha, weights)]
+            kept = [(s, w) for s, w in zip(support, weights) if w > 1e-15]
+            support = [s for s, _ in kept]
+            total = sum(w for _, w in kept)
+            weights = [w / total for _, w in kept]
+            x = _combination(weights, [rows[s] for s in support])
+    return np.array(x)
 
 
 def smallest_cone(directions) -> tuple[np.ndarray, float]:
@@ -357,22 +450,20 @@ def pps_light_matrix(light_h, points) -> PPSLight:
     half = math.acos(min(1.0, max(-1.0, margin)))
     if margin < MIN_CONE_MARGIN:
         return PPSLight(None, lh, kind, half, k)
-    centre = pts.mean(axis=0)
+    c = pts.sum(axis=0) / len(pts)                   # the mean of B'
+    centre = c.tolist()
     b = image_up(PPS_VIEW_DIRECTION, PPS_UP, k)
     # (a, b, k) right-handed: the camera's projection already reverses orientation, so
     # the composed world -> light NDC map reverses it once, like frame.FLIP_Z @ look_along
     # (a uniform map): triangles facing the light keep their winding (back-face biasing).
     a = normalize(cross3(b, k))
-    b = cross3(k, a)
-    m = np.zeros((4, 4))                             # the (a, b, k) frame centred at c
-    m[0, :3], m[1, :3], m[2, :3] = a, b, k
-    m[:3, 3] = -(m[:3, :3] @ centre)
-    m[3, 3] = 1.0
-    lam = m[:3, :3] @ (l - wp * centre)              # L' in that frame, times w'
+    axes = [a.tolist(), cross3(k, a).tolist(), k.tolist()]
+    frame = [[*e, -_dot(e, centre)] for e in axes]   # the (a, b, k) frame centred at c
+    frame.append([0.0, 0.0, 0.0, 1.0])
+    lam = [_dot(e, (l - wp * c).tolist()) for e in axes]   # L' in that frame, times w'
     # lam[2] = -k·(w' c - l) < 0: c is a mean of B', every k·(w' p - l) > 0.
     gx, gy, rho = -lam[0] / lam[2], -lam[1] / lam[2], -wp / lam[2]
     # The shear: the x, y and w rows gain γx, γy and ρ times the depth row, so they vanish at L'.
-    m[0] += gx * m[2]
-    m[1] += gy * m[2]
-    m[3] += rho * m[2]
+    depth = frame[2]
+    m = np.array([[f + g * z for f, z in zip(row, depth)] for row, g in zip(frame, (gx, gy, 0.0, rho))])
     return PPSLight(m, lh, kind, half, k)
