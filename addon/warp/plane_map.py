@@ -176,10 +176,10 @@ def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
 
 def ray_plane_points(view_clip, plane_vec, ndc_xy) -> np.ndarray:
     """Homogeneous (N, 4) points where the viewer rays through NDC ``ndc_xy``
-    (N, 2) meet the plane π: the line through the ray's near and far points A,
-    B meets π at (π·B) A - (π·A) B. Works for perspective and orthographic views
-    and for rays that meet P behind the camera or at infinity (w <= 0); a ray
-    lying in P gives the zero vector."""
+    (N, 2) meet the plane π (:func:`line_plane_points` of each ray's near and
+    far points). Works for perspective and orthographic views and for rays that
+    meet P behind the camera or at infinity (w <= 0); a ray lying in P gives the
+    zero vector."""
     inv = np.linalg.inv(np.asarray(view_clip, dtype=np.float64))
     xy = np.asarray(ndc_xy, dtype=np.float64).reshape(-1, 2)
     k = len(xy)
@@ -187,24 +187,42 @@ def ray_plane_points(view_clip, plane_vec, ndc_xy) -> np.ndarray:
     ends[:k, :2] = ends[k:, :2] = xy
     ends[:k, 2] = -1.0
     ends = ends @ inv.T
-    a, b = ends[:k], ends[k:]
-    side = ends @ plane_vec
-    return side[k:, None] * a - side[:k, None] * b
+    return line_plane_points(ends[:k], ends[k:], plane_vec)
+
+
+def line_plane_points(a, b, plane_vec) -> np.ndarray:
+    """Homogeneous (N, 4) points where the lines through the homogeneous points
+    a_i and b_i ((N, 4) each) meet the plane π: (π·b) a - (π·a) b (the zero
+    vector for a line lying in P)."""
+    return (b @ plane_vec)[:, None] * a - (a @ plane_vec)[:, None] * b
+
+
+VIEW_CORNER_RAYS = ((0, 2, 3, 1), (4, 6, 7, 5))
+"""The near and far corners of the view frustum (``View.corners()``, ordered
+like ``geometry.UNIT_CUBE_CORNERS``) on the rays through ``VIEW_CORNERS``."""
 
 
 def plane_light_rows(view_clip, plane_vec, light_h, length_scale: float) -> tuple[np.ndarray, dict]:
-    """The light matrix of Eq. 1 and 7-10 for the plane π (coordinates relative
-    to the camera, see :func:`plane_optimal`): (4x4 M, info).
+    """The light matrix of Eq. 1 and 7-10 for the plane π and the viewer's
+    world -> clip matrix ``view_clip``: :func:`plane_light_matrix` of the points
+    where the rays through the view corners meet π. Raises WarpError naming the
+    reason."""
+    pi = np.asarray(plane_vec, dtype=np.float64)
+    return plane_light_matrix(ray_plane_points(view_clip, pi, _FIVE_POINT_TARGETS[:4, :2]), light_h, length_scale)
+
+
+def plane_light_matrix(corner_points, light_h, length_scale: float) -> tuple[np.ndarray, dict]:
+    """The light matrix of Eq. 1 and 7-10 (coordinates relative to the camera,
+    see :func:`plane_optimal`): (4x4 M, info). ``corner_points``: p^1..p^4, the
+    homogeneous points where the rays through ``VIEW_CORNERS`` meet P (any
+    positive scale each; :func:`ray_plane_points`).
 
     Light-image targets are the viewer's NDC corners (x_i, y_i) with light z
     = +1 for p^1..p^3, -1 for p̂^4 and l -> (0, 0, 1, 0). World points are
     scaled by the spread of the p^i (``length_scale`` if none is finite) and
     each homogeneous point normalised, so the DLT is well conditioned even for
     a camera 1 cm above a 100 m floor. Raises WarpError naming the reason."""
-    pi = np.asarray(plane_vec, dtype=np.float64)
-    l_h = np.asarray(light_h, dtype=np.float64)
-    p = ray_plane_points(view_clip, pi, _FIVE_POINT_TARGETS[:4, :2])
-    points = p.tolist()
+    points = np.asarray(corner_points, dtype=np.float64).reshape(4, 4).tolist()
     if not all(math.isfinite(c) for q in points for c in q) or min(map(_length, points)) <= 1e-300:
         raise WarpError("a corner ray of the view lies in the plane (the plane is seen edge-on)")
     # The spread of the finite p^i: their root mean square distance from the camera.
@@ -213,7 +231,7 @@ def plane_light_rows(view_clip, plane_vec, light_h, length_scale: float) -> tupl
     sigma = math.sqrt(sum(d * d for d in dist) / len(dist)) if dist else 0.0
     sigma = min(sigma, 1e6 * length_scale) if sigma > 0 else length_scale
     k = 1.0 / sigma                 # the normalising scale diag(k, k, k, 1), then each point of unit length
-    src = [_unit_list([x * k, y * k, z * k, w]) for x, y, z, w in points + [l_h.tolist()]]
+    src = [_unit_list([x * k, y * k, z * k, w]) for x, y, z, w in points + [np.asarray(light_h, dtype=np.float64).tolist()]]
     # p̂^4: another point of the line through p^4 and l (Fig. 2).
     src[3] = _unit_list([a + b for a, b in zip(src[3], src[4])])
     m, info = five_point_matrix(src, _FIVE_POINT_TARGETS)
@@ -224,10 +242,17 @@ def clip_polygon(poly: np.ndarray, plane: Plane, tol: float = 0.0) -> np.ndarray
     """Sutherland-Hodgman: the part of a convex polygon with ``plane.distance <= 0``."""
     if len(poly) == 0:
         return poly
-    d = [0.0 if abs(e) <= tol else e for e in plane.distance(poly).tolist()]
+    pts = _clip_loop(poly.tolist(), plane.normal.tolist(), float(plane.offset), tol)
+    return np.array(pts, dtype=np.float64).reshape(-1, 3)
+
+
+def _clip_loop(pts: list, normal, offset: float, tol: float) -> list:
+    """``clip_polygon`` of a polygon given as a list of (x, y, z), in plain floats."""
+    nx, ny, nz = normal
+    d = [nx * x + ny * y + nz * z - offset for x, y, z in pts]
+    d = [0.0 if abs(e) <= tol else e for e in d]
     if max(d) <= 0:
-        return poly
-    pts = poly.tolist()
+        return pts
     out = []
     for a, b, da, db in zip(pts, pts[1:] + pts[:1], d, d[1:] + d[:1]):
         if da <= 0:
@@ -235,37 +260,79 @@ def clip_polygon(poly: np.ndarray, plane: Plane, tol: float = 0.0) -> np.ndarray
         if (da < 0 < db) or (db < 0 < da):
             t = da / (da - db)
             out.append((a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2])))
-    return np.array(out, dtype=np.float64).reshape(-1, 3)
+    return out
 
 
-def plane_section(vertices, normal, offset: float, tol: float, edges=None) -> Optional[np.ndarray]:
+def clip_to_polygon(poly: np.ndarray, bound, normal, tol: float) -> Optional[np.ndarray]:
+    """The part of the convex polygon ``poly`` inside the convex polygon
+    ``bound`` ((K, 3) on the same plane, CCW about ``normal``): ``poly`` clipped
+    by each edge's line on the plane (outward normal edge x normal). None when
+    less than a triangle is left."""
+    nx, ny, nz = (float(c) for c in normal)
+    b = bound.tolist() if isinstance(bound, np.ndarray) else list(bound)
+    pts = poly.tolist()
+    for (ax, ay, az), (bx, by, bz) in zip(b, b[1:] + b[:1]):
+        ex, ey, ez = bx - ax, by - ay, bz - az
+        ox, oy, oz = ey * nz - ez * ny, ez * nx - ex * nz, ex * ny - ey * nx
+        length = math.sqrt(ox * ox + oy * oy + oz * oz)
+        ox, oy, oz = ox / length, oy / length, oz / length
+        pts = _clip_loop(pts, (ox, oy, oz), ox * ax + oy * ay + oz * az, tol)
+        if len(pts) < 3:
+            return None
+    return np.array(pts, dtype=np.float64)
+
+
+def plane_section(vertices, normal, offset: float, tol: float, loops=None) -> Optional[np.ndarray]:
     """hull(vertices) ∩ P as a convex polygon (CCW about ``normal``), or None
     when it has no area: the section of a convex hull by a plane is the hull of
     its vertices on the plane and of the crossings of every segment between
-    vertices on opposite sides. ``edges``, (e, 2) vertex index pairs, when the
-    vertices are a polytope's with those edges: then its edges are the only
-    segments needed (a vertex of the section lies on an edge)."""
+    vertices on opposite sides. ``loops``, the facet loops (vertex indices)
+    when the vertices are a convex polyhedron's (``brep.Brep``): then its edges
+    (consecutive vertices of a loop) are the only segments needed, since a
+    vertex of the section lies on an edge, and the few vertices are walked in
+    plain floats."""
+    if loops is not None:
+        return _boundary_section(vertices, loops, normal, offset, tol)
     v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
     h = v @ normal - offset
     on = np.abs(h) <= tol
     pts = [v[on] - np.outer(h[on], normal)]
-    if edges is None:
-        pos, neg = np.where(h > tol)[0], np.where(h < -tol)[0]
-        if len(pos) and len(neg):
-            hp, hn = h[pos][:, None], h[neg][None, :]
-            t = hp / (hp - hn)
-            cross = v[pos][:, None, :] + t[..., None] * (v[neg][None, :, :] - v[pos][:, None, :])
-            pts.append(cross.reshape(-1, 3))
-    else:
-        a, b = edges[:, 0], edges[:, 1]
-        ha, hb = h[a], h[b]
-        crosses = ((ha > tol) & (hb < -tol)) | ((ha < -tol) & (hb > tol))
-        a, b, ha, hb = a[crosses], b[crosses], ha[crosses], hb[crosses]
-        pts.append(v[a] + (ha / (ha - hb))[:, None] * (v[b] - v[a]))
+    pos, neg = np.where(h > tol)[0], np.where(h < -tol)[0]
+    if len(pos) and len(neg):
+        hp, hn = h[pos][:, None], h[neg][None, :]
+        t = hp / (hp - hn)
+        cross = v[pos][:, None, :] + t[..., None] * (v[neg][None, :, :] - v[pos][:, None, :])
+        pts.append(cross.reshape(-1, 3))
     pts = np.concatenate(pts)
     if len(pts) < 3:
         return None
     return _polygon_on_plane(pts, normal, tol)
+
+
+def _boundary_section(vertices, loops, normal, offset: float, tol: float) -> Optional[np.ndarray]:
+    """``plane_section`` of a convex polyhedron given by its vertices and facet
+    loops: its vertices on P, then where its edges (lower vertex index first,
+    in sorted order) cross P."""
+    nx, ny, nz = (float(c) for c in normal)
+    v = vertices.tolist() if isinstance(vertices, np.ndarray) else vertices
+    h = [nx * x + ny * y + nz * z - offset for x, y, z in v]
+    pts = [(x - e * nx, y - e * ny, z - e * nz) for (x, y, z), e in zip(v, h) if abs(e) <= tol]
+    below = [e < -tol for e in h]
+    above = [e > tol for e in h]
+    crossing = set()
+    for loop in loops:
+        a = loop[-1]
+        for b in loop:
+            if (above[a] and below[b]) or (below[a] and above[b]):
+                crossing.add((a, b) if a < b else (b, a))
+            a = b
+    for a, b in sorted(crossing):
+        (ax, ay, az), (bx, by, bz), ha = v[a], v[b], h[a]
+        t = ha / (ha - h[b])
+        pts.append((ax + t * (bx - ax), ay + t * (by - ay), az + t * (bz - az)))
+    if len(pts) < 3:
+        return None
+    return _polygon_on_plane(np.array(pts), normal, tol)
 
 
 def convex_polygon_on_plane(points, normal, tol: float) -> Optional[np.ndarray]:
@@ -312,8 +379,12 @@ def offset_polygon(poly: np.ndarray, normal: np.ndarray, dist: float) -> np.ndar
 def offset_directions(poly: np.ndarray, normal: np.ndarray) -> np.ndarray:
     """Per vertex of the convex polygon (CCW about ``normal``), how it moves when
     every edge moves out by 1: ``offset_polygon(poly, normal, d) = poly + d * offset_directions(poly, normal)``."""
+    return np.array(offset_steps(np.asarray(poly, dtype=np.float64).tolist(), normal)).reshape(-1, 3)
+
+
+def offset_steps(pts: list, normal) -> list:
+    """``offset_directions`` of a polygon given as a list of (x, y, z), as a list."""
     nx, ny, nz = (float(c) for c in normal)
-    pts = np.asarray(poly, dtype=np.float64).tolist()
     out_n = []                                               # edge i (vertex i to i + 1): its outward unit normal
     for (ax, ay, az), (bx, by, bz) in zip(pts, pts[1:] + pts[:1]):
         ex, ey, ez = bx - ax, by - ay, bz - az
@@ -329,7 +400,7 @@ def offset_directions(poly: np.ndarray, normal: np.ndarray) -> np.ndarray:
         else:                                                # the polygon turns back on itself there
             m = [a + b for a, b in zip(n1, n2)]
             out.append(_unit_list(m if any(m) else list(n1)))
-    return np.array(out).reshape(-1, 3)
+    return out
 
 
 def enclosing_polygon(poly: np.ndarray, normal: np.ndarray, max_vertices: int) -> np.ndarray:

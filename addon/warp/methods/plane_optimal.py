@@ -54,13 +54,14 @@ import math
 import numpy as np
 
 from ..body import IntersectionBody
-from ..fit import ndc_bounds, window_matrix
+from ..fit import fit_runs, window_matrix
 from ..frame import light_angles, light_frames
-from ..geometry import homogeneous, translation
-from ..plane_map import (PlaneOfInterest, clip_polygon, convex_polygon_on_plane, default_plane, default_plane_of,
-                         enclosing_polygon, is_convex_polygon, min_area_twist, next_vertices, offset_directions,
-                         plane_light_rows, plane_section, polygon_area, rotation2d)
-from ..polyhedron import Plane, clip_faces, cross_rows, unique_points
+from ..geometry import homogeneous, point_runs, translation
+from ..plane_map import (PlaneOfInterest, clip_to_polygon, convex_polygon_on_plane, default_plane, default_plane_of,
+                         enclosing_polygon, is_convex_polygon, min_area_twist, offset_steps,
+                         VIEW_CORNER_RAYS, line_plane_points, plane_light_matrix, plane_section, polygon_area,
+                         rotation2d)
+from ..polyhedron import Plane, clip_faces, unique_points
 from ..types import Diagnostics, Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .uniform import frame_map
 
@@ -92,8 +93,8 @@ class _PlaneJob:
     rows: np.ndarray             # 3x4: x, y, w rows; on P they equal the viewer's clip x, y, w
     pixel: np.ndarray            # 3x3: viewer clip (x, y, w) -> pixel (px, py, 1)
     height: np.ndarray           # 4-vector: height above P on the light's side, h(x) = height · (x, 1)
-    fit_pts: np.ndarray          # region slab + casters: all inside the map's clip volume
-    pixels: np.ndarray           # (K, 2) pixel coordinates of the tolerance-grown polygon
+    fit_h: np.ndarray            # (N, 4) region slab + casters, homogeneous: all inside the map's clip volume
+    pixels: list                 # (x, y) pixel coordinates of the tolerance-grown polygon
     info: dict
     twist: float = 0.0
     rect: tuple = (0, 0, 1, 1)   # (i0, j0, i1, j1) in texels of the scaled, twisted image
@@ -128,98 +129,105 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
     fallback) when the plane cannot have a map."""
     role = f"plane:{k}"
     n = plane.normal
-    off = plane.offset - float(n @ origin)           # plane offset, relative coordinates
-    pi = np.append(n, -off)
+    nx, ny, nz = n.tolist()
+    ox, oy, oz = origin.tolist()
+    off = plane.offset - (nx * ox + ny * oy + nz * oz)    # plane offset, relative coordinates
+    pi = np.array([nx, ny, nz, -off])
     l_h = _light_h(light, origin)
+    lx, ly, lz, lw = l_h.tolist()
     scale = body.scale
     # The light's side of the plane: h(x) = height above P towards the light.
-    light_side = float(pi @ l_h)
-    if abs(light_side) <= (1e-9 if l_h[3] == 0 else max(tol, 1e-9 * scale)):
-        what = "the sun shines along" if l_h[3] == 0 else "the light lies in"
+    light_side = nx * lx + ny * ly + nz * lz - off * lw
+    if abs(light_side) <= (1e-9 if lw == 0 else max(tol, 1e-9 * scale)):
+        what = "the sun shines along" if lw == 0 else "the light lies in"
         diag.fallback(role, f"{what} {plane.name}: every light ray reaching it grazes it, so no plane map "
                             f"exists; the fallback map serves it")
         return None
     side = 1.0 if light_side > 0 else -1.0
     height = side * pi                                # h(X) = height · (x, 1)
     # The camera on the plane: it is seen edge-on and covers no pixel.
-    world_to_clip = view.world_to_clip
     if view.orthographic:                                           # the centre of projection is a direction
-        edge_on = abs(float(n @ view.direction)) <= 1e-9
+        dx, dy, dz = view.direction.tolist()
+        edge_on = abs(nx * dx + ny * dy + nz * dz) <= 1e-9
     else:
-        edge_on = abs(float(n @ (view.position - origin)) - off) <= max(tol, 1e-9 * scale)
+        cx, cy, cz = view.position.tolist()
+        edge_on = abs(nx * (cx - ox) + ny * (cy - oy) + nz * (cz - oz) - off) <= max(tol, 1e-9 * scale)
     if edge_on:
         diag.fallback(role, f"{plane.name} passes through the camera (seen edge-on): it covers no pixel")
         return None
     # Less of the plane: P ∩ R (R = V ∩ S_r ∩ L), within the plane's extent.
-    region = getattr(body, "visible_polytope", None)
+    region = getattr(body, "visible_boundary", None)
     if region is None:
         poly = plane_section(body.visible_vertices - origin, n, off, body.tolerance)
     else:
-        poly = plane_section(region.vertices + (body.origin - origin), n, off, body.tolerance, region.edges()[0])
+        shift = (body.origin - origin).tolist()                     # (B's frame to ours: none when both are the camera's)
+        poly = plane_section(region.vertices, n, off - sum(a * b for a, b in zip(n.tolist(), shift)), body.tolerance,
+                             region.loops)
+        if poly is not None and any(shift):
+            poly += shift
     if poly is not None and plane.extent is not None:
-        ext = np.asarray(plane.extent) - origin
+        ext = [(x - ox, y - oy, z - oz) for x, y, z in np.asarray(plane.extent, dtype=np.float64).tolist()]
         if not is_convex_polygon(ext, n, body.tolerance):       # (a box's top, a hull: already their own hull)
             ext = convex_polygon_on_plane(ext, n, body.tolerance)
-        if ext is None:
-            poly = None
-        else:
-            # The extent's edges as lines on P: outward normals (edge x n, CCW about n) and offsets.
-            out = cross_rows(next_vertices(ext) - ext, np.broadcast_to(n, ext.shape))
-            out /= np.sqrt(np.einsum("ij,ij->i", out, out))[:, None]
-            for o_n, o_o in zip(out, np.einsum("ij,ij->i", out, ext).tolist()):
-                poly = clip_polygon(poly, Plane(o_n, o_o), body.tolerance)
-                if len(poly) < 3:
-                    poly = None
-                    break
+        poly = None if ext is None else clip_to_polygon(poly, ext, n, body.tolerance)
     if poly is not None and len(poly) > MAX_REGION_VERTICES:
         poly = enclosing_polygon(poly, n, MAX_REGION_VERTICES)
     if poly is None or polygon_area(poly, n) <= (tol * tol):
         diag.fallback(role, f"{plane.name} has no visible part (behind the camera, outside the view, the spot "
                             f"cone or the receivers' bounds)")
         return None
-    view_rel = world_to_clip @ translation(origin)
+    # p^1..p^4: where the rays through the view's corners meet P (near and far corners of V, relative).
+    ends = homogeneous(view.corners() - origin)
+    p = line_plane_points(ends[VIEW_CORNER_RAYS[0], :], ends[VIEW_CORNER_RAYS[1], :], pi)
     try:
-        m, info = plane_light_rows(view_rel, pi, l_h, scale)
+        m, info = plane_light_matrix(p, l_h, scale)
     except WarpError as exc:
         diag.fallback(role, f"{plane.name}: {exc}")
         return None
     # Sign (Fig. 5) and scale: w equal to the viewer's clip w on the plane.
-    centre = np.append(poly.mean(axis=0), 1.0)
-    w_view = float(view_rel[3] @ centre)
-    w_light = float(m[3] @ centre)
+    corners = poly.tolist()
+    cx, cy, cz = (sum(c) / len(corners) for c in zip(*corners))
+    wx, wy, wz, w0 = view.world_to_clip[3].tolist()
+    w_view = wx * cx + wy * cy + wz * cz + (wx * ox + wy * oy + wz * oz + w0)
+    wx, wy, wz, w0 = m[3].tolist()
+    w_light = wx * cx + wy * cy + wz * cz + w0
     if not (w_view > 0 and abs(w_light) > 0):
         diag.fallback(role, f"{plane.name}: the needed part is not in front of the camera")
         return None
     rows = m[[0, 1, 3]] * (w_view / w_light)
     # The region (what Region.contains accepts) and its casters in B.
-    outwards = offset_directions(poly, n)
-    grown = poly + tol * outwards
-    prism_pts = np.concatenate([grown - tol * n, grown + tol * n])
-    casters, near_clamped = _casters(poly, outwards, grown, n, height, l_h, tol, body, origin)
+    outwards = offset_steps(corners, n)
+    grown = [(x + tol * dx, y + tol * dy, z + tol * dz) for (x, y, z), (dx, dy, dz) in zip(corners, outwards)]
+    casters, near_clamped = _casters(corners, outwards, grown, n, height, l_h, tol, body, origin)
     if near_clamped:
         diag.fallback(f"{role}: near plane", "the light is inside B; casters nearer than 1e-6 of the scene scale "
                                              "to the light's height are not in the plane map")
-    pts = np.concatenate([prism_pts, casters])
-    hw = homogeneous(pts)
-    w = hw @ rows[2]
-    if not np.all(w > 0):
-        keep = w > 0
+    # The points the map's clip volume holds: the region's slab (tol below and above P) and the casters.
+    tx, ty, tz = tol * nx, tol * ny, tol * nz
+    slab = [(x - tx, y - ty, z - tz) for x, y, z in grown] + [(x + tx, y + ty, z + tz) for x, y, z in grown]
+    fit_h = np.ones((len(slab) + len(casters), 4))
+    fit_h[:len(slab), :3] = slab
+    fit_h[len(slab):, :3] = casters
+    w = fit_h @ rows[2]
+    if not (w > 0).all():
         diag.fallback(role, "some casters are behind the plane map's centre of projection and were left out")
-        pts = pts[keep]
-    pixel = np.array([[view.resolution[0] / 2, 0, view.resolution[0] / 2],
-                      [0, view.resolution[1] / 2, view.resolution[1] / 2],
-                      [0, 0, 1.0]])
-    g = homogeneous(grown) @ (pixel @ rows).T
-    pixels = g[:, :2] / g[:, 2:3]
+        fit_h = fit_h[w > 0]
+    rx, ry = view.resolution[0] / 2, view.resolution[1] / 2
+    pixel = np.array([[rx, 0, rx], [0, ry, ry], [0, 0, 1.0]])
+    (ax, ay, az, a0), (bx, by, bz, b0), (wx, wy, wz, w0) = (pixel @ rows).tolist()
+    pixels = []                                       # the grown polygon's pixel coordinates
+    for x, y, z in grown:
+        w = wx * x + wy * y + wz * z + w0
+        pixels.append(((ax * x + ay * y + az * z + a0) / w, (bx * x + by * y + bz * z + b0) / w))
     area = _area2d(pixels)
     if area < 1.0:
         diag.fallback(role, f"{plane.name} covers less than one pixel of the view ({area:.3g})")
         return None
     info = dict(info, pixel_area=float(area), near_clamped=near_clamped)
-    return _PlaneJob(k, plane, poly, rows, pixel, height, pts, pixels, info)
+    return _PlaneJob(k, plane, poly, rows, pixel, height, fit_h, pixels, info)
 
 
-def _casters(poly, outwards, grown, n, height, l_h, tol, body, origin):
+def _casters(poly: list, outwards: list, grown: list, n, height, l_h, tol, body, origin):
     """Vertices of B ∩ C: B's points on the needed rays C (the light rays through
     the region, §2 Fig. 5-6) from the light down to just beyond the plane.
 
@@ -233,12 +241,13 @@ def _casters(poly, outwards, grown, n, height, l_h, tol, body, origin):
     lx, ly, lz, lw = l_h.tolist()
     nx, ny, nz = n.tolist()
     tan = 0.0                                             # tan α: the steepest light ray over the region
-    for gx, gy, gz in grown.tolist():
+    for gx, gy, gz in grown:
         rx, ry, rz = (-lx, -ly, -lz) if lw == 0 else (gx - lx / lw, gy - ly / lw, gz - lz / lw)
         along = abs(rx * nx + ry * ny + rz * nz)                                # |ray| cos α
         across = math.sqrt(max(rx * rx + ry * ry + rz * rz - along * along, 0.0))  # |ray| sin α
         tan = max(tan, across / max(along, 1e-300))
-    corners = (poly + (tol * (2 + min(tan, 1e12))) * outwards).tolist()
+    grow = tol * (2 + min(tan, 1e12))
+    corners = [(x + grow * dx, y + grow * dy, z + grow * dz) for (x, y, z), (dx, dy, dz) in zip(poly, outwards)]
     cx, cy, cz = (sum(c) / len(corners) for c in zip(*corners))
     # h(x) >= -tol, then the side planes of C: through each edge (a, b) and the light, facing away from the centre.
     normals, offsets = [(-hv).tolist()], [tol + float(h0)]
@@ -256,18 +265,18 @@ def _casters(poly, outwards, grown, n, height, l_h, tol, body, origin):
         normals.append((sx, sy, sz))
         offsets.append(offset)
     normals, offsets = np.array(normals), np.array(offsets)
-    poly = _clip_body(body, origin, normals, offsets)
-    if poly is None:
+    points = _clip_body(body, origin, normals, offsets)
+    if points is None:
         return np.zeros((0, 3)), False
     near_clamped = False
-    if l_h[3] != 0:
-        top = float(height @ l_h) / l_h[3] - NEAR_FRACTION * body.scale
-        if float((poly @ hv).max()) + h0 > top:
+    if lw != 0:
+        top = float(height @ l_h) / lw - NEAR_FRACTION * body.scale
+        if float((points @ hv).max()) + h0 > top:
             near_clamped = True
-            poly = _clip_body(body, origin, np.concatenate([normals, hv[None]]), np.append(offsets, top - h0))
-            if poly is None:
+            points = _clip_body(body, origin, np.concatenate([normals, hv[None]]), np.append(offsets, top - h0))
+            if points is None:
                 return np.zeros((0, 3)), near_clamped
-    return poly, near_clamped
+    return points, near_clamped
 
 
 def _clip_body(body: IntersectionBody, origin: np.ndarray, normals: np.ndarray,
@@ -285,16 +294,18 @@ def _clip_body(body: IntersectionBody, origin: np.ndarray, normals: np.ndarray,
     return unique_points(np.concatenate(faces), body.tolerance * 10)
 
 
-def _area2d(p: np.ndarray) -> float:
-    q = next_vertices(p)
-    return 0.5 * abs(float(p[:, 0] @ q[:, 1] - p[:, 1] @ q[:, 0]))
+def _area2d(p: list) -> float:
+    """The area of a polygon given as (x, y) pairs (the shoelace formula)."""
+    return 0.5 * abs(sum(ax * by - ay * bx for (ax, ay), (bx, by) in zip(p, p[1:] + p[:1])))
 
 
-def _rect(pixels: np.ndarray, s: float, theta: float) -> tuple[int, int, int, int]:
-    q = s * pixels @ rotation2d(theta).T
-    lo, hi = q.min(axis=0), q.max(axis=0)
-    i0, j0 = math.floor(lo[0]), math.floor(lo[1])
-    i1, j1 = max(math.ceil(hi[0]), i0 + 1), max(math.ceil(hi[1]), j0 + 1)
+def _rect(pixels: list, s: float, theta: float) -> tuple[int, int, int, int]:
+    """The texel rectangle (i0, j0, i1, j1) around the pixels (x, y) mapped by s·R(θ)."""
+    c, sn = math.cos(theta), math.sin(theta)
+    xs = [(s * x) * c - (s * y) * sn for x, y in pixels]
+    ys = [(s * x) * sn + (s * y) * c for x, y in pixels]
+    i0, j0 = math.floor(min(xs)), math.floor(min(ys))
+    i1, j1 = max(math.ceil(max(xs)), i0 + 1), max(math.ceil(max(ys)), j0 + 1)
     return i0, j0, i1, j1
 
 
@@ -311,9 +322,10 @@ def _share_budget(jobs: list[_PlaneJob], budget: float, twist_mode: str) -> floa
     need = sum(_texels(_rect(j.pixels, 1.0, 0.0)) for j in jobs)
     for j in jobs:
         if twist_mode == "on" or (twist_mode == "auto" and need > budget):
-            t = min_area_twist(j.pixels)
-            a0 = np.prod(np.ptp(j.pixels, axis=0))
-            q = j.pixels @ rotation2d(t).T
+            p = np.array(j.pixels)
+            t = min_area_twist(p)
+            a0 = np.prod(np.ptp(p, axis=0))
+            q = p @ rotation2d(t).T
             if twist_mode == "on" or np.prod(np.ptp(q, axis=0)) < TWIST_GAIN * a0:
                 j.twist = t
     s = 1.0
@@ -335,21 +347,21 @@ def _share_budget(jobs: list[_PlaneJob], budget: float, twist_mode: str) -> floa
 def _plane_map(job: _PlaneJob, s: float, origin: np.ndarray, tol: float, options: WarpOptions) -> ShadowMap:
     i0, j0, i1, j1 = job.rect
     wm, hm = i1 - i0, j1 - j0
-    a = np.eye(3)
-    a[:2, :2] = s * rotation2d(job.twist)
-    a[:2, 2] = (-i0, -j0)
+    c, sn = math.cos(job.twist), math.sin(job.twist)
+    to_texel = np.array([[s * c, -s * sn, -i0], [s * sn, s * c, -j0], [0, 0, 1.0]])     # s·R(θ)·pixel - (i0, j0)
     to_ndc = np.array([[2.0 / wm, 0, -1.0], [0, 2.0 / hm, -1.0], [0, 0, 1.0]])
-    xyw = to_ndc @ a @ job.pixel @ job.rows
     height = job.height
-    m = np.zeros((4, 4))
-    m[0], m[1], m[3] = xyw
+    m = np.empty((4, 4))
+    m[[0, 1, 3]] = to_ndc @ to_texel @ job.pixel @ job.rows
     m[2] = -height
-    lo, hi = ndc_bounds(m, job.fit_pts)
-    win = window_matrix(np.array([-1.0, -1.0, lo[2]]), np.array([1.0, 1.0, hi[2]]))
+    # Depth: the fit points' z / w (w > 0 on them) onto [-1, 1], as the unit-cube fit pads it.
+    zw = job.fit_h @ m[2:].T
+    z = zw[:, 0] / zw[:, 1]
+    win = window_matrix([-1.0, -1.0, float(z.min())], [1.0, 1.0, float(z.max())])
     m[2] = win[2, 2] * m[2] + win[2, 3] * m[3]
     depth_row = None
     if options.linear_z:
-        hts = np.column_stack([job.fit_pts, np.ones(len(job.fit_pts))]) @ height
+        hts = job.fit_h @ height
         hlo, hhi = float(hts.min()), float(hts.max())
         span = max(hhi - hlo, tol)
         pad = 1e-7 * span
@@ -393,16 +405,20 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
     maps = [_plane_map(j, s, origin, tol, options) for j in jobs]
     used = sum(m.size[0] * m.size[1] for m in maps)
     remaining = max(total - used, 1)
-    fb_sizes = []
-    for fr in frames:
-        size = _fallback_size(remaining, options)
-        fb_sizes.append(list(size))
-        fm = frame_map(fr, dataclasses.replace(options, shadow_map_size=size), options.texel_snapping)
-        fm.role = "fallback" if len(frames) == 1 else f"fallback:{fr.role}"
+    size = _fallback_size(remaining, options)
+    if len(frames) > 1:                    # a point light's cube faces: fitted all at once (as uniform does)
+        fitted = fit_runs(np.array([f.to_light for f in frames]), *point_runs([f.points for f in frames]))
+        maps += [ShadowMap(m, size, "LESS", f"fallback:{f.role}") for m, f in zip(fitted, frames)]
+    else:
+        fm = frame_map(frames[0], dataclasses.replace(options, shadow_map_size=size), options.texel_snapping)
+        fm.role = "fallback"
         maps.append(fm)
+    for fr in frames:
         if fr.near_clamped:
-            diag.fallback(f"{fm.role}: near plane", "the light is inside B; points nearer than 1e-6 of the scene "
-                                                    "scale are not covered")
+            role = "fallback" if len(frames) == 1 else f"fallback:{fr.role}"
+            diag.fallback(f"{role}: near plane", "the light is inside B; points nearer than 1e-6 of the scene "
+                                                 "scale are not covered")
+    fb_sizes = [list(size) for _ in frames]
     diag.extra["planes"] = [{
         "role": f"plane:{j.index}", "name": j.plane.name, "normal": j.plane.normal, "offset": j.plane.offset,
         "lixels_per_pixel": s, "twist_deg": math.degrees(j.twist), "rect": list(j.rect),
