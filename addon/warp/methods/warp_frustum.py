@@ -560,30 +560,36 @@ def ray_closed(matrices, body: IntersectionBody, light_position) -> list:
     poly = body.polytope_from(light_position)
     pts, member, _ = pyramid_sections(poly, poly.edges()[0], sides.reshape(-1, 3), rays.reshape(-1, 3),
                                       separate_pyramids(len(m)))
-    pts = pts + light_position
-    # Every map's image of every candidate, each map looking only at its own members.
-    h = homogeneous(pts) @ m.transpose(0, 2, 1)                 # (k, n, 4)
-    inside = member.T                                           # (k, n)
-    w = np.where(inside, h[..., 3], 1.0)
-    reaches = (w <= 1e-9 * np.abs(w).max(axis=1, keepdims=True)).any(axis=1).tolist()   # w = 0 on B ∩ window
-    ndc = h[..., :3] / np.where(np.array(reaches)[:, None], 1.0, w)[..., None]          # (those maps are not fitted)
-    lo = np.where(inside[..., None], ndc, np.inf).min(axis=1).tolist()
-    hi = np.where(inside[..., None], ndc, -np.inf).max(axis=1).tolist()
+    # Each map's image of its own candidates, map by map (the layout of ``fit.fit_runs``).
+    run, candidate = np.nonzero(member.T)
+    held = pts[candidate] + light_position                      # B ∩ window of every map, one after another
+    h = transform_h_runs(m, homogeneous(held), run)
+    counts = np.bincount(run, minlength=len(m)).tolist()
+    ends = list(itertools.accumulate(counts))
+    starts = [e - c for e, c in zip(ends, counts) if c]         # the runs of the maps whose window meets B
+    if not starts:
+        return [(matrix, "", None) for matrix in m]
+    w = h[:, 3]
+    reaches = np.minimum.reduceat(w, starts) <= 1e-9 * np.maximum.reduceat(np.abs(w), starts)   # w = 0 on B ∩ window
+    ndc = h[:, :3] / np.where(w > 0, w, 1.0)[:, None]           # (w > 0 throughout where it does not reach)
+    fits = zip(reaches.tolist(), np.minimum.reduceat(ndc, starts).tolist(), np.maximum.reduceat(ndc, starts).tolist())
     out, widen = [], []
-    for i, held in enumerate(inside.any(axis=1).tolist()):
-        if not held:
+    for i, (count, end) in enumerate(zip(counts, ends)):
+        if not count:
             out.append((m[i], "", None))
-        elif reaches[i]:
+            continue
+        reach, lo, hi = next(fits)
+        if reach:
             out.append((None, "the warped map's window reaches the light itself; a uniform face map is ray-closed", None))
-        elif min(lo[i]) >= -1.0 - 1e-9 and max(hi[i]) <= 1.0 + 1e-9:     # the map already holds B ∩ window
-            out.append((m[i], "", pts[inside[i]]))
+        elif min(lo) >= -1.0 - 1e-9 and max(hi) <= 1.0 + 1e-9:     # the map already holds B ∩ window
+            out.append((m[i], "", held[end - count:end]))
         else:
-            widen.append(i)
-            out.append(None)
+            widen.append((i, lo, hi))
+            out.append((None, "depth widened to B within the map's window", held[end - count:end]))
     if widen:
-        refitted = window_matrices([lo[i] for i in widen], [hi[i] for i in widen]) @ m[widen]
-        for i, matrix in zip(widen, refitted):
-            out[i] = (matrix, "depth widened to B within the map's window", pts[inside[i]])
+        refitted = window_matrices([lo for _, lo, _ in widen], [hi for _, _, hi in widen]) @ m[[i for i, _, _ in widen]]
+        for (i, _, _), matrix in zip(widen, refitted):
+            out[i] = (matrix,) + out[i][1:]
     return out
 
 
