@@ -14,6 +14,7 @@ vector when light and view are (nearly) parallel, so the frame never jumps.
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -211,6 +212,9 @@ _FACE_ROW_SIGNS = np.array([[1.0, 1.0, -1.0], [-1.0, 1.0, 1.0], [1.0, 1.0, -1.0]
 orthonormal) basis: ``look_along(apex, forward, face_up)`` with forward =
 sign·basis[k] and face_up = basis[1] (basis[2] for the ±Y faces) has rows
 x = forward × face_up, y = x × forward and -forward; e.g. +X: (b2, b1, -b0)."""
+_FACE_TURNS = np.array([[[sign if j == row else 0.0 for j in range(3)] for row, sign in zip(rows, signs)]
+                        for rows, signs in zip(_FACE_ROWS, _FACE_ROW_SIGNS)])
+"""The same as signed permutations (6, 3, 3): face f's eye rotation is ``_FACE_TURNS[f] @ basis``."""
 
 
 def point_frames(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> list[LightFrame]:
@@ -232,33 +236,37 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
     poly = body.polytope_from(apex)
     near_floor = 1e-6 * body.scale
     pts, member = cube_sections(poly, poly.edges()[0], basis)
-    faces = np.flatnonzero(member.any(axis=0))
-    # All the faces at once: eye rotations, depth ranges along each face's forward, proj @ view.
-    views = np.zeros((len(faces), 4, 4))
-    views[:, :3, :3] = basis[_FACE_ROWS[faces]] * _FACE_ROW_SIGNS[faces][:, :, None]
-    views[:, :3, 3] = -views[:, :3, :3] @ apex
-    views[:, 3, 3] = 1.0
-    forward = -views[:, 2, :3]
-    member = member[:, faces]
-    depth = pts @ forward.T                                  # (n, faces)
-    nearest = np.where(member, depth, np.inf).min(axis=0)
-    farthest = np.where(member, depth, -np.inf).max(axis=0)
-    clamped = nearest < near_floor
-    world = pts + apex
+    # The faces B reaches, each with its run of candidates (face by face) and its eye rotation.
+    counts = member.sum(axis=0).tolist()
+    faces = [f for f in range(6) if counts[f]]
+    ends = list(itertools.accumulate(counts[f] for f in faces))
+    face_of, candidate = np.nonzero(member.T)
+    rel = pts[candidate]                                     # relative to the apex
+    turns = _FACE_TURNS @ basis                              # (6, 3, 3): rows x, y, -forward
+    depth = -(rel * turns[face_of, 2]).sum(axis=1)          # along each face's forward
+    starts = [e - counts[f] for f, e in zip(faces, ends)]
+    nearest, farthest = np.minimum.reduceat(depth, starts), np.maximum.reduceat(depth, starts)
+    clamped = (nearest < near_floor).tolist()
+    world = rel + apex
     points = []
-    for i, f in enumerate(faces):
+    for i, (f, s, e) in enumerate(zip(faces, starts, ends)):
         if not clamped[i]:
-            points.append(world[member[:, i]])
+            points.append(world[s:e])
             continue
         # B reaches the light inside this face: the whole face from the near floor on.
+        forward = -turns[f, 2]
         others = np.delete(basis, CUBE_FACES[f][1], axis=0)
-        corners = near_floor * (forward[i] + _FACE_CORNERS @ others)
-        face_pts = np.concatenate([pts[member[:, i]][depth[member[:, i], i] >= near_floor], corners])
-        nearest[i], farthest[i] = near_floor, (face_pts @ forward[i]).max()
+        corners = near_floor * (forward + _FACE_CORNERS @ others)
+        face_pts = np.concatenate([rel[s:e][depth[s:e] >= near_floor], corners])
+        nearest[i], farthest[i] = near_floor, (face_pts @ forward).max()
         points.append(face_pts + apex)
+    views = np.zeros((len(faces), 4, 4))                     # every face's view, proj @ view at once
+    views[:, :3, :3] = turns[faces]
+    views[:, :3, 3] = -views[:, :3, :3] @ apex
+    views[:, 3, 3] = 1.0
     near, far, _ = near_far(nearest, farthest, near_floor)
     to_light = perspective_of(views, near, far)
-    return [LightFrame(m, p, "cube" + CUBE_FACES[f][0], False, bool(c))
+    return [LightFrame(m, p, "cube" + CUBE_FACES[f][0], False, c)
             for f, m, p, c in zip(faces, to_light, points, clamped)]
 
 
