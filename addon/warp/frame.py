@@ -355,9 +355,10 @@ def cube_sections(poly, edges: np.ndarray, basis: np.ndarray) -> tuple[np.ndarra
     (``CUBE_PYRAMIDS``), so each crossing and each ray is found once."""
     tol = poly.tol
     planes = (_CUBE_PLANES @ basis) / math.sqrt(2.0)        # (6, 3) unit normals
-    pts, member, side = pyramid_sections(poly, edges, planes, _CUBE_SIGNS @ basis, CUBE_PYRAMIDS)
-    # No volume: too few points, or all on one of the face's sides.
-    flat = ((np.abs(side) <= tol) | ~member[..., None]).all(axis=0).any(axis=1)
+    pts, member, dist = pyramid_sections(poly, edges, planes, _CUBE_SIGNS @ basis, CUBE_PYRAMIDS)
+    # No volume: too few points, or all on one of the face's sides (none of its points off that plane).
+    off = member.T @ (np.abs(dist) > tol)                    # (faces, planes): some point of the face is off the plane
+    flat = (CUBE_PYRAMIDS.uses.T & ~off).any(axis=1)
     return pts, member & ((member.sum(axis=0) >= 4) & ~flat)
 
 
@@ -369,7 +370,7 @@ def pyramid_sections(poly, edges: np.ndarray, planes: np.ndarray, rays: np.ndarr
     their corner rays (pointing into the pyramids they bound), shared as
     ``pyramids`` says. Returns candidate points (n, 3), which pyramids each
     belongs to (n, k), a column all False when P lies outside one side of C_j,
-    and the candidates' signed distances to every pyramid's sides (n, k, 4).
+    and the candidates' signed distances to the planes (n, m).
 
     Every vertex of P ∩ C_j is among its points: P's vertices inside C_j, the
     crossings of P's edges with C_j's sides (kept if inside C_j), where C_j's
@@ -390,13 +391,14 @@ def pyramid_sections(poly, edges: np.ndarray, planes: np.ndarray, rays: np.ndarr
     pts = np.concatenate([v, x, t_lo[:, None] * rays, t_hi[:, None] * rays, _ORIGIN])
     # Each candidate belongs to the pyramids that hold it among those it was made for: a vertex
     # to all, a crossing to those with its plane as a side, a ray's ends to those it bounds.
-    side = (pts @ planes.T)[:, pyramids.sides] * pyramids.signs          # (n, k, 4)
+    dist = pts @ planes.T                                    # (n, m)
+    side = dist[:, pyramids.sides] * pyramids.signs          # (n, k, 4) to each pyramid's sides, outward
     k = len(pyramids.sides)
     on_ray = pyramids.corners & hit[:, None]
     made_for = np.concatenate([np.ones((len(v), k), dtype=bool), pyramids.uses[p], on_ray, on_ray,
                                np.full((1, k), apex)])
     outside = (side[:len(v)] >= -tol).all(axis=0).any(axis=1)           # (k,): P wholly outside one side
-    return pts, (side.max(axis=2) <= tol) & made_for & ~outside, side
+    return pts, (side.max(axis=2) <= tol) & made_for & ~outside, dist
 
 
 _ORIGIN = np.zeros((1, 3))
@@ -409,8 +411,8 @@ def ray_interval(poly, rays) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     o = poly.offsets[:, None]
     ratio = np.divide(o, denom, out=np.zeros_like(denom), where=denom != 0)
     t_hi = np.where(denom > 0, ratio, np.inf).min(axis=0)
-    t_lo = np.maximum(np.where(denom < 0, ratio, -np.inf).max(axis=0), 0.0)
-    blocked = ((denom == 0) & (o < 0)).any(axis=0)
+    t_lo = np.where(denom < 0, ratio, 0.0).max(axis=0)      # (and t >= 0)
+    blocked = ((denom == 0) & (o < 0)).any(axis=0)           # parallel to a facet, outside it
     return t_lo, t_hi, (t_lo <= t_hi) & np.isfinite(t_hi) & ~blocked
 
 
