@@ -9,19 +9,22 @@ Notation (paper §2): M_v is the viewer's world -> clip matrix, l the light
   (the light and four points on P raised so no four are coplanar) fix a
   projective 4x4 matrix up to scale (Faugeras 1993). Solved as a 15x16 DLT by
   SVD in float64 with a rank and a residual check.
-* :func:`plane_light_rows` builds those five points: the rays through the four
-  view corners meet P in p^1..p^4 (homogeneous, so corners whose rays miss P
-  or meet it behind the camera, i.e. a quad straddling infinity (Fig. 5), are
-  fine); p^4 is raised along its light ray to p̂^4 (Fig. 2); l is the centre of
-  projection (Eq. 1). The x, y, w rows of the result equal the viewer's on P:
-  every point of P has the same image in both (the plane homography fixes four
-  generic points, so it is the identity).
+* :func:`plane_light_matrix` builds those five points: the rays through the
+  four view corners meet P in p^1..p^4 (homogeneous, so corners whose rays miss
+  P or meet it behind the camera, i.e. a quad straddling infinity (Fig. 5), are
+  fine; :func:`line_plane_points` of the view frustum's near and far corners,
+  or :func:`plane_light_rows` from the viewer matrix); p^4 is raised along its
+  light ray to p̂^4 (Fig. 2); l is the centre of projection (Eq. 1). The x, y,
+  w rows of the result equal the viewer's on P: every point of P has the same
+  image in both (the plane homography fixes four generic points, so it is the
+  identity).
 
   Closed form, used only as an independent check in the tests: those rows are
   M_v·S with S = (π·l) I - l π^T, the projection from l onto P; the light image
   of any point is the viewer image of its shadow on P.
-* :func:`plane_section`, :func:`offset_polygon`, :func:`clip_polygon`: the
-  needed part of the plane ("less of the plane", §2) as a convex polygon.
+* :func:`plane_section`, :func:`offset_polygon`, :func:`clip_polygon`,
+  :func:`clip_to_polygon`: the needed part of the plane ("less of the plane",
+  §2) as a convex polygon.
 * :func:`min_area_twist`: the 2D rotation (twist, §2) giving the tightest
   axis-aligned rectangle around the plane's image.
 * :func:`default_plane`: the top face of the widest, thinnest receiver box.
@@ -147,7 +150,8 @@ def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
     # coefficient of M's row r (y_m for r = j, -y_j for r = m, else 0) times x_i.
     coefficients = []
     for y in dst.tolist():
-        big = max(range(4), key=lambda c: abs(y[c]))           # (the first largest, as np.argmax)
+        size = [abs(c) for c in y]
+        big = size.index(max(size))                             # (the first largest, as np.argmax)
         for j in _OTHER_AXES[big]:
             row = [0.0] * 4
             row[j], row[big] = y[big], -y[j]
@@ -160,8 +164,8 @@ def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
     if not condition > RANK_TOL:
         raise WarpError(f"the five point constraints are degenerate (rank < 15, relative singular value {condition:.3g})")
     m = vt[-1].reshape(4, 4)
-    m_norm = math.sqrt(sum(c * c for c in vt[-1].tolist()))
-    residual = 0.0
+    m_norm = _length(vt[-1].tolist())
+    residual = 0.0                          # the largest distance between M·X and Y as unit vectors (either sign)
     for x, mx, y in zip(src.tolist(), (src @ m.T).tolist(), dst.tolist()):
         mx_norm, y_norm = _length(mx), _length(y)
         if mx_norm <= 1e-12 * m_norm * _length(x):

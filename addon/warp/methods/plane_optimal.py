@@ -3,7 +3,7 @@
 One map per plane of interest, exact on that plane, plus a conventional
 fallback map (§3):
 
-* **The matrix** (§2, Eq. 1, 7-10; :func:`addon.warp.plane_map.plane_light_rows`):
+* **The matrix** (§2, Eq. 1, 7-10; :func:`addon.warp.plane_map.plane_light_matrix`):
   five point constraints, solved by SVD with rank and residual checks. On the
   plane, a point's light-image x, y equal its viewer-image x, y.
 * **Sign** (Fig. 5): the matrix is scaled (and its sign chosen) so that w > 0
@@ -150,8 +150,8 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
         dx, dy, dz = view.direction.tolist()
         edge_on = abs(nx * dx + ny * dy + nz * dz) <= 1e-9
     else:
-        cx, cy, cz = view.position.tolist()
-        edge_on = abs(nx * (cx - ox) + ny * (cy - oy) + nz * (cz - oz) - off) <= max(tol, 1e-9 * scale)
+        ex, ey, ez = view.position.tolist()
+        edge_on = abs(nx * (ex - ox) + ny * (ey - oy) + nz * (ez - oz) - off) <= max(tol, 1e-9 * scale)
     if edge_on:
         diag.fallback(role, f"{plane.name} passes through the camera (seen edge-on): it covers no pixel")
         return None
@@ -185,8 +185,8 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
         diag.fallback(role, f"{plane.name}: {exc}")
         return None
     # Sign (Fig. 5) and scale: w equal to the viewer's clip w on the plane.
-    corners = poly.tolist()
-    cx, cy, cz = (sum(c) / len(corners) for c in zip(*corners))
+    vertices = poly.tolist()
+    cx, cy, cz = (sum(c) / len(vertices) for c in zip(*vertices))
     wx, wy, wz, w0 = view.world_to_clip[3].tolist()
     w_view = wx * cx + wy * cy + wz * cz + (wx * ox + wy * oy + wz * oz + w0)
     wx, wy, wz, w0 = m[3].tolist()
@@ -196,9 +196,9 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
         return None
     rows = m[[0, 1, 3]] * (w_view / w_light)
     # The region (what Region.contains accepts) and its casters in B.
-    outwards = offset_steps(corners, n)
-    grown = [(x + tol * dx, y + tol * dy, z + tol * dz) for (x, y, z), (dx, dy, dz) in zip(corners, outwards)]
-    casters, near_clamped = _casters(corners, outwards, grown, n, height, l_h, tol, body, origin)
+    outwards = offset_steps(vertices, n)
+    grown = [(x + tol * dx, y + tol * dy, z + tol * dz) for (x, y, z), (dx, dy, dz) in zip(vertices, outwards)]
+    casters, near_clamped = _casters(vertices, outwards, grown, n, height, l_h, tol, body, origin)
     if near_clamped:
         diag.fallback(f"{role}: near plane", "the light is inside B; casters nearer than 1e-6 of the scene scale "
                                              "to the light's height are not in the plane map")
@@ -217,8 +217,8 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
     (ax, ay, az, a0), (bx, by, bz, b0), (wx, wy, wz, w0) = (pixel @ rows).tolist()
     pixels = []                                       # the grown polygon's pixel coordinates
     for x, y, z in grown:
-        w = wx * x + wy * y + wz * z + w0
-        pixels.append(((ax * x + ay * y + az * z + a0) / w, (bx * x + by * y + bz * z + b0) / w))
+        pw = wx * x + wy * y + wz * z + w0
+        pixels.append(((ax * x + ay * y + az * z + a0) / pw, (bx * x + by * y + bz * z + b0) / pw))
     area = _area2d(pixels)
     if area < 1.0:
         diag.fallback(role, f"{plane.name} covers less than one pixel of the view ({area:.3g})")
@@ -284,7 +284,7 @@ def _clip_body(body: IntersectionBody, origin: np.ndarray, normals: np.ndarray,
     """Points (relative to ``origin``) whose convex hull is B ∩ {normals @ x <= offsets}
     (its vertices among them), or None if empty."""
     if getattr(body, "polytope", None) is not None:
-        same = np.array_equal(body.origin, origin)        # (then B's own polytope, its edges found once)
+        same = body.origin.tolist() == origin.tolist()    # (then B's own polytope, its edges found once)
         return (body.polytope if same else body.polytope_from(origin)).section(normals, offsets)
     faces = [f - origin for f in body.faces]
     for n, o in zip(normals, offsets):
