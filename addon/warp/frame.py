@@ -151,19 +151,21 @@ def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]
     the apex are ignored (a perspective map cannot hold its own centre)."""
     dirs = np.asarray(points, dtype=np.float64) - apex
     norms = np.sqrt((dirs * dirs).sum(axis=1))
-    if len(norms) == 0 or norms.max() == 0:
+    farthest = float(norms.max()) if len(norms) else 0.0
+    if farthest == 0:
         return SURROUND_AXIS.copy(), math.pi
     # Points at the apex itself (B has the light as a vertex when the light is
     # outside R) have no direction: a rounding error would give them any.
-    far = norms > 1e-7 * norms.max()
+    far = norms > 1e-7 * farthest
     dirs = dirs[far] / norms[far, None]
-    mid = (dirs.min(axis=0) + dirs.max(axis=0)) / 2
-    short = SURROUND_BLEND - math.sqrt(mid @ mid)
+    mid = [(a + b) / 2 for a, b in zip(dirs.min(axis=0).tolist(), dirs.max(axis=0).tolist())]   # (plain floats)
+    short = SURROUND_BLEND - math.hypot(*mid)
     if short > 0:
-        mid = mid + short * SURROUND_AXIS
-    if math.sqrt(mid @ mid) < 1e-12:
-        mid = SURROUND_AXIS
-    axis = normalize(mid)
+        mid = [m + short * s for m, s in zip(mid, SURROUND_AXIS.tolist())]
+    length = math.hypot(*mid)
+    if length < 1e-12:
+        mid, length = SURROUND_AXIS.tolist(), 1.0
+    axis = np.array([m / length for m in mid])
     half = math.acos(min(max(float((dirs @ axis).min()), -1.0), 1.0))
     return axis, half
 

@@ -160,13 +160,20 @@ def _blend(v, s: float) -> tuple[float, float]:
     return (ox / n, oy / n) if n > 1e-12 else (0.0, 1.0)
 
 
-def _sin_to(v: np.ndarray, ell: np.ndarray) -> float:
-    nv = math.sqrt(v @ v)
+def _dot(a, b) -> float:
+    """Dot product of two 3-vectors given as float sequences."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _sin_to(v, ell) -> float:
+    """sin of the angle between ``v`` and the unit ``ell`` (float 3-sequences)."""
+    nv = math.sqrt(_dot(v, v))
     if nv == 0.0:
         return 0.0
-    u = v / nv
-    p = u - (u @ ell) * ell
-    return math.sqrt(p @ p)
+    u = [c / nv for c in v]
+    k = _dot(u, ell)
+    p = [a - k * b for a, b in zip(u, ell)]
+    return math.sqrt(_dot(p, p))
 
 
 _YZX, _ZXY = np.array([1, 2, 0]), np.array([2, 0, 1])
@@ -244,24 +251,25 @@ def light_at_eye(view: View, light: Light, options: WarpOptions, body: Intersect
     """The world-space quantities every frame shares (``middle``: the middle
     vector, used when ``options.middle_vector``), or (None, reason) when the
     light ray through the eye is undefined."""
-    d = view.direction
+    d = view.direction.tolist()                                   # (plain floats: 3-vectors)
     if light.is_directional:
         ell, dist = light.direction, 0.0
     else:
-        to_eye = view.position - light.position
-        dist = math.sqrt(to_eye @ to_eye)
+        to_eye = [a - b for a, b in zip(view.position.tolist(), light.position.tolist())]
+        dist = math.sqrt(_dot(to_eye, to_eye))
         if dist <= 1e-9 * body.scale:
             return None, "the eye is at the light: the light ray through the eye is undefined"
-        ell = to_eye / dist
-    vector = middle if options.middle_vector else d
-    s = _sin_to(vector, ell) if (options.middle_vector or not light.is_directional) else 1.0
-    c = min(max(float(d @ ell), -1.0), 1.0)
+        ell = np.array([c / dist for c in to_eye])
+    e = ell.tolist()
+    vector = middle if options.middle_vector else view.direction
+    s = _sin_to(vector.tolist(), e) if (options.middle_vector or not light.is_directional) else 1.0
+    c = min(max(_dot(d, e), -1.0), 1.0)
     at = LightAtEye(ell, dist, math.acos(c), vector, s)
     if not light.is_directional:
-        perp = d - c * ell
-        n = math.sqrt(perp @ perp)
+        perp = [a - c * b for a, b in zip(d, e)]
+        n = math.sqrt(_dot(perp, perp))
         if n > 0:
-            at.v_p = perp / n
+            at.v_p = np.array([a / n for a in perp])
             along = body.vertices @ at.v_p
             at.body_extent = float(along.max() - along.min())
     return at, ""
@@ -608,8 +616,8 @@ def projection_centre(frame: LightFrame, g: FrameGeometry, lam: float) -> Option
     h_c = g.h_min - lam * g.extent
     (a0, a1), (b0, b1), (ex, ey, ez) = g.a, g.b, g.eye
     q_e = ex * b0 + ey * b1
-    p = np.linalg.inv(frame.to_light) @ np.array([q_e * b0 + h_c * a0, q_e * b1 + h_c * a1, ez, 1.0])
-    if not abs(p[3]) > 1e-300:
+    x, y, z, w = np.linalg.solve(frame.to_light, [q_e * b0 + h_c * a0, q_e * b1 + h_c * a1, ez, 1.0]).tolist()
+    if not abs(w) > 1e-300:
         return None
-    w = p[:3] / p[3]
-    return w if np.all(np.isfinite(w)) else None
+    centre = (x / w, y / w, z / w)
+    return np.array(centre) if all(math.isfinite(c) for c in centre) else None
