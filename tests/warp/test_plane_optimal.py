@@ -99,16 +99,24 @@ def test_uniform_scale_on_the_plane_at_a_smaller_budget(h, yaw, pitch, elev, azi
     assert setup.diagnostics.extra["budget"]["plane_texels"] <= budget * 1024 * 1024
 
 
-def test_twist_keeps_the_sampling_uniform_and_uses_a_tighter_rectangle():
-    view = camera_yaw_pitch([0, -10, 6], 35, -30, resolution=(1280, 720))
+def test_twist_turns_the_map_to_a_turned_table_and_buys_more_lixels_per_pixel():
+    """A square table turned 30° on screen (seen from straight above): its
+    pixels' tightest rectangle is turned 15° (mod 90°) from the screen axes.
+    With the twist the map turns by that angle, the sampling stays a uniform
+    similarity, and the same budget buys more lixels per pixel."""
+    turn = math.radians(30.0)
+    table = [(3 * math.cos(turn + k * math.pi / 2), 3 * math.sin(turn + k * math.pi / 2), 0.0) for k in range(4)]
+    plane = ((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), table)
+    view = camera([0.0, 0.0, 12.0], [0.0, 0.0, 0.0], up=(0.0, 1.0, 0.0), resolution=(1280, 720))
     light = sun_at(50, 30)
-    off, _ = run(view, light, plane_budget=0.05, shadow_map_size=(1024, 1024), plane_twist="off")
-    on, _ = run(view, light, plane_budget=0.05, shadow_map_size=(1024, 1024), plane_twist="on")
+    kw = dict(planes=(plane,), plane_budget=0.05, shadow_map_size=(1024, 1024))
+    off, _ = run(view, light, plane_twist="off", **kw)
+    on, _ = run(view, light, plane_twist="on", **kw)
     assert_uniform_on_plane(view, on, expect_scale=plane_scale(on))
-    info = on.diagnostics.extra["planes"][0]
-    assert info["twist_deg"] != 0.0
-    # the same budget buys more lixels per pixel with the twist when the rotated rectangle is tighter
-    assert plane_scale(on) >= plane_scale(off) * 0.999
+    twist = on.diagnostics.extra["planes"][0]["twist_deg"]
+    assert abs((twist - 15.0 + 45.0) % 90.0 - 45.0) < 1e-6
+    assert off.diagnostics.extra["planes"][0]["twist_deg"] == 0.0
+    assert plane_scale(on) > 1.1 * plane_scale(off)
 
 
 def test_min_area_twist_finds_the_rotation_of_a_rotated_rectangle():
