@@ -365,10 +365,10 @@ def linear_depth_row(frame: LightFrame, points=None) -> np.ndarray:
 
 
 LambdaRule = Callable[[FrameGeometry, WarpContext, float, WarpOptions], float]
-"""(geometry, eye-depth range, φ, options) -> λ (math.inf = uniform)."""
+"""(geometry, eye-depth range, φ, options) -> λ (math.inf = uniform); φ is None for lispsm."""
 
 
-def rule_lispsm(g: FrameGeometry, ctx: WarpContext, phi: float, options: WarpOptions) -> float:
+def rule_lispsm(g: FrameGeometry, ctx: WarpContext, phi: Optional[float], options: WarpOptions) -> float:
     """λ = n_opt / D with n_opt from Scherzer Eq. 1."""
     k = lispsm_inverse_n_opt(ctx.z_n, ctx.delta_z, g.gamma)
     if k == 0.0 or g.body_extent_world <= 0.0:
@@ -502,7 +502,8 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
         at, reason = None, "orthographic camera: no perspective aliasing to redistribute"
     else:
         at, reason = light_at_eye(view, light, options, body, middle)
-    phi = half_fov_towards(view, at.ell) if at is not None else None
+    # GMNPR's φ: gmnpr and glpr use and report it, LiSPSM's Eq. 1 has no φ.
+    phi = half_fov_towards(view, at.ell) if at is not None and name != "lispsm" else None
     warps = frame_warps(frames, view, at, reason, rule, ctx, phi, options, body)
     warped = [w for w in warps if w.geo is not None]
     if len(frames) > 1 and warped:
