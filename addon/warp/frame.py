@@ -16,7 +16,7 @@ from __future__ import annotations
 import functools
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
@@ -303,43 +303,39 @@ class Pyramids:
     """How k four-sided pyramids with their apex at the origin are bounded by
     m planes and r corner rays that neighbouring pyramids may share: pyramid j
     is {x : signs[j, i] · n_p . x <= 0 for p = sides[j, i], i = 0..3} (n_p the
-    planes' normals); ``corners[c, j]``: ray c is one of pyramid j's corner
-    rays; ``uses[p, j]``: plane p is one of its sides."""
+    planes' normals), and ``corners[c, j]`` says whether ray c is one of its
+    corner rays. Made once and shared (read-only arrays)."""
 
     sides: np.ndarray      # (k, 4) plane numbers
     signs: np.ndarray      # (k, 4) ±1
     corners: np.ndarray    # (r, k) bool
-    uses: np.ndarray       # (m, k) bool
+    uses: np.ndarray = field(init=False)
+    """(m, k): whether plane p is one of pyramid j's sides."""
 
-    @classmethod
-    def of_sides(cls, sides, signs, corners) -> "Pyramids":
-        sides = np.asarray(sides)
-        uses = (sides[None] == np.arange(sides.max() + 1)[:, None, None]).any(axis=2)
-        return cls(sides, np.asarray(signs, dtype=np.float64), np.asarray(corners, dtype=bool), uses)
+    def __post_init__(self):
+        uses = (self.sides[None] == np.arange(self.sides.max() + 1)[:, None, None]).any(axis=2)
+        object.__setattr__(self, "uses", uses)
+        for a in (self.sides, self.signs, self.corners, uses):
+            a.flags.writeable = False
 
 
 @functools.lru_cache(maxsize=None)
 def separate_pyramids(k: int) -> Pyramids:
     """k pyramids that share nothing: pyramid j has the planes and corner rays
-    4j .. 4j + 3 (made once per count; read-only)."""
-    own = np.eye(k, dtype=bool).repeat(4, axis=0)
-    pyramids = Pyramids(np.arange(4 * k).reshape(k, 4), np.ones((k, 4)), own, own)
-    for a in (pyramids.sides, pyramids.signs, pyramids.corners):
-        a.flags.writeable = False
-    return pyramids
+    4j .. 4j + 3 (made once per count)."""
+    return Pyramids(np.arange(4 * k).reshape(k, 4), np.ones((k, 4)), np.eye(k, dtype=bool).repeat(4, axis=0))
 
 
 def _cube_pyramids() -> Pyramids:
-    side_of = [next((p, s) for p in range(6) for s in (1.0, -1.0) if (s * _CUBE_PLANES[p] == row).all())
-               for row in _FACE_PLANES]
-    corners = [[c[k] == sign for _, k, sign in CUBE_FACES] for c in _CUBE_SIGNS]
-    return Pyramids.of_sides(np.reshape([p for p, _ in side_of], (6, 4)), np.reshape([s for _, s in side_of], (6, 4)),
-                             corners)
+    overlap = (_FACE_PLANES @ _CUBE_PLANES.T) / 2.0         # ±1 where a face's side is ± that plane, |.| <= 1/2 else
+    sides = np.abs(overlap).argmax(axis=1)
+    corners = _CUBE_SIGNS[:, [k for _, k, _ in CUBE_FACES]] == [sign for _, _, sign in CUBE_FACES]
+    return Pyramids(sides.reshape(6, 4), overlap[np.arange(24), sides].reshape(6, 4), corners)
 
 
 CUBE_PYRAMIDS = _cube_pyramids()
-"""The six faces' pyramids: their sides ``_FACE_PLANES`` as ± ``_CUBE_PLANES``,
-their corner rays among ``_CUBE_SIGNS``."""
+"""The six faces' pyramids: each face's sides (``_FACE_PLANES``) are ± one of
+``_CUBE_PLANES``, its corner rays the 4 of ``_CUBE_SIGNS`` whose sign on its axis is the face's."""
 
 
 def cube_section_points(poly, edges: np.ndarray, basis: np.ndarray) -> list:
