@@ -53,20 +53,35 @@ PARALLEL_TWIST = 2.0
 """Weight of the camera's right vector inside the blend (see ``image_up``)."""
 
 
-def _image_up_raw(view_direction, view_up, light_direction) -> np.ndarray:
-    d = normalize(light_direction)
-    pv = view_direction - (view_direction @ d) * d
-    s = math.sqrt(pv @ pv)
+def dot3(a, b) -> float:
+    """Dot product of two 3-vectors given as float sequences."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def across(v, d) -> list:
+    """The float 3-vector ``v`` made perpendicular to the unit ``d``."""
+    k = dot3(v, d)
+    return [a - k * b for a, b in zip(v, d)]
+
+
+def _image_up_raw(view_direction, view_up, light_direction) -> list:
+    """``image_up`` before its normalisation, as 3 floats."""
+    d = normalize(light_direction).tolist()
+    v = np.asarray(view_direction, dtype=np.float64).tolist()
+    pv = across(v, d)
+    s = math.sqrt(dot3(pv, pv))
     if s >= PARALLEL_BLEND:
-        return pv / s
-    pu = view_up - (view_up @ d) * d
-    right = cross3(view_direction, view_up)
-    pr = right - (right @ d) * d
-    if not np.linalg.norm(pu) > 0 or not np.linalg.norm(pr) > 0:
-        return pv / s if s > 0 else pv
+        return [c / s for c in pv]
+    u = np.asarray(view_up, dtype=np.float64).tolist()
+    pu = across(u, d)
+    pr = across(cross3(v, u).tolist(), d)
+    nu, nr = math.sqrt(dot3(pu, pu)), math.sqrt(dot3(pr, pr))
+    if not nu > 0 or not nr > 0:
+        return [c / s for c in pv] if s > 0 else pv
     t = s / PARALLEL_BLEND
-    v_p = pv / s if s > 0 else np.zeros(3)
-    return t * v_p + (1 - t) * normalize(pu) + PARALLEL_TWIST * t * (1 - t) * normalize(pr)
+    v_p = [c / s for c in pv] if s > 0 else [0.0, 0.0, 0.0]
+    twist = PARALLEL_TWIST * t * (1 - t)
+    return [t * a + (1 - t) * b / nu + twist * c / nr for a, b, c in zip(v_p, pu, pr)]
 
 
 def image_up(view_direction, view_up, light_direction) -> np.ndarray:
@@ -86,9 +101,10 @@ def image_up(view_direction, view_up, light_direction) -> np.ndarray:
     plain pitch or pan through the light direction, which turn the map smoothly
     instead (``image_up_singularity`` measures the distance to it)."""
     up = _image_up_raw(view_direction, view_up, light_direction)
-    if math.sqrt(up @ up) < 1e-300:
+    length = math.sqrt(dot3(up, up))
+    if length < 1e-300:
         return np.zeros(3)
-    return normalize(up)
+    return np.array([c / length for c in up])
 
 
 def image_up_singularity(view_direction, view_up, light_direction) -> float:
@@ -96,7 +112,8 @@ def image_up_singularity(view_direction, view_up, light_direction) -> float:
     unnormalised blend (about 0.5 or more on plain pitch or pan paths and 1
     outside the blend, 0 at the point). Within a distance ε of it a rotation by
     δ turns the map by about δ / (ε sin 1°)."""
-    return float(np.linalg.norm(_image_up_raw(view_direction, view_up, light_direction)))
+    up = _image_up_raw(view_direction, view_up, light_direction)
+    return math.sqrt(dot3(up, up))
 
 
 def light_angles(view: View, light_direction) -> tuple[float, float]:

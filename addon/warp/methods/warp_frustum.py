@@ -91,7 +91,7 @@ import numpy as np
 from ..aliasing import lambda_glpr, lambda_gmnpr, lispsm_inverse_n_opt
 from ..body import IntersectionBody
 from ..fit import fit_runs, ndc_bounds, window_matrices, window_matrix
-from ..frame import (PARALLEL_BLEND, LightFrame, light_angles, light_frames, pyramid_sections,
+from ..frame import (PARALLEL_BLEND, LightFrame, across, dot3, light_angles, light_frames, pyramid_sections,
                      separate_pyramids)
 from ..geometry import clip_volume_corners, homogeneous, point_runs, transform_h_runs
 from ..types import Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
@@ -160,20 +160,13 @@ def _blend(v, s: float) -> tuple[float, float]:
     return (ox / n, oy / n) if n > 1e-12 else (0.0, 1.0)
 
 
-def _dot(a, b) -> float:
-    """Dot product of two 3-vectors given as float sequences."""
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
 def _sin_to(v, ell) -> float:
     """sin of the angle between ``v`` and the unit ``ell`` (float 3-sequences)."""
-    nv = math.sqrt(_dot(v, v))
+    nv = math.sqrt(dot3(v, v))
     if nv == 0.0:
         return 0.0
-    u = [c / nv for c in v]
-    k = _dot(u, ell)
-    p = [a - k * b for a, b in zip(u, ell)]
-    return math.sqrt(_dot(p, p))
+    p = across([c / nv for c in v], ell)
+    return math.sqrt(dot3(p, p))
 
 
 _YZX, _ZXY = np.array([1, 2, 0]), np.array([2, 0, 1])
@@ -256,18 +249,18 @@ def light_at_eye(view: View, light: Light, options: WarpOptions, body: Intersect
         ell, dist = light.direction, 0.0
     else:
         to_eye = [a - b for a, b in zip(view.position.tolist(), light.position.tolist())]
-        dist = math.sqrt(_dot(to_eye, to_eye))
+        dist = math.sqrt(dot3(to_eye, to_eye))
         if dist <= 1e-9 * body.scale:
             return None, "the eye is at the light: the light ray through the eye is undefined"
         ell = np.array([c / dist for c in to_eye])
     e = ell.tolist()
     vector = middle if options.middle_vector else view.direction
     s = _sin_to(vector.tolist(), e) if (options.middle_vector or not light.is_directional) else 1.0
-    c = min(max(_dot(d, e), -1.0), 1.0)
+    c = min(max(dot3(d, e), -1.0), 1.0)
     at = LightAtEye(ell, dist, math.acos(c), vector, s)
     if not light.is_directional:
         perp = [a - c * b for a, b in zip(d, e)]
-        n = math.sqrt(_dot(perp, perp))
+        n = math.sqrt(dot3(perp, perp))
         if n > 0:
             at.v_p = np.array([a / n for a in perp])
             along = body.vertices @ at.v_p
