@@ -119,7 +119,7 @@ def image_up_singularity(view_direction, view_up, light_direction) -> float:
 def light_angles(view: View, light_direction) -> tuple[float, float]:
     """(θ, γ): γ = angle between view and light directions in [0, π]
     (LiSPSM's γ, Scherzer §4.4); θ in [0, π/2] folded by symmetry (GMNPR)."""
-    c = float(np.clip(view.direction @ normalize(light_direction), -1.0, 1.0))
+    c = min(max(dot3(view.direction.tolist(), normalize(light_direction).tolist()), -1.0), 1.0)
     gamma = math.acos(c)
     return min(gamma, math.pi - gamma), gamma
 
