@@ -219,8 +219,8 @@ def eye_depth_range(view: View, body: IntersectionBody, options: WarpOptions, di
 def half_fov_towards(view: View, light_dir) -> float:
     """GMNPR's φ: the angle from the view axis to the side of the view frustum
     in the direction of the (folded) light direction's projection."""
-    r = view.camera_to_world[:3, :3]
-    cx, cy, cz = ((np.asarray(light_dir, dtype=np.float64) @ r) / np.sqrt((r * r).sum(axis=0))).tolist()
+    ell = np.asarray(light_dir, dtype=np.float64).tolist()
+    cx, cy, cz = (dot3(ell, axis) / math.sqrt(dot3(axis, axis)) for axis in view.camera_to_world[:3, :3].T.tolist())
     if cz > 0:                           # fold: the light line's half that points along the view (-Z)
         cx, cy = -cx, -cy
     (p00, _, p02, _), (_, p11, p12, _) = view.projection[:2].tolist()
