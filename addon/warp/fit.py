@@ -32,26 +32,30 @@ def ndc_box(h) -> tuple[np.ndarray, np.ndarray]:
 
 def window_matrix(lo, hi) -> np.ndarray:
     """The affine NDC map taking the box [lo, hi] onto [-1, 1]^3."""
-    return np.array(_window_rows(np.asarray(lo, dtype=np.float64).tolist(), np.asarray(hi, dtype=np.float64).tolist()))
+    lo, hi = np.asarray(lo, dtype=np.float64).tolist(), np.asarray(hi, dtype=np.float64).tolist()
+    return np.array(_window_entries(lo, hi)).reshape(4, 4)
 
 
 def window_matrices(lo: list, hi: list) -> np.ndarray:
     """``window_matrix`` for several boxes given as lists of float 3-lists, (k, 4, 4)."""
-    return np.array([_window_rows(a, b) for a, b in zip(lo, hi)])
+    entries = []
+    for a, b in zip(lo, hi):
+        entries += _window_entries(a, b)
+    return np.array(entries).reshape(-1, 4, 4)
 
 
-def _window_rows(lo: list, hi: list) -> list:
-    """``window_matrix`` for a box given as float lists, as nested lists."""
+def _window_entries(lo: list, hi: list) -> list:
+    """``window_matrix`` for a box given as float lists: its 16 entries, row by row
+    (a scale on the diagonal and an offset in the last column for each axis)."""
     ext = [max(b - a, 0.0) for a, b in zip(lo, hi)]
     least = max(ext) * 1e-6
-    rows = []
+    entries = [0.0] * 15 + [1.0]
     for i in range(3):
         pad = NDC_PAD * max(ext[i], least) + 1e-300
         a, b = lo[i] - pad, hi[i] + pad
-        row = [0.0, 0.0, 0.0, -(b + a) / (b - a)]
-        row[i] = 2.0 / (b - a)
-        rows.append(row)
-    return rows + [[0.0, 0.0, 0.0, 1.0]]
+        entries[5 * i] = 2.0 / (b - a)
+        entries[4 * i + 3] = -(b + a) / (b - a)
+    return entries
 
 
 def fit_to_unit_cube(transform, points) -> np.ndarray:
