@@ -574,24 +574,21 @@ def ray_closed(matrices, body: IntersectionBody, light_position) -> list:
     w = h[:, 3]
     reaches = np.minimum.reduceat(w, starts) <= 1e-9 * np.maximum.reduceat(np.abs(w), starts)   # w = 0 on B ∩ window
     ndc = h[:, :3] / np.where(w > 0, w, 1.0)[:, None]           # (w > 0 throughout where it does not reach)
-    fits = zip(reaches.tolist(), np.minimum.reduceat(ndc, starts).tolist(), np.maximum.reduceat(ndc, starts).tolist())
-    out, widen = [], []
+    lo, hi = np.minimum.reduceat(ndc, starts).tolist(), np.maximum.reduceat(ndc, starts).tolist()
+    refitted = window_matrices(lo, hi) @ m[[i for i, c in enumerate(counts) if c]]   # (used where the depth widens)
+    fits = zip(reaches.tolist(), lo, hi, refitted)
+    out = []
     for i, (count, end) in enumerate(zip(counts, ends)):
         if not count:
             out.append((m[i], "", None))
             continue
-        reach, lo, hi = next(fits)
+        reach, lo, hi, matrix = next(fits)
         if reach:
             out.append((None, "the warped map's window reaches the light itself; a uniform face map is ray-closed", None))
         elif min(lo) >= -1.0 - 1e-9 and max(hi) <= 1.0 + 1e-9:     # the map already holds B ∩ window
             out.append((m[i], "", held[end - count:end]))
         else:
-            widen.append((i, lo, hi))
-            out.append((None, "depth widened to B within the map's window", held[end - count:end]))
-    if widen:
-        refitted = window_matrices([lo for _, lo, _ in widen], [hi for _, _, hi in widen]) @ m[[i for i, _, _ in widen]]
-        for (i, _, _), matrix in zip(widen, refitted):
-            out[i] = (matrix,) + out[i][1:]
+            out.append((matrix, "depth widened to B within the map's window", held[end - count:end]))
     return out
 
 
