@@ -194,11 +194,11 @@ def volume_centroid(body: IntersectionBody) -> np.ndarray:
         return ref + origin
     a, b, c = (v - ref)[np.array([first, second, third])]            # the fans' corners, (T, 3) each
     cr = b[:, _YZX] * c[:, _ZXY] - b[:, _ZXY] * c[:, _YZX]           # b × c
-    vol = np.abs(np.einsum("ij,ij->i", a, cr)) / 6.0                  # tetrahedra (ref, a, b, c)
+    vol = np.abs(np.einsum("ij,ij->i", a, cr))                       # 6 x the tetrahedra (ref, a, b, c)
     total = float(vol.sum())
     if not total > 0:
         return ref + origin
-    return ref + origin + (vol[:, None] * (a + b + c) / 4.0).sum(axis=0) / total
+    return ref + origin + (vol @ (a + b + c)) / (4.0 * total)        # their centres (ref + a + b + c) / 4
 
 
 def eye_depth_range(view: View, body: IntersectionBody, options: WarpOptions, diag: Diagnostics) -> WarpContext:
