@@ -22,7 +22,7 @@ from functools import cached_property
 import numpy as np
 
 from .body import IntersectionBody
-from .geometry import cross3, homogeneous, look_along, normalize, perpendicular
+from .geometry import across, cross3, dot3, homogeneous, look_along, normalize, perpendicular
 from .types import Light, View, WarpOptions
 
 PARALLEL_BLEND = math.sin(math.radians(1.0))
@@ -51,17 +51,6 @@ class LightFrame:
 
 PARALLEL_TWIST = 2.0
 """Weight of the camera's right vector inside the blend (see ``image_up``)."""
-
-
-def dot3(a, b) -> float:
-    """Dot product of two 3-vectors given as float sequences."""
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-def across(v, d) -> list:
-    """The float 3-vector ``v`` made perpendicular to the unit ``d``."""
-    k = dot3(v, d)
-    return [a - k * b for a, b in zip(v, d)]
 
 
 def _image_up_raw(view_direction, view_up, light_direction) -> list:

@@ -19,6 +19,23 @@ def cross3(a, b) -> np.ndarray:
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]], dtype=np.float64)
 
 
+def dot3(a, b) -> float:
+    """Dot product of two 3-vectors given as float sequences (plain floats:
+    a numpy call on a 3-vector costs ~1 µs, this ~0.1)."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def length(v) -> float:
+    """The Euclidean length of a short sequence of floats."""
+    return math.sqrt(sum(c * c for c in v))
+
+
+def across(v, d) -> list:
+    """The float 3-vector ``v`` made perpendicular to the unit ``d``."""
+    k = dot3(v, d)
+    return [a - k * b for a, b in zip(v, d)]
+
+
 def normalize(v) -> np.ndarray:
     """Unit vector along ``v``; raises ValueError for a zero or non-finite vector."""
     v = np.asarray(v, dtype=np.float64)

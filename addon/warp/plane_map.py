@@ -37,6 +37,7 @@ from typing import Optional
 
 import numpy as np
 
+from .geometry import length
 from .polyhedron import Plane, _polygon_on_plane
 from .types import WarpError
 
@@ -116,15 +117,10 @@ class PlaneOfInterest:
         return np.append(self.normal, -(self.offset - o))
 
 
-def _length(v) -> float:
-    """The Euclidean length of a short sequence of floats."""
-    return math.sqrt(sum(c * c for c in v))
-
-
 def _unit_list(v: list) -> list:
     """``v`` scaled to unit length (unchanged if zero)."""
-    length = _length(v)
-    return [c / length for c in v] if length > 0 else v
+    n = length(v)
+    return [c / n for c in v] if n > 0 else v
 
 
 def next_vertices(poly: np.ndarray) -> np.ndarray:
@@ -164,15 +160,15 @@ def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
     if not condition > RANK_TOL:
         raise WarpError(f"the five point constraints are degenerate (rank < 15, relative singular value {condition:.3g})")
     m = vt[-1].reshape(4, 4)
-    m_norm = _length(vt[-1].tolist())
+    m_norm = length(vt[-1].tolist())
     residual = 0.0                          # the largest distance between M·X and Y as unit vectors (either sign)
     for x, mx, y in zip(src.tolist(), (src @ m.T).tolist(), dst.tolist()):
-        mx_norm, y_norm = _length(mx), _length(y)
-        if mx_norm <= 1e-12 * m_norm * _length(x):
+        mx_norm, y_norm = length(mx), length(y)
+        if mx_norm <= 1e-12 * m_norm * length(x):
             raise WarpError("the five point constraints are degenerate (the solution maps a constrained point to "
                             "nothing: four of the points are coplanar)")
         u, v = [c / mx_norm for c in mx], [c / y_norm for c in y]
-        residual = max(residual, min(_length([p - q for p, q in zip(u, v)]), _length([p + q for p, q in zip(u, v)])))
+        residual = max(residual, min(length([p - q for p, q in zip(u, v)]), length([p + q for p, q in zip(u, v)])))
     if not residual <= RESIDUAL_TOL:
         raise WarpError(f"the five point solve missed its constraints (residual {residual:.3g})")
     return m, {"condition": condition, "residual": residual}
@@ -227,7 +223,7 @@ def plane_light_matrix(corner_points, light_h, length_scale: float) -> tuple[np.
     each homogeneous point normalised, so the DLT is well conditioned even for
     a camera 1 cm above a 100 m floor. Raises WarpError naming the reason."""
     points = np.asarray(corner_points, dtype=np.float64).reshape(4, 4).tolist()
-    if not all(math.isfinite(c) for q in points for c in q) or min(map(_length, points)) <= 1e-300:
+    if not all(math.isfinite(c) for q in points for c in q) or min(map(length, points)) <= 1e-300:
         raise WarpError("a corner ray of the view lies in the plane (the plane is seen edge-on)")
     # The spread of the finite p^i: their root mean square distance from the camera.
     dist = [math.sqrt(x * x + y * y + z * z) / abs(w) for x, y, z, w in points
@@ -278,8 +274,8 @@ def clip_to_polygon(poly: np.ndarray, bound, normal, tol: float) -> Optional[np.
     for (ax, ay, az), (bx, by, bz) in zip(b, b[1:] + b[:1]):
         ex, ey, ez = bx - ax, by - ay, bz - az
         ox, oy, oz = ey * nz - ez * ny, ez * nx - ex * nz, ex * ny - ey * nx
-        length = math.sqrt(ox * ox + oy * oy + oz * oz)
-        ox, oy, oz = ox / length, oy / length, oz / length
+        norm = math.sqrt(ox * ox + oy * oy + oz * oz)
+        ox, oy, oz = ox / norm, oy / norm, oz / norm
         pts = _clip_loop(pts, (ox, oy, oz), ox * ax + oy * ay + oz * az, tol)
         if len(pts) < 3:
             return None
@@ -355,7 +351,7 @@ def is_convex_polygon(points, normal, tol: float) -> bool:
         return False
     nx, ny, nz = (float(c) for c in normal)
     edges = [(bx - ax, by - ay, bz - az) for (ax, ay, az), (bx, by, bz) in zip(pts, pts[1:] + pts[:1])]
-    perimeter = sum(map(_length, edges))
+    perimeter = sum(map(length, edges))
     turned = 0.0
     for (ax, ay, az), (bx, by, bz) in zip(edges, edges[1:] + edges[:1]):
         left = (ay * bz - az * by) * nx + (az * bx - ax * bz) * ny + (ax * by - ay * bx) * nz
@@ -392,9 +388,9 @@ def offset_steps(pts: list, normal) -> list:
     out_n = []                                               # edge i (vertex i to i + 1): its outward unit normal
     for (ax, ay, az), (bx, by, bz) in zip(pts, pts[1:] + pts[:1]):
         ex, ey, ez = bx - ax, by - ay, bz - az
-        length = math.sqrt(ex * ex + ey * ey + ez * ez)
-        if length > 0:
-            ex, ey, ez = ex / length, ey / length, ez / length
+        norm = math.sqrt(ex * ex + ey * ey + ez * ez)
+        if norm > 0:
+            ex, ey, ez = ex / norm, ey / norm, ez / norm
         out_n.append((ey * nz - ez * ny, ez * nx - ex * nz, ex * ny - ey * nx))     # edge x normal: outward for CCW
     out = []
     for n1, n2 in zip(out_n[-1:] + out_n[:-1], out_n):      # the edges before and after each vertex

@@ -91,9 +91,9 @@ import numpy as np
 from ..aliasing import lambda_glpr, lambda_gmnpr, lispsm_inverse_n_opt
 from ..body import IntersectionBody
 from ..fit import fit_runs, ndc_bounds, window_matrices, window_matrix
-from ..frame import (PARALLEL_BLEND, LightFrame, across, dot3, light_angles, light_frames, pyramid_sections,
+from ..frame import (PARALLEL_BLEND, LightFrame, light_angles, light_frames, pyramid_sections,
                      separate_pyramids)
-from ..geometry import clip_volume_corners, homogeneous, point_runs, transform_h_runs
+from ..geometry import across, clip_volume_corners, dot3, homogeneous, point_runs, transform_h_runs
 from ..types import Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .uniform import frame_map
 
