@@ -117,11 +117,13 @@ def _lowest_on_segments(base, rate, num, den) -> np.ndarray:
     K, the least k·x over the clipped parts of the S segments (inf when nothing
     is left). A linear k is least at one end of a segment."""
     # A half-space parallel to the segment (den = 0) keeps all of it (num >= 0: ratio +inf)
-    # or none of it (-inf).
-    ratio = np.divide(num, den, out=np.where(num >= 0, np.inf, -np.inf), where=den != 0)
-    enter = np.where(den < 0, ratio, -np.inf).max(axis=0, initial=0.0)
-    leave = np.where(den >= 0, ratio, np.inf).min(axis=0, initial=1.0)
-    value = base + np.where(rate >= 0, enter, leave) * rate
+    # or none of it (-inf); a nearly parallel one overflows to the same limits, and a
+    # segment left empty (enter > leave, possibly an inf·0 value) is masked below.
+    with np.errstate(over="ignore", invalid="ignore"):
+        ratio = np.divide(num, den, out=np.where(num >= 0, np.inf, -np.inf), where=den != 0)
+        enter = np.where(den < 0, ratio, -np.inf).max(axis=0, initial=0.0)
+        leave = np.where(den >= 0, ratio, np.inf).min(axis=0, initial=1.0)
+        value = base + np.where(rate >= 0, enter, leave) * rate
     return np.where(enter <= leave, value, np.inf).min(axis=0)
 
 
