@@ -60,12 +60,15 @@ def _light(rng, kind: int) -> Light:
 
 
 def _frame(seed: int, orthographic=False):
-    rng = np.random.default_rng(seed)
-    view, light = _view(rng, orthographic), _light(rng, seed % 3)
-    try:
-        return rng, view, light, intersection_body(view, light, _scene(rng))
-    except EmptyBodyError:
-        pytest.skip("empty B")
+    """A random view, light and B: the first draw of ``seed``'s stream whose B is not empty."""
+    for draw in range(100):
+        rng = np.random.default_rng([seed, draw])
+        view, light = _view(rng, orthographic), _light(rng, seed % 3)
+        try:
+            return rng, view, light, intersection_body(view, light, _scene(rng))
+        except EmptyBodyError:
+            continue
+    raise AssertionError(f"seed {seed}: 100 draws without a body")
 
 
 def _same_loop(a: np.ndarray, b: np.ndarray, tol: float) -> bool:
@@ -160,8 +163,7 @@ def _plane_jobs(seed, **options):
     planes = [PlaneOfInterest.through((0, 0, 0.0), (0, 0, 1.0)), PlaneOfInterest.through((0, 0, 2.0), (0.1, 0.2, 1))]
     jobs = [j for j in (plane_optimal._prepare(k, p, view, light, body, view.position, tol, diag)
                         for k, p in enumerate(planes)) if j is not None]
-    if not jobs:
-        pytest.skip("no plane map")
+    assert jobs, f"seed {seed}: neither plane gets a map; choose other seeds"
     return view, light, body, opts, tol, jobs
 
 
