@@ -54,16 +54,20 @@ def same_points(a, b) -> bool:
     return a.shape == b.shape and np.allclose(a, b, atol=1e-7)
 
 
+def random_bodies(rng, draws: int):
+    """(cube basis, polytope, its edges) for each of ``draws`` random draws that gives a polytope."""
+    for _ in range(draws):
+        basis = random_basis(rng)
+        poly = random_polytope(rng, basis)
+        if poly is not None:
+            yield basis, poly, poly.edges()[0]
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_shared_cube_planes_equal_each_face_alone(seed):
     rng = np.random.default_rng(seed)
     checked = 0
-    for _ in range(40):
-        basis = random_basis(rng)
-        poly = random_polytope(rng, basis)
-        if poly is None:
-            continue
-        edges = poly.edges()[0]
+    for basis, poly, edges in random_bodies(rng, 40):
         together = cube_section_points(poly, edges, basis)
         for (face, k, sign), pts in zip(CUBE_FACES, together):
             alone = pyramid_section_points(poly, edges, sign * basis[k], [basis[j] for j in range(3) if j != k])
@@ -79,12 +83,7 @@ def test_shared_planes_equal_separate_planes(seed):
     """``pyramid_sections`` with the cube's 6 shared planes and 8 rays gives each
     face the same points as with its own 4 planes and 4 rays."""
     rng = np.random.default_rng(100 + seed)
-    for _ in range(30):
-        basis = random_basis(rng)
-        poly = random_polytope(rng, basis)
-        if poly is None:
-            continue
-        edges = poly.edges()[0]
+    for basis, poly, edges in random_bodies(rng, 30):
         planes = (_CUBE_PLANES @ basis) / math.sqrt(2.0)
         rays = _CUBE_SIGNS @ basis
         pts, member, _ = pyramid_sections(poly, edges, planes, rays, CUBE_PYRAMIDS)
