@@ -268,14 +268,9 @@ def clip_to_polygon(poly: np.ndarray, bound, normal, tol: float) -> Optional[np.
     ``bound`` ((K, 3) on the same plane, CCW about ``normal``): ``poly`` clipped
     by each edge's line on the plane (outward normal edge x normal). None when
     less than a triangle is left."""
-    nx, ny, nz = (float(c) for c in normal)
     b = bound.tolist() if isinstance(bound, np.ndarray) else list(bound)
     pts = poly.tolist()
-    for (ax, ay, az), (bx, by, bz) in zip(b, b[1:] + b[:1]):
-        ex, ey, ez = bx - ax, by - ay, bz - az
-        ox, oy, oz = ey * nz - ez * ny, ez * nx - ex * nz, ex * ny - ey * nx
-        norm = math.sqrt(ox * ox + oy * oy + oz * oz)
-        ox, oy, oz = ox / norm, oy / norm, oz / norm
+    for (ax, ay, az), (ox, oy, oz) in zip(b, edge_normals(b, normal)):
         pts = _clip_loop(pts, (ox, oy, oz), ox * ax + oy * ay + oz * az, tol)
         if len(pts) < 3:
             return None
@@ -382,16 +377,24 @@ def offset_directions(poly: np.ndarray, normal: np.ndarray) -> np.ndarray:
     return np.array(offset_steps(np.asarray(poly, dtype=np.float64).tolist(), normal)).reshape(-1, 3)
 
 
-def offset_steps(pts: list, normal) -> list:
-    """``offset_directions`` of a polygon given as a list of (x, y, z), as a list."""
+def edge_normals(pts: list, normal) -> list:
+    """Per edge i (vertex i to i + 1) of a convex polygon given as a list of
+    (x, y, z), CCW about the unit ``normal``: its outward unit normal on the
+    plane, edge x normal (zero for an edge of no length)."""
     nx, ny, nz = (float(c) for c in normal)
-    out_n = []                                               # edge i (vertex i to i + 1): its outward unit normal
+    out = []
     for (ax, ay, az), (bx, by, bz) in zip(pts, pts[1:] + pts[:1]):
         ex, ey, ez = bx - ax, by - ay, bz - az
         norm = math.sqrt(ex * ex + ey * ey + ez * ez)
         if norm > 0:
             ex, ey, ez = ex / norm, ey / norm, ez / norm
-        out_n.append((ey * nz - ez * ny, ez * nx - ex * nz, ex * ny - ey * nx))     # edge x normal: outward for CCW
+        out.append((ey * nz - ez * ny, ez * nx - ex * nz, ex * ny - ey * nx))
+    return out
+
+
+def offset_steps(pts: list, normal) -> list:
+    """``offset_directions`` of a polygon given as a list of (x, y, z), as a list."""
+    out_n = edge_normals(pts, normal)
     out = []
     for n1, n2 in zip(out_n[-1:] + out_n[:-1], out_n):      # the edges before and after each vertex
         s = 1.0 + n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]
