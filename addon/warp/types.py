@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any, Optional
+from typing import Any, Callable, Optional
 
 import numpy as np
 
@@ -327,6 +327,80 @@ class ShadowMap:
         return out
 
 
+class Deferred:
+    """A value computed when it is first read, then kept: what a method reports
+    but does not use itself (the warp frustum's corners, its projection centre,
+    the middle vector) costs nothing in the frames nobody looks at it."""
+
+    __slots__ = ("_compute", "_value")
+
+    def __init__(self, compute: Callable[[], Any]):
+        self._compute, self._value = compute, None
+
+    @property
+    def value(self) -> Any:
+        if self._compute is not None:
+            self._value, self._compute = self._compute(), None
+        return self._value
+
+    def __repr__(self) -> str:
+        return "Deferred(not computed yet)" if self._compute is not None else f"Deferred({self._value!r})"
+
+
+class Reported(dict):
+    """``Diagnostics.extra``: a dict whose :class:`Deferred` values are computed
+    on first read. Every way of reading a value goes through ``__getitem__``
+    (``dict(extra)`` and ``{**extra}`` too, since ``__iter__`` is overridden)."""
+
+    def __getitem__(self, key):
+        value = super().__getitem__(key)
+        if isinstance(value, Deferred):
+            value = value.value
+            super().__setitem__(key, value)
+        return value
+
+    def __iter__(self):
+        return super().__iter__()
+
+    def get(self, key, default=None):
+        return self[key] if key in self else default
+
+    def items(self):
+        return [(k, self[k]) for k in list(self.keys())]
+
+    def values(self):
+        return [self[k] for k in list(self.keys())]
+
+    def pop(self, key, *default):
+        if key in self:
+            value = self[key]
+            super().pop(key)
+            return value
+        return super().pop(key, *default)
+
+    def copy(self) -> "Reported":
+        return Reported(self.items())
+
+
+class _Resolved:
+    """A :class:`Diagnostics` field that may be set to a :class:`Deferred`:
+    reading it computes the value once."""
+
+    def __set_name__(self, owner, name):
+        self.slot = "_" + name
+
+    def __get__(self, obj, owner=None):
+        if obj is None:
+            return None                      # the field's default (dataclasses ask the class)
+        value = obj.__dict__.get(self.slot)
+        if isinstance(value, Deferred):
+            value = obj.__dict__[self.slot] = value.value
+        return value
+
+    def __set__(self, obj, value):
+        obj.__dict__[self.slot] = value
+
+
 @dataclass
 class Diagnostics:
     """What a method computed on the way, for overlays, reports and tests.
@@ -335,6 +409,8 @@ class Diagnostics:
     symmetry, GMNPR convention); gamma: angle between light and view directions
     in [0, pi] (LiSPSM's γ, Scherzer §4.4); body_vertices: B; warp_frustum_corners:
     the 8 world corners of the warp frustum P (if any); fallbacks: (what, reason).
+    ``warp_frustum_corners`` and the values of ``extra`` may be given as
+    :class:`Deferred`: they are computed when first read.
     """
 
     method: str
@@ -343,9 +419,13 @@ class Diagnostics:
     n_opt: Optional[float] = None
     lam: Optional[float] = None
     body_vertices: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
-    warp_frustum_corners: Optional[np.ndarray] = None
+    warp_frustum_corners: Optional[np.ndarray] = _Resolved()
     fallbacks: list[tuple[str, str]] = field(default_factory=list)
-    extra: dict[str, Any] = field(default_factory=dict)
+    extra: dict[str, Any] = field(default_factory=Reported)
+
+    def __post_init__(self):
+        if type(self.extra) is not Reported:
+            self.extra = Reported(self.extra)
 
     def fallback(self, what: str, reason: str) -> None:
         self.fallbacks.append((what, reason))

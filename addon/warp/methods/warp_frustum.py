@@ -94,7 +94,7 @@ from ..fit import fit_runs, ndc_bounds, window_matrices, window_matrix
 from ..frame import (PARALLEL_BLEND, LightFrame, light_angles, light_frames, pyramid_sections,
                      separate_pyramids)
 from ..geometry import across, clip_volume_corners, dot3, homogeneous, point_runs, transform_h_runs
-from ..types import Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
+from ..types import Deferred, Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .uniform import frame_map
 
 FADE_START = 2.0
@@ -201,6 +201,11 @@ def volume_centroid(body: IntersectionBody) -> np.ndarray:
     return ref + origin + (vol @ (a + b + c)) / (4.0 * total)        # their centres (ref + a + b + c) / 4
 
 
+def _unit_or_zero(v: np.ndarray) -> np.ndarray:
+    length = math.sqrt(v @ v)
+    return v / length if length > 0 else np.zeros(3)
+
+
 def eye_depth_range(view: View, body: IntersectionBody, options: WarpOptions, diag: Diagnostics) -> WarpContext:
     """z_n and z_n + Δz for Eq. 1 / GMNPR's (n, f): eye depths (see module docs)."""
     d = view.eye_depth(body.visible_vertices)
@@ -240,10 +245,10 @@ def half_fov_towards(view: View, light_dir) -> float:
 
 
 def light_at_eye(view: View, light: Light, options: WarpOptions, body: IntersectionBody,
-                 middle: np.ndarray) -> tuple[Optional[LightAtEye], str]:
+                 middle: Optional[np.ndarray]) -> tuple[Optional[LightAtEye], str]:
     """The world-space quantities every frame shares (``middle``: the middle
-    vector, used when ``options.middle_vector``), or (None, reason) when the
-    light ray through the eye is undefined."""
+    vector, given and used when ``options.middle_vector``), or (None, reason)
+    when the light ray through the eye is undefined."""
     d = view.direction.tolist()                                   # (plain floats: 3-vectors)
     if light.is_directional:
         ell, dist = light.direction, 0.0
@@ -488,13 +493,13 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
     diag.extra["z_n"] = ctx.z_n
     diag.extra["delta_z"] = ctx.delta_z
     diag.extra["frames"] = [f.role for f in frames]
-    middle = volume_centroid(body) - view.position
-    length = math.sqrt(middle @ middle)
-    diag.extra["middle_vector"] = middle / length if length > 0 else np.zeros(3)
+    # B's middle vector (Scherzer §4.4): computed only when used or read.
+    middle = Deferred(lambda: volume_centroid(body) - view.position)
+    diag.extra["middle_vector"] = Deferred(lambda: _unit_or_zero(middle.value))
     if view.orthographic:
         at, reason = None, "orthographic camera: no perspective aliasing to redistribute"
     else:
-        at, reason = light_at_eye(view, light, options, body, middle)
+        at, reason = light_at_eye(view, light, options, body, middle.value if options.middle_vector else None)
     # GMNPR's φ: gmnpr and glpr use and report it, LiSPSM's Eq. 1 has no φ.
     phi = half_fov_towards(view, at.ell) if at is not None and name != "lispsm" else None
     warps = frame_warps(frames, view, at, reason, rule, ctx, phi, options, body)
@@ -529,9 +534,9 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
             diag.extra["n_opt"] = _finite_or_none(w.p_n)
             diag.extra["phi"] = phi
         diag.extra["warp_strength_mu"] = w.mu
-        diag.warp_frustum_corners = clip_volume_corners(w.matrix)
+        diag.warp_frustum_corners = Deferred(lambda m=w.matrix: clip_volume_corners(m))
         diag.extra["v_p"] = geo.v_p_world if geo.v_p_world is not None else np.zeros(3)
-        diag.extra["projection_centre"] = projection_centre(frame, geo, w.lam_frame)
+        diag.extra["projection_centre"] = Deferred(lambda f=frame, g=geo, lam=w.lam_frame: projection_centre(f, g, lam))
     if not reported:                     # no warped map: the angles to the light's axis, as for a uniform map
         axis = light.direction if light.is_directional else body.centroid - light.position
         diag.theta, diag.gamma = light_angles(view, axis)
