@@ -37,23 +37,33 @@ class Selection(NamedTuple):
 
 
 def _stack_of(boxes: np.ndarray) -> np.ndarray:
-    """(6, N): rows 0-2 the boxes' centres, rows 3-5 their half extents."""
-    return np.ascontiguousarray(np.concatenate([(boxes[:, 0] + boxes[:, 1]).T / 2, (boxes[:, 1] - boxes[:, 0]).T / 2]))
+    """(6, N): rows 0-2 the (N, 2, 3) boxes' lower corners lo, rows 3-5 minus their upper corners -hi."""
+    return np.ascontiguousarray(np.concatenate([boxes[:, 0].T, -boxes[:, 1].T]))
 
 
-def boxes_meeting_arrays(normals, offsets, centre_half: np.ndarray, tol: float = 0.0) -> np.ndarray:
-    """Boolean mask of boxes, given as (6, N) centres/half extents, not entirely
-    outside any half-space ``normals @ x <= offsets`` (a conservative test)."""
+def _least_weights(normals: np.ndarray) -> np.ndarray:
+    """(planes, 6): (n⁺, n⁻) per plane (n⁺ = max(n, 0), n⁻ = n⁺ - n), so that
+    a plane's least value over a box [lo, hi], n⁺ . lo + n⁻ . (-hi), is one
+    product with the box's (lo, -hi). Each term grows with the box, so a box's
+    least value is not below that of a box around it (up to the rounding of
+    the sum)."""
+    pos = np.maximum(normals, 0.0)
+    return np.concatenate([pos, pos - normals], axis=1)
+
+
+def boxes_meeting_arrays(normals, offsets, bounds: np.ndarray, tol: float = 0.0) -> np.ndarray:
+    """Boolean mask of boxes, given as (6, N) lo and -hi rows (``_stack_of``),
+    not entirely outside any half-space ``normals @ x <= offsets`` (a
+    conservative test)."""
     n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
-    count = centre_half.shape[1]
+    count = bounds.shape[1]
     if count == 0:
         return np.zeros(0, dtype=bool)
     if len(n) == 0:
         return np.ones(count, dtype=bool)
-    m = np.concatenate([n, -np.abs(n)], axis=1)
     # (A non-contiguous operand makes matmul fall off BLAS and take 100x longer.)
-    nearest = m @ np.ascontiguousarray(centre_half) - np.asarray(offsets, dtype=np.float64)[:, None]
-    return nearest.max(axis=0) <= tol
+    least = _least_weights(n) @ np.ascontiguousarray(bounds)
+    return ~(least > np.asarray(offsets, dtype=np.float64)[:, None] + tol).any(axis=0)
 
 
 CLUSTER_SIZE = 32
@@ -78,16 +88,14 @@ class BoxIndex:
             b = np.zeros((1, 2, 3))
         else:
             self.perm = self._clusters(b, k)
-        # Each cluster's boxes, the last padded with copies of its last box: (6, clusters, k) lo and -hi, ...
+        # Each cluster's boxes, the last padded with copies of its last box: (6, clusters, k) lo and -hi.
         sb = b[np.concatenate([self.perm, np.repeat(self.perm[-1:], n_c * k - self.count)])] if self.count else b[:0]
         lo, hi = sb[:, 0].reshape(n_c, k, 3), sb[:, 1].reshape(n_c, k, 3)
         self.c_box_bounds = np.ascontiguousarray(np.concatenate([lo, -hi], axis=2).transpose(2, 0, 1))   # lo, -hi
-        # ... and (clusters, 6, k) centres and half extents.
-        self.c_boxes = np.ascontiguousarray(_stack_of(sb).reshape(6, n_c, k).transpose(1, 0, 2))
-        # The clusters' bounds, (6, clusters) lo and -hi, and (6, clusters) centres and half extents
-        # (numpy reduces along a long last axis far faster than over (N, 3) rows).
-        self.c_bounds = self.c_box_bounds.min(axis=2)       # (6, clusters): lo, -hi
-        self.c_stack = _stack_of(np.stack([self.c_bounds[:3].T, -self.c_bounds[3:].T], axis=1))
+        # The clusters' bounds, (6, clusters) lo and -hi (numpy reduces along a long last axis far faster
+        # than over (N, 3) rows), and next to them (hi, -lo): see ``select``.
+        self.c_bounds = self.c_box_bounds.min(axis=2)
+        self.c_extremes = np.concatenate([self.c_bounds, -self.c_bounds[[3, 4, 5, 0, 1, 2]]], axis=1)
 
     @staticmethod
     def _clusters(b: np.ndarray, k: int) -> np.ndarray:
@@ -129,34 +137,44 @@ class BoxIndex:
         return sel.mask, sel.box
 
     def select(self, normals, offsets, tol: float = 0.0) -> Selection:
-        """The boxes that meet the region ``normals @ x <= offsets``. A box is
-        tested only against the planes that cross its cluster: a cluster wholly
-        inside a half-space has every box inside it."""
+        """The boxes that meet the region ``normals @ x <= offsets``.
+
+        A plane's least and greatest values over a cluster's bounds [lo, hi],
+        n⁺ . lo + n⁻ . (-hi) and n⁺ . hi + n⁻ . (-lo) (``_least_weights``), bound
+        those over its boxes, both from one product with the cluster's (lo, -hi)
+        and (hi, -lo) (``c_extremes``). A cluster wholly outside a half-space is
+        rejected, one wholly inside every half-space taken whole (with its
+        bounds), and the boxes of the rest (the edge clusters) are tested
+        against the planes that cross their cluster: every plane in one product
+        over the edge clusters' boxes, a plane that does not cross a cluster
+        given an infinite offset there. The same boxes give the bounding box of
+        those that pass."""
         n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
         o = np.asarray(offsets, dtype=np.float64).reshape(-1)
         if self.count == 0:
             return Selection(self, np.zeros(0, dtype=bool), None)
-        # A plane's least and greatest value over a box: n . centre -/+ |n| . half extent.
-        an = np.abs(n)
-        w = np.concatenate([np.concatenate([n, -an], axis=1), np.concatenate([n, an], axis=1)])
-        bounds = w @ self.c_stack - np.concatenate([o, o])[:, None]       # (2 planes, clusters)
-        c_out = (bounds[: len(n)] > tol).any(axis=0)          # wholly outside some half-space
-        crossing = (bounds[len(n):] > tol) & ~c_out           # not wholly inside this one
-        c_in = ~(c_out | crossing.any(axis=0))                # wholly inside every half-space
-        selected = np.repeat(c_in, CLUSTER_SIZE).reshape(-1, CLUSTER_SIZE)
-        bounds = self.c_bounds[:, c_in]                      # (6, clusters inside): lo, then -hi
-        cluster, plane = np.nonzero(crossing.T)               # (cluster, plane) pairs, by cluster
-        if len(cluster):
-            first = np.flatnonzero(np.concatenate([[True], cluster[1:] != cluster[:-1]]))
-            edge = cluster[first]
-            least = np.matmul(w[plane, None, :], self.c_boxes[cluster])[:, 0] - o[plane, None]
-            hit = ~np.logical_or.reduceat(least > tol, first, axis=0)        # (edge clusters, CLUSTER_SIZE)
+        k = CLUSTER_SIZE
+        lowest = _least_weights(n)
+        limit = o[:, None] + tol
+        # (planes, 2 clusters): above the offset at the cluster's least, then at its greatest value.
+        above = lowest @ self.c_extremes > limit
+        clusters = above.shape[1] // 2
+        c_out = above[:, :clusters].any(axis=0)              # wholly outside some half-space
+        crossing = above[:, clusters:] & ~c_out              # not wholly inside this one
+        c_edge = crossing.any(axis=0)
+        c_in = ~(c_out | c_edge)                             # wholly inside every half-space
+        selected = np.repeat(c_in, k).reshape(-1, k)
+        least = self.c_bounds.compress(c_in, axis=1).min(axis=1, initial=np.inf)     # lo, then -hi
+        edge = np.flatnonzero(c_edge)
+        if len(edge):
+            boxes = np.take(self.c_box_bounds, edge, axis=1).reshape(6, -1)          # (6, edge boxes)
+            box_limit = np.where(crossing[:, edge], limit, np.inf)                  # (planes, edge clusters)
+            hit = ~((lowest @ boxes).reshape(len(n), -1, k) > box_limit[:, :, None]).any(axis=0)
             selected[edge] = hit
-            bounds = np.concatenate([bounds, np.where(hit, self.c_box_bounds[:, edge], np.inf).reshape(6, -1)], axis=1)
+            least = np.minimum(least, boxes.compress(hit.ravel(), axis=1).min(axis=1, initial=np.inf))
         selected = selected.ravel()[: self.count]
         if not selected.any():
             return Selection(self, selected, None)
-        least = bounds.min(axis=1)
         return Selection(self, selected, np.array([least[:3], -least[3:]]))
 
 
