@@ -229,9 +229,13 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
         raise EmptyBodyError("the view frustum does not meet the receivers" + (" inside the spot cone" if len(ln) else ""))
 
     # hull(R ∪ light) ∩ L, and the casters meeting it.
-    light_h = light.homogeneous_position.copy()
-    if light_h[3] != 0:
-        light_h[:3] -= origin
+    # The light in homogeneous coordinates relative to the origin, as plain floats (w = 0 for a sun:
+    # the direction towards it, as ``Light.homogeneous_position``).
+    if light.is_directional:
+        x, y, z = light.direction.tolist()
+        light_h = (-x, -y, -z, 0.0)
+    else:
+        light_h = (*(light.position - origin).tolist(), 1.0)
     # hull(R ∪ light) ⊂ L already (L is a convex cone with its apex at the light and R ⊂ L),
     # so L's planes would only repeat what the hull says.
     hull = light_hull(visible, light_h, tol)
@@ -249,7 +253,8 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
     try:
         cap = None
         if light_h[3] == 0:
-            exit_face = int(np.argmax(_BOX_NORMALS @ light_h[:3]))
+            rate = [-light_h[0], -light_h[1], -light_h[2], *light_h[:3]]      # along _BOX_NORMALS
+            exit_face = rate.index(max(rate))
             cap = (_BOX_NORMALS_LIST[exit_face], box_o[exit_face])
         body = brep.clip(hull.brep(cap), _BOX_NORMALS_LIST, box_o, tol)
         body = None if body is None else ConvexPolytope.from_brep(body, tol)

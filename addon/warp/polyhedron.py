@@ -392,10 +392,9 @@ class ConvexPolytope:
     def from_brep(cls, b: Brep, tol: float) -> "ConvexPolytope":
         """The polytope of a boundary representation (:mod:`.brep`)."""
         verts = np.array(b.vertices, dtype=np.float64).reshape(-1, 3)
-        flat = [v for loop in b.loops for v in loop]
-        owner = [f for f, loop in enumerate(b.loops) for _ in loop]
-        inc = np.zeros((len(verts), len(b.loops)), dtype=bool)
-        inc[flat, owner] = True
+        m = len(b.loops)
+        inc = np.zeros((len(verts), m), dtype=bool)
+        inc.ravel()[[v * m + f for f, loop in enumerate(b.loops) for v in loop]] = True     # (vertex, facet)
         return cls(verts + 0.0, np.array(b.normals, dtype=np.float64).reshape(-1, 3),
                    np.array(b.offsets, dtype=np.float64), inc, tol, tuple(map(tuple, b.loops)))
 
