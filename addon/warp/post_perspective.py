@@ -110,64 +110,93 @@ NEAREST_BOX_BATCH = 8
 """Receiver boxes measured against V ∩ L at once (vectorised), in order of their lower bound."""
 
 
-def _lowest_on_segments(base, rate, num, den) -> np.ndarray:
-    """Segments x(λ) = a + λ d, λ ∈ [0, 1], clipped by half-spaces n·x <= o
-    (Cyrus-Beck), given ``num`` = o - n·a and ``den`` = n·d (H, S, K) and the
-    objective along them, ``base`` = k·a and ``rate`` = k·d (S, K): per column
-    K, the least k·x over the clipped parts of the S segments (inf when nothing
-    is left). A linear k is least at one end of a segment."""
-    # A half-space parallel to the segment (den = 0) keeps all of it (num >= 0: ratio +inf)
-    # or none of it (-inf); a nearly parallel one overflows to the same limits, and a
-    # segment left empty (enter > leave, possibly an inf·0 value) is masked below.
-    with np.errstate(over="ignore", invalid="ignore"):
-        ratio = np.divide(num, den, out=np.where(num >= 0, np.inf, -np.inf), where=den != 0)
-        enter = np.where(den < 0, ratio, -np.inf).max(axis=0, initial=0.0)
-        leave = np.where(den >= 0, ratio, np.inf).min(axis=0, initial=1.0)
-        value = base + np.where(rate >= 0, enter, leave) * rate
-    return np.where(enter <= leave, value, np.inf).min(axis=0)
+_BOX_CORNER_BITS = np.array([[i >> 2 & 1, i >> 1 & 1, i & 1] for i in range(8)], dtype=bool).T[:, :, None]
+"""A box's 8 corners, (3, 8, 1): coordinate c of corner i is hi where bit (2 - c) of i is set, else lo."""
+_BOX_EDGE_FROM = np.array([[i for i in range(8) if not i & bit] for bit in (4, 2, 1)])
+"""A box's 12 edges, (3, 4): the corners the 4 edges along x, y and z start from (towards hi)."""
 
 
-_BOX_EDGE_AXIS = np.repeat(np.eye(3), 4, axis=0)[:, None, :]
-"""The 12 edges of a box: 4 along x, 4 along y, 4 along z ..."""
-_BOX_EDGE_START = np.array([[0, j, k] for j in (0, 1) for k in (0, 1)]
-                           + [[i, 0, k] for i in (0, 1) for k in (0, 1)]
-                           + [[i, j, 0] for i in (0, 1) for j in (0, 1)], dtype=bool)[:, None, :]
-"""... each starting at the corner with hi (True) or lo in every other coordinate."""
+class LowestInBoxes:
+    """min k·x over a convex region ∩ [lo_i, hi_i] for each box i of a batch,
+    inf where they do not meet; the region (``vertices``, facets n·x <= o and
+    their ``loops``) and k (``axis``) are prepared once, the boxes given per
+    call (``__call__(lo, hi)``, (K, 3) corners).
+
+    A linear function is least at a vertex of region ∩ box, and each such
+    vertex (on three of their planes) ends a region edge clipped by the box (a
+    region vertex in the box, or a region edge through a box face) or a box
+    edge clipped by the region (a box corner in the region, or a box edge
+    through a region facet). So clipping both edge sets gives the least value
+    without building the intersection; on each clipped edge k·x is least at
+    the end k rises from.
+
+    * Box edges by the region's facets (Cyrus-Beck): the edge from corner c
+      along axis j, x = c + λ s_j e_j, λ ∈ [0, 1], stays in facet h while
+      λ n_hj s_j <= o_h - n_h·c. The box size s_j is >= 0, so the facets with
+      n_hj < 0 bound λ from below and the others from above, whatever the box.
+      A zero n_hj s_j (an edge parallel to the facet) makes the ratio +inf
+      (keeps the edge) or -inf (drops it) on the side it is counted on, or NaN
+      (0/0: the edge lies in the facet's plane, kept) which fmax and fmin
+      skip; the normals' zeros are made +0 so that such a facet counts as
+      bounding from above with a +0 denominator. A nearly parallel facet
+      overflows to the same ±inf limits.
+    * The region's edges by the box (slabs): x = p - λ (p - q) for the facet
+      loops' consecutive vertices p, q (each edge twice, once per facet, so a
+      vertex splitting an edge within the tolerance loses nothing). In
+      coordinate j, λ lies between (p_j - lo_j) / e_j and (p_j - hi_j) / e_j
+      (e = p - q): the smaller bounds it from below, the larger from above,
+      whatever the sign of e_j. e_j = 0 gives -inf and +inf (inside the slab:
+      no bound), two equal infinities (outside: empty) or, for p on a face,
+      NaN, which minimum and maximum pass on and fmax and fmin skip (the edge
+      lies in the face's plane: kept)."""
+
+    def __init__(self, vertices: np.ndarray, normals: np.ndarray, offsets: np.ndarray, loops, axis: np.ndarray):
+        first = [v for loop in loops for v in loop[-1:] + loop[:-1]]
+        p = vertices[first]
+        e = p - vertices[[v for loop in loops for v in loop]]
+        self._p, self._e = p.T[:, None, :], e.T[:, None, :]             # (3, 1, E)
+        self._p_depth, self._e_depth = p @ axis, e @ axis               # k·x = p·k - λ e·k
+        self._e_falls = self._e_depth <= 0                              # k rises from the entering end
+        n = normals + 0.0                                               # no -0 components
+        self._to_facets_and_axis = np.vstack([n, axis])                 # (m + 1, 3)
+        self._n = n[:, :, None, None]                                   # (m, 3, 1, 1)
+        self._from_below = self._n < 0
+        self._o = offsets[:, None, None, None]
+        self._axis = axis[:, None]
+
+    @classmethod
+    def of(cls, region: ConvexPolytope, axis: np.ndarray) -> "LowestInBoxes":
+        return cls(region.vertices, region.normals, region.offsets, region.facet_loops(), axis)
+
+    def __call__(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        lo, hi = lo.T, hi.T                                             # (3, K)
+        m, count = len(self._o), lo.shape[1]
+        with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+            # Box edges clipped by the region's facets: (m, 3, 4, K). Every facet's n·x and k·x
+            # at the boxes' corners in one product, then read at each edge's first corner.
+            corners = np.where(_BOX_CORNER_BITS, hi[:, None, :], lo[:, None, :]).reshape(3, -1)
+            start = (self._to_facets_and_axis @ corners).reshape(m + 1, 8, count)[:, _BOX_EDGE_FROM]
+            size = hi - lo
+            ratio = (self._o - start[:m]) / (self._n * size[:, None, :])
+            enter = np.fmax.reduce(np.where(self._from_below, ratio, -np.inf), axis=0, initial=0.0)
+            leave = np.fmin.reduce(np.where(self._from_below, np.inf, ratio), axis=0, initial=1.0)
+            rate = (size * self._axis)[:, None, :]
+            value = start[m] + np.where(rate >= 0, enter, leave) * rate
+            box_edges = np.where(enter <= leave, value, np.inf).min(axis=(0, 1))
+            # The region's edges clipped by the boxes' slabs: (3, K, E).
+            to_lo, to_hi = (self._p - lo[:, :, None]) / self._e, (self._p - hi[:, :, None]) / self._e
+            lower, upper = np.minimum(to_lo, to_hi), np.maximum(to_lo, to_hi)
+            enter = np.fmax(np.fmax(lower[0], lower[1]), np.fmax(lower[2], 0.0))
+            leave = np.fmin(np.fmin(upper[0], upper[1]), np.fmin(upper[2], 1.0))
+            value = self._p_depth - np.where(self._e_falls, enter, leave) * self._e_depth
+            region_edges = np.where(enter <= leave, value, np.inf).min(axis=1)
+        return np.minimum(box_edges, region_edges)
 
 
 def lowest_in_boxes(region: ConvexPolytope, lo: np.ndarray, hi: np.ndarray, axis: np.ndarray) -> np.ndarray:
     """min k·x over ``region`` ∩ [lo_i, hi_i] for each box i ((K, 3) corners,
-    k = ``axis``); inf where they do not meet. A linear function is least at a
-    vertex of region ∩ box, and each such vertex (on three of their planes) ends
-    a region edge clipped by the box (a region vertex in the box, or a region
-    edge through a box face) or a box edge clipped by the region (a box corner
-    in the region, or a box edge through a region facet): so clipping both edge
-    sets (``_lowest_on_segments``) gives the least value without building the
-    intersection."""
-    size = hi - lo
-    n, o = region.normals, region.offsets
-    # Box edges clipped by the region's m facets: (m, 12, K).
-    start = np.where(_BOX_EDGE_START, hi, lo)                  # (12, K, 3)
-    step = _BOX_EDGE_AXIS * size
-    box_num, box_den = o[:, None, None] - np.inner(n, start), np.inner(n, step)
-    # Region edges clipped by the box's six faces x <= hi, -x <= -lo: (6, e, K). The edges
-    # are the consecutive vertices of the facet loops (each edge twice, once per facet).
-    loops = region.facet_loops()
-    a = [v for loop in loops for v in loop[-1:] + loop[:-1]]
-    b = [v for loop in loops for v in loop]
-    p, d = region.vertices[a], region.vertices[b] - region.vertices[a]
-    pt, dt = p.T[:, :, None], d.T[:, :, None]                # (3, e, 1)
-    region_num = np.concatenate([hi.T[:, None, :] - pt, pt - lo.T[:, None, :]])
-    region_den = np.broadcast_to(np.concatenate([dt, -dt]), region_num.shape)
-    # Both sets in one pass: the shorter list of half-spaces padded with ones that keep everything.
-    rows = max(len(n), 6)
-    num = np.zeros((rows, 12 + len(a), len(lo)))
-    den = np.zeros_like(num)
-    num[: len(n), :12], den[: len(n), :12] = box_num, box_den
-    num[:6, 12:], den[:6, 12:] = region_num, region_den
-    base = np.concatenate([start @ axis, np.broadcast_to((p @ axis)[:, None], (len(a), len(lo)))])
-    rate = np.concatenate([step @ axis, np.broadcast_to((d @ axis)[:, None], (len(a), len(lo)))])
-    return _lowest_on_segments(base, rate, num, den)
+    k = ``axis``); inf where they do not meet (``LowestInBoxes``)."""
+    return LowestInBoxes.of(region, axis)(lo, hi)
 
 
 def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
@@ -176,7 +205,7 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     plane "as far as possible"). A depth readback given as
     ``options.visible_depth_range`` wins; otherwise the minimum over the
     receiver boxes meeting V ∩ L of the nearest point of V ∩ L ∩ box
-    (``lowest_in_boxes``), visiting the culling index's clusters and then
+    (``LowestInBoxes``), visiting the culling index's clusters and then
     their boxes by a lower bound (the nearest corner of their bounds) and
     stopping when none can be nearer, so only the boxes near the camera are
     touched. Always in [view.near, true nearest visible depth]."""
@@ -202,11 +231,7 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     clusters = clusters[order]
     c_lower = c_lower[clusters].tolist()
     boxes_before = np.cumsum(boxes_in[clusters]).tolist()  # boxes in the first i + 1 clusters
-    # V ∩ L ∩ box = R ∩ box for every receiver box (R = V ∩ S_r ∩ L, each box inside S_r).
-    region = body.visible_polytope
-    if region is None or not np.array_equal(body.origin, origin):
-        ln, lo = light_halfspaces(light, origin)
-        region = ConvexPolytope.from_corners(view.corners() - origin, body.tolerance).clip(ln, lo)      # V ∩ L
+    lowest = None                                  # R's edges and facets, prepared for the first batch
     # Boxes are drawn from the clusters into a pool in the order of their bounds, and
     # examined NEAREST_BOX_BATCH at a time, nearest bound first (the batch is the
     # nearest of all boxes not yet examined), until no pending box (in the pool or in
@@ -243,11 +268,10 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
             break
         order = np.argsort(pool_lower, kind="stable")
         batch, keep = order[:NEAREST_BOX_BATCH], order[NEAREST_BOX_BATCH:]
-        if region is None:
-            depths = [math.inf] * len(batch)
-        else:
-            depths = lowest_in_boxes(region, pool_bounds[:3, batch].T - origin, -pool_bounds[3:, batch].T - origin,
-                                     axis).tolist()
+        bounds = pool_bounds[:, batch]
+        if lowest is None:
+            lowest = _lowest_in_visible_region(view, light, body, axis)
+        depths = lowest(bounds[:3].T - origin, -bounds[3:].T - origin).tolist()
         for bound, depth in zip(pool_lower[batch].tolist(), depths):
             if bound >= best:
                 break
@@ -259,6 +283,22 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     if not math.isfinite(best):
         return coarse
     return max(best, coarse)
+
+
+def _lowest_in_visible_region(view: View, light: Light, body: IntersectionBody, axis: np.ndarray):
+    """``LowestInBoxes`` over V ∩ L, camera-relative (all inf when it is empty).
+    V ∩ L ∩ box = R ∩ box for every receiver box (R = V ∩ S_r ∩ L, each box
+    inside S_r), so R's boundary serves when B has kept it."""
+    origin = view.position
+    b = body.visible_boundary
+    if b is not None and np.array_equal(body.origin, origin):
+        return LowestInBoxes(np.array(b.vertices, dtype=np.float64).reshape(-1, 3), np.array(b.normals, dtype=np.float64),
+                             np.array(b.offsets, dtype=np.float64), b.loops, axis)
+    ln, lo = light_halfspaces(light, origin)
+    region = ConvexPolytope.from_corners(view.corners() - origin, body.tolerance).clip(ln, lo)
+    if region is None:
+        return lambda lo, hi: np.full(len(lo), np.inf)
+    return LowestInBoxes.of(region, axis)
 
 
 def virtual_camera(view: View, body: IntersectionBody, visible_near: float | None = None) -> VirtualCamera:
@@ -282,6 +322,10 @@ def virtual_camera(view: View, body: IntersectionBody, visible_near: float | Non
     raw[3, 3] = shift                    # w = depth + shift = virtual eye depth
     return VirtualCamera(fit_to_unit_cube(raw, rel), shift, near, float(depth.max()) + shift, d_r)
 
+
+OPTIMALITY_GAP = 1e-14
+"""Wolfe's stopping test: x is taken as the hull's point nearest the origin when
+x·x - min_p p·x <= this times the largest |p|² (0 exactly at the optimum)."""
 
 AFFINE_DEPENDENCE = 1e-14
 """Relative size of a pivot (or of the 2x2 determinant) below which Wolfe's
@@ -376,7 +420,7 @@ def min_norm_point(points, max_iter: int = 200) -> np.ndarray:
     for _ in range(max_iter):
         dots = p @ x
         j = int(np.argmin(dots))
-        if _dot(x, x) - float(dots[j]) <= 1e-14 * scale or j in support:
+        if _dot(x, x) - float(dots[j]) <= OPTIMALITY_GAP * scale or j in support:
             break
         support.append(j)
         weights.append(0.0)
@@ -403,13 +447,47 @@ def smallest_cone(directions) -> tuple[np.ndarray, float]:
     """Axis k and margin min_i k·d_i of the narrowest cone around the unit
     ``directions``: k maximises min_i k·d_i, which by minimax duality is the
     direction of the hull's point nearest the origin, and the margin is that
-    point's norm (0 when the directions surround the origin)."""
-    x = min_norm_point(directions)
+    point's norm (0 when the directions surround the origin).
+
+    Most cones are spanned by two directions (``two_point_cone_centre``); the
+    hull's nearest point is then found with one Gram product, and Wolfe's
+    iteration (``min_norm_point``) runs only when that test fails."""
+    d = np.asarray(directions, dtype=np.float64)
+    x = two_point_cone_centre(d)
+    if x is None:
+        x = min_norm_point(d)
     norm = math.sqrt(x @ x)
     if norm <= 1e-15:
         return np.array([0.0, 0.0, 1.0]), 0.0
     k = x / norm
-    return k, float((np.asarray(directions) @ k).min())
+    return k, float((d @ k).min())
+
+
+def two_point_cone_centre(directions: np.ndarray) -> np.ndarray | None:
+    """The hull's point nearest the origin when the narrowest cone around the
+    unit ``directions`` is spanned by two of them, else None.
+
+    Wolfe's optimality condition: a point x of the hull is the nearest to the
+    origin iff p·x >= x·x for every point p. (If so, every hull point y has
+    y·x >= x·x, and |y|² = |x|² + 2 x·(y - x) + |y - x|² >= |x|²; conversely,
+    a p with p·x < x·x gives nearer points on the segment from x to p.)
+    A two-point cone of half-angle θ has the midpoint x = (d_i + d_j) / 2 of
+    its two spanning directions as that point (the nearest point of the
+    segment between two unit vectors is its midpoint), d_i and d_j lie 2θ
+    apart, and no two directions lie further apart than 2θ (both are within
+    θ of the axis). So the candidate is the midpoint of a most distant pair,
+    the least entry of the Gram matrix G = D Dᵀ, and the test needs only
+    p·x = (G_pi + G_pj) / 2, with x·x = (x·d_i + x·d_j) / 2. The test allows
+    the gap Wolfe's own stopping test allows (``OPTIMALITY_GAP``), so it
+    accepts exactly the points ``min_norm_point`` would stop at; a cone that
+    needs three directions fails it (a third direction lies outside the
+    pair's cone: p·x < x·x)."""
+    gram = directions @ directions.T
+    i, j = divmod(int(gram.argmin()), len(directions))
+    dots = (gram[i] + gram[j]) / 2                      # p·x for every direction p
+    if (float(dots[i]) + float(dots[j])) / 2 - float(dots.min()) > OPTIMALITY_GAP:
+        return None
+    return (directions[i] + directions[j]) / 2
 
 
 @dataclass(frozen=True)
