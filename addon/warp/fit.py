@@ -46,16 +46,22 @@ def window_matrices(lo: list, hi: list) -> np.ndarray:
 
 def _window_entries(lo: list, hi: list) -> list:
     """``window_matrix`` for a box given as float lists: its 16 entries, row by row
-    (a scale on the diagonal and an offset in the last column for each axis)."""
-    ext = [max(b - a, 0.0) for a, b in zip(lo, hi)]
-    least = max(ext) * 1e-6
-    entries = [0.0] * 15 + [1.0]
-    for i in range(3):
-        pad = NDC_PAD * max(ext[i], least) + 1e-300
-        a, b = lo[i] - pad, hi[i] + pad
-        entries[5 * i] = 2.0 / (b - a)
-        entries[4 * i + 3] = -(b + a) / (b - a)
-    return entries
+    (a scale on the diagonal and an offset in the last column for each axis).
+    Each axis is padded by ``NDC_PAD`` of its extent, or of a millionth of the
+    box's largest extent if that is more (a flat box still gets a window)."""
+    (x0, y0, z0), (x1, y1, z1) = lo, hi
+    least = max(x1 - x0, y1 - y0, z1 - z0, 0.0) * 1e-6
+    sx, ox = _axis_window(x0, x1, least)
+    sy, oy = _axis_window(y0, y1, least)
+    sz, oz = _axis_window(z0, z1, least)
+    return [sx, 0.0, 0.0, ox, 0.0, sy, 0.0, oy, 0.0, 0.0, sz, oz, 0.0, 0.0, 0.0, 1.0]
+
+
+def _axis_window(a: float, b: float, least: float) -> tuple[float, float]:
+    """The scale and offset taking [a, b], padded, onto [-1, 1]."""
+    pad = NDC_PAD * max(b - a, least) + 1e-300
+    a, b = a - pad, b + pad
+    return 2.0 / (b - a), -(b + a) / (b - a)
 
 
 def fit_to_unit_cube(transform, points) -> np.ndarray:
