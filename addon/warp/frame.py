@@ -184,30 +184,32 @@ def perspective_frame(apex, axis, up_hint, points, role, scale) -> LightFrame:
     view = look_along(apex, axis, up_hint)
     depth = (points - apex) @ -view[2, :3]                   # along the axis (the eye looks down -z)
     near, far, clamped = near_far(float(depth.min()), float(depth.max()), 1e-6 * scale)
-    return LightFrame(perspective_of(view, near, far), points, role, False, bool(clamped))
+    return LightFrame(perspective_of(view, near, far), points, role, False, clamped)
 
 
-def near_far(nearest, farthest, floor):
-    """A perspective frame's (near, far, clamped) from its points' depth range
-    (floats or arrays): near is the nearest depth, clamped to ``floor`` (the
-    light inside B), and far stays a little beyond near so the depth range
-    never collapses."""
-    near = np.maximum(nearest, floor)
-    return near, np.maximum(farthest, near * (1 + 1e-9) + floor), nearest < floor
+def near_far(nearest: float, farthest: float, floor: float) -> tuple[float, float, bool]:
+    """A perspective frame's (near, far, clamped) from its points' depth range:
+    near is the nearest depth, clamped to ``floor`` (the light inside B), and
+    far stays a little beyond near so the depth range never collapses."""
+    near = max(nearest, floor)
+    return near, max(farthest, near * (1 + 1e-9) + floor), nearest < floor
 
 
-def perspective_of(view: np.ndarray, near, far) -> np.ndarray:
+def depth_row(near: float, far: float) -> tuple[float, float]:
+    """(A, B) of the OpenGL perspective's depth: z_gl = A z + B and w = -z, with
+    A = -(f + n)/(f - n), B = -2fn/(f - n) (unit image plane)."""
+    return -(far + near) / (far - near), -2 * far * near / (far - near)
+
+
+def perspective_of(view: np.ndarray, near: float, far: float) -> np.ndarray:
     """``proj @ view`` for the OpenGL perspective with the given near and far
     (unit image plane), written out row by row: x, y pass through, z_gl =
-    A z + B and w = -z with A = -(f + n)/(f - n), B = -2fn/(f - n). Works on a
-    stack of views (..., 4, 4) with matching arrays of near and far."""
-    near, far = np.asarray(near, dtype=np.float64), np.asarray(far, dtype=np.float64)
-    a = -(far + near) / (far - near)
-    b = -2 * far * near / (far - near)
+    A z + B and w = -z (``depth_row``)."""
+    a, b = depth_row(near, far)
     m = view.copy()
-    m[..., 2, :] = a[..., None] * view[..., 2, :]
-    m[..., 2, 3] += b
-    m[..., 3, :] = -view[..., 2, :]
+    m[2] = a * view[2]
+    m[2, 3] += b
+    m[3] = -view[2]
     return m
 
 
@@ -234,48 +236,47 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
     changes), at ``2 * light_cone(B)[1] == max_frustum_angle``."""
     apex = light.position
     axis, half = light_cone(body.vertices, apex)
-    inside = bool(body.contains(apex[None])[0])
     up = image_up(view.direction, view.up, axis)
-    if not np.any(up):
+    if not up.any():
         up = perpendicular(axis)
-    if not inside and 2 * half <= options.max_frustum_angle:
+    if 2 * half <= options.max_frustum_angle and not body.contains(apex[None])[0]:     # (not inside B)
         return [perspective_frame(apex, axis, up, body.vertices, "main", body.scale)]
     basis = cube_basis(axis.tolist(), up.tolist())
     poly = body.polytope_from(apex)
     near_floor = 1e-6 * body.scale
     pts, member = cube_sections(poly, poly.edges()[0], basis)
-    # The faces B reaches, each with its run of candidates (face by face) and its eye rotation.
+    # The faces B reaches, each with its run of candidates (face by face) and its depths along the face's axis.
     counts = member.sum(axis=0).tolist()
     faces = [f for f in range(6) if counts[f]]
     ends = list(itertools.accumulate(counts[f] for f in faces))
-    face_of, candidate = np.nonzero(member.T)
+    starts = [e - counts[f] for f, e in zip(faces, ends)]
+    _, candidate = np.nonzero(member.T)
     rel = pts[candidate]                                     # relative to the apex
     turns = _FACE_TURNS @ basis                              # (6, 3, 3): rows x, y, -forward
-    depth = -(rel * turns[face_of, 2]).sum(axis=1)          # along each face's forward
-    starts = [e - counts[f] for f, e in zip(faces, ends)]
-    nearest, farthest = np.minimum.reduceat(depth, starts), np.maximum.reduceat(depth, starts)
-    clamped = (nearest < near_floor).tolist()
+    depth = -(pts @ turns[:, 2].T).T[member.T]               # along each face's forward
+    nearest, farthest = np.minimum.reduceat(depth, starts).tolist(), np.maximum.reduceat(depth, starts).tolist()
     world = rel + apex
-    points = []
-    for i, (f, s, e) in enumerate(zip(faces, starts, ends)):
-        if not clamped[i]:
-            points.append(world[s:e])
-            continue
-        # B reaches the light inside this face: the whole face from the near floor on.
-        forward = -turns[f, 2]
-        others = np.delete(basis, CUBE_FACES[f][1], axis=0)
-        corners = near_floor * (forward + _FACE_CORNERS @ others)
-        face_pts = np.concatenate([rel[s:e][depth[s:e] >= near_floor], corners])
-        nearest[i], farthest[i] = near_floor, (face_pts @ forward).max()
-        points.append(face_pts + apex)
-    views = np.zeros((len(faces), 4, 4))                     # every face's view, proj @ view at once
-    views[:, :3, :3] = turns[faces]
-    views[:, :3, 3] = -views[:, :3, :3] @ apex
-    views[:, 3, 3] = 1.0
-    near, far, _ = near_far(nearest, farthest, near_floor)
-    to_light = perspective_of(views, near, far)
-    return [LightFrame(m, p, "cube" + CUBE_FACES[f][0], False, c)
-            for f, m, p, c in zip(faces, to_light, points, clamped)]
+    apex_list = apex.tolist()
+    frames, entries = [], []
+    for f, s, e, n, fa in zip(faces, starts, ends, nearest, farthest):
+        points, clamped = world[s:e], n < near_floor
+        if clamped:
+            # B reaches the light inside this face: the whole face from the near floor on.
+            forward = -turns[f, 2]
+            others = np.delete(basis, CUBE_FACES[f][1], axis=0)
+            corners = near_floor * (forward + _FACE_CORNERS @ others)
+            face_pts = np.concatenate([rel[s:e][depth[s:e] >= near_floor], corners])
+            fa = float((face_pts @ forward).max())
+            points = face_pts + apex
+        # The face's view (rows x, y, -forward through the apex) and perspective, entry by entry.
+        near, far, _ = near_far(n, fa, near_floor)
+        a, b = depth_row(near, far)
+        x, y, z = turns[f].tolist()
+        tx, ty, tz = (-dot3(r, apex_list) for r in (x, y, z))
+        entries += x + [tx] + y + [ty] + [a * c for c in z] + [a * tz + b] + [-c for c in z] + [-tz]
+        frames.append((f, points, clamped))
+    to_light = np.array(entries).reshape(-1, 4, 4)
+    return [LightFrame(m, p, "cube" + CUBE_FACES[f][0], False, c) for m, (f, p, c) in zip(to_light, frames)]
 
 
 def cube_basis(axis, up) -> np.ndarray:
@@ -317,10 +318,15 @@ class Pyramids:
     corners: np.ndarray    # (r, k) bool
     uses: np.ndarray = field(init=False)
     """(m, k): whether plane p is one of pyramid j's sides."""
+    separate: bool = field(init=False)
+    """Pyramid j has planes 4j .. 4j + 3 with signs +1 (nothing shared): its
+    sides' distances are a reshape of the planes'."""
 
     def __post_init__(self):
         uses = (self.sides[None] == np.arange(self.sides.max() + 1)[:, None, None]).any(axis=2)
         object.__setattr__(self, "uses", uses)
+        object.__setattr__(self, "separate", bool(np.array_equal(self.sides.ravel(), np.arange(self.sides.size))
+                                                  and (self.signs == 1.0).all()))
         for a in (self.sides, self.signs, self.corners, uses):
             a.flags.writeable = False
 
@@ -396,13 +402,15 @@ def pyramid_sections(poly, edges: np.ndarray, planes: np.ndarray, rays: np.ndarr
     # Each candidate belongs to the pyramids that hold it among those it was made for: a vertex
     # to all, a crossing to those with its plane as a side, a ray's ends to those it bounds.
     dist = pts @ planes.T                                    # (n, m)
-    side = dist[:, pyramids.sides] * pyramids.signs          # (n, k, 4) to each pyramid's sides, outward
     k = len(pyramids.sides)
+    if pyramids.separate:                                    # (n, k, 4) to each pyramid's sides, outward
+        side = dist.reshape(len(pts), k, 4)
+    else:
+        side = dist[:, pyramids.sides] * pyramids.signs
     on_ray = pyramids.corners & hit[:, None]
-    made_for = np.concatenate([np.ones((len(v), k), dtype=bool), pyramids.uses[p], on_ray, on_ray,
-                               np.full((1, k), apex)])
-    outside = (side[:len(v)] >= -tol).all(axis=0).any(axis=1)           # (k,): P wholly outside one side
-    return pts, (side.max(axis=2) <= tol) & made_for & ~outside, dist
+    made_for = np.concatenate([np.ones((len(v), k), dtype=bool), pyramids.uses[p], on_ray, on_ray, [[apex] * k]])
+    outside = np.logical_and.reduce(side[:len(v)] >= -tol, axis=0).any(axis=1)   # (k,): P wholly outside one side
+    return pts, (np.maximum.reduce(side, axis=2) <= tol) & made_for & ~outside, dist
 
 
 _ORIGIN = np.zeros((1, 3))
@@ -413,11 +421,13 @@ def ray_interval(poly, rays) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     polytope: (t_lo, t_hi, hit) with n . (t r) <= o for every facet on [t_lo, t_hi]."""
     denom = poly.normals @ rays.T                            # (F, R)
     o = poly.offsets[:, None]
-    ratio = np.divide(o, denom, out=np.zeros_like(denom), where=denom != 0)
-    t_hi = np.where(denom > 0, ratio, np.inf).min(axis=0)
-    t_lo = np.where(denom < 0, ratio, 0.0).max(axis=0)      # (and t >= 0)
-    blocked = ((denom == 0) & (o < 0)).any(axis=0)           # parallel to a facet, outside it
-    return t_lo, t_hi, (t_lo <= t_hi) & np.isfinite(t_hi) & ~blocked
+    ratio = np.divide(o, denom, out=None, where=denom != 0)           # (left unset where denom = 0, never read)
+    t_hi = np.minimum.reduce(ratio, axis=0, where=denom > 0, initial=np.inf)
+    t_lo = np.maximum.reduce(ratio, axis=0, where=denom < 0, initial=0.0)   # (and t >= 0)
+    hit = (t_lo <= t_hi) & np.isfinite(t_hi)
+    if not denom.all():                                      # parallel to a facet and outside it: no hit
+        hit &= ~((denom == 0) & (o < 0)).any(axis=0)
+    return t_lo, t_hi, hit
 
 
 def pyramid_section_points(poly, edges: np.ndarray, forward, others) -> np.ndarray | None:
