@@ -273,12 +273,12 @@ def light_at_eye(view: View, light: Light, options: WarpOptions, body: Intersect
     return at, ""
 
 
-def frame_axes(at: LightAtEye, frame: LightFrame, eye_h, box, options: WarpOptions):
+def frame_axes(at: LightAtEye, frame: LightFrame, eye_h, vector_h, box, options: WarpOptions):
     """A frame's warp axes in its light space, in plain floats: (V_P as a unit
     2-vector, the eye in light space, the fade), or (None, reason) when the warp
     is undefined. ``eye_h``: the eye's homogeneous image under the frame;
+    ``vector_h``: the frame's linear part applied to ``at.vector`` (4 floats);
     ``box``: the (min, max) corners of a point light frame's points in its light space."""
-    t = frame.to_light
     ex, ey, ez, ew = eye_h
     if not frame.directional and not ew > 1e-12 * at.dist:
         return None, "the eye is behind this frame's light plane: no warp in its post-perspective space"
@@ -286,11 +286,11 @@ def frame_axes(at: LightAtEye, frame: LightFrame, eye_h, box, options: WarpOptio
     if frame.directional:
         eye_ls = (ex / ew, ey / ew, ez / ew)
         if options.middle_vector:
-            a = _blend((t[:2, :3] @ at.vector).tolist(), at.s)
+            a = _blend(vector_h[:2], at.s)
         else:
             a = (0.0, 1.0)                   # the frame's +y is Eq. 3's V_P (blended near parallel)
     else:
-        vx, vy, _, vw = (t[:, :3] @ at.vector).tolist()
+        vx, vy, _, vw = vector_h
         v = ((vx * ew - ex * vw) / ew ** 2, (vy * ew - ey * vw) / ew ** 2)   # image of the vector at the eye
         (xlo, ylo, zlo), (xhi, yhi, zhi) = box
         cx, cy = (xlo + xhi) / 2, (ylo + yhi) / 2
@@ -337,16 +337,19 @@ def frame_geometry(at: LightAtEye, frame: LightFrame, axes, h_range, world_range
 
 def warp_matrix(g: FrameGeometry, mu: float) -> np.ndarray:
     """P acting on the frame's homogeneous output [X, Y, Z, W] (module docs)."""
+    return np.array(_warp_entries(g, mu)).reshape(4, 4)
+
+
+def _warp_entries(g: FrameGeometry, mu: float) -> list:
+    """``warp_matrix``'s 16 entries, row by row (floats)."""
     (a0, a1), (b0, b1), (ex, ey, ez) = g.a, g.b, g.eye
     inv_d = 1.0 / g.extent if g.extent > 0 else 0.0
     q_e = ex * b0 + ey * b1
     dx, dy, dw = a0 * inv_d, a1 * inv_d, -g.h_min * inv_d          # δ = (h - h_min) / D
-    return np.array([
-        [b0, b1, 0.0, -q_e],
-        [dx, dy, 0.0, dw],
-        [0.0, 0.0, 1.0, -ez],
-        [mu * dx, mu * dy, 0.0, mu * dw + 1.0],
-    ])
+    return [b0, b1, 0.0, -q_e,
+            dx, dy, 0.0, dw,
+            0.0, 0.0, 1.0, -ez,
+            mu * dx, mu * dy, 0.0, mu * dw + 1.0]
 
 
 def linear_depth_row(frame: LightFrame, points=None) -> np.ndarray:
@@ -434,14 +437,16 @@ def frame_warps(frames: list, view: View, at: Optional[LightAtEye], reason: str,
     boxes = itertools.repeat(None)                      # a sun's frame does not look at its box
     if not frames[0].directional:
         boxes = zip(np.minimum.reduceat(pts, starts).tolist(), np.maximum.reduceat(pts, starts).tolist())
-    eyes = (to_light[:, :, :3] @ view.position + to_light[:, :, 3]).tolist()
+    # The eye's homogeneous image under every frame, and the image of the vector V_P is made from.
+    probes = np.array([view.position.tolist() + [1.0], (at.vector if at is not None else view.direction).tolist() + [0.0]])
+    images = (to_light @ probes.T).transpose(0, 2, 1).tolist()            # (k, 2, 4)
     warps, axes = [], []
-    for frame, eye_h, box in zip(frames, eyes, boxes):
+    for frame, (eye_h, vector_h), box in zip(frames, images, boxes):
         w = FrameWarp(frame, [])
         if frame.near_clamped:
             w.notes.append((f"{frame.role}: near plane",
                             "the light is inside B; points nearer than 1e-6 of the scene scale are not covered"))
-        ax, why = frame_axes(at, frame, eye_h, box, options) if at is not None else (None, reason)
+        ax, why = frame_axes(at, frame, eye_h, vector_h, box, options) if at is not None else (None, reason)
         if ax is None:
             w.notes.append((f"{frame.role}: uniform", why))
         warps.append(w)
@@ -454,10 +459,10 @@ def frame_warps(frames: list, view: View, at: Optional[LightAtEye], reason: str,
     if at is not None and at.v_p is not None and not frames[0].directional:
         along = points_h[:, :3] @ at.v_p
         world_ranges = zip(np.minimum.reduceat(along, starts).tolist(), np.maximum.reduceat(along, starts).tolist())
-    warp_matrices = []
+    warp_entries = []
     for w, ax, h_range, world_range in zip(warps, axes, h_ranges, world_ranges):
         if ax is None:
-            warp_matrices.append(_IDENTITY)                 # the frame's uniform map
+            warp_entries += _IDENTITY_ENTRIES                       # the frame's uniform map
             continue
         geo = frame_geometry(at, w.frame, ax, h_range, world_range, body)
         role = w.frame.role
@@ -472,15 +477,16 @@ def frame_warps(frames: list, view: View, at: Optional[LightAtEye], reason: str,
             w.notes.append((f"{role}: uniform limit", "light parallel to the view direction (γ = 0): "
                                                      "n_opt = ∞, the warp is the uniform map"))
         w.geo, w.lam, w.p_n, w.lam_frame, w.mu = geo, lam, p_n, lam_frame, mu
-        warp_matrices.append(warp_matrix(geo, mu))
+        warp_entries += _warp_entries(geo, mu)
     # The unit-cube fit of every map on its frame's light-space points.
-    fitted = fit_runs(np.array(warp_matrices), ph, starts, run) @ to_light
+    fitted = fit_runs(np.array(warp_entries).reshape(-1, 4, 4), ph, starts, run) @ to_light
     for w, m in zip(warps, fitted):
         w.matrix = m
     return warps
 
 
-_IDENTITY = np.eye(4)
+_IDENTITY_ENTRIES = np.eye(4).ravel().tolist()
+"""The identity's 16 entries (a frame whose map stays uniform)."""
 
 
 def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: IntersectionBody,
@@ -560,10 +566,8 @@ def ray_closed(matrices, body: IntersectionBody, light_position) -> list:
     # The window's sides x = ±w, y = ±w, as outward normals x - w, -x - w, y - w, -y - w.
     sides = _WINDOW_SIDES @ rows                                 # (k, 4, 3)
     sides /= np.sqrt((sides * sides).sum(axis=2))[..., None]
-    # Its corner rays: where x = ∓w meets y = ∓w, on the side where w > 0.
-    px, py = _CORNER_X @ rows, _CORNER_Y @ rows
-    rays = px[..., _YZX] * py[..., _ZXY] - px[..., _ZXY] * py[..., _YZX]
-    rays *= np.sign((rays * rows[:, None, 3]).sum(axis=2))[..., None]
+    # Its corner rays: the directions the map sends to (x, y, w) = (±1, ±1, 1), so w > 0 on them.
+    rays = (np.linalg.inv(rows[:, _XYW]) @ _WINDOW_CORNERS).transpose(0, 2, 1)
     poly = body.polytope_from(light_position)
     pts, member, _ = pyramid_sections(poly, poly.edges()[0], sides.reshape(-1, 3), rays.reshape(-1, 3),
                                       separate_pyramids(len(m)))
@@ -576,12 +580,14 @@ def ray_closed(matrices, body: IntersectionBody, light_position) -> list:
     starts = [e - c for e, c in zip(ends, counts) if c]         # the runs of the maps whose window meets B
     if not starts:
         return [(matrix, "", None) for matrix in m]
-    w = h[:, 3]
-    reaches = np.minimum.reduceat(w, starts) <= 1e-9 * np.maximum.reduceat(np.abs(w), starts)   # w = 0 on B ∩ window
-    ndc = h[:, :3] / np.where(w > 0, w, 1.0)[:, None]           # (w > 0 throughout where it does not reach)
+    # Each map's NDC box over its run, and the least and greatest w (in the last column: w = 0 reaches the light).
+    ndc = h / np.where(h[:, 3] > 0, h[:, 3], 1.0)[:, None]      # (w > 0 throughout where it does not reach)
+    ndc[:, 3] = h[:, 3]
     lo, hi = np.minimum.reduceat(ndc, starts).tolist(), np.maximum.reduceat(ndc, starts).tolist()
+    reaches = [a[3] <= 1e-9 * max(b[3], -a[3]) for a, b in zip(lo, hi)]
+    lo, hi = [a[:3] for a in lo], [b[:3] for b in hi]
     refitted = window_matrices(lo, hi) @ m[[i for i, c in enumerate(counts) if c]]   # (used where the depth widens)
-    fits = zip(reaches.tolist(), lo, hi, refitted)
+    fits = zip(reaches, lo, hi, refitted)
     out = []
     for i, (count, end) in enumerate(zip(counts, ends)):
         if not count:
@@ -599,9 +605,9 @@ def ray_closed(matrices, body: IntersectionBody, light_position) -> list:
 
 _WINDOW_SIDES = np.array([[1.0, 0.0, 0.0, -1.0], [-1.0, 0.0, 0.0, -1.0], [0.0, 1.0, 0.0, -1.0], [0.0, -1.0, 0.0, -1.0]])
 """The window's sides x - w, -x - w, y - w, -y - w as combinations of a map's rows x, y, z, w."""
-_CORNER_X = np.array([[1.0, 0.0, 0.0, -1.0]] * 2 + [[1.0, 0.0, 0.0, 1.0]] * 2)
-_CORNER_Y = np.array([[0.0, 1.0, 0.0, -1.0], [0.0, 1.0, 0.0, 1.0]] * 2)
-"""The window's corner rays meet x ∓ w = 0 (``_CORNER_X``) with y ∓ w = 0 (``_CORNER_Y``): (-, -), (-, +), (+, -), (+, +)."""
+_XYW = [0, 1, 3]
+_WINDOW_CORNERS = np.array([[-1.0, -1.0, 1.0, 1.0], [-1.0, 1.0, -1.0, 1.0], [1.0, 1.0, 1.0, 1.0]])
+"""The window's 4 corners (columns) in a map's (x, y, w): its corner rays are the directions sent there."""
 
 
 def projection_centre(frame: LightFrame, g: FrameGeometry, lam: float) -> Optional[np.ndarray]:
