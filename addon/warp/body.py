@@ -192,7 +192,7 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
     corners = view.corners() - origin
     view_size = math.dist(corners[0], corners[7])
     try:
-        frustum = brep.hexahedron(corners)
+        frustum = brep.hexahedron(corners.tolist())         # (plain floats: float() on numpy scalars is slow)
     except OpenCut as why:
         log.debug("view frustum by vertex enumeration: %s", why)
         frustum = ConvexPolytope.from_corners(corners, RELATIVE_TOLERANCE * view_size).brep()

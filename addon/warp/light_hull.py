@@ -36,17 +36,20 @@ def cone_halfspaces(apex, axis, full_angle) -> tuple[np.ndarray, np.ndarray]:
     ux, uy, uz = ay * ez - az * ey, az * ex - ax * ez, ax * ey - ay * ex
     length = math.sqrt(ux * ux + uy * uy + uz * uz)
     ux, uy, uz = ux / length, uy / length, uz / length
-    v = (ay * uz - az * uy, az * ux - ax * uz, ax * uy - ay * ux)
+    vx, vy, vz = ay * uz - az * uy, az * ux - ax * uz, ax * uy - ay * ux
     # Tangent planes of a regular pyramid circumscribing the cone: the cone's
     # half-angle widened so the cone fits inside the polygon (secant of pi/k).
+    # Side i's normal is cos(widened) (cos θ_i u + sin θ_i v) - sin(widened) a
+    # (unit: the radial part ⊥ the axis), all sides in one product.
     widened = math.atan(math.tan(full_angle / 2) / math.cos(math.pi / CONE_SIDES))
-    radial = _CONE_COS[:, None] * np.array([ux, uy, uz]) + _CONE_SIN[:, None] * np.array(v)
-    n = math.cos(widened) * radial - math.sin(widened) * np.array([ax, ay, az])     # unit: radial ⊥ axis
+    c, s = math.cos(widened), math.sin(widened)
+    n = _CONE_ROWS @ np.array([[c * ux, c * uy, c * uz], [c * vx, c * vy, c * vz], [-s * ax, -s * ay, -s * az]])
     return n, n @ np.asarray(apex, dtype=np.float64)
 
 
 _CONE_ANGLES = 2 * math.pi * np.arange(CONE_SIDES) / CONE_SIDES
-_CONE_COS, _CONE_SIN = np.cos(_CONE_ANGLES), np.sin(_CONE_ANGLES)
+_CONE_ROWS = np.stack([np.cos(_CONE_ANGLES), np.sin(_CONE_ANGLES), np.ones(CONE_SIDES)], axis=1)
+"""(cos θ_i, sin θ_i, 1) per side of the pyramid."""
 
 
 def light_halfspaces(light: Light, origin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
