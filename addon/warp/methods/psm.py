@@ -68,7 +68,7 @@ from ..fit import fit_to_unit_cube
 from ..frame import light_angles
 from ..geometry import clip_volume_corners_h, homogeneous, translation
 from ..post_perspective import nearest_visible_depth, pps_light_matrix, virtual_camera
-from ..types import Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpOptions
+from ..types import Deferred, Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpOptions
 from .uniform import uniform
 
 COVER_TOLERANCE = 1e-6
@@ -89,9 +89,10 @@ def _uniform_fallback(view: View, light: Light, body: IntersectionBody, options:
     return ShadowSetup(base.maps, diag)
 
 
-def _clip_corners(matrix: np.ndarray):
-    """World corners of the clip volume (UNIT_CUBE_CORNERS order), or None when
-    the volume reaches infinity (a corner's preimage has w <= 0)."""
+def _clip_corners(matrix: np.ndarray, origin: np.ndarray):
+    """World corners of the clip volume of the camera-relative ``matrix``
+    (UNIT_CUBE_CORNERS order), or None when the volume reaches infinity (a
+    corner's preimage has w <= 0)."""
     try:
         h = clip_volume_corners_h(matrix)
     except np.linalg.LinAlgError:
@@ -99,7 +100,7 @@ def _clip_corners(matrix: np.ndarray):
     w = h[:, 3]
     if not np.all(np.isfinite(h)) or np.any(w <= 1e-12 * np.abs(h[:, :3]).max(axis=1)):
         return None
-    return h[:, :3] / w[:, None]
+    return h[:, :3] / w[:, None] + origin
 
 
 def covers(matrix: np.ndarray, points: np.ndarray, tol: float = COVER_TOLERANCE) -> bool:
@@ -159,8 +160,7 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
     if not (np.all(np.isfinite(matrix)) and covers(relative, rel)):
         return _uniform_fallback(view, light, body, options, diag, "PSM matrix",
                                  "the composed PSM matrix is not finite or does not cover B (numerically degenerate)")
-    corners = _clip_corners(relative)
-    diag.warp_frustum_corners = None if corners is None else corners + origin
+    diag.warp_frustum_corners = Deferred(lambda: _clip_corners(relative, origin))      # reporting only
     diag.extra["psm_applied"] = True
     diag.extra["frames"] = ["main"]
     return ShadowSetup([ShadowMap(matrix, options.shadow_map_size, "LESS", "main")], diag)
