@@ -223,14 +223,11 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     picked = np.zeros(index.c_bounds.shape[1] * CLUSTER_SIZE, dtype=bool)
     picked[: index.count] = selected
     picked = picked.reshape(-1, CLUSTER_SIZE)
-    boxes_in = picked.sum(axis=1)
-    # The clusters holding picked boxes, nearest bound first, with their bounds and box counts.
+    # The clusters holding picked boxes, nearest bound first, with their bounds.
     c_lower = np.maximum(nearest @ index.c_bounds - shift, coarse)
-    clusters = np.flatnonzero(boxes_in)
-    order = np.argsort(c_lower[clusters], kind="stable")
-    clusters = clusters[order]
+    clusters = np.flatnonzero(picked.any(axis=1))
+    clusters = clusters[np.argsort(c_lower[clusters], kind="stable")]
     c_lower = c_lower[clusters].tolist()
-    boxes_before = np.cumsum(boxes_in[clusters]).tolist()  # boxes in the first i + 1 clusters
     lowest = None                                  # R's edges and facets, prepared for the first batch
     # Boxes are drawn from the clusters into a pool in the order of their bounds, and
     # examined NEAREST_BOX_BATCH at a time, nearest bound first (the batch is the
@@ -254,12 +251,12 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
 
     while True:
         # Open every cluster that may hold one of the next batch's boxes: first enough
-        # for a full batch, then all whose bound is below the batch's farthest box.
+        # for a full batch (each holds at least one box), then all whose bound is below
+        # the batch's farthest box.
         reach = bisect.bisect_left(c_lower, best, opened)               # clusters that can beat best
         missing = NEAREST_BOX_BATCH - len(pool_lower)
         if missing > 0 and opened < reach:
-            wanted = missing + (boxes_before[opened - 1] if opened else 0)
-            open_until(min(bisect.bisect_left(boxes_before, wanted, opened) + 1, reach))
+            open_until(min(opened + missing, reach))
         if len(pool_lower) >= NEAREST_BOX_BATCH and opened < reach:
             kth = float(np.partition(pool_lower, NEAREST_BOX_BATCH - 1)[NEAREST_BOX_BATCH - 1])
             open_until(bisect.bisect_left(c_lower, kth, opened, reach))
@@ -530,8 +527,7 @@ def pps_light_matrix(light_h, points) -> PPSLight:
     half = math.acos(min(1.0, max(-1.0, margin)))
     if margin < MIN_CONE_MARGIN:
         return PPSLight(None, lh, kind, half, k)
-    c = pts.sum(axis=0) / len(pts)                   # the mean of B'
-    centre = c.tolist()
+    centre = (pts.sum(axis=0) / len(pts)).tolist()   # c, the mean of B'
     b = image_up(PPS_VIEW_DIRECTION, PPS_UP, k)
     # (a, b, k) right-handed: the camera's projection already reverses orientation, so
     # the composed world -> light NDC map reverses it once, like frame.FLIP_Z @ look_along
@@ -540,7 +536,8 @@ def pps_light_matrix(light_h, points) -> PPSLight:
     axes = [a.tolist(), cross3(k, a).tolist(), k.tolist()]
     frame = [[*e, -_dot(e, centre)] for e in axes]   # the (a, b, k) frame centred at c
     frame.append([0.0, 0.0, 0.0, 1.0])
-    lam = [_dot(e, (l - wp * c).tolist()) for e in axes]   # L' in that frame, times w'
+    light_from_centre = [li - wp * ci for li, ci in zip(l.tolist(), centre)]
+    lam = [_dot(e, light_from_centre) for e in axes]   # L' in that frame, times w'
     # lam[2] = -k·(w' c - l) < 0: c is a mean of B', every k·(w' p - l) > 0.
     gx, gy, rho = -lam[0] / lam[2], -lam[1] / lam[2], -wp / lam[2]
     # The shear: the x, y and w rows gain γx, γy and ρ times the depth row, so they vanish at L'.
