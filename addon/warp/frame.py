@@ -256,7 +256,7 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
     depth = -(pts @ turns[:, 2].T).T[member.T]               # along each face's forward
     nearest, farthest = np.minimum.reduceat(depth, starts).tolist(), np.maximum.reduceat(depth, starts).tolist()
     world = rel + apex
-    apex_list = apex.tolist()
+    rows, shifts = turns.tolist(), (-(turns @ apex)).tolist()   # each face's view: rotation rows, translation
     frames, entries = [], []
     for f, s, e, n, fa in zip(faces, starts, ends, nearest, farthest):
         points, clamped = world[s:e], n < near_floor
@@ -271,9 +271,8 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
         # The face's view (rows x, y, -forward through the apex) and perspective, entry by entry.
         near, far, _ = near_far(n, fa, near_floor)
         a, b = depth_row(near, far)
-        x, y, z = turns[f].tolist()
-        tx, ty, tz = (-dot3(r, apex_list) for r in (x, y, z))
-        entries += x + [tx] + y + [ty] + [a * c for c in z] + [a * tz + b] + [-c for c in z] + [-tz]
+        (x, y, (z0, z1, z2)), (tx, ty, tz) = rows[f], shifts[f]
+        entries += x + [tx] + y + [ty] + [a * z0, a * z1, a * z2, a * tz + b, -z0, -z1, -z2, -tz]
         frames.append((f, points, clamped))
     to_light = np.array(entries).reshape(-1, 4, 4)
     return [LightFrame(m, p, "cube" + CUBE_FACES[f][0], False, c) for m, (f, p, c) in zip(to_light, frames)]
