@@ -40,7 +40,7 @@ from . import brep
 from .brep import Brep, OpenCut
 from .culling import BoxIndex, Selection
 from .light_hull import light_halfspaces, light_hull
-from .polyhedron import ConvexPolytope, Plane
+from .polyhedron import ConvexPolytope, Plane, float_rows
 from .types import EmptyBodyError, Light, SceneBounds, View
 
 log = logging.getLogger(__name__)
@@ -263,7 +263,7 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
         body = ConvexPolytope.box(-np.array(box_o[:3]), np.array(box_o[3:]), tol).clip(hull.normals, hull.offsets)
     if body is None:
         raise EmptyBodyError("the light-extruded view does not meet the scene")
-    visible_vertices = np.array(visible.vertices, dtype=np.float64)
+    visible_vertices = float_rows(visible.vertices)
     return IntersectionBody(
         vertices=body.vertices + origin,
         faces=LazyFaces(body, origin),

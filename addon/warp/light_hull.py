@@ -15,6 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .brep import Brep, OpenCut, directed_edges
+from .polyhedron import float_rows
 from .types import Light
 
 CONE_SIDES = 16
@@ -225,5 +226,5 @@ def light_hull(b: Brep, light_h, tol: float) -> LightHull:
             nx, ny, nz, length, wf, wg = gx, gy, gz, 1.0, 0.0, 1.0
         normals.append((nx / length, ny / length, nz / length))
         offsets.append((wf * b.offsets[f] + wg * b.offsets[g]) / length)
-    return LightHull(np.array(normals, dtype=np.float64).reshape(-1, 3), np.array(offsets, dtype=np.float64),
+    return LightHull(float_rows(normals), np.array(offsets, dtype=np.float64),
                      b, kept, sides, holding, (x, y, z, w))

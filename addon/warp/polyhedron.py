@@ -57,6 +57,12 @@ def hexahedron_faces(corners) -> list[np.ndarray]:
     return [c[list(q)] for q in quads]
 
 
+def float_rows(rows, width: int = 3) -> np.ndarray:
+    """(n, width) float64 array of n rows of plain floats (e.g. a :class:`~.brep.Brep`'s
+    vertices): np.fromiter over them flat, as np.array on a list of tuples costs ~1.6x more."""
+    return np.fromiter(chain.from_iterable(rows), np.float64, width * len(rows)).reshape(-1, width)
+
+
 def _polygon_on_plane(points: np.ndarray, normal: np.ndarray, tol: float) -> np.ndarray | None:
     """Convex hull (ordered CCW about ``normal``) of points lying on one plane."""
     pts = unique_points(points, tol)
@@ -392,12 +398,13 @@ class ConvexPolytope:
     @classmethod
     def from_brep(cls, b: Brep, tol: float) -> "ConvexPolytope":
         """The polytope of a boundary representation (:mod:`.brep`)."""
-        verts = np.array(b.vertices, dtype=np.float64).reshape(-1, 3)
+        verts = float_rows(b.vertices)
+        verts += 0.0                       # no negative zeros
+        normals = float_rows(b.normals)
         m = len(b.loops)
         inc = np.zeros((len(verts), m), dtype=bool)
         inc.ravel()[[v * m + f for f, loop in enumerate(b.loops) for v in loop]] = True     # (vertex, facet)
-        return cls(verts + 0.0, np.array(b.normals, dtype=np.float64).reshape(-1, 3),
-                   np.array(b.offsets, dtype=np.float64), inc, tol, tuple(map(tuple, b.loops)))
+        return cls(verts, normals, np.array(b.offsets, dtype=np.float64), inc, tol, tuple(map(tuple, b.loops)))
 
     def brep(self) -> Brep:
         """This polytope's boundary as plain lists (:mod:`.brep`)."""
