@@ -208,12 +208,20 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     (``LowestInBoxes``), visiting the culling index's clusters and then
     their boxes by a lower bound (the nearest corner of their bounds) and
     stopping when none can be nearer, so only the boxes near the camera are
-    touched. Always in [view.near, true nearest visible depth]."""
+    touched. Always in [view.near, true nearest visible depth].
+
+    No point of R = V ∩ S_r ∩ L is nearer than its nearest vertex (hence the
+    lower bound ``coarse``, with the near plane), so when a receiver box about
+    to be measured holds that vertex, the answer is ``coarse`` and the search
+    stops without measuring: when the light's cone bounds R nearest the camera
+    inside a building, or the near plane does inside a room's box."""
     if options is not None and options.visible_depth_range is not None:
         return max(float(options.visible_depth_range[0]), view.near)
     origin = view.position
     axis = -view.world_to_camera[2, :3]            # camera-relative world -> eye depth
-    coarse = float(max(((body.visible_vertices - origin) @ axis).min(), view.near))
+    depths = (body.visible_vertices - origin) @ axis
+    nearest_vertex = body.visible_vertices[int(depths.argmin())]
+    coarse = float(max(depths.min(), view.near))
     index, selected = body.receivers.index, body.receivers.selected
     if not selected.any():
         return coarse
@@ -228,6 +236,8 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     clusters = np.flatnonzero(picked.any(axis=1))
     clusters = clusters[np.argsort(c_lower[clusters], kind="stable")]
     c_lower = c_lower[clusters].tolist()
+    # A box holds R's nearest vertex when its bounds (lo, -hi) are all at most these.
+    holding_nearest = np.concatenate([nearest_vertex, -nearest_vertex])[:, None]
     lowest = None                                  # R's edges and facets, prepared for the first batch
     # Boxes are drawn from the clusters into a pool in the order of their bounds, and
     # examined NEAREST_BOX_BATCH at a time, nearest bound first (the batch is the
@@ -266,6 +276,9 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
         order = np.argsort(pool_lower, kind="stable")
         batch, keep = order[:NEAREST_BOX_BATCH], order[NEAREST_BOX_BATCH:]
         bounds = pool_bounds[:, batch]
+        if (bounds <= holding_nearest).all(axis=0).any():
+            best = coarse                          # R's nearest vertex is in a receiver box
+            break
         if lowest is None:
             lowest = _lowest_in_visible_region(view, light, body, axis)
         depths = lowest(bounds[:3].T - origin, -bounds[3:].T - origin).tolist()

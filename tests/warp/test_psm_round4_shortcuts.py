@@ -7,7 +7,10 @@ degenerate configurations:
 * ``LowestInBoxes`` (box edges by facet sign, the region's edges by slabs)
   equals the previous general Cyrus-Beck clipping of both edge sets and the
   least vertex of the region clipped by each box, also for boxes sharing
-  planes with the region, flat boxes and region edges lying in box faces."""
+  planes with the region, flat boxes and region edges lying in box faces;
+* the nearest visible depth stops at R's nearest vertex when a receiver box
+  about to be measured holds it, and still equals the least depth over every
+  receiver box."""
 from __future__ import annotations
 
 import math
@@ -15,8 +18,13 @@ import math
 import numpy as np
 import pytest
 
+import addon.warp.post_perspective as post_perspective
+from addon.warp import EmptyBodyError, SceneBounds, intersection_body
 from addon.warp.polyhedron import ConvexPolytope
-from addon.warp.post_perspective import LowestInBoxes, lowest_in_boxes, min_norm_point, smallest_cone, two_point_cone_centre
+from addon.warp.post_perspective import (LowestInBoxes, lowest_in_boxes, min_norm_point, nearest_visible_depth,
+                                          smallest_cone, two_point_cone_centre)
+from bench.warp_speed import city_scene, street_view
+from hard_cases import camera, spot, sun
 
 
 # ----------------------------------------------------------------------------- the two-point cone
@@ -224,3 +232,71 @@ def test_lowest_in_boxes_on_a_face_of_the_region():
     corner_depth = [float(np.maximum(a, 0.0) @ axis) for a in lo]   # the nearest point: the clamped lower corner
     assert got == pytest.approx(corner_depth, abs=1e-12)
     assert np.allclose(got, _lowest_by_cyrus_beck(region, lo, hi, axis), atol=1e-12)
+
+
+# ----------------------------------------------------------------------------- the nearest visible depth
+
+def _least_over_every_box(view, body):
+    """The nearest visible depth by brute force, and whether R's nearest vertex lies in a receiver box."""
+    origin, axis = view.position, -view.world_to_camera[2, :3]
+    boxes = body.receiver_boxes
+    depths = (body.visible_vertices - origin) @ axis
+    coarse = max(float(depths.min()), view.near)
+    least = float(lowest_in_boxes(body.visible_polytope, boxes[:, 0] - origin, boxes[:, 1] - origin, axis).min())
+    vertex = body.visible_vertices[int(depths.argmin())]
+    held = bool(np.any(np.all((boxes[:, 0] <= vertex) & (vertex <= boxes[:, 1]), axis=1)))
+    return (max(least, coarse) if math.isfinite(least) else coarse), coarse, held
+
+
+def _measured_boxes(monkeypatch):
+    """Counts the boxes LowestInBoxes measures."""
+    measured = []
+    call = LowestInBoxes.__call__
+
+    def counting(self, lo, hi):
+        measured.append(len(lo))
+        return call(self, lo, hi)
+
+    monkeypatch.setattr(post_perspective.LowestInBoxes, "__call__", counting)
+    return measured
+
+
+def test_nearest_visible_depth_stops_at_the_nearest_vertex_of_r_in_a_receiver_box(monkeypatch):
+    """Spot lights over the bench's city, moved about the bench's spot: the depth
+    is the least over every receiver box, and R's nearest vertex when a receiver
+    box holds it, found without measuring any box."""
+    measured = _measured_boxes(monkeypatch)
+    scene = city_scene(10000)
+    rng = np.random.default_rng(5)
+    stopped = checked = 0
+    for _ in range(40):
+        view = street_view()
+        light = spot(np.array([-70.0, -70.0, 40.0]) + rng.normal(size=3) * [20, 20, 10],
+                     np.array([1.0, 1.0, -0.7]) + rng.normal(size=3) * 0.2, math.radians(rng.uniform(30, 90)))
+        try:
+            body = intersection_body(view, light, scene)
+        except EmptyBodyError:
+            continue
+        expected, coarse, vertex_held = _least_over_every_box(view, body)
+        measured.clear()
+        assert nearest_visible_depth(view, light, body) == pytest.approx(expected, rel=1e-12, abs=1e-12)
+        if vertex_held:
+            assert expected == pytest.approx(coarse, rel=1e-12, abs=1e-12)
+            stopped += measured == []          # (a box holding it may wait behind a batch of ties)
+        checked += 1
+    assert checked >= 30 and stopped >= 3
+
+
+def test_nearest_visible_depth_in_a_room_measures_nothing(monkeypatch):
+    """A camera inside a receiver box (a room) sees it first at the near plane."""
+    measured = _measured_boxes(monkeypatch)
+    room = np.array([[[-5.0, -5.0, 0.0], [5.0, 5.0, 3.0]], [[-40.0, -40.0, -0.1], [40.0, 40.0, 0.0]],
+                     [[1.0, 2.0, 0.0], [2.0, 3.0, 1.0]]])
+    view = camera((0.0, -3.0, 1.5), (0.0, 5.0, 1.0), near=0.05, far=30.0)
+    light = sun([0.3, 0.2, -1.0])
+    body = intersection_body(view, light, SceneBounds.from_boxes(room))
+    expected, coarse, vertex_held = _least_over_every_box(view, body)
+    assert vertex_held and expected == pytest.approx(view.near)
+    measured.clear()
+    assert nearest_visible_depth(view, light, body) == pytest.approx(expected, rel=1e-12)
+    assert measured == []
