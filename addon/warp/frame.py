@@ -195,7 +195,7 @@ def near_far(nearest: float, farthest: float, floor: float) -> tuple[float, floa
     return near, max(farthest, near * (1 + 1e-9) + floor), nearest < floor
 
 
-def depth_row(near: float, far: float) -> tuple[float, float]:
+def depth_coefficients(near: float, far: float) -> tuple[float, float]:
     """(A, B) of the OpenGL perspective's depth: z_gl = A z + B and w = -z, with
     A = -(f + n)/(f - n), B = -2fn/(f - n) (unit image plane)."""
     return -(far + near) / (far - near), -2 * far * near / (far - near)
@@ -204,8 +204,8 @@ def depth_row(near: float, far: float) -> tuple[float, float]:
 def perspective_of(view: np.ndarray, near: float, far: float) -> np.ndarray:
     """``proj @ view`` for the OpenGL perspective with the given near and far
     (unit image plane), written out row by row: x, y pass through, z_gl =
-    A z + B and w = -z (``depth_row``)."""
-    a, b = depth_row(near, far)
+    A z + B and w = -z (``depth_coefficients``)."""
+    a, b = depth_coefficients(near, far)
     m = view.copy()
     m[2] = a * view[2]
     m[2, 3] += b
@@ -270,7 +270,7 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
             points = face_pts + apex
         # The face's view (rows x, y, -forward through the apex) and perspective, entry by entry.
         near, far, _ = near_far(n, fa, near_floor)
-        a, b = depth_row(near, far)
+        a, b = depth_coefficients(near, far)
         (x, y, (z0, z1, z2)), (tx, ty, tz) = rows[f], shifts[f]
         entries += x + [tx] + y + [ty] + [a * z0, a * z1, a * z2, a * tz + b, -z0, -z1, -z2, -tz]
         frames.append((f, points, clamped))
