@@ -503,15 +503,18 @@ def two_point_cone_centre(directions: np.ndarray) -> np.ndarray | None:
 @dataclass(frozen=True)
 class PPSLight:
     """The light's frustum in PPS. ``matrix``: PPS -> light clip before the
-    unit-cube fit (None if no single frustum covers B'); ``light``: L' = (l, w')
-    normalised to unit length; ``kind``: "point", "inverted" or "directional";
-    ``cone_half_angle``: radians; ``axis``: k."""
+    unit-cube fit (None if no single frustum covers B', or if the cone is wider
+    than the caller allowed); ``light``: L' = (l, w') normalised to unit length;
+    ``kind``: "point", "inverted" or "directional"; ``cone_half_angle``:
+    radians; ``axis``: k; ``single_frustum``: whether a frustum from L' can hold
+    B' (its cone is narrower than 180°)."""
 
     matrix: np.ndarray | None
     light: np.ndarray
     kind: str
     cone_half_angle: float
     axis: np.ndarray
+    single_frustum: bool = True
 
     @property
     def position(self) -> np.ndarray | None:
@@ -521,9 +524,11 @@ class PPSLight:
         return self.light[:3] / self.light[3]
 
 
-def pps_light_matrix(light_h, points) -> PPSLight:
+def pps_light_matrix(light_h, points, max_half_angle: float = math.inf) -> PPSLight:
     """The light frustum from the homogeneous PPS light ``light_h`` over the
-    PPS points ``points`` (B'), see the module docstring."""
+    PPS points ``points`` (B'), see the module docstring; its matrix is not
+    built when the cone's half-angle exceeds ``max_half_angle`` (the caller
+    hands over to another map)."""
     lh = np.asarray(light_h, dtype=np.float64)
     lh = lh / math.sqrt(lh @ lh)
     l, wp = lh[:3], float(lh[3])
@@ -535,11 +540,11 @@ def pps_light_matrix(light_h, points) -> PPSLight:
     rays = wp * pts - l
     lengths = np.sqrt(np.einsum("ij,ij->i", rays, rays))
     if lengths.min() <= 1e-12 * max(float(lengths.max()), 1e-300):
-        return PPSLight(None, lh, kind, math.pi, np.array([0.0, 0.0, 1.0]))
+        return PPSLight(None, lh, kind, math.pi, np.array([0.0, 0.0, 1.0]), False)
     k, margin = smallest_cone(rays / lengths[:, None])
     half = math.acos(min(1.0, max(-1.0, margin)))
-    if margin < MIN_CONE_MARGIN:
-        return PPSLight(None, lh, kind, half, k)
+    if margin < MIN_CONE_MARGIN or half > max_half_angle:
+        return PPSLight(None, lh, kind, half, k, margin >= MIN_CONE_MARGIN)
     centre = (pts.sum(axis=0) / len(pts)).tolist()   # c, the mean of B'
     b = image_up(PPS_VIEW_DIRECTION, PPS_UP, k)
     # (a, b, k) right-handed: the camera's projection already reverses orientation, so

@@ -131,7 +131,9 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
         light_h[:3] -= origin
     pps_points = homogeneous(rel) @ cam.to_pps.T
     pps_points = pps_points[:, :3] / pps_points[:, 3:4]
-    pl = pps_light_matrix(cam.to_pps @ light_h, pps_points)
+    # A point or spot light's frustum wider than options.max_frustum_angle is not built: hand over.
+    pl = pps_light_matrix(cam.to_pps @ light_h, pps_points,
+                          math.inf if light.is_directional else options.max_frustum_angle / 2)
 
     diag.extra.update({
         "pps_light": pl.light,
@@ -145,12 +147,12 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
         "visible_near": cam.visible_near,
         "pps_cone_half_angle_deg": math.degrees(pl.cone_half_angle),
     })
-    if pl.matrix is None:
+    if not pl.single_frustum:
         return _uniform_fallback(view, light, body, options, diag, "PPS light frustum",
                                  f"light '{light.name}' touches B in post-perspective space "
                                  f"(cone half-angle {math.degrees(pl.cone_half_angle):.4f} deg): no single frustum")
 
-    if not light.is_directional and 2 * pl.cone_half_angle > options.max_frustum_angle:
+    if pl.matrix is None:
         return _uniform_fallback(view, light, body, options, diag, "PPS light frustum",
                                  f"light '{light.name}' needs a {math.degrees(2 * pl.cone_half_angle):.0f} deg frustum "
                                  f"in post-perspective space (max {math.degrees(options.max_frustum_angle):.0f}); "
