@@ -221,7 +221,7 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     axis = -view.world_to_camera[2, :3]            # camera-relative world -> eye depth
     depths = (body.visible_vertices - origin) @ axis
     nearest_vertex = body.visible_vertices[int(depths.argmin())]
-    coarse = float(max(depths.min(), view.near))
+    coarse = max(float(depths.min()), view.near)
     index, selected = body.receivers.index, body.receivers.selected
     if not selected.any():
         return coarse
@@ -489,9 +489,10 @@ def two_point_cone_centre(directions: np.ndarray) -> np.ndarray | None:
     the least entry of the Gram matrix G = D Dᵀ, and the test needs only
     p·x = (G_pi + G_pj) / 2, with x·x = (x·d_i + x·d_j) / 2. The test allows
     the gap Wolfe's own stopping test allows (``OPTIMALITY_GAP``), so it
-    accepts exactly the points ``min_norm_point`` would stop at; a cone that
-    needs three directions fails it (a third direction lies outside the
-    pair's cone: p·x < x·x)."""
+    accepts exactly the points ``min_norm_point`` would stop at. When the
+    cone needs three directions the midpoint is not the nearest point and
+    fails the test (by more than the gap, unless a third direction lies on
+    the pair's cone to within it)."""
     gram = directions @ directions.T
     i, j = divmod(int(gram.argmin()), len(directions))
     dots = (gram[i] + gram[j]) / 2                      # p·x for every direction p
@@ -554,7 +555,7 @@ def pps_light_matrix(light_h, points, max_half_angle: float = math.inf) -> PPSLi
     axes = [a.tolist(), cross3(k, a).tolist(), k.tolist()]
     frame = [[*e, -_dot(e, centre)] for e in axes]   # the (a, b, k) frame centred at c
     frame.append([0.0, 0.0, 0.0, 1.0])
-    light_from_centre = [li - wp * ci for li, ci in zip(l.tolist(), centre)]
+    light_from_centre = [li - wp * ci for li, ci in zip(l.tolist(), centre)]   # l - w' c
     lam = [_dot(e, light_from_centre) for e in axes]   # L' in that frame, times w'
     # lam[2] = -k·(w' c - l) < 0: c is a mean of B', every k·(w' p - l) > 0.
     gx, gy, rho = -lam[0] / lam[2], -lam[1] / lam[2], -wp / lam[2]
