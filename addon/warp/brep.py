@@ -116,10 +116,10 @@ def cut(b: Brep, normal, offset: float, tol: float) -> Brep | None:
     cap = [start]
     nxt = cap_next[start]
     while nxt != start:
-        if len(cap) > len(cap_next):
+        if nxt is None or len(cap) > len(cap_next):       # (None: a facet loop left open upstream)
             raise OpenCut("the cap's edges do not close into one loop")
         cap.append(nxt)
-        nxt = cap_next[nxt]
+        nxt = cap_next.get(nxt)
     if len(cap) != len(cap_next):
         raise OpenCut("the cap's edges form more than one loop")
     normals.append(tuple(normal))

@@ -267,3 +267,23 @@ def test_facets_holding_the_light_grow_over_their_sides(light_h):
     target = light_h[:3] / light_h[3] if light_h[3] else v + 5.0 * light_h[:3]
     along = (v + np.linspace(0.0, 1.0, 7)[:, None, None] * (target - v)).reshape(-1, 3)
     assert np.all(along @ hull.normals.T - hull.offsets <= 1e-9)
+
+
+def test_a_cut_through_a_facet_loop_left_open_says_so():
+    """A loop that skips a vertex (as a degenerate enumeration can leave one)
+    breaks the cap's chain: the cut says OpenCut, so the caller falls back to
+    vertex enumeration, instead of failing with a lookup error."""
+    cube = brep.hexahedron([[x, y, z] for z in (0.0, 1.0) for y in (0.0, 1.0) for x in (0.0, 1.0)])
+    found = 0
+    for f in range(6):
+        for skip in range(4):
+            loops = [list(loop) for loop in cube.loops]
+            del loops[f][skip]
+            broken = brep.Brep(cube.vertices, cube.normals, cube.offsets, loops)
+            for axis in range(3):
+                normal = [1.0 if k == axis else 0.0 for k in range(3)]
+                try:
+                    brep.cut(broken, normal, 0.5, TOL)
+                except brep.OpenCut:
+                    found += 1
+    assert found > 0
