@@ -69,7 +69,7 @@ from ..frame import light_angles
 from ..geometry import clip_volume_corners_h, homogeneous, translation
 from ..post_perspective import nearest_visible_depth, pps_light_matrix, virtual_camera
 from ..types import Deferred, Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpOptions
-from .uniform import uniform
+from .uniform import near_plane_notes, uniform_maps
 
 COVER_TOLERANCE = 1e-6
 """Final check: every B vertex has |NDC| <= 1 + this (the fit pads by 1e-7)."""
@@ -82,11 +82,11 @@ def _light_axis(view: View, light: Light, body: IntersectionBody) -> np.ndarray:
 def _uniform_fallback(view: View, light: Light, body: IntersectionBody, options: WarpOptions,
                       diag: Diagnostics, what: str, reason: str) -> ShadowSetup:
     diag.fallback(what, reason)
-    base = uniform(view, light, body, options)
-    diag.fallbacks.extend(base.diagnostics.fallbacks)
-    diag.extra["frames"] = base.diagnostics.extra.get("frames")
+    maps, frames = uniform_maps(view, light, body, options)
+    diag.fallbacks.extend(near_plane_notes(frames))
+    diag.extra["frames"] = [f.role for f in frames]
     diag.extra["psm_applied"] = False
-    return ShadowSetup(base.maps, diag)
+    return ShadowSetup(maps, diag)
 
 
 def _clip_corners(matrix: np.ndarray, origin: np.ndarray):

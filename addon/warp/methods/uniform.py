@@ -59,8 +59,10 @@ def frame_map(frame: LightFrame, options: WarpOptions, snap: bool = False) -> Sh
     return ShadowMap(matrix, options.shadow_map_size, "LESS", frame.role)
 
 
-def uniform(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
-    diag = Diagnostics("uniform", body_vertices=body.vertices)
+def uniform_maps(view: View, light: Light, body: IntersectionBody,
+                 options: WarpOptions) -> tuple[list[ShadowMap], list[LightFrame]]:
+    """The uniform maps and the light frames they are fitted in (without the
+    diagnostics: PSM hands over to these maps and reports on its own)."""
     if options.texel_snapping and light.is_directional:
         frames = [world_sun_frame(light, body)]      # a texel grid fixed in the world
     else:
@@ -68,16 +70,24 @@ def uniform(view: View, light: Light, body: IntersectionBody, options: WarpOptio
     if len(frames) > 1:                              # a point light's cube faces: fitted all at once
         to_light = np.array([f.to_light for f in frames])
         fitted = fit_runs(to_light, *point_runs([f.points for f in frames]))
-        maps = [ShadowMap(m, options.shadow_map_size, "LESS", f.role) for m, f in zip(fitted, frames)]
-    else:
-        maps = [frame_map(frames[0], options, options.texel_snapping)]
+        return [ShadowMap(m, options.shadow_map_size, "LESS", f.role) for m, f in zip(fitted, frames)], frames
+    return [frame_map(frames[0], options, options.texel_snapping)], frames
+
+
+def near_plane_notes(frames: list[LightFrame]) -> list[tuple[str, str]]:
+    """The fallbacks to record for frames whose near plane was clamped (the light inside B)."""
+    return [(f"{f.role}: near plane", "the light is inside B; points nearer than 1e-6 of the scene scale are not covered")
+            for f in frames if f.near_clamped]
+
+
+def uniform(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
+    maps, frames = uniform_maps(view, light, body, options)
+    diag = Diagnostics("uniform", body_vertices=body.vertices)
     if light.is_directional:
         diag.theta, diag.gamma = light_angles(view, light.direction)
     else:
         axis = body.centroid - light.position
         diag.theta, diag.gamma = light_angles(view, axis)
-    for f in frames:
-        if f.near_clamped:
-            diag.fallback(f"{f.role}: near plane", "the light is inside B; points nearer than 1e-6 of the scene scale are not covered")
+    diag.fallbacks.extend(near_plane_notes(frames))
     diag.extra["frames"] = [f.role for f in frames]
     return ShadowSetup(maps, diag)
