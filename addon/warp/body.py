@@ -144,7 +144,8 @@ class IntersectionBody:
 
     @property
     def centroid(self) -> np.ndarray:
-        return self.vertices.mean(axis=0)
+        """The mean of B's vertices (the axis a point light's angles are measured along)."""
+        return self._memo("_centroid", lambda: self.vertices.sum(axis=0) / len(self.vertices))
 
     def contains(self, points, tol: float | None = None) -> np.ndarray:
         """Which (N, 3) world points lie in B (within ``tol``, default 10x the tolerance)."""
