@@ -119,8 +119,10 @@ class View:
         return _frozen(transform_points(inv, UNIT_CUBE_CORNERS))
 
     def eye_depth(self, points) -> np.ndarray:
-        """Distance along the view direction (positive in front) of (N, 3) points."""
-        return -transform_h(self.world_to_camera, points)[:, 2]
+        """Distance along the view direction (positive in front) of (N, 3) points:
+        minus the camera-space z (the third row of ``world_to_camera``)."""
+        row = self.world_to_camera[2]
+        return -(np.asarray(points, dtype=np.float64).reshape(-1, 3) @ row[:3] + row[3])
 
 
 LIGHT_TYPES = ("SUN", "POINT", "SPOT")
