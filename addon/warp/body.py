@@ -184,6 +184,20 @@ def _box_offsets(box, pad: float) -> list[float]:
     return [pad - c for c in box[0]] + [c + pad for c in box[1]]
 
 
+def _clip_to_box(b: Brep, box_o: list[float], tol: float) -> Brep | None:
+    """``b`` ∩ the box whose facets -x, -y, -z, +x, +y, +z (``_BOX_NORMALS``)
+    have the offsets ``box_o``, as ``brep.clip`` by its six planes gives it,
+    cutting only by the facets ``b`` reaches beyond: a box facet's greatest
+    distance over ``b``'s vertices is that of their bounding box, exactly the
+    test ``brep.cut`` starts with (-x - o and x - o, the other terms zero), and
+    a facet ``b`` does not reach beyond cuts nothing after the others either
+    (their cuts' new vertices lie on ``b``'s edges)."""
+    axes = list(zip(*b.vertices))
+    reach = [-min(c) for c in axes] + [max(c) for c in axes]
+    cuts = [i for i in range(6) if reach[i] - box_o[i] > tol]
+    return brep.clip(b, [_BOX_NORMALS_LIST[i] for i in cuts], [box_o[i] for i in cuts], tol)
+
+
 def intersection_body(view: View, light: Light, scene: SceneBounds) -> IntersectionBody:
     """B for this view, light and scene (Scherzer §4.1). Raises EmptyBodyError
     (with the reason) when nothing visible can receive a shadow."""
@@ -257,7 +271,7 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
             rate = [-light_h[0], -light_h[1], -light_h[2], *light_h[:3]]      # along _BOX_NORMALS
             exit_face = rate.index(max(rate))
             cap = (_BOX_NORMALS_LIST[exit_face], box_o[exit_face])
-        body = brep.clip(hull.brep(cap), _BOX_NORMALS_LIST, box_o, tol)
+        body = _clip_to_box(hull.brep(cap), box_o, tol)
         body = None if body is None else ConvexPolytope.from_brep(body, tol)
     except OpenCut as why:
         log.debug("B by vertex enumeration: %s", why)

@@ -158,15 +158,18 @@ def test_hard_case_body_contains_what_the_view_needs(name):
 @pytest.mark.parametrize("name", ["sun_behind_camera", "spot_over_scene", "point_light_inside_view", "theta_equals_phi"])
 def test_when_the_face_walk_gives_up_vertex_enumeration_builds_the_same_body(name, monkeypatch):
     """Every face-loop cut refusing (brep.OpenCut, as on a cut too degenerate
-    to order) sends B through vertex enumeration: the same body, still holding
-    what the view needs."""
+    to order), and the light hull's loops too (B may need no cut after it),
+    sends B through vertex enumeration: the same body, still holding what the
+    view needs."""
     from addon.warp import brep
+    from addon.warp.light_hull import LightHull
     view, light, scene = HARD_CASES[name]
     walked = intersection_body(view, light, scene)
 
     def refuse(*args, **kwargs):
         raise brep.OpenCut("refused for the test")
     monkeypatch.setattr(brep, "cut", refuse)
+    monkeypatch.setattr(LightHull, "brep", refuse)
     enumerated = intersection_body(view, light, scene)
     assert enumerated.polytope.loops is None         # built by enumeration: no face loops yet
     tol = 10 * walked.tolerance
