@@ -140,10 +140,14 @@ def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
     the rank is below 15 (relative singular value under RANK_TOL) or when a
     correspondence is not met to RESIDUAL_TOL. Returns (M, {"condition",
     "residual"})."""
-    src = np.asarray(src, dtype=np.float64).reshape(5, 4)
     dst = np.asarray(dst, dtype=np.float64).reshape(5, 4)
-    # Correspondence i, j != m: y_m (M x_i)_j - y_j (M x_i)_m = 0, over M's 16 entries row by row: the
-    # coefficient of M's row r (y_m for r = j, -y_j for r = m, else 0) times x_i.
+    return _solve_five_points(src, dst, _dlt_coefficients(dst))
+
+
+def _dlt_coefficients(dst: np.ndarray) -> np.ndarray:
+    """(15, 4): for the equations of ``five_point_matrix`` (three per target Y,
+    j != m), the coefficient of each row of M in y_m (M x)_j - y_j (M x)_m:
+    y_m for row j, -y_j for row m, else 0."""
     coefficients = []
     for y in dst.tolist():
         size = [abs(c) for c in y]
@@ -152,8 +156,16 @@ def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
             row = [0.0] * 4
             row[j], row[big] = y[big], -y[j]
             coefficients.append(row)
-    a = (np.array(coefficients)[:, :, None] * np.repeat(src, 3, axis=0)[:, None, :]).reshape(15, 16)
-    if not np.all(np.isfinite(a)):
+    return np.array(coefficients)
+
+
+def _solve_five_points(src, dst: np.ndarray, coefficients: np.ndarray) -> tuple[np.ndarray, dict]:
+    """``five_point_matrix`` with the targets' equation coefficients given
+    (``_dlt_coefficients(dst)``; those of the plane map's fixed targets are made once)."""
+    src = np.asarray(src, dtype=np.float64).reshape(5, 4)
+    # Equation e over M's 16 entries row by row: the coefficient of M's row r times x_i (i = e // 3).
+    a = (coefficients[:, :, None] * src[_EQUATION_POINT][:, None, :]).reshape(15, 16)
+    if not np.isfinite(a).all():
         raise WarpError("the five point constraints are not finite")
     _, sv, vt = np.linalg.svd(a)
     condition = float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0
@@ -167,11 +179,22 @@ def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
         if mx_norm <= 1e-12 * m_norm * length(x):
             raise WarpError("the five point constraints are degenerate (the solution maps a constrained point to "
                             "nothing: four of the points are coplanar)")
-        u, v = [c / mx_norm for c in mx], [c / y_norm for c in y]
-        residual = max(residual, min(length([p - q for p, q in zip(u, v)]), length([p + q for p, q in zip(u, v)])))
+        minus = plus = 0.0
+        for p, q in zip(mx, y):
+            p, q = p / mx_norm, q / y_norm
+            minus += (p - q) * (p - q)
+            plus += (p + q) * (p + q)
+        residual = max(residual, math.sqrt(min(minus, plus)))
     if not residual <= RESIDUAL_TOL:
         raise WarpError(f"the five point solve missed its constraints (residual {residual:.3g})")
     return m, {"condition": condition, "residual": residual}
+
+
+_EQUATION_POINT = np.repeat(np.arange(5), 3)
+"""The correspondence each of the 15 equations comes from."""
+
+_FIVE_POINT_COEFFICIENTS = _dlt_coefficients(_FIVE_POINT_TARGETS)
+"""``_dlt_coefficients`` of the plane map's targets (they never change)."""
 
 
 def ray_plane_points(view_clip, plane_vec, ndc_xy) -> np.ndarray:
@@ -234,7 +257,7 @@ def plane_light_matrix(corner_points, light_h, length_scale: float) -> tuple[np.
     src = [_unit_list([x * k, y * k, z * k, w]) for x, y, z, w in points + [np.asarray(light_h, dtype=np.float64).tolist()]]
     # p̂^4: another point of the line through p^4 and l (Fig. 2).
     src[3] = _unit_list([a + b for a, b in zip(src[3], src[4])])
-    m, info = five_point_matrix(src, _FIVE_POINT_TARGETS)
+    m, info = _solve_five_points(src, _FIVE_POINT_TARGETS, _FIVE_POINT_COEFFICIENTS)
     return m * np.array([k, k, k, 1.0]), info
 
 
@@ -306,11 +329,85 @@ def plane_section(vertices, normal, offset: float, tol: float, loops=None) -> Op
 
 def _boundary_section(vertices, loops, normal, offset: float, tol: float) -> Optional[np.ndarray]:
     """``plane_section`` of a convex polyhedron given by its vertices and facet
-    loops: its vertices on P, then where its edges (lower vertex index first,
-    in sorted order) cross P."""
+    loops: its vertices on P and where its edges (lower vertex index first)
+    cross P, in order around the section when the walk below can give it, else
+    their hull (:func:`_section_hull`).
+
+    When no vertex lies within ``tol`` of P, a facet P crosses has two edges
+    crossing it: its loop (counter-clockwise seen from outside) goes up through
+    P on one and down on the other, and the section runs inside the facet from
+    the downward crossing to the upward one (counter-clockwise about
+    ``normal``); the upward edge is the next facet's downward edge. Following
+    the edges so lists the section's vertices in order. The hull of those
+    points (:func:`_section_hull`) keeps every one of them when each turn of
+    the walked polygon exceeds 2·tol·D, D at least its diameter: the smallest
+    triangle on a convex polygon's vertices is one of three consecutive
+    vertices, so the monotone chain then finds no three points within its
+    collinearity tolerance (at most tol x the polygon's extent) and no two
+    within ``tol`` (those would make a triangle of at most tol·D / 2 with any
+    third). Anything else (a vertex on P, a facet crossed other than twice, a
+    walk that does not close, a turn within the tolerance) takes the hull."""
     nx, ny, nz = (float(c) for c in normal)
     v = vertices.tolist() if isinstance(vertices, np.ndarray) else vertices
     h = [nx * x + ny * y + nz * z - offset for x, y, z in v]
+    if min(map(abs, h)) > tol:
+        walked = _walk_section(v, h, loops, nx, ny, nz, tol)
+        if walked is not None:
+            return walked
+    return _section_hull(v, h, loops, normal, tol)
+
+
+def _walk_section(v: list, h: list, loops, nx: float, ny: float, nz: float, tol: float) -> Optional[np.ndarray]:
+    """The walk of ``_boundary_section`` (no vertex within tol of P): the
+    section's vertices in order, or None when the walk cannot vouch for them."""
+    after = {}                          # a facet's downward edge (above -> below) -> its upward edge, reversed
+    for loop in loops:
+        a = loop[-1]
+        down = up = None
+        crossings = 0
+        for b in loop:
+            if (h[a] > 0) != (h[b] > 0):
+                crossings += 1
+                if h[a] > 0:
+                    down = (a, b)
+                else:
+                    up = (b, a)
+            a = b
+        if crossings == 2 and down is not None and up is not None:
+            after[down] = up
+        elif crossings:
+            return None
+    if len(after) < 3:
+        return None
+    edge = start = next(iter(after))
+    pts = []
+    for _ in range(len(after)):
+        a, b = edge if edge[0] < edge[1] else edge[::-1]
+        (ax, ay, az), (bx, by, bz), ha = v[a], v[b], h[a]
+        t = ha / (ha - h[b])
+        pts.append((ax + t * (bx - ax), ay + t * (by - ay), az + t * (bz - az)))
+        edge = after.get(edge)
+        if edge is None or edge == start:
+            break
+    if edge != start or len(pts) != len(after):
+        return None
+    # Every turn above 2·tol·D (D: twice the greatest L1 distance from the first vertex, at least the diameter).
+    x0, y0, z0 = pts[0]
+    limit = 2.0 * tol * max(2.0 * max(abs(x - x0) + abs(y - y0) + abs(z - z0) for x, y, z in pts), tol)
+    (px, py, pz), (qx, qy, qz) = pts[-2], pts[-1]
+    for rx, ry, rz in pts:
+        ax, ay, az, bx, by, bz = qx - px, qy - py, qz - pz, rx - qx, ry - qy, rz - qz
+        if (ay * bz - az * by) * nx + (az * bx - ax * bz) * ny + (ax * by - ay * bx) * nz <= limit:
+            return None
+        px, py, pz, qx, qy, qz = qx, qy, qz, rx, ry, rz
+    return np.array(pts)
+
+
+def _section_hull(v: list, h: list, loops, normal, tol: float) -> Optional[np.ndarray]:
+    """``_boundary_section`` as the hull of its candidates: the vertices
+    within ``tol`` of P and the crossings of the edges (lower vertex index
+    first, in sorted order) whose ends lie beyond ``tol`` on either side."""
+    nx, ny, nz = (float(c) for c in normal)
     pts = [(x - e * nx, y - e * ny, z - e * nz) for (x, y, z), e in zip(v, h) if abs(e) <= tol]
     below = [e < -tol for e in h]
     above = [e > tol for e in h]

@@ -61,7 +61,7 @@ from ..plane_map import (PlaneOfInterest, clip_to_polygon, convex_polygon_on_pla
                          enclosing_polygon, is_convex_polygon, min_area_twist, offset_steps,
                          VIEW_CORNER_RAYS, line_plane_points, plane_light_matrix, plane_section, polygon_area,
                          rotation2d)
-from ..polyhedron import Plane, clip_faces, unique_points
+from ..polyhedron import ConvexPolytope, Plane, clip_faces, unique_points
 from ..types import Diagnostics, Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .uniform import frame_map
 
@@ -234,9 +234,9 @@ def _casters(poly: list, outwards: list, grown: list, n, height, l_h, tol, body,
     C is the cone (a prism for a sun) from the light over the region polygon
     ``grown`` (``poly`` moved out by tol along ``outwards``), grown by
     tol·(1 + tan α) so that the slab points of the region (whose light rays
-    meet P up to tol·tan α away, α = the light's incidence) are on it. For a
-    point light inside B the part within NEAR_FRACTION of the scene scale
-    below the light's height is cut off (returned flag)."""
+    meet P up to tol·tan α away, α = the light's incidence) are on it, and cut
+    at h = -tol. For a point light inside B the part within NEAR_FRACTION of
+    the scene scale below the light's height is cut off (returned flag)."""
     hv, h0 = height[:3], height[3]
     lx, ly, lz, lw = l_h.tolist()
     nx, ny, nz = n.tolist()
@@ -248,24 +248,13 @@ def _casters(poly: list, outwards: list, grown: list, n, height, l_h, tol, body,
         tan = max(tan, across / max(along, 1e-300))
     grow = tol * (2 + min(tan, 1e12))
     corners = [(x + grow * dx, y + grow * dy, z + grow * dz) for (x, y, z), (dx, dy, dz) in zip(poly, outwards)]
-    cx, cy, cz = (sum(c) / len(corners) for c in zip(*corners))
-    # h(x) >= -tol, then the side planes of C: through each edge (a, b) and the light, facing away from the centre.
-    normals, offsets = [(-hv).tolist()], [tol + float(h0)]
-    for (ax, ay, az), (bx, by, bz) in zip(corners, corners[1:] + corners[:1]):
-        ex, ey, ez = bx - ax, by - ay, bz - az
-        tx, ty, tz = lx - ax * lw, ly - ay * lw, lz - az * lw     # from a towards the light (homogeneous)
-        sx, sy, sz = ey * tz - ez * ty, ez * tx - ex * tz, ex * ty - ey * tx
-        length = math.sqrt(sx * sx + sy * sy + sz * sz)
-        if length == 0:                                   # (an edge pointing at the light spans no plane)
-            continue
-        sx, sy, sz = sx / length, sy / length, sz / length
-        offset = sx * ax + sy * ay + sz * az
-        if sx * cx + sy * cy + sz * cz > offset:
-            sx, sy, sz, offset = -sx, -sy, -sz, -offset
-        normals.append((sx, sy, sz))
-        offsets.append(offset)
-    normals, offsets = np.array(normals), np.array(offsets)
-    points = _clip_body(body, origin, normals, offsets)
+    h = height.tolist()
+    normals, offsets = _cone_facets(corners, h, l_h, tol)
+    b_poly = _polytope(body, origin)
+    if b_poly is not None and len(normals) == len(corners) + 1:          # (every side plane made)
+        points = _cone_section(b_poly, normals, offsets, *_cone_edges(corners, h, l_h, tol))
+    else:
+        points = _clip_body(body, origin, np.array(normals), np.array(offsets))
     if points is None:
         return np.zeros((0, 3)), False
     near_clamped = False
@@ -273,19 +262,128 @@ def _casters(poly: list, outwards: list, grown: list, n, height, l_h, tol, body,
         top = float(height @ l_h) / lw - NEAR_FRACTION * body.scale
         if float((points @ hv).max()) + h0 > top:
             near_clamped = True
-            points = _clip_body(body, origin, np.concatenate([normals, hv[None]]), np.append(offsets, top - h0))
+            points = _clip_body(body, origin, np.array(normals + [h[:3]]), np.array(offsets + [top - h0]))
             if points is None:
                 return np.zeros((0, 3)), near_clamped
     return points, near_clamped
+
+
+def _cone_facets(corners: list, height: list, l_h, tol: float) -> tuple[list, list]:
+    """C's facets (see ``_casters``) as unit normals and offsets (normal . x <=
+    offset inside): h(x) >= -tol (h(x) = ``height`` . (x, 1)), then the side
+    planes through each edge (a, b) of ``corners`` and the light, facing away
+    from the corners' centre (an edge pointing at the light spans no plane and
+    has none)."""
+    hx, hy, hz, h0 = height
+    lx, ly, lz, lw = l_h.tolist()
+    cx, cy, cz = (sum(c) / len(corners) for c in zip(*corners))
+    normals, offsets = [(-hx, -hy, -hz)], [tol + h0]
+    for (ax, ay, az), (bx, by, bz) in zip(corners, corners[1:] + corners[:1]):
+        ex, ey, ez = bx - ax, by - ay, bz - az
+        tx, ty, tz = lx - ax * lw, ly - ay * lw, lz - az * lw     # from a towards the light (homogeneous)
+        sx, sy, sz = ey * tz - ez * ty, ez * tx - ex * tz, ex * ty - ey * tx
+        length = math.sqrt(sx * sx + sy * sy + sz * sz)
+        if length == 0:
+            continue
+        sx, sy, sz = sx / length, sy / length, sz / length
+        offset = sx * ax + sy * ay + sz * az
+        if sx * cx + sy * cy + sz * cz > offset:
+            sx, sy, sz, offset = -sx, -sy, -sz, -offset
+        normals.append((sx, sy, sz))
+        offsets.append(offset)
+    return normals, offsets
+
+
+def _cone_edges(corners: list, height: list, l_h, tol: float) -> tuple[list, list, list]:
+    """The edges of C (see ``_casters``) as (starts, steps, ends): edge i is
+    starts[i] + t·steps[i] for 0 <= t <= ends[i]. C's base corners q_i are
+    where the light's rays through ``corners`` (on P: h = 0) reach h = -tol;
+    from each, one edge runs up to the light (t <= 1; a sun's has no end) and
+    one to the next base corner."""
+    hx, hy, hz, h0 = height
+    lx, ly, lz, lw = l_h.tolist()
+    rise = hx * lx + hy * ly + hz * lz             # height . l_h = rise + h0·lw: the light's (homogeneous) height
+    if lw == 0:                     # towards the sun along (lx, ly, lz): h rises by ``rise`` per unit
+        k = tol / rise
+        base = [(x - k * lx, y - k * ly, z - k * lz) for x, y, z in corners]
+        up = [(lx, ly, lz)] * len(base)
+        up_ends = [math.inf] * len(base)
+    else:                           # q = c + (tol / H)(c - light), H the light's height (c on P: h(c) = 0)
+        px, py, pz = lx / lw, ly / lw, lz / lw
+        k = tol / (rise / lw + h0)
+        base = [(x + k * (x - px), y + k * (y - py), z + k * (z - pz)) for x, y, z in corners]
+        up = [(px - x, py - y, pz - z) for x, y, z in base]
+        up_ends = [1.0] * len(base)
+    along = [(bx - ax, by - ay, bz - az) for (ax, ay, az), (bx, by, bz) in zip(base, base[1:] + base[:1])]
+    return base + base, up + along, up_ends + [1.0] * len(base)
+
+
+def _cone_section(poly: ConvexPolytope, normals: list, offsets: list, starts: list, steps: list,
+                  ends: list) -> np.ndarray | None:
+    """Points whose convex hull is poly ∩ C, for a convex C given both by its
+    facets (``normals`` @ x <= ``offsets``, unit normals) and by its edges
+    (starts[i] + t·steps[i], 0 <= t <= ends[i]), or None when a facet of C
+    leaves nothing of poly. ``poly.section`` by C's facets gives the same
+    points, but finds C's edges among every pair of its facets.
+
+    A vertex of poly ∩ C lies on three of their facets: a vertex of poly
+    inside C (on none of C's), where an edge of poly crosses a facet of C (on
+    one; kept when inside C within the tolerance), or on an edge of C (on two
+    or more): it is then an end of that edge's stretch inside poly, since a
+    vertex is not inside any segment of poly ∩ C; so are C's vertices inside
+    poly. An edge of C parallel to a facet of poly (|rate| <= 1e-12 of its
+    length) is outside when it lies beyond the facet by more than the tolerance."""
+    tol, v = poly.tol, poly.vertices
+    c_normals = np.array(normals)
+    c_offsets = np.array(offsets)
+    d = v @ c_normals.T - c_offsets                          # (vertices, C's facets)
+    if (d.min(axis=0) >= -tol).any():
+        return None                                          # poly lies outside one facet of C
+    beyond = d.max(axis=1)
+    if beyond.max() <= tol:
+        return v                                             # poly lies in C
+    pts = [v[beyond <= tol]]
+    # poly's edges crossing C's facets.
+    edges = poly.edges()[0]
+    da, db = d[edges.T]                                      # (e, C's facets) at either end
+    e, p = np.nonzero((np.minimum(da, db) < -tol) & (np.maximum(da, db) > tol))
+    if len(e):
+        da = da[e, p]
+        t = da / (da - db[e, p])
+        a, b = v[edges[e].T]
+        x = a + t[:, None] * (b - a)
+        pts.append(x[(x @ c_normals.T - c_offsets).max(axis=1) <= tol])
+    # C's edges through poly: the stretch of t where poly.normals @ x <= poly.offsets.
+    starts, steps = np.array(starts), np.array(steps)
+    rate = steps @ poly.normals.T                            # (C's edges, poly's facets)
+    room = poly.offsets - starts @ poly.normals.T
+    along = np.abs(rate) > 1e-12 * np.sqrt(np.einsum("ij,ij->i", steps, steps))[:, None]
+    ratio = np.divide(room, rate, out=None, where=along)     # (left unset where parallel, never read)
+    t_hi = np.minimum(np.minimum.reduce(ratio, axis=1, where=along & (rate > 0), initial=np.inf), ends)
+    t_lo = np.maximum.reduce(ratio, axis=1, where=along & (rate < 0), initial=0.0)
+    hit = t_lo <= t_hi
+    if not along.all():
+        hit &= ~(~along & (room < -tol)).any(axis=1)
+    if hit.any():
+        pts.append(starts[hit] + t_lo[hit, None] * steps[hit])
+        pts.append(starts[hit] + t_hi[hit, None] * steps[hit])
+    return np.concatenate(pts)
+
+
+def _polytope(body: IntersectionBody, origin: np.ndarray) -> ConvexPolytope | None:
+    """B's polytope relative to ``origin`` (B's own when the origins agree), or None if B has none."""
+    if getattr(body, "polytope", None) is None:
+        return None
+    return body.polytope if body.origin.tolist() == origin.tolist() else body.polytope_from(origin)
 
 
 def _clip_body(body: IntersectionBody, origin: np.ndarray, normals: np.ndarray,
                offsets: np.ndarray) -> np.ndarray | None:
     """Points (relative to ``origin``) whose convex hull is B ∩ {normals @ x <= offsets}
     (its vertices among them), or None if empty."""
-    if getattr(body, "polytope", None) is not None:
-        same = body.origin.tolist() == origin.tolist()    # (then B's own polytope, its edges found once)
-        return (body.polytope if same else body.polytope_from(origin)).section(normals, offsets)
+    poly = _polytope(body, origin)
+    if poly is not None:
+        return poly.section(normals, offsets)
     faces = [f - origin for f in body.faces]
     for n, o in zip(normals, offsets):
         faces = clip_faces(faces, Plane(n, float(o)), body.tolerance)
