@@ -69,10 +69,10 @@ import numpy as np
 from .body import IntersectionBody
 from .culling import CLUSTER_SIZE
 from .light_hull import light_halfspaces
-from .fit import fit_to_unit_cube
+from .fit import window_matrix
 from .frame import image_up
 from .geometry import cross3, normalize
-from .polyhedron import ConvexPolytope
+from .polyhedron import ConvexPolytope, float_rows
 from .types import Light, View, WarpOptions
 
 PPS_VIEW_DIRECTION = np.array([0.0, 0.0, 1.0])
@@ -93,13 +93,15 @@ class VirtualCamera:
     """``to_pps``: camera-relative world (p - eye) -> PPS clip, with B' filling
     [-1, 1]^3 and w = virtual eye depth > 0 on B. ``shift``: how far the virtual
     eye sits behind the real one; ``near``/``far``: B's nearest/farthest virtual
-    eye depth; ``visible_near``: d_R, the nearest visible eye depth."""
+    eye depth; ``visible_near``: d_R, the nearest visible eye depth; ``points``:
+    B' (B's vertices in PPS, divided)."""
 
     to_pps: np.ndarray
     shift: float
     near: float
     far: float
     visible_near: float
+    points: np.ndarray
 
 
 NEAREST_BOX_CLIPS = 256
@@ -131,15 +133,16 @@ class LowestInBoxes:
     the end k rises from.
 
     * Box edges by the region's facets (Cyrus-Beck): the edge from corner c
-      along axis j, x = c + λ s_j e_j, λ ∈ [0, 1], stays in facet h while
-      λ n_hj s_j <= o_h - n_h·c. The box size s_j is >= 0, so the facets with
-      n_hj < 0 bound λ from below and the others from above, whatever the box.
-      A zero n_hj s_j (an edge parallel to the facet) makes the ratio +inf
-      (keeps the edge) or -inf (drops it) on the side it is counted on, or NaN
-      (0/0: the edge lies in the facet's plane, kept) which fmax and fmin
-      skip; the normals' zeros are made +0 so that such a facet counts as
-      bounding from above with a +0 denominator. A nearly parallel facet
-      overflows to the same ±inf limits.
+      along axis j, x = c + t e_j, t ∈ [0, s_j] (s_j >= 0, the box's size),
+      stays in facet h while t n_hj <= o_h - n_h·c, so the facets with
+      n_hj < 0 bound t from below and the others from above, whatever the
+      box, and the ratios do not depend on the box's size (a flat box's edge,
+      s_j = 0, is the point t = 0). A zero n_hj (an edge parallel to the
+      facet) makes the ratio +inf (keeps the edge) or -inf (drops it) on the
+      side it is counted on, or NaN (0/0: the edge lies in the facet's plane,
+      kept) which fmax and fmin skip; the normals' zeros are made +0 so that
+      such a facet counts as bounding from above with a +0 denominator. A
+      nearly parallel facet overflows to the same ±inf limits.
     * The region's edges by the box (slabs): x = p - λ (p - q) for the facet
       loops' consecutive vertices p, q (each edge twice, once per facet, so a
       vertex splitting an edge within the tolerance loses nothing). In
@@ -151,37 +154,45 @@ class LowestInBoxes:
       lies in the face's plane: kept)."""
 
     def __init__(self, vertices: np.ndarray, normals: np.ndarray, offsets: np.ndarray, loops, axis: np.ndarray):
-        first = [v for loop in loops for v in loop[-1:] + loop[:-1]]
-        p = vertices[first]
-        e = p - vertices[[v for loop in loops for v in loop]]
-        self._p, self._e = p.T[:, None, :], e.T[:, None, :]             # (3, 1, E)
+        # Each loop's edges (p, q): its vertices after their predecessors, both ends in one gather.
+        ends = [v for loop in loops for v in loop[-1:] + loop[:-1]]
+        ends += [v for loop in loops for v in loop]
+        p, q = vertices[ends].reshape(2, -1, 3)
+        e = p - q
+        # (Contiguous copies: numpy broadcasts a transposed view about twice as slowly.)
+        self._p, self._e = p.T.copy()[:, None, :], e.T.copy()[:, None, :]      # (3, 1, E)
         self._p_depth, self._e_depth = p @ axis, e @ axis               # k·x = p·k - λ e·k
         self._e_falls = self._e_depth <= 0                              # k rises from the entering end
         n = normals + 0.0                                               # no -0 components
-        self._to_facets_and_axis = np.vstack([n, axis])                 # (m + 1, 3)
+        self._to_facets_and_axis = np.concatenate([n, axis[None]])      # (m + 1, 3)
         self._n = n[:, :, None, None]                                   # (m, 3, 1, 1)
         self._from_below = self._n < 0
+        self._from_above = ~self._from_below
         self._o = offsets[:, None, None, None]
-        self._axis = axis[:, None]
+        self._axis = axis[:, None, None]                                # (3, 1, 1)
+        self._axis_rises = self._axis >= 0
 
     @classmethod
     def of(cls, region: ConvexPolytope, axis: np.ndarray) -> "LowestInBoxes":
         return cls(region.vertices, region.normals, region.offsets, region.facet_loops(), axis)
 
     def __call__(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-        lo, hi = lo.T, hi.T                                             # (3, K)
+        return self.columns(lo.T.copy(), hi.T.copy())
+
+    def columns(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """``__call__`` for the boxes' corners as (3, K) columns (contiguous)."""
         m, count = len(self._o), lo.shape[1]
         with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-            # Box edges clipped by the region's facets: (m, 3, 4, K). Every facet's n·x and k·x
-            # at the boxes' corners in one product, then read at each edge's first corner.
+            # Box edges clipped by the region's facets, as t = λ s_j (the distance along
+            # the edge, in [0, s_j]): (m, 3, 4, K). Every facet's n·x and k·x at the boxes'
+            # corners in one product, then read at each edge's first corner.
             corners = np.where(_BOX_CORNER_BITS, hi[:, None, :], lo[:, None, :]).reshape(3, -1)
             start = (self._to_facets_and_axis @ corners).reshape(m + 1, 8, count)[:, _BOX_EDGE_FROM]
-            size = hi - lo
-            ratio = (self._o - start[:m]) / (self._n * size[:, None, :])
-            enter = np.fmax.reduce(np.where(self._from_below, ratio, -np.inf), axis=0, initial=0.0)
-            leave = np.fmin.reduce(np.where(self._from_below, np.inf, ratio), axis=0, initial=1.0)
-            rate = (size * self._axis)[:, None, :]
-            value = start[m] + np.where(rate >= 0, enter, leave) * rate
+            size = (hi - lo)[:, None, :]
+            ratio = (self._o - start[:m]) / self._n
+            enter = np.fmax.reduce(ratio, axis=0, where=self._from_below, initial=0.0)
+            leave = np.fmin(np.fmin.reduce(ratio, axis=0, where=self._from_above, initial=np.inf), size)
+            value = start[m] + np.where(self._axis_rises, enter, leave) * self._axis
             box_edges = np.where(enter <= leave, value, np.inf).min(axis=(0, 1))
             # The region's edges clipped by the boxes' slabs: (3, K, E).
             to_lo, to_hi = (self._p - lo[:, :, None]) / self._e, (self._p - hi[:, :, None]) / self._e
@@ -238,6 +249,7 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     c_lower = c_lower[clusters].tolist()
     # A box holds R's nearest vertex when its bounds (lo, -hi) are all at most these.
     holding_nearest = np.concatenate([nearest_vertex, -nearest_vertex])[:, None]
+    corner_origin = np.concatenate([origin, -origin])[:, None]
     lowest = None                                  # R's edges and facets, prepared for the first batch
     # Boxes are drawn from the clusters into a pool in the order of their bounds, and
     # examined NEAREST_BOX_BATCH at a time, nearest bound first (the batch is the
@@ -281,7 +293,8 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
             break
         if lowest is None:
             lowest = _lowest_in_visible_region(view, light, body, axis)
-        depths = lowest(bounds[:3].T - origin, -bounds[3:].T - origin).tolist()
+        rel = bounds - corner_origin                                    # (6, K): lo, -hi camera-relative
+        depths = lowest.columns(rel[:3], -rel[3:]).tolist()
         for bound, depth in zip(pool_lower[batch].tolist(), depths):
             if bound >= best:
                 break
@@ -301,14 +314,20 @@ def _lowest_in_visible_region(view: View, light: Light, body: IntersectionBody, 
     inside S_r), so R's boundary serves when B has kept it."""
     origin = view.position
     b = body.visible_boundary
-    if b is not None and np.array_equal(body.origin, origin):
-        return LowestInBoxes(np.array(b.vertices, dtype=np.float64).reshape(-1, 3), np.array(b.normals, dtype=np.float64),
-                             np.array(b.offsets, dtype=np.float64), b.loops, axis)
+    if b is not None and body.origin.tolist() == origin.tolist():
+        return LowestInBoxes(float_rows(b.vertices), float_rows(b.normals), np.array(b.offsets), b.loops, axis)
     ln, lo = light_halfspaces(light, origin)
     region = ConvexPolytope.from_corners(view.corners() - origin, body.tolerance).clip(ln, lo)
     if region is None:
-        return lambda lo, hi: np.full(len(lo), np.inf)
+        return _NoRegion()
     return LowestInBoxes.of(region, axis)
+
+
+class _NoRegion:
+    """``LowestInBoxes`` over an empty region: no box meets it."""
+
+    def columns(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        return np.full(lo.shape[1], np.inf)
 
 
 def virtual_camera(view: View, body: IntersectionBody, visible_near: float | None = None) -> VirtualCamera:
@@ -324,13 +343,18 @@ def virtual_camera(view: View, body: IntersectionBody, visible_near: float | Non
     d_b = float(depth.min())
     shift = max(0.0, d_r - d_b)
     near = d_b + shift
-    raw = np.zeros((4, 4))
-    raw[0, :3] = to_cam[0]
-    raw[1, :3] = to_cam[1]
-    raw[2, 3] = -near                    # z_pps = -near / depth_v: affine in 1/depth (perspective depth)
-    raw[3, :3] = -to_cam[2]
-    raw[3, 3] = shift                    # w = depth + shift = virtual eye depth
-    return VirtualCamera(fit_to_unit_cube(raw, rel), shift, near, float(depth.max()) + shift, d_r)
+    (x0, x1, x2), (y0, y1, y2), (z0, z1, z2) = to_cam.tolist()
+    raw = np.array([[x0, x1, x2, 0.0],
+                    [y0, y1, y2, 0.0],
+                    [0.0, 0.0, 0.0, -near],      # z_pps = -near / depth_v: affine in 1/depth (perspective depth)
+                    [-z0, -z1, -z2, shift]])     # w = depth + shift = virtual eye depth
+    # fit.fit_to_unit_cube, keeping B's divided points: w >= near > 0 on B, and the
+    # window is an affine map of the divided coordinates (a scale and an offset per axis).
+    h = rel @ raw[:, :3].T + raw[:, 3]
+    ndc = h[:, :3] / h[:, 3:]
+    window = window_matrix(ndc.min(axis=0), ndc.max(axis=0))
+    points = ndc * window.diagonal()[:3] + window[:3, 3]
+    return VirtualCamera(window @ raw, shift, near, float(depth.max()) + shift, d_r, points)
 
 
 OPTIMALITY_GAP = 1e-14

@@ -129,10 +129,8 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
     light_h = light.homogeneous_position.copy()
     if light_h[3] != 0:
         light_h[:3] -= origin
-    pps_points = homogeneous(rel) @ cam.to_pps.T
-    pps_points = pps_points[:, :3] / pps_points[:, 3:4]
     # A point or spot light's frustum wider than options.max_frustum_angle is not built: hand over.
-    pl = pps_light_matrix(cam.to_pps @ light_h, pps_points,
+    pl = pps_light_matrix(cam.to_pps @ light_h, cam.points,
                           math.inf if light.is_directional else options.max_frustum_angle / 2)
 
     diag.extra.update({
