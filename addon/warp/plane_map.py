@@ -273,9 +273,9 @@ def _clip_loop(pts: list, normal, offset: float, tol: float) -> list:
     """``clip_polygon`` of a polygon given as a list of (x, y, z), in plain floats."""
     nx, ny, nz = normal
     d = [nx * x + ny * y + nz * z - offset for x, y, z in pts]
-    d = [0.0 if abs(e) <= tol else e for e in d]
-    if max(d) <= 0:
+    if max(d) <= tol:                                        # (nothing beyond the tolerance: nothing cut)
         return pts
+    d = [0.0 if abs(e) <= tol else e for e in d]
     out = []
     for a, b, da, db in zip(pts, pts[1:] + pts[:1], d, d[1:] + d[:1]):
         if da <= 0:

@@ -10,15 +10,21 @@
   lights inside B and regions from P ∩ R.
 * The five-point solve with the plane map's equation coefficients made once
   gives ``five_point_matrix``'s matrix and report bit for bit.
+* p^1..p^4, the light's position and the viewer's clip w in plain floats
+  (Cramer's rule for an affine camera matrix) equal ``line_plane_points``,
+  ``Light.homogeneous_position`` and ``View.world_to_clip``; the plane map's 2D
+  affine maps composed in floats equal the matrix product.
 """
 import importlib
 
 import numpy as np
 import pytest
 
-from addon.warp import plane_map
-from addon.warp.plane_map import (_FIVE_POINT_COEFFICIENTS, _FIVE_POINT_TARGETS, _section_hull, _solve_five_points,
-                                  _walk_section, five_point_matrix, offset_steps, plane_section)
+from addon.warp import View, plane_map
+from addon.warp.geometry import homogeneous, look_along
+from addon.warp.plane_map import (_FIVE_POINT_COEFFICIENTS, _FIVE_POINT_TARGETS, VIEW_CORNER_RAYS, _section_hull,
+                                  _solve_five_points, _walk_section, five_point_matrix, line_plane_points, offset_steps,
+                                  plane_section)
 
 from test_plane_optimal_speed_equivalence import _frame, _same_loop
 
@@ -160,3 +166,45 @@ def test_the_five_point_solve_with_the_coefficients_made_once_is_five_point_matr
     m_general, info_general = five_point_matrix(src, _FIVE_POINT_TARGETS)
     assert np.array_equal(m, m_general) and info == info_general
     assert np.array_equal(_FIVE_POINT_COEFFICIENTS, plane_map._dlt_coefficients(_FIVE_POINT_TARGETS))
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_the_corner_ray_points_view_w_and_light_in_floats_equal_the_matrix_forms(seed):
+    rng, view, light, body = _frame(seed, orthographic=seed % 5 == 4)
+    origin = view.position
+    n = rng.normal(size=3)
+    n /= np.linalg.norm(n)
+    off = float(rng.uniform(-5, 5))
+    pi = np.append(n, -off)
+    ends = homogeneous(view.corners() - origin)
+    expected = line_plane_points(ends[VIEW_CORNER_RAYS[0], :], ends[VIEW_CORNER_RAYS[1], :], pi)
+    got = np.array(plane_optimal._corner_ray_points(view, origin.tolist(), *n.tolist(), off))
+    assert np.allclose(got, expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
+    l_h = light.homogeneous_position.copy()
+    if l_h[3] != 0:
+        l_h[:3] -= origin
+    assert np.array_equal(plane_optimal._light_h(light, origin), l_h)
+    for x in rng.uniform(-50, 50, size=(5, 3)):
+        w = float(view.world_to_clip[3] @ np.append(x + origin, 1.0))
+        assert plane_optimal._view_w(view, *x.tolist()) == pytest.approx(w, rel=1e-12, abs=1e-12 * (1 + abs(w)))
+
+
+def test_view_w_of_a_scaled_and_of_a_projective_camera_matrix():
+    rng = np.random.default_rng(7)
+    for k in range(20):
+        eye, target = rng.uniform(-40, 40, 3), rng.uniform(-40, 40, 3)
+        c2w = np.linalg.inv(look_along(eye, target - eye, [0.0, 0.0, 1.0])) @ np.diag([*rng.uniform(0.3, 3, 3), 1.0])
+        if k % 4 == 3:
+            c2w[3] = [1e-3, -2e-3, 1e-3, 1.0]                  # not affine: the 4x4 inverse answers
+        view = View.perspective(c2w, 1.0, 1.5, 0.1, 100.0)
+        x = rng.uniform(-30, 30, 3)
+        w = float(view.world_to_clip[3] @ np.append(x + view.position, 1.0))
+        assert plane_optimal._view_w(view, *x.tolist()) == pytest.approx(w, rel=1e-11, abs=1e-11 * (1 + abs(w)))
+
+
+def test_affine_composition_in_floats_is_the_matrix_product():
+    rng = np.random.default_rng(3)
+    a, b = rng.normal(size=(2, 3)), rng.normal(size=(2, 3))
+    full = lambda m: np.vstack([m, [0.0, 0.0, 1.0]])
+    got = np.array(plane_optimal._affine_then(a.tolist(), b.tolist()))
+    assert np.allclose(got, (full(a) @ full(b))[:2], rtol=1e-14, atol=1e-14)

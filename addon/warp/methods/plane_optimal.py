@@ -56,10 +56,10 @@ import numpy as np
 from ..body import IntersectionBody
 from ..fit import fit_runs, window_matrix
 from ..frame import light_angles, light_frames
-from ..geometry import homogeneous, point_runs, translation
+from ..geometry import point_runs, translation
 from ..plane_map import (PlaneOfInterest, clip_to_polygon, convex_polygon_on_plane, default_plane, default_plane_of,
                          enclosing_polygon, is_convex_polygon, min_area_twist, offset_steps,
-                         VIEW_CORNER_RAYS, line_plane_points, plane_light_matrix, plane_section, polygon_area,
+                         VIEW_CORNER_RAYS, plane_light_matrix, plane_section, polygon_area,
                          rotation2d)
 from ..polyhedron import ConvexPolytope, Plane, clip_faces, unique_points
 from ..types import Diagnostics, Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
@@ -101,10 +101,47 @@ class _PlaneJob:
 
 
 def _light_h(light: Light, origin: np.ndarray) -> np.ndarray:
-    h = light.homogeneous_position.copy()
-    if h[3] != 0:
-        h[:3] -= origin
-    return h
+    """The light's homogeneous position (``Light.homogeneous_position``) relative to ``origin``."""
+    if light.is_directional:
+        x, y, z = light.direction.tolist()
+        return np.array([-x, -y, -z, 0.0])
+    (x, y, z), (ox, oy, oz) = light.position.tolist(), origin.tolist()
+    return np.array([x - ox, y - oy, z - oz, 1.0])
+
+
+def _corner_ray_points(view: View, origin: list, nx: float, ny: float, nz: float, off: float) -> list:
+    """p^1..p^4: where the rays through the view's corners meet P (n . x = off,
+    relative to ``origin``), homogeneous: ``line_plane_points`` of the view
+    frustum's near and far corners on those rays (``VIEW_CORNER_RAYS``), in floats."""
+    ox, oy, oz = origin
+    corners = view.corners().tolist()
+    points = []
+    for i, j in zip(*VIEW_CORNER_RAYS):
+        (ax, ay, az), (bx, by, bz) = corners[i], corners[j]
+        ax, ay, az, bx, by, bz = ax - ox, ay - oy, az - oz, bx - ox, by - oy, bz - oz
+        pa, pb = nx * ax + ny * ay + nz * az - off, nx * bx + ny * by + nz * bz - off
+        points.append([pb * ax - pa * bx, pb * ay - pa * by, pb * az - pa * bz, pb - pa])
+    return points
+
+
+def _view_w(view: View, x: float, y: float, z: float) -> float:
+    """The viewer's clip w (``view.world_to_clip`` row 3) of the point (x, y, z)
+    relative to the camera. For an affine camera matrix [R | position] its
+    camera coordinates solve R c = (x, y, z) (Cramer's rule), which spares
+    inverting the 4x4."""
+    c2w = view.camera_to_world.tolist()
+    if c2w[3] != [0.0, 0.0, 0.0, 1.0]:
+        wx, wy, wz, w0 = view.world_to_clip[3].tolist()
+        ox, oy, oz = view.position.tolist()
+        return wx * (x + ox) + wy * (y + oy) + wz * (z + oz) + w0
+    (a, b, c, _), (d, e, f, _), (g, h, i, _) = c2w[:3]
+    ei_fh, fg_di, dh_eg = e * i - f * h, f * g - d * i, d * h - e * g
+    det = a * ei_fh + b * fg_di + c * dh_eg
+    cx = (x * ei_fh + b * (f * z - y * i) + c * (y * h - e * z)) / det
+    cy = (a * (y * i - f * z) + x * fg_di + c * (d * z - y * g)) / det
+    cz = (a * (e * z - y * h) + b * (y * g - d * z) + x * dh_eg) / det
+    px, py, pz, p0 = view.projection[3].tolist()
+    return px * cx + py * cy + pz * cz + p0
 
 
 def _planes_of(options: WarpOptions, body: IntersectionBody, diag: Diagnostics) -> list[PlaneOfInterest]:
@@ -177,8 +214,7 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
                             f"cone or the receivers' bounds)")
         return None
     # p^1..p^4: where the rays through the view's corners meet P (near and far corners of V, relative).
-    ends = homogeneous(view.corners() - origin)
-    p = line_plane_points(ends[VIEW_CORNER_RAYS[0], :], ends[VIEW_CORNER_RAYS[1], :], pi)
+    p = _corner_ray_points(view, [ox, oy, oz], nx, ny, nz, off)
     try:
         m, info = plane_light_matrix(p, l_h, scale)
     except WarpError as exc:
@@ -187,8 +223,7 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
     # Sign (Fig. 5) and scale: w equal to the viewer's clip w on the plane.
     vertices = poly.tolist()
     cx, cy, cz = (sum(c) / len(vertices) for c in zip(*vertices))
-    wx, wy, wz, w0 = view.world_to_clip[3].tolist()
-    w_view = wx * cx + wy * cy + wz * cz + (wx * ox + wy * oy + wz * oz + w0)
+    w_view = _view_w(view, cx, cy, cz)
     wx, wy, wz, w0 = m[3].tolist()
     w_light = wx * cx + wy * cy + wz * cz + w0
     if not (w_view > 0 and abs(w_light) > 0):
@@ -417,7 +452,8 @@ def _share_budget(jobs: list[_PlaneJob], budget: float, twist_mode: str) -> floa
         return 1.0
     for j in jobs:
         j.twist = 0.0
-    need = sum(_texels(_rect(j.pixels, 1.0, 0.0)) for j in jobs)
+    unscaled = [_rect(j.pixels, 1.0, 0.0) for j in jobs]     # (the first try's rectangles unless a map twists)
+    need = sum(map(_texels, unscaled))
     for j in jobs:
         if twist_mode == "on" or (twist_mode == "auto" and need > budget):
             p = np.array(j.pixels)
@@ -428,7 +464,7 @@ def _share_budget(jobs: list[_PlaneJob], budget: float, twist_mode: str) -> floa
                 j.twist = t
     s = 1.0
     for _ in range(60):
-        rects = [_rect(j.pixels, s, j.twist) for j in jobs]
+        rects = [r if s == 1.0 and j.twist == 0.0 else _rect(j.pixels, s, j.twist) for j, r in zip(jobs, unscaled)]
         total = sum(_texels(r) for r in rects)
         side = max(max(r[2] - r[0], r[3] - r[1]) for r in rects)
         if total <= budget and side <= MAX_SIDE:
@@ -446,11 +482,12 @@ def _plane_map(job: _PlaneJob, s: float, origin: np.ndarray, tol: float, options
     i0, j0, i1, j1 = job.rect
     wm, hm = i1 - i0, j1 - j0
     c, sn = math.cos(job.twist), math.sin(job.twist)
-    to_texel = np.array([[s * c, -s * sn, -i0], [s * sn, s * c, -j0], [0, 0, 1.0]])     # s·R(θ)·pixel - (i0, j0)
-    to_ndc = np.array([[2.0 / wm, 0, -1.0], [0, 2.0 / hm, -1.0], [0, 0, 1.0]])
+    to_texel = [[s * c, -s * sn, -i0], [s * sn, s * c, -j0]]         # s·R(θ)·pixel - (i0, j0)
+    to_ndc = [[2.0 / wm, 0.0, -1.0], [0.0, 2.0 / hm, -1.0]]
+    to_map = _affine_then(to_ndc, _affine_then(to_texel, job.pixel.tolist()))
     height = job.height
     m = np.empty((4, 4))
-    m[[0, 1, 3]] = to_ndc @ to_texel @ job.pixel @ job.rows
+    m[[0, 1, 3]] = np.array(to_map + [[0.0, 0.0, 1.0]]) @ job.rows
     m[2] = -height
     # Depth: the fit points' z / w (w > 0 on them) onto [-1, 1], as the unit-cube fit pads it.
     zw = job.fit_h @ m[2:].T
@@ -466,10 +503,19 @@ def _plane_map(job: _PlaneJob, s: float, origin: np.ndarray, tol: float, options
         # z = 1 at the lowest height (farthest from the light), -1 at the highest
         k = 2.0 / (span + 2 * pad)
         depth_row = (-k * height + np.array([0, 0, 0, 1.0 + k * (hlo - pad)])) @ translation(-origin)
-    world = m @ translation(-origin)
+    world = m.copy()                                              # m @ translation(-origin)
+    world[:, 3] -= m[:, :3] @ origin
     n = job.plane.normal
     region = Region(n.copy(), float(job.plane.offset), job.polygon + origin, tol)
     return ShadowMap(world, (wm, hm), "LESS", f"plane:{job.index}", region=region, depth_row=depth_row)
+
+
+def _affine_then(outer: list, inner: list) -> list:
+    """The 2D affine map ``outer`` after ``inner``, each given by the first two
+    rows of its 3x3 matrix (the last is (0, 0, 1)), in floats."""
+    (a, b, c), (d, e, f) = outer
+    (p, q, r), (s, t, u) = inner[0], inner[1]
+    return [[a * p + b * s, a * q + b * t, a * r + b * u + c], [d * p + e * s, d * q + e * t, d * r + e * u + f]]
 
 
 def _fallback_size(texels: float, options: WarpOptions) -> tuple[int, int]:
