@@ -154,14 +154,16 @@ class LowestInBoxes:
       lies in the face's plane: kept)."""
 
     def __init__(self, vertices: np.ndarray, normals: np.ndarray, offsets: np.ndarray, loops, axis: np.ndarray):
-        # Each loop's edges (p, q): its vertices after their predecessors, both ends in one gather.
+        # Each loop's edges (p, q): its vertices after their predecessors, both ends gathered
+        # at once as columns (numpy broadcasts over a transposed view about twice as slowly).
         ends = [v for loop in loops for v in loop[-1:] + loop[:-1]]
+        count = len(ends)
         ends += [v for loop in loops for v in loop]
-        p, q = vertices[ends].reshape(2, -1, 3)
-        e = p - q
-        # (Contiguous copies: numpy broadcasts a transposed view about twice as slowly.)
-        self._p, self._e = p.T.copy()[:, None, :], e.T.copy()[:, None, :]      # (3, 1, E)
-        self._p_depth, self._e_depth = p @ axis, e @ axis               # k·x = p·k - λ e·k
+        pq = vertices.T[:, ends]                                        # (3, 2E): p, then q
+        p = pq[:, :count]
+        e = p - pq[:, count:]
+        self._p, self._e = p[:, None, :], e[:, None, :]                 # (3, 1, E)
+        self._p_depth, self._e_depth = axis @ p, axis @ e               # k·x = p·k - λ e·k
         self._e_falls = self._e_depth <= 0                              # k rises from the entering end
         n = normals + 0.0                                               # no -0 components
         self._to_facets_and_axis = np.concatenate([n, axis[None]])      # (m + 1, 3)
@@ -177,10 +179,8 @@ class LowestInBoxes:
         return cls(region.vertices, region.normals, region.offsets, region.facet_loops(), axis)
 
     def __call__(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-        return self.columns(lo.T.copy(), hi.T.copy())
-
-    def columns(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-        """``__call__`` for the boxes' corners as (3, K) columns (contiguous)."""
+        # As (3, K) columns, contiguous (free when given as the transpose of contiguous columns).
+        lo, hi = np.ascontiguousarray(lo.T), np.ascontiguousarray(hi.T)
         m, count = len(self._o), lo.shape[1]
         with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
             # Box edges clipped by the region's facets, as t = λ s_j (the distance along
@@ -197,8 +197,8 @@ class LowestInBoxes:
             # The region's edges clipped by the boxes' slabs: (3, K, E).
             to_lo, to_hi = (self._p - lo[:, :, None]) / self._e, (self._p - hi[:, :, None]) / self._e
             lower, upper = np.minimum(to_lo, to_hi), np.maximum(to_lo, to_hi)
-            enter = np.fmax(np.fmax(lower[0], lower[1]), np.fmax(lower[2], 0.0))
-            leave = np.fmin(np.fmin(upper[0], upper[1]), np.fmin(upper[2], 1.0))
+            enter = np.fmax.reduce(lower, axis=0, initial=0.0)
+            leave = np.fmin.reduce(upper, axis=0, initial=1.0)
             value = self._p_depth - np.where(self._e_falls, enter, leave) * self._e_depth
             region_edges = np.where(enter <= leave, value, np.inf).min(axis=1)
         return np.minimum(box_edges, region_edges)
@@ -231,30 +231,32 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     origin = view.position
     axis = -view.world_to_camera[2, :3]            # camera-relative world -> eye depth
     depths = (body.visible_vertices - origin) @ axis
-    nearest_vertex = body.visible_vertices[int(depths.argmin())]
-    coarse = max(float(depths.min()), view.near)
+    first = int(depths.argmin())
+    coarse = max(float(depths[first]), view.near)
     index, selected = body.receivers.index, body.receivers.selected
-    if not selected.any():
-        return coarse
-    # The nearest corner of bounds (lo, -hi): per coordinate lo where the axis is positive, else hi.
-    nearest = np.concatenate([np.maximum(axis, 0.0), -np.minimum(axis, 0.0)])
-    shift = float(origin @ axis)
     picked = np.zeros(index.c_bounds.shape[1] * CLUSTER_SIZE, dtype=bool)
     picked[: index.count] = selected
     picked = picked.reshape(-1, CLUSTER_SIZE)
-    # The clusters holding picked boxes, nearest bound first, with their bounds.
-    c_lower = np.maximum(nearest @ index.c_bounds - shift, coarse)
-    clusters = np.flatnonzero(picked.any(axis=1))
-    clusters = clusters[np.argsort(c_lower[clusters], kind="stable")]
-    c_lower = c_lower[clusters].tolist()
+    clusters = np.flatnonzero(picked.any(axis=1))  # the clusters holding picked boxes
+    if not len(clusters):
+        return coarse
+    # A box's lower bound: the depth of the nearest corner of its bounds (lo, -hi), per
+    # coordinate lo where the axis is positive, else hi; the clusters' likewise.
+    o, k = origin.tolist(), axis.tolist()
+    nearest = np.array([max(c, 0.0) for c in k] + [max(-c, 0.0) for c in k])
+    shift = _dot(o, k)
+    c_lower = np.maximum(nearest @ index.c_bounds[:, clusters] - shift, coarse)
+    order = np.argsort(c_lower, kind="stable")
+    clusters, c_lower = clusters[order], c_lower[order].tolist()   # nearest bound first
     # A box holds R's nearest vertex when its bounds (lo, -hi) are all at most these.
-    holding_nearest = np.concatenate([nearest_vertex, -nearest_vertex])[:, None]
-    corner_origin = np.concatenate([origin, -origin])[:, None]
+    v = body.visible_vertices[first].tolist()
+    holding_nearest = np.array(v + [-c for c in v])[:, None]
+    corner_origin = np.array(o + [-c for c in o])[:, None]
     lowest = None                                  # R's edges and facets, prepared for the first batch
-    # Boxes are drawn from the clusters into a pool in the order of their bounds, and
-    # examined NEAREST_BOX_BATCH at a time, nearest bound first (the batch is the
-    # nearest of all boxes not yet examined), until no pending box (in the pool or in
-    # a cluster not yet opened) can be nearer than the best found.
+    # Boxes are drawn from the clusters into a pool kept in the order of their bounds,
+    # and examined NEAREST_BOX_BATCH at a time from its front (the batch is the nearest
+    # of all boxes not yet examined), until no pending box (in the pool or in a cluster
+    # not yet opened) can be nearer than the best found.
     opened = 0
     pool_bounds, pool_lower = np.zeros((6, 0)), np.zeros(0)
     best = math.inf
@@ -267,9 +269,11 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
             return
         ids = clusters[opened:stop]
         more = index.c_box_bounds[:, ids][:, picked[ids]]                # (6, boxes): lo, -hi
-        pool_bounds = np.concatenate([pool_bounds, more], axis=1)
-        pool_lower = np.concatenate([pool_lower, np.maximum(nearest @ more - shift, coarse)])
-        opened = stop
+        lower = np.maximum(nearest @ more - shift, coarse)
+        if len(pool_lower):
+            more, lower = np.concatenate([pool_bounds, more], axis=1), np.concatenate([pool_lower, lower])
+        order = np.argsort(lower, kind="stable")
+        pool_bounds, pool_lower, opened = more[:, order], lower[order], stop
 
     while True:
         # Open every cluster that may hold one of the next batch's boxes: first enough
@@ -280,29 +284,28 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
         if missing > 0 and opened < reach:
             open_until(min(opened + missing, reach))
         if len(pool_lower) >= NEAREST_BOX_BATCH and opened < reach:
-            kth = float(np.partition(pool_lower, NEAREST_BOX_BATCH - 1)[NEAREST_BOX_BATCH - 1])
-            open_until(bisect.bisect_left(c_lower, kth, opened, reach))
+            open_until(bisect.bisect_left(c_lower, float(pool_lower[NEAREST_BOX_BATCH - 1]), opened, reach))
         unopened = c_lower[opened] if opened < len(clusters) else math.inf
-        if not len(pool_lower) or min(float(pool_lower.min()), unopened) >= best:
+        if not len(pool_lower) or min(float(pool_lower[0]), unopened) >= best:
             break
-        order = np.argsort(pool_lower, kind="stable")
-        batch, keep = order[:NEAREST_BOX_BATCH], order[NEAREST_BOX_BATCH:]
-        bounds = pool_bounds[:, batch]
-        if (bounds <= holding_nearest).all(axis=0).any():
+        bounds, lower = pool_bounds[:, :NEAREST_BOX_BATCH], pool_lower[:NEAREST_BOX_BATCH].tolist()
+        # Only a box whose bound is ``coarse`` can hold R's nearest vertex (its nearest
+        # corner is no farther), and the batch starts with the least bound.
+        if lower[0] <= coarse and (bounds <= holding_nearest).all(axis=0).any():
             best = coarse                          # R's nearest vertex is in a receiver box
             break
         if lowest is None:
             lowest = _lowest_in_visible_region(view, light, body, axis)
         rel = bounds - corner_origin                                    # (6, K): lo, -hi camera-relative
-        depths = lowest.columns(rel[:3], -rel[3:]).tolist()
-        for bound, depth in zip(pool_lower[batch].tolist(), depths):
+        depths = lowest(rel[:3].T, (-rel[3:]).T).tolist()
+        for bound, depth in zip(lower, depths):
             if bound >= best:
                 break
             if count >= NEAREST_BOX_CLIPS:                # the nearest unvisited box is no nearer than this
                 return max(min(best, bound, unopened), coarse)
             count += 1
             best = min(best, depth)
-        pool_bounds, pool_lower = pool_bounds[:, keep], pool_lower[keep]
+        pool_bounds, pool_lower = pool_bounds[:, NEAREST_BOX_BATCH:], pool_lower[NEAREST_BOX_BATCH:]
     if not math.isfinite(best):
         return coarse
     return max(best, coarse)
@@ -326,8 +329,8 @@ def _lowest_in_visible_region(view: View, light: Light, body: IntersectionBody, 
 class _NoRegion:
     """``LowestInBoxes`` over an empty region: no box meets it."""
 
-    def columns(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-        return np.full(lo.shape[1], np.inf)
+    def __call__(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        return np.full(len(lo), np.inf)
 
 
 def virtual_camera(view: View, body: IntersectionBody, visible_near: float | None = None) -> VirtualCamera:
