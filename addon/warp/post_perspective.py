@@ -492,17 +492,17 @@ def smallest_cone(directions) -> tuple[np.ndarray, float]:
     d = np.asarray(directions, dtype=np.float64)
     x = two_point_cone_centre(d)
     if x is None:
-        x = min_norm_point(d)
-    norm = math.sqrt(x @ x)
+        x = min_norm_point(d).tolist()
+    norm = math.sqrt(_dot(x, x))
     if norm <= 1e-15:
         return np.array([0.0, 0.0, 1.0]), 0.0
-    k = x / norm
+    k = np.array([c / norm for c in x])
     return k, float((d @ k).min())
 
 
-def two_point_cone_centre(directions: np.ndarray) -> np.ndarray | None:
-    """The hull's point nearest the origin when the narrowest cone around the
-    unit ``directions`` is spanned by two of them, else None.
+def two_point_cone_centre(directions: np.ndarray) -> list | None:
+    """The hull's point nearest the origin (plain floats) when the narrowest
+    cone around the unit ``directions`` is spanned by two of them, else None.
 
     Wolfe's optimality condition: a point x of the hull is the nearest to the
     origin iff p·x >= x·x for every point p. (If so, every hull point y has
@@ -522,10 +522,10 @@ def two_point_cone_centre(directions: np.ndarray) -> np.ndarray | None:
     the pair's cone to within it)."""
     gram = directions @ directions.T
     i, j = divmod(int(gram.argmin()), len(directions))
-    dots = (gram[i] + gram[j]) / 2                      # p·x for every direction p
-    if (float(dots[i]) + float(dots[j])) / 2 - float(dots.min()) > OPTIMALITY_GAP:
+    dots = gram[i] + gram[j]                            # 2 p·x for every direction p
+    if (float(dots[i]) + float(dots[j])) / 4 - float(dots.min()) / 2 > OPTIMALITY_GAP:
         return None
-    return (directions[i] + directions[j]) / 2
+    return [(a + b) / 2 for a, b in zip(directions[i].tolist(), directions[j].tolist())]
 
 
 @dataclass(frozen=True)
@@ -558,9 +558,11 @@ def pps_light_matrix(light_h, points, max_half_angle: float = math.inf) -> PPSLi
     built when the cone's half-angle exceeds ``max_half_angle`` (the caller
     hands over to another map)."""
     lh = np.asarray(light_h, dtype=np.float64)
-    lh = lh / math.sqrt(lh @ lh)
-    l, wp = lh[:3], float(lh[3])
-    if abs(wp) <= DIRECTIONAL_TOLERANCE * max(math.sqrt(l @ l), 1e-300):
+    lx, ly, lz, lw = lh.tolist()
+    size = math.sqrt(lx * lx + ly * ly + lz * lz + lw * lw)
+    lh = lh / size
+    l, wp = lh[:3], lw / size
+    if abs(lw) <= DIRECTIONAL_TOLERANCE * max(math.sqrt(lx * lx + ly * ly + lz * lz), 1e-300 * size):
         kind = "directional"
     else:
         kind = "point" if wp > 0 else "inverted"
