@@ -245,7 +245,7 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     o, k = origin.tolist(), axis.tolist()
     nearest = np.array([max(c, 0.0) for c in k] + [max(-c, 0.0) for c in k])
     shift = _dot(o, k)
-    c_lower = np.maximum(nearest @ index.c_bounds[:, clusters] - shift, coarse)
+    c_lower = np.maximum((nearest @ index.c_bounds)[clusters] - shift, coarse)
     order = np.argsort(c_lower, kind="stable")
     clusters, c_lower = clusters[order], c_lower[order].tolist()   # nearest bound first
     # A box holds R's nearest vertex when its bounds (lo, -hi) are all at most these.
