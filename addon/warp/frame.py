@@ -156,14 +156,18 @@ def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]
     cone holds the points. Points within 1e-7 of the farthest distance from
     the apex are ignored (a perspective map cannot hold its own centre)."""
     dirs = np.asarray(points, dtype=np.float64) - apex
-    norms = np.sqrt((dirs * dirs).sum(axis=1))
-    farthest = float(norms.max()) if len(norms) else 0.0
+    norms = np.sqrt(np.einsum("ij,ij->i", dirs, dirs))
+    lengths = norms.tolist()
+    farthest = max(lengths, default=0.0)
     if farthest == 0:
         return SURROUND_AXIS.copy(), math.pi
     # Points at the apex itself (B has the light as a vertex when the light is
     # outside R) have no direction: a rounding error would give them any.
-    far = norms > 1e-7 * farthest
-    dirs = dirs[far] / norms[far, None]
+    if min(lengths) > 1e-7 * farthest:
+        dirs /= norms[:, None]
+    else:
+        far = norms > 1e-7 * farthest
+        dirs = dirs[far] / norms[far, None]
     mid = [(a + b) / 2 for a, b in zip(dirs.min(axis=0).tolist(), dirs.max(axis=0).tolist())]   # (plain floats)
     short = SURROUND_BLEND - math.hypot(*mid)
     if short > 0:
@@ -302,6 +306,8 @@ _CUBE_PLANES = np.array([[1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, -1.0],
                          [0.0, 1.0, 1.0], [-1.0, 0.0, 1.0], [1.0, 0.0, 1.0]])
 """The planes x = ±y, y = ±z, z = ±x (in the cube's basis, not yet unit): the
 24 sides of the faces' pyramids are these 6, each shared by four faces."""
+_CUBE_UNIT_PLANES_AND_RAYS = np.concatenate([_CUBE_PLANES / math.sqrt(2.0), _CUBE_SIGNS])
+"""The 6 planes' unit normals and the 8 corner rays: one product with the basis gives both."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -363,8 +369,8 @@ def cube_sections(poly, edges: np.ndarray, basis: np.ndarray) -> tuple[np.ndarra
     The faces' pyramids share their 6 planes and 8 corner rays
     (``CUBE_PYRAMIDS``), so each crossing and each ray is found once."""
     tol = poly.tol
-    planes = (_CUBE_PLANES @ basis) / math.sqrt(2.0)        # (6, 3) unit normals
-    pts, member, dist = pyramid_sections(poly, edges, planes, _CUBE_SIGNS @ basis, CUBE_PYRAMIDS)
+    planes_rays = _CUBE_UNIT_PLANES_AND_RAYS @ basis
+    pts, member, dist = pyramid_sections(poly, edges, planes_rays[:6], planes_rays[6:], CUBE_PYRAMIDS)
     # No volume: too few points, or all on one of the face's sides (none of its points off that plane).
     off = member.T @ (np.abs(dist) > tol)                    # (faces, planes): some point of the face is off the plane
     flat = (CUBE_PYRAMIDS.uses.T & ~off).any(axis=1)
@@ -418,14 +424,14 @@ _ORIGIN = np.zeros((1, 3))
 def ray_interval(poly, rays) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Where rays t·r (t >= 0, from the origin, e.g. a point light) run inside the
     polytope: (t_lo, t_hi, hit) with n . (t r) <= o for every facet on [t_lo, t_hi]."""
-    denom = poly.normals @ rays.T                            # (F, R)
-    o = poly.offsets[:, None]
+    denom = rays @ poly.normals.T                            # (R, F): a ray's facets along a row
+    o = poly.offsets
     ratio = np.divide(o, denom, out=None, where=denom != 0)           # (left unset where denom = 0, never read)
-    t_hi = np.minimum.reduce(ratio, axis=0, where=denom > 0, initial=np.inf)
-    t_lo = np.maximum.reduce(ratio, axis=0, where=denom < 0, initial=0.0)   # (and t >= 0)
+    t_hi = np.minimum.reduce(ratio, axis=1, where=denom > 0, initial=np.inf)
+    t_lo = np.maximum.reduce(ratio, axis=1, where=denom < 0, initial=0.0)   # (and t >= 0)
     hit = (t_lo <= t_hi) & np.isfinite(t_hi)
     if not denom.all():                                      # parallel to a facet and outside it: no hit
-        hit &= ~((denom == 0) & (o < 0)).any(axis=0)
+        hit &= ~((denom == 0) & (o < 0)).any(axis=1)
     return t_lo, t_hi, hit
 
 
