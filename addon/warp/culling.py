@@ -27,6 +27,13 @@ class Selection(NamedTuple):
     """Which boxes meet the region, in the index's (cluster) order."""
     box: np.ndarray | None
     """The (2, 3) bounding box of those boxes, or None when there are none."""
+    by_cluster: np.ndarray
+    """``selected`` as (clusters, CLUSTER_SIZE), the last cluster padded with False."""
+
+    @property
+    def clusters(self) -> np.ndarray:
+        """The clusters that hold a selected box, in order."""
+        return np.flatnonzero(self.by_cluster.any(axis=1))
 
     @property
     def mask(self) -> np.ndarray:
@@ -152,7 +159,7 @@ class BoxIndex:
         n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
         o = np.asarray(offsets, dtype=np.float64).reshape(-1)
         if self.count == 0:
-            return Selection(self, np.zeros(0, dtype=bool), None)
+            return Selection(self, np.zeros(0, dtype=bool), None, np.zeros((0, CLUSTER_SIZE), dtype=bool))
         k = CLUSTER_SIZE
         lowest = _least_weights(n)
         limit = o[:, None] + tol
@@ -172,10 +179,11 @@ class BoxIndex:
             hit = ~((lowest @ boxes).reshape(len(n), -1, k) > box_limit[:, :, None]).any(axis=0)
             selected[edge] = hit
             least = np.minimum(least, boxes.compress(hit.ravel(), axis=1).min(axis=1, initial=np.inf))
-        selected = selected.ravel()[: self.count]
-        if not selected.any():
-            return Selection(self, selected, None)
-        return Selection(self, selected, np.array([least[:3], -least[3:]]))
+        selected[-1, self.count - (len(selected) - 1) * k:] = False          # the last cluster's padding
+        flat = selected.ravel()[: self.count]
+        if not flat.any():
+            return Selection(self, flat, None, selected)
+        return Selection(self, flat, np.array([least[:3], -least[3:]]), selected)
 
 
 def boxes_meeting(planes: list[Plane], boxes: np.ndarray, tol: float = 0.0) -> np.ndarray:

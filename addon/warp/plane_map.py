@@ -597,11 +597,8 @@ def default_plane_of(receivers) -> Optional[PlaneOfInterest]:
     first (in batches of doubling size) until none left can hold a box as wide
     as the widest flat one found. Box i is named by its position among the
     selected boxes in the scene's order, as in ``body.receiver_boxes``."""
-    index, selected = receivers.index, receivers.selected
+    index, selected, picked = receivers.index, receivers.selected, receivers.by_cluster
     clusters, size = index.c_box_bounds.shape[1:]
-    picked = np.zeros(clusters * size, dtype=bool)
-    picked[: index.count] = selected
-    picked = picked.reshape(clusters, size)
     c_lo, c_hi = index.c_bounds[:3], -index.c_bounds[3:]           # (c_bounds: lo, -hi)
     c_area = (c_hi[0] - c_lo[0]) * (c_hi[1] - c_lo[1])
     order = np.argsort(-c_area, kind="stable")

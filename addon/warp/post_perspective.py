@@ -67,7 +67,6 @@ from operator import mul
 import numpy as np
 
 from .body import IntersectionBody
-from .culling import CLUSTER_SIZE
 from .light_hull import light_halfspaces
 from .fit import window_matrix
 from .frame import image_up
@@ -233,11 +232,8 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     depths = (body.visible_vertices - origin) @ axis
     first = int(depths.argmin())
     coarse = max(float(depths[first]), view.near)
-    index, selected = body.receivers.index, body.receivers.selected
-    picked = np.zeros(index.c_bounds.shape[1] * CLUSTER_SIZE, dtype=bool)
-    picked[: index.count] = selected
-    picked = picked.reshape(-1, CLUSTER_SIZE)
-    clusters = np.flatnonzero(picked.any(axis=1))  # the clusters holding picked boxes
+    index, picked = body.receivers.index, body.receivers.by_cluster
+    clusters = body.receivers.clusters            # the clusters holding picked boxes
     if not len(clusters):
         return coarse
     # A box's lower bound: the depth of the nearest corner of its bounds (lo, -hi), per

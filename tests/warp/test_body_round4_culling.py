@@ -6,7 +6,7 @@ last cluster that is not full and a region that meets no box."""
 import numpy as np
 import pytest
 
-from addon.warp.culling import BoxIndex, boxes_meeting_arrays, _stack_of
+from addon.warp.culling import CLUSTER_SIZE, BoxIndex, boxes_meeting_arrays, _stack_of
 
 
 def random_boxes(rng, count: int) -> np.ndarray:
@@ -22,6 +22,10 @@ def assert_selects_like_the_plain_test(index: BoxIndex, boxes: np.ndarray, n, o,
     sel = index.select(n, o, tol)
     ref = boxes_meeting_arrays(n, o, _stack_of(boxes), tol)
     assert np.array_equal(sel.mask, ref)
+    # per cluster: the same boxes, the last cluster's padding never selected
+    assert np.array_equal(sel.by_cluster.ravel()[: index.count], sel.selected)
+    assert not sel.by_cluster.ravel()[index.count:].any()
+    assert np.array_equal(sel.clusters, np.unique(np.flatnonzero(sel.selected) // CLUSTER_SIZE))
     if ref.any():
         assert np.array_equal(sel.box, [boxes[ref, 0].min(axis=0), boxes[ref, 1].max(axis=0)])
     else:
