@@ -411,13 +411,13 @@ class Diagnostics:
     symmetry, GMNPR convention); gamma: angle between light and view directions
     in [0, pi] (LiSPSM's γ, Scherzer §4.4); body_vertices: B; warp_frustum_corners:
     the 8 world corners of the warp frustum P (if any); fallbacks: (what, reason).
-    ``warp_frustum_corners`` and the values of ``extra`` may be given as
-    :class:`Deferred`: they are computed when first read.
+    ``theta``, ``gamma``, ``warp_frustum_corners`` and the values of ``extra``
+    may be given as :class:`Deferred`: they are computed when first read.
     """
 
     method: str
-    theta: Optional[float] = None
-    gamma: Optional[float] = None
+    theta: Optional[float] = _Resolved()
+    gamma: Optional[float] = _Resolved()
     n_opt: Optional[float] = None
     lam: Optional[float] = None
     body_vertices: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
@@ -428,6 +428,13 @@ class Diagnostics:
     def __post_init__(self):
         if type(self.extra) is not Reported:
             self.extra = Reported(self.extra)
+
+    def report_angles(self, compute: Callable[[], tuple[float, float]]) -> None:
+        """θ and γ as ``compute()`` gives them (e.g. ``frame.light_angles``),
+        computed together when either is first read."""
+        both = Deferred(compute)
+        self.theta = Deferred(lambda: both.value[0])
+        self.gamma = Deferred(lambda: both.value[1])
 
     def fallback(self, what: str, reason: str) -> None:
         self.fallbacks.append((what, reason))

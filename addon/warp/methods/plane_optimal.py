@@ -526,10 +526,8 @@ def _fallback_size(texels: float, options: WarpOptions) -> tuple[int, int]:
 
 def plane_optimal(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
     diag = Diagnostics("plane_optimal", body_vertices=body.vertices)
-    if light.is_directional:
-        diag.theta, diag.gamma = light_angles(view, light.direction)
-    else:
-        diag.theta, diag.gamma = light_angles(view, body.centroid - light.position)
+    diag.report_angles(lambda: light_angles(view, light.direction if light.is_directional
+                                            else body.centroid - light.position))
     origin = view.position
     tol = max(REGION_TOLERANCE * body.scale, 100 * body.tolerance)
     planes = _planes_of(options, body, diag)

@@ -113,7 +113,7 @@ def covers(matrix: np.ndarray, points: np.ndarray, tol: float = COVER_TOLERANCE)
 
 def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
     diag = Diagnostics("psm", body_vertices=body.vertices)
-    diag.theta, diag.gamma = light_angles(view, _light_axis(view, light, body))
+    diag.report_angles(lambda: light_angles(view, _light_axis(view, light, body)))
     if view.orthographic:
         return _uniform_fallback(view, light, body, options, diag, "orthographic camera",
                                  "the post-perspective space of an orthographic camera is affine: "
