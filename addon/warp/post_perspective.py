@@ -487,13 +487,18 @@ def smallest_cone(directions) -> tuple[np.ndarray, float]:
     iteration (``min_norm_point``) runs only when that test fails."""
     d = np.asarray(directions, dtype=np.float64)
     x = two_point_cone_centre(d)
-    if x is None:
-        x = min_norm_point(d).tolist()
+    return cone_through(min_norm_point(d).tolist() if x is None else x, d)
+
+
+def cone_through(x: list, directions: np.ndarray) -> tuple[np.ndarray, float]:
+    """The cone around the unit ``directions`` whose axis points at the hull
+    point ``x`` (plain floats), and its margin min_i k·d_i (0 when x is the
+    origin: the directions surround it)."""
     norm = math.sqrt(_dot(x, x))
     if norm <= 1e-15:
         return np.array([0.0, 0.0, 1.0]), 0.0
     k = np.array([c / norm for c in x])
-    return k, float((d @ k).min())
+    return k, float((directions @ k).min())
 
 
 def two_point_cone_centre(directions: np.ndarray) -> list | None:

@@ -21,8 +21,8 @@ import pytest
 import addon.warp.post_perspective as post_perspective
 from addon.warp import EmptyBodyError, SceneBounds, intersection_body
 from addon.warp.polyhedron import ConvexPolytope
-from addon.warp.post_perspective import (LowestInBoxes, lowest_in_boxes, min_norm_point, nearest_visible_depth,
-                                          smallest_cone, two_point_cone_centre)
+from addon.warp.post_perspective import (LowestInBoxes, cone_through, lowest_in_boxes, min_norm_point,
+                                          nearest_visible_depth, smallest_cone, two_point_cone_centre)
 from bench.warp_speed import city_scene, street_view
 from hard_cases import camera, spot, sun
 
@@ -36,12 +36,7 @@ def _unit(v):
 
 def _cone_by_wolfe(d):
     """smallest_cone's general path: Wolfe's nearest point, then its direction and margin."""
-    x = min_norm_point(d)
-    norm = math.sqrt(x @ x)
-    if norm <= 1e-15:
-        return np.array([0.0, 0.0, 1.0]), 0.0
-    k = x / norm
-    return k, float((d @ k).min())
+    return cone_through(min_norm_point(d).tolist(), d)
 
 
 def _random_frame(rng):
