@@ -106,6 +106,15 @@ def _same_hull(a: np.ndarray, b: np.ndarray, atol: float) -> bool:
     return np.allclose((a @ d.T).max(axis=0), (b @ d.T).max(axis=0), rtol=0, atol=atol)
 
 
+def _both_sections(poly, cone, tol):
+    """C's facets, and B ∩ C from them and C's edges (``_cone_section``) and by the facets alone (``section``)."""
+    corners, height, l_h = cone
+    h = height.tolist()
+    normals, offsets = plane_optimal._cone_facets(corners, h, l_h, tol)
+    got = plane_optimal._cone_section(poly, normals, offsets, *plane_optimal._cone_edges(corners, h, l_h, tol))
+    return normals, offsets, got, poly.section(np.array(normals), np.array(offsets))
+
+
 @pytest.mark.parametrize("seed", range(45))
 def test_the_cone_section_from_facets_and_edges_is_the_section_by_the_facets(seed):
     rng, view, light, body = _frame(seed)
@@ -117,13 +126,9 @@ def test_the_cone_section_from_facets_and_edges_is_the_section_by_the_facets(see
         cone = _cone(rng, body, view, light, origin, tol)
         if cone is None:
             continue
-        corners, height, l_h = cone
-        h = height.tolist()
-        normals, offsets = plane_optimal._cone_facets(corners, h, l_h, tol)
-        if len(normals) != len(corners) + 1:
+        normals, offsets, got, expected = _both_sections(poly, cone, tol)
+        if len(normals) != len(cone[0]) + 1:
             continue
-        got = plane_optimal._cone_section(poly, normals, offsets, *plane_optimal._cone_edges(corners, h, l_h, tol))
-        expected = poly.section(np.array(normals), np.array(offsets))
         assert (got is None) == (expected is None)
         if got is not None:
             compared += 1
@@ -146,11 +151,7 @@ def test_the_cone_section_holds_the_light_inside_b():
         cone = _cone(rng, body, view, light, origin, tol)
         if cone is None:
             continue
-        corners, height, l_h = cone
-        h = height.tolist()
-        normals, offsets = plane_optimal._cone_facets(corners, h, l_h, tol)
-        got = plane_optimal._cone_section(poly, normals, offsets, *plane_optimal._cone_edges(corners, h, l_h, tol))
-        expected = poly.section(np.array(normals), np.array(offsets))
+        _, _, got, expected = _both_sections(poly, cone, tol)
         assert _same_hull(got, expected, 1e-9 * body.scale)
         assert np.abs(got - (light.position - origin)).max(axis=1).min() <= 1e-9 * body.scale
         return
