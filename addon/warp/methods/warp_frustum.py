@@ -208,9 +208,9 @@ def _unit_or_zero(v: np.ndarray) -> np.ndarray:
 
 def eye_depth_range(view: View, body: IntersectionBody, options: WarpOptions, diag: Diagnostics) -> WarpContext:
     """z_n and z_n + Δz for Eq. 1 / GMNPR's (n, f): eye depths (see module docs)."""
-    d = view.eye_depth(body.visible_vertices)
-    z_n = max(view.near, float(d.min()))
-    z_f = max(min(view.far, float(d.max())), z_n)
+    d = view.eye_depth(body.visible_vertices).tolist()                  # (a few dozen: plain floats)
+    z_n = max(view.near, min(d))
+    z_f = max(min(view.far, max(d)), z_n)
     if options.delta_z == "visible":
         if options.visible_depth_range is None:
             diag.fallback("delta_z", "'visible' was asked for but no visible_depth_range was given; Δz from B")
@@ -268,8 +268,8 @@ def light_at_eye(view: View, light: Light, options: WarpOptions, body: Intersect
         n = math.sqrt(dot3(perp, perp))
         if n > 0:
             at.v_p = np.array([a / n for a in perp])
-            along = body.vertices @ at.v_p
-            at.body_extent = float(along.max() - along.min())
+            along = (body.vertices @ at.v_p).tolist()
+            at.body_extent = max(along) - min(along)
     return at, ""
 
 
