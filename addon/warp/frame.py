@@ -248,7 +248,7 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
     basis = cube_basis(axis.tolist(), up.tolist())
     poly = body.polytope_from(apex)
     near_floor = 1e-6 * body.scale
-    pts, member = cube_sections(poly, poly.edges()[0], basis)
+    pts, member = cube_sections(poly, poly.edges(), basis)
     # The faces B reaches, each with its run of candidates (face by face) and its depths along the face's axis.
     counts = member.sum(axis=0).tolist()
     faces = [f for f in range(6) if counts[f]]

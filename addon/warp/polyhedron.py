@@ -4,7 +4,7 @@
 * :class:`ConvexPolytope` - what the warp core uses: vertices, facet planes and
   their incidence, built by vectorised vertex enumeration from half-spaces
   (``from_halfspaces``, ``clip``, ``box``, ``from_corners``); ``faces()`` gives
-  the facets as ordered loops, ``edges()`` the edges with their two facets.
+  the facets as ordered loops, ``edges()`` the edges as vertex pairs.
 * Face lists - a polyhedron as a list of planar convex faces, each an ordered
   (K, 3) array (outward counter-clockwise); ``clip_faces`` clips one by a
   half-space (Sutherland-Hodgman per face plus a cap, so the body is never left
@@ -590,7 +590,7 @@ class ConvexPolytope:
         if not np.any(d > tol):
             return v
         pts = [v[d.max(axis=1) <= tol]]
-        edges = self.edges()[0]
+        edges = self.edges()
         da, db = d[edges[:, 0]], d[edges[:, 1]]
         e, p = np.nonzero(((da < -tol) & (db > tol)) | ((da > tol) & (db < -tol)))
         if len(e):
@@ -667,38 +667,30 @@ class ConvexPolytope:
         ends = np.cumsum(counts).tolist()
         return tuple(tuple(ids[e - c: e]) for e, c in zip(ends, counts.tolist()))
 
-    def edges(self) -> tuple[np.ndarray, np.ndarray]:
-        """(e, 2) vertex index pairs of the edges (lower index first, sorted),
-        and (e, 2) the two facets meeting along each: consecutive vertices of
-        the facet loops. (From the loops rather than from shared planes, so a
-        vertex lying on an edge within the tolerance splits it instead of making
-        a triangle of "edges"; an edge of an open loop has its one facet twice.)
-        Computed once per polytope (read-only arrays; ``translated`` copies share them)."""
+    def edges(self) -> np.ndarray:
+        """(e, 2) vertex index pairs of the edges (lower index first, sorted):
+        consecutive vertices of the facet loops. (From the loops rather than
+        from shared planes, so a vertex lying on an edge within the tolerance
+        splits it instead of making a triangle of "edges"; an edge of a loop
+        left open is there once all the same.) Computed once per polytope
+        (a read-only array; ``translated`` copies share it)."""
         cached = self.__dict__.get("_edges")
         if cached is None:
             cached = self._edges_from_loops()
-            for a in cached:
-                a.flags.writeable = False
+            cached.flags.writeable = False
             object.__setattr__(self, "_edges", cached)
         return cached
 
-    def _edges_from_loops(self) -> tuple[np.ndarray, np.ndarray]:
-        facets: dict = {}                  # (lower, higher vertex) -> [first, last facet along it]
-        for f, loop in enumerate(self.facet_loops()):
+    def _edges_from_loops(self) -> np.ndarray:
+        keys = set()
+        for loop in self.facet_loops():
             a = loop[-1]
             for c in loop:
-                key = (a, c) if a < c else (c, a)
-                along = facets.get(key)
-                if along is None:
-                    facets[key] = [f, f]
-                else:
-                    along[1] = f
+                keys.add((a, c) if a < c else (c, a))
                 a = c
-        keys = sorted(facets)
+        keys = sorted(keys)
         # (np.fromiter over the flat pairs: np.array on a list of tuples costs several times more.)
-        pairs = np.fromiter(chain.from_iterable(keys), np.int64, 2 * len(keys)).reshape(-1, 2)
-        owners = np.fromiter(chain.from_iterable(map(facets.__getitem__, keys)), np.int64, 2 * len(keys)).reshape(-1, 2)
-        return pairs, owners
+        return np.fromiter(chain.from_iterable(keys), np.int64, 2 * len(keys)).reshape(-1, 2)
 
     def faces(self) -> list[np.ndarray]:
         """The facets as (K, 3) vertex loops, counter-clockwise seen from outside,

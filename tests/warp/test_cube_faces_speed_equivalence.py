@@ -60,7 +60,7 @@ def random_bodies(rng, draws: int):
         basis = random_basis(rng)
         poly = random_polytope(rng, basis)
         if poly is not None:
-            yield basis, poly, poly.edges()[0]
+            yield basis, poly, poly.edges()
 
 
 @pytest.mark.parametrize("seed", range(6))

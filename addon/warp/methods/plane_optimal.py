@@ -379,7 +379,7 @@ def _cone_section(poly: ConvexPolytope, normals: list, offsets: list, starts: li
         return v                                             # poly lies in C
     pts = [v[beyond <= tol]]
     # poly's edges crossing C's facets.
-    edges = poly.edges()[0]
+    edges = poly.edges()
     da, db = d[edges.T]                                      # (e, C's facets) at either end
     e, p = np.nonzero((np.minimum(da, db) < -tol) & (np.maximum(da, db) > tol))
     if len(e):

@@ -569,7 +569,7 @@ def ray_closed(matrices, body: IntersectionBody, light_position) -> list:
     # Its corner rays: the directions the map sends to (x, y, w) = (±1, ±1, 1), so w > 0 on them.
     rays = (np.linalg.inv(rows[:, _XYW]) @ _WINDOW_CORNERS).transpose(0, 2, 1)
     poly = body.polytope_from(light_position)
-    pts, member, _ = pyramid_sections(poly, poly.edges()[0], sides.reshape(-1, 3), rays.reshape(-1, 3),
+    pts, member, _ = pyramid_sections(poly, poly.edges(), sides.reshape(-1, 3), rays.reshape(-1, 3),
                                       separate_pyramids(len(m)))
     # Each map's image of its own candidates, map by map (the layout of ``fit.fit_runs``).
     run, candidate = np.nonzero(member.T)
