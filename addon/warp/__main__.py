@@ -16,7 +16,7 @@ import sys
 import traceback
 
 from . import METHODS, compute, intersection_body
-from .config import ConfigError, parse_config
+from .config import parse_config
 from .types import EmptyBodyError, WarpError
 
 

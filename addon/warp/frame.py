@@ -113,6 +113,13 @@ def light_angles(view: View, light_direction) -> tuple[float, float]:
     return min(gamma, math.pi - gamma), gamma
 
 
+def body_light_angles(view: View, light: Light, body: IntersectionBody) -> tuple[float, float]:
+    """``light_angles`` to the light's axis towards B: a sun's direction, or
+    from a point or spot light to B's centroid (what a map's θ and γ report
+    when no warp has its own)."""
+    return light_angles(view, light.direction if light.is_directional else body.centroid - light.position)
+
+
 def sun_frame(view: View, light: Light, body: IntersectionBody) -> LightFrame:
     """Orthographic frame of a sun, anchored at the camera for precision."""
     up = image_up(view.direction, view.up, light.direction)

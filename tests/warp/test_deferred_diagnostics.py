@@ -89,3 +89,18 @@ def test_the_middle_vector_option_still_steers_the_warp():
     plain = compute("lispsm", view, light, SCENE, WarpOptions(), body=body)
     middle = compute("lispsm", view, light, SCENE, WarpOptions(middle_vector=True), body=body)
     assert not np.allclose(plain.maps[0].matrix, middle.maps[0].matrix)
+
+
+@pytest.mark.parametrize("light", LIGHTS, ids=["sun", "point"])
+@pytest.mark.parametrize("method", ["uniform", "psm", "plane_optimal"])
+def test_theta_and_gamma_are_measured_when_read_once_for_both(monkeypatch, light, method):
+    import addon.warp.frame as frame
+    view = _view()
+    body = intersection_body(view, light, SCENE)
+    expected = frame.body_light_angles(view, light, body)
+    angles = Counting(frame.light_angles)
+    monkeypatch.setattr(frame, "light_angles", angles)
+    diag = compute(method, view, light, SCENE, WarpOptions(), body=body).diagnostics
+    assert angles.calls == 0
+    assert (diag.theta, diag.gamma) == expected and (diag.theta, diag.gamma) == expected
+    assert angles.calls == 1

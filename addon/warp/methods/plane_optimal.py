@@ -55,7 +55,7 @@ import numpy as np
 
 from ..body import IntersectionBody
 from ..fit import fit_runs, window_matrix
-from ..frame import light_angles, light_frames
+from ..frame import body_light_angles, light_frames
 from ..geometry import point_runs, translation
 from ..plane_map import (PlaneOfInterest, clip_to_polygon, convex_polygon_on_plane, default_plane, default_plane_of,
                          enclosing_polygon, is_convex_polygon, min_area_twist, offset_steps,
@@ -526,8 +526,7 @@ def _fallback_size(texels: float, options: WarpOptions) -> tuple[int, int]:
 
 def plane_optimal(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
     diag = Diagnostics("plane_optimal", body_vertices=body.vertices)
-    diag.report_angles(lambda: light_angles(view, light.direction if light.is_directional
-                                            else body.centroid - light.position))
+    diag.report_angles(lambda: body_light_angles(view, light, body))
     origin = view.position
     tol = max(REGION_TOLERANCE * body.scale, 100 * body.tolerance)
     planes = _planes_of(options, body, diag)

@@ -65,7 +65,7 @@ import numpy as np
 
 from ..body import IntersectionBody
 from ..fit import fit_to_unit_cube
-from ..frame import light_angles
+from ..frame import body_light_angles
 from ..geometry import clip_volume_corners_h, homogeneous, translation
 from ..post_perspective import nearest_visible_depth, pps_light_matrix, virtual_camera
 from ..types import Deferred, Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpOptions
@@ -73,10 +73,6 @@ from .uniform import near_plane_notes, uniform_maps
 
 COVER_TOLERANCE = 1e-6
 """Final check: every B vertex has |NDC| <= 1 + this (the fit pads by 1e-7)."""
-
-
-def _light_axis(view: View, light: Light, body: IntersectionBody) -> np.ndarray:
-    return light.direction if light.is_directional else body.centroid - light.position
 
 
 def _uniform_fallback(view: View, light: Light, body: IntersectionBody, options: WarpOptions,
@@ -113,7 +109,7 @@ def covers(matrix: np.ndarray, points: np.ndarray, tol: float = COVER_TOLERANCE)
 
 def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
     diag = Diagnostics("psm", body_vertices=body.vertices)
-    diag.report_angles(lambda: light_angles(view, _light_axis(view, light, body)))
+    diag.report_angles(lambda: body_light_angles(view, light, body))
     if view.orthographic:
         return _uniform_fallback(view, light, body, options, diag, "orthographic camera",
                                  "the post-perspective space of an orthographic camera is affine: "

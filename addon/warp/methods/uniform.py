@@ -20,7 +20,7 @@ import numpy as np
 
 from ..body import IntersectionBody
 from ..fit import fit_runs, ndc_bounds, ndc_box, window_matrix
-from ..frame import LightFrame, light_angles, light_frames, world_sun_frame
+from ..frame import LightFrame, body_light_angles, light_frames, world_sun_frame
 from ..geometry import point_runs
 from ..types import Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpOptions
 
@@ -83,11 +83,7 @@ def near_plane_notes(frames: list[LightFrame]) -> list[tuple[str, str]]:
 def uniform(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
     maps, frames = uniform_maps(view, light, body, options)
     diag = Diagnostics("uniform", body_vertices=body.vertices)
-    if light.is_directional:
-        diag.theta, diag.gamma = light_angles(view, light.direction)
-    else:
-        axis = body.centroid - light.position
-        diag.theta, diag.gamma = light_angles(view, axis)
+    diag.report_angles(lambda: body_light_angles(view, light, body))
     diag.fallbacks.extend(near_plane_notes(frames))
     diag.extra["frames"] = [f.role for f in frames]
     return ShadowSetup(maps, diag)

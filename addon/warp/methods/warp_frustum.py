@@ -91,7 +91,7 @@ import numpy as np
 from ..aliasing import lambda_glpr, lambda_gmnpr, lispsm_inverse_n_opt
 from ..body import IntersectionBody
 from ..fit import fit_runs, ndc_bounds, window_matrices, window_matrix
-from ..frame import (PARALLEL_BLEND, LightFrame, light_angles, light_frames, pyramid_sections,
+from ..frame import (PARALLEL_BLEND, LightFrame, body_light_angles, light_frames, pyramid_sections,
                      separate_pyramids)
 from ..geometry import across, clip_volume_corners, dot3, homogeneous, point_runs, transform_h_runs
 from ..types import Deferred, Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
@@ -544,8 +544,7 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
         diag.extra["v_p"] = geo.v_p_world if geo.v_p_world is not None else np.zeros(3)
         diag.extra["projection_centre"] = Deferred(lambda f=frame, g=geo, lam=w.lam_frame: projection_centre(f, g, lam))
     if not reported:                     # no warped map: the angles to the light's axis, as for a uniform map
-        axis = light.direction if light.is_directional else body.centroid - light.position
-        diag.theta, diag.gamma = light_angles(view, axis)
+        diag.report_angles(lambda: body_light_angles(view, light, body))
     return ShadowSetup(maps, diag)
 
 
