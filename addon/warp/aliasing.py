@@ -72,7 +72,11 @@ GLPR_FLOOR = 0.1
 # ---------------------------------------------------------------- the 2D model
 
 def _t(theta, phi):
-    """t = tan φ / tan θ (0 at θ = π/2, +inf at θ = 0)."""
+    """t = tan φ / tan θ (0 at θ = π/2, +inf at θ = 0); a float for a float θ
+    (the λ rules, once per frame), an array otherwise (the model's curves)."""
+    if isinstance(theta, float):
+        s = math.sin(theta)
+        return math.tan(phi) * math.cos(theta) / s if s != 0.0 else math.inf
     theta = np.asarray(theta, dtype=np.float64)
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.tan(phi) * np.cos(theta) / np.sin(theta)
@@ -176,7 +180,7 @@ def lambda_gmnpr(theta, n, f, phi) -> float:
     λ1 = (n + √(fn) - n·tanφ/tanθ) / (f - n + (f + n)·tanφ/tanθ);
     θ < φ: λ2* = √(fn)/(2f) / tan(θπ/(4φ)) (∞ at θ = 0)."""
     if theta >= phi:
-        t = float(_t(theta, phi))
+        t = _t(float(theta), phi)
         return (n + math.sqrt(f * n) - n * t) / (f - n + (f + n) * t)
     q = math.tan(theta * math.pi / (4.0 * phi))
     return math.inf if q <= 0.0 else math.sqrt(f * n) / (2.0 * f) / q
@@ -188,7 +192,7 @@ def lambda_glpr(theta, n, f, phi) -> float:
     to GMNPR's λ2* (Eq. 7, ∞ at θ = 0). Continuous everywhere."""
     floor = GLPR_FLOOR * n / max(f - n, 1e-300 * max(n, 1.0))
     if theta >= phi:
-        t = float(_t(theta, phi))
+        t = _t(float(theta), phi)
         return max(n * (1.0 - t) / (f - n + (f + n) * t), floor)
     g = lambda_gmnpr(theta, n, f, phi)
     if not math.isfinite(g):
