@@ -1,4 +1,4 @@
-"""This round's shortcuts in plane_optimal equal the plain constructions.
+"""The shortcuts in plane_optimal equal the plain constructions.
 
 * R's section by P, walked from facet to facet across the crossed edges
   (``plane_map._walk_section``), is the hull of the crossing points

@@ -1,4 +1,4 @@
-"""Round 4b: ``frame.light_cone`` divides by the lengths in place when no point
+"""``frame.light_cone`` divides by the lengths in place when no point
 sits at the apex, and equals the construction that always filters the points
 near the apex first (random point sets, some with points at the apex)."""
 import math

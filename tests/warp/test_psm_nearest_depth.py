@@ -1,4 +1,4 @@
-"""PSM's second round of speed work keeps its results:
+"""PSM's virtual camera and nearest visible depth, as made fast, keep their results:
 
 * the virtual camera's B' (``VirtualCamera.points``: the fit's window applied
   to B's divided raw PPS coordinates) is B transformed by ``to_pps`` and

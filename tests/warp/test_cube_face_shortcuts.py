@@ -1,4 +1,4 @@
-"""This round's shortcuts in the point light's cube faces equal the plain constructions.
+"""The shortcuts in the point light's cube faces equal the plain constructions.
 
 * ``frame.ray_interval`` (reductions with ``where=``, the parallel-facet test
   only when some ray is parallel to a facet) equals the interval written out
