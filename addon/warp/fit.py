@@ -70,6 +70,19 @@ def fit_to_unit_cube(transform, points) -> np.ndarray:
     return window_matrix(lo, hi) @ np.asarray(transform, dtype=np.float64)
 
 
+def fit_keeping_points(transform, points) -> tuple[np.ndarray, np.ndarray]:
+    """``fit_to_unit_cube`` and the ``points`` as the fitted map divides them
+    (the window is a scale and an offset per axis of the divided coordinates)."""
+    transform = np.asarray(transform, dtype=np.float64)
+    h = np.asarray(points, dtype=np.float64) @ transform[:, :3].T + transform[:, 3]
+    w = h[:, 3:]
+    if not (w > 0).all():
+        raise WarpError("internal: a point of B is behind the projection (w <= 0)")
+    ndc = h[:, :3] / w
+    window = window_matrix(ndc.min(axis=0), ndc.max(axis=0))
+    return window @ transform, ndc * window.diagonal()[:3] + window[:3, 3]
+
+
 def fit_runs(matrices, points_h, starts, run) -> np.ndarray:
     """``fit_to_unit_cube`` for several maps at once: map k (``matrices``,
     (k, 4, 4)) is fitted to its own run of the homogeneous points (N, 4), the

@@ -68,7 +68,7 @@ import numpy as np
 
 from .body import IntersectionBody
 from .light_hull import light_halfspaces
-from .fit import window_matrix
+from .fit import fit_keeping_points
 from .frame import image_up
 from .geometry import cross3, normalize
 from .polyhedron import ConvexPolytope, float_rows
@@ -347,13 +347,8 @@ def virtual_camera(view: View, body: IntersectionBody, visible_near: float | Non
                     [y0, y1, y2, 0.0],
                     [0.0, 0.0, 0.0, -near],      # z_pps = -near / depth_v: affine in 1/depth (perspective depth)
                     [-z0, -z1, -z2, shift]])     # w = depth + shift = virtual eye depth
-    # fit.fit_to_unit_cube, keeping B's divided points: w >= near > 0 on B, and the
-    # window is an affine map of the divided coordinates (a scale and an offset per axis).
-    h = rel @ raw[:, :3].T + raw[:, 3]
-    ndc = h[:, :3] / h[:, 3:]
-    window = window_matrix(ndc.min(axis=0), ndc.max(axis=0))
-    points = ndc * window.diagonal()[:3] + window[:3, 3]
-    return VirtualCamera(window @ raw, shift, near, float(depth.max()) + shift, d_r, points)
+    to_pps, points = fit_keeping_points(raw, rel)          # (w >= near > 0 on B)
+    return VirtualCamera(to_pps, shift, near, float(depth.max()) + shift, d_r, points)
 
 
 OPTIMALITY_GAP = 1e-14
