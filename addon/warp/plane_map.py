@@ -7,8 +7,9 @@ Notation (paper §2): M_v is the viewer's world -> clip matrix, l the light
 
 * :func:`five_point_matrix` solves Eq. 1 and 7-10: five point correspondences
   (the light and four points on P raised so no four are coplanar) fix a
-  projective 4x4 matrix up to scale (Faugeras 1993). Solved as a 15x16 DLT by
-  SVD in float64 with a rank and a residual check.
+  projective 4x4 matrix up to scale (Faugeras 1993): the null vector of a
+  15x16 DLT system, whose rank is checked by SVD in float64, found as the map
+  between the two sides' projective frames, with a residual check.
 * :func:`plane_light_matrix` builds those five points: the rays through the
   four view corners meet P in p^1..p^4 (homogeneous, so corners whose rays miss
   P or meet it behind the camera, i.e. a quad straddling infinity (Fig. 5), are
@@ -136,12 +137,36 @@ def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
 
     Each correspondence gives three independent equations
     Y_m (M X)_j - Y_j (M X)_m = 0 (m = the largest component of Y); the 15x16
-    system is solved by SVD (its null vector), in float64. Raises WarpError when
-    the rank is below 15 (relative singular value under RANK_TOL) or when a
-    correspondence is not met to RESIDUAL_TOL. Returns (M, {"condition",
-    "residual"})."""
+    system must have rank 15 (its singular values, in float64), and its null
+    vector, M up to scale, is then M = F_dst·F_src⁻¹ (:func:`projective_frame`;
+    no four of ``dst`` coplanar either). Raises WarpError when the rank is
+    below 15 (relative singular value under RANK_TOL) or when a correspondence
+    is not met to RESIDUAL_TOL. Returns (M, {"condition", "residual"})."""
     dst = np.asarray(dst, dtype=np.float64).reshape(5, 4)
     return _solve_five_points(src, dst, _dlt_coefficients(dst))
+
+
+def projective_frame(points) -> np.ndarray:
+    """The 4x4 F taking the canonical projective basis e_1..e_4, (1, 1, 1, 1)
+    to the five homogeneous ``points`` (rows; no four coplanar): F e_i ∝ p_i
+    and F (1, 1, 1, 1) = p_5, i.e. the columns p_1..p_4 scaled by λ =
+    [p_1 .. p_4]⁻¹ p_5 (Faugeras 1993). Raises WarpError when four of the
+    points are coplanar (a λ_i is 0 or the matrix singular)."""
+    p = np.asarray(points, dtype=np.float64).reshape(5, 4)
+    inverse = _frame_inverse(p)
+    return np.linalg.inv(inverse)
+
+
+def _frame_inverse(p: np.ndarray) -> np.ndarray:
+    """``projective_frame(p)``⁻¹ = diag(1/λ)·[p_1 .. p_4]⁻¹."""
+    try:
+        columns_inverse = np.linalg.inv(p[:4].T)
+    except np.linalg.LinAlgError:
+        raise WarpError("the five point constraints are degenerate (four of the points are coplanar)") from None
+    lam = columns_inverse @ p[4]
+    if not (np.isfinite(lam).all() and np.abs(lam).min() > 0):
+        raise WarpError("the five point constraints are degenerate (four of the points are coplanar)")
+    return columns_inverse / lam[:, None]
 
 
 def _dlt_coefficients(dst: np.ndarray) -> np.ndarray:
@@ -159,20 +184,27 @@ def _dlt_coefficients(dst: np.ndarray) -> np.ndarray:
     return np.array(coefficients)
 
 
-def _solve_five_points(src, dst: np.ndarray, coefficients: np.ndarray) -> tuple[np.ndarray, dict]:
-    """``five_point_matrix`` with the targets' equation coefficients given
-    (``_dlt_coefficients(dst)``; those of the plane map's fixed targets are made once)."""
+def _solve_five_points(src, dst: np.ndarray, coefficients: np.ndarray,
+                       dst_frame: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
+    """``five_point_matrix`` with the targets' equation coefficients given,
+    and perhaps their projective frame (``_dlt_coefficients(dst)``,
+    ``projective_frame(dst)``; those of the plane map's fixed targets are made once).
+
+    M = F_dst·F_src⁻¹ maps each src_i to a multiple of dst_i, so it solves
+    the 15 equations; with rank 15 their solutions are the multiples of one
+    matrix (the SVD's last right singular vector), so this is it up to scale,
+    found with one 4x4 inverse instead of the SVD's vectors."""
     src = np.asarray(src, dtype=np.float64).reshape(5, 4)
     # Equation e over M's 16 entries row by row: the coefficient of M's row r times x_i (i = e // 3).
     a = (coefficients[:, :, None] * src[_EQUATION_POINT][:, None, :]).reshape(15, 16)
     if not np.isfinite(a).all():
         raise WarpError("the five point constraints are not finite")
-    _, sv, vt = np.linalg.svd(a)
+    sv = np.linalg.svd(a, compute_uv=False)
     condition = float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0
     if not condition > RANK_TOL:
         raise WarpError(f"the five point constraints are degenerate (rank < 15, relative singular value {condition:.3g})")
-    m = vt[-1].reshape(4, 4)
-    m_norm = length(vt[-1].tolist())
+    m = (projective_frame(dst) if dst_frame is None else dst_frame) @ _frame_inverse(src)
+    m_norm = length(m.ravel().tolist())
     residual = 0.0                          # the largest distance between M·X and Y as unit vectors (either sign)
     for x, mx, y in zip(src.tolist(), (src @ m.T).tolist(), dst.tolist()):
         mx_norm, y_norm = length(mx), length(y)
@@ -195,6 +227,9 @@ _EQUATION_POINT = np.repeat(np.arange(5), 3)
 
 _FIVE_POINT_COEFFICIENTS = _dlt_coefficients(_FIVE_POINT_TARGETS)
 """``_dlt_coefficients`` of the plane map's targets (they never change)."""
+
+_FIVE_POINT_FRAME = projective_frame(_FIVE_POINT_TARGETS)
+"""``projective_frame`` of the plane map's targets."""
 
 
 def ray_plane_points(view_clip, plane_vec, ndc_xy) -> np.ndarray:
@@ -257,7 +292,7 @@ def plane_light_matrix(corner_points, light_h, length_scale: float) -> tuple[np.
     src = [_unit_list([x * k, y * k, z * k, w]) for x, y, z, w in points + [np.asarray(light_h, dtype=np.float64).tolist()]]
     # p̂^4: another point of the line through p^4 and l (Fig. 2).
     src[3] = _unit_list([a + b for a, b in zip(src[3], src[4])])
-    m, info = _solve_five_points(src, _FIVE_POINT_TARGETS, _FIVE_POINT_COEFFICIENTS)
+    m, info = _solve_five_points(src, _FIVE_POINT_TARGETS, _FIVE_POINT_COEFFICIENTS, _FIVE_POINT_FRAME)
     return m * np.array([k, k, k, 1.0]), info
 
 
