@@ -19,7 +19,9 @@ from typing import NamedTuple
 
 class Brep(NamedTuple):
     """A closed convex polyhedron: ``vertices`` [(x, y, z)], and per facet
-    ``normals`` [(nx, ny, nz)], ``offsets`` [o] and ``loops`` [[vertex index]]."""
+    ``normals`` [(nx, ny, nz)], ``offsets`` [o] and ``loops`` [[vertex index]].
+    A cut shares the loops of the facets it keeps whole with the body it cut,
+    so loops are never changed in place."""
 
     vertices: list
     normals: list
@@ -37,17 +39,115 @@ def cut(b: Brep, normal, offset: float, tol: float) -> Brep | None:
     """``b`` ∩ {normal . x <= offset} (unit ``normal``); ``b`` itself when the
     half-space holds it, None when nothing with volume is left.
 
-    Vertices within ``tol`` of the plane lie on it. Each facet is walked once:
-    kept, dropped, or cut where its edges cross the plane (a crossing point is
-    shared by the two facets of its edge). The facets' new edges on the plane,
-    reversed, chain into the cap."""
+    Vertices within ``tol`` of the plane lie on it; when one does, the cut is
+    ``_cut_through_vertices``. Otherwise every vertex is strictly inside or
+    beyond, and each facet is kept whole (its loop shared, its vertex ids
+    unchanged), dropped, or walked: every edge between the two sides gets its
+    crossing point, computed once from the edge's endpoint inside, so both
+    facets of the edge share it, and the crossings take the ids of the dropped
+    vertices (then new ones), so nothing is renumbered unless fewer crossings
+    than dropped vertices leave gaps. A facet's vertices beyond the plane are
+    one run along its convex loop (the distance is affine on it), so a walked
+    facet leaves the half-space once and comes back once: its new edge, from
+    the crossing where it leaves to the one where it comes back, is a cap edge
+    reversed, and the cap edges chain into the cap. A facet crossed more
+    than twice (possible only through rounding on a near-degenerate body)
+    leaves crossings off the cap and raises OpenCut."""
     nx, ny, nz = normal
-    d = [nx * x + ny * y + nz * z - offset for x, y, z in b.vertices]
+    old = b.vertices
+    d = [nx * x + ny * y + nz * z - offset for x, y, z in old]
     if max(d) <= tol:
         return b
     if min(d) >= -tol:
         return None
+    if min(map(abs, d)) <= tol:
+        return _cut_through_vertices(b, normal, offset, tol, d)
 
+    beyond = {i for i, e in enumerate(d) if e > tol}
+    verts = list(old)
+    free = sorted(beyond, reverse=True)    # ids of the dropped vertices, for the crossings (lowest first)
+    crossing: dict = {}                    # (inside, beyond) old vertex pair -> the crossing's id
+    cap_next: dict = {}                    # cap edge: a facet's entry crossing -> its leaving one
+    normals, offsets, loops = [], [], []
+    for fn, fo, loop in zip(b.normals, b.offsets, b.loops):
+        if beyond.isdisjoint(loop):        # kept whole
+            new = loop
+        elif beyond.issuperset(loop):      # cut away
+            continue
+        else:
+            new = []
+            p = loop[-1]
+            p_out = p in beyond
+            for q in loop:
+                q_out = q in beyond
+                if p_out != q_out:         # the edge p -> q crosses the plane
+                    key = (q, p) if p_out else (p, q)
+                    x = crossing.get(key)
+                    if x is None:
+                        w, v = key
+                        (px, py, pz), (qx, qy, qz) = old[w], old[v]
+                        t = d[w] / (d[w] - d[v])
+                        point = (px + t * (qx - px), py + t * (qy - py), pz + t * (qz - pz))
+                        if free:
+                            x = free.pop()
+                            verts[x] = point
+                        else:
+                            x = len(verts)
+                            verts.append(point)
+                        crossing[key] = x
+                    new.append(x)
+                    if p_out:
+                        entry = x
+                    else:
+                        leave = x
+                if not q_out:
+                    new.append(q)
+                p, p_out = q, q_out
+            if entry in cap_next:
+                raise OpenCut("two cap edges leave one vertex")
+            cap_next[entry] = leave
+        normals.append(fn)
+        offsets.append(fo)
+        loops.append(new)
+    if len(cap_next) != len(crossing):
+        raise OpenCut("a facet crosses the plane more than twice")
+    normals.append(tuple(normal))
+    offsets.append(offset)
+    loops.append(_chain_cap(cap_next))
+    if free:                               # fewer crossings than dropped vertices: close the gaps
+        gone = set(free)
+        live = [v for v in range(len(verts)) if v not in gone]
+        index = dict(zip(live, range(len(live))))
+        verts = [verts[v] for v in live]
+        loops = [[index[v] for v in loop] for loop in loops]
+    return Brep(verts, normals, offsets, loops)
+
+
+def _chain_cap(cap_next: dict) -> list:
+    """The cap's loop from its edges (vertex -> next vertex); OpenCut unless
+    they close into one loop of at least three."""
+    if len(cap_next) < 3:
+        raise OpenCut("the cut leaves no cap")
+    start = min(cap_next)
+    cap = [start]
+    nxt = cap_next[start]
+    while nxt != start:
+        if nxt is None or len(cap) > len(cap_next):       # (None: a facet loop left open upstream)
+            raise OpenCut("the cap's edges do not close into one loop")
+        cap.append(nxt)
+        nxt = cap_next.get(nxt)
+    if len(cap) != len(cap_next):
+        raise OpenCut("the cap's edges form more than one loop")
+    return cap
+
+
+def _cut_through_vertices(b: Brep, normal, offset: float, tol: float, d: list) -> Brep:
+    """``cut`` when a vertex lies on the plane (``d``: the vertices' signed
+    distances to it; some vertex beyond, some inside). Each facet is walked
+    once: kept, dropped, or cut where its edges cross the plane (a crossing
+    point is shared by the two facets of its edge). The facets' new edges on
+    the plane (between crossings and vertices on it), reversed, chain into the
+    cap."""
     verts: list = []
     index: list = []                       # old vertex -> new index (-1: cut away)
     beyond, within, on = set(), set(), set()     # old vertices by side of the plane
@@ -110,21 +210,9 @@ def cut(b: Brep, normal, offset: float, tol: float) -> Brep | None:
                     raise OpenCut("two cap edges leave one vertex")
                 cap_next[q] = p
             p, p_on = q, q_on
-    if len(cap_next) < 3:
-        raise OpenCut("the cut leaves no cap")
-    start = min(cap_next)
-    cap = [start]
-    nxt = cap_next[start]
-    while nxt != start:
-        if nxt is None or len(cap) > len(cap_next):       # (None: a facet loop left open upstream)
-            raise OpenCut("the cap's edges do not close into one loop")
-        cap.append(nxt)
-        nxt = cap_next.get(nxt)
-    if len(cap) != len(cap_next):
-        raise OpenCut("the cap's edges form more than one loop")
     normals.append(tuple(normal))
     offsets.append(offset)
-    loops.append(cap)
+    loops.append(_chain_cap(cap_next))
     return Brep(verts, normals, offsets, loops)
 
 
