@@ -78,3 +78,40 @@ def test_the_plane_maps_five_points_solve_to_the_dlt_null_vector(seed, monkeypat
     src, (m, info) = solved[0]
     assert _same_up_to_scale(m, _dlt_null_vector(src, _FIVE_POINT_TARGETS), 1e-10)
     assert info["residual"] < 1e-12
+
+
+def _box_prism(lo, hi, z0, z1):
+    """An axis-aligned box [lo, hi] x [z0, z1] given as facets (normals with -0.0 entries, as -np.eye) and edges."""
+    normals = np.concatenate([-np.eye(3), np.eye(3)])
+    offsets = [-lo[0], -lo[1], -z0, hi[0], hi[1], z1]
+    corners = [(lo[0], lo[1]), (hi[0], lo[1]), (hi[0], hi[1]), (lo[0], hi[1])]
+    base = [(x, y, z0) for x, y in corners]
+    up = [(0.0, 0.0, z1 - z0)] * 4
+    along = [(bx - ax, by - ay, 0.0) for (ax, ay, _), (bx, by, _) in zip(base, base[1:] + base[:1])]
+    top = [(x, y, z1) for x, y in corners]
+    return normals.tolist(), offsets, base + base + top, up + along + along, [1.0] * 12
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_the_cone_section_of_boxes_is_the_section_by_the_facets(seed):
+    """Axis-aligned boxes: edges exactly parallel to facets (rates of +0 and -0), edges lying in the other's
+    facets and vertices on them; the one clip of both edge sets gives the hull ``ConvexPolytope.section`` gives."""
+    from addon.warp.polyhedron import ConvexPolytope
+    from test_plane_optimal_shortcuts import _same_hull
+    rng = np.random.default_rng(seed)
+    # (whole coordinates, often shared: coplanar facets, vertices on facets)
+    lo, hi = rng.integers(-3, 1, size=3).astype(float), rng.integers(1, 4, size=3).astype(float)
+    poly = ConvexPolytope.box(lo, hi, 1e-9)
+    clo, chi = rng.integers(-4, 1, size=2).astype(float), rng.integers(0, 5, size=2).astype(float)
+    chi = np.maximum(chi, clo + 1)
+    z0, z1 = float(rng.integers(-4, 2)), float(rng.integers(0, 5))
+    z1 = max(z1, z0 + 1)
+    normals, offsets, starts, steps, ends = _box_prism(clo, chi, z0, z1)
+    got = plane_optimal._cone_section(poly, normals, offsets, starts, steps, ends)
+    expected = poly.section(np.array(normals), np.array(offsets))
+    if expected is None or got is None:
+        # (section answers None only when nothing is left; the clip may keep a touching face or edge)
+        inter_lo, inter_hi = np.maximum(lo, [clo[0], clo[1], z0]), np.minimum(hi, [chi[0], chi[1], z1])
+        assert expected is None and (inter_hi - inter_lo).min() <= 0
+        return
+    assert _same_hull(got, expected, 1e-12)

@@ -357,52 +357,41 @@ def _cone_section(poly: ConvexPolytope, normals: list, offsets: list, starts: li
                   ends: list) -> np.ndarray | None:
     """Points whose convex hull is poly ∩ C, for a convex C given both by its
     facets (``normals`` @ x <= ``offsets``, unit normals) and by its edges
-    (starts[i] + t·steps[i], 0 <= t <= ends[i]), or None when a facet of C
-    leaves nothing of poly. ``poly.section`` by C's facets gives the same
-    points, but finds C's edges among every pair of its facets.
+    (starts[i] + t·steps[i], 0 <= t <= ends[i]), or None when nothing of poly
+    is in C. ``poly.section`` by C's facets gives the same points, but finds
+    C's edges among every pair of its facets.
 
-    A vertex of poly ∩ C lies on three of their facets: a vertex of poly
-    inside C (on none of C's), where an edge of poly crosses a facet of C (on
-    one; kept when inside C within the tolerance), or on an edge of C (on two
-    or more): it is then an end of that edge's stretch inside poly, since a
-    vertex is not inside any segment of poly ∩ C; so are C's vertices inside
-    poly. An edge of C parallel to a facet of poly (|rate| <= 1e-12 of its
-    length) is outside when it lies beyond the facet by more than the tolerance."""
-    tol, v = poly.tol, poly.vertices
-    c_normals = np.array(normals)
-    c_offsets = np.array(offsets)
-    d = v @ c_normals.T - c_offsets                          # (vertices, C's facets)
-    if (d.min(axis=0) >= -tol).any():
-        return None                                          # poly lies outside one facet of C
-    beyond = d.max(axis=1)
-    if beyond.max() <= tol:
-        return v                                             # poly lies in C
-    pts = [v[beyond <= tol]]
-    # poly's edges crossing C's facets.
-    edges = poly.edges()
-    da, db = d[edges.T]                                      # (e, C's facets) at either end
-    e, p = np.nonzero((np.minimum(da, db) < -tol) & (np.maximum(da, db) > tol))
-    if len(e):
-        da = da[e, p]
-        t = da / (da - db[e, p])
-        a, b = v[edges[e].T]
-        x = a + t[:, None] * (b - a)
-        pts.append(x[(x @ c_normals.T - c_offsets).max(axis=1) <= tol])
-    # C's edges through poly: the stretch of t where poly.normals @ x <= poly.offsets.
-    starts, steps = np.array(starts), np.array(steps)
-    rate = steps @ poly.normals.T                            # (C's edges, poly's facets)
-    room = poly.offsets - starts @ poly.normals.T
-    along = np.abs(rate) > 1e-12 * np.sqrt(np.einsum("ij,ij->i", steps, steps))[:, None]
-    ratio = np.divide(room, rate, out=None, where=along)     # (left unset where parallel, never read)
-    t_hi = np.minimum(np.minimum.reduce(ratio, axis=1, where=along & (rate > 0), initial=np.inf), ends)
-    t_lo = np.maximum.reduce(ratio, axis=1, where=along & (rate < 0), initial=0.0)
+    A vertex of poly ∩ C lies on three of their facets, so on an edge of poly
+    (two or three of poly's) or on an edge of C (two or three of C's), and it
+    is an end of that edge's stretch inside poly ∩ C, since a vertex is not
+    inside any segment of poly ∩ C. So the ends of poly's edges clipped to C
+    and of C's edges clipped to poly are the points (Cyrus-Beck: t·rate <=
+    room for each facet), found in one clip of all the edges by all the
+    facets in which an edge's own polytope gives it no bound (room = +inf: an
+    edge lies in its own polytope, which rounding could contradict)."""
+    a, b = poly.vertices[poly.edges().T]
+    seg_start = np.concatenate([a, starts])
+    seg_step = np.concatenate([b - a, steps])
+    planes = np.concatenate([normals, poly.normals])
+    limits = np.concatenate([offsets, poly.offsets])
+    # (facets, edges); + 0.0 turns -0.0 into +0.0: an edge parallel to a facet reads as rising, and
+    # room / +0 is +inf (no bound) inside, -inf (nothing left) outside, NaN (ignored by fmin) on it.
+    rate = planes @ seg_step.T + 0.0
+    room = limits[:, None] - planes @ seg_start.T
+    c_facets, poly_edges = len(normals), len(a)
+    room[:c_facets, poly_edges:] = np.inf
+    room[c_facets:, :poly_edges] = np.inf
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):      # (a huge ratio is no bound either)
+        ratio = room / rate
+    rising = rate >= 0
+    t_hi = np.minimum(np.fmin.reduce(np.where(rising, ratio, np.inf), axis=0),
+                      np.concatenate([np.ones(poly_edges), ends]))
+    t_lo = np.maximum(np.fmax.reduce(np.where(rising, -np.inf, ratio), axis=0), 0.0)
     hit = t_lo <= t_hi
-    if not along.all():
-        hit &= ~(~along & (room < -tol)).any(axis=1)
-    if hit.any():
-        pts.append(starts[hit] + t_lo[hit, None] * steps[hit])
-        pts.append(starts[hit] + t_hi[hit, None] * steps[hit])
-    return np.concatenate(pts)
+    if not hit.any():
+        return None
+    start, step = seg_start[hit], seg_step[hit]
+    return np.concatenate([start + t_lo[hit, None] * step, start + t_hi[hit, None] * step])
 
 
 def _polytope(body: IntersectionBody, origin: np.ndarray) -> ConvexPolytope | None:
