@@ -628,37 +628,56 @@ def default_plane(receiver_boxes) -> Optional[PlaneOfInterest]:
 def default_plane_of(receivers) -> Optional[PlaneOfInterest]:
     """``default_plane(receiver boxes)`` for the receivers a culling index
     selected (``culling.Selection``), without gathering every selected box: no
-    box is wider than its cluster's bounds, so clusters are opened widest bounds
-    first (in batches of doubling size) until none left can hold a box as wide
-    as the widest flat one found. Box i is named by its position among the
-    selected boxes in the scene's order, as in ``body.receiver_boxes``."""
+    box is wider than its cluster's bounds, so only the clusters whose bounds
+    are as wide as the widest flat top found are opened. The widest cluster
+    is opened first; when it holds a selected flat box (a ground slab, a
+    floor) that box's area bounds the others (usually no other cluster is as
+    wide), else clusters are opened widest bounds first in batches of
+    doubling size until none left can hold a box as wide as the widest flat
+    one found. Box i is named by its position among the selected boxes in the
+    scene's order, as in ``body.receiver_boxes``."""
     index, selected, picked = receivers.index, receivers.selected, receivers.by_cluster
     clusters, size = index.c_box_bounds.shape[1:]
     c_lo, c_hi = index.c_bounds[:3], -index.c_bounds[3:]           # (c_bounds: lo, -hi)
     c_area = (c_hi[0] - c_lo[0]) * (c_hi[1] - c_lo[1])
-    order = np.argsort(-c_area, kind="stable")
-    c_area = c_area[order].tolist()
-    best, widest = -1.0, []                  # the widest flat top so far; (position, height) of its boxes
-    opened, batch = 0, 1
-    while opened < clusters and c_area[opened] >= best:
-        batch_clusters = order[opened:opened + batch]
-        opened, batch = opened + batch, 2 * batch
-        bounds = index.c_box_bounds[:, batch_clusters]                # (6, batch, size): lo, -hi
-        area, height = _flat_tops(bounds[:3], -bounds[3:])
-        area = np.where(picked[batch_clusters], area, -np.inf)
-        top = float(area.max())
-        if top >= max(best, 0.0):
-            if top > best:
-                best, widest = top, []
-            at = np.nonzero(area == top)
-            widest.append((batch_clusters[at[0]] * size + at[1], height[at]))
-    if best < 0:
-        return None
+    first = np.argmax(c_area, keepdims=True)
+    best, widest = _widest_flat_tops(index, picked, first)
+    if best >= 0:
+        rivals = np.flatnonzero(c_area >= best)
+        if len(rivals) > 1:
+            best, widest = _widest_flat_tops(index, picked, rivals)
+    else:
+        order = np.argsort(-c_area, kind="stable")
+        c_area = c_area[order].tolist()
+        widest = []                          # (position, height) of the widest flat tops so far
+        opened, batch = 0, 1
+        while opened < clusters and c_area[opened] >= best:
+            top, found = _widest_flat_tops(index, picked, order[opened:opened + batch])
+            opened, batch = opened + batch, 2 * batch
+            if top >= max(best, 0.0):
+                if top > best:
+                    best, widest = top, []
+                widest.append(found)
+        if best < 0:
+            return None
+        widest = tuple(np.concatenate(parts) for parts in zip(*widest))
     # widest first, then thinnest, then lowest index (deterministic)
-    position = np.concatenate([p for p, _ in widest])
+    position, height = widest
     scene_index = index.perm[position]
-    k = np.lexsort((scene_index, np.concatenate([h for _, h in widest])))[0]
+    k = np.lexsort((scene_index, height))[0]
     c, j = divmod(int(position[k]), size)
     i = int(np.count_nonzero(selected & (index.perm < scene_index[k])))
     corners = index.c_box_bounds[:, c, j].tolist()
     return _top_face(corners[:3], [-x for x in corners[3:]], i)
+
+
+def _widest_flat_tops(index, picked: np.ndarray, batch: np.ndarray) -> tuple[float, tuple]:
+    """Among the picked boxes of the clusters ``batch`` of a culling index: the
+    area of the widest flat top (-inf if none is picked, -1 if none is flat)
+    and the (positions in the index, heights) of the boxes that have it."""
+    bounds = index.c_box_bounds[:, batch]                        # (6, batch, size): lo, -hi
+    area, height = _flat_tops(bounds[:3], -bounds[3:])
+    area = np.where(picked[batch], area, -np.inf)
+    top = float(area.max())
+    at = np.nonzero(area == top)
+    return top, (batch[at[0]] * index.c_box_bounds.shape[2] + at[1], height[at])
