@@ -91,9 +91,11 @@ class _PlaneJob:
     plane: PlaneOfInterest
     polygon: np.ndarray          # the needed polygon on P
     rows: np.ndarray             # 3x4: x, y, w rows; on P they equal the viewer's clip x, y, w
-    pixel: np.ndarray            # 3x3: viewer clip (x, y, w) -> pixel (px, py, 1)
+    pixel: list                  # 3x3: viewer clip (x, y, w) -> pixel (px, py, 1)
     height: np.ndarray           # 4-vector: height above P on the light's side, h(x) = height · (x, 1)
     fit_h: np.ndarray            # (N, 4) region slab + casters, homogeneous: all inside the map's clip volume
+    depth: tuple                 # the least and greatest -h / w over fit_h (the map's z / w before its window)
+    heights: tuple               # the least and greatest h over fit_h
     pixels: list                 # (x, y) pixel coordinates of the tolerance-grown polygon
     info: dict
     twist: float = 0.0
@@ -169,7 +171,6 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
     nx, ny, nz = n.tolist()
     ox, oy, oz = origin.tolist()
     off = plane.offset - (nx * ox + ny * oy + nz * oz)    # plane offset, relative coordinates
-    pi = np.array([nx, ny, nz, -off])
     l_h = _light_h(light, origin)
     lx, ly, lz, lw = l_h.tolist()
     scale = body.scale
@@ -181,7 +182,7 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
                             f"exists; the fallback map serves it")
         return None
     side = 1.0 if light_side > 0 else -1.0
-    height = side * pi                                # h(X) = height · (x, 1)
+    height = np.array([side * nx, side * ny, side * nz, -side * off])      # h(X) = height · (x, 1)
     # The camera on the plane: it is seen edge-on and covers no pixel.
     if view.orthographic:                                           # the centre of projection is a direction
         dx, dy, dz = view.direction.tolist()
@@ -243,13 +244,21 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
     fit_h = np.ones((len(slab) + len(casters), 4))
     fit_h[:len(slab), :3] = slab
     fit_h[len(slab):, :3] = casters
-    w = fit_h @ rows[2]
+    # Their heights h and clip w (the map's z row is -height before its window, its w row rows[2]).
+    h, w = np.array([height, rows[2]]) @ fit_h.T
     if not (w > 0).all():
         diag.fallback(role, "some casters are behind the plane map's centre of projection and were left out")
-        fit_h = fit_h[w > 0]
+        ahead = w > 0
+        fit_h, h, w = fit_h[ahead], h[ahead], w[ahead]
+    h_over_w = h / w
+    depth = (-float(h_over_w.max()), -float(h_over_w.min()))
+    heights = (float(h.min()), float(h.max()))
     rx, ry = view.resolution[0] / 2, view.resolution[1] / 2
-    pixel = np.array([[rx, 0, rx], [0, ry, ry], [0, 0, 1.0]])
-    (ax, ay, az, a0), (bx, by, bz, b0), (wx, wy, wz, w0) = (pixel @ rows).tolist()
+    pixel = [[rx, 0.0, rx], [0.0, ry, ry], [0.0, 0.0, 1.0]]
+    r0, r1, r2 = rows.tolist()
+    ax, ay, az, a0 = (rx * a + rx * c for a, c in zip(r0, r2))        # pixel @ rows, in floats
+    bx, by, bz, b0 = (ry * b + ry * c for b, c in zip(r1, r2))
+    wx, wy, wz, w0 = r2
     pixels = []                                       # the grown polygon's pixel coordinates
     for x, y, z in grown:
         pw = wx * x + wy * y + wz * z + w0
@@ -259,7 +268,7 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
         diag.fallback(role, f"{plane.name} covers less than one pixel of the view ({area:.3g})")
         return None
     info = dict(info, pixel_area=float(area), near_clamped=near_clamped)
-    return _PlaneJob(k, plane, poly, rows, pixel, height, fit_h, pixels, info)
+    return _PlaneJob(k, plane, poly, rows, pixel, height, fit_h, depth, heights, pixels, info)
 
 
 def _casters(poly: list, outwards: list, grown: list, n, height, l_h, tol, body, origin):
@@ -473,20 +482,17 @@ def _plane_map(job: _PlaneJob, s: float, origin: np.ndarray, tol: float, options
     c, sn = math.cos(job.twist), math.sin(job.twist)
     to_texel = [[s * c, -s * sn, -i0], [s * sn, s * c, -j0]]         # s·R(θ)·pixel - (i0, j0)
     to_ndc = [[2.0 / wm, 0.0, -1.0], [0.0, 2.0 / hm, -1.0]]
-    to_map = _affine_then(to_ndc, _affine_then(to_texel, job.pixel.tolist()))
+    to_map = _affine_then(to_ndc, _affine_then(to_texel, job.pixel))
     height = job.height
     m = np.empty((4, 4))
     m[[0, 1, 3]] = np.array(to_map + [[0.0, 0.0, 1.0]]) @ job.rows
     m[2] = -height
     # Depth: the fit points' z / w (w > 0 on them) onto [-1, 1], as the unit-cube fit pads it.
-    zw = job.fit_h @ m[2:].T
-    z = zw[:, 0] / zw[:, 1]
-    win = window_matrix([-1.0, -1.0, float(z.min())], [1.0, 1.0, float(z.max())])
+    (zlo, zhi), (hlo, hhi) = job.depth, job.heights
+    win = window_matrix([-1.0, -1.0, zlo], [1.0, 1.0, zhi])
     m[2] = win[2, 2] * m[2] + win[2, 3] * m[3]
     depth_row = None
     if options.linear_z:
-        hts = job.fit_h @ height
-        hlo, hhi = float(hts.min()), float(hts.max())
         span = max(hhi - hlo, tol)
         pad = 1e-7 * span
         # z = 1 at the lowest height (farthest from the light), -1 at the highest
