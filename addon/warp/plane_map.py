@@ -289,7 +289,7 @@ def plane_light_matrix(corner_points, light_h, length_scale: float) -> tuple[np.
     sigma = math.sqrt(sum(d * d for d in dist) / len(dist)) if dist else 0.0
     sigma = min(sigma, 1e6 * length_scale) if sigma > 0 else length_scale
     k = 1.0 / sigma                 # the normalising scale diag(k, k, k, 1), then each point of unit length
-    src = [_unit_list([x * k, y * k, z * k, w]) for x, y, z, w in points + [np.asarray(light_h, dtype=np.float64).tolist()]]
+    src = [_unit_list([x * k, y * k, z * k, w]) for x, y, z, w in points + [list(map(float, light_h))]]
     # p̂^4: another point of the line through p^4 and l (Fig. 2).
     src[3] = _unit_list([a + b for a, b in zip(src[3], src[4])])
     m, info = _solve_five_points(src, _FIVE_POINT_TARGETS, _FIVE_POINT_COEFFICIENTS, _FIVE_POINT_FRAME)
@@ -663,10 +663,9 @@ def default_plane_of(receivers) -> Optional[PlaneOfInterest]:
         widest = tuple(np.concatenate(parts) for parts in zip(*widest))
     # widest first, then thinnest, then lowest index (deterministic)
     position, height = widest
-    scene_index = index.perm[position]
-    k = np.lexsort((scene_index, height))[0]
-    c, j = divmod(int(position[k]), size)
-    i = int(np.count_nonzero(selected & (index.perm < scene_index[k])))
+    _, scene_index, at = min(zip(height.tolist(), index.perm[position].tolist(), position.tolist()))
+    c, j = divmod(at, size)
+    i = int(np.count_nonzero(selected & (index.perm < scene_index)))
     corners = index.c_box_bounds[:, c, j].tolist()
     return _top_face(corners[:3], [-x for x in corners[3:]], i)
 

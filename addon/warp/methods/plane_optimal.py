@@ -102,13 +102,13 @@ class _PlaneJob:
     rect: tuple = (0, 0, 1, 1)   # (i0, j0, i1, j1) in texels of the scaled, twisted image
 
 
-def _light_h(light: Light, origin: np.ndarray) -> np.ndarray:
-    """The light's homogeneous position (``Light.homogeneous_position``) relative to ``origin``."""
+def _light_h(light: Light, origin: np.ndarray) -> list:
+    """The light's homogeneous position (``Light.homogeneous_position``) relative to ``origin``, as 4 floats."""
     if light.is_directional:
         x, y, z = light.direction.tolist()
-        return np.array([-x, -y, -z, 0.0])
+        return [-x, -y, -z, 0.0]
     (x, y, z), (ox, oy, oz) = light.position.tolist(), origin.tolist()
-    return np.array([x - ox, y - oy, z - oz, 1.0])
+    return [x - ox, y - oy, z - oz, 1.0]
 
 
 def _corner_ray_points(view: View, origin: list, nx: float, ny: float, nz: float, off: float) -> list:
@@ -172,7 +172,7 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
     ox, oy, oz = origin.tolist()
     off = plane.offset - (nx * ox + ny * oy + nz * oz)    # plane offset, relative coordinates
     l_h = _light_h(light, origin)
-    lx, ly, lz, lw = l_h.tolist()
+    lx, ly, lz, lw = l_h
     scale = body.scale
     # The light's side of the plane: h(x) = height above P towards the light.
     light_side = nx * lx + ny * ly + nz * lz - off * lw
@@ -281,8 +281,9 @@ def _casters(poly: list, outwards: list, grown: list, n, height, l_h, tol, body,
     meet P up to tol·tan α away, α = the light's incidence) are on it, and cut
     at h = -tol. For a point light inside B the part within NEAR_FRACTION of
     the scene scale below the light's height is cut off (returned flag)."""
-    hv, h0 = height[:3], height[3]
-    lx, ly, lz, lw = l_h.tolist()
+    h = height.tolist()
+    hx, hy, hz, h0 = h
+    lx, ly, lz, lw = l_h
     nx, ny, nz = n.tolist()
     tan = 0.0                                             # tan α: the steepest light ray over the region
     for gx, gy, gz in grown:
@@ -292,7 +293,6 @@ def _casters(poly: list, outwards: list, grown: list, n, height, l_h, tol, body,
         tan = max(tan, across / max(along, 1e-300))
     grow = tol * (2 + min(tan, 1e12))
     corners = [(x + grow * dx, y + grow * dy, z + grow * dz) for (x, y, z), (dx, dy, dz) in zip(poly, outwards)]
-    h = height.tolist()
     normals, offsets = _cone_facets(corners, h, l_h, tol)
     b_poly = _polytope(body, origin)
     if b_poly is not None and len(normals) == len(corners) + 1:          # (every side plane made)
@@ -303,8 +303,8 @@ def _casters(poly: list, outwards: list, grown: list, n, height, l_h, tol, body,
         return np.zeros((0, 3)), False
     near_clamped = False
     if lw != 0:
-        top = float(height @ l_h) / lw - NEAR_FRACTION * body.scale
-        if float((points @ hv).max()) + h0 > top:
+        top = (hx * lx + hy * ly + hz * lz + h0 * lw) / lw - NEAR_FRACTION * body.scale
+        if float((points @ height[:3]).max()) + h0 > top:
             near_clamped = True
             points = _clip_body(body, origin, np.array(normals + [h[:3]]), np.array(offsets + [top - h0]))
             if points is None:
@@ -319,7 +319,7 @@ def _cone_facets(corners: list, height: list, l_h, tol: float) -> tuple[list, li
     from the corners' centre (an edge pointing at the light spans no plane and
     has none)."""
     hx, hy, hz, h0 = height
-    lx, ly, lz, lw = l_h.tolist()
+    lx, ly, lz, lw = l_h
     cx, cy, cz = (sum(c) / len(corners) for c in zip(*corners))
     normals, offsets = [(-hx, -hy, -hz)], [tol + h0]
     for (ax, ay, az), (bx, by, bz) in zip(corners, corners[1:] + corners[:1]):
@@ -345,7 +345,7 @@ def _cone_edges(corners: list, height: list, l_h, tol: float) -> tuple[list, lis
     from each, one edge runs up to the light (t <= 1; a sun's has no end) and
     one to the next base corner."""
     hx, hy, hz, h0 = height
-    lx, ly, lz, lw = l_h.tolist()
+    lx, ly, lz, lw = l_h
     rise = hx * lx + hy * ly + hz * lz             # height . l_h = rise + h0·lw: the light's (homogeneous) height
     if lw == 0:                     # towards the sun along (lx, ly, lz): h rises by ``rise`` per unit
         k = tol / rise
