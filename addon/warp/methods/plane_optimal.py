@@ -482,15 +482,18 @@ def _plane_map(job: _PlaneJob, s: float, origin: np.ndarray, tol: float, options
     c, sn = math.cos(job.twist), math.sin(job.twist)
     to_texel = [[s * c, -s * sn, -i0], [s * sn, s * c, -j0]]         # s·R(θ)·pixel - (i0, j0)
     to_ndc = [[2.0 / wm, 0.0, -1.0], [0.0, 2.0 / hm, -1.0]]
-    to_map = _affine_then(to_ndc, _affine_then(to_texel, job.pixel))
-    height = job.height
-    m = np.empty((4, 4))
-    m[[0, 1, 3]] = np.array(to_map + [[0.0, 0.0, 1.0]]) @ job.rows
-    m[2] = -height
-    # Depth: the fit points' z / w (w > 0 on them) onto [-1, 1], as the unit-cube fit pads it.
+    (ax, ay, a0), (bx, by, b0) = _affine_then(to_ndc, _affine_then(to_texel, job.pixel))
+    x_row, y_row, w_row = job.rows.tolist()                  # on P: the viewer's clip x, y, w
+    x_row, y_row = ([ax * x + ay * y + a0 * w for x, y, w in zip(x_row, y_row, w_row)],
+                    [bx * x + by * y + b0 * w for x, y, w in zip(x_row, y_row, w_row)])
+    # Depth: the fit points' z / w = -h / w (w > 0 on them) onto [-1, 1], as the unit-cube fit pads it.
     (zlo, zhi), (hlo, hhi) = job.depth, job.heights
-    win = window_matrix([-1.0, -1.0, zlo], [1.0, 1.0, zhi])
-    m[2] = win[2, 2] * m[2] + win[2, 3] * m[3]
+    win = window_matrix([-1.0, -1.0, zlo], [1.0, 1.0, zhi]).tolist()
+    height = job.height
+    z_row = [win[2][3] * w - win[2][2] * h for h, w in zip(height.tolist(), w_row)]
+    ox, oy, oz = origin.tolist()
+    world = np.array([[x, y, z, t - (x * ox + y * oy + z * oz)]                 # m @ translation(-origin)
+                      for x, y, z, t in (x_row, y_row, z_row, w_row)])
     depth_row = None
     if options.linear_z:
         span = max(hhi - hlo, tol)
@@ -498,8 +501,6 @@ def _plane_map(job: _PlaneJob, s: float, origin: np.ndarray, tol: float, options
         # z = 1 at the lowest height (farthest from the light), -1 at the highest
         k = 2.0 / (span + 2 * pad)
         depth_row = (-k * height + np.array([0, 0, 0, 1.0 + k * (hlo - pad)])) @ translation(-origin)
-    world = m.copy()                                              # m @ translation(-origin)
-    world[:, 3] -= m[:, :3] @ origin
     n = job.plane.normal
     region = Region(n.copy(), float(job.plane.offset), job.polygon + origin, tol)
     return ShadowMap(world, (wm, hm), "LESS", f"plane:{job.index}", region=region, depth_row=depth_row)
