@@ -327,12 +327,12 @@ def clip_to_polygon(poly: np.ndarray, bound, normal, tol: float) -> Optional[np.
     by each edge's line on the plane (outward normal edge x normal). None when
     less than a triangle is left."""
     b = bound.tolist() if isinstance(bound, np.ndarray) else list(bound)
-    pts = poly.tolist()
+    pts = whole = poly.tolist()
     for (ax, ay, az), (ox, oy, oz) in zip(b, edge_normals(b, normal)):
         pts = _clip_loop(pts, (ox, oy, oz), ox * ax + oy * ay + oz * az, tol)
         if len(pts) < 3:
             return None
-    return np.array(pts, dtype=np.float64)
+    return poly if pts is whole else np.array(pts, dtype=np.float64)      # (poly itself when no edge cut it)
 
 
 def plane_section(vertices, normal, offset: float, tol: float, loops=None) -> Optional[np.ndarray]:
@@ -489,7 +489,8 @@ def is_convex_polygon(points, normal, tol: float) -> bool:
 
 
 def polygon_area(poly, normal) -> float:
-    pts = np.asarray(poly, dtype=np.float64).tolist()
+    """The area of a planar polygon (an array or a list of (x, y, z)) with the unit ``normal``."""
+    pts = poly if isinstance(poly, list) else np.asarray(poly, dtype=np.float64).tolist()
     sx = sy = sz = 0.0                                       # the sum of a x b over the edges (a, b)
     for (ax, ay, az), (bx, by, bz) in zip(pts, pts[1:] + pts[:1]):
         sx, sy, sz = sx + (ay * bz - az * by), sy + (az * bx - ax * bz), sz + (ax * by - ay * bx)

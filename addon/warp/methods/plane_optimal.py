@@ -210,7 +210,8 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
         poly = None if ext is None else clip_to_polygon(poly, ext, n, body.tolerance)
     if poly is not None and len(poly) > MAX_REGION_VERTICES:
         poly = enclosing_polygon(poly, n, MAX_REGION_VERTICES)
-    if poly is None or polygon_area(poly, n) <= (tol * tol):
+    vertices = None if poly is None else poly.tolist()
+    if vertices is None or polygon_area(vertices, n) <= (tol * tol):
         diag.fallback(role, f"{plane.name} has no visible part (behind the camera, outside the view, the spot "
                             f"cone or the receivers' bounds)")
         return None
@@ -222,7 +223,6 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
         diag.fallback(role, f"{plane.name}: {exc}")
         return None
     # Sign (Fig. 5) and scale: w equal to the viewer's clip w on the plane.
-    vertices = poly.tolist()
     cx, cy, cz = (sum(c) / len(vertices) for c in zip(*vertices))
     w_view = _view_w(view, cx, cy, cz)
     wx, wy, wz, w0 = m[3].tolist()
