@@ -27,7 +27,7 @@ def dot3(a, b) -> float:
 
 def length(v) -> float:
     """The Euclidean length of a short sequence of floats."""
-    return math.sqrt(sum(c * c for c in v))
+    return math.hypot(*v)
 
 
 def across(v, d) -> list:
