@@ -244,13 +244,7 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
         raise EmptyBodyError("the view frustum does not meet the receivers" + (" inside the spot cone" if len(ln) else ""))
 
     # hull(R ∪ light) ∩ L, and the casters meeting it.
-    # The light in homogeneous coordinates relative to the origin, as plain floats (w = 0 for a sun:
-    # the direction towards it, as ``Light.homogeneous_position``).
-    if light.is_directional:
-        x, y, z = light.direction.tolist()
-        light_h = (-x, -y, -z, 0.0)
-    else:
-        light_h = (*(light.position - origin).tolist(), 1.0)
+    light_h = light.homogeneous_from(origin)
     # hull(R ∪ light) ⊂ L already (L is a convex cone with its apex at the light and R ⊂ L),
     # so L's planes would only repeat what the hull says.
     hull = light_hull(visible, light_h, tol)

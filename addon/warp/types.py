@@ -178,6 +178,15 @@ class Light:
             return np.append(-self.direction, 0.0)
         return np.append(self.position, 1.0)
 
+    def homogeneous_from(self, origin) -> list:
+        """``homogeneous_position`` in coordinates relative to ``origin`` (a
+        sun's is unchanged), as 4 plain floats."""
+        if self.is_directional:
+            x, y, z = self.direction.tolist()
+            return [-x, -y, -z, 0.0]
+        (x, y, z), (ox, oy, oz) = self.position.tolist(), np.asarray(origin, dtype=np.float64).tolist()
+        return [x - ox, y - oy, z - oz, 1.0]
+
     def rays_to(self, points) -> np.ndarray:
         """Unit light-travel directions arriving at (N, 3) points."""
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)

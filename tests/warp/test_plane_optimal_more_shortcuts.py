@@ -72,7 +72,7 @@ def test_the_plane_maps_five_points_solve_to_the_dlt_null_vector(seed, monkeypat
 
     monkeypatch.setattr(plane_map, "_solve_five_points", keep)
     try:
-        plane_map.plane_light_matrix(points, plane_optimal._light_h(light, origin), body.scale)
+        plane_map.plane_light_matrix(points, light.homogeneous_from(origin), body.scale)
     except WarpError:
         return
     src, (m, info) = solved[0]

@@ -88,7 +88,7 @@ def _cone(rng, body, view, light, origin, tol):
     poly = plane_section(r.vertices, n, off, body.tolerance, r.loops)
     if poly is None:
         return None
-    l_h = plane_optimal._light_h(light, origin)
+    l_h = light.homogeneous_from(origin)
     light_side = float(np.append(n, -off) @ l_h)
     if abs(light_side) < 1e-6:
         return None
@@ -184,7 +184,7 @@ def test_the_corner_ray_points_view_w_and_light_in_floats_equal_the_matrix_forms
     l_h = light.homogeneous_position.copy()
     if l_h[3] != 0:
         l_h[:3] -= origin
-    assert np.array_equal(plane_optimal._light_h(light, origin), l_h)
+    assert np.array_equal(light.homogeneous_from(origin), l_h)
     for x in rng.uniform(-50, 50, size=(5, 3)):
         w = float(view.world_to_clip[3] @ np.append(x + origin, 1.0))
         assert plane_optimal._view_w(view, *x.tolist()) == pytest.approx(w, rel=1e-12, abs=1e-12 * (1 + abs(w)))

@@ -97,7 +97,7 @@ def test_section_walked_over_the_facet_loops_is_the_section_of_the_vertices(seed
 def test_the_five_points_from_the_frustum_corners_give_the_matrix_of_the_inverse_viewer_matrix(seed):
     rng, view, light, body = _frame(seed, orthographic=seed % 5 == 4)
     origin = view.position
-    l_h = plane_optimal._light_h(light, origin)
+    l_h = light.homogeneous_from(origin)
     ends = homogeneous(view.corners() - origin)
     for _ in range(5):
         n = rng.normal(size=3)

@@ -102,15 +102,6 @@ class _PlaneJob:
     rect: tuple = (0, 0, 1, 1)   # (i0, j0, i1, j1) in texels of the scaled, twisted image
 
 
-def _light_h(light: Light, origin: np.ndarray) -> list:
-    """The light's homogeneous position (``Light.homogeneous_position``) relative to ``origin``, as 4 floats."""
-    if light.is_directional:
-        x, y, z = light.direction.tolist()
-        return [-x, -y, -z, 0.0]
-    (x, y, z), (ox, oy, oz) = light.position.tolist(), origin.tolist()
-    return [x - ox, y - oy, z - oz, 1.0]
-
-
 def _corner_ray_points(view: View, origin: list, nx: float, ny: float, nz: float, off: float) -> list:
     """p^1..p^4: where the rays through the view's corners meet P (n . x = off,
     relative to ``origin``), homogeneous: ``line_plane_points`` of the view
@@ -171,7 +162,7 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
     nx, ny, nz = n.tolist()
     ox, oy, oz = origin.tolist()
     off = plane.offset - (nx * ox + ny * oy + nz * oz)    # plane offset, relative coordinates
-    l_h = _light_h(light, origin)
+    l_h = light.homogeneous_from(origin)
     lx, ly, lz, lw = l_h
     scale = body.scale
     # The light's side of the plane: h(x) = height above P towards the light.

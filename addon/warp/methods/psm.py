@@ -122,9 +122,7 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
     origin = view.position
     rel = body.vertices - origin
     cam = virtual_camera(view, body, nearest_visible_depth(view, light, body, options))
-    light_h = light.homogeneous_position.copy()
-    if light_h[3] != 0:
-        light_h[:3] -= origin
+    light_h = np.array(light.homogeneous_from(origin))
     # A point or spot light's frustum wider than options.max_frustum_angle is not built: hand over.
     pl = pps_light_matrix(cam.to_pps @ light_h, cam.points,
                           math.inf if light.is_directional else options.max_frustum_angle / 2)
