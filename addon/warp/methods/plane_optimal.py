@@ -119,22 +119,10 @@ def _corner_ray_points(view: View, origin: list, nx: float, ny: float, nz: float
 
 def _view_w(view: View, x: float, y: float, z: float) -> float:
     """The viewer's clip w (``view.world_to_clip`` row 3) of the point (x, y, z)
-    relative to the camera. For an affine camera matrix [R | position] its
-    camera coordinates solve R c = (x, y, z) (Cramer's rule), which spares
-    inverting the 4x4."""
-    c2w = view.camera_to_world.tolist()
-    (a, b, c, _), (d, e, f, _), (g, h, i, _) = c2w[:3]
-    ei_fh, fg_di, dh_eg = e * i - f * h, f * g - d * i, d * h - e * g
-    det = a * ei_fh + b * fg_di + c * dh_eg
-    if c2w[3] != [0.0, 0.0, 0.0, 1.0] or det == 0:                 # (not affine, or singular: the 4x4 says)
-        wx, wy, wz, w0 = view.world_to_clip[3].tolist()
-        ox, oy, oz = view.position.tolist()
-        return wx * (x + ox) + wy * (y + oy) + wz * (z + oz) + w0
-    cx = (x * ei_fh + b * (f * z - y * i) + c * (y * h - e * z)) / det
-    cy = (a * (y * i - f * z) + x * fg_di + c * (d * z - y * g)) / det
-    cz = (a * (e * z - y * h) + b * (y * g - d * z) + x * dh_eg) / det
-    px, py, pz, p0 = view.projection[3].tolist()
-    return px * cx + py * cy + pz * cz + p0
+    relative to the camera."""
+    wx, wy, wz, w0 = view.world_to_clip[3].tolist()
+    ox, oy, oz = view.position.tolist()
+    return wx * (x + ox) + wy * (y + oy) + wz * (z + oz) + w0
 
 
 def _planes_of(options: WarpOptions, body: IntersectionBody, diag: Diagnostics) -> list[PlaneOfInterest]:
