@@ -30,8 +30,8 @@ from addon.warp import METHODS, Light, SceneBounds, View, WarpOptions, intersect
 from addon.warp.geometry import look_along
 
 
-def city_scene(n_boxes: int, seed: int = 7) -> SceneBounds:
-    """A 200 m ground slab plus ``n_boxes - 1`` buildings of random size (deterministic)."""
+def city_boxes(n_boxes: int, seed: int = 7) -> np.ndarray:
+    """(n_boxes, 2, 3): a 200 m ground slab plus ``n_boxes - 1`` buildings of random size (deterministic)."""
     rng = np.random.default_rng(seed)
     n = max(n_boxes - 1, 0)
     centre = rng.uniform(-95.0, 95.0, size=(n, 2))
@@ -40,22 +40,29 @@ def city_scene(n_boxes: int, seed: int = 7) -> SceneBounds:
     lo = np.column_stack([centre - half, np.zeros(n)])
     hi = np.column_stack([centre + half, height])
     ground = np.array([[[-100.0, -100.0, -0.2], [100.0, 100.0, 0.0]]])
-    return SceneBounds.from_boxes(np.concatenate([ground, np.stack([lo, hi], axis=1)]))
+    return np.concatenate([ground, np.stack([lo, hi], axis=1)])
+
+
+def city_scene(n_boxes: int, seed: int = 7) -> SceneBounds:
+    """The scene of ``city_boxes``."""
+    return SceneBounds.from_boxes(city_boxes(n_boxes, seed))
+
+
+EYE, TARGET, FOV_Y = np.array([-60.0, -55.0, 1.7]), np.array([10.0, 5.0, 0.0]), math.radians(60.0)
 
 
 def street_view() -> View:
     """A camera 1.7 m above the ground looking slightly down a street."""
-    eye = np.array([-60.0, -55.0, 1.7])
-    target = np.array([10.0, 5.0, 0.0])
-    cam_to_world = np.linalg.inv(look_along(eye, target - eye, [0.0, 0.0, 1.0]))
-    return View.perspective(cam_to_world, math.radians(60.0), 16 / 9, 0.1, 150.0, (1920, 1080))
+    cam_to_world = np.linalg.inv(look_along(EYE, TARGET - EYE, [0.0, 0.0, 1.0]))
+    return View.perspective(cam_to_world, FOV_Y, 16 / 9, 0.1, 150.0, (1920, 1080))
 
 
-LIGHTS = {
-    "sun": Light("SUN", direction=[0.4, 0.3, -0.6]),
-    "point": Light("POINT", position=[-40.0, -30.0, 25.0]),
-    "spot": Light("SPOT", position=[-70.0, -70.0, 40.0], direction=[1.0, 1.0, -0.7], spot_angle=math.radians(70.0)),
+LIGHT_PARAMETERS = {
+    "sun": dict(type="SUN", direction=[0.4, 0.3, -0.6]),
+    "point": dict(type="POINT", position=[-40.0, -30.0, 25.0]),
+    "spot": dict(type="SPOT", position=[-70.0, -70.0, 40.0], direction=[1.0, 1.0, -0.7], spot_angle=math.radians(70.0)),
 }
+LIGHTS = {name: Light(**params) for name, params in LIGHT_PARAMETERS.items()}
 
 
 def new_frame(view: View, light: Light) -> tuple[View, Light]:
