@@ -2,11 +2,14 @@
 
     python -m bench.code_size [package dir] [tests dir]
 
-Counts what issue 16 measures: a line of code is a physical line that holds
-some token other than a comment, a docstring or the line breaks around them
-(a blank line, a comment line and every line of a docstring do not count). A
-docstring is a string expression standing alone as the first statement of a
-module, class or function. A function's length is its code lines, the
+Counts what issue 16 measures, two ways. A line of code is a physical line
+that holds some token other than a comment, a docstring or the line breaks
+around them (a blank line, a comment line and every line of a docstring do not
+count; a docstring is a string expression standing alone as the first
+statement of a module, class or function). The issue's own figure (5,367 at
+its filing) counted every line that is neither blank nor only a comment, so
+docstrings too; that count is printed beside it ("with docstrings"), and it is
+the one the issue's limit of 4,500 is held to (the stricter of the two). A function's length is its code lines, the
 ``def`` line and its decorators included. A private import is a name
 ``_name`` imported from the package by a test module (``from addon.warp.x
 import _name``, or ``module._name`` read through an imported module).
@@ -89,17 +92,21 @@ def main(argv=None) -> None:
     argv = sys.argv[1:] if argv is None else argv
     package = Path(argv[0]) if argv else ROOT / "addon" / "warp"
     tests = Path(argv[1]) if len(argv) > 1 else ROOT / "tests" / "warp"
-    total, longest = 0, []
+    total, with_docs, longest = 0, 0, []
     per_file = []
     for path in sorted(package.rglob("*.py")):
         source = path.read_text()
         code = code_lines(source)
         total += len(code)
-        per_file.append((len(code), path.relative_to(package)))
+        plain = sum(1 for line in source.splitlines() if line.strip() and not line.lstrip().startswith("#"))
+        with_docs += plain
+        per_file.append((len(code), plain, path.relative_to(package)))
         longest += [(n, f"{path.relative_to(package)}:{line} {name}") for name, line, n in function_lengths(source, code)]
-    for n, name in sorted(per_file, reverse=True):
-        print(f"{n:6d}  {name}")
-    print(f"{total:6d}  lines of code in {package.relative_to(ROOT) if package.is_relative_to(ROOT) else package}")
+    print("  code  with docstrings")
+    for n, d, name in sorted(per_file, reverse=True):
+        print(f"{n:6d} {d:6d}  {name}")
+    where = package.relative_to(ROOT) if package.is_relative_to(ROOT) else package
+    print(f"{total:6d} {with_docs:6d}  lines of code in {where} (without, with docstrings)")
     longest.sort(reverse=True)
     print("longest functions (code lines):")
     for n, where in longest[:8]:
