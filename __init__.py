@@ -11,7 +11,7 @@ import importlib
 _MODULE_NAMES = (
     ".addon.ui.properties",
     ".addon.ui.preferences",
-    ".operators",
+    ".addon.ui.operators",
     ".addon.ui.panel",
     ".addon.ui.overlays",
     ".addon.render.engine",

@@ -22,6 +22,7 @@ from typing import Optional
 import bpy
 import numpy as np
 
+from ..scene.owned import is_debug_object
 from ..settings import LixelSettings
 from ..warp import compute, intersection_body
 from ..warp.methods import METHODS
@@ -61,14 +62,6 @@ def no_shadow_setup(method: str) -> ShadowSetup:
     return ShadowSetup([ShadowMap(none, (1, 1), role="none")], Diagnostics(method))
 
 
-def _debug_filter():
-    try:
-        from ..ui.live import is_debug_object
-    except ImportError:
-        return None
-    return is_debug_object
-
-
 def _world_colour(scene) -> tuple:
     world = scene.world
     if world is None:
@@ -91,7 +84,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     timings = {}
     t = time.perf_counter()
     cache = shared_cache()
-    geometry = cache.update(depsgraph, exclude=_debug_filter())
+    geometry = cache.update(depsgraph, exclude=is_debug_object)
     shared_batches().prune(cache.meshes)
     timings["extraction"] = time.perf_counter() - t
     t = time.perf_counter()

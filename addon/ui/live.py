@@ -21,6 +21,7 @@ import numpy as np
 
 from ..scene.describe import describe_bounds, describe_light, describe_view, pick_light
 from ..scene.instances import walk_instances
+from ..scene.owned import is_debug_object
 from ..settings import LixelSettings
 from ..warp import METHODS, compute, intersection_body
 from ..warp.types import EmptyBodyError, WarpError
@@ -29,18 +30,6 @@ from .overlay_geometry import footprint_estimate, overlay_geometry
 log = logging.getLogger(__name__)
 
 INPUTS = ("view", "light", "bounds", "settings")
-DEBUG_KEY = "lixel_debug"
-"""Custom property marking Lixel's own debug objects (baked B, frusta, GN helpers):
-they are never casters or receivers, or B would feed back into itself."""
-
-
-def is_debug_object(ob) -> bool:
-    orig = getattr(ob, "original", None) or ob
-    try:
-        return DEBUG_KEY in orig.keys()
-    except (AttributeError, ReferenceError, TypeError):
-        return False
-
 
 def scene_bounds(depsgraph):
     """SceneBounds of the evaluated scene without Lixel's debug objects."""

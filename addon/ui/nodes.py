@@ -26,7 +26,7 @@ the carrier's matrices change, every group using it follows.
 import bpy
 import numpy as np
 
-from .live import DEBUG_KEY
+from ..scene.owned import DEBUG_KEY
 
 TEXEL_GROUP = "Lixel Texel Grid"
 FRUSTUM_GROUP = "Lixel Frustum From Matrix"

@@ -25,6 +25,7 @@ import bpy
 import numpy as np
 from bpy.app.handlers import persistent
 
+from ..scene.owned import is_debug_object
 from . import live
 
 log = logging.getLogger(__name__)
@@ -396,7 +397,7 @@ def receiver_triangles(depsgraph) -> np.ndarray:
     local: dict = {}
 
     def on_geometry(key, ob):
-        if live.is_debug_object(ob):
+        if is_debug_object(ob):
             return False
         got = read_object(ob)
         if got is None:

@@ -7,11 +7,9 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 
 from ..settings import LixelSettings, ShadowSettings
-from ..warp.types import WarpError, WarpOptions
+from ..warp.types import WarpOptions
+from . import ROOT_PACKAGE, addon_preferences
 from .properties import MAX_MAP_SIZE, LixelSceneSettings, available_methods, method_items
-
-ROOT_PACKAGE = __package__.rsplit(".addon.ui", 1)[0] if __package__.endswith(".addon.ui") else __package__
-"""The extension's root package (this module lives at <root>.addon.ui.preferences)."""
 
 
 def _scene_prop(name):
@@ -60,21 +58,8 @@ class LIXEL_AP_preferences(bpy.types.AddonPreferences):
                                   mdsm_depths=self.mdsm_depths))
 
 
-def preferences():
-    """The registered preferences, or None (not registered, e.g. a script without the add-on)."""
-    addon = bpy.context.preferences.addons.get(ROOT_PACKAGE)
-    return addon.preferences if addon is not None else None
-
-
-def preference_settings():
-    """``LixelSettings`` from the preferences, or None when they are not available."""
-    prefs = preferences()
-    if prefs is None:
-        return None
-    try:
-        return prefs.to_settings()
-    except WarpError:
-        return None
+preferences = addon_preferences
+"""The registered preferences, or None."""
 
 
 classes = (LIXEL_AP_preferences,)

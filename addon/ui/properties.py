@@ -13,6 +13,7 @@ from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProp
 
 from ..settings import BIAS_MODES, MDSM_SELECTIONS, LixelSettings, ShadowSettings
 from ..warp.types import WarpError, WarpOptions
+from . import addon_preferences
 
 # Methods named in docs/architecture.md, in the order the UI lists them.
 DOCUMENTED_METHODS = ("uniform", "psm", "lispsm", "gmnpr", "glpr", "plane_optimal")
@@ -234,13 +235,24 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
         return any(getattr(self, name) for name, _, _ in OVERLAYS)
 
 
+def preference_settings():
+    """``LixelSettings`` from the add-on preferences, or None when they are not
+    available (not registered) or not valid."""
+    prefs = addon_preferences()
+    if prefs is None:
+        return None
+    try:
+        return prefs.to_settings()
+    except WarpError:
+        return None
+
+
 def ensure_defaults(scene) -> bool:
     """Apply the add-on preferences' defaults to a scene never set up before.
     Returns True if it did. (Not callable from draw code: it writes.)"""
     props = getattr(scene, "lixel", None)
     if props is None or props.initialised:
         return False
-    from .preferences import preference_settings
     prefs = preference_settings()
     if prefs is not None:
         props.from_settings(prefs)

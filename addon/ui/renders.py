@@ -11,7 +11,8 @@ from typing import Optional
 
 import numpy as np
 
-from .live import LiveState, is_debug_object
+from ..scene.owned import is_debug_object
+from .live import LiveState
 
 
 def scene_geometry(depsgraph):

@@ -31,7 +31,7 @@ def lixel_functions(modules):
 
 def registered_state():
     root = sys.modules[ADDON_MODULE]
-    names = ("addon.ui.properties", "addon.ui.preferences", "operators", "addon.ui.panel", "addon.ui.overlays",
+    names = ("addon.ui.properties", "addon.ui.preferences", "addon.ui.operators", "addon.ui.panel", "addon.ui.overlays",
              "addon.render.engine")
     mods = [importlib.import_module(f"{root.__name__}.{n}") for n in names]
     classes = [c for m in mods for c in getattr(m, "classes", ())]

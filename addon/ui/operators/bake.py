@@ -5,9 +5,9 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, IntProperty
 
-from ..addon.ui import nodes
-from ..addon.ui.live import DEBUG_KEY
-from ..addon.ui.overlay_geometry import HEXAHEDRON_QUADS
+from .. import nodes
+from ...scene.owned import DEBUG_KEY
+from ..overlay_geometry import HEXAHEDRON_QUADS
 from .common import LixelSceneOperator
 
 BAKED = "baked"

@@ -6,8 +6,8 @@ import bpy
 from bpy.props import BoolProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
-from ..addon.ui import live, overlays
-from ..addon.warp import METHODS
+from .. import live, overlays
+from ...warp import METHODS
 from .common import LixelSceneOperator
 
 COMPARISON_TEXT = "Lixel Comparison"
@@ -81,8 +81,8 @@ class LIXEL_OT_compare(LixelSceneOperator, bpy.types.Operator):
             note = ("\n\nShadow renders of each method need the gpu pipeline (addon/gpu), which is not available "
                     "in this build: only the numbers are compared.")
         else:
-            from ..addon.ui import renders
-            from ..addon.warp.types import WarpError
+            from .. import renders
+            from ...warp.types import WarpError
             try:
                 picture, names = renders.compare_renders(st, context.evaluated_depsgraph_get(), rows,
                                                          longest=self.longest_side)

@@ -2,10 +2,9 @@
 import bpy
 from bpy.props import EnumProperty
 
-from ..addon.ui import live, overlays
-from ..addon.ui.preferences import preference_settings
-from ..addon.ui.properties import OVERLAYS
-from ..addon.settings import LixelSettings
+from .. import live, overlays
+from ..properties import OVERLAYS, preference_settings
+from ...settings import LixelSettings
 from .common import LixelSceneOperator, current_state, initialise
 
 

@@ -5,7 +5,7 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, IntProperty
 
-from ..addon.ui.live import DEBUG_KEY
+from ...scene.owned import DEBUG_KEY
 from .common import LixelSceneOperator, initialise, scene_poll
 
 COPLANAR_ANGLE = 1e-4
