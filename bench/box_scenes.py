@@ -73,11 +73,12 @@ def _street_camera(scene):
 
 
 def city_side_sun():
-    """A street view, the sun from the side (perpendicular to the view, 35° high)."""
+    """A street view, the sun from the side (15° off perpendicular to the view, towards the
+    camera, so the walls facing the camera are not exactly edge-on to it), 35° high."""
     scene = reset()
     _city()
     _street_camera(scene)
-    add_sun(scene, (1.0, 0.0, -math.tan(math.radians(35.0))))
+    add_sun(scene, (1.0, -0.27, -math.tan(math.radians(35.0)) * math.hypot(1.0, 0.27)))
     return scene
 
 
