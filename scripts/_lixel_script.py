@@ -9,7 +9,8 @@ Two ways to run every script::
 
 Arguments come after ``--`` when it is present, else after the script name.
 Bad arguments print the usage and exit with status 2; a scene Lixel cannot
-handle (no camera, no light, ...) prints ``lixel: error: ...`` and exits 1.
+handle (no camera, no light, ...) prints ``lixel: error: ...`` and exits 1,
+as does anything unexpected (one line; ``LIXEL_DEBUG=1`` shows the traceback).
 """
 from __future__ import annotations
 
@@ -173,6 +174,18 @@ def _import_checkout():
     return mod
 
 
+def _user_message(exc: BaseException, doing: str) -> str:
+    """The guard's message (addon/guard.py): a WarpError's text, or one line for
+    a bug with its traceback in the debug log (LIXEL_DEBUG=1 shows it)."""
+    try:
+        guard = importlib.import_module(f"{_import_checkout().__name__}.addon.guard")
+    except Exception:  # noqa: BLE001 - the checkout itself does not import
+        if os.environ.get("LIXEL_DEBUG"):
+            traceback.print_exception(exc, file=sys.stderr)
+        return f"unexpected error while {doing} ({type(exc).__name__}: {exc})"
+    return guard.user_message(exc, doing)
+
+
 def run(main) -> None:
     """Run ``main()``; map ScriptError and the warp core's errors to exit status 1.
 
@@ -191,14 +204,9 @@ def run(main) -> None:
     except ScriptError as exc:
         print(f"lixel: error: {exc}", file=sys.stderr)
         code = 1
-    except ValueError as exc:  # WarpError is a ValueError with a message for the user
-        if type(exc).__name__ in ("WarpError", "EmptyBodyError", "GPUUnavailableError", "ShaderBuildError"):
-            print(f"lixel: error: {exc}", file=sys.stderr)
-        else:
-            traceback.print_exc()
-        code = 1
-    except Exception:  # a bug: show it, and still end cleanly
-        traceback.print_exc()
+    except Exception as exc:  # noqa: BLE001 - the script's guard: WarpError's message, or one line for a bug
+        print(f"lixel: error: {_user_message(exc, f'running {Path(main.__code__.co_filename).name}')}",
+              file=sys.stderr)
         code = 1
     sys.stdout.flush()
     sys.stderr.flush()

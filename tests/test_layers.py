@@ -6,15 +6,17 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-LAYERS = ("warp", "measure", "settings", "scene", "gpu", "render", "ui")
-"""addon/ packages (and addon/settings.py) from the bottom up."""
+LAYERS = ("warp", "measure", "settings", "guard", "scene", "gpu", "render", "ui")
+"""addon/ packages (and the plain modules addon/settings.py, addon/guard.py) from the bottom up."""
+PLAIN = {"warp", "settings", "guard"}
 ALLOWED = {
     "warp": {"warp"},
     "measure": {"warp", "measure"},
     "settings": {"warp", "settings"},
-    "scene": {"warp", "settings", "scene"},
-    "gpu": {"warp", "settings", "scene", "gpu"},
-    "render": {"warp", "settings", "scene", "gpu", "render"},
+    "guard": {"warp", "guard"},
+    "scene": PLAIN | {"scene"},
+    "gpu": PLAIN | {"scene", "gpu"},
+    "render": PLAIN | {"scene", "gpu", "render"},
     "ui": set(LAYERS),
 }
 
@@ -37,8 +39,8 @@ def _imports(path: Path):
 
 
 def _sources(layer: str):
-    if layer == "settings":
-        return [ROOT / "addon" / "settings.py"]
+    if layer in ("settings", "guard"):
+        return [ROOT / "addon" / f"{layer}.py"]
     return sorted((ROOT / "addon" / layer).rglob("*.py"))
 
 

@@ -22,6 +22,7 @@ from typing import Optional
 import bpy
 import numpy as np
 
+from ..guard import user_message
 from ..scene.owned import is_debug_object
 from ..settings import LixelSettings
 from ..warp import compute, intersection_body
@@ -152,12 +153,8 @@ class LixelRenderEngine(bpy.types.RenderEngine):
             ensure_gpu_context()
             warnings: list = []
             out = render_depsgraph(depsgraph, warnings=warnings)
-        except WarpError as exc:
-            self.report({"ERROR"}, f"Lixel: {exc}")
-            return
-        except Exception as exc:  # noqa: BLE001 - a render must end with a message, not a crash
-            log.exception("Lixel render failed")
-            self.report({"ERROR"}, f"Lixel render failed: {exc}")
+        except Exception as exc:  # noqa: BLE001 - the entry point's guard: a message, never a traceback
+            self.report({"ERROR"}, f"Lixel: {user_message(exc, f'rendering scene {depsgraph.scene.name!r}')}")
             return
         for msg in warnings:
             self.report({"WARNING"}, msg)

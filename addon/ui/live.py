@@ -19,12 +19,13 @@ from typing import Optional
 
 import numpy as np
 
+from ..guard import user_message
 from ..scene.describe import describe_bounds, describe_light, describe_view, pick_light
 from ..scene.instances import walk_instances
 from ..scene.owned import is_debug_object
 from ..settings import LixelSettings
 from ..warp import METHODS, compute, intersection_body
-from ..warp.types import EmptyBodyError, WarpError
+from ..warp.types import WarpError
 from .overlay_geometry import footprint_estimate, overlay_geometry
 
 log = logging.getLogger(__name__)
@@ -115,8 +116,8 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
     """Recompute the scene's Lixel state. ``changed``: a subset of ``INPUTS``
     known to have changed (None: check everything). ``settings`` overrides the
     scene's (scripts); ``camera``/``light_obj`` override the scene's choice.
-    Errors (no camera, no light, no mesh, empty B) are kept in ``state.error``
-    with a message for the user; they never raise."""
+    Errors (no camera, no light, no mesh, empty B, and anything unexpected) are
+    kept in ``state.error`` with a message for the user; they never raise."""
     st = _states.get(scene.name)
     if st is None:
         st = _states[scene.name] = LiveState(scene.name)
@@ -150,8 +151,8 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
             if len(bounds.receivers) == 0:
                 raise WarpError(f"Scene '{scene.name}' has no visible mesh, curve or text objects: "
                                 f"add geometry to cast and receive shadows")
-    except WarpError as exc:
-        return _fail(st, str(exc), timings)
+    except Exception as exc:  # noqa: BLE001 - every caller gets the message in state.error
+        return _fail(st, user_message(exc, f"describing scene '{scene.name}'"), timings)
 
     inputs_changed = not (_same(view, st.view) and _same(light, st.light) and _same(bounds, st.bounds))
     settings_changed = new_settings != st.settings
@@ -167,13 +168,14 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         method, note = resolve_method(new_settings.method)
         setup = timed("warp", compute, method, view, light, bounds, new_settings.warp, body=body)
         recomputed.append("setup")
-    except (WarpError, EmptyBodyError) as exc:
+        geometry = timed("overlay geometry", overlay_geometry, view, setup, body.faces)
+        recomputed.append("overlays")
+        footprint = timed("footprint", footprint_estimate, setup, view, light, _r_sample(body))
+    except Exception as exc:  # noqa: BLE001 - WarpError (EmptyBodyError included) or a bug: a message either way
         st.body = None
-        return _fail(st, str(exc), timings)
+        return _fail(st, user_message(exc, f"computing Lixel's setup for scene '{scene.name}'"), timings)
     st.body, st.setup, st.method_used, st.note, st.error = body, setup, method, note, ""
-    st.geometry = timed("overlay geometry", overlay_geometry, view, setup, body.faces)
-    recomputed.append("overlays")
-    st.footprint = timed("footprint", footprint_estimate, setup, view, light, _r_sample(body))
+    st.geometry, st.footprint = geometry, footprint
     st.timings, st.recomputed = timings, tuple(recomputed)
     st.generation += 1
     log.debug("Lixel: %s recomputed %s in %.1f ms", scene.name, recomputed, st.total_ms())

@@ -19,16 +19,13 @@ fallback) and, for the texel checker and heatmap, one shader made with
 """
 from __future__ import annotations
 
-import logging
-
 import bpy
 import numpy as np
 from bpy.app.handlers import persistent
 
+from ..guard import guarded_callback, user_message
 from ..scene.owned import is_debug_object
 from . import live
-
-log = logging.getLogger(__name__)
 
 _handles: dict[str, object] = {}
 _batches: dict = {}
@@ -242,6 +239,7 @@ def classify_updates(scene, depsgraph) -> set:
 
 
 @persistent
+@guarded_callback("updating Lixel after a scene change")
 def on_depsgraph_update(scene, depsgraph):
     """Recompute only what changed, for scenes Lixel already computed and that
     have live updates on (the cost goes to the panel's timing readout)."""
@@ -260,6 +258,7 @@ def on_depsgraph_update(scene, depsgraph):
 
 
 @persistent
+@guarded_callback("clearing Lixel's state before a file load")
 def on_load_pre(*_args):
     """A file is being loaded: drop the draw handlers, batches and live state
     (they point at the old file's data)."""
@@ -268,6 +267,7 @@ def on_load_pre(*_args):
 
 
 @persistent
+@guarded_callback("setting up Lixel's overlays after a file load")
 def on_load_post(*_args):
     """Re-add the draw handlers if the loaded file has overlays switched on, and
     give never-set-up scenes the preference defaults."""
@@ -336,18 +336,16 @@ def line_sets(props, geometry) -> list:
     return [(n, c, s) for n, c, s in out if len(s)]
 
 
+@guarded_callback("drawing Lixel's viewport overlays")
 def draw_view():
     """POST_VIEW: B, the frusta, P and its vectors, texels/heatmap on receivers."""
-    try:
-        scene, st = _scene_state()
-        if st is None or st.geometry is None:
-            return
-        region_data = bpy.context.region_data
-        if region_data is None:
-            return
-        draw_scene_overlays(scene, st, scene.lixel, np.array(region_data.perspective_matrix, dtype=np.float64))
-    except Exception:  # a draw callback must never raise into Blender's draw loop
-        log.exception("Lixel overlay drawing failed")
+    scene, st = _scene_state()
+    if st is None or st.geometry is None:
+        return
+    region_data = bpy.context.region_data
+    if region_data is None:
+        return
+    draw_scene_overlays(scene, st, scene.lixel, np.array(region_data.perspective_matrix, dtype=np.float64))
 
 
 def draw_scene_overlays(scene, st, props, view_projection) -> None:
@@ -446,30 +444,28 @@ def _draw_receivers(scene, st, props, view_projection):
             batch.draw(shader)
 
 
+@guarded_callback("drawing Lixel's viewport status and pictures")
 def draw_pixel():
     """POST_PIXEL: status line and the shadow map picture-in-picture."""
-    try:
-        scene, st = _scene_state()
-        if st is None:
-            return
-        import blf
-        props = scene.lixel
-        font = 0
-        blf.size(font, 13)
-        blf.color(font, 1.0, 1.0, 1.0, 0.9)
-        y = 40
-        text = (f"Lixel: {st.error}" if st.error else
-                f"Lixel {st.method_used}: {len(st.setup.maps)} map(s), B {len(st.setup.diagnostics.body_vertices)} "
-                f"vertices, update {st.total_ms():.1f} ms")
-        blf.position(font, 20, y, 0)
-        blf.draw(font, text)
-        if (props.show_map or props.show_shadowed) and st.setup is not None:
-            note = _draw_gpu_overlays(scene, st, props)
-            if note:
-                blf.position(font, 20, y + 18, 0)
-                blf.draw(font, note)
-    except Exception:
-        log.exception("Lixel overlay drawing failed")
+    scene, st = _scene_state()
+    if st is None:
+        return
+    import blf
+    props = scene.lixel
+    font = 0
+    blf.size(font, 13)
+    blf.color(font, 1.0, 1.0, 1.0, 0.9)
+    y = 40
+    text = (f"Lixel: {st.error}" if st.error else
+            f"Lixel {st.method_used}: {len(st.setup.maps)} map(s), B {len(st.setup.diagnostics.body_vertices)} "
+            f"vertices, update {st.total_ms():.1f} ms")
+    blf.position(font, 20, y, 0)
+    blf.draw(font, text)
+    if (props.show_map or props.show_shadowed) and st.setup is not None:
+        note = _draw_gpu_overlays(scene, st, props)
+        if note:
+            blf.position(font, 20, y + 18, 0)
+            blf.draw(font, note)
 
 
 def gpu_pipeline():
@@ -520,11 +516,10 @@ def _draw_gpu_overlays(scene, st, props) -> str:
     bottom right. Returns a note for the status line when they cannot be drawn."""
     if gpu_pipeline() is None:
         return "shadow map / shadowed scene overlays need the gpu pipeline (addon/gpu), not available"
-    from ..warp.types import WarpError
     try:
         textures = _pip_textures(scene, st, props)
-    except WarpError as exc:
-        return f"Lixel render: {exc}"
+    except Exception as exc:  # noqa: BLE001 - shown in the status line instead of the pictures
+        return f"Lixel render: {user_message(exc, f'rendering the pictures of scene {scene.name!r}')}"
     import gpu
     region = bpy.context.region
     x = (region.width if region is not None else gpu.state.viewport_get()[2]) - 20

@@ -6,6 +6,7 @@ operators and handlers); a scene never computed shows a Refresh button.
 """
 import bpy
 
+from ..guard import guarded_draw
 from . import live, overlays
 from .properties import LAMBDA_METHODS, N_OPT_METHODS, OVERLAYS, PLANE_METHODS
 
@@ -45,6 +46,7 @@ class LIXEL_PT_main(LixelPanel, bpy.types.Panel):
     bl_label = "Lixel"
     bl_idname = "LIXEL_PT_main"
 
+    @guarded_draw("drawing Lixel's panel")
     def draw(self, context):
         layout = self.layout
         scene = context.scene
@@ -91,6 +93,7 @@ class LIXEL_PT_method(LixelPanel, bpy.types.Panel):
     bl_label = "Method"
     bl_parent_id = "LIXEL_PT_main"
 
+    @guarded_draw("drawing Lixel's panel")
     def draw(self, context):
         layout = self.layout
         layout.use_property_split = True
@@ -131,6 +134,7 @@ class LIXEL_PT_shadows(LixelPanel, bpy.types.Panel):
     bl_parent_id = "LIXEL_PT_main"
     bl_options = {"DEFAULT_CLOSED"}
 
+    @guarded_draw("drawing Lixel's panel")
     def draw(self, context):
         layout = self.layout
         layout.use_property_split = True
@@ -159,6 +163,7 @@ class LIXEL_PT_readouts(LixelPanel, bpy.types.Panel):
     bl_label = "Readouts"
     bl_parent_id = "LIXEL_PT_main"
 
+    @guarded_draw("drawing Lixel's panel")
     def draw(self, context):
         layout = self.layout
         st = live.state(context.scene)
@@ -177,6 +182,7 @@ class LIXEL_PT_overlays(LixelPanel, bpy.types.Panel):
     bl_label = "Overlays"
     bl_parent_id = "LIXEL_PT_main"
 
+    @guarded_draw("drawing Lixel's panel")
     def draw(self, context):
         layout = self.layout
         props = context.scene.lixel
@@ -199,6 +205,7 @@ class LIXEL_PT_tools(LixelPanel, bpy.types.Panel):
     bl_parent_id = "LIXEL_PT_main"
     bl_options = {"DEFAULT_CLOSED"}
 
+    @guarded_draw("drawing Lixel's panel")
     def draw(self, context):
         layout = self.layout
         col = layout.column(align=True)

@@ -5,8 +5,9 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, IntProperty
 
-from .. import nodes
+from ...guard import guarded_operator
 from ...scene.owned import DEBUG_KEY
+from .. import nodes
 from ..overlay_geometry import HEXAHEDRON_QUADS
 from .common import LixelSceneOperator
 
@@ -91,6 +92,7 @@ class LIXEL_OT_bake_debug(LixelSceneOperator, bpy.types.Operator):
     bl_label = "Bake Debug Geometry"
     bl_options = {"REGISTER", "UNDO"}
 
+    @guarded_operator
     def execute(self, context):
         st = self.fresh_state(context)
         if st is None:
@@ -114,6 +116,7 @@ class LIXEL_OT_texel_grid_add(LixelSceneOperator, bpy.types.Operator):
     map_index: IntProperty(name="Map", default=0, min=0, description="Which shadow map's texels to show")
     remove: BoolProperty(name="Remove", default=False, description="Remove the texel grid instead")
 
+    @guarded_operator
     def execute(self, context):
         meshes = [ob for ob in context.selected_objects if ob.type == "MESH" and ob.get(DEBUG_KEY) is None]
         if not meshes:
@@ -146,6 +149,7 @@ class LIXEL_OT_frustum_add(LixelSceneOperator, bpy.types.Operator):
 
     map_index: IntProperty(name="Map", default=0, min=0)
 
+    @guarded_operator
     def execute(self, context):
         st = self.fresh_state(context)
         if st is None:
@@ -167,6 +171,7 @@ class LIXEL_OT_sync_matrices(LixelSceneOperator, bpy.types.Operator):
     bl_label = "Sync Light Matrices"
     bl_options = {"REGISTER", "UNDO"}
 
+    @guarded_operator
     def execute(self, context):
         st = self.fresh_state(context)
         if st is None:

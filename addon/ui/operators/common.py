@@ -1,8 +1,8 @@
 """What every Lixel operator shares: the live state of the context's scene, or a
 clear report of what is missing (no camera, no light, no mesh)."""
+from ...warp.types import WarpError
 from .. import live
 from ..properties import ensure_defaults
-from ...warp.types import WarpError
 
 
 def scene_poll(cls, context) -> bool:

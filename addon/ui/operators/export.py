@@ -6,8 +6,9 @@ import bpy
 from bpy.props import BoolProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
-from .. import live, overlays
+from ...guard import guarded_operator
 from ...warp import METHODS
+from .. import live, overlays
 from .common import LixelSceneOperator
 
 COMPARISON_TEXT = "Lixel Comparison"
@@ -43,6 +44,7 @@ class LIXEL_OT_export_json(LixelSceneOperator, bpy.types.Operator, ExportHelper)
                               description="Export every method ({\"methods\": {...}}) instead of the scene's")
     indent: BoolProperty(name="Pretty", default=True, description="Indent the JSON")
 
+    @guarded_operator
     def execute(self, context):
         st = self.fresh_state(context)
         if st is None:
@@ -70,6 +72,7 @@ class LIXEL_OT_compare(LixelSceneOperator, bpy.types.Operator):
     longest_side: IntProperty(name="Picture Size", default=320, min=16, max=4096,
                               description="Longer side of each method's picture in the comparison image")
 
+    @guarded_operator
     def execute(self, context):
         st = self.fresh_state(context)
         if st is None:

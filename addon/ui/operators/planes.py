@@ -5,6 +5,7 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, IntProperty
 
+from ...guard import guarded_operator
 from ...scene.owned import DEBUG_KEY
 from .common import LixelSceneOperator, initialise, scene_poll
 
@@ -67,6 +68,7 @@ class LIXEL_OT_planes_from_selection(LixelSceneOperator, bpy.types.Operator):
 
     append: BoolProperty(name="Append", default=False, description="Add to the existing planes instead of replacing them")
 
+    @guarded_operator
     def execute(self, context):
         initialise(context)
         planes = selected_face_planes(context) if context.mode == "EDIT_MESH" else largest_face_planes(context)
@@ -104,6 +106,7 @@ class LIXEL_OT_plane_remove(bpy.types.Operator):
     def poll(cls, context):
         return scene_poll(cls, context) and len(context.scene.lixel.planes) > 0
 
+    @guarded_operator
     def execute(self, context):
         props = context.scene.lixel
         if self.index < 0:

@@ -2,9 +2,10 @@
 import bpy
 from bpy.props import EnumProperty
 
+from ...guard import guarded_operator
+from ...settings import LixelSettings
 from .. import live, overlays
 from ..properties import OVERLAYS, preference_settings
-from ...settings import LixelSettings
 from .common import LixelSceneOperator, current_state, initialise
 
 
@@ -15,6 +16,7 @@ class LIXEL_OT_refresh(LixelSceneOperator, bpy.types.Operator):
     bl_label = "Refresh Setup"
     bl_options = {"REGISTER"}
 
+    @guarded_operator
     def execute(self, context):
         st = self.fresh_state(context)
         if st is None:
@@ -33,6 +35,7 @@ class LIXEL_OT_reset_settings(LixelSceneOperator, bpy.types.Operator):
     bl_label = "Reset to Preferences"
     bl_options = {"REGISTER", "UNDO"}
 
+    @guarded_operator
     def execute(self, context):
         props = context.scene.lixel
         planes = [(tuple(p.point), tuple(p.normal), p.source) for p in props.planes]
@@ -62,6 +65,7 @@ class LIXEL_OT_toggle_overlay(LixelSceneOperator, bpy.types.Operator):
                 return f"Show or hide: {desc}"
         return cls.__doc__
 
+    @guarded_operator
     def execute(self, context):
         initialise(context)
         props = context.scene.lixel
