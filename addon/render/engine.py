@@ -5,8 +5,9 @@ warped shadow maps.
 Passes: Combined; "Shadow" (0 lit .. 1 fully shadowed); "Footprint" (the
 shadow-map texel footprint heatmap, see ``addon.gpu.pipeline.footprint_heatmap``);
 "Shadow Map" (the first map's window depth, resampled to the render size).
-The whole last result (every map at full resolution, timings, counts) stays
-available as :func:`last_render`.
+Nothing is kept after a render: the result (every map at full resolution,
+timings, counts; a 16384² map alone is 1 GiB) is freed when the render ends.
+Code that wants it (tests, tools) collects it with :func:`watch_renders`.
 
 Settings come from ``scene.lixel.to_settings()`` when the Lixel properties are
 registered, else ``LixelSettings()`` defaults. Bad input (no camera, no
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 import logging
 import time
+from contextlib import contextmanager
 from typing import Optional
 
 import bpy
@@ -38,13 +40,21 @@ EXTRA_PASSES = (
     ("Shadow Map", 1, "Z", "VALUE"),
 )
 
-_last: dict = {}
+_watchers: list = []
 
 
-def last_render() -> dict:
-    """The last Lixel render of this session: ``setup``, ``settings``, ``result``
-    (the dict of ``addon.gpu.pipeline.render_shadows``), ``scene``; empty before."""
-    return _last
+@contextmanager
+def watch_renders():
+    """Collect what each engine render inside the block produced, in order: a
+    list of :func:`render_depsgraph` dicts. The engine itself keeps nothing
+    between renders; only the caller's list holds the results, for as long as
+    the caller keeps it."""
+    got: list = []
+    _watchers.append(got)
+    try:
+        yield got
+    finally:
+        _watchers.remove(got)
 
 
 def scene_settings(scene) -> LixelSettings:
@@ -73,8 +83,10 @@ def _world_colour(scene) -> tuple:
 def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, settings: Optional[LixelSettings] = None,
                      warnings: Optional[list] = None) -> dict:
     """Describe, compute and render an evaluated scene (what the engine does);
-    usable by scripts and operators. Needs a GPU context. Returns
-    :func:`last_render`'s dict. Raises ``WarpError`` with a user-facing message."""
+    usable by scripts and operators. Needs a GPU context. Returns ``setup``,
+    ``settings``, ``result`` (the dict of ``addon.gpu.pipeline.render_shadows``),
+    ``scene`` and ``method``; nothing is kept here. Raises ``WarpError`` with a
+    user-facing message."""
     from ..gpu.batches import shared_batches
     from ..gpu.pipeline import render_shadows
     from ..scene.describe import describe_scene
@@ -112,9 +124,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     result = render_shadows(view, light, setup, geometry, settings, resolution or view.resolution, body=body,
                             ambient=_world_colour(scene), spot_blend=blend)
     result["timings"] = {**timings, **result["timings"]}
-    _last.clear()
-    _last.update(setup=setup, settings=settings, result=result, scene=scene.name, method=method)
-    return _last
+    return {"setup": setup, "settings": settings, "result": result, "scene": scene.name, "method": method}
 
 
 def _resample(img: np.ndarray, w: int, h: int) -> np.ndarray:
@@ -158,6 +168,8 @@ class LixelRenderEngine(bpy.types.RenderEngine):
             return
         for msg in warnings:
             self.report({"WARNING"}, msg)
+        for got in _watchers:
+            got.append(out)
         res = out["result"]
         h, w = res["shadow_mask"].shape  # the full frame (a render border is not cropped)
         for name, channels, chan_id, _ in EXTRA_PASSES:

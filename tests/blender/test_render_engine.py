@@ -58,8 +58,9 @@ def test_render_writes_lixel_shadows(engine, scene, tmp_path):
     build(scene)
     scene.render.image_settings.file_format = "OPEN_EXR"
     scene.render.filepath = str(tmp_path / "frame.exr")
-    assert bpy.ops.render.render(write_still=True, scene=scene.name) == {"FINISHED"}
-    last = engine.last_render()
+    with engine.watch_renders() as got:
+        assert bpy.ops.render.render(write_still=True, scene=scene.name) == {"FINISHED"}
+    last = got[-1]
     assert last["scene"] == scene.name
     res = last["result"]
     assert res["combined"].shape == (64, 96, 4)
@@ -84,8 +85,9 @@ def test_settings_come_from_the_scene(engine, scene):
     props.method = "uniform"
     props.pcf_kernel = 1
     props.shadow_map_size = (512, 512)
-    bpy.ops.render.render(scene=scene.name)
-    last = engine.last_render()
+    with engine.watch_renders() as got:
+        bpy.ops.render.render(scene=scene.name)
+    last = got[-1]
     assert last["method"] == "uniform"
     assert last["settings"].shadow.pcf_kernel == 1
     assert tuple(last["setup"].maps[0].size) == (512, 512)
@@ -94,10 +96,10 @@ def test_settings_come_from_the_scene(engine, scene):
 
 def test_second_render_uploads_nothing(engine, scene):
     build(scene)
-    bpy.ops.render.render(scene=scene.name)
-    first = engine.last_render()["result"]
-    bpy.ops.render.render(scene=scene.name)
-    second = engine.last_render()["result"]
+    with engine.watch_renders() as got:
+        bpy.ops.render.render(scene=scene.name)
+        bpy.ops.render.render(scene=scene.name)
+    first, second = (g["result"] for g in got)
     assert second["counts"]["uploads"] == 0
     np.testing.assert_array_equal(first["shadow_mask"], second["shadow_mask"])
 
@@ -126,6 +128,24 @@ def test_no_gpu_context_is_reported(engine, scene, capfd, monkeypatch, lixel):
     assert "Traceback" not in capfd.readouterr().err
 
 
+def test_nothing_of_a_render_outlives_it(engine, scene):
+    """The result (maps at full resolution, the images) is freed when the render
+    ends: only a watcher's own list holds it, and once that is dropped nothing does."""
+    import gc
+    import weakref
+    build(scene)
+    with engine.watch_renders() as got:
+        assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    res = got[0]["result"]
+    arrays = [res["combined"], res["shadow_mask"], *res["shadow_maps"]]
+    refs = [weakref.ref(a) for a in arrays]
+    del got, res, arrays
+    gc.collect()
+    assert [r() is None for r in refs] == [True] * len(refs)
+    # and a render nobody watches leaves nothing behind either
+    assert not hasattr(engine, "last_render") and engine._watchers == []
+
+
 def test_engine_is_registered_with_gpu_context(engine):
     cls = bpy.types.RenderEngine.bl_rna_get_subclass_py("LIXEL")
     assert cls is not None and cls.bl_use_gpu_context
@@ -144,8 +164,10 @@ bconf.enable_lixel()
 scene = bpy.data.scenes[scene_name]
 scene.render.engine = "LIXEL"                                   # -E LIXEL
 scene.frame_set(1)                                              # -f 1
-bpy.ops.render.render(write_still=True, scene=scene.name)
-last = importlib.import_module(bconf.ADDON_MODULE + ".addon.render.engine").last_render()
+engine = importlib.import_module(bconf.ADDON_MODULE + ".addon.render.engine")
+with engine.watch_renders() as got:
+    bpy.ops.render.render(write_still=True, scene=scene.name)
+last = got[-1]
 print("LIXEL_RENDERED", last["scene"], float(last["result"]["shadow_mask"].mean()))
 bconf.disable_lixel()
 '''
@@ -189,8 +211,9 @@ def test_a_view_with_nothing_to_shadow_renders_with_a_warning(engine, scene, cap
     cam = scene.camera
     cam.rotation_euler = (0.0, math.pi, 0.0)  # straight up at the sky
     cam.location = (0, 0, 10)
-    assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
-    res = engine.last_render()["result"]
+    with engine.watch_renders() as got:
+        assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    res = got[-1]["result"]
     assert not res["covered"].any()
     captured = capfd.readouterr()
     assert "no shadows in this view" in captured.err + captured.out
@@ -203,8 +226,9 @@ def test_a_spot_lighting_nothing_visible_renders_ambient_only(engine, scene, cap
     spot = add(scene, "Spot", bpy.data.lights.new("Spot", "SPOT"))
     spot.location = (0, 0, 5)
     spot.rotation_euler = (0.0, math.pi, 0.0)  # pointing up, away from everything
-    assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
-    res = engine.last_render()["result"]
+    with engine.watch_renders() as got:
+        assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    res = got[-1]["result"]
     assert res["covered"].any() and not res["shadow_mask"].any()
     ambient = np.array(scene.world.color if scene.world else (0, 0, 0), dtype=np.float32) * 0.8
     np.testing.assert_allclose(res["combined"][res["covered"]][:, :3], np.broadcast_to(ambient, (res["covered"].sum(), 3)),
