@@ -11,6 +11,12 @@ from dataclasses import dataclass, field, replace
 
 from .warp.types import WarpOptions, WarpError
 
+MIN_MAP_SIZE = 16
+MAX_MAP_SIZE = 16384
+"""A scene's shadow map side in texels: at most the GPU's largest texture (shared
+notes §8.8); below 16 texels a map cannot resolve a shadow, so a smaller value is
+a typing slip that Lixel refuses rather than renders."""
+
 BIAS_MODES = ("NONE", "CONSTANT", "SLOPE", "CONSTANT_SLOPE")
 MDSM_SELECTIONS = ("MINMAX", "SORT")
 

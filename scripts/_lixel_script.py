@@ -66,8 +66,11 @@ def parse(parser: argparse.ArgumentParser, argv=None):
             parser.error(f"{args.blend!r} is not a .blend file")
         if not os.path.isfile(args.blend):
             parser.error(f"no such .blend file: {args.blend}")
-    if args.size is not None and not 1 <= args.size <= 16384:
-        parser.error(f"--size {args.size} is out of range: use 1..16384 texels per side")
+    if args.size is not None:
+        limits = importlib.import_module(f"{_import_checkout().__name__}.addon.settings")
+        if not limits.MIN_MAP_SIZE <= args.size <= limits.MAX_MAP_SIZE:
+            parser.error(f"--size {args.size} is out of range: use {limits.MIN_MAP_SIZE}..{limits.MAX_MAP_SIZE} "
+                         f"texels per side")
     return args
 
 

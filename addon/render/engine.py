@@ -89,7 +89,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     user-facing message."""
     from ..gpu.batches import shared_batches
     from ..gpu.pipeline import render_shadows
-    from ..scene.describe import describe_scene
+    from ..scene.describe import check_finite_geometry, describe_scene, light_notes
     from ..scene.geometry import shared_cache
 
     scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
@@ -98,6 +98,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     t = time.perf_counter()
     cache = shared_cache()
     geometry = cache.update(depsgraph, exclude=is_debug_object)
+    check_finite_geometry(geometry)
     shared_batches().prune(cache.meshes)
     timings["extraction"] = time.perf_counter() - t
     t = time.perf_counter()
@@ -119,6 +120,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         setup = no_shadow_setup(method)
     timings["warp"] = time.perf_counter() - t
     light_obj = bpy.data.objects.get(light.name)
+    if warnings is not None and light_obj is not None:
+        warnings.extend(light_notes(light_obj))
     blend = float(getattr(light_obj.data, "spot_blend", 0.0)) if light_obj is not None and \
         light_obj.type == "LIGHT" and light_obj.data.type == "SPOT" else 0.0
     result = render_shadows(view, light, setup, geometry, settings, resolution or view.resolution, body=body,

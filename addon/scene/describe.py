@@ -7,6 +7,7 @@ what to do, fit for ``RenderEngine.report`` or an operator's ``self.report``.
 from __future__ import annotations
 
 import math
+import weakref
 from typing import Optional
 
 import numpy as np
@@ -17,14 +18,53 @@ from .instances import InstanceSet, walk_instances  # noqa: F401 (re-exported)
 MAX_RESOLUTION = 16384
 """Largest render side Lixel accepts (the GPU's maximum texture size)."""
 
+MAX_CLIP_RATIO = float(2 ** 24)
+"""Largest clip end / clip start: beyond it a 32-bit float depth (the GPU's depth
+buffers and the projection uploaded to it) cannot tell the clip range's ends
+apart near the far plane, and the camera pass resolves nothing."""
+
 LIGHT_TYPES = ("SUN", "POINT", "SPOT", "AREA")
 """Blender light types Lixel shadows (AREA is approximated, see describe_light)."""
 
 AREA_MAX_CONE = math.radians(179.0)
 
 
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+"""Blender stores coordinates as float32 and clamps an infinity written to one
+to this value, so a coordinate this large is an infinity that was clamped."""
+
+
+def _finite(a: np.ndarray, axes) -> np.ndarray:
+    """Per item: every value finite and below Blender's clamped infinity."""
+    return (np.isfinite(a) & (np.abs(a) < FLOAT32_MAX)).all(axis=axes)
+
+
 def _matrix(m) -> np.ndarray:
     return np.array(m, dtype=np.float64).reshape(4, 4)
+
+
+def unscaled_camera_matrix(matrix, name: str) -> np.ndarray:
+    """``matrix`` with each axis (column) normalised to unit length, as Blender's
+    renderers take a camera (``normalize_m4`` of the object matrix in
+    ``BKE_camera_multiview_model_matrix``): the object's scale is ignored, its
+    translation and the directions of its axes are kept. A non-finite matrix, a
+    zero-length axis (zero scale) or axes squeezed into a plane (a parent's
+    non-uniform scale shearing it flat) raise WarpError naming the camera."""
+    m = np.array(matrix, dtype=np.float64).reshape(4, 4)
+    if not _finite(m, None):
+        raise WarpError(f"Camera '{name}' has a non-finite transform (NaN or infinity in its location, rotation or "
+                        f"scale, or a parent's): fix its transform (Object properties > Transform)")
+    lengths = np.linalg.norm(m[:3, :3], axis=0)
+    if not np.all(lengths > 0) or not np.all(np.isfinite(lengths)):
+        axes = ", ".join(a for a, ok in zip("XYZ", lengths > 0) if not ok)
+        raise WarpError(f"Camera '{name}' has zero scale on its {axes} {'axis' if len(axes) == 1 else 'axes'} (or a parent's), so it has no orientation: "
+                        f"set its scale to 1 (Object properties > Transform > Scale); Blender ignores a camera's "
+                        f"scale otherwise")
+    m[:3, :3] /= lengths
+    if abs(np.linalg.det(m[:3, :3])) < 1e-9:
+        raise WarpError(f"Camera '{name}' is sheared flat (its axes are parallel, e.g. by a parent's non-uniform "
+                        f"scale): clear its parent's scale or rotation (Object properties > Transform, Relations)")
+    return m
 
 
 def _evaluated(obj, depsgraph):
@@ -56,9 +96,13 @@ def describe_view(camera_obj, depsgraph, scene) -> View:
 
     The projection is Blender's own ``Object.calc_matrix_camera`` at the render
     size and pixel aspect, so sensor fit, lens shift and orthographic scale are
-    exactly what Blender renders (OpenGL-style: near -> z_ndc -1).
+    exactly what Blender renders (OpenGL-style: near -> z_ndc -1); its depth rows
+    are recomputed in float64 from the clip range (Blender returns float32, in
+    which a wide clip range maps the far plane to infinity).
     ``camera_to_world`` is the evaluated ``matrix_world`` (constraints, drivers,
-    animation applied).
+    animation applied) without its scale, which Blender's renderers ignore
+    (:func:`unscaled_camera_matrix`). A degenerate camera (non-finite or zero-scale
+    transform, a clip range beyond float precision) raises WarpError naming it.
     """
     if camera_obj is None:
         raise WarpError(f"Scene '{scene.name}' has no camera: add a camera and make it active (Scene properties > Camera)")
@@ -71,21 +115,40 @@ def describe_view(camera_obj, depsgraph, scene) -> View:
                         f"cameras; change its type (Camera properties > Lens > Type)")
     w, h = render_resolution(scene)
     r = scene.render
-    ob_eval = _evaluated(camera_obj, depsgraph)
-    projection = _matrix(ob_eval.calc_matrix_camera(depsgraph, x=w, y=h,
-                                                    scale_x=float(r.pixel_aspect_x), scale_y=float(r.pixel_aspect_y)))
     near, far = float(cam.clip_start), float(cam.clip_end)
-    if not (0 < near < far):
+    if not (0 < near < far < math.inf):
         raise WarpError(f"Camera '{camera_obj.name}' clips at start {near:g} and end {far:g}: the clip start must be "
                         f"positive and less than the clip end (Camera properties > Lens > Clip)")
+    if far / near > MAX_CLIP_RATIO:
+        raise WarpError(f"Camera '{camera_obj.name}' clips from {near:g} to {far:g}, a range of 1:{far / near:.3g}, "
+                        f"beyond what 32-bit float depth resolves (1:{MAX_CLIP_RATIO:,.0f}): raise the clip start or "
+                        f"lower the clip end (Camera properties > Lens > Clip)")
+    ob_eval = _evaluated(camera_obj, depsgraph)
+    camera_to_world = unscaled_camera_matrix(ob_eval.matrix_world, camera_obj.name)
+    projection = _matrix(ob_eval.calc_matrix_camera(depsgraph, x=w, y=h,
+                                                    scale_x=float(r.pixel_aspect_x), scale_y=float(r.pixel_aspect_y)))
+    orthographic = cam.type == "ORTHO"
+    projection[2:] = depth_rows(near, far, orthographic)
+    if not np.all(np.isfinite(projection)) or projection[0, 0] == 0 or projection[1, 1] == 0:
+        raise WarpError(f"Camera '{camera_obj.name}' has a degenerate lens (focal length, sensor or orthographic "
+                        f"scale): fix it in Camera properties > Lens")
     return View(
-        camera_to_world=_matrix(ob_eval.matrix_world),
+        camera_to_world=camera_to_world,
         projection=projection,
         near=near,
         far=far,
         resolution=(w, h),
-        orthographic=cam.type == "ORTHO",
+        orthographic=orthographic,
     )
+
+
+def depth_rows(near: float, far: float, orthographic: bool) -> np.ndarray:
+    """The z and w rows of Blender's camera projection (``perspective_m4`` /
+    ``orthographic_m4``, OpenGL depth: near -> -1, far -> +1) in float64."""
+    d = far - near
+    if orthographic:
+        return np.array([[0.0, 0.0, -2.0 / d, -(far + near) / d], [0.0, 0.0, 0.0, 1.0]])
+    return np.array([[0.0, 0.0, -(far + near) / d, -2.0 * far * near / d], [0.0, 0.0, -1.0, 0.0]])
 
 
 def describe_light(light_obj, depsgraph=None) -> Light:
@@ -114,10 +177,16 @@ def describe_light(light_obj, depsgraph=None) -> Light:
         raise WarpError(f"Light '{light_obj.name}' is of type {kind}, which Lixel cannot shadow: "
                         f"change it to Sun, Point, Spot or Area (Light properties)")
     m = _matrix(_evaluated(light_obj, depsgraph).matrix_world)
+    if not _finite(m, None):
+        raise WarpError(f"Light '{light_obj.name}' has a non-finite transform (NaN or infinity in its location, "
+                        f"rotation or scale, or a parent's): fix its transform (Object properties > Transform)")
     position = m[:3, 3].copy()
     minus_z = -m[:3, 2]
-    if not np.all(np.isfinite(m)) or np.linalg.norm(minus_z) < 1e-12:
-        raise WarpError(f"Light '{light_obj.name}' has a degenerate transform (zero scale?): reset its rotation and scale")
+    z_length = float(np.linalg.norm(minus_z))
+    if kind != "POINT" and not 0 < z_length < math.inf:
+        raise WarpError(f"Light '{light_obj.name}' has zero scale on its Z axis (or a parent's), so it points "
+                        f"nowhere: set its scale to 1 (Object properties > Transform > Scale)")
+    minus_z = minus_z / z_length if z_length > 0 else minus_z
     color = tuple(float(c) for c in data.color)
     energy = float(data.energy)
     name = light_obj.name
@@ -145,8 +214,72 @@ def describe_bounds(depsgraph, instances: Optional[InstanceSet] = None) -> Scene
     avoid walking the depsgraph again.
     """
     inst = walk_instances(depsgraph) if instances is None else instances
+    check_finite_instances(inst)
     boxes = inst.world_boxes()
     return SceneBounds(boxes[inst.casts], boxes[inst.receives])
+
+
+def _first_bad(inst: InstanceSet, bad: np.ndarray) -> str:
+    return inst.names[int(np.flatnonzero(bad)[0])]
+
+
+def check_finite_instances(inst: InstanceSet) -> None:
+    """Refuse a scene with non-finite numbers in an object's transform or bounds,
+    naming the first such object (a NaN would silently spread through B and the
+    maps)."""
+    if len(inst) == 0:
+        return
+    bad = ~_finite(inst.matrices, (1, 2))
+    if bad.any():
+        raise WarpError(f"Object '{_first_bad(inst, bad)}' has a non-finite transform (NaN or infinity in its location, "
+                        f"rotation or scale, or a parent's): fix its transform (Object properties > Transform)")
+    bad = ~_finite(inst.local_boxes, (1, 2))
+    if bad.any():
+        raise WarpError(f"Object '{_first_bad(inst, bad)}' has vertices with non-finite coordinates (NaN or infinity): "
+                        f"fix or delete them (Edit Mode; Mesh > Clean Up)")
+    with np.errstate(over="ignore", invalid="ignore"):
+        bad = ~np.isfinite(inst.world_boxes()).all(axis=(1, 2))
+    if bad.any():
+        raise WarpError(f"Object '{_first_bad(inst, bad)}' reaches beyond the range of floating-point numbers: "
+                        f"scale it down or move it closer to the origin")
+
+
+_finite_meshes: "weakref.WeakValueDictionary" = weakref.WeakValueDictionary()
+"""id -> mesh (``addon.scene.geometry.MeshData``) already found finite: each is checked once
+(a new version of a mesh is a new object)."""
+
+
+def check_finite_geometry(geometry) -> None:
+    """Refuse triangles with NaN or infinite vertex coordinates, naming the object
+    (Blender's bounding box may skip a NaN vertex, so the bounds alone do not
+    show it). Each mesh version is checked once."""
+    inst = geometry.instances
+    for key, mesh in geometry.meshes.items():
+        if _finite_meshes.get(id(mesh)) is mesh:
+            continue
+        if not _finite(mesh.positions, None):
+            where = [i for i, k in enumerate(inst.keys) if k == key]
+            name = inst.names[where[0]] if where else key[1]
+            raise WarpError(f"Object '{name}' has vertices with non-finite coordinates (NaN or infinity): "
+                            f"fix or delete them (Edit Mode; Mesh > Clean Up)")
+        _finite_meshes[id(mesh)] = mesh
+
+
+def light_notes(light_obj) -> list[str]:
+    """Warnings about a light Lixel renders but that may surprise: no strength,
+    an area light approximated by a spot."""
+    notes = []
+    data = getattr(light_obj, "data", None)
+    if data is None:
+        return notes
+    energy = float(getattr(data, "energy", 1.0))
+    if energy <= 0:
+        notes.append(f"Light '{light_obj.name}' has a strength of {energy:g}: it lights nothing, so its shadows show "
+                     f"only in the Shadow pass (Light properties > Power/Strength)")
+    if data.type == "AREA":
+        notes.append(f"Area light '{light_obj.name}' is shadowed as a spot light at its centre (hard shadows, "
+                     f"cone = its spread, at most 179°)")
+    return notes
 
 
 def _scene_lights(scene, depsgraph) -> list:

@@ -20,7 +20,7 @@ from typing import Optional
 import numpy as np
 
 from ..guard import user_message
-from ..scene.describe import describe_bounds, describe_light, describe_view, pick_light
+from ..scene.describe import describe_bounds, describe_light, describe_view, light_notes, pick_light
 from ..scene.instances import walk_instances
 from ..scene.owned import is_debug_object
 from ..settings import LixelSettings
@@ -45,6 +45,7 @@ class LiveState:
     view: object = None
     light: object = None
     light_name: str = ""
+    light_notes: tuple = ()
     bounds: object = None
     settings: Optional[LixelSettings] = None
     method_used: str = ""
@@ -144,7 +145,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         if "light" in todo or light is None:
             lob = light_obj if light_obj is not None else pick_light(scene, depsgraph, active)
             light = timed("describe light", describe_light, lob, depsgraph)
-            st.light_name = lob.name
+            st.light_name, st.light_notes = lob.name, light_notes(lob)
         bounds = st.bounds
         if "bounds" in todo or bounds is None:
             bounds = timed("describe bounds", scene_bounds, depsgraph)
@@ -174,6 +175,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
     except Exception as exc:  # noqa: BLE001 - WarpError (EmptyBodyError included) or a bug: a message either way
         st.body = None
         return _fail(st, user_message(exc, f"computing Lixel's setup for scene '{scene.name}'"), timings)
+    note = "; ".join(n for n in (note, *st.light_notes) if n)
     st.body, st.setup, st.method_used, st.note, st.error = body, setup, method, note, ""
     st.geometry, st.footprint = geometry, footprint
     st.timings, st.recomputed = timings, tuple(recomputed)

@@ -6,10 +6,10 @@ not this module's package, or Blender will not find the preferences.
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 
-from ..settings import LixelSettings, ShadowSettings
+from ..settings import MAX_MAP_SIZE, MIN_MAP_SIZE, LixelSettings, ShadowSettings
 from ..warp.types import WarpOptions
 from . import ROOT_PACKAGE, addon_preferences
-from .properties import MAX_MAP_SIZE, LixelSceneSettings, available_methods, method_items
+from .properties import LixelSceneSettings, available_methods, method_items
 
 
 def _scene_prop(name):
@@ -26,7 +26,7 @@ class LIXEL_AP_preferences(bpy.types.AddonPreferences):
 
     method: EnumProperty(name="Default Method", items=method_items(), default="lispsm",
                          description="The method a new scene starts with")
-    map_size: IntProperty(name="Default Map Size", default=2048, min=16, max=MAX_MAP_SIZE, soft_max=8192,
+    map_size: IntProperty(name="Default Map Size", default=2048, min=MIN_MAP_SIZE, max=MAX_MAP_SIZE, soft_max=8192,
                           description=f"Square shadow map side for new scenes (at most {MAX_MAP_SIZE})")
     bias_mode: _scene_prop("bias_mode")
     constant_bias: _scene_prop("constant_bias")

@@ -11,7 +11,7 @@ import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, FloatVectorProperty,
                        IntProperty, IntVectorProperty, PointerProperty, StringProperty)
 
-from ..settings import BIAS_MODES, MDSM_SELECTIONS, LixelSettings, ShadowSettings
+from ..settings import BIAS_MODES, MAX_MAP_SIZE, MDSM_SELECTIONS, MIN_MAP_SIZE, LixelSettings, ShadowSettings
 from ..warp.types import WarpError, WarpOptions
 from . import addon_preferences
 
@@ -27,8 +27,6 @@ METHOD_LABELS = {
     "plane_optimal": ("Plane optimal", "One map per plane of interest, exact for that plane, plus a fallback "
                                        "map (Chong-Gortler §2-3)"),
 }
-MAX_MAP_SIZE = 16384
-"""The largest texture side the GPU (and WarpOptions) accept; see notes §8.8."""
 
 LAMBDA_METHODS = ("gmnpr", "glpr")
 N_OPT_METHODS = ("lispsm",)
@@ -93,8 +91,9 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
 
     # WarpOptions
     shadow_map_size: IntVectorProperty(
-        name="Map Size", size=2, default=(2048, 2048), min=1, max=MAX_MAP_SIZE, soft_min=64, soft_max=8192,
-        description=f"Shadow map texels (width, height); at most {MAX_MAP_SIZE} per side. "
+        # no hard min/max: Blender would clamp a typed 0 or 65536 silently; warp_options refuses it by name
+        name="Map Size", size=2, default=(2048, 2048), soft_min=MIN_MAP_SIZE, soft_max=8192,
+        description=f"Shadow map texels (width, height); {MIN_MAP_SIZE} to {MAX_MAP_SIZE} per side. "
                     "Multi-map methods split this budget")
     texel_snapping: BoolProperty(name="Texel Snapping", default=False,
                                  description="Snap the uniform map's window to whole texels so shadows do not crawl")
@@ -177,10 +176,15 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
     def warp_options(self) -> WarpOptions:
         """The WarpOptions these settings describe (raises WarpError with a clear message)."""
         w, h = (int(v) for v in self.shadow_map_size)
-        if not (1 <= w <= MAX_MAP_SIZE and 1 <= h <= MAX_MAP_SIZE):
-            raise WarpError(f"shadow map size {w}x{h} is out of range: use 1..{MAX_MAP_SIZE} texels per side "
-                            f"(Lixel panel > Method > Map Size)")
+        if not (MIN_MAP_SIZE <= w <= MAX_MAP_SIZE and MIN_MAP_SIZE <= h <= MAX_MAP_SIZE):
+            raise WarpError(f"Scene '{self.id_data.name}' has a shadow map size of {w}x{h}, out of range: use "
+                            f"{MIN_MAP_SIZE}..{MAX_MAP_SIZE} texels per side (Lixel panel > Method > Map Size)")
         planes = tuple((tuple(p.point), tuple(p.normal)) for p in self.planes)
+        for p, (point, normal) in zip(self.planes, planes):
+            if not all(math.isfinite(v) for v in point + normal) or not any(normal):
+                raise WarpError(f"Plane of interest '{p.source or 'unnamed'}' of scene '{self.id_data.name}' has a "
+                                f"non-finite point or a zero normal: remove it or take it again from the selection "
+                                f"(Lixel panel > Method > Planes of Interest)")
         vis = None
         if self.use_visible_depth_range:
             near, far = (float(v) for v in self.visible_depth_range)

@@ -16,9 +16,13 @@ from .live import LiveState
 
 
 def scene_geometry(depsgraph):
-    """The evaluated scene's triangles without Lixel's debug objects (shared cache)."""
+    """The evaluated scene's triangles without Lixel's debug objects (shared cache);
+    WarpError naming an object with non-finite vertices."""
+    from ..scene.describe import check_finite_geometry
     from ..scene.geometry import shared_cache
-    return shared_cache().update(depsgraph, exclude=is_debug_object)
+    geometry = shared_cache().update(depsgraph, exclude=is_debug_object)
+    check_finite_geometry(geometry)
+    return geometry
 
 
 def render_state(st: LiveState, depsgraph, resolution, setup=None, settings=None, geometry=None) -> dict:

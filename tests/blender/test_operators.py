@@ -174,12 +174,14 @@ def test_reset_settings_keeps_light_and_planes(scene):
     assert len(props.planes) == 1
 
 
-def test_map_size_beyond_the_limit_is_a_clear_error(scene, mods, monkeypatch):
-    # The property clamps to MAX_MAP_SIZE; lower the limit to reach the check behind it.
+@pytest.mark.parametrize("size", [(0, 0), (-5, -5), (8, 2048), (65536, 65536), (2048, 16385)])
+def test_map_size_outside_the_limits_is_refused_not_clamped(scene, mods, size):
     scene.lixel.initialised = True
-    scene.lixel.shadow_map_size = (4096, 4096)
-    monkeypatch.setattr(mods.properties, "MAX_MAP_SIZE", 1024)
-    with pytest.raises(RuntimeError, match=r"map size 4096x4096 is out of range: use 1\.\.1024"):
+    scene.lixel.shadow_map_size = size
+    assert tuple(scene.lixel.shadow_map_size) == size  # kept as typed, so it can be named
+    w, h = size
+    with pytest.raises(RuntimeError, match=rf"Scene 'lixel_ops' has a shadow map size of {w}x{h}, out of range: "
+                                           rf"use 16\.\.16384"):
         bpy.ops.lixel.refresh()
     assert not mods.live.state(scene).ok
 

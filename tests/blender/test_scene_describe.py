@@ -252,3 +252,74 @@ def test_bounds_cover_modifiers_instances_and_shadow_visibility(describe, fresh_
         assert len(gn_keys) == 1  # one batch for the four instances
     finally:
         bpy.data.node_groups.remove(ng)
+
+
+@pytest.mark.parametrize("kind", ["PERSP", "ORTHO"])
+def test_depth_rows_are_blenders_in_float64(describe, fresh_scene, kind):
+    """Blender's calc_matrix_camera is float32: at a clip range of 1:1e7 its far
+    plane lands at infinity. The description keeps Blender's x, y rows and puts
+    the exact depth rows beside them."""
+    cam = add_camera(fresh_scene, type=kind, clip_start=0.25, clip_end=40.0, ortho_scale=8.0)
+    dg = _depsgraph(fresh_scene)
+    blender = np.array(cam.evaluated_get(dg).calc_matrix_camera(dg, x=1920, y=1080), dtype=np.float64)
+    view = describe.describe_view(cam, dg, fresh_scene)
+    np.testing.assert_allclose(view.projection, blender, rtol=1e-6, atol=1e-7)
+    cam.data.clip_start, cam.data.clip_end = 1e-4, 1e3
+    dg = _depsgraph(fresh_scene)
+    view = describe.describe_view(cam, dg, fresh_scene)
+    inv = np.linalg.inv(view.projection)
+    for z_ndc, depth in ((-1.0, cam.data.clip_start), (1.0, cam.data.clip_end)):  # Blender's float32 values
+        h = inv @ np.array([0.3, -0.2, z_ndc, 1.0])
+        assert -h[2] / h[3] == pytest.approx(depth, rel=1e-9)
+
+
+def test_a_clip_range_beyond_float_precision_is_refused_by_name(describe, types_mod, fresh_scene):
+    cam = add_camera(fresh_scene, name="Wide", clip_start=1e-6, clip_end=1e9)
+    with pytest.raises(types_mod.WarpError, match=r"Camera 'Wide' clips from 1e-06 to 1e\+09, a range of 1:1e\+15, "
+                                                  r"beyond what 32-bit float depth resolves .*raise the clip start"):
+        describe.describe_view(cam, _depsgraph(fresh_scene), fresh_scene)
+    cam.data.clip_start, cam.data.clip_end = 1e-3, 1e4  # 1:1e7 is still resolved
+    assert describe.describe_view(cam, _depsgraph(fresh_scene), fresh_scene).far == pytest.approx(1e4)
+
+
+@pytest.mark.parametrize("what,change,pattern", [
+    ("camera", lambda ob: setattr(ob, "location", (float("nan"), 0, 0)),
+     r"Camera 'Cam' has a non-finite transform \(NaN or infinity"),
+    ("camera", lambda ob: setattr(ob, "location", (float("inf"), 0, 0)),
+     r"Camera 'Cam' has a non-finite transform"),
+    ("camera", lambda ob: setattr(ob, "scale", (0, 0, 0)), r"Camera 'Cam' has zero scale on its X, Y, Z axes"),
+    ("camera", lambda ob: setattr(ob, "scale", (1, 1, 0)), r"Camera 'Cam' has zero scale on its Z axis"),
+    ("light", lambda ob: setattr(ob, "location", (0, float("nan"), 0)),
+     r"Light 'Sun' has a non-finite transform \(NaN or infinity"),
+    ("light", lambda ob: setattr(ob, "scale", (0, 0, 0)), r"Light 'Sun' has zero scale on its Z axis"),
+    ("light", lambda ob: setattr(ob, "scale", (1, 1, 0)), r"Light 'Sun' has zero scale on its Z axis"),
+    ("box", lambda ob: setattr(ob, "scale", (float("nan"), 1, 1)), r"Object 'Box' has a non-finite transform"),
+    ("box", lambda ob: ob.data.vertices[0].co.__setitem__(0, float("inf")),
+     r"Object 'Box' has vertices with non-finite coordinates"),
+])
+def test_degenerate_cameras_lights_and_objects_are_named(describe, types_mod, fresh_scene, what, change, pattern):
+    cam = add_camera(fresh_scene)
+    sun = add_light(fresh_scene, "SUN")
+    box = add_cube(fresh_scene)
+    change({"camera": cam, "light": sun, "box": box}[what])
+    fresh_scene.view_layers[0].update()
+    with pytest.raises(types_mod.WarpError, match=pattern):
+        describe.describe_scene(fresh_scene)
+
+
+def test_a_point_light_needs_no_orientation(describe, fresh_scene):
+    """Blender lights a zero-scale point light from its location; so does Lixel."""
+    point = add_light(fresh_scene, "POINT", location=(1, 2, 3))
+    point.scale = (0, 0, 0)
+    light = describe.describe_light(point, _depsgraph(fresh_scene))
+    np.testing.assert_allclose(light.position, (1, 2, 3))
+
+
+def test_light_notes_say_what_renders_differently(describe, fresh_scene):
+    sun = add_light(fresh_scene, "SUN", energy=0.0)
+    area = add_light(fresh_scene, "AREA")
+    assert describe.light_notes(sun) == [
+        "Light 'Sun' has a strength of 0: it lights nothing, so its shadows show only in the Shadow pass "
+        "(Light properties > Power/Strength)"]
+    assert describe.light_notes(area) == [
+        "Area light 'Area' is shadowed as a spot light at its centre (hard shadows, cone = its spread, at most 179°)"]

@@ -79,7 +79,7 @@ def test_texel_checker_and_heatmap_on_receivers(m):
     with active_scene("lixel_draw_texels") as scene:
         scene.lixel.initialised = True
         scene.lixel.method = "uniform"
-        scene.lixel.shadow_map_size = (8, 8)  # texels much larger than pixels
+        scene.lixel.shadow_map_size = (16, 16)  # texels much larger than pixels (16: the smallest map)
         st = m.live.update(scene, bpy.context.evaluated_depsgraph_get())
         assert st.ok, st.error
         vp = observer(m)

@@ -19,8 +19,12 @@ def face_plane(matrix, centre, normal) -> tuple[np.ndarray, np.ndarray]:
     """A local face (centre, normal) as a world (point, unit normal)."""
     m = np.asarray(matrix, dtype=np.float64)
     point = m[:3, :3] @ np.asarray(centre, dtype=np.float64) + m[:3, 3]
-    n = np.linalg.inv(m[:3, :3]).T @ np.asarray(normal, dtype=np.float64)  # normals transform by the inverse transpose
-    return point, n / np.linalg.norm(n)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        try:
+            n = np.linalg.inv(m[:3, :3]).T @ np.asarray(normal, dtype=np.float64)  # normals: the inverse transpose
+        except np.linalg.LinAlgError:  # a zero-scale object: no plane (refused by the caller)
+            return point, np.full(3, np.nan)
+        return point, n / np.linalg.norm(n)
 
 
 def merge_coplanar(planes, scale: float) -> list:
@@ -53,7 +57,7 @@ def largest_face_planes(context) -> list:
         mesh = ob.data
         areas = np.zeros(len(mesh.polygons))
         mesh.polygons.foreach_get("area", areas)
-        f = mesh.polygons[int(np.argmax(areas))]
+        f = mesh.polygons[int(np.argmax(areas))]  # a NaN area wins argmax, and its plane is refused
         p, n = face_plane(np.array(ob.matrix_world), f.center, f.normal)
         planes.append((p, n, f"{ob.name} (largest face)"))
     return planes
@@ -72,6 +76,11 @@ class LIXEL_OT_planes_from_selection(LixelSceneOperator, bpy.types.Operator):
     def execute(self, context):
         initialise(context)
         planes = selected_face_planes(context) if context.mode == "EDIT_MESH" else largest_face_planes(context)
+        bad = [src for p, n, src in planes if not (np.all(np.isfinite(p)) and np.all(np.isfinite(n)))]
+        if bad:
+            self.report({"ERROR"}, f"Lixel: {bad[0]} has no plane (non-finite vertex coordinates, or no area): "
+                                   f"fix its vertices or select another face")
+            return {"CANCELLED"}
         if not planes:
             what = "no face selected" if context.mode == "EDIT_MESH" else "no mesh selected"
             self.report({"ERROR"}, f"Lixel: {what}: select the faces (Edit Mode) or mesh objects "
