@@ -31,7 +31,7 @@ _handles: dict[str, object] = {}
 _batches: dict = {}
 """(scene name, overlay, generation) -> GPU batches, rebuilt when the generation changes."""
 _receivers: dict = {}
-"""scene name -> (generation, triangles (T,3,3) float32) of the receivers for the texel/heatmap overlays."""
+"""scene name -> (scene bounds, triangles (T,3,3), GPU batch or None) of the receivers for the texel/heatmap overlays."""
 
 COLOURS = {
     "body_face": (1.0, 0.55, 0.1),
@@ -102,14 +102,14 @@ void main()
     break;
   }
   if (found < 0) {
-    FragColor = vec4(0.5, 0.5, 0.5, 0.25 * u_alpha);
+    FragColor = vec4(NO_MAP, 0.25 * u_alpha);
     return;
   }
   if (u_mode == 0) {
     ivec2 t = ivec2(floor(texel));
     float parity = float((t.x + t.y) & 1);
-    vec3 a = (found % 2 == 0) ? vec3(0.95, 0.95, 0.95) : vec3(0.95, 0.85, 0.6);
-    FragColor = vec4(mix(a, vec3(0.1, 0.1, 0.15), parity), u_alpha);
+    vec3 a = (found % 2 == 0) ? TEXEL_EVEN_MAP : TEXEL_ODD_MAP;
+    FragColor = vec4(mix(a, TEXEL_DARK, parity), u_alpha);
   } else {
     /* A = d texel / d pixel (columns dFdx, dFdy); the footprint (addon.measure.footprint) is the largest
        singular value of A^-1 = 1 / the smallest singular value of A: screen pixels one texel spans. */
@@ -118,9 +118,8 @@ void main()
     float d = ax.x * ay.y - ax.y * ay.x;
     float s_min = sqrt(max(0.5 * (t - sqrt(max(t * t - 4.0 * d * d, 0.0))), 0.0));
     float px = 1.0 / max(s_min, 1e-6);
-    float s = clamp(log2(px) / 4.0 + 0.5, 0.0, 1.0);
-    vec3 col = s < 0.5 ? mix(vec3(0.1, 0.2, 1.0), vec3(0.1, 0.9, 0.2), s * 2.0)
-                       : mix(vec3(0.1, 0.9, 0.2), vec3(1.0, 0.1, 0.1), s * 2.0 - 1.0);
+    float s = clamp(log2(px) / (2.0 * HEAT_LOG2_RANGE) + 0.5, 0.0, 1.0);
+    vec3 col = s < 0.5 ? mix(HEAT_LOW, HEAT_MID, s * 2.0) : mix(HEAT_MID, HEAT_HIGH, s * 2.0 - 1.0);
     FragColor = vec4(col, u_alpha);
   }
 }
@@ -128,6 +127,28 @@ void main()
 
 MAX_SHADER_MAPS = 6
 """The checker/heatmap shader serves up to this many maps (a point light's cube faces)."""
+
+HEATMAP_LOG2_RANGE = 2.0
+"""The footprint heatmap spans log2(screen pixels per texel) from -this to +this."""
+HEATMAP_COLOURS = ((0.1, 0.2, 1.0), (0.1, 0.9, 0.2), (1.0, 0.1, 0.1))
+"""Heatmap colours at -range (texels much smaller than pixels), 0 (one pixel per texel) and +range (blocky)."""
+TEXEL_COLOURS = {"even map": (0.95, 0.95, 0.95), "odd map": (0.95, 0.85, 0.6), "dark": (0.1, 0.1, 0.15),
+                 "no map": (0.5, 0.5, 0.5)}
+"""Texel checker: light squares of maps 0, 2, 4 / 1, 3, 5, the dark squares, and receivers no map serves."""
+RECEIVER_ALPHA = 0.85
+"""Opacity of the checker and heatmap over the scene."""
+
+
+def _vec3(c) -> str:
+    return "vec3({:.6g}, {:.6g}, {:.6g})".format(*c)
+
+
+def texel_shader_defines() -> dict:
+    """The texel/heatmap shader's colour constants, from the Python ones above (one place for the legend and GLSL)."""
+    return {"HEAT_LOG2_RANGE": f"{HEATMAP_LOG2_RANGE:.6g}", "HEAT_LOW": _vec3(HEATMAP_COLOURS[0]),
+            "HEAT_MID": _vec3(HEATMAP_COLOURS[1]), "HEAT_HIGH": _vec3(HEATMAP_COLOURS[2]),
+            "TEXEL_EVEN_MAP": _vec3(TEXEL_COLOURS["even map"]), "TEXEL_ODD_MAP": _vec3(TEXEL_COLOURS["odd map"]),
+            "TEXEL_DARK": _vec3(TEXEL_COLOURS["dark"]), "NO_MAP": _vec3(TEXEL_COLOURS["no map"])}
 
 
 def texel_shader():
@@ -147,6 +168,8 @@ def texel_shader():
         info.push_constant("INT", "u_mode")
         info.push_constant("FLOAT", "u_alpha")
         info.fragment_out(0, "VEC4", "FragColor")
+        for name, value in texel_shader_defines().items():
+            info.define(name, value)
         info.vertex_source(TEXEL_VERTEX)
         info.fragment_source(TEXEL_FRAGMENT)
         _TEXEL_SHADER = gpu.shader.create_from_info(info)
@@ -349,8 +372,21 @@ def draw_view():
 
 
 def draw_scene_overlays(scene, st, props, view_projection) -> None:
-    """Draw the 3D overlays with the current GPU matrices (the built-in shader)
-    and ``view_projection`` (world -> clip, for the receiver shader)."""
+    """Draw the 3D overlays of ``st`` seen through ``view_projection`` (world ->
+    clip) into the bound framebuffer: the viewport's POST_VIEW handler and the
+    off-screen snapshots (:mod:`.snapshot`) both call this. ``props``: the
+    scene's Lixel properties or anything with the same ``show_*`` and
+    ``body_alpha`` attributes. The GPU matrices are set from ``view_projection``
+    for the duration (in the viewport it equals the region's perspective matrix)."""
+    import gpu
+    import mathutils
+    with gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
+        gpu.matrix.load_identity()
+        gpu.matrix.load_projection_matrix(mathutils.Matrix(np.asarray(view_projection, dtype=np.float64).tolist()))
+        _draw_scene_overlays(scene, st, props, view_projection)
+
+
+def _draw_scene_overlays(scene, st, props, view_projection) -> None:
     import gpu
     geometry = st.geometry
     shader = uniform_colour_shader()
@@ -412,6 +448,16 @@ def receiver_triangles(depsgraph) -> np.ndarray:
     return np.concatenate(out) if out else np.zeros((0, 3, 3))
 
 
+def receiver_triangles_of(scene, st) -> np.ndarray:
+    """The receiver triangles of ``scene`` (world, (T, 3, 3)), read again only
+    when the state's scene bounds changed."""
+    hit = _receivers.get(scene.name)
+    if hit is None or hit[0] is not st.bounds:
+        tris = receiver_triangles(bpy.context.evaluated_depsgraph_get())
+        _receivers[scene.name] = hit = (st.bounds, tris, None)
+    return hit[1]
+
+
 def _draw_receivers(scene, st, props, view_projection):
     """The texel-parity checker and/or footprint heatmap on every receiver, with
     the receiver shader (per-fragment map selection and divide)."""
@@ -419,14 +465,13 @@ def _draw_receivers(scene, st, props, view_projection):
     import mathutils
     from gpu_extras.batch import batch_for_shader
     shader = texel_shader()
-    hit = _receivers.get(scene.name)
-    if hit is None or hit[0] is not st.bounds:  # re-read triangles only when the scene bounds changed
-        tris = receiver_triangles(bpy.context.evaluated_depsgraph_get())
-        batch = batch_for_shader(shader, "TRIS", {"pos": tris.reshape(-1, 3).astype(np.float32)}) if len(tris) else None
-        _receivers[scene.name] = hit = (st.bounds, batch)
-    batch = hit[1]
-    if batch is None:
+    tris = receiver_triangles_of(scene, st)
+    if not len(tris):
         return
+    bounds, _, batch = _receivers[scene.name]
+    if batch is None:
+        batch = batch_for_shader(shader, "TRIS", {"pos": tris.reshape(-1, 3).astype(np.float32)})
+        _receivers[scene.name] = (bounds, tris, batch)
     maps = st.setup.maps[:MAX_SHADER_MAPS]
     shader.bind()
     shader.uniform_float("u_view_projection", mathutils.Matrix(np.asarray(view_projection, dtype=np.float64).tolist()))
@@ -437,7 +482,7 @@ def _draw_receivers(scene, st, props, view_projection):
                                 gpu.types.Buffer("FLOAT", MAX_SHADER_MAPS * 16, flat.ravel()), 16, MAX_SHADER_MAPS)
     shader.uniform_float("u_size", tuple(float(v) for v in maps[0].size))
     shader.uniform_int("u_count", len(maps))
-    shader.uniform_float("u_alpha", 0.85)
+    shader.uniform_float("u_alpha", RECEIVER_ALPHA)
     for mode, on in ((0, props.show_texels), (1, props.show_footprint)):
         if on:
             shader.uniform_int("u_mode", mode)
