@@ -1,20 +1,30 @@
-"""Write the report: ``report.html`` and its Markdown twin ``report.md``, the
-figures under ``<scene>/`` and the numbers in ``report.json``."""
+"""Write the report: ``report.html`` and its Markdown twin ``report.md`` (both
+built from one list of blocks), the figures under ``<scene>/`` and the
+numbers in ``report.json``."""
 from __future__ import annotations
 
 import html
 import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from . import figures
+from .analysis import NDL_MIN
 
-README_METHODS = ("uniform", "lispsm", "gmnpr", "plane_optimal")
-"""Methods shown in the README picture (when run), with the peers and the truth."""
+README_METHODS = ("uniform", "lispsm", "plane_optimal")
+"""Methods shown in the README picture (when run), with EEVEE."""
 
-SECTIONS = ("Renders", "Shadow maps", "Footprint", "Errors", "Speed against error", "Table")
+FIGURES = (("Renders", figures.renders, "renders.png"),
+           ("Errors", figures.errors, "errors.png"),
+           ("Footprint", figures.footprints, "footprint.png"),
+           ("Shadow maps", figures.shadow_maps, "shadow_maps.png"),
+           ("Speed against error", figures.speed_error, "speed_error.png"))
+OVERLAY_FILES = {"texels": "overlay_texels.png", "heatmap": "overlay_heatmap.png", "observer": "overlay_observer.png"}
+SECTIONS = ("Diagnostics", "Footprint against error", "Timing", "Renders", "Errors", "Footprint", "Shadow maps",
+            "Speed against error", "Overlays", "Table")
 """The sections every scene gets, in order (the report test checks them)."""
 
 DEFINITIONS = [
@@ -23,64 +33,137 @@ DEFINITIONS = [
     ("Counted pixels", "a surface is visible, it faces the light and (spot) lies in the cone; Lixel pixels where "
                        "the rasterized surface differs from the ray-cast one (silhouettes) are left out and counted "
                        "as 'excluded'."),
-    ("error %", "misclassified counted pixels; false shadow = dark where the truth is lit, false light = the reverse; "
-                "edge % = the same within the band around true shadow edges."),
+    ("error %", "misclassified counted pixels; false shadow = dark where the truth is lit (red in the error "
+                "images), false light = lit where the truth is dark (blue); 'at edges' = within 2 px of a true "
+                "shadow edge."),
     ("flicker %", "over the camera animation, of the pixel transitions where the ground truth keeps its state, the "
                   "fraction where the method's state changes."),
-    ("footprint", "screen pixels spanned by one texel in its worst direction (largest singular value of the "
-                  "texel-to-pixel Jacobian on the surface); above 1 means blocky shadow edges."),
+    ("footprint", "the analytic texel footprint of the method's matrices: screen pixels spanned by one texel in its "
+                  "worst direction (largest singular value of the texel-to-pixel Jacobian on the surface); above 1 "
+                  f"means blocky shadow edges. Its statistics (p95, share above 1) are over the lit-facing pixels: "
+                  f"counted and turned to the light by n·l ≥ {NDL_MIN} (surfaces grazing the light have unbounded "
+                  f"footprints whatever the warp). 'edge p95': the same over the lit-facing pixels at true shadow "
+                  f"edges."),
     ("m_min", "Lloyd's physical limit: the smallest maximum perspective footprint any parameterization can reach "
               "with the method's texel count N, sqrt(N_min / N). persp max/m_min: the method's largest perspective "
-              "footprint (pixel density K/z² needed over texel density given, both on the plane perpendicular to the "
-              "light, so the surface orientation drops out) over that limit; 1 is the best possible over the whole "
-              "frustum (a method can go below 1 on the visible part only)."),
-    ("peers", "EEVEE and Cycles with one white diffuse material, black world, the scene's light only: the render "
-              "with shadows divided by the one without, below 0.5 = shadow. Known: Cycles under the chess scene's "
-              "spot light darkens some board pixels near the camera that both this ground truth and Blender's "
-              "own scene.ray_cast see lit (cause not found)."),
-    ("times", "Lixel: CPU setup (warp matrices and body), depth pass, shading pass on the GPU (llvmpipe here); "
-              "peers: one render with shadows, made after a shadowless one that absorbs EEVEE's shader compilation."),
+              "footprint over the lit-facing pixels, over that limit."),
+    ("θ, γ, n_opt, λ", "θ: angle between the light and view directions folded to [0°, 90°] (GMNPR); γ: the same "
+                       "in [0°, 180°] (LiSPSM); n_opt: the warp's near distance (LiSPSM, Scherzer Eq. 1); λ: the "
+                       "GMNPR/GLPR parameter. Empty where a method has none."),
+    ("Fallbacks", "what a method did instead of its own construction, with its reason (from the method's "
+                  "diagnostics); a method that fell back is marked ⚠ wherever it appears."),
+    ("times", "every timed point is the median of repeated runs, with min and max. Lixel: the LIXEL render "
+              "engine's whole frame (addon.render.engine.render_depsgraph): geometry from the cache, the scene "
+              "described, B and the warp, upload, depth pass, shading, read-back of the image and the maps, compose "
+              "— from its start to the pixels in memory; geometry and GPU batches stay cached between frames, as in "
+              "the engine; the first frame (shader compilation, uploads) is reported separately. The repeats of "
+              "all Lixel points of a scene are interleaved. Peers: one bpy.ops.render.render from its call to the "
+              "pixels in the Render Result, no file written, after one untimed render with shadows that compiles "
+              "the shaders."),
+    ("peers", "EEVEE and Cycles with one grey diffuse material (Lixel's albedo), the scene's black world and its "
+              "light only: the render with shadows divided by the one without, below 0.5 = shadow."),
+    ("pictures", "every render is shown with one exposure per scene — the ground truth's unshadowed direct light at "
+                 "its 99th percentile is white — and the sRGB transfer curve; the ground truth is shaded with "
+                 "Lixel's own shading formula, the peers render the same grey material, so a difference in "
+                 "brightness is a difference in light."),
 ]
 
 
-def _pct(x):
-    return "" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{100 * x:.2f}"
+# --------------------------------------------------------------------------- formatting
+
+def _pct(x, digits=2):
+    return "" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{100 * x:.{digits}f}"
 
 
 def _num(x, fmt="{:.2f}"):
     if x is None:
         return ""
-    if isinstance(x, float) and (math.isnan(x) or math.isinf(x)):
-        return "∞" if (isinstance(x, float) and math.isinf(x)) else ""
+    if isinstance(x, float) and math.isnan(x):
+        return ""
+    if isinstance(x, float) and math.isinf(x):
+        return "∞"
     return fmt.format(x)
 
 
-TABLE_HEAD = ["method", "map", "status", "error %", "false shadow", "false light", "edge %", "flicker %",
-              "fp max", "fp p95", "fp mean", "fp>1 %", "m_min", "persp max/m_min", "setup ms", "depth ms",
-              "shading ms", "total ms", "excluded"]
+def _label(r: dict) -> tuple[str, str]:
+    """(method, map) cells of a record."""
+    warn = " ⚠" if r.get("fallbacks") else ""
+    if r["method"] in figures.PEER_NAMES:
+        name = {"eevee": "EEVEE", "cycles": "Cycles"}[r["method"]]
+        return name, (f"{r['size']}²" if r.get("size") else f"{r.get('samples', '')} spp")
+    return r["method"] + warn, f"{r['size']}²" + (f" ×{len(r['maps'])}" if r.get("maps") else "")
 
 
-def table_rows(scene: dict) -> list[list[str]]:
-    rows = []
-    for r in scene["methods"] + scene["peers"]:
-        size = f"{r['size']}²" if "size" in r else ("" if r.get("status") != "ok" else f"{r.get('samples', '')} spp")
+def _records(scene: dict) -> list:
+    return scene["methods"] + scene["peers"]
+
+
+# --------------------------------------------------------------------------- blocks
+
+@dataclass
+class Block:
+    kind: str          # h1 h2 h3 p ul table img caption
+    content: object
+    extra: object = None
+
+
+def _tables(scene: dict) -> dict:
+    diag_head = ["method", "map", "maps (roles)", "θ", "γ", "n_opt", "λ", "fallbacks and warnings"]
+    diag = []
+    for r in scene["methods"]:
+        m, size = _label(r)
         if r.get("status") != "ok":
-            rows.append([r["method"], size, "failed: " + r.get("reason", "")] + [""] * (len(TABLE_HEAD) - 3))
+            diag.append([m, size, "failed: " + r.get("reason", "")] + [""] * 5)
             continue
-        e, fp, t = r["errors"], r.get("footprint", {}), r.get("timings", {})
-        fl = r.get("flicker")
-        rows.append([
-            r["method"], size if "size" not in r else f"{r['size']}² ×{len(r.get('maps', []))}", "ok",
-            _pct(e["error_rate"]), str(e["false_shadow"]), str(e["false_light"]), _pct(e["band_error_rate"]),
-            _pct(fl["rate"]) if fl else "",
-            _num(fp.get("max")), _num(fp.get("p95")), _num(fp.get("mean")), _pct(fp.get("frac_above_1")),
-            _num(r.get("m_min"), "{:.3f}"), _num(r.get("max_over_limit"), "{:.1f}"),
-            _num(1000 * t["cpu_setup"], "{:.1f}") if "cpu_setup" in t else "",
-            _num(1000 * t["depth_pass"], "{:.1f}") if "depth_pass" in t else "",
-            _num(1000 * t["shading"], "{:.1f}") if "shading" in t else "",
-            _num(r["total_ms"], "{:.0f}"), str(r.get("excluded_pixels", "")),
-        ])
-    return rows
+        d = r["diagnostics"]
+        roles = ", ".join(x["role"] for x in r["maps"])
+        notes = [f"{w}: {why}" for w, why in r.get("fallbacks", [])] + list(r.get("warnings", []))
+        if r.get("method_used") and r["method_used"] != r["method"]:
+            notes.insert(0, f"ran as {r['method_used']}")
+        diag.append([m, size, f"{len(r['maps'])} ({roles})", _num(d["theta_deg"], "{:.1f}°"),
+                     _num(d["gamma_deg"], "{:.1f}°"), _num(d["n_opt"], "{:.4g}"), _num(d["lam"], "{:.4g}"),
+                     "; ".join(notes)])
+    fe_head = ["method", "map", "footprint p95 [px]", "edge p95 [px]", "fp > 1 %", "error %", "false light",
+               "false shadow", "at edges %", "unserved %", "where footprint and error disagree"]
+    fe = []
+    for r in _records(scene):
+        m, size = _label(r)
+        if r.get("status") != "ok":
+            fe.append([m, size] + [""] * 8 + ["failed: " + r.get("reason", "")])
+            continue
+        e, a, fp = r["errors"], r.get("anatomy", {}), r.get("footprint_lit", {})
+        fe.append([m, size, _num(fp.get("p95")), _num(a.get("edge_footprint_p95")), _pct(fp.get("frac_above_1"), 0),
+                   _pct(e["error_rate"]), str(e["false_light"]), str(e["false_shadow"]),
+                   _pct(a.get("at_edges"), 0), _pct(a.get("unserved"), 0) if r["method"] not in figures.PEER_NAMES
+                   else "", " ".join(r.get("explanation", []))])
+    stage_names = list(dict.fromkeys(k for r in scene["methods"] if r.get("timing")
+                                     for k in r["timing"]["stages_ms"]))
+    t_head = ["method", "map", "median ms", "min ms", "max ms", "runs", "first ms"] + [f"{k} ms" for k in stage_names]
+    tm = []
+    for r in _records(scene):
+        m, size = _label(r)
+        t = r.get("timing")
+        if r.get("status") != "ok" or not t:
+            continue
+        tm.append([m, size, _num(t["median_ms"], "{:.1f}"), _num(t["min_ms"], "{:.1f}"), _num(t["max_ms"], "{:.1f}"),
+                   str(t["repeats"]), _num(t.get("first_ms"), "{:.0f}")]
+                  + [_num(t["stages_ms"].get(k), "{:.1f}") for k in stage_names])
+    big_head = ["method", "map", "error %", "false shadow", "false light", "edge error %", "flicker %",
+                "fp max", "fp mean", "m_min", "persp max/m_min", "median ms", "excluded"]
+    big = []
+    for r in _records(scene):
+        m, size = _label(r)
+        if r.get("status") != "ok":
+            big.append([m, size, "failed: " + r.get("reason", "")] + [""] * (len(big_head) - 3))
+            continue
+        e, fp, fl = r["errors"], r.get("footprint_lit", {}), r.get("flicker")
+        big.append([m, size, _pct(e["error_rate"]), str(e["false_shadow"]), str(e["false_light"]),
+                    _pct(e["band_error_rate"]), _pct(fl["rate"]) if fl else "", _num(fp.get("max")),
+                    _num(fp.get("mean")), _num(r.get("m_min"), "{:.3f}"), _num(r.get("max_over_limit"), "{:.1f}"),
+                    _num(r["timing"]["median_ms"], "{:.1f}") if r.get("timing") else "",
+                    str(r.get("excluded_pixels", ""))])
+    return {"Diagnostics": (diag_head, diag), "Footprint against error": (fe_head, fe), "Timing": (t_head, tm),
+            "Table": (big_head, big)}
 
 
 def _facts(scene: dict) -> list[str]:
@@ -88,86 +171,51 @@ def _facts(scene: dict) -> list[str]:
     gt = scene.get("ground_truth", {})
     facts = [f"{scene.get('triangles', 0):,} triangles in {scene.get('instances', 0):,} instances",
              f"{scene['resolution'][0]}×{scene['resolution'][1]} pixels, frames {scene['frames'][0]}–{scene['frames'][-1]}",
-             f"{scene.get('light', '?')} light; camera fov {v.get('fov_x_deg', 0):.1f}°×{v.get('fov_y_deg', 0):.1f}°, "
-             f"near {v.get('near', 0):g}, far {v.get('far', 0):g}",
-             f"ground truth: {gt.get('valid_pixels', 0):,} counted pixels, {100 * gt.get('shadow_fraction', 0):.1f}% in "
-             f"shadow, {gt.get('seconds_per_frame', 0):.2f} s a frame"]
+             f"{scene.get('light', '?')} light '{scene.get('light_name', '')}'; camera '{scene.get('camera_name', '')}' "
+             f"fov {v.get('fov_x_deg', 0):.1f}°×{v.get('fov_y_deg', 0):.1f}°, near {v.get('near', 0):g}, "
+             f"far {v.get('far', 0):g}",
+             f"ground truth: {gt.get('valid_pixels', 0):,} counted pixels ({scene.get('lit_facing_pixels', 0):,} "
+             f"lit-facing), {100 * gt.get('shadow_fraction', 0):.1f} % in shadow, "
+             f"{gt.get('seconds_per_frame', 0):.2f} s a frame"]
     if scene.get("n_min"):
         facts.append(f"Lloyd's N_min = {scene['n_min']:,.0f} texels (a {math.sqrt(scene['n_min']):,.0f}² map "
                      f"at footprint 1)")
     elif scene.get("n_min_reason"):
         facts.append(f"Lloyd's N_min: not defined here ({scene['n_min_reason']})")
+    match = [(r["method"], r["shading_vs_truth"]) for r in _records(scene)
+             if r.get("status") == "ok" and r.get("shading_vs_truth") is not None]
+    if match:
+        worst = max(match, key=lambda m: m[1])
+        facts.append(f"same shading: on the pixels lit in both, every render's radiance is within "
+                     f"{100 * worst[1]:.2g} % of the ground truth's (median; largest: {worst[0]})")
+    for p in scene["peers"]:
+        if p.get("settings"):
+            facts.append(p["settings"] + (f" (at {p['size']}²)" if p.get("size") else ""))
     front = pareto_names(scene)
     if front:
         facts.append("Pareto front (fastest first): " + ", ".join(front))
     return facts
 
 
+def _warnings(scene: dict) -> list[str]:
+    out = []
+    for r in scene["methods"]:
+        for what, why in r.get("fallbacks", []):
+            out.append(f"⚠ {r['method']} @ {r['size']}²: fell back ({what}): {why}; it made "
+                       f"{len(r.get('maps', []))} map(s): {', '.join(m['role'] for m in r.get('maps', []))}")
+    return out
+
+
 def pareto_names(scene: dict) -> list[str]:
-    recs = [r for r in scene["methods"] + scene["peers"] if r.get("status") == "ok"]
-    pts = [(r["total_ms"], r["errors"]["error_rate"]) for r in recs]
-    return [f"{recs[i]['method']}" + (f" {recs[i]['size']}" if "size" in recs[i] else "")
-            for i in figures.pareto_front(pts)]
-
-
-def _strip(obj):
-    """JSON-able copy without images."""
-    if isinstance(obj, dict):
-        return {k: _strip(v) for k, v in obj.items() if not k.startswith("_")}
-    if isinstance(obj, (list, tuple)):
-        return [_strip(v) for v in obj]
-    if isinstance(obj, (np.floating, np.integer)):
-        return obj.item()
-    if isinstance(obj, float) and (math.isinf(obj) or math.isnan(obj)):
-        return str(obj)
-    return obj
-
-
-def write(result: dict, out: Path, progress=print, readme_picture: Path | None = None) -> dict:
-    """Figures, report.html, report.md and report.json under ``out``; returns the paths."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    pics: dict = {}
-    for scene in result["scenes"]:
-        if scene.get("status") != "ok":
-            continue
-        d = out / scene["name"]
-        d.mkdir(exist_ok=True)
-        made = {}
-        for section, fn, fname in (("Renders", figures.renders, "renders.png"),
-                                   ("Shadow maps", figures.shadow_maps, "shadow_maps.png"),
-                                   ("Footprint", figures.footprints, "footprint.png"),
-                                   ("Errors", figures.errors, "errors.png"),
-                                   ("Speed against error", figures.speed_error, "speed_error.png")):
-            try:
-                fn(scene, d / fname)
-                made[section] = f"{scene['name']}/{fname}"
-            except Exception as exc:  # noqa: BLE001 - a figure that fails is reported in its section
-                made[section] = None
-                scene.setdefault("figure_errors", {})[section] = f"{type(exc).__name__}: {exc}"
-        pics[scene["name"]] = made
-        progress(f"figures for {scene['name']} written")
-    paths = {"html": out / "report.html", "md": out / "report.md", "json": out / "report.json"}
-    paths["json"].write_text(json.dumps(_strip(result), indent=1))
-    paths["md"].write_text(_markdown(result, pics))
-    paths["html"].write_text(_html(result, pics))
-    if readme_picture is not None:
-        for scene in result["scenes"]:
-            if scene.get("status") == "ok" and any(m.get("status") == "ok" for m in scene["methods"]):
-                sizes = sorted({m["size"] for m in scene["methods"] if m.get("status") == "ok"})
-                size = sizes[len(sizes) // 2]
-                readme_picture.parent.mkdir(parents=True, exist_ok=True)
-                methods = list(dict.fromkeys(m["method"] for m in scene["methods"]))
-                preferred = [m for m in README_METHODS if m in methods]
-                figures.comparison(scene, preferred or methods[:4], size, readme_picture)
-                paths["picture"] = readme_picture
-                break
-    return paths
+    pts = figures.speed_points(scene)
+    return [f"{pts[i][4]}" + (f" {pts[i][5]}" if pts[i][5] else "")
+            for i in figures.pareto_front([(p[0], p[3]) for p in pts])]
 
 
 def summary_rows(result: dict) -> list[list[str]]:
-    """One row per scene: for each map size the Lixel method with the fewest errors
-    (its error % and time), then each peer."""
+    """One row per scene: for each map size the Lixel method with the fewest
+    errors (its error % and median frame time), EEVEE at the largest size it
+    ran, and Cycles."""
     sizes = sorted({m["size"] for s in result["scenes"] for m in s.get("methods", []) if m.get("status") == "ok"})
     rows = []
     for scene in result["scenes"]:
@@ -179,87 +227,234 @@ def summary_rows(result: dict) -> list[list[str]]:
             cands = [m for m in scene["methods"] if m.get("status") == "ok" and m["size"] == size]
             if cands:
                 b = min(cands, key=lambda m: m["errors"]["error_rate"])
-                row.append(f"{b['method']} {100 * b['errors']['error_rate']:.2f}% ({b['total_ms']:.0f} ms)")
+                row.append(f"{b['method']}{' ⚠' if b.get('fallbacks') else ''} "
+                           f"{100 * b['errors']['error_rate']:.2f} % ({figures._ms(b)})")
             else:
                 row.append("")
         for peer in ("eevee", "cycles"):
-            p = next((x for x in scene["peers"] if x["method"] == peer), None)
-            row.append("" if p is None else (f"{100 * p['errors']['error_rate']:.2f}% ({p['total_ms'] / 1000:.1f} s)"
+            ps = [x for x in scene["peers"] if x["method"] == peer]
+            p = max(ps, key=lambda x: x.get("size") or 0) if ps else None
+            row.append("" if p is None else (f"{100 * p['errors']['error_rate']:.2f} % ({figures._ms(p)})"
+                                             + (f" @ {p['size']}²" if p.get("size") else "")
                                              if p.get("status") == "ok" else "failed"))
         rows.append(row)
     return [["scene"] + [f"best at {s}²" for s in sizes] + ["EEVEE", "Cycles"]] + rows
 
 
-def _header(result: dict) -> tuple[str, list[str]]:
+def _header(result: dict) -> list[str]:
     o = result["options"]
-    title = "Lixel: speed against error"
-    lines = [f"Blender {result['blender']}; {'quick run' if o['quick'] else 'full run'}: scenes "
-             f"{', '.join(o['scenes'])}; methods {', '.join(o['methods'])}; map sizes "
-             f"{', '.join(str(s) for s in o['sizes'])}; {o['resolution'][0]}×{o['resolution'][1]} pixels; "
-             f"{o['frames']} frame(s) of camera animation; EEVEE {o['eevee_samples']} spp, Cycles {o['cycles_samples']} spp "
-             f"(direct light only). Took {result.get('seconds', 0):.0f} s."]
-    return title, lines
+    ev = f"EEVEE {o['eevee_samples']} spp at map size(s) {', '.join(map(str, o['eevee_sizes']))}" \
+        if o.get("eevee_sizes") else "no EEVEE"
+    return [f"Blender {result['blender']}; {'quick run' if o['quick'] else 'full run'}: scenes "
+            f"{', '.join(o['scenes'])}; methods {', '.join(o['methods'])}; map sizes "
+            f"{', '.join(str(s) for s in o['sizes'])}; {o['resolution'][0]}×{o['resolution'][1]} pixels; "
+            f"{o['frames']} frame(s) of camera animation; timing: median of {o['repeats']} frames per Lixel point, "
+            f"{o['peer_repeats']} renders per peer point; {ev}; Cycles {o['cycles_samples']} spp (direct light "
+            f"only). Took {result.get('seconds', 0):.0f} s."]
 
 
-def _markdown(result: dict, pics: dict) -> str:
-    title, intro = _header(result)
-    md = [f"# {title}", ""] + intro + ["", "## How to read it", ""]
-    md += [f"- **{k}**: {v}" for k, v in DEFINITIONS] + [""]
+def blocks(result: dict, pics: dict) -> list:
+    out = [Block("h1", "Lixel: speed against error")]
+    out += [Block("p", x) for x in _header(result)]
+    out += [Block("h2", "How to read it"), Block("ul", [f"**{k}**: {v}" for k, v in DEFINITIONS])]
     summary = summary_rows(result)
-    md += ["## Summary", "", "| " + " | ".join(summary[0]) + " |", "|" + "---|" * len(summary[0])]
-    md += ["| " + " | ".join(c.replace("|", "/") for c in row) + " |" for row in summary[1:]] + [""]
+    out += [Block("h2", "Summary"), Block("table", (summary[0], summary[1:]))]
     for scene in result["scenes"]:
-        md.append(f"## Scene: {scene['name']}")
-        md.append("")
+        out.append(Block("h2", f"Scene: {scene['name']}", scene["name"]))
         if scene.get("status") != "ok":
-            md += [f"**Failed**: {scene.get('reason', '')}", ""]
+            out.append(Block("p", f"**Failed**: {scene.get('reason', '')}"))
             continue
-        md += [f"- {f}" for f in _facts(scene)] + [""]
-        for section in SECTIONS[:-1]:
-            md.append(f"### {section}")
-            md.append("")
-            pic = pics.get(scene["name"], {}).get(section)
-            md.append(f"![{section}]({pic})" if pic else f"(figure failed: {scene.get('figure_errors', {}).get(section, '')})")
-            md.append("")
-        md += ["### Table", "", "| " + " | ".join(TABLE_HEAD) + " |", "|" + "---|" * len(TABLE_HEAD)]
-        for row in table_rows(scene):
-            md.append("| " + " | ".join(c.replace("|", "/") for c in row) + " |")
-        md.append("")
+        out.append(Block("ul", _facts(scene)))
+        warn = _warnings(scene)
+        if warn:
+            out.append(Block("ul", warn))
+        tables = _tables(scene)
+        made = pics.get(scene["name"], {})
+        for section in SECTIONS:
+            out.append(Block("h3", section))
+            if section in tables:
+                head, rows = tables[section]
+                out.append(Block("table", (head, rows)))
+            elif section == "Overlays":
+                shots = made.get("Overlays") or []
+                if not shots:
+                    out.append(Block("p", f"(no overlay snapshots: {scene.get('overlays_error', 'not drawn')})"))
+                for file, caption in shots:
+                    out.append(Block("img", file, Path(file).stem.replace("_", " ")))
+                    out.append(Block("caption", caption))
+            else:
+                pic = made.get(section)
+                out.append(Block("img", pic, section) if pic else
+                           Block("p", f"(figure failed: {scene.get('figure_errors', {}).get(section, '')})"))
+    return out
+
+
+def _md_inline(text: str) -> str:
+    return text.replace("|", "/")
+
+
+def to_markdown(bs: list) -> str:
+    md = []
+    for b in bs:
+        if b.kind in ("h1", "h2", "h3"):
+            md += ["#" * int(b.kind[1]) + " " + b.content, ""]
+        elif b.kind == "p":
+            md += [b.content, ""]
+        elif b.kind == "caption":
+            md += [f"*{b.content}*", ""]
+        elif b.kind == "ul":
+            md += [f"- {x}" for x in b.content] + [""]
+        elif b.kind == "img":
+            md += [f"![{b.extra}]({b.content})", ""]
+        elif b.kind == "table":
+            head, rows = b.content
+            md += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+            md += ["| " + " | ".join(_md_inline(c) for c in row) + " |" for row in rows] + [""]
     return "\n".join(md) + "\n"
 
 
-_CSS = """body{font-family:sans-serif;max-width:1600px;margin:auto;padding:1em}
+_CSS = """body{font-family:sans-serif;max-width:1700px;margin:auto;padding:1em}
 table{border-collapse:collapse;font-size:12px}td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}
-td:first-child,th:first-child{text-align:left}tr.failed td{color:#a00}img{max-width:100%}
-h2{border-top:2px solid #444;padding-top:.5em}"""
+td:first-child,th:first-child,td:nth-child(2),td:last-child{text-align:left}tr.failed td{color:#a00}
+img{max-width:100%}h2{border-top:2px solid #444;padding-top:.5em}p.caption{font-style:italic;margin-top:0}"""
 
 
-def _html(result: dict, pics: dict) -> str:
-    title, intro = _header(result)
+def _html_inline(text: str) -> str:
+    e = html.escape(text)
+    parts = e.split("**")
+    return "".join(f"<b>{p}</b>" if i % 2 else p for i, p in enumerate(parts))
+
+
+def to_html(bs: list) -> str:
     e = html.escape
-    h = [f"<!doctype html><html><head><meta charset='utf-8'><title>{e(title)}</title><style>{_CSS}</style></head><body>",
-         f"<h1>{e(title)}</h1>"] + [f"<p>{e(x)}</p>" for x in intro]
-    h.append("<h2>How to read it</h2><ul>" + "".join(f"<li><b>{e(k)}</b>: {e(v)}</li>" for k, v in DEFINITIONS) + "</ul>")
-    summary = summary_rows(result)
-    h.append("<h2>Summary</h2><table><tr>" + "".join(f"<th>{e(c)}</th>" for c in summary[0]) + "</tr>"
-             + "".join("<tr>" + "".join(f"<td>{e(c)}</td>" for c in row) + "</tr>" for row in summary[1:])
-             + "</table>")
-    h.append("<p>Scenes: " + " · ".join(f"<a href='#{e(s['name'])}'>{e(s['name'])}</a>" for s in result["scenes"]) + "</p>")
-    for scene in result["scenes"]:
-        h.append(f"<h2 id='{e(scene['name'])}'>Scene: {e(scene['name'])}</h2>")
-        if scene.get("status") != "ok":
-            h.append(f"<p class='failed'><b>Failed</b>: {e(scene.get('reason', ''))}</p>")
-            continue
-        h.append("<ul>" + "".join(f"<li>{e(f)}</li>" for f in _facts(scene)) + "</ul>")
-        for section in SECTIONS[:-1]:
-            h.append(f"<h3>{e(section)}</h3>")
-            pic = pics.get(scene["name"], {}).get(section)
-            h.append(f"<img src='{e(pic)}' alt='{e(section)}'>" if pic else
-                     f"<p>(figure failed: {e(scene.get('figure_errors', {}).get(section, ''))})</p>")
-        h.append("<h3>Table</h3><table><tr>" + "".join(f"<th>{e(c)}</th>" for c in TABLE_HEAD) + "</tr>")
-        for row in table_rows(scene):
-            cls = " class='failed'" if row[2].startswith("failed") else ""
-            h.append(f"<tr{cls}>" + "".join(f"<td>{e(c)}</td>" for c in row) + "</tr>")
-        h.append("</table>")
+    title = next((b.content for b in bs if b.kind == "h1"), "Lixel report")
+    h = [f"<!doctype html><html><head><meta charset='utf-8'><title>{e(title)}</title><style>{_CSS}</style>"
+         f"</head><body>"]
+    scenes = [b.extra for b in bs if b.kind == "h2" and b.extra]
+    for b in bs:
+        if b.kind == "h1":
+            h.append(f"<h1>{e(b.content)}</h1>")
+        elif b.kind == "h2":
+            anchor = f" id='{e(b.extra)}'" if b.extra else ""
+            h.append(f"<h2{anchor}>{e(b.content)}</h2>")
+            if b.content == "Summary":
+                h.append("<p>Scenes: " + " · ".join(f"<a href='#{e(s)}'>{e(s)}</a>" for s in scenes) + "</p>")
+        elif b.kind == "h3":
+            h.append(f"<h3>{e(b.content)}</h3>")
+        elif b.kind == "p":
+            h.append(f"<p>{_html_inline(b.content)}</p>")
+        elif b.kind == "caption":
+            h.append(f"<p class='caption'>{_html_inline(b.content)}</p>")
+        elif b.kind == "ul":
+            h.append("<ul>" + "".join(f"<li>{_html_inline(x)}</li>" for x in b.content) + "</ul>")
+        elif b.kind == "img":
+            h.append(f"<img src='{e(b.content)}' alt='{e(b.extra)}'>")
+        elif b.kind == "table":
+            head, rows = b.content
+            h.append("<table><tr>" + "".join(f"<th>{e(c)}</th>" for c in head) + "</tr>")
+            for row in rows:
+                cls = " class='failed'" if any(str(c).startswith("failed") for c in row[2:3]) else ""
+                h.append(f"<tr{cls}>" + "".join(f"<td>{e(c)}</td>" for c in row) + "</tr>")
+            h.append("</table>")
     h.append("</body></html>")
     return "\n".join(h)
+
+
+# --------------------------------------------------------------------------- writing
+
+def _strip(obj):
+    """JSON-able copy without images and private keys."""
+    if isinstance(obj, dict):
+        return {k: _strip(v) for k, v in obj.items() if not k.startswith("_") and k != "overlays"}
+    if isinstance(obj, (list, tuple)):
+        return [_strip(v) for v in obj]
+    if isinstance(obj, (np.floating, np.integer)):
+        return obj.item()
+    if isinstance(obj, float) and (math.isinf(obj) or math.isnan(obj)):
+        return str(obj)
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj
+
+
+def _overlay_caption(shot, scene: dict) -> str:
+    if shot.kind == "texels":
+        text = (f"The texel grid on the receivers, seen from the scene camera: every checker square is one texel of "
+                f"a {shot.size}² map (a coarse map, so that single texels are visible). Where squares are small, "
+                f"the map spends many texels; {' and '.join(t.split(',')[0] for t, _ in shot.panels)} side by side "
+                f"show where each puts its texels.")
+    elif shot.kind == "heatmap":
+        text = (f"The footprint heatmap from the scene camera at {shot.size}²: screen pixels spanned by one texel "
+                f"(the viewport overlay's own shader), red where texels are larger than pixels (blocky edges), "
+                f"green at one pixel per texel, blue where texels are finer than pixels.")
+    else:
+        text = (f"{shot.method} at {shot.size}² from an outside observer: the camera's view frustum (cyan), "
+                f"the light frusta (yellow), the intersection body B (orange), the warp frustum P (magenta) with "
+                f"its projection centre and V_P, over the heatmap on every receiver (grey where no map serves).")
+        if shot.notes:
+            text += " " + "; ".join(n[0].upper() + n[1:] for n in shot.notes) + "."
+    return text + " Drawn off-screen by the viewport's draw code (addon/ui/overlays.py)."
+
+
+def write_figures(result: dict, out: Path, progress=None) -> dict:
+    """The figures of every scene under ``out``; returns {scene: {section: file or [(file, caption)]}}."""
+    import contextlib
+    pics: dict = {}
+    for scene in result["scenes"]:
+        if scene.get("status") != "ok":
+            continue
+        ctx = progress.step("figures", f"{scene['name']}: figures", scene["name"]) if progress else \
+            contextlib.nullcontext()
+        with ctx:
+            d = out / scene["name"]
+            d.mkdir(parents=True, exist_ok=True)
+            made = {}
+            for section, fn, fname in FIGURES:
+                try:
+                    fn(scene, d / fname)
+                    made[section] = f"{scene['name']}/{fname}"
+                except Exception as exc:  # noqa: BLE001 - a figure that fails is reported in its section
+                    made[section] = None
+                    scene.setdefault("figure_errors", {})[section] = f"{type(exc).__name__}: {exc}"
+            shots = []
+            for shot in scene.get("overlays") or []:
+                fname = OVERLAY_FILES[shot.kind]
+                try:
+                    figures.overlay(shot, d / fname, scene["name"])
+                    shots.append((f"{scene['name']}/{fname}", _overlay_caption(shot, scene)))
+                except Exception as exc:  # noqa: BLE001
+                    scene.setdefault("figure_errors", {})[f"overlay {shot.kind}"] = f"{type(exc).__name__}: {exc}"
+            made["Overlays"] = shots
+            scene["overlay_files"] = [f for f, _ in shots]
+            pics[scene["name"]] = made
+    return pics
+
+
+def readme_picture(result: dict, path: Path) -> Path | None:
+    """The comparison picture for the README: the first scene with results,
+    at its middle map size (the one EEVEE ran at when it ran at one only)."""
+    for scene in result["scenes"]:
+        ok = [m for m in scene.get("methods", []) if m.get("status") == "ok"]
+        if scene.get("status") != "ok" or not ok:
+            continue
+        sizes = sorted({m["size"] for m in ok})
+        eevee = [p["size"] for p in scene["peers"] if p["method"] == "eevee" and p.get("size")]
+        size = eevee[-1] if len(eevee) == 1 and eevee[0] in sizes else sizes[len(sizes) // 2]
+        methods = list(dict.fromkeys(m["method"] for m in ok))
+        preferred = [m for m in README_METHODS if m in methods] or methods[:3]
+        path.parent.mkdir(parents=True, exist_ok=True)
+        return figures.comparison(scene, preferred, size, path)
+    return None
+
+
+def write(result: dict, out: Path, progress=None) -> dict:
+    """Figures, report.html, report.md and report.json under ``out``; returns the paths."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    pics = write_figures(result, out, progress)
+    bs = blocks(result, pics)
+    paths = {"html": out / "report.html", "md": out / "report.md", "json": out / "report.json"}
+    paths["json"].write_text(json.dumps(_strip(result), indent=1))
+    paths["md"].write_text(to_markdown(bs))
+    paths["html"].write_text(to_html(bs))
+    return paths

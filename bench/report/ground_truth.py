@@ -114,6 +114,43 @@ def _to_light(light: Light, p: np.ndarray):
     return d / dist[:, None], dist
 
 
+def direct_light(points: np.ndarray, normals: np.ndarray, light: Light, albedo: float,
+                 spot_blend: float = 0.0) -> np.ndarray:
+    """Unshadowed direct radiance of a grey diffuse surface, the formula of
+    Lixel's shading pass (gpu_shaders/shade_frag.glsl, mirrored here so the
+    ground truth is shaded exactly like Lixel's renders): colour · energy ·
+    irradiance · n·l · albedo / π, irradiance 1 for a sun and 1 / (4π r²) for
+    a point or spot, a spot's cone edge smoothed over ``spot_blend`` (Blender's
+    spot mask). ``points``/``normals`` (..., 3); NaN points give 0."""
+    p = np.asarray(points, dtype=np.float64)
+    flat = p.reshape(-1, 3)
+    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    out = np.zeros(len(flat))
+    ok = np.all(np.isfinite(flat), axis=1)
+    q = flat[ok]
+    if light.is_directional:
+        to_l = np.broadcast_to(-light.direction, q.shape)
+        irradiance = np.ones(len(q))
+    else:
+        d = light.position - q
+        r2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-12)
+        to_l = d / np.sqrt(r2)[:, None]
+        irradiance = 1.0 / (4.0 * math.pi * r2)
+        if light.type == "SPOT":
+            cos_half = math.cos(light.spot_angle / 2)
+            x = np.einsum("ij,j->i", -to_l, light.direction) - cos_half
+            blend = spot_blend * (1.0 - cos_half)
+            if blend > 0:
+                u = np.clip(x / blend, 0.0, 1.0)
+                irradiance *= u * u * (3.0 - 2.0 * u)
+            else:
+                irradiance *= (x >= 0).astype(np.float64)
+    ndl = np.maximum(np.einsum("ij,ij->i", n[ok], to_l), 0.0)
+    grey = float(np.dot(light.color, (0.2126, 0.7152, 0.0722))) * light.energy
+    out[ok] = grey * irradiance * ndl * albedo / math.pi
+    return out.reshape(p.shape[:-1])
+
+
 def ground_truth(view: View, light: Light, bvh, scene_scale: float) -> GroundTruth:
     """Cast the camera rays and the shadow rays (see module doc)."""
     from mathutils import Vector

@@ -1,33 +1,40 @@
-"""`make demo` on a tiny scene produces every section; a failing method is reported, not fatal."""
+"""`make demo` on a tiny scene produces every section, every key and the overlay
+snapshots; timed points are medians with min and max; a failing method is
+reported, not fatal; bad arguments are refused and leave the last report."""
 import json
 import os
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 pytest.importorskip("bpy")
 
 ROOT = Path(__file__).resolve().parents[2]
+BASE = [sys.executable, "-m", "bench.report", "--quick", "--scene", "tiny", "--frames", "2", "--resolution", "64x48",
+        "--repeats", "3", "--peer-repeats", "2"]
+
+
+def _run(args, out, timeout=600):
+    return subprocess.run(BASE + args + ["--out", str(out)], cwd=ROOT, capture_output=True, text=True,
+                          timeout=timeout)
 
 
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
     out = tmp_path_factory.mktemp("report")
-    env = dict(os.environ)
     # 20000 texels is beyond the GPU limit: every method must fail at that size with a reason
-    cmd = [sys.executable, "-m", "bench.report", "--quick", "--scene", "tiny", "--methods", "uniform,lispsm",
-           "--sizes", "128,20000", "--frames", "2", "--resolution", "64x48", "--eevee-samples", "1",
-           "--out", str(out), "--readme-picture", str(out / "comparison.png")]
-    proc = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+    proc = _run(["--methods", "uniform,lispsm", "--sizes", "128,20000", "--readme-picture",
+                 str(out / "comparison.png")], out / "report")
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    return out, proc.stdout
+    return out / "report", proc.stdout, proc.stderr
 
 
-def test_every_section_in_both_documents(report):
+def test_every_section_and_figure_in_both_documents(report):
     from bench.report.document import SECTIONS
-    out, _ = report
+    out, _, _ = report
     html = (out / "report.html").read_text()
     md = (out / "report.md").read_text()
     assert "Scene: tiny" in html and "## Scene: tiny" in md
@@ -35,45 +42,129 @@ def test_every_section_in_both_documents(report):
     for section in SECTIONS:
         assert f"<h3>{section}</h3>" in html
         assert f"### {section}" in md
-    for png in ("renders", "shadow_maps", "footprint", "errors", "speed_error"):
+    for png in ("renders", "shadow_maps", "footprint", "errors", "speed_error", "overlay_texels", "overlay_heatmap",
+                "overlay_observer"):
         path = out / "tiny" / f"{png}.png"
         assert path.stat().st_size > 1000, path
         assert f"tiny/{png}.png" in html and f"tiny/{png}.png" in md
-    assert (out / "comparison.png").stat().st_size > 1000
+    assert (out.parent / "comparison.png").stat().st_size > 1000
     assert "figure failed" not in html
+    assert "n·l ≥ 0.1" in md                      # the lit-facing threshold is stated
+    assert "false light = lit where the truth is dark (blue)" in md
 
 
-def test_table_has_methods_peers_limit_and_failures(report):
-    out, stdout = report
+def test_numbers_diagnostics_and_failures(report):
+    out, stdout, _ = report
     data = json.loads((out / "report.json").read_text())
     scene = data["scenes"][0]
-    assert scene["status"] == "ok"
-    assert scene["n_min"] > 0
+    assert scene["status"] == "ok" and scene["n_min"] > 0
     ok = [m for m in scene["methods"] if m["status"] == "ok"]
     failed = [m for m in scene["methods"] if m["status"] == "failed"]
     assert {m["method"] for m in ok} == {"uniform", "lispsm"} and all(m["size"] == 128 for m in ok)
     assert {m["method"] for m in failed} == {"uniform", "lispsm"} and all(m["size"] == 20000 for m in failed)
     assert all("16384" in m["reason"] for m in failed)
     for m in ok:
-        assert 0 <= m["errors"]["error_rate"] <= 1
-        assert m["errors"]["valid"] > 0
-        assert m["footprint"]["max"] > 0 and 0 <= m["footprint"]["frac_above_1"] <= 1
+        e = m["errors"]
+        assert 0 <= e["error_rate"] <= 1 and e["valid"] > 0
+        assert e["false_light"] + e["false_shadow"] == round(e["error_rate"] * e["valid"])
+        assert m["footprint_lit"]["p95"] > 0 and 0 <= m["footprint_lit"]["frac_above_1"] <= 1
+        assert m["footprint_lit"]["count"] <= m["footprint_all"]["count"]
+        assert set(m["anatomy"]) >= {"at_edges", "false_light", "unserved", "grazing", "edge_footprint_p95"}
         assert m["m_min"] > 0 and m["max_over_limit"] > 0
         assert "rate" in m["flicker"]
-        assert {"cpu_setup", "depth_pass", "shading"} <= set(m["timings"])
+        d = m["diagnostics"]
+        assert 0 <= d["theta_deg"] <= 90 and 0 <= d["gamma_deg"] <= 180
+        assert isinstance(m["explanation"], list)
+        t = m["timing"]
+        assert t["repeats"] == 3 and t["min_ms"] <= t["median_ms"] <= t["max_ms"]
+        assert {"warp", "depth_pass", "shading", "readback"} <= set(t["stages_ms"])
+        assert sum(t["stages_ms"].values()) <= t["max_ms"] * 1.05   # the stages lie inside the timed frame
+    lispsm = next(m for m in ok if m["method"] == "lispsm")
+    assert lispsm["diagnostics"]["n_opt"] is not None
     peers = {p["method"]: p for p in scene["peers"]}
     assert set(peers) == {"eevee", "cycles"}
     for p in peers.values():
         assert p["status"] == "ok", p.get("reason")
-        assert p["total_ms"] > 0
+        assert p["timing"]["repeats"] == 2 and p["timing"]["min_ms"] <= p["timing"]["median_ms"]
+    assert peers["eevee"]["size"] == 128 and "resolution scale" in peers["eevee"]["settings"]
     # Cycles with one delta light and no bounces is exact: it agrees with the ray-cast truth
     assert peers["cycles"]["errors"]["error_rate"] < 0.01
     html = (out / "report.html").read_text()
-    assert html.count("class='failed'") == 2 and "16384" in html
-    assert "tiny: uniform @ 128" in stdout            # progress is printed
+    assert "16384" in html
+    assert "(2/" in stdout and "left)" in stdout              # step k of N, time left
+    assert len(scene["overlay_files"]) == 3 and all("overlay" in f for f in scene["overlay_files"])
+
+
+def test_no_egl_noise_on_the_terminal(report):
+    _, stdout, stderr = report
+    assert "EGL Error" not in stdout + stderr
+    assert "Read blend" not in stdout + stderr
+
+
+@pytest.mark.parametrize("bad", [["--scene", "nosuchscene"], ["--methods", "uniform,nosuchmethod"],
+                                 ["--scene", "missing.blend"]])
+def test_bad_scene_or_method_is_refused_and_the_last_report_stays(report, bad):
+    out, _, _ = report
+    before = {p: p.stat().st_mtime_ns for p in out.rglob("*")}
+    proc = _run(bad, out, timeout=120)
+    assert proc.returncode == 2
+    assert "error" in proc.stderr and "unchanged" in proc.stderr
+    assert {p: p.stat().st_mtime_ns for p in out.rglob("*")} == before
+    assert not list(out.parent.glob(".report.partial-*"))
+
+
+def test_publish_replaces_only_the_reports_own_entries(tmp_path):
+    from bench.report.__main__ import MANIFEST, publish
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.txt").write_text("the user's")
+    (out / "old_scene").mkdir()
+    (out / "report.html").write_text("old")
+    (out / MANIFEST).write_text("old_scene\nreport.html\n")
+    partial = tmp_path / "partial"
+    (partial / "new_scene").mkdir(parents=True)
+    (partial / "report.html").write_text("new")
+    publish(partial, out)
+    assert (out / "notes.txt").read_text() == "the user's"
+    assert not (out / "old_scene").exists() and (out / "new_scene").is_dir()
+    assert (out / "report.html").read_text() == "new" and not partial.exists()
+
+
+def test_noise_filter_keeps_real_messages():
+    from bench.report.progress import is_noise
+    assert is_noise("EGL Error (0x3009): EGL_BAD_MATCH: Arguments are inconsistent")
+    assert is_noise('00:00.789  blend            | Read blend: "/x/forest.blend"')
+    assert is_noise("Fra:1 Mem:42.12M (Peak 42.12M) | Time:00:10.20 | Rendering 1 / 1 samples")
+    assert not is_noise("Error: Not freed memory blocks: 3")
+    assert not is_noise("Traceback (most recent call last):")
+
+
+def test_timing_summary_and_agreement():
+    from bench.report.timing import agreement, summarise
+    t = summarise([0.010, 0.030, 0.020], [{"a": 0.001}, {"a": 0.003}, {"a": 0.002}])
+    assert (t.median_ms, t.min_ms, t.max_ms, t.repeats) == (20.0, 10.0, 30.0, 3)
+    assert t.stages_ms == {"a": 2.0}
+    rep = lambda ms: {"scenes": [{"name": "s", "methods": [{"method": "m", "size": 8, "status": "ok",  # noqa: E731
+                                                            "timing": {"median_ms": ms}}], "peers": []}]}
+    key, worst = agreement(rep(10.0), rep(12.5)).worst
+    assert key == ("s", "m", 8) and worst == pytest.approx(1.25)
 
 
 def test_pareto_front_keeps_only_undominated_points():
     from bench.report.figures import pareto_front
     pts = [(10, 5.0), (20, 1.0), (15, 6.0), (5, 9.0), (30, 1.0), (25, 0.5)]
     assert sorted(pareto_front(pts)) == [0, 1, 3, 5]
+
+
+def test_explanation_names_lost_shadows_when_footprint_and_error_disagree():
+    from bench.report.analysis import explain
+    ref = {"footprint_lit": {"p95": 2.0}, "errors": {"error_rate": 0.01},
+           "anatomy": {"edge_footprint_p95": 2.0}}
+    rec = {"footprint_lit": {"p95": 0.5}, "errors": {"error_rate": 0.03}, "fallbacks": [],
+           "anatomy": {"unserved": 0.0, "interior_false_light": 0.8, "interior_false_shadow": 0.05,
+                       "grazing": 0.0, "at_edges": 0.15, "false_light": 0.85, "edge_footprint_p95": 0.6,
+                       "errors": 900}}
+    text = explain(rec, ref, "uniform")
+    assert "predicts a smaller error" in text and "whole shadows lost" in text
+    agree = dict(rec, errors={"error_rate": 0.004})
+    assert explain(agree, ref, "uniform") is None

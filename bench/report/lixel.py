@@ -1,0 +1,64 @@
+"""Lixel's frame as the report measures it: the render engine's own frame
+(``addon.render.engine.render_depsgraph``: geometry from the cache, the scene
+described, B and the warp, then ``render_shadows``: upload, depth pass,
+shading, read-back, compose), timed from its start to the pixels in memory.
+
+This module is the one place where the report reads the pipeline's result, so
+a change of its type touches only :func:`frame`.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+SHADOW_THRESHOLD = 0.5
+"""A pixel counts as shadowed when the shadow mask is at least this (PCF 1x1 gives 0 or 1)."""
+
+
+def report_settings(method: str, size: int):
+    """The settings every Lixel point of the report uses: the defaults of a fresh
+    scene, with the method, one ``size``² texel budget and hard 1x1 PCF (the
+    report compares hard shadows with exact ray-cast ones)."""
+    from addon.settings import LixelSettings
+    from addon.warp.types import WarpOptions
+    base = LixelSettings()
+    return replace(base, method=method, warp=replace(base.warp, shadow_map_size=(int(size), int(size))),
+                   shadow=replace(base.shadow, pcf_kernel=1))
+
+
+@dataclass
+class LixelFrame:
+    """One rendered frame, images (H, W) with row 0 at the bottom."""
+
+    setup: object                   # addon.warp.types.ShadowSetup
+    method: str                     # the method that ran (the engine may substitute one)
+    shadow: np.ndarray              # bool: shadowed
+    covered: np.ndarray             # bool: a surface is drawn
+    world_position: np.ndarray      # (H, W, 3) float64, NaN off-surface
+    map_index: np.ndarray           # int: the map that served the pixel, -1 none
+    combined: np.ndarray            # (H, W, 3) linear radiance
+    shadow_maps: list               # window depth per map (H_m, W_m)
+    seconds: float                  # wall clock of the whole frame
+    stages: dict = field(default_factory=dict)   # the engine's own stage times (seconds)
+    warnings: list = field(default_factory=list)
+
+
+def frame(depsgraph, settings, resolution) -> LixelFrame:
+    """Render the depsgraph's scene from its camera, as the LIXEL engine does."""
+    from addon.render.engine import render_depsgraph
+    warnings: list = []
+    t0 = time.perf_counter()
+    out = render_depsgraph(depsgraph, tuple(int(v) for v in resolution), settings, warnings=warnings)
+    seconds = time.perf_counter() - t0
+    res = out["result"]
+    return LixelFrame(
+        setup=out["setup"], method=out["method"],
+        shadow=np.asarray(res["shadow_raw"]) >= SHADOW_THRESHOLD,
+        covered=np.asarray(res["covered"], dtype=bool),
+        world_position=np.asarray(res["world_position"], dtype=np.float64),
+        map_index=np.asarray(res["map_index"]),
+        combined=np.asarray(res["combined"])[..., :3],
+        shadow_maps=list(res.get("shadow_maps") or []),
+        seconds=seconds, stages={k: float(v) for k, v in res["timings"].items()}, warnings=warnings)
