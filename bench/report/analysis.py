@@ -2,8 +2,9 @@
 
 The analytic footprint (``addon.measure.footprint``) is what the matrices
 promise: screen pixels spanned by one texel at each visible point. It is
-summarised over the *lit-facing* points only: visible, counted by the ground
-truth, and turned to the light by at least :data:`NDL_MIN` (n·l). A surface
+summarised over the *lit-facing* points only, as the shared rendered-error
+harness does (``bench.rendered_error``): counted by the ground truth, lit in
+it, and turned to the light by at least :data:`NDL_MIN` (n·l). A surface
 grazing the light has an unbounded footprint whatever the warp (projection
 aliasing, Stamminger-Drettakis §1.1: cos β in the denominator), so without the
 threshold its max and share above 1 say nothing about the method.
@@ -26,9 +27,7 @@ import numpy as np
 
 from addon.measure import footprint_stats
 from addon.measure.errors import edge_band
-
-NDL_MIN = 0.1
-"""Lit-facing: n·l at least this (surfaces within about 84° of facing the light)."""
+from bench.rendered_error import LIT_FACING as NDL_MIN  # one threshold for the report and the harness
 
 AGREE_FOOTPRINT = 1.25
 """Footprint ratios within this factor of 1 count as 'about the same footprint'."""
@@ -47,10 +46,15 @@ def n_dot_l(points: np.ndarray, normals: np.ndarray, light) -> np.ndarray:
     return np.einsum("ij,ij->i", n, to_light).reshape(p.shape[:-1])
 
 
-def lit_facing(gt, light) -> np.ndarray:
-    """The ground truth's counted pixels turned to the light by at least NDL_MIN."""
+def facing(gt, light) -> np.ndarray:
+    """The ground truth's counted pixels turned to the light by at least NDL_MIN (lit or not)."""
     ndl = n_dot_l(gt.points, gt.normals, light)
     return gt.valid & (np.nan_to_num(ndl, nan=-1.0) >= NDL_MIN)
+
+
+def lit_facing(gt, light) -> np.ndarray:
+    """The ground truth's lit pixels turned to the light by at least NDL_MIN."""
+    return facing(gt, light) & ~gt.shadow
 
 
 def footprint_summary(fp_image: np.ndarray, mask: np.ndarray) -> dict:
@@ -69,19 +73,21 @@ class ErrorAnatomy:
     interior_false_shadow: float  # away from edges and false shadow: acne, shadows spread or spilled
     unserved: float             # no map served the pixel
     grazing: float              # on surfaces with n·l < NDL_MIN (left out of the footprint statistic)
-    edge_footprint_p95: float   # analytic footprint p95 over the lit-facing pixels at true shadow edges
+    edge_footprint_p95: float   # analytic footprint p95 over the facing pixels at true shadow edges (both sides)
 
     def to_json(self) -> dict:
         return {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in asdict(self).items()}
 
 
-def anatomy(shadow, truth, counted, lit_facing_mask, map_index, fp_image, band_radius: int = 2) -> ErrorAnatomy:
+def anatomy(shadow, truth, counted, facing_mask, map_index, fp_image, band_radius: int = 2) -> ErrorAnatomy:
+    """Where the wrong pixels are; ``facing_mask``: pixels turned to the light
+    (lit or not), the rest counts as grazing."""
     s, t, c = (np.asarray(a, dtype=bool) for a in (shadow, truth, counted))
     wrong = c & (s != t)
     fl = wrong & t
     band = edge_band(t, c, band_radius)
     n = int(wrong.sum())
-    edge_fp = fp_image[band & lit_facing_mask]
+    edge_fp = fp_image[band & facing_mask]
     edge_fp = edge_fp[np.isfinite(edge_fp)]
 
     def share(mask) -> float:
@@ -90,7 +96,7 @@ def anatomy(shadow, truth, counted, lit_facing_mask, map_index, fp_image, band_r
     return ErrorAnatomy(
         errors=n, false_light=share(fl), at_edges=share(band),
         interior_false_light=share(fl & ~band), interior_false_shadow=share(wrong & ~t & ~band),
-        unserved=share(np.asarray(map_index) < 0), grazing=share(~lit_facing_mask),
+        unserved=share(np.asarray(map_index) < 0), grazing=share(~facing_mask),
         edge_footprint_p95=float(np.percentile(edge_fp, 95)) if len(edge_fp) else float("nan"))
 
 

@@ -40,10 +40,10 @@ DEFINITIONS = [
                   "fraction where the method's state changes."),
     ("footprint", "the analytic texel footprint of the method's matrices: screen pixels spanned by one texel in its "
                   "worst direction (largest singular value of the texel-to-pixel Jacobian on the surface); above 1 "
-                  f"means blocky shadow edges. Its statistics (p95, share above 1) are over the lit-facing pixels: "
-                  f"counted and turned to the light by n·l ≥ {NDL_MIN} (surfaces grazing the light have unbounded "
-                  f"footprints whatever the warp). 'edge p95': the same over the lit-facing pixels at true shadow "
-                  f"edges."),
+                  f"means blocky shadow edges. Its statistics (p95, share above 1) are over the lit-facing pixels "
+                  f"(as in bench/rendered_error.py): counted, lit in the ground truth and turned to the light by "
+                  f"n·l ≥ {NDL_MIN} (surfaces grazing the light have unbounded footprints whatever the warp). "
+                  f"'edge p95': over the pixels turned to the light within 2 px of a true shadow edge, both sides."),
     ("m_min", "Lloyd's physical limit: the smallest maximum perspective footprint any parameterization can reach "
               "with the method's texel count N, sqrt(N_min / N). persp max/m_min: the method's largest perspective "
               "footprint over the lit-facing pixels, over that limit."),

@@ -276,7 +276,7 @@ def footprints(scene: dict, path: Path) -> Path:
         cb.set_ticks(ticks)
         cb.set_ticklabels([f"1/{2 ** -t:g}" if t < 0 else f"{2 ** t:g}" for t in ticks])
         cb.set_label("screen pixels per texel (log scale)\nred: blocky, blue: finer than pixels;\n"
-                     "grey: not lit-facing (n·l < 0.1), left out of p95")
+                     "grey: shadowed or n·l < 0.1, left out of p95")
     fig.savefig(path)
     return path
 

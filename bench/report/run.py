@@ -143,10 +143,14 @@ def scene_path(name: str, workdir: Path, log) -> Path:
 
 def comparable_mask(gt, frame) -> np.ndarray:
     """Pixels where the pipeline shows the same surface point as the ray caster
-    (silhouette pixels where rasterization and ray casting disagree are left out)."""
-    d = np.linalg.norm(frame.world_position - gt.points, axis=2)
+    (silhouette pixels where rasterization and ray casting disagree are left out).
+    ``frame``: a ``LixelFrame`` or anything with ``world_position`` and ``covered``
+    as keys (a render result dict) or attributes."""
+    get = frame.get if isinstance(frame, dict) else (lambda k: getattr(frame, k))
+    world, covered = np.asarray(get("world_position"), dtype=np.float64), np.asarray(get("covered"), dtype=bool)
+    d = np.linalg.norm(world - gt.points, axis=2)
     depth = np.linalg.norm(gt.points - gt.camera, axis=2)
-    return gt.valid & frame.covered & np.isfinite(d) & (d <= 2e-3 * depth + 1e-6)
+    return gt.valid & covered & np.isfinite(d) & (d <= 2e-3 * depth + 1e-6)
 
 
 def diagnostics(setup) -> dict:
@@ -215,6 +219,7 @@ def run_scene(name: str, opts: Options, progress: Progress, workdir: Path) -> di
     lit = analysis.lit_facing(gt, light)
     out["lit_facing_pixels"] = int(lit.sum())
     out["_images"]["lit_facing"] = lit
+    out["_images"]["facing"] = analysis.facing(gt, light)
 
     gpu_error = _start_gpu()
     for method in opts.methods:
@@ -344,7 +349,7 @@ def _method(run: SceneRun, method: str, size: int, lit: np.ndarray, gpu_error: O
             errors=errs.to_json(),
             footprint_lit=analysis.footprint_summary(fp_img, lit),
             footprint_all=footprint_stats(fp).to_json(),
-            anatomy=analysis.anatomy(fr.shadow, gt.shadow, comp, lit, fr.map_index, fp_img,
+            anatomy=analysis.anatomy(fr.shadow, gt.shadow, comp, out["_images"]["facing"], fr.map_index, fp_img,
                                      opts.band_radius).to_json(),
             excluded_pixels=int((gt.valid & ~comp).sum()),
             shading_vs_truth=shading_difference(fr.combined, fr.shadow, comp, run.out["_images"]["truth"],
@@ -439,7 +444,7 @@ def _peer(run: SceneRun, peer: str) -> None:
     opts, out, gt = run.opts, run.out, run.gts[0]
     samples = opts.eevee_samples if peer == "eevee" else opts.cycles_samples
     sizes = opts.eevee_at() if peer == "eevee" else [None]
-    lit = out["_images"]["lit_facing"]
+    facing = out["_images"]["facing"]
     light_obj = pick_light(run.scene, bpy.context.evaluated_depsgraph_get())
     try:
         with PeerSession(run.scene, light_obj, peer, samples, DEFAULT_ALBEDO) as session:
@@ -466,7 +471,7 @@ def _peer(run: SceneRun, peer: str) -> None:
                 rec.update(settings=res.settings, timing=res.timing.to_json(), errors=errs.to_json(),
                            shading_vs_truth=shading_difference(res.image, res.shadow, comp, out["_images"]["truth"],
                                                                gt.shadow),
-                           anatomy=analysis.anatomy(res.shadow, gt.shadow, comp, lit, np.zeros(gt.shape, int),
+                           anatomy=analysis.anatomy(res.shadow, gt.shadow, comp, facing, np.zeros(gt.shape, int),
                                                     np.full(gt.shape, np.nan), opts.band_radius).to_json(),
                            excluded_pixels=int((gt.valid & ~comp).sum()),
                            _images={"render": res.image, "shadow": res.shadow, "comparable": comp})
