@@ -1,13 +1,23 @@
-"""Lixel's own objects in a scene (baked B, frusta, the geometry-node helpers).
+"""What in a .blend is Lixel's own: the debug objects (baked B, frusta, the
+geometry-node helpers) and every datablock Lixel made for them.
 
-They carry the custom property ``DEBUG_KEY`` and are never casters or
-receivers: B would otherwise feed back into itself. The scene layer, the
-render engine and the UI all ask :func:`is_debug_object`; no bpy import here.
+* Lixel's debug objects carry ``DEBUG_KEY``: they are never casters or
+  receivers, or B would feed back into itself (:func:`is_debug_object`).
+* Every datablock Lixel makes carries ``MADE_KEY``, whose value is the name
+  Lixel gave it. Lixel finds its datablocks by that mark, never by name alone:
+  when a user's datablock already has the name, Lixel's gets Blender's next free
+  name ("Lixel B.001") and the user's is never touched (:func:`lixel_datablock`).
+
+The scene layer, the render engine and the UI all ask here; no bpy import.
 """
 from __future__ import annotations
 
 DEBUG_KEY = "lixel_debug"
 """Custom property marking Lixel's own debug objects; its value says what the object is."""
+MADE_KEY = "lixel_made"
+"""Custom property on every datablock Lixel made; its value is the name Lixel gave it."""
+LEGACY_KEYS = (DEBUG_KEY, "lixel_version")
+"""Marks that files saved before MADE_KEY existed put on Lixel's objects, node groups and materials."""
 
 
 def is_debug_object(ob) -> bool:
@@ -17,3 +27,47 @@ def is_debug_object(ob) -> bool:
         return DEBUG_KEY in orig.keys()
     except (AttributeError, ReferenceError, TypeError):
         return False
+
+
+def is_lixel_made(idb) -> bool:
+    """True for a datablock Lixel made (and may change or remove)."""
+    if idb is None:
+        return False
+    try:
+        keys = idb.keys()
+    except (AttributeError, ReferenceError, TypeError):
+        return False
+    return MADE_KEY in keys or any(k in keys for k in LEGACY_KEYS)
+
+
+def _made_as(idb, name: str) -> bool:
+    made = idb.get(MADE_KEY)
+    return made == name if made is not None else (idb.name == name and is_lixel_made(idb))
+
+
+def find_made(datablocks, name: str):
+    """The datablock of ``datablocks`` (a ``bpy.data`` collection) that Lixel made
+    under ``name``, or None. A user's datablock of that name is never returned."""
+    idb = datablocks.get(name)
+    if idb is not None and getattr(idb, "library", None) is None and _made_as(idb, name):
+        return idb
+    for idb in datablocks:
+        if idb.get(MADE_KEY) == name and getattr(idb, "library", None) is None:
+            return idb
+    return None
+
+
+def mark_made(idb, name: str):
+    """Mark ``idb`` as made by Lixel under ``name``; returns it."""
+    idb[MADE_KEY] = name
+    return idb
+
+
+def lixel_datablock(datablocks, name: str, *new_args):
+    """Lixel's datablock ``name`` in ``datablocks``: the one it made before, or a
+    new one (``datablocks.new(name, *new_args)``, which Blender renames when a
+    user's datablock has the name), marked. Returns (datablock, made_now)."""
+    idb = find_made(datablocks, name)
+    if idb is not None:
+        return idb, False
+    return mark_made(datablocks.new(name, *new_args), name), True

@@ -26,7 +26,7 @@ the carrier's matrices change, every group using it follows.
 import bpy
 import numpy as np
 
-from ..scene.owned import DEBUG_KEY
+from ..scene.owned import DEBUG_KEY, find_made, is_lixel_made, lixel_datablock, mark_made
 
 TEXEL_GROUP = "Lixel Texel Grid"
 FRUSTUM_GROUP = "Lixel Frustum From Matrix"
@@ -114,12 +114,13 @@ class _Builder:
 
 
 def _reset_tree(name, tree_type, version):
-    """The node tree ``name``, emptied for a rebuild, or None if it is current."""
-    tree = bpy.data.node_groups.get(name)
+    """Lixel's node tree ``name``: (None, tree) if it is current, else (tree, tree)
+    emptied for a rebuild. A user's tree of that name is never touched."""
+    tree = find_made(bpy.data.node_groups, name)
     if tree is not None and tree.bl_idname == tree_type and tree.get(VERSION_KEY) == version:
         return None, tree
     if tree is None or tree.bl_idname != tree_type:
-        tree = bpy.data.node_groups.new(name, tree_type)
+        tree = mark_made(bpy.data.node_groups.new(name, tree_type), name)
     tree.nodes.clear()
     tree.interface.clear()
     return tree, tree
@@ -258,11 +259,9 @@ def ensure_texel_material():
     interpolated clip coordinates (x, y, w) with the divide done per pixel, so
     texel edges are exact in EEVEE and Cycles. Workbench shows the per-face
     ``lixel_texel_color`` (Viewport Shading > Color > Attribute; ``color_type`` 'VERTEX' in the API)."""
-    mat = bpy.data.materials.get(TEXEL_MATERIAL)
-    if mat is not None and mat.get(VERSION_KEY) == MATERIAL_VERSION:
+    mat, _ = lixel_datablock(bpy.data.materials, TEXEL_MATERIAL)
+    if mat.get(VERSION_KEY) == MATERIAL_VERSION:
         return mat
-    if mat is None:
-        mat = bpy.data.materials.new(TEXEL_MATERIAL)
     if bpy.app.version < (5, 0, 0):
         mat.use_nodes = True
     tree = mat.node_tree
@@ -291,28 +290,30 @@ def ensure_texel_material():
 # --- the matrix carrier and the objects using the groups --------------------------------------------------------
 
 def debug_collection(scene):
-    """The "Lixel Debug" collection, linked to the scene (created if needed)."""
-    coll = bpy.data.collections.get(DEBUG_COLLECTION)
-    if coll is None:
-        coll = bpy.data.collections.new(DEBUG_COLLECTION)
-    if coll.name not in scene.collection.children:
+    """Lixel's "Lixel Debug" collection, linked to the scene (created if needed;
+    a user's collection of that name is left alone)."""
+    coll, _ = lixel_datablock(bpy.data.collections, DEBUG_COLLECTION)
+    if coll not in tuple(scene.collection.children):
         scene.collection.children.link(coll)
     return coll
 
 
+def lixel_mesh(name):
+    """Lixel's mesh ``name`` (made if needed; never a user's mesh of that name)."""
+    return lixel_datablock(bpy.data.meshes, name)[0]
+
+
 def debug_object(scene, name, kind, data):
-    """The debug object ``name`` in the debug collection, given ``data`` (reused if
-    it exists: re-baking replaces the data, never duplicates the object)."""
+    """Lixel's debug object ``name`` in the debug collection, given ``data`` (reused
+    if Lixel made it before: re-baking replaces the data, never duplicates the
+    object). A user's object of that name is left alone: Lixel's takes the next
+    free name."""
     coll = debug_collection(scene)
-    ob = bpy.data.objects.get(name)
-    if ob is not None and ob.get(DEBUG_KEY) is None:
-        raise RuntimeError(f"An object named '{name}' exists and is not Lixel's: rename it so Lixel can bake")
-    if ob is None:
-        ob = bpy.data.objects.new(name, data)
-    elif ob.data is not data:
+    ob, made_now = lixel_datablock(bpy.data.objects, name, data)
+    if not made_now and ob.data is not data:
         old = ob.data
         ob.data = data
-        if old is not None and old.users == 0:
+        if old is not None and old.users == 0 and is_lixel_made(old):
             bpy.data.meshes.remove(old)
     ob[DEBUG_KEY] = kind
     if ob.name not in coll.objects:
@@ -343,9 +344,7 @@ def write_matrices(mesh, matrices, sizes) -> None:
 
 def ensure_carrier(scene, setup):
     """The matrix carrier object holding ``setup``'s maps (updated in place)."""
-    mesh = bpy.data.meshes.get(CARRIER_NAME)
-    if mesh is None:
-        mesh = bpy.data.meshes.new(CARRIER_NAME)
+    mesh = lixel_mesh(CARRIER_NAME)
     write_matrices(mesh, [m.matrix for m in setup.maps], [m.size for m in setup.maps])
     ob = debug_object(scene, CARRIER_NAME, "carrier", mesh)
     ob.hide_render = True
@@ -365,13 +364,22 @@ def _set_input(mod, tree, name, value):
 def _matrix_modifier(ob, name: str, group, carrier, map_index: int):
     """The object's geometry-nodes modifier ``name`` (made if missing) running
     ``group`` on the light matrices of ``carrier``, map ``map_index``."""
-    mod = ob.modifiers.get(name)
-    if mod is None or mod.type != "NODES":
+    mod = lixel_modifier(ob, name)
+    if mod is None:  # a user's modifier of that name keeps it: Blender names this one "<name>.001"
         mod = ob.modifiers.new(name, "NODES")
     mod.node_group = group
     _set_input(mod, group, "Light Matrices", carrier)
     _set_input(mod, group, "Map Index", int(map_index))
     return mod
+
+
+def lixel_modifier(ob, name: str):
+    """The geometry-nodes modifier Lixel added to ``ob`` as ``name`` (it runs one
+    of Lixel's node groups), or None."""
+    for mod in ob.modifiers:
+        if mod.type == "NODES" and mod.name.split(".")[0] == name and is_lixel_made(mod.node_group):
+            return mod
+    return None
 
 
 def add_texel_grid(ob, carrier, map_index: int = 0):
@@ -392,7 +400,7 @@ def add_texel_grid(ob, carrier, map_index: int = 0):
 
 
 def remove_texel_grid(ob) -> bool:
-    mod = ob.modifiers.get(TEXEL_MODIFIER)
+    mod = lixel_modifier(ob, TEXEL_MODIFIER)
     if mod is None:
         return False
     ob.modifiers.remove(mod)
@@ -401,7 +409,7 @@ def remove_texel_grid(ob) -> bool:
         attrs.active_color_name = ""
     if attrs.default_color_name == PARITY_COLOR_ATTRIBUTE:
         attrs.default_color_name = ""
-    mat = bpy.data.materials.get(TEXEL_MATERIAL)
+    mat = find_made(bpy.data.materials, TEXEL_MATERIAL)
     if mat is not None:
         idx = ob.data.materials.find(mat.name)
         if idx >= 0:
@@ -413,8 +421,7 @@ def add_frustum_object(scene, carrier, map_index: int = 0):
     """A debug object whose mesh is map ``map_index``'s clip volume, following the carrier."""
     group = ensure_frustum_group()
     name = f"Lixel Frustum (map {map_index})"
-    mesh = bpy.data.meshes.get(name) or bpy.data.meshes.new(name)
-    ob = debug_object(scene, name, "frustum_nodes", mesh)
+    ob = debug_object(scene, name, "frustum_nodes", lixel_mesh(name))
     mod = _matrix_modifier(ob, FRUSTUM_MODIFIER, group, carrier, map_index)
     ob.display_type = "WIRE"
     ob.update_tag()

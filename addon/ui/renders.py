@@ -11,7 +11,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..scene.owned import is_debug_object
+from ..scene.owned import find_made, is_debug_object, mark_made
 from .live import LiveState
 
 
@@ -112,15 +112,17 @@ def compare_renders(st: LiveState, depsgraph, rows: list, longest: int = 320) ->
 
 
 def to_image(name: str, rgba: np.ndarray, existing_ok: bool = True):
-    """A Blender Image datablock holding ``rgba`` (replaced if it exists)."""
+    """Lixel's Image datablock ``name`` holding ``rgba`` (the one Lixel made before
+    is reused or, at another size, replaced; a user's image of that name is never
+    touched). ``existing_ok=False``: always a new image."""
     import bpy
     h, w = rgba.shape[:2]
-    img = bpy.data.images.get(name) if existing_ok else None
+    img = find_made(bpy.data.images, name) if existing_ok else None
     if img is not None and tuple(img.size) != (w, h):
         bpy.data.images.remove(img)
         img = None
     if img is None:
-        img = bpy.data.images.new(name, w, h, alpha=True, float_buffer=True)
+        img = mark_made(bpy.data.images.new(name, w, h, alpha=True, float_buffer=True), name)
     img.pixels.foreach_set(np.ascontiguousarray(rgba, dtype=np.float32).ravel())
     img.update()
     return img

@@ -6,7 +6,7 @@ import numpy as np
 from bpy.props import BoolProperty, IntProperty
 
 from ...guard import guarded_operator
-from ...scene.owned import DEBUG_KEY
+from ...scene.owned import DEBUG_KEY, is_lixel_made
 from .. import nodes
 from ..overlay_geometry import HEXAHEDRON_QUADS
 from .common import LixelSceneOperator
@@ -15,9 +15,9 @@ BAKED = "baked"
 
 
 def mesh_from_polygons(name, polygons):
-    """A mesh datablock (new or emptied) from convex polygons, vertices shared
+    """Lixel's mesh ``name`` (new or emptied) from convex polygons, vertices shared
     where polygons meet."""
-    mesh = bpy.data.meshes.get(name) or bpy.data.meshes.new(name)
+    mesh = nodes.lixel_mesh(name)
     mesh.clear_geometry()
     verts, index, faces = [], {}, []
     for poly in polygons:
@@ -35,7 +35,8 @@ def mesh_from_polygons(name, polygons):
 
 
 def mesh_from_segments(name, segments):
-    mesh = bpy.data.meshes.get(name) or bpy.data.meshes.new(name)
+    """Lixel's mesh ``name`` (new or emptied) holding line segments."""
+    mesh = nodes.lixel_mesh(name)
     mesh.clear_geometry()
     seg = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 3)
     verts = [tuple(p) for p in seg.reshape(-1, 3)]
@@ -77,10 +78,10 @@ def bake(scene, st) -> list:
     keep = {ob.name for ob in made}
     coll = nodes.debug_collection(scene)
     for ob in list(coll.objects):
-        if str(ob.get(DEBUG_KEY, "")).startswith(BAKED + ":") and ob.name not in keep:
+        if str(ob.get(DEBUG_KEY, "")).startswith(BAKED + ":") and ob.name not in keep and is_lixel_made(ob):
             mesh = ob.data
             bpy.data.objects.remove(ob)
-            if mesh is not None and mesh.users == 0:
+            if mesh is not None and mesh.users == 0 and is_lixel_made(mesh):
                 bpy.data.meshes.remove(mesh)
     return made
 
@@ -97,12 +98,8 @@ class LIXEL_OT_bake_debug(LixelSceneOperator, bpy.types.Operator):
         st = self.fresh_state(context)
         if st is None:
             return {"CANCELLED"}
-        try:
-            made = bake(context.scene, st)
-        except RuntimeError as exc:
-            self.report({"ERROR"}, f"Lixel: {exc}")
-            return {"CANCELLED"}
-        self.report({"INFO"}, f"Lixel: baked {len(made)} objects into '{nodes.DEBUG_COLLECTION}'")
+        made = bake(context.scene, st)
+        self.report({"INFO"}, f"Lixel: baked {len(made)} objects into '{nodes.debug_collection(context.scene).name}'")
         return {"FINISHED"}
 
 

@@ -7,6 +7,7 @@ from bpy.props import BoolProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
 from ...guard import guarded_operator
+from ...scene.owned import lixel_datablock
 from ...warp import METHODS
 from .. import live, overlays
 from .common import LixelSceneOperator
@@ -89,13 +90,13 @@ class LIXEL_OT_compare(LixelSceneOperator, bpy.types.Operator):
             try:
                 picture, names = renders.compare_renders(st, context.evaluated_depsgraph_get(), rows,
                                                          longest=self.longest_side)
-                renders.to_image(COMPARISON_IMAGE, picture)
-                note = (f"\n\nImage '{COMPARISON_IMAGE}': the camera view rendered with each method, left to right "
+                img = renders.to_image(COMPARISON_IMAGE, picture)
+                note = (f"\n\nImage '{img.name}': the camera view rendered with each method, left to right "
                         f"and top to bottom: {', '.join(names)}.")
             except (WarpError, ValueError) as exc:
                 note = f"\n\nNo comparison render: {exc}"
                 self.report({"WARNING"}, f"Lixel: no comparison render: {exc}")
-        text = bpy.data.texts.get(COMPARISON_TEXT) or bpy.data.texts.new(COMPARISON_TEXT)
+        text, _ = lixel_datablock(bpy.data.texts, COMPARISON_TEXT)
         text.clear()
         text.write(f"Lixel comparison, scene '{context.scene.name}', camera '{context.scene.camera.name}', "
                    f"light '{st.light_name}', {len(METHODS)} method(s)\n"
@@ -105,9 +106,9 @@ class LIXEL_OT_compare(LixelSceneOperator, bpy.types.Operator):
         if best:
             b = min(best, key=lambda r: r["footprint_max_px"])
             self.report({"INFO"}, f"Lixel: compared {len(rows)} methods; smallest worst-case footprint: "
-                                  f"{b['method']} ({b['footprint_max_px']:.3g} px). See the '{COMPARISON_TEXT}' text")
+                                  f"{b['method']} ({b['footprint_max_px']:.3g} px). See the '{text.name}' text")
         else:
-            self.report({"INFO"}, f"Lixel: compared {len(rows)} methods. See the '{COMPARISON_TEXT}' text")
+            self.report({"INFO"}, f"Lixel: compared {len(rows)} methods. See the '{text.name}' text")
         return {"FINISHED"}
 
 

@@ -1,0 +1,211 @@
+"""Lixel never writes into a datablock it did not make. Every datablock Lixel
+makes is marked (addon/scene/owned.py); when a user's datablock already has the
+name Lixel wants, Lixel's gets Blender's next free name and the user's is left
+exactly as it was. Checked for every operator that makes data."""
+import hashlib
+import importlib
+
+import bpy
+import numpy as np
+import pytest
+
+from ui_scenes import active_scene
+
+LIXEL_NAMES = ("Lixel B", "Lixel View Frustum", "Lixel Light Frustum 0 (main)", "Lixel Light Matrices",
+               "Lixel Frustum (map 0)")
+"""Object and mesh names Lixel's operators make (with the default lispsm setup)."""
+
+
+@pytest.fixture(scope="module")
+def mods(lixel):
+    class M:
+        pass
+    m = M()
+    m.nodes = importlib.import_module(f"{lixel.__name__}.addon.ui.nodes")
+    m.live = importlib.import_module(f"{lixel.__name__}.addon.ui.live")
+    m.owned = importlib.import_module(f"{lixel.__name__}.addon.scene.owned")
+    return m
+
+
+def _sphere(name, n=114):
+    """A mesh of n vertices on a sphere (the audit's 114-vertex user mesh)."""
+    rng = np.random.default_rng(3)
+    v = rng.normal(size=(n, 3))
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    me = bpy.data.meshes.new(name)
+    me.from_pydata([tuple(p) for p in v], [], [(i, i + 1, i + 2) for i in range(0, n - 2, 3)])
+    return me
+
+
+def _geometry_node_group(name):
+    tree = bpy.data.node_groups.new(name, "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    a, b = tree.nodes.new("NodeGroupInput"), tree.nodes.new("NodeGroupOutput")
+    tree.nodes.new("GeometryNodeMeshCube").name = "user's cube"
+    tree.links.new(a.outputs[0], b.inputs[0])
+    return tree
+
+
+def digest(idb) -> str:
+    """A fingerprint of everything a user would notice changed in a datablock."""
+    h = hashlib.sha256()
+    h.update(repr((type(idb).__name__, idb.name, sorted(idb.keys()))).encode())
+    if isinstance(idb, bpy.types.Mesh):
+        co = np.empty(len(idb.vertices) * 3)
+        idb.vertices.foreach_get("co", co)
+        h.update(co.tobytes())
+        h.update(repr((len(idb.polygons), len(idb.edges), [m.name if m else None for m in idb.materials],
+                       sorted(a.name for a in idb.attributes))).encode())
+    elif isinstance(idb, bpy.types.Object):
+        h.update(repr((idb.data.name if idb.data else None, [tuple(r) for r in idb.matrix_world],
+                       [(m.name, m.type) for m in idb.modifiers], idb.hide_render,
+                       sorted(c.name for c in idb.users_collection))).encode())
+    elif isinstance(idb, bpy.types.Collection):
+        h.update(repr(sorted(o.name for o in idb.objects)).encode())
+    elif isinstance(idb, bpy.types.NodeTree):
+        h.update(repr((sorted(n.name for n in idb.nodes), len(idb.links),
+                       [i.name for i in idb.interface.items_tree])).encode())
+    elif isinstance(idb, bpy.types.Material):
+        h.update(repr((tuple(idb.diffuse_color),
+                       sorted(n.name for n in idb.node_tree.nodes) if idb.node_tree else None)).encode())
+    elif isinstance(idb, bpy.types.Text):
+        h.update(idb.as_string().encode())
+    elif isinstance(idb, bpy.types.Image):
+        px = np.empty(idb.size[0] * idb.size[1] * 4, dtype=np.float32)
+        idb.pixels.foreach_get(px)
+        h.update(repr(tuple(idb.size)).encode() + px.tobytes())
+    return h.hexdigest()
+
+
+@pytest.fixture
+def user_scene(lixel, mods):
+    """A scene whose user owns a datablock under every name Lixel uses."""
+    with active_scene("lixel_user_data") as scene:
+        made = []
+        for name in LIXEL_NAMES:
+            me = _sphere(name)
+            ob = bpy.data.objects.new(name, me)
+            scene.collection.objects.link(ob)
+            made += [me, ob]
+        coll = bpy.data.collections.new(mods.nodes.DEBUG_COLLECTION)
+        scene.collection.children.link(coll)
+        keep = bpy.data.objects.new("my keepsake", _sphere("my keepsake", 30))
+        coll.objects.link(keep)
+        made += [coll, keep, keep.data]
+        made.append(_geometry_node_group(mods.nodes.TEXEL_GROUP))
+        made.append(_geometry_node_group(mods.nodes.FRUSTUM_GROUP))
+        mat = bpy.data.materials.new(mods.nodes.TEXEL_MATERIAL)
+        mat.diffuse_color = (0.1, 0.2, 0.3, 1.0)
+        made.append(mat)
+        text = bpy.data.texts.new("Lixel Comparison")
+        text.write("my notes, not Lixel's\n")
+        made.append(text)
+        img = bpy.data.images.new("Lixel Comparison", 7, 5)
+        img.pixels.foreach_set(np.linspace(0, 1, 7 * 5 * 4, dtype=np.float32))
+        made.append(img)
+        # a user's own modifier with the texel grid's name on the mesh that gets the grid
+        ground = scene.objects["lixel_user_data ground"]
+        ground.modifiers.new(mods.nodes.TEXEL_MODIFIER, "SUBSURF")
+        scene.lixel.initialised = True
+        bpy.context.view_layer.update()
+        yield scene, made
+        _remove_lixel_data(mods)
+        for idb in made:
+            try:
+                _collection_of(idb).remove(idb)
+            except ReferenceError:  # already freed with the scene's objects
+                pass
+    mods.live.clear()
+
+
+def _collection_of(idb):
+    for t, name in ((bpy.types.Mesh, "meshes"), (bpy.types.Object, "objects"), (bpy.types.Collection, "collections"),
+                    (bpy.types.NodeTree, "node_groups"), (bpy.types.Material, "materials"),
+                    (bpy.types.Text, "texts"), (bpy.types.Image, "images")):
+        if isinstance(idb, t):
+            return getattr(bpy.data, name)
+    raise TypeError(idb)
+
+
+def _remove_lixel_data(mods):
+    for coll in (bpy.data.objects, bpy.data.meshes, bpy.data.collections, bpy.data.node_groups, bpy.data.materials,
+                 bpy.data.texts, bpy.data.images):
+        for idb in [i for i in coll if mods.owned.MADE_KEY in i.keys()]:
+            coll.remove(idb)
+
+
+def _select(scene, names):
+    for ob in scene.objects:
+        ob.select_set(ob.name in names)
+    bpy.context.view_layer.objects.active = scene.objects[names[0]]
+
+
+OPERATORS = [
+    ("bake_debug", {}),
+    ("sync_matrices", {}),
+    ("frustum_add", {}),
+    ("texel_grid_add", {}),
+    ("compare", {"longest_side": 32}),
+]
+
+
+@pytest.mark.parametrize("op,kw", OPERATORS)
+def test_operators_never_touch_a_users_datablock_of_their_name(user_scene, mods, op, kw):
+    scene, users = user_scene
+    _select(scene, ["lixel_user_data ground"])
+    before = {idb.name: digest(idb) for idb in users}
+    assert getattr(bpy.ops.lixel, op)(**kw) == {"FINISHED"}
+    assert getattr(bpy.ops.lixel, op)(**kw) == {"FINISHED"}  # and again: Lixel finds its own by the mark
+    after = {idb.name: digest(idb) for idb in users}
+    changed = [n for n in before if before[n] != after.get(n)]
+    assert changed == []
+    mine = [i for c in (bpy.data.objects, bpy.data.meshes, bpy.data.collections, bpy.data.node_groups,
+                        bpy.data.materials, bpy.data.texts, bpy.data.images) for i in c if mods.owned.is_lixel_made(i)]
+    assert mine, "Lixel made nothing"
+    assert not set(i.name for i in mine) & set(before), "a user's datablock was taken over"
+    # made once, reused the second time: no duplicates under the same mark
+    marks = [(type(i).__name__, i[mods.owned.MADE_KEY]) for i in mine if mods.owned.MADE_KEY in i.keys()]
+    assert len(marks) == len(set(marks))
+
+
+def test_bake_keeps_a_users_mesh_and_object_named_lixel_b(user_scene, mods):
+    """The audit's case: a 114-vertex sphere named "Lixel B" was overwritten by B."""
+    scene, _users = user_scene
+    sphere = bpy.data.objects["Lixel B"]
+    assert bpy.ops.lixel.bake_debug() == {"FINISHED"}
+    assert len(sphere.data.vertices) == 114 and sphere.data.name == "Lixel B"
+    body = mods.owned.find_made(bpy.data.objects, "Lixel B")
+    assert body is not None and body is not sphere and body.name.startswith("Lixel B.")
+    st = mods.live.state(scene)
+    assert len(body.data.vertices) == len(st.body.vertices)
+    coll = mods.owned.find_made(bpy.data.collections, mods.nodes.DEBUG_COLLECTION)
+    assert body.name in coll.objects and coll.name != mods.nodes.DEBUG_COLLECTION
+    assert "my keepsake" in bpy.data.collections[mods.nodes.DEBUG_COLLECTION].objects
+
+
+def test_the_texel_grid_is_removed_without_touching_a_users_modifier(user_scene, mods):
+    scene, _users = user_scene
+    ground = scene.objects["lixel_user_data ground"]
+    _select(scene, [ground.name])
+    assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+    assert [m.type for m in ground.modifiers] == ["SUBSURF", "NODES"]
+    assert ground.modifiers[0].name == mods.nodes.TEXEL_MODIFIER  # the user's keeps its name
+    assert mods.owned.is_lixel_made(ground.modifiers[1].node_group)
+    assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"}
+    assert [(m.name, m.type) for m in ground.modifiers] == [(mods.nodes.TEXEL_MODIFIER, "SUBSURF")]
+
+
+def test_files_from_before_the_mark_are_still_lixels(lixel, mods):
+    """Debug objects and node groups saved before MADE_KEY carry their old marks."""
+    with active_scene("lixel_legacy"):
+        ob = bpy.data.objects.new("Lixel B", None)
+        ob[mods.owned.DEBUG_KEY] = "baked:body"
+        tree = bpy.data.node_groups.new(mods.nodes.TEXEL_GROUP, "GeometryNodeTree")
+        tree["lixel_version"] = 0
+        try:
+            assert mods.owned.find_made(bpy.data.objects, "Lixel B") is ob
+            assert mods.owned.find_made(bpy.data.node_groups, mods.nodes.TEXEL_GROUP) is tree
+        finally:
+            bpy.data.objects.remove(ob)
+            bpy.data.node_groups.remove(tree)
