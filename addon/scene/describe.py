@@ -215,19 +215,22 @@ def describe_bounds(depsgraph, instances: Optional[InstanceSet] = None) -> Scene
     """
     inst = walk_instances(depsgraph) if instances is None else instances
     check_finite_instances(inst)
-    boxes = inst.world_boxes()
-    return SceneBounds(boxes[inst.casts], boxes[inst.receives])
+    return inst.bounds  # made once per instance set, with its culling index
 
 
 def _first_bad(inst: InstanceSet, bad: np.ndarray) -> str:
     return inst.names[int(np.flatnonzero(bad)[0])]
 
 
+_finite_sets: "weakref.WeakSet" = weakref.WeakSet()
+"""Instance sets already found finite (a cache hands out the same set while the scene is unchanged)."""
+
+
 def check_finite_instances(inst: InstanceSet) -> None:
     """Refuse a scene with non-finite numbers in an object's transform or bounds,
     naming the first such object (a NaN would silently spread through B and the
-    maps)."""
-    if len(inst) == 0:
+    maps). Each instance set is checked once."""
+    if len(inst) == 0 or inst in _finite_sets:
         return
     bad = ~_finite(inst.matrices, (1, 2))
     if bad.any():
@@ -242,6 +245,7 @@ def check_finite_instances(inst: InstanceSet) -> None:
     if bad.any():
         raise WarpError(f"Object '{_first_bad(inst, bad)}' reaches beyond the range of floating-point numbers: "
                         f"scale it down or move it closer to the origin")
+    _finite_sets.add(inst)
 
 
 _finite_meshes: "weakref.WeakValueDictionary" = weakref.WeakValueDictionary()

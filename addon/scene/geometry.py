@@ -24,11 +24,12 @@ from __future__ import annotations
 import logging
 import zlib
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Optional
 
 import numpy as np
 
-from .instances import InstanceSet, walk_instances
+from .instances import InstanceSet, scene_instances
 
 log = logging.getLogger(__name__)
 
@@ -49,9 +50,11 @@ class MeshData:
         return len(self.triangles)
 
 
-@dataclass
+@dataclass(eq=False)
 class SceneGeometry:
-    """What the gpu pipeline draws: every instance and the meshes they use."""
+    """What the gpu pipeline draws: every instance and the meshes they use.
+    Never changed once made (a cache hands out the same object while the scene
+    is unchanged)."""
 
     instances: InstanceSet
     meshes: dict = field(default_factory=dict)
@@ -59,14 +62,19 @@ class SceneGeometry:
     @property
     def triangle_count(self) -> int:
         """Triangles over all instances."""
-        return int(sum(self.meshes[k].triangle_count for k in self.instances.keys))
+        return int(self.key_triangles[self.instances.key_ids].sum())
+
+    @cached_property
+    def key_triangles(self) -> np.ndarray:
+        """Triangles of each of ``instances.key_list``."""
+        return np.array([self.meshes[k].triangle_count for k in self.instances.key_list], dtype=np.int64)
 
     @classmethod
     def from_arrays(cls, parts) -> "SceneGeometry":
         """Geometry without bpy objects (tests, benchmarks): ``parts`` is a list of
         ``(name, positions (V,3), triangles (T,3), matrices (N,4,4) or None,
         casts=True)`` tuples; each part becomes one mesh drawn once per matrix."""
-        meshes, keys, names, mats, boxes, casts = {}, [], [], [], [], []
+        meshes, keys, mats, boxes, casts = {}, [], [], {}, []
         for part in parts:
             name, pos, tris, m = part[:4]
             cast = part[4] if len(part) > 4 else True
@@ -75,16 +83,12 @@ class SceneGeometry:
             tris = np.asarray(tris, dtype=np.int32).reshape(-1, 3)
             meshes[key] = MeshData(key, pos, tris, fingerprint=_fingerprint(pos, tris), version=1)
             m = np.eye(4)[None] if m is None else np.asarray(m, dtype=np.float64).reshape(-1, 4, 4)
-            box = np.array([pos.min(axis=0), pos.max(axis=0)], dtype=np.float64)
-            for mi in m:
-                keys.append(key)
-                names.append(name)
-                mats.append(mi)
-                boxes.append(box)
-                casts.append(bool(cast))
-        inst = InstanceSet(keys=keys, names=names, matrices=np.asarray(mats).reshape(-1, 4, 4),
-                           local_boxes=np.asarray(boxes).reshape(-1, 2, 3),
-                           casts=np.asarray(casts, dtype=bool), receives=np.ones(len(keys), dtype=bool))
+            boxes[key] = np.array([pos.min(axis=0), pos.max(axis=0)], dtype=np.float64)
+            keys += [key] * len(m)
+            mats.append(m)
+            casts += [bool(cast)] * len(m)
+        inst = InstanceSet.from_lists(keys, np.concatenate(mats) if mats else np.zeros((0, 4, 4)), boxes, casts,
+                                      np.ones(len(keys), dtype=bool))
         return cls(inst, meshes)
 
 
@@ -183,11 +187,21 @@ def _flagged_names(depsgraph) -> set:
 
 
 class GeometryCache:
-    """Meshes by geometry key, kept across renders.
+    """The scene's instances and meshes, kept across renders.
 
-    ``update(depsgraph)`` walks the evaluated scene and returns a
-    :class:`SceneGeometry`; ``extractions`` counts meshes whose triangles were
-    (re-)read, ``reused`` those taken from the cache as they were.
+    ``update(depsgraph)`` reads the evaluated scene (:func:`.instances.scene_instances`:
+    arrays on Blender 4.3+, the walk before) and returns a :class:`SceneGeometry`.
+    Only what changed is redone:
+
+    * a mesh is re-read only when its content changed (its fingerprint; or,
+      with ``trust_updates``, when the depsgraph flags it);
+    * when every instance (keys, matrices, visibility) and every mesh is as
+      last time, the same ``SceneGeometry`` and ``InstanceSet`` objects are
+      returned, so what hangs on them (the scene bounds and their culling
+      index, the GPU's instance matrices) is not rebuilt.
+
+    Counters: ``extractions`` meshes (re-)read, ``reused`` meshes taken as they
+    were, ``instance_sets`` new instance sets made (the scene's instances changed).
     """
 
     KEEP_UNUSED = 8
@@ -197,17 +211,20 @@ class GeometryCache:
         self.meshes: dict = {}
         self.extractions = 0
         self.reused = 0
+        self.instance_sets = 0
         self._last_depsgraph = None
         self._generation = 0
         self._last_used: dict = {}
+        self._last: Optional[SceneGeometry] = None
 
     def clear(self) -> None:
         self.meshes.clear()
         self._last_used.clear()
         self._last_depsgraph = None
+        self._last = None
 
     def update(self, depsgraph, exclude=None, trust_updates: bool = False) -> SceneGeometry:
-        """Walk ``depsgraph`` and return its geometry; ``exclude(ob_eval)`` -> True
+        """Read ``depsgraph`` and return its geometry; ``exclude(ob_eval)`` -> True
         leaves an object out (e.g. Lixel's own debug objects). ``trust_updates``:
         ``depsgraph.updates`` lists every change since the last call with this
         depsgraph (see the module docstring)."""
@@ -215,7 +232,7 @@ class GeometryCache:
         flagged = _flagged_names(depsgraph) if same_graph else set()
         used: dict = {}
 
-        def on_geometry(key, ob):
+        def on_geometry(key, ob, mesh=None):
             if exclude is not None and exclude(ob):
                 return False
             old = self.meshes.get(key)
@@ -223,8 +240,8 @@ class GeometryCache:
                 used[key] = old
                 self.reused += 1
                 return True
-            got = read_object(ob)
-            if got is None:
+            got = read_mesh(mesh) if mesh is not None else read_object(ob)
+            if got is None or len(got[1]) == 0:
                 return False
             pos, tris, fp = got
             if old is not None and old.fingerprint == fp:
@@ -235,7 +252,7 @@ class GeometryCache:
             used[key] = MeshData(key, pos, tris, fp, version=(old.version + 1) if old is not None else 1)
             return True
 
-        instances = walk_instances(depsgraph, on_geometry)
+        instances = scene_instances(depsgraph, on_geometry)
         # Keep entries of objects not drawn this time (hidden, another scene) for a
         # while, then forget them (deleted objects must not pin memory).
         self._generation += 1
@@ -246,7 +263,16 @@ class GeometryCache:
             del self._last_used[k]
             self.meshes.pop(k, None)
         self._last_depsgraph = depsgraph.as_pointer()
-        return SceneGeometry(instances, used)
+        last = self._last
+        if last is not None and last.meshes.keys() == used.keys() and \
+                all(last.meshes[k] is m for k, m in used.items()) and instances.same_as(last.instances):
+            return last
+        if last is not None and instances.same_as(last.instances):
+            instances = last.instances
+        else:
+            self.instance_sets += 1
+        self._last = SceneGeometry(instances, used)
+        return self._last
 
 
 _shared_cache: Optional[GeometryCache] = None

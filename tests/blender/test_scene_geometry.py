@@ -127,3 +127,89 @@ def test_cache_forgets_meshes_unused_for_a_while(geom, scene):
     cache.update(depsgraph(scene))
     assert ("ME", "Gone") not in cache.meshes and ("ME", "Kept") in cache.meshes
     assert keep.name == "Kept"
+
+
+def _scatter(host, instance_obj, as_instance: bool, count=6):
+    """Geometry nodes on ``host``: ``count`` points, each an instance of ``instance_obj``'s
+    geometry (or of the object itself, ``as_instance``), randomly turned and scaled."""
+    ng = bpy.data.node_groups.new("lixel_scatter_test", "GeometryNodeTree")
+    ng.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    nodes, links = ng.nodes, ng.links
+    gin, go = nodes.new("NodeGroupInput"), nodes.new("NodeGroupOutput")
+    pts = nodes.new("GeometryNodePoints")
+    pts.inputs["Count"].default_value = count
+    rnd = nodes.new("FunctionNodeRandomValue")
+    rnd.data_type = "FLOAT_VECTOR"
+    links.new(rnd.outputs[0], pts.inputs["Position"])
+    info = nodes.new("GeometryNodeObjectInfo")
+    info.inputs["Object"].default_value = instance_obj
+    info.inputs["As Instance"].default_value = as_instance
+    iop = nodes.new("GeometryNodeInstanceOnPoints")
+    links.new(pts.outputs["Points"], iop.inputs["Points"])
+    links.new(info.outputs["Geometry"], iop.inputs["Instance"])
+    links.new(rnd.outputs[0], iop.inputs["Rotation"])
+    join = nodes.new("GeometryNodeJoinGeometry")
+    links.new(iop.outputs["Instances"], join.inputs[0])
+    links.new(gin.outputs[0], join.inputs[0])       # the host's own mesh is drawn too
+    links.new(join.outputs[0], go.inputs[0])
+    host.modifiers.new("scatter", "NODES").node_group = ng
+    return ng
+
+
+def _instance_rows(inst):
+    return sorted((k, tuple(np.round(m, 5).ravel()), bool(c), bool(r))
+                  for k, m, c, r in zip(inst.keys, inst.matrices, inst.casts, inst.receives))
+
+
+def test_array_reader_reads_what_the_walk_reads(geom, scene):
+    """Blender 4.3+: geometry-nodes instances read as arrays (instances_pointcloud)
+    give the same instances, keys, matrices, visibility and boxes as the walk over
+    depsgraph.object_instances, for geometry instances, object instances (nested),
+    mirrored and moved instancers and plain objects."""
+    inst_mod = importlib.import_module(geom.__name__.rsplit(".", 1)[0] + ".instances")
+    if not inst_mod.fast_reader_available():
+        pytest.skip("Object.evaluated_geometry is Blender 4.3+")
+    tree = mesh(scene, "Tree", [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 2)], [(0, 1, 2), (0, 1, 3), (1, 2, 3)])
+    tree.visible_shadow = False
+    host = mesh(scene, "Host", [(0, 0, 0), (4, 0, 0), (4, 4, 0)], [(0, 1, 2)])
+    host.location = (10, -3, 1)
+    host.scale = (1, -2, 1)                      # mirrors: the instances' matrices go through it
+    other = mesh(scene, "Other", [(0, 0, 0), (1, 0, 0), (1, 1, 0)], [(0, 1, 2)])
+    other.visible_camera = False
+    trees = _scatter(host, tree, as_instance=False)
+    objects = _scatter(other, tree, as_instance=True, count=4)
+    sub = tree.modifiers.new("sub", "SUBSURF")
+    sub.levels = 1
+    try:
+        dg = depsgraph(scene)
+        fast = inst_mod.read_instances(dg)
+        walk = inst_mod.walk_instances(dg)
+        assert fast is not None and len(fast) == len(walk) == 1 + 1 + 1 + 6 + 4
+        assert _instance_rows(fast) == _instance_rows(walk)
+        boxes = lambda s: {k: tuple(np.round(b, 5).ravel()) for k, b in zip(s.key_list, s.key_boxes)}  # noqa: E731
+        assert boxes(fast) == boxes(walk)
+        gc = geom.GeometryCache()
+        g = gc.update(dg)
+        assert g.triangle_count == sum(gc.meshes[k].triangle_count for k in walk.keys)
+    finally:
+        bpy.data.node_groups.remove(trees)
+        bpy.data.node_groups.remove(objects)
+
+
+def test_array_reader_leaves_particles_to_the_walk(geom, scene):
+    inst_mod = importlib.import_module(geom.__name__.rsplit(".", 1)[0] + ".instances")
+    box = mesh(scene, "Box", [(0, 0, 0), (1, 0, 0), (1, 1, 0)], [(0, 1, 2)])
+    empty = bpy.data.objects.new("Group", None)
+    coll = bpy.data.collections.new("lixel_group_test")
+    coll.objects.link(box)
+    empty.instance_type = "COLLECTION"
+    empty.instance_collection = coll
+    scene.collection.objects.link(empty)
+    try:
+        dg = depsgraph(scene)
+        assert inst_mod.read_instances(dg) is None
+        g = geom.GeometryCache().update(dg)
+        assert len(g.instances) == 2    # the box and its collection instance, through the walk
+    finally:
+        bpy.data.collections.remove(coll)
