@@ -92,8 +92,8 @@ def _mesh(bpy, name, verts, quads):
 def run(args) -> list[dict]:
     import bpy
 
-    from addon.gpu import pipeline
-    from addon.gpu.batches import BatchCache, instance_table
+    from addon.gpu import compose, pipeline
+    from addon.gpu.batches import GPUScene
     from addon.gpu.context import ensure_gpu_context
     from addon.scene.describe import describe_scene, evaluated_depsgraph
     from addon.scene.geometry import GeometryCache
@@ -116,17 +116,16 @@ def run(args) -> list[dict]:
         for size in args.sizes:
             settings = LixelSettings(method=method, warp=WarpOptions(shadow_map_size=(size, size)))
             setup = compute(method, view, light, bounds, settings.warp, body=body)
-            batches = BatchCache()
-            first = pipeline.render_shadows(view, light, setup, geometry, settings, body=body, batches=batches,
-                                            read_maps=False)
-            runs = [pipeline.render_shadows(view, light, setup, geometry, settings, body=body, batches=batches,
-                                            read_maps=False) for _ in range(args.repeat)]
-            med = {k: statistics.median(r["timings"][k] for r in runs) for k in runs[0]["timings"]}
-            casters = instance_table(geometry, np.ones(len(geometry.instances), dtype=bool))
+            gpu_scene = GPUScene()
+            first = pipeline.render_shadows(view, light, setup, geometry, settings, body=body, scene=gpu_scene)
+            runs = [pipeline.render_shadows(view, light, setup, geometry, settings, body=body, scene=gpu_scene)
+                    for _ in range(args.repeat)]
+            med = {k: statistics.median(r.timings[k] for r in runs) for k in runs[0].timings}
+            casters = gpu_scene.draw_list("bench casters", np.ones(len(geometry.instances), dtype=bool))
 
             def depth(st, shadow, bare=False):
-                maps = pipeline.depth_pass(st, geometry, casters, shadow, batches, bare=bare)
-                pipeline._sync(maps[-1][1])
+                maps = pipeline.depth_pass(st, gpu_scene, casters, shadow, bare=bare)
+                compose.sync(maps[-1][1])
 
             linear_setup = compute(method, view, light, bounds, replace(settings.warp, linear_z=True), body=body)
             back = replace(settings.shadow, back_faces=True)
@@ -149,7 +148,7 @@ def run(args) -> list[dict]:
                 "method": method,
                 "camera": list(args.camera),
                 "extraction_ms": extraction * 1e3,
-                "upload_ms": first["timings"]["upload"] * 1e3,
+                "upload_ms": first.timings["upload"] * 1e3,
                 "depth_pass_ms": med["depth_pass"] * 1e3,
                 "shading_ms": med["shading"] * 1e3,
                 "readback_ms": med["readback"] * 1e3,
@@ -164,7 +163,7 @@ def run(args) -> list[dict]:
                 "map_bytes": size * size * 4,
                 "mdsm_layer_bytes": size * size * 4,
                 "mdsm_texture_bytes": size * size * 16,
-                "casters_drawn": first["counts"]["casters_drawn"],
+                "casters_drawn": first.counts.casters_drawn,
             })
         bpy.data.scenes.remove(scene)
     return rows

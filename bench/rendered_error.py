@@ -85,12 +85,6 @@ def _n_dot_l(gt, light) -> np.ndarray:
     return np.einsum("ij,ij->i", gt.normals.reshape(-1, 3), to_light).reshape(gt.shape)
 
 
-def _result_images(result):
-    """(shadow_raw, covered, world_position) of a render result, dict or typed."""
-    get = result.get if isinstance(result, dict) else (lambda k: getattr(result, k))
-    return get("shadow_raw"), get("covered"), get("world_position")
-
-
 def measure_scene(name: str, methods, sizes, resolution, images: Path | None, log) -> list[Measurement]:
     import bpy
     from addon.measure import classify, footprint_stats, setup_footprints
@@ -100,6 +94,7 @@ def measure_scene(name: str, methods, sizes, resolution, images: Path | None, lo
     from addon.scene.geometry import GeometryCache
     from addon.settings import LixelSettings
     from bench.report import ground_truth as G
+    from bench.report.lixel import READ
     from bench.report.run import comparable_mask
 
     scene = open_scene(name)
@@ -122,12 +117,12 @@ def measure_scene(name: str, methods, sizes, resolution, images: Path | None, lo
             settings = dataclasses.replace(base, method=method,
                                            warp=dataclasses.replace(base.warp, shadow_map_size=(size, size)))
             t = time.perf_counter()
-            last = render_depsgraph(dg, resolution, settings=settings)
+            last = render_depsgraph(dg, resolution, settings=settings, read=READ)
             seconds = time.perf_counter() - t
             setup = last["setup"]
-            raw, covered, world = _result_images(last["result"])
-            shadow = raw >= 0.5
-            comparable = comparable_mask(gt, {"world_position": world, "covered": covered})
+            result = last["result"]
+            shadow = result.shadow_raw >= 0.5
+            comparable = comparable_mask(gt, result)
             counts = classify(shadow, gt.shadow, comparable, 2)
             n = max(counts.valid, 1)
             fp, _ = setup_footprints(view, setup, gt.points[lit], gt.normals[lit])

@@ -17,7 +17,9 @@
  *
  * Outputs: out_direct = (unshadowed direct light * albedo / pi, coverage),
  *          out_data   = (shadow 0..1, map index or -1, shadow-map texels per pixel, eye depth),
- *          out_world  = (world position, 1).
+ *          out_world  = (world position, 1), only with LIXEL_WORLD.
+ * Positions are relative to the frame's origin; the uniform block `lixel` is
+ * declared in addon/gpu/layout.py (LIXEL_SHADE).
  * The combined image (ambient + direct * (1 - shadow)) is composed after the
  * optional eye-space blur of the shadow channel (Scherzer §4.3). */
 #define LIXEL_PI 3.14159265358979
@@ -199,5 +201,7 @@ void main()
 
   out_direct = vec4(direct, 1.0);
   out_data = vec4(shadow, float(index), texels_per_pixel, eye_depth);
+#ifdef LIXEL_WORLD
   out_world = vec4(P, 1.0);
+#endif
 }

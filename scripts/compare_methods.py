@@ -59,12 +59,12 @@ def main(argv=None):
             for row in rows:
                 if "setup" not in row:
                     continue
-                out = renders.render_state(st, depsgraph, res, setup=row["setup"], geometry=geometry)
+                out = renders.render_state(st, depsgraph, res, setup=row["setup"], geometry=geometry, read={"combined"})
                 path = os.path.join(args.output_dir, f"{row['method']}.png")
-                renders.save_png(out["combined"], path)
-                images.append(out["combined"])
+                renders.save_png(out.combined, path)
+                images.append(out.combined)
                 doc["methods"][row["method"]]["picture"] = os.path.basename(path)
-                doc["methods"][row["method"]]["render_ms"] = sum(out["timings"].values()) * 1000
+                doc["methods"][row["method"]]["render_ms"] = sum(out.timings.values()) * 1000
             if images:
                 renders.save_png(renders.mosaic(images, columns=min(3, len(images))),
                                  os.path.join(args.output_dir, "comparison.png"))

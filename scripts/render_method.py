@@ -65,14 +65,14 @@ def main(argv=None):
             renders = s.module("addon.ui.renders")
             res = renders.render_state(st, s.bpy.context.evaluated_depsgraph_get(), resolution or st.view.resolution)
             if args.output:
-                renders.save_png(res["combined"], args.output)
+                renders.save_png(res.combined, args.output)
             if args.shadow_output:
                 import numpy as np
-                m = np.asarray(res["shadow_mask"], dtype=np.float32)
+                m = np.asarray(res.shadow_mask, dtype=np.float32)
                 renders.save_png(np.dstack([m, m, m, np.ones_like(m)]), args.shadow_output)
-            if args.map_output and res["shadow_maps"]:
-                renders.save_png(renders.depth_to_rgba(res["shadow_maps"][0]), args.map_output)
-            t = res["timings"]
+            if args.map_output and res.shadow_maps:
+                renders.save_png(renders.depth_to_rgba(res.shadow_maps[0]), args.map_output)
+            t = res.timings
             print(f"lixel: {st.method_used}: {len(st.setup.maps)} map(s), "
                   f"{sum(t.values()) * 1000:.0f} ms render ({', '.join(f'{k} {v * 1000:.0f}' for k, v in t.items())})")
         return 0

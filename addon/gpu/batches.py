@@ -1,10 +1,25 @@
-"""GPU batches (one per mesh datablock, kept across renders) and instance tables.
+"""The scene on the GPU: one batch per mesh, every instance's matrix in one
+texture, and per pass the list of instances it draws.
 
 Every batch has a single ``pos`` attribute (local space, float32); instances
-are drawn with ``GPUBatch.draw_instanced`` and fetch their object -> world
-matrix from an RGBA32F texture (shared notes §3: the gpu module exposes no
-per-instance vertex buffers). ``BatchCache.uploads`` counts geometry uploads
-so tests can show that a second render uploads nothing.
+are drawn with ``GPUBatch.draw_instanced``. The gpu module exposes no
+per-instance vertex buffers (shared notes §3), so the vertex stage fetches
+its instance from textures (``gpu_shaders/instance_lib.glsl``): a draw list
+(R32F, the ids of the instances a pass draws, grouped by batch and
+handedness; exact below 2^24 instances) and, through the id, the instance's object -> world matrix
+(RGBA32F, four texels per instance).
+
+What is uploaded when:
+
+* a batch when its mesh's content changed (``BatchCache``: version and fingerprint);
+* the matrices when the scene's instances changed (a new ``InstanceSet``:
+  a transform, visibility, an instance added or removed);
+* a draw list when the instances a pass draws differ from its last list
+  (the camera or the light moved enough to change the culling).
+
+A second frame of an unchanged scene and view uploads nothing; the counters
+(``BatchCache.uploads``, ``GPUScene.matrix_uploads``, ``GPUScene.list_uploads``)
+let tests show it.
 """
 from __future__ import annotations
 
@@ -74,9 +89,16 @@ def shared_batches() -> BatchCache:
     return _shared
 
 
+def _texture(fmt: str, width: int, rows: int, flat: np.ndarray):
+    """A texture from float32 data (the only data type ``GPUTexture`` takes from Python)."""
+    import gpu
+    return gpu.types.GPUTexture((width, rows), format=fmt, data=gpu.types.Buffer("FLOAT", flat.size, flat))
+
+
 @dataclass
 class DrawGroup:
-    """Instances of one batch with the same handedness, drawn in one call."""
+    """Instances of one batch with the same handedness, drawn in one call:
+    ``count`` ids from ``offset`` in the draw list."""
 
     key: tuple
     offset: int
@@ -86,10 +108,10 @@ class DrawGroup:
 
 
 @dataclass
-class InstanceTable:
-    """Matrices of the instances to draw, packed into one RGBA32F texture,
-    grouped by batch and handedness (a mirroring matrix flips winding, which
-    matters when culling faces)."""
+class DrawList:
+    """The instances one pass draws: their ids (an R32F texture) grouped by
+    batch and handedness (a mirroring matrix flips winding, which matters
+    when culling faces)."""
 
     texture: object
     groups: list = field(default_factory=list)
@@ -100,60 +122,124 @@ class InstanceTable:
         return sum(g.triangles * g.count for g in self.groups)
 
 
-def instance_table(geometry, mask: np.ndarray, origin=None) -> InstanceTable:
-    """Pack the instances of ``geometry`` selected by ``mask`` (bool (N,)), with
-    matrices relative to ``origin`` (float64 subtraction before the float32
-    upload, so far-away scenes keep their precision)."""
-    import gpu
-    inst = geometry.instances
-    idx = np.flatnonzero(mask)
-    if len(idx) == 0:
-        return InstanceTable(texture=None)
-    mats = inst.matrices[idx].copy()
-    if origin is not None:
-        mats[:, :3, 3] -= np.asarray(origin, dtype=np.float64)
-    mirrored = np.linalg.det(mats[:, :3, :3]) < 0
-    keys = [inst.keys[i] for i in idx]
-    order_keys = {}
-    for k in keys:
-        order_keys.setdefault(k, len(order_keys))
-    sort = np.lexsort((mirrored, np.array([order_keys[k] for k in keys])))
-    mats = mats[sort]
-    mirrored = mirrored[sort]
-    keys = [keys[i] for i in sort]
-    groups = []
-    start = 0
-    for i in range(1, len(keys) + 1):
-        if i == len(keys) or keys[i] != keys[start] or mirrored[i] != mirrored[start]:
-            k = keys[start]
-            groups.append(DrawGroup(k, start, i - start, bool(mirrored[start]), geometry.meshes[k].triangle_count))
-            start = i
-    n = len(mats)
-    rows = (n + INSTANCES_PER_ROW - 1) // INSTANCES_PER_ROW
-    per_row = min(n, INSTANCES_PER_ROW)
-    width = 4 * per_row
-    data = np.zeros((rows * per_row, 4, 4), dtype=np.float32)
-    data[:n] = mats.transpose(0, 2, 1)  # texel c of an instance = column c
-    buf = gpu.types.Buffer("FLOAT", data.size, data.ravel())
-    tex = gpu.types.GPUTexture((width, rows), format="RGBA32F", data=buf)
-    return InstanceTable(texture=tex, groups=groups, instance_count=n)
+class _Grouping:
+    """The instances of a set ordered by (geometry key, handedness), made once per set."""
+
+    def __init__(self, instances, key_triangles: np.ndarray):
+        code = instances.key_ids * 2 + instances.mirrored
+        self.order = np.argsort(code, kind="stable")
+        sorted_code = code[self.order]
+        self.starts = np.flatnonzero(np.r_[True, sorted_code[1:] != sorted_code[:-1]]) if len(code) else \
+            np.zeros(0, dtype=np.int64)
+        first = sorted_code[self.starts]
+        self.groups = [(instances.key_list[c // 2], bool(c % 2), int(key_triangles[c // 2])) for c in first]
 
 
-def draw_table(shader, batches: BatchCache, geometry, table: InstanceTable, cull: str = "NONE",
-               flip: bool = False) -> None:
-    """Draw every group of ``table`` with ``shader`` (already bound, its other
-    uniforms set). ``cull``: "NONE", "BACK" or "FRONT" faces. Counter-clockwise
-    is front unless ``flip`` (a view transform that mirrors) or the group is
-    mirrored, but not both."""
-    import gpu
-    if table.texture is None:
-        return
-    shader.uniform_sampler("u_instances", table.texture)
-    gpu.state.face_culling_set(cull)
-    for g in table.groups:
-        if cull != "NONE":
-            gpu.state.front_facing_set(g.mirrored != flip)
-        shader.uniform_int("u_instance_offset", g.offset)
-        batches.get(geometry.meshes[g.key]).draw_instanced(shader, instance_start=0, instance_count=g.count)
-    gpu.state.face_culling_set("NONE")
-    gpu.state.front_facing_set(False)
+class GPUScene:
+    """The GPU side of a :class:`~addon.scene.geometry.SceneGeometry`.
+
+    ``sync(geometry)`` uploads the instance matrices when the instance set is
+    a new one, relative to ``origin`` (the centre of the scene's boxes: the
+    GPU works in float32, so scenes far from the world origin keep their
+    precision; every matrix a pass uses is made relative to the same point).
+    ``draw_list(pass_name, mask)`` gives the ids of the instances selected by
+    ``mask``, uploaded only when they differ from that pass's last list.
+    """
+
+    def __init__(self, batches: BatchCache | None = None):
+        self.batches = batches if batches is not None else BatchCache()
+        self.geometry = None
+        self.instances = None
+        self.origin = np.zeros(3)
+        self.matrices = None
+        self.matrix_uploads = 0
+        self.list_uploads = 0
+        self._grouping = None
+        self._lists: dict = {}
+
+    def sync(self, geometry) -> None:
+        """Make ``geometry`` the scene drawn; uploads its instance matrices if they changed."""
+        if geometry is self.geometry:
+            return
+        self.geometry = geometry
+        self._lists.clear()
+        inst = geometry.instances
+        self._grouping = _Grouping(inst, geometry.key_triangles)
+        if inst is self.instances:
+            return
+        self.instances = inst
+        n = len(inst)
+        if n == 0:
+            self.matrices = None
+            return
+        boxes = inst.world_boxes()
+        self.origin = (boxes[:, 0].min(axis=0) + boxes[:, 1].max(axis=0)) / 2
+        mats = inst.matrices.copy()
+        mats[:, :3, 3] -= self.origin                      # relative in float64, then float32
+        rows = -(-n // INSTANCES_PER_ROW)
+        per_row = min(n, INSTANCES_PER_ROW)
+        data = np.zeros((rows * per_row, 4, 4), dtype=np.float32)
+        data[:n] = mats.transpose(0, 2, 1)                 # texel c of an instance = column c
+        self.matrices = _texture("RGBA32F", 4 * per_row, rows, data.ravel())
+        self.matrix_uploads += 1
+
+    def draw_list(self, pass_name: str, mask: np.ndarray) -> DrawList:
+        """The instances selected by ``mask`` (bool (N,)), for the pass ``pass_name``."""
+        hit = self._lists.get(pass_name)
+        if hit is not None and np.array_equal(hit[0], mask):
+            return hit[1]
+        g = self._grouping
+        chosen = mask[g.order]
+        ids = g.order[chosen].astype(np.int32)
+        n = len(ids)
+        groups = []
+        if n:
+            counts = np.add.reduceat(chosen, g.starts, dtype=np.int64)
+            offsets = np.cumsum(counts) - counts
+            for (key, mirrored, tris), c, o in zip(g.groups, counts.tolist(), offsets.tolist()):
+                if c:
+                    groups.append(DrawGroup(key, o, c, mirrored, tris))
+        texture = None
+        if n:
+            rows = -(-n // INSTANCES_PER_ROW)
+            per_row = min(n, INSTANCES_PER_ROW)
+            flat = np.zeros(rows * per_row, dtype=np.float32)
+            flat[:n] = ids                                 # exact below 2^24 instances
+            texture = _texture("R32F", per_row, rows, flat)
+            self.list_uploads += 1
+        out = DrawList(texture, groups, n)
+        self._lists[pass_name] = (mask.copy(), out)
+        return out
+
+    def batch(self, key):
+        return self.batches.get(self.geometry.meshes[key])
+
+    def draw(self, shader, draw_list: DrawList, cull: str = "NONE", flip: bool = False) -> None:
+        """Draw ``draw_list`` with ``shader`` (already bound, its other uniforms
+        set). ``cull``: "NONE", "BACK" or "FRONT" faces. Counter-clockwise is
+        front unless ``flip`` (a view transform that mirrors) or the group is
+        mirrored, but not both."""
+        import gpu
+        if draw_list.texture is None:
+            return
+        shader.uniform_sampler("u_instances", self.matrices)
+        shader.uniform_sampler("u_ids", draw_list.texture)
+        gpu.state.face_culling_set(cull)
+        for g in draw_list.groups:
+            if cull != "NONE":
+                gpu.state.front_facing_set(g.mirrored != flip)
+            shader.uniform_int("u_instance_offset", g.offset)
+            self.batch(g.key).draw_instanced(shader, instance_start=0, instance_count=g.count)
+        gpu.state.face_culling_set("NONE")
+        gpu.state.front_facing_set(False)
+
+
+_shared_scene = None
+
+
+def shared_scene() -> GPUScene:
+    """The process-wide GPU scene (over the process-wide batches)."""
+    global _shared_scene
+    if _shared_scene is None:
+        _shared_scene = GPUScene(shared_batches())
+    return _shared_scene

@@ -1,11 +1,20 @@
 """The gpu pipeline: shadow maps drawn with Blender's ``gpu`` module and the
-camera's view shaded with them. :func:`render_shadows` is the public entry
-point (render engine, report, UI); see docs/architecture.md.
+camera's view shaded with them, the frame kept on the GPU until what is asked
+for is read back. See docs/architecture.md.
 
-Stages (each timed): upload (batches for new/changed meshes and instance
-tables), depth pass (one DEPTH_COMPONENT32F texture per map), MDSM build
-(n > 1), shading (camera depth pre-pass, then the shading pass with
-LESS_EQUAL), read-back, compose (eye-space blur, combined image, heatmap).
+A frame is a :class:`ShadowFrame`, run in the order its steps depend on::
+
+    frame = ShadowFrame(geometry, view, resolution)   # the scene on the GPU (uploads what changed)
+    frame.camera_prepass()                            # receivers in the view; the camera's depth
+    ...                                               # (the warp may read the pre-pass here)
+    frame.draw_maps(setup, shadow, body)              # casters that can shadow what is seen; MDSM keys
+    frame.shade(light, setup, shadow)                 # shading on the pre-pass depth (LESS_EQUAL)
+    result = frame.finish(read=...)                   # compose on the GPU, read back once
+
+:func:`render_shadows` runs all of it in one call (report, UI, tests). Each
+step is timed (stages: upload, camera_prepass, depth_pass, mdsm, shading,
+compose, readback); ``ShadowFrame(..., timed=False)`` drops the per-stage
+waits for the GPU (the render engine: one wait, at the read-back).
 """
 from __future__ import annotations
 
@@ -18,12 +27,15 @@ import numpy as np
 
 from ..settings import LixelSettings, ShadowSettings
 from ..warp.body import intersection_body
-from ..warp.culling import boxes_meeting
+from ..warp.culling import BoxIndex
 from ..warp.geometry import perpendicular, translation
 from ..warp.polyhedron import face_planes, hexahedron_faces
-from ..warp.types import EmptyBodyError, Light, SceneBounds, ShadowSetup, View, WarpError
-from . import shaders
-from .batches import BatchCache, draw_table, instance_table, shared_batches
+from ..warp.types import EmptyBodyError, Light, ShadowSetup, View, WarpError
+from . import compose, shaders
+from .batches import DrawList, GPUScene, shared_scene
+from .layout import LIXEL_SHADE
+from .result import ANALYSIS, RenderCounts, RenderMemory, RenderResult, check_read
+from .targets import TargetPool, shared_targets
 
 log = logging.getLogger(__name__)
 
@@ -31,22 +43,6 @@ DEFAULT_ALBEDO = 0.8
 """Grey of every surface (Blender's default material base colour)."""
 DEFAULT_AMBIENT = (0.05, 0.05, 0.05)
 """World colour when none is given (Blender's default world)."""
-
-
-def _sync(fb, color: bool = False) -> None:
-    """Wait for the GPU (no gpu.finish in the API: read one pixel). Mesa's
-    llvmpipe finishes only what the read depends on: read colour after a pass
-    that writes colour but not depth."""
-    with fb.bind():
-        if color:
-            fb.read_color(0, 0, 1, 1, 4, 0, "FLOAT")
-        else:
-            fb.read_depth(0, 0, 1, 1)
-
-
-def _buffer(array: np.ndarray):
-    import gpu
-    return gpu.types.Buffer("FLOAT", array.shape, array)
 
 
 SLOPE_LIMIT = 0.02
@@ -117,8 +113,8 @@ def light_facing_winds_clockwise(shadow_map) -> bool:
     return bool(area < 0)
 
 
-def depth_pass(setup: ShadowSetup, geometry, table, shadow: ShadowSettings, batches: BatchCache,
-               bare: bool = False, origin=(0.0, 0.0, 0.0)) -> list:
+def depth_pass(setup: ShadowSetup, scene: GPUScene, casters: DrawList, shadow: ShadowSettings,
+               targets: Optional[TargetPool] = None, bare: bool = False) -> list:
     """Draw every map of ``setup``: returns [(depth texture, framebuffer)].
 
     Per map: clear to 1 (LESS) or 0 (GREATER, reversed test), depth test
@@ -127,14 +123,16 @@ def depth_pass(setup: ShadowSetup, geometry, table, shadow: ShadowSettings, batc
     ``depth_row . [P, 1]`` per fragment. Constant and slope-scale bias are
     applied where depths are compared (shading pass), so otherwise this is a
     bare draw. ``bare`` (the benchmark's reference) also drops culling and
-    linear z. ``origin``: the table's matrices are relative to it (see :func:`relative`).
+    linear z. Matrices are made relative to ``scene.origin`` (see :func:`relative`).
     """
     import gpu
+    targets = targets if targets is not None else shared_targets()
+    origin = scene.origin
     out = []
-    for m in setup.maps:
+    for i, m in enumerate(setup.maps):
         w, h = (int(v) for v in m.size)
-        tex = gpu.types.GPUTexture((w, h), format="DEPTH_COMPONENT32F")
-        fb = gpu.types.GPUFrameBuffer(depth_slot=tex)
+        tex = targets.texture(f"map{i}", (w, h), "DEPTH_COMPONENT32F")
+        fb = targets.framebuffer(depth=tex)
         greater = m.depth_test == "GREATER"
         linear = m.depth_row is not None and not bare
         shader = shaders.depth_shader(linear)
@@ -148,7 +146,7 @@ def depth_pass(setup: ShadowSetup, geometry, table, shadow: ShadowSettings, batc
             if linear:
                 shader.uniform_float("u_depth_row", tuple(float(v) for v in relative_row(m.depth_row, origin)))
             cull = "FRONT" if (shadow.back_faces and not bare) else "NONE"
-            draw_table(shader, batches, geometry, table, cull=cull, flip=light_facing_winds_clockwise(m))
+            scene.draw(shader, casters, cull=cull, flip=light_facing_winds_clockwise(m))
             gpu.state.depth_mask_set(False)
             gpu.state.depth_test_set("NONE")
         out.append((tex, fb))
@@ -160,27 +158,16 @@ def _gl_matrix(m: np.ndarray):
     return Matrix(np.asarray(m, dtype=np.float64).tolist())
 
 
-_fullscreen = None
-
-
-def _fullscreen_batch():
-    global _fullscreen
-    if _fullscreen is None:
-        from .batches import make_batch
-        _fullscreen = make_batch(np.array([(-1, -1, 0), (3, -1, 0), (-1, 3, 0)], np.float32),
-                                 np.array([(0, 1, 2)], np.int32))
-    return _fullscreen
-
-
-def mdsm_pass(maps: list, setup: ShadowSetup, shadow: ShadowSettings) -> list:
+def mdsm_pass(maps: list, setup: ShadowSetup, shadow: ShadowSettings, targets: Optional[TargetPool] = None) -> list:
     """n-depth key maps (RGBA32F) from the depth maps (Pagot et al. §4.3)."""
     import gpu
+    targets = targets if targets is not None else shared_targets()
     shader = shaders.mdsm_shader()
     out = []
-    for (depth, _), m in zip(maps, setup.maps):
+    for i, ((depth, _), m) in enumerate(zip(maps, setup.maps)):
         w, h = (int(v) for v in m.size)
-        keys = gpu.types.GPUTexture((w, h), format="RGBA32F")
-        fb = gpu.types.GPUFrameBuffer(color_slots=(keys,))
+        keys = targets.texture(f"keys{i}", (w, h), "RGBA32F")
+        fb = targets.framebuffer(colors=(keys,))
         with fb.bind():
             gpu.state.viewport_set(0, 0, w, h)
             gpu.state.depth_test_set("NONE")
@@ -189,50 +176,48 @@ def mdsm_pass(maps: list, setup: ShadowSetup, shadow: ShadowSettings) -> list:
             shader.uniform_float("u_params", (float(shadow.mdsm_depths), float(shadow.mdsm_neighbourhood),
                                               1.0 if shadow.mdsm_selection == "SORT" else 0.0,
                                               1.0 if m.depth_test == "GREATER" else 0.0))
-            _fullscreen_batch().draw(shader)
+            compose.fullscreen_batch().draw(shader)
         out.append((keys, fb))
     return out
 
 
 def shade_block(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSettings,
                 albedo: float = DEFAULT_ALBEDO, origin=(0.0, 0.0, 0.0), spot_blend: float = 0.0) -> np.ndarray:
-    """The shading pass's std140 uniform block (see gpu_shaders/lixel_types.glsl),
-    positions relative to ``origin``."""
+    """The shading pass's uniform block (``layout.LIXEL_SHADE``) as float32
+    rows, positions relative to ``origin``."""
     o = np.asarray(origin, dtype=np.float64)
-    per_map = 4 + 5 + shaders.MAX_POLYGON
-    header = 8
-    block = np.zeros((header + shaders.MAX_MAPS * per_map, 4), dtype=np.float64)
-    block[0] = (*(view.position - o), 1.0 if view.orthographic else 0.0)
-    block[1, :3] = view.direction
-    block[2] = relative_row(view.world_to_camera[2], o)
+    b = LIXEL_SHADE.block()
+    b.camera[:] = (*(view.position - o), 1.0 if view.orthographic else 0.0)
+    b.view_dir[:3] = view.direction
+    b.eye_row[:] = relative_row(view.world_to_camera[2], o)
     kind = {"SUN": 0.0, "POINT": 1.0, "SPOT": 2.0}[light.type]
-    block[3] = (*((light.position - o) if light.position is not None else (0, 0, 0)), kind)
+    b.light_pos[:] = (*((light.position - o) if light.position is not None else (0, 0, 0)), kind)
     cos_half = math.cos(light.spot_angle / 2) if light.type == "SPOT" else -1.0
-    block[4] = (*(light.direction if light.direction is not None else (0, 0, -1)), cos_half)
-    block[5] = (*(np.asarray(light.color, dtype=np.float64) * light.energy), albedo)
-    block[6] = (shadow.pcf_kernel, shadow.mdsm_depths, len(setup.maps), min(max(float(spot_blend), 0.0), 1.0))
-    block[7] = bias_vector(shadow)
+    b.light_dir[:] = (*(light.direction if light.direction is not None else (0, 0, -1)), cos_half)
+    b.light_color[:] = (*(np.asarray(light.color, dtype=np.float64) * light.energy), albedo)
+    b.params[:] = (shadow.pcf_kernel, shadow.mdsm_depths, len(setup.maps), min(max(float(spot_blend), 0.0), 1.0))
+    b.bias[:] = bias_vector(shadow)
     for i, m in enumerate(setup.maps):
-        base = header + i * per_map
-        block[base:base + 4] = relative(m.matrix, o).T  # columns
+        bm = b.maps[i]
+        bm.matrix[:] = relative(m.matrix, o).T  # columns
         if m.depth_row is not None:
-            block[base + 4] = relative_row(m.depth_row, o)
-        block[base + 5] = (m.size[0], m.size[1], 1.0 if m.depth_test == "GREATER" else 0.0,
-                           1.0 if m.depth_row is not None else 0.0)
+            bm.depth_row[:] = relative_row(m.depth_row, o)
+        bm.info[:] = (m.size[0], m.size[1], 1.0 if m.depth_test == "GREATER" else 0.0,
+                      1.0 if m.depth_row is not None else 0.0)
         if m.view_depth_range is not None:
-            block[base + 6, :3] = (m.view_depth_range[0], m.view_depth_range[1], 1.0)
+            bm.range[:3] = (m.view_depth_range[0], m.view_depth_range[1], 1.0)
         if m.region is not None:
             poly = np.asarray(m.region.polygon, dtype=np.float64).reshape(-1, 3)
             if len(poly) > shaders.MAX_POLYGON:
                 raise WarpError(f"map {i} ({m.role}): its region polygon has {len(poly)} vertices; "
                                 f"the shader takes at most {shaders.MAX_POLYGON}")
-            block[base + 6, 3] = len(poly)
+            bm.range[3] = len(poly)
             normal = np.asarray(m.region.normal, dtype=np.float64)
-            block[base + 7] = (*normal, m.region.offset - normal @ o)
-            block[base + 8, 0] = m.region.tolerance
-            block[base + 9:base + 9 + len(poly), :3] = poly - o
-            block[base + 9:base + 9 + len(poly), 3] = 1.0
-    return block.astype(np.float32)
+            bm.plane[:] = (*normal, m.region.offset - normal @ o)
+            bm.extra[0] = m.region.tolerance
+            bm.polygon[:len(poly), :3] = poly - o
+            bm.polygon[:len(poly), 3] = 1.0
+    return b.float32()
 
 
 _dummies: dict = {}
@@ -246,111 +231,6 @@ def _dummy(fmt: str):
     return tex
 
 
-def shading_pass(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSettings, geometry, table,
-                 batches: BatchCache, maps: list, resolution: tuple[int, int], albedo: float = DEFAULT_ALBEDO,
-                 origin=(0.0, 0.0, 0.0), spot_blend: float = 0.0):
-    """Camera pass: depth pre-pass, then shading with LESS_EQUAL. Returns the
-    framebuffer and its three colour textures (direct, data, world position
-    relative to ``origin``)."""
-    import gpu
-    w, h = resolution
-    direct = gpu.types.GPUTexture((w, h), format="RGBA32F")
-    data = gpu.types.GPUTexture((w, h), format="RGBA32F")
-    world = gpu.types.GPUTexture((w, h), format="RGBA32F")
-    depth = gpu.types.GPUTexture((w, h), format="DEPTH_COMPONENT32F")
-    fb = gpu.types.GPUFrameBuffer(depth_slot=depth, color_slots=(direct, data, world))
-    view_proj = _gl_matrix(relative(view.world_to_clip, origin))
-    mdsm = shadow.mdsm_depths > 1
-    ubo = gpu.types.GPUUniformBuf(shade_block(view, light, setup, shadow, albedo, origin, spot_blend).tobytes())
-    with fb.bind():
-        gpu.state.viewport_set(0, 0, w, h)
-        fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
-        pre = shaders.prepass_shader()
-        gpu.state.depth_test_set("LESS_EQUAL")
-        gpu.state.depth_mask_set(True)
-        gpu.state.color_mask_set(False, False, False, False)
-        pre.bind()
-        pre.uniform_float("u_view_proj", view_proj)
-        draw_table(pre, batches, geometry, table)
-        gpu.state.color_mask_set(True, True, True, True)
-        gpu.state.depth_mask_set(False)
-        sh = shaders.shade_shader(mdsm, len(setup.maps))
-        sh.bind()
-        sh.uniform_float("u_view_proj", view_proj)
-        sh.uniform_block("lixel", ubo)
-        dummy = _dummy("RGBA32F" if mdsm else "DEPTH_COMPONENT32F")
-        for i in range(shaders.MAX_MAPS):
-            sh.uniform_sampler(f"u_map{i}", maps[i][0] if i < len(maps) else dummy)
-        draw_table(sh, batches, geometry, table)
-        gpu.state.depth_test_set("NONE")
-    return fb, (direct, data, world)
-
-
-def read_color(fb, slot: int, size: tuple[int, int]) -> np.ndarray:
-    """(H, W, 4) float32, row 0 at the bottom."""
-    w, h = size
-    out = np.empty((h, w * 4), dtype=np.float32)
-    with fb.bind():
-        fb.read_color(0, 0, w, h, 4, slot, "FLOAT", data=_buffer(out))
-    return out.reshape(h, w, 4)
-
-
-def read_depth(fb, size: tuple[int, int]) -> np.ndarray:
-    """(H, W) float32 window depth, row 0 at the bottom."""
-    w, h = size
-    out = np.empty((h, w), dtype=np.float32)
-    with fb.bind():
-        fb.read_depth(0, 0, w, h, data=_buffer(out))
-    return out
-
-
-def eye_space_blur(shadow: np.ndarray, eye_depth: np.ndarray, covered: np.ndarray, radius: float) -> np.ndarray:
-    """Depth-dependent eye-space blur of the shadow image (Scherzer §4.3): a box
-    blur whose radius is ``radius`` pixels at the nearest visible surface and
-    falls as 1 / eye depth, so near shadows (where projection aliasing is
-    large on screen) are blurred most and distant detail is kept. Only covered
-    pixels contribute."""
-    if radius <= 0 or not covered.any():
-        return shadow
-    d = np.where(covered, eye_depth, np.inf)
-    d_near = float(d[covered].min())
-    r_px = np.where(covered, radius * d_near / np.maximum(d, d_near), 0.0)
-    levels = np.rint(r_px).astype(np.int64)
-    out = shadow.copy()
-    wgt = covered.astype(np.float64)
-    val = shadow.astype(np.float64) * wgt
-
-    def box(img, r):
-        p = np.pad(img, r, mode="constant")
-        c = np.cumsum(np.cumsum(p, 0), 1)
-        c = np.pad(c, ((1, 0), (1, 0)))
-        k = 2 * r + 1
-        return c[k:, k:] - c[:-k, k:] - c[k:, :-k] + c[:-k, :-k]
-
-    for r in range(1, int(levels.max()) + 1):
-        sel = levels == r
-        if not sel.any():
-            continue
-        num, den = box(val, r), box(wgt, r)
-        out[sel] = (num[sel] / np.maximum(den[sel], 1e-12)).astype(out.dtype)
-    return out
-
-
-def footprint_heatmap(texels_per_pixel: np.ndarray, covered: np.ndarray) -> np.ndarray:
-    """RGBA heatmap of shadow-map texels per screen pixel (the square root of the
-    Jacobian determinant of texel over pixel coordinates): red below 1 (a texel
-    covers several pixels: undersampled, aliasing), green at 1, blue above
-    (oversampled). Colour = log2 ratio clamped to [-4, 4]."""
-    t = np.clip(np.log2(np.maximum(texels_per_pixel, 1e-6)) / 4.0, -1.0, 1.0)
-    rgba = np.zeros(texels_per_pixel.shape + (4,), dtype=np.float32)
-    rgba[..., 0] = np.clip(-t, 0, 1)
-    rgba[..., 1] = 1.0 - np.abs(t)
-    rgba[..., 2] = np.clip(t, 0, 1)
-    rgba[..., 3] = 1.0
-    rgba[~covered] = (0.0, 0.0, 0.0, 1.0)
-    return rgba
-
-
 def _shadow_settings(settings) -> ShadowSettings:
     if settings is None:
         return LixelSettings().shadow
@@ -359,11 +239,255 @@ def _shadow_settings(settings) -> ShadowSettings:
     return settings.shadow
 
 
+def _view_planes(view: View) -> tuple[np.ndarray, np.ndarray]:
+    planes = face_planes(hexahedron_faces(view.corners()))
+    return np.array([p.normal for p in planes]), np.array([p.offset for p in planes])
+
+
+class ShadowFrame:
+    """One frame of the pipeline (see the module docstring for the order of
+    the steps). ``geometry``: an ``addon.scene.geometry.SceneGeometry``;
+    ``resolution``: (w, h), default ``view.resolution``; ``scene``: the
+    :class:`GPUScene` (default the process-wide one); ``targets``: the render
+    targets (default the process-wide pool).
+    """
+
+    def __init__(self, geometry, view: View, resolution: Optional[tuple[int, int]] = None, *,
+                 scene: Optional[GPUScene] = None, targets: Optional[TargetPool] = None, timed: bool = True):
+        self.geometry = geometry
+        self.view = view
+        w, h = resolution or view.resolution
+        self.size = (int(w), int(h))
+        self.scene = scene if scene is not None else shared_scene()
+        self.targets = targets if targets is not None else shared_targets()
+        self.timed = timed
+        self.timings: dict = {}
+        self.counts = RenderCounts(instances=len(geometry.instances))
+        self._before = (self.scene.batches.uploads, self.scene.batches.uploaded_triangles,
+                        self.scene.matrix_uploads, self.scene.list_uploads, self.targets.allocations)
+        t = time.perf_counter()
+        self.scene.sync(geometry)
+        self.timings["upload"] = time.perf_counter() - t
+        self.origin = self.scene.origin
+        """Every position the GPU sees is relative to this point (float32 precision)."""
+        self.receivers: Optional[DrawList] = None
+        self.casters: Optional[DrawList] = None
+        self.maps: list = []
+        self.keys: list = []
+        self.setup: Optional[ShadowSetup] = None
+        self._depth = None
+        self._shade_fb = None
+        self._world = False
+
+    # ------------------------------------------------------------ steps
+
+    def _stage(self, name: str, t0: float, fb=None, color: bool = False) -> None:
+        if self.timed and fb is not None:
+            compose.sync(fb, color)
+        self.timings[name] = self.timings.get(name, 0.0) + time.perf_counter() - t0
+
+    def _select(self, which: str, normals, offsets, tol: float) -> np.ndarray:
+        """Instances of ``which`` ("casters" / "receivers") meeting the region, as a mask over all instances."""
+        inst = self.geometry.instances
+        mask = np.zeros(len(inst), dtype=bool)
+        sel = BoxIndex.of(inst.bounds, which).select(normals, offsets, tol)
+        mask[inst.caster_ids if which == "casters" else inst.receiver_ids] = sel.mask
+        return mask
+
+    def camera_prepass(self):
+        """Cull the receivers to the view frustum and draw their depth from the
+        camera (``prepass_shader``). Returns the camera depth texture (window
+        depth, row 0 at the bottom), which the shading pass tests against."""
+        import gpu
+        if self._depth is not None:
+            return self._depth
+        t = time.perf_counter()
+        view = self.view
+        n, o = _view_planes(view)
+        mask = self._select("receivers", n, o, 1e-9 * max(view.far, 1.0))
+        self.receivers = self.scene.draw_list("receivers", mask)
+        self.counts.receivers_drawn = self.receivers.instance_count
+        self.counts.receiver_triangles_drawn = self.receivers.triangle_count
+        self._view_proj = _gl_matrix(relative(view.world_to_clip, self.origin))
+        w, h = self.size
+        depth = self.targets.texture("camera_depth", self.size, "DEPTH_COMPONENT32F")
+        fb = self.targets.framebuffer(depth=depth)
+        with fb.bind():
+            gpu.state.viewport_set(0, 0, w, h)
+            fb.clear(depth=1.0)
+            pre = shaders.prepass_shader()
+            gpu.state.depth_test_set("LESS_EQUAL")
+            gpu.state.depth_mask_set(True)
+            pre.bind()
+            pre.uniform_float("u_view_proj", self._view_proj)
+            self.scene.draw(pre, self.receivers)
+            gpu.state.depth_mask_set(False)
+            gpu.state.depth_test_set("NONE")
+        self._depth = depth
+        self._stage("camera_prepass", t, fb)
+        return depth
+
+    def draw_maps(self, setup: ShadowSetup, shadow: ShadowSettings, body=None) -> list:
+        """Cull the casters to those that can shadow what the camera sees
+        (B's light-extruded hull, ``body.hull_halfspaces``; none without a
+        body) and draw the maps of ``setup`` (and their MDSM keys when
+        ``shadow.mdsm_depths`` > 1). Returns [(depth texture, framebuffer)]."""
+        if not setup.maps:
+            raise WarpError("the shadow setup has no maps")
+        if len(setup.maps) > shaders.MAX_MAPS:
+            raise WarpError(f"the shadow setup has {len(setup.maps)} maps; Lixel's shader takes at most "
+                            f"{shaders.MAX_MAPS}")
+        t = time.perf_counter()
+        inst = self.geometry.instances
+        if body is not None and inst.casts.any():
+            hn, ho = body.hull_halfspaces
+            mask = self._select("casters", hn, ho, body.tolerance * 10)
+        else:
+            mask = np.zeros(len(inst), dtype=bool)
+        self.casters = self.scene.draw_list("casters", mask)
+        c = self.counts
+        c.maps = len(setup.maps)
+        c.casters_drawn = self.casters.instance_count
+        culled = inst.casts & ~mask
+        c.casters_culled = int(culled.sum())
+        c.non_casters = int((~inst.casts).sum())
+        c.caster_triangles_drawn = self.casters.triangle_count
+        c.caster_triangles_culled = int(self.geometry.key_triangles[inst.key_ids[culled]].sum())
+        self.timings["upload"] += time.perf_counter() - t
+        t = time.perf_counter()
+        self.setup = setup
+        self.maps = depth_pass(setup, self.scene, self.casters, shadow, self.targets)
+        self._stage("depth_pass", t, self.maps[-1][1])
+        t = time.perf_counter()
+        self.keys = mdsm_pass(self.maps, setup, shadow, self.targets) if shadow.mdsm_depths > 1 else []
+        self._stage("mdsm", t, self.keys[-1][1] if self.keys else None, color=True)
+        return self.maps
+
+    def shade(self, light: Light, setup: ShadowSetup, shadow: ShadowSettings, albedo: float = DEFAULT_ALBEDO,
+              spot_blend: float = 0.0, world: bool = False) -> None:
+        """The shading pass over the pre-pass depth (LESS_EQUAL, no depth
+        writes): per pixel the direct light and (shadow, map index, texels per
+        pixel, eye depth); ``world``: also the world position (the report)."""
+        import gpu
+        if self._depth is None:
+            self.camera_prepass()
+        if setup is not self.setup:
+            raise WarpError("shade() takes the setup whose maps draw_maps() drew")
+        t = time.perf_counter()
+        direct = self.targets.texture("direct", self.size, "RGBA32F")
+        data = self.targets.texture("data", self.size, "RGBA32F")
+        colors = (direct, data) + ((self.targets.texture("world", self.size, "RGBA32F"),) if world else ())
+        fb = self.targets.framebuffer(depth=self._depth, colors=colors)
+        mdsm = bool(self.keys)
+        block = shade_block(self.view, light, setup, shadow, albedo, self.origin, spot_blend)
+        ubo = gpu.types.GPUUniformBuf(block.tobytes())
+        w, h = self.size
+        with fb.bind():
+            gpu.state.viewport_set(0, 0, w, h)
+            fb.clear(color=(0.0, 0.0, 0.0, 0.0))
+            gpu.state.depth_test_set("LESS_EQUAL")
+            gpu.state.depth_mask_set(False)
+            sh = shaders.shade_shader(mdsm, len(setup.maps), world)
+            sh.bind()
+            sh.uniform_float("u_view_proj", self._view_proj)
+            sh.uniform_block("lixel", ubo)
+            maps = self.keys or self.maps
+            dummy = _dummy("RGBA32F" if mdsm else "DEPTH_COMPONENT32F")
+            for i in range(shaders.MAX_MAPS):
+                sh.uniform_sampler(f"u_map{i}", maps[i][0] if i < len(maps) else dummy)
+            self.scene.draw(sh, self.receivers)
+            gpu.state.depth_test_set("NONE")
+        self._shade_fb = fb
+        self._world = world
+        self._direct, self._data = direct, data
+        self._stage("shading", t, fb, color=True)
+
+    def finish(self, shadow: ShadowSettings, ambient=DEFAULT_AMBIENT, albedo: float = DEFAULT_ALBEDO,
+               read=ANALYSIS) -> RenderResult:
+        """Compose on the GPU and read back the images named in ``read`` (see
+        :class:`RenderResult`), each once."""
+        read = check_read(read)
+        if self._shade_fb is None:
+            raise WarpError("finish() needs shade() first")
+        if "world_position" in read and not self._world:
+            raise WarpError("the world position is made only when shade(world=True) asks for it")
+        t = time.perf_counter()
+        size, targets = self.size, self.targets
+        mask = None
+        if shadow.eye_blur > 0 and read & {"combined", "shadow_mask", "footprint_heatmap"}:
+            d_near, _ = compose.reduce_range(targets, self._data, size, channel=3, above=0.0)
+            if math.isfinite(d_near):
+                mask = compose.eye_blur_pass(targets, size, self._data, shadow.eye_blur, d_near)
+        fb = None
+        if read & {"combined", "shadow_mask", "footprint_heatmap"}:
+            fb = compose.compose_pass(targets, size, self._direct, self._data, ambient, albedo, mask)
+        preview = None
+        if "shadow_map_preview" in read:
+            _, preview = compose.map_preview_pass(targets, "map_preview", size, self.maps[0][0], stretch=False)
+        self._stage("compose", t, fb, color=True)
+
+        t = time.perf_counter()
+        out = RenderResult()
+        if fb is not None:
+            if "combined" in read:
+                out.combined = compose.read_color(fb, 0, size)
+            if "shadow_mask" in read:
+                out.shadow_mask = compose.read_color(fb, 1, size, 1)
+            if "footprint_heatmap" in read:
+                out.footprint_heatmap = compose.read_color(fb, 2, size)
+        if preview is not None:
+            out.shadow_map_preview = compose.read_color(preview, 0, size, 1)
+        if read & {"shadow_raw", "covered", "eye_depth", "map_index", "texels_per_pixel", "world_position"}:
+            data = compose.read_color(self._shade_fb, 1, size)
+            covered = data[..., 3] > 0.0
+            if "covered" in read:
+                out.covered = covered
+            if "shadow_raw" in read:
+                out.shadow_raw = np.where(covered, data[..., 0], 0.0).astype(np.float32)
+            if "eye_depth" in read:
+                out.eye_depth = np.where(covered, data[..., 3], np.inf).astype(np.float32)
+            if "map_index" in read:
+                out.map_index = np.where(covered, np.rint(data[..., 1]), -1).astype(np.int32)
+            if "texels_per_pixel" in read:
+                out.texels_per_pixel = np.where(covered, data[..., 2], 0.0).astype(np.float32)
+            if "world_position" in read:
+                world = compose.read_color(self._shade_fb, 2, size)
+                out.world_position = np.where(covered[..., None], world[..., :3] + self.origin, np.nan)
+        if "shadow_maps" in read:
+            out.shadow_maps = [compose.read_depth(f, tuple(int(v) for v in m.size))
+                               for (_, f), m in zip(self.maps, self.setup.maps)]
+        if "mdsm_keys" in read:
+            out.mdsm_keys = [compose.read_color(f, 0, tuple(int(v) for v in m.size))
+                             for (_, f), m in zip(self.keys, self.setup.maps)]
+        self.timings["readback"] = time.perf_counter() - t
+
+        s, c = self.scene, self.counts
+        c.uploads = s.batches.uploads - self._before[0]
+        c.uploaded_triangles = s.batches.uploaded_triangles - self._before[1]
+        c.matrix_uploads = s.matrix_uploads - self._before[2]
+        c.list_uploads = s.list_uploads - self._before[3]
+        c.target_allocations = self.targets.allocations - self._before[4]
+        map_bytes = [int(m.size[0]) * int(m.size[1]) * 4 for m in self.setup.maps]
+        w, h = size
+        out.memory = RenderMemory(
+            per_map_bytes=map_bytes,
+            mdsm_bytes_per_layer=list(map_bytes) if self.keys else [],
+            mdsm_texture_bytes=[b * 4 for b in map_bytes] if self.keys else [],
+            render_target_bytes=w * h * (4 + 2 * 16 + (16 if self._world else 0)),
+        )
+        out.timings = dict(self.timings)
+        out.counts = c
+        self.targets.trim()
+        return out
+
+
 def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, settings=None,
                    resolution: Optional[tuple[int, int]] = None, *, body=None,
-                   batches: Optional[BatchCache] = None, ambient=DEFAULT_AMBIENT, albedo: float = DEFAULT_ALBEDO,
-                   spot_blend: float = 0.0, read_maps: bool = True) -> dict:
-    """Render ``geometry`` from ``view`` with the shadow maps of ``setup``.
+                   scene: Optional[GPUScene] = None, targets: Optional[TargetPool] = None,
+                   ambient=DEFAULT_AMBIENT, albedo: float = DEFAULT_ALBEDO,
+                   spot_blend: float = 0.0, read=ANALYSIS) -> RenderResult:
+    """Render ``geometry`` from ``view`` with the shadow maps of ``setup``: a
+    whole :class:`ShadowFrame` in one call.
 
     Needs a GPU context (``addon.gpu.context.ensure_gpu_context()``; inside a
     RenderEngine with ``bl_use_gpu_context`` it already exists).
@@ -373,135 +497,28 @@ def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, setti
     ``settings``: ``LixelSettings`` or ``ShadowSettings`` (bias, PCF, MDSM, blur);
     default ``LixelSettings()``. ``resolution``: (w, h), default
     ``view.resolution``. ``body``: the intersection body if already computed
-    (it culls casters); computed from the geometry's boxes otherwise.
-    ``batches``: a ``BatchCache`` (default: the process-wide one).
+    (it culls casters); computed from the geometry's bounds otherwise.
+    ``scene``/``targets``: see :class:`ShadowFrame`.
     ``ambient``: world colour; ``albedo``: surface grey; ``spot_blend``: a spot
     light's Blender ``spot_blend`` (softness of the cone edge, 0 = hard).
-
-    Returns a dict; images are float32 numpy arrays with row 0 at the bottom
-    (Blender's render-result order):
-      combined (H,W,4)            ambient + direct * (1 - shadow), world colour behind
-      shadow_mask (H,W)           0 lit .. 1 fully shadowed (after the eye blur)
-      shadow_raw (H,W)            the same before the eye blur
-      covered (H,W) bool          a surface is visible
-      world_position (H,W,3)      float64 (computed in float32 relative to the camera), NaN off-surface
-      eye_depth (H,W)             distance along the view direction
-      map_index (H,W) int         map used (-1: none serves the point / not covered)
-      texels_per_pixel (H,W)      shadow-map footprint; footprint_heatmap (H,W,4)
-      shadow_maps [ (h,w) ]       window depth per map (if read_maps)
-      mdsm_keys [ (h,w,4) ]       n-depth keys per map when n > 1 (if read_maps)
-      timings {stage: seconds}    upload, depth_pass, mdsm, shading, readback, compose
-      counts {...}                casters drawn/culled, triangles, uploads
-      memory {...}                bytes per map, per MDSM layer, render targets
+    ``read``: the :class:`RenderResult` images to read back (default
+    ``result.ANALYSIS``; ``result.EVERYTHING`` adds the world position, the
+    maps and the map preview).
     """
     shadow = _shadow_settings(settings)
+    read = check_read(read)
     if not setup.maps:
         raise WarpError("the shadow setup has no maps")
     if len(setup.maps) > shaders.MAX_MAPS:
         raise WarpError(f"the shadow setup has {len(setup.maps)} maps; Lixel's shader takes at most {shaders.MAX_MAPS}")
-    w, h = resolution or view.resolution
-    batches = batches if batches is not None else shared_batches()
-    timings: dict = {}
-    t = time.perf_counter()
-
-    inst = geometry.instances
-    boxes = inst.world_boxes()
-    casts = inst.casts.copy()
+    frame = ShadowFrame(geometry, view, resolution, scene=scene, targets=targets)
     if body is None:
         try:
-            body = intersection_body(view, light, SceneBounds(boxes[casts], boxes[inst.receives]))
+            body = intersection_body(view, light, geometry.instances.bounds)
         except EmptyBodyError as exc:
             log.info("Lixel: %s; nothing casts a visible shadow", exc)
             body = None
-    caster_mask = np.zeros(len(inst), dtype=bool)
-    if body is not None and casts.any():
-        caster_mask[casts] = boxes_meeting(body.hull_planes, boxes[casts], body.tolerance * 10)
-    view_planes = face_planes(hexahedron_faces(view.corners()))
-    receiver_mask = inst.receives & boxes_meeting(view_planes, boxes, 1e-9 * max(view.far, 1.0))
-
-    uploads_before, tris_before = batches.uploads, batches.uploaded_triangles
-    for k in {inst.keys[i] for i in np.flatnonzero(caster_mask | receiver_mask)}:
-        batches.get(geometry.meshes[k])
-    origin = view.position  # the GPU works in float32 relative to the camera
-    casters = instance_table(geometry, caster_mask, origin)
-    receivers = instance_table(geometry, receiver_mask, origin)
-    timings["upload"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    maps = depth_pass(setup, geometry, casters, shadow, batches, origin=origin)
-    _sync(maps[-1][1])
-    timings["depth_pass"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    keys = mdsm_pass(maps, setup, shadow) if shadow.mdsm_depths > 1 else None
-    if keys:
-        _sync(keys[-1][1], color=True)
-    timings["mdsm"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    fb, _ = shading_pass(view, light, setup, shadow, geometry, receivers, batches, keys or maps, (w, h), albedo,
-                         origin, spot_blend)
-    _sync(fb, color=True)
-    timings["shading"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    direct = read_color(fb, 0, (w, h))
-    data = read_color(fb, 1, (w, h))
-    world = read_color(fb, 2, (w, h))
-    shadow_maps = [read_depth(f, tuple(int(v) for v in m.size)) for (_, f), m in zip(maps, setup.maps)] if read_maps else []
-    mdsm_keys = [read_color(f, 0, tuple(int(v) for v in m.size)) for (_, f), m in zip(keys, setup.maps)] \
-        if (keys and read_maps) else []
-    timings["readback"] = time.perf_counter() - t
-
-    t = time.perf_counter()
-    covered = direct[..., 3] > 0.5
-    raw = np.where(covered, data[..., 0], 0.0).astype(np.float32)
-    eye_depth = data[..., 3]
-    mask = eye_space_blur(raw, eye_depth, covered, shadow.eye_blur)
-    amb = np.asarray(ambient, dtype=np.float32)
-    combined = np.empty((h, w, 4), dtype=np.float32)
-    lit = direct[..., :3] * (1.0 - mask[..., None]) + albedo * amb
-    combined[..., :3] = np.where(covered[..., None], lit, amb)
-    combined[..., 3] = 1.0
-    tpp = np.where(covered, data[..., 2], 0.0).astype(np.float32)
-    world_pos = np.where(covered[..., None], world[..., :3] + origin, np.nan)
-    map_index = np.where(covered, np.rint(data[..., 1]), -1).astype(np.int32)
-    timings["compose"] = time.perf_counter() - t
-
-    map_bytes = [int(m.size[0]) * int(m.size[1]) * 4 for m in setup.maps]
-    counts = {
-        "maps": len(setup.maps),
-        "instances": len(inst),
-        "casters_drawn": int(caster_mask.sum()),
-        "casters_culled": int((casts & ~caster_mask).sum()),
-        "non_casters": int((~casts).sum()),
-        "caster_triangles_drawn": casters.triangle_count,
-        "caster_triangles_culled": int(sum(geometry.meshes[inst.keys[i]].triangle_count
-                                           for i in np.flatnonzero(casts & ~caster_mask))),
-        "receivers_drawn": int(receiver_mask.sum()),
-        "receiver_triangles_drawn": receivers.triangle_count,
-        "uploads": batches.uploads - uploads_before,
-        "uploaded_triangles": batches.uploaded_triangles - tris_before,
-    }
-    memory = {
-        "per_map_bytes": map_bytes,
-        "mdsm_bytes_per_layer": [b for b in map_bytes] if keys else [],
-        "mdsm_texture_bytes": [b * 4 for b in map_bytes] if keys else [],
-        "render_target_bytes": w * h * (3 * 16 + 4),
-    }
-    return {
-        "combined": combined,
-        "shadow_mask": mask,
-        "shadow_raw": raw,
-        "covered": covered,
-        "world_position": world_pos,
-        "eye_depth": np.where(covered, eye_depth, np.inf).astype(np.float32),
-        "map_index": map_index,
-        "texels_per_pixel": tpp,
-        "footprint_heatmap": footprint_heatmap(tpp, covered),
-        "shadow_maps": shadow_maps,
-        "mdsm_keys": mdsm_keys,
-        "timings": timings,
-        "counts": counts,
-        "memory": memory,
-    }
+    frame.camera_prepass()
+    frame.draw_maps(setup, shadow, body)
+    frame.shade(light, setup, shadow, albedo, spot_blend, world="world_position" in read)
+    return frame.finish(shadow, ambient, albedo, read)

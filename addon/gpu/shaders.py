@@ -11,16 +11,16 @@ import functools
 from pathlib import Path
 
 from ..warp.types import WarpError
+from .layout import LIXEL_SHADE, MAX_MAPS, MAX_POLYGON  # noqa: F401 (MAX_* re-exported)
 
 SHADER_DIR = Path(__file__).resolve().parents[2] / "gpu_shaders"
 
-MAX_MAPS = 8
-"""Shadow maps one shading pass can select from (sampler slots 0..7)."""
-MAX_POLYGON = 32
-"""Vertices of a plane map's region polygon passed to the shader."""
 INSTANCES_PER_ROW = 4096
-"""Instance matrices per row of the instance texture (4 texels each: 16384 wide)."""
+"""Instances per row of the instance textures (matrices: 4 texels each, 16384 wide; ids: 1 texel each)."""
 INSTANCE_SLOT = MAX_MAPS
+"""Sampler slot of the instance matrices (after the shading pass's maps)."""
+IDS_SLOT = MAX_MAPS + 1
+"""Sampler slot of a pass's draw list (instance ids)."""
 
 
 class ShaderBuildError(WarpError):
@@ -50,6 +50,14 @@ def _common_defines(info) -> None:
     info.define("LIXEL_MAX_POLYGON", str(MAX_POLYGON))
 
 
+def _instanced_vertex_input(info) -> None:
+    """The vertex inputs of an instanced draw (``instance_lib.glsl``)."""
+    info.vertex_in(0, "VEC3", "pos")
+    info.push_constant("INT", "u_instance_offset")
+    info.sampler(INSTANCE_SLOT, "FLOAT_2D", "u_instances")
+    info.sampler(IDS_SLOT, "FLOAT_2D", "u_ids")
+
+
 @functools.lru_cache(maxsize=None)
 def depth_shader(linear_z: bool):
     """Depth pass. ``linear_z`` writes ``gl_FragDepth`` from the map's depth row
@@ -65,57 +73,120 @@ def depth_shader(linear_z: bool):
         info.push_constant("VEC4", "u_depth_row")
         if hasattr(info, "depth_write"):
             info.depth_write("ANY")
-    info.vertex_in(0, "VEC3", "pos")
+    _instanced_vertex_input(info)
     info.push_constant("MAT4", "u_light")
-    info.push_constant("INT", "u_instance_offset")
-    info.sampler(0, "FLOAT_2D", "u_instances")
     info.vertex_source(source("instance_lib.glsl") + source("depth_vert.glsl"))
     info.fragment_source(source("depth_frag.glsl") if linear_z else source("bare_frag.glsl"))
     return _create(info, "depth pass")
 
 
-def _shade_info(prepass: bool, mdsm: bool, map_count: int = 1):
+def _shade_info(prepass: bool, mdsm: bool, map_count: int = 1, world: bool = False):
     import gpu
     info = gpu.types.GPUShaderCreateInfo()
     _common_defines(info)
     info.define("LIXEL_MAP_COUNT", str(int(map_count)))
     if mdsm:
         info.define("LIXEL_MDSM")
+    if world:
+        info.define("LIXEL_WORLD")
     iface = gpu.types.GPUStageInterfaceInfo("lixel_shade_iface")
     iface.smooth("VEC3", "v_world")
     info.vertex_out(iface)
-    info.vertex_in(0, "VEC3", "pos")
+    _instanced_vertex_input(info)
     info.push_constant("MAT4", "u_view_proj")
-    info.push_constant("INT", "u_instance_offset")
-    info.sampler(INSTANCE_SLOT, "FLOAT_2D", "u_instances")
     info.vertex_source(source("instance_lib.glsl") + source("shade_vert.glsl"))
     if prepass:
         info.fragment_source(source("bare_frag.glsl"))
         return info
-    info.typedef_source(source("lixel_types.glsl"))
-    info.uniform_buf(0, "LixelShade", "lixel")
+    info.typedef_source(LIXEL_SHADE.glsl())
+    info.uniform_buf(0, LIXEL_SHADE.name, "lixel")
     for i in range(MAX_MAPS):
         info.sampler(i, "FLOAT_2D" if mdsm else "DEPTH_2D", f"u_map{i}")
     info.fragment_out(0, "VEC4", "out_direct")
     info.fragment_out(1, "VEC4", "out_data")
-    info.fragment_out(2, "VEC4", "out_world")
+    if world:
+        info.fragment_out(2, "VEC4", "out_world")
     info.fragment_source(source("shade_frag.glsl"))
     return info
 
 
 @functools.lru_cache(maxsize=None)
-def shade_shader(mdsm: bool, map_count: int = 1):
+def shade_shader(mdsm: bool, map_count: int = 1, world: bool = False):
     """Shading pass from the camera for ``map_count`` maps (1..MAX_MAPS);
-    ``mdsm`` samples RGBA32F key maps."""
+    ``mdsm`` samples RGBA32F key maps; ``world`` also writes the world
+    position (a third colour target)."""
     if not 1 <= map_count <= MAX_MAPS:
         raise ShaderBuildError(f"the shading pass takes 1 to {MAX_MAPS} maps (got {map_count})")
-    return _create(_shade_info(False, mdsm, map_count), "shading pass")
+    return _create(_shade_info(False, mdsm, map_count, world), "shading pass")
 
 
 @functools.lru_cache(maxsize=None)
 def prepass_shader():
     """Camera depth pre-pass (same vertex stage as the shading pass)."""
     return _create(_shade_info(True, False), "camera depth pre-pass")
+
+
+def _fullscreen_info(name: str):
+    """A full-screen pass (``fullscreen_vert.glsl``) with ``gpu_shaders/<name>``."""
+    import gpu
+    info = gpu.types.GPUShaderCreateInfo()
+    info.vertex_in(0, "VEC3", "pos")
+    info.vertex_source(source("fullscreen_vert.glsl"))
+    info.fragment_source(source(name))
+    return info
+
+
+@functools.lru_cache(maxsize=None)
+def compose_shader(blurred: bool):
+    """The combined image, the shadow mask and the footprint heatmap from the
+    shading pass's targets (``compose_frag.glsl``); ``blurred`` takes the
+    shadow from the eye-space blur's mask instead of the shading pass."""
+    info = _fullscreen_info("compose_frag.glsl")
+    if blurred:
+        info.define("LIXEL_BLURRED")
+        info.sampler(2, "FLOAT_2D", "u_mask")
+    info.sampler(0, "FLOAT_2D", "u_direct")
+    info.sampler(1, "FLOAT_2D", "u_data")
+    info.push_constant("VEC4", "u_ambient")
+    info.fragment_out(0, "VEC4", "out_combined")
+    info.fragment_out(1, "VEC4", "out_shadow")
+    info.fragment_out(2, "VEC4", "out_footprint")
+    return _create(info, "compose")
+
+
+@functools.lru_cache(maxsize=None)
+def eye_blur_shader():
+    """The depth-dependent eye-space blur of the shadow (Scherzer §4.3, ``eye_blur_frag.glsl``)."""
+    info = _fullscreen_info("eye_blur_frag.glsl")
+    info.sampler(0, "FLOAT_2D", "u_data")
+    info.push_constant("VEC4", "u_blur")
+    info.fragment_out(0, "VEC4", "out_mask")
+    return _create(info, "eye-space blur")
+
+
+@functools.lru_cache(maxsize=None)
+def map_preview_shader(stretch: bool):
+    """A shadow map resampled to a picture (``map_preview_frag.glsl``): its
+    window depth, or (``stretch``) a grey picture stretched over the depths written."""
+    info = _fullscreen_info("map_preview_frag.glsl")
+    if stretch:
+        info.define("LIXEL_STRETCH")
+    info.sampler(0, "DEPTH_2D", "u_map")
+    info.push_constant("VEC4", "u_range")
+    info.fragment_out(0, "VEC4", "out_preview")
+    return _create(info, "shadow-map preview")
+
+
+@functools.lru_cache(maxsize=None)
+def reduce_shader(depth_source: bool):
+    """One step of a min/max reduction (``reduce_frag.glsl``): each output
+    texel holds the (least, greatest) value below a cut-off over a block of the
+    source; ``depth_source`` reads a depth texture."""
+    info = _fullscreen_info("reduce_frag.glsl")
+    info.sampler(0, "DEPTH_2D" if depth_source else "FLOAT_2D", "u_source")
+    info.push_constant("VEC4", "u_reduce")
+    info.fragment_out(0, "VEC4", "out_range")
+    return _create(info, "reduction")
 
 
 @functools.lru_cache(maxsize=None)

@@ -3,8 +3,9 @@
 warped shadow maps.
 
 Passes: Combined; "Shadow" (0 lit .. 1 fully shadowed); "Footprint" (the
-shadow-map texel footprint heatmap, see ``addon.gpu.pipeline.footprint_heatmap``);
+shadow-map texel footprint heatmap, see ``gpu_shaders/compose_frag.glsl``);
 "Shadow Map" (the first map's window depth, resampled to the render size).
+The frame stays on the GPU until these four images are read back, once.
 Nothing is kept after a render: the result (every map at full resolution,
 timings, counts; a 16384² map alone is 1 GiB) is freed when the render ends.
 Code that wants it (tests, tools) collects it with :func:`watch_renders`.
@@ -81,19 +82,29 @@ def _world_colour(scene) -> tuple:
 
 
 def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, settings: Optional[LixelSettings] = None,
-                     warnings: Optional[list] = None) -> dict:
+                     warnings: Optional[list] = None, read=None, timed: bool = True, targets=None) -> dict:
     """Describe, compute and render an evaluated scene (what the engine does);
     usable by scripts and operators. Needs a GPU context. Returns ``setup``,
-    ``settings``, ``result`` (the dict of ``addon.gpu.pipeline.render_shadows``),
-    ``scene`` and ``method``; nothing is kept here. Raises ``WarpError`` with a
-    user-facing message."""
+    ``settings``, ``result`` (an ``addon.gpu.result.RenderResult``), ``scene``
+    and ``method``; nothing is kept here. Raises ``WarpError`` with a
+    user-facing message.
+
+    The frame, in order: the scene's geometry (cached: only what changed is
+    read and uploaded), the view and light, the camera pre-pass, B and the
+    warp, the depth pass, the shading pass, compose and one read-back of the
+    images in ``read`` (default: the engine's passes). ``timed``: wait for the
+    GPU after every stage so each stage's time is its own (the engine's F12
+    waits once, at the read-back). ``targets``: the render targets (default:
+    the process-wide pool)."""
     from ..gpu.batches import shared_batches
-    from ..gpu.pipeline import render_shadows
+    from ..gpu.pipeline import ShadowFrame
+    from ..gpu.result import ENGINE_PASSES
     from ..scene.describe import check_finite_geometry, describe_scene, light_notes
     from ..scene.geometry import shared_cache
 
     scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
     settings = settings or scene_settings(scene)
+    read = ENGINE_PASSES if read is None else read
     timings = {}
     t = time.perf_counter()
     cache = shared_cache()
@@ -103,11 +114,15 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     timings["extraction"] = time.perf_counter() - t
     t = time.perf_counter()
     view, light, bounds = describe_scene(scene, depsgraph, instances=geometry.instances)
+    timings["describe"] = time.perf_counter() - t
+    frame = ShadowFrame(geometry, view, resolution or view.resolution, targets=targets, timed=timed)
+    frame.camera_prepass()
     method = settings.method
     if method not in METHODS:
         if warnings is not None:
             warnings.append(f"Lixel method '{method}' is not available in this build; rendering with 'uniform'")
         method = "uniform"
+    t = time.perf_counter()
     try:
         body = intersection_body(view, light, bounds)
         setup = compute(method, view, light, bounds, settings.warp, body=body)
@@ -124,18 +139,11 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         warnings.extend(light_notes(light_obj))
     blend = float(getattr(light_obj.data, "spot_blend", 0.0)) if light_obj is not None and \
         light_obj.type == "LIGHT" and light_obj.data.type == "SPOT" else 0.0
-    result = render_shadows(view, light, setup, geometry, settings, resolution or view.resolution, body=body,
-                            ambient=_world_colour(scene), spot_blend=blend)
-    result["timings"] = {**timings, **result["timings"]}
+    frame.draw_maps(setup, settings.shadow, body)
+    frame.shade(light, setup, settings.shadow, spot_blend=blend, world="world_position" in read)
+    result = frame.finish(settings.shadow, ambient=_world_colour(scene), read=read)
+    result.timings = {**timings, **result.timings}
     return {"setup": setup, "settings": settings, "result": result, "scene": scene.name, "method": method}
-
-
-def _resample(img: np.ndarray, w: int, h: int) -> np.ndarray:
-    """Nearest-neighbour resample of an (h0, w0) image to (h, w)."""
-    h0, w0 = img.shape[:2]
-    ys = np.minimum((np.arange(h) + 0.5) * h0 / h, h0 - 1).astype(np.int64)
-    xs = np.minimum((np.arange(w) + 0.5) * w0 / w, w0 - 1).astype(np.int64)
-    return img[ys][:, xs]
 
 
 def _set_pass(layer, name: str, data: np.ndarray) -> None:
@@ -165,7 +173,7 @@ class LixelRenderEngine(bpy.types.RenderEngine):
             from ..gpu.context import ensure_gpu_context
             ensure_gpu_context()
             warnings: list = []
-            out = render_depsgraph(depsgraph, warnings=warnings)
+            out = render_depsgraph(depsgraph, warnings=warnings, timed=False)
         except Exception as exc:  # noqa: BLE001 - the entry point's guard: a message, never a traceback
             self.report({"ERROR"}, f"Lixel: {user_message(exc, f'rendering scene {depsgraph.scene.name!r}')}")
             return
@@ -174,20 +182,19 @@ class LixelRenderEngine(bpy.types.RenderEngine):
         for got in _watchers:
             got.append(out)
         res = out["result"]
-        h, w = res["shadow_mask"].shape  # the full frame (a render border is not cropped)
+        w, h = res.resolution  # the full frame (a render border is not cropped)
         for name, channels, chan_id, _ in EXTRA_PASSES:
             self.add_pass(name, channels, chan_id)
         result = self.begin_result(0, 0, w, h)
         layer = result.layers[0]
-        _set_pass(layer, "Combined", res["combined"])
-        _set_pass(layer, "Shadow", res["shadow_mask"])
-        _set_pass(layer, "Footprint", res["footprint_heatmap"])
-        if res["shadow_maps"]:
-            _set_pass(layer, "Shadow Map", _resample(res["shadow_maps"][0], w, h))
+        _set_pass(layer, "Combined", res.combined)
+        _set_pass(layer, "Shadow", res.shadow_mask)
+        _set_pass(layer, "Footprint", res.footprint_heatmap)
+        _set_pass(layer, "Shadow Map", res.shadow_map_preview)
         self.end_result(result)
-        c = res["counts"]
-        self.update_stats("Lixel", f"{out['method']}: {c['maps']} map(s), {c['casters_drawn']} casters drawn "
-                                   f"({c['caster_triangles_drawn']} tris), {c['casters_culled']} culled")
+        c = res.counts
+        self.update_stats("Lixel", f"{out['method']}: {c.maps} map(s), {c.casters_drawn} casters drawn "
+                                   f"({c.caster_triangles_drawn} tris), {c.casters_culled} culled")
 
     def update_render_passes(self, scene=None, renderlayer=None):
         self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")

@@ -25,8 +25,10 @@ def scene_geometry(depsgraph):
     return geometry
 
 
-def render_state(st: LiveState, depsgraph, resolution, setup=None, settings=None, geometry=None) -> dict:
-    """Render the state's camera view with ``setup`` (default: the state's).
+def render_state(st: LiveState, depsgraph, resolution, setup=None, settings=None, geometry=None,
+                 read=("combined", "shadow_mask", "shadow_maps")):
+    """Render the state's camera view with ``setup`` (default: the state's):
+    an ``addon.gpu.result.RenderResult`` holding the images in ``read``.
     Starts the GPU context when needed (background mode); raises WarpError
     (GPUUnavailableError) with a message for the user."""
     from ..gpu.context import ensure_gpu_context
@@ -35,7 +37,7 @@ def render_state(st: LiveState, depsgraph, resolution, setup=None, settings=None
     geometry = geometry if geometry is not None else scene_geometry(depsgraph)
     return render_shadows(st.view, st.light, setup if setup is not None else st.setup, geometry,
                           settings if settings is not None else st.settings, tuple(int(v) for v in resolution),
-                          body=st.body)
+                          body=st.body, read=read)
 
 
 def fit_resolution(resolution, longest: int) -> tuple[int, int]:
@@ -82,11 +84,12 @@ def pip_images(st: LiveState, depsgraph, longest: int, want_map: bool, want_scen
     out = {}
     if not (want_map or want_scene):
         return out
-    res = render_state(st, depsgraph, fit_resolution(st.view.resolution, longest))
+    res = render_state(st, depsgraph, fit_resolution(st.view.resolution, longest),
+                       read={"combined"} | ({"shadow_maps"} if want_map else set()))
     if want_scene:
-        out["scene"] = np.ascontiguousarray(res["combined"], dtype=np.float32)
-    if want_map and res["shadow_maps"]:
-        depth = res["shadow_maps"][0]
+        out["scene"] = np.ascontiguousarray(res.combined, dtype=np.float32)
+    if want_map and res.shadow_maps:
+        depth = res.shadow_maps[0]
         h, w = depth.shape
         step = max(1, math.ceil(max(w, h) / longest))
         out["map"] = depth_to_rgba(depth[::step, ::step])
@@ -103,8 +106,8 @@ def compare_renders(st: LiveState, depsgraph, rows: list, longest: int = 320) ->
     for row in rows:
         if "setup" not in row:
             continue
-        out = render_state(st, depsgraph, res, setup=row["setup"], geometry=geometry)
-        images.append(np.ascontiguousarray(out["combined"], dtype=np.float32))
+        out = render_state(st, depsgraph, res, setup=row["setup"], geometry=geometry, read={"combined"})
+        images.append(np.ascontiguousarray(out.combined, dtype=np.float32))
         names.append(row["method"])
     if not images:
         raise ValueError("no method produced a setup to render")

@@ -15,6 +15,8 @@ import numpy as np
 
 SHADOW_THRESHOLD = 0.5
 """A pixel counts as shadowed when the shadow mask is at least this (PCF 1x1 gives 0 or 1)."""
+READ = frozenset({"shadow_raw", "covered", "world_position", "map_index", "combined", "shadow_maps"})
+"""The images the report reads back from each frame (``addon.gpu.result.RenderResult`` names)."""
 
 
 def report_settings(method: str, size: int):
@@ -50,15 +52,15 @@ def frame(depsgraph, settings, resolution) -> LixelFrame:
     from addon.render.engine import render_depsgraph
     warnings: list = []
     t0 = time.perf_counter()
-    out = render_depsgraph(depsgraph, tuple(int(v) for v in resolution), settings, warnings=warnings)
+    out = render_depsgraph(depsgraph, tuple(int(v) for v in resolution), settings, warnings=warnings, read=READ)
     seconds = time.perf_counter() - t0
     res = out["result"]
     return LixelFrame(
         setup=out["setup"], method=out["method"],
-        shadow=np.asarray(res["shadow_raw"]) >= SHADOW_THRESHOLD,
-        covered=np.asarray(res["covered"], dtype=bool),
-        world_position=np.asarray(res["world_position"], dtype=np.float64),
-        map_index=np.asarray(res["map_index"]),
-        combined=np.asarray(res["combined"])[..., :3],
-        shadow_maps=list(res.get("shadow_maps") or []),
-        seconds=seconds, stages={k: float(v) for k, v in res["timings"].items()}, warnings=warnings)
+        shadow=np.asarray(res.shadow_raw) >= SHADOW_THRESHOLD,
+        covered=np.asarray(res.covered, dtype=bool),
+        world_position=np.asarray(res.world_position, dtype=np.float64),
+        map_index=np.asarray(res.map_index),
+        combined=np.asarray(res.combined)[..., :3],
+        shadow_maps=list(res.shadow_maps),
+        seconds=seconds, stages={k: float(v) for k, v in res.timings.items()}, warnings=warnings)

@@ -27,6 +27,10 @@ class Lx:
         self.context = imp("addon.gpu.context")
         self.pipeline = imp("addon.gpu.pipeline")
         self.batches = imp("addon.gpu.batches")
+        self.result = imp("addon.gpu.result")
+        self.compose = imp("addon.gpu.compose")
+        self.targets = imp("addon.gpu.targets")
+        self.culling = imp("addon.warp.culling")
         self.describe = imp("addon.scene.describe")
         self.geometry = imp("addon.scene.geometry")
         self.warp = imp("addon.warp")
@@ -128,7 +132,7 @@ def shadow_scene(scene, kind):
     return lt
 
 
-def render(lx, scene, method="uniform", map_size=2048, shadow=None, setup=None, batches=None, warp_options=None,
+def render(lx, scene, method="uniform", map_size=2048, shadow=None, setup=None, gpu_scene=None, warp_options=None,
            **kwargs):
     dg = scene.view_layers[0].depsgraph
     dg.update()
@@ -141,7 +145,7 @@ def render(lx, scene, method="uniform", map_size=2048, shadow=None, setup=None, 
     if shadow is not None:
         settings = replace(settings, shadow=replace(settings.shadow, **shadow))
     out = lx.pipeline.render_shadows(view, lt, setup, geometry, settings,
-                                     batches=batches or lx.batches.BatchCache(), **kwargs)
+                                     scene=gpu_scene or lx.batches.GPUScene(), read=lx.result.EVERYTHING, **kwargs)
     return out, view, lt, setup, dg
 
 
@@ -202,15 +206,15 @@ def edge_band(truth_img, covered, radius_px):
 
 def agreement(out, lt, dg, texels=2.0):
     """(fraction of compared pixels whose shadow agrees with ray casting, compared count)."""
-    covered = out["covered"] & (out["map_index"] >= 0)
+    covered = out.covered & (out.map_index >= 0)
     ys, xs = np.nonzero(covered)
-    pts = out["world_position"][ys, xs].astype(np.float64)
+    pts = out.world_position[ys, xs].astype(np.float64)
     truth = np.zeros(covered.shape, dtype=bool)
     truth[ys, xs] = ray_shadow(bvh_of(dg), lt, pts)
-    tpp = np.maximum(out["texels_per_pixel"], 1e-6)
+    tpp = np.maximum(out.texels_per_pixel, 1e-6)
     band = edge_band(truth, covered, texels / tpp + 1.5)
     compare = covered & ~band
-    got = out["shadow_mask"] > 0.5
+    got = out.shadow_mask > 0.5
     ok = (got == truth) & compare
     return ok.sum() / max(compare.sum(), 1), int(compare.sum()), truth
 
@@ -226,24 +230,24 @@ def test_shadows_agree_with_ray_casting(lx, scene, kind, method):
     out, view, light_, setup, dg = render(lx, scene, method, 2048)
     frac, n, truth = agreement(out, light_, dg)
     assert n > 5000, "too few pixels compared: the scene is not in view"
-    assert truth[out["covered"]].mean() > 0.02, "the test scene must contain shadow"
+    assert truth[out.covered].mean() > 0.02, "the test scene must contain shadow"
     assert frac >= 0.99, f"{method}/{kind}: only {frac:.4f} of {n} pixels agree with ray casting"
-    c = out["counts"]
-    assert c["casters_drawn"] == 2 and c["caster_triangles_drawn"] == 2 + 12
+    c = out.counts
+    assert c.casters_drawn == 2 and c.caster_triangles_drawn == 2 + 12
 
 
 def test_shadow_is_lambert_lit_in_light_colour(lx, scene):
     lt = shadow_scene(scene, "SUN")
     lt.data.color = (1.0, 0.5, 0.25)
     out, view, light_, setup, dg = render(lx, scene, "uniform", 512)
-    ground = out["covered"] & (np.abs(out["world_position"][..., 2]) < 1e-3) & (out["shadow_mask"] == 0)
+    ground = out.covered & (np.abs(out.world_position[..., 2]) < 1e-3) & (out.shadow_mask == 0)
     ndl = -light_.direction[2]  # ground normal is +Z
     expect = 0.8 * 3.0 * ndl / math.pi * np.array([1.0, 0.5, 0.25]) + 0.8 * np.array(lx.pipeline.DEFAULT_AMBIENT)
-    got = out["combined"][ground][:, :3].mean(axis=0)
+    got = out.combined[ground][:, :3].mean(axis=0)
     np.testing.assert_allclose(got, expect, rtol=1e-3, atol=1e-4)
-    shadowed = out["covered"] & (np.abs(out["world_position"][..., 2]) < 1e-3) & (out["shadow_mask"] == 1)
+    shadowed = out.covered & (np.abs(out.world_position[..., 2]) < 1e-3) & (out.shadow_mask == 1)
     assert shadowed.any()
-    np.testing.assert_allclose(out["combined"][shadowed][:, :3].mean(axis=0),
+    np.testing.assert_allclose(out.combined[shadowed][:, :3].mean(axis=0),
                                0.8 * np.array(lx.pipeline.DEFAULT_AMBIENT), atol=1e-4)
 
 
@@ -253,13 +257,13 @@ def test_point_light_irradiance_falls_with_distance_squared(lx, scene):
     aim(cam, (0, 0, 0))
     light(scene, "POINT", (1.0, 0.5, 3.0), energy=500.0)
     out, view, lt, setup, dg = render(lx, scene, "uniform", 256)
-    sel = out["covered"] & (out["shadow_mask"] == 0)
-    p = out["world_position"][sel].astype(np.float64)
+    sel = out.covered & (out.shadow_mask == 0)
+    p = out.world_position[sel].astype(np.float64)
     to_light = lt.position - p
     r2 = (to_light ** 2).sum(1)
     ndl = to_light[:, 2] / np.sqrt(r2)
     expect = 0.8 * 500.0 / (4 * math.pi * r2) * ndl / math.pi + 0.8 * lx.pipeline.DEFAULT_AMBIENT[0]
-    np.testing.assert_allclose(out["combined"][sel][:, 0], expect, rtol=2e-3, atol=1e-5)
+    np.testing.assert_allclose(out.combined[sel][:, 0], expect, rtol=2e-3, atol=1e-5)
 
 
 @pytest.mark.parametrize("blend", [0.0, 0.4])
@@ -268,8 +272,8 @@ def test_spot_cone_follows_blenders_spot_mask(lx, scene, blend):
     cam = camera(scene, (0, 0, 12), (0, 0, 0), res=(128, 128), ortho_scale=12.0)
     spot = light(scene, "SPOT", (0, 0, 4), spot_size=math.radians(80), energy=1000.0)
     out, view, lt, setup, dg = render(lx, scene, "uniform", 512, spot_blend=blend)
-    sel = out["covered"]
-    p = out["world_position"][sel].astype(np.float64)
+    sel = out.covered
+    p = out.world_position[sel].astype(np.float64)
     to_light = lt.position - p
     r2 = (to_light ** 2).sum(1)
     cos_angle = to_light[:, 2] / np.sqrt(r2)        # the spot points straight down; the ground normal is +Z
@@ -282,7 +286,7 @@ def test_spot_cone_follows_blenders_spot_mask(lx, scene, blend):
         mask = (x >= 0).astype(np.float64)
     expect = 0.8 * 1000.0 / (4 * math.pi * r2) * cos_angle * mask / math.pi + 0.8 * lx.pipeline.DEFAULT_AMBIENT[0]
     away = np.abs(x) > 2e-3  # pixels straddling a hard edge may go either way
-    np.testing.assert_allclose(out["combined"][sel][:, 0][away], expect[away], rtol=2e-3, atol=2e-5)
+    np.testing.assert_allclose(out.combined[sel][:, 0][away], expect[away], rtol=2e-3, atol=2e-5)
     assert (mask == 0).any() and (mask == 1).any() and (blend == 0 or ((mask > 0) & (mask < 1)).any())
 
 
@@ -298,8 +302,8 @@ def acne_scene(scene, closed=False):
 
 
 def acne_fraction(out):
-    lit_side = out["covered"]
-    return float((out["shadow_mask"][lit_side] > 0).mean())
+    lit_side = out.covered
+    return float((out.shadow_mask[lit_side] > 0).mean())
 
 
 def test_bias_removes_acne_on_a_plane_80_degrees_from_the_light(lx, scene):
@@ -357,9 +361,9 @@ def test_reversed_and_mirrored_maps_cull_the_right_faces(lx, scene, variant):
     assert acne_fraction(out) > 0.2, "drawing the light-facing faces (no culling) must show acne"
     ref, *_ = render(lx, scene, setup=plain, shadow=dict(bias_mode="NONE", pcf_kernel=1))
     if variant == "GREATER":  # z negated: the GREATER test must keep the same (nearest) surface
-        np.testing.assert_allclose(out["shadow_maps"][0], 1.0 - ref["shadow_maps"][0], atol=1e-5)
+        np.testing.assert_allclose(out.shadow_maps[0], 1.0 - ref.shadow_maps[0], atol=1e-5)
     else:
-        np.testing.assert_allclose(out["shadow_maps"][0], ref["shadow_maps"][0][:, ::-1], atol=1e-5)
+        np.testing.assert_allclose(out.shadow_maps[0], ref.shadow_maps[0][:, ::-1], atol=1e-5)
 
 
 def edge_ramp_scene(scene):
@@ -376,7 +380,7 @@ RAMP_MAP = 48
 
 
 def levels(out):
-    s = out["shadow_mask"][out["covered"]]
+    s = out.shadow_mask[out.covered]
     return np.unique(np.round(s, 5))
 
 
@@ -429,10 +433,10 @@ def test_multi_map_selection_matches_shadow_setup(lx, scene):
     ]
     setup = T.ShadowSetup(maps, T.Diagnostics("hand-made"))
     out, view, light_, setup, dg = render(lx, scene, setup=setup)
-    covered = out["covered"]
-    pts = out["world_position"][covered].astype(np.float64)
+    covered = out.covered
+    pts = out.world_position[covered].astype(np.float64)
     expect = setup.map_index(pts, view)
-    got = out["map_index"][covered]
+    got = out.map_index[covered]
     assert set(np.unique(expect)) == {0, 1, 2}, "the scene must exercise every map"
     assert (got == expect).mean() > 0.995
     frac, n, _ = agreement(out, light_, dg)
@@ -440,9 +444,14 @@ def test_multi_map_selection_matches_shadow_setup(lx, scene):
 
 
 def test_second_render_uploads_nothing(lx, scene):
+    """A second frame of an unchanged scene reads no mesh, uploads nothing
+    (batches, instance matrices, draw lists, render targets) and keeps the
+    culling index; a moved object uploads its matrices but no mesh; an edited
+    mesh uploads that mesh only."""
     shadow_scene(scene, "SUN")
     gc = lx.geometry.GeometryCache()
-    bc = lx.batches.BatchCache()
+    gs = lx.batches.GPUScene()
+    pool = lx.targets.TargetPool()
     dg = scene.view_layers[0].depsgraph
 
     def go():
@@ -450,21 +459,54 @@ def test_second_render_uploads_nothing(lx, scene):
         geometry = gc.update(dg)
         view, lt, bounds = lx.describe.describe_scene(scene, dg, instances=geometry.instances)
         setup = lx.warp.compute("uniform", view, lt, bounds, lx.warp.WarpOptions(shadow_map_size=(256, 256)))
-        return lx.pipeline.render_shadows(view, lt, setup, geometry, batches=bc)
+        out = lx.pipeline.render_shadows(view, lt, setup, geometry, scene=gs, targets=pool)
+        return out, geometry, bounds
 
-    first = go()
-    assert first["counts"]["uploads"] == 2 and gc.extractions == 2
-    second = go()
-    assert second["counts"]["uploads"] == 0 and gc.extractions == 2
-    np.testing.assert_array_equal(first["shadow_mask"], second["shadow_mask"])
+    first, g1, b1 = go()
+    assert first.counts.uploads == 2 and gc.extractions == 2
+    assert first.counts.matrix_uploads == 1 and first.counts.target_allocations > 0
+    second, g2, b2 = go()
+    c = second.counts
+    assert (c.uploads, c.matrix_uploads, c.list_uploads, c.target_allocations) == (0, 0, 0, 0)
+    assert gc.extractions == 2 and g2 is g1 and b2 is b1
+    assert lx.culling.BoxIndex.of(b2, "casters") is lx.culling.BoxIndex.of(b1, "casters"), "index rebuilt"
+    np.testing.assert_array_equal(first.shadow_mask, second.shadow_mask)
     named(scene, "Box").location.x += 0.5  # a transform: no geometry change
-    third = go()
-    assert third["counts"]["uploads"] == 0
+    third, g3, b3 = go()
+    assert third.counts.uploads == 0 and third.counts.matrix_uploads == 1 and gc.extractions == 2
+    assert b3 is not b1 and g3.meshes == g1.meshes
     me = named(scene, "Box").data
     me.vertices[0].co.z += 0.3
     me.update()
-    fourth = go()
-    assert fourth["counts"]["uploads"] == 1 and gc.extractions == 3
+    fourth, *_ = go()
+    assert fourth.counts.uploads == 1 and gc.extractions == 3
+
+
+def test_moving_the_camera_or_the_light_rebuilds_no_index(lx, scene):
+    """The camera and the light are not part of the scene's geometry: moving
+    them re-culls (new draw lists) but reads no mesh, uploads no geometry or
+    matrices and keeps the culling index."""
+    lt = shadow_scene(scene, "SUN")
+    gc = lx.geometry.GeometryCache()
+    gs = lx.batches.GPUScene()
+    dg = scene.view_layers[0].depsgraph
+
+    def go():
+        dg.update()
+        geometry = gc.update(dg)
+        view, light, bounds = lx.describe.describe_scene(scene, dg, instances=geometry.instances)
+        setup = lx.warp.compute("lispsm", view, light, bounds, lx.warp.WarpOptions(shadow_map_size=(256, 256)))
+        out = lx.pipeline.render_shadows(view, light, setup, geometry, scene=gs)
+        return out, geometry, lx.culling.BoxIndex.of(bounds, "casters")
+
+    _, g0, index = go()
+    for move in (lambda: setattr(scene.camera, "location", scene.camera.location + Vector((1.5, 0.5, 0.2))),
+                 lambda: setattr(lt, "rotation_euler", (math.radians(20), 0.1, math.radians(60)))):
+        move()
+        out, g, again = go()
+        c = out.counts
+        assert g is g0 and again is index, "the scene's geometry or culling index was rebuilt"
+        assert (c.uploads, c.matrix_uploads) == (0, 0) and gc.extractions == 2
 
 
 def test_caster_culling_counts(lx, scene):
@@ -475,13 +517,13 @@ def test_caster_culling_counts(lx, scene):
     ghost = box(scene, "Ghost", location=(-1.5, -1.5, 0.5))  # casts, but the camera does not see it
     ghost.visible_camera = False
     out, view, lt, setup, dg = render(lx, scene, "uniform", 512)
-    c = out["counts"]
-    assert c["casters_drawn"] == 3
-    assert c["casters_culled"] == 1 and c["caster_triangles_culled"] == 12
-    assert c["non_casters"] == 1
-    assert c["receivers_drawn"] == 3  # ground, box, NoShadow (FarAway is outside the view)
-    on_ghost = out["covered"] & (np.abs(out["world_position"][..., 0] + 1.5) < 0.45) & \
-        (np.abs(out["world_position"][..., 1] + 1.5) < 0.45) & (out["world_position"][..., 2] > 0.05)
+    c = out.counts
+    assert c.casters_drawn == 3
+    assert c.casters_culled == 1 and c.caster_triangles_culled == 12
+    assert c.non_casters == 1
+    assert c.receivers_drawn == 3  # ground, box, NoShadow (FarAway is outside the view)
+    on_ghost = out.covered & (np.abs(out.world_position[..., 0] + 1.5) < 0.45) & \
+        (np.abs(out.world_position[..., 1] + 1.5) < 0.45) & (out.world_position[..., 2] > 0.05)
     assert not on_ghost.any(), "an object hidden from the camera must not be drawn"
 
 
@@ -497,25 +539,32 @@ def test_too_many_maps_is_a_clear_error(lx, scene):
 
 
 def test_eye_space_blur_is_strongest_near_the_viewer(lx):
-    """Scherzer §4.3: near shadows are blurred most, distant detail is kept."""
+    """Scherzer §4.3: near shadows are blurred most, distant detail is kept
+    (the GPU pass on a made-up shading result)."""
+    import gpu
     h, w = 40, 80
-    shadow = np.zeros((h, w), np.float32)
-    shadow[:, 40:] = 1.0                                   # one vertical shadow edge
-    depth = np.repeat(np.linspace(1.0, 10.0, h)[:, None], w, 1).astype(np.float32)  # row 0 nearest
-    covered = np.ones((h, w), bool)
-    out = lx.pipeline.eye_space_blur(shadow, depth, covered, 6.0)
+    data = np.zeros((h, w, 4), np.float32)
+    data[:, 40:, 0] = 1.0                                                   # one vertical shadow edge
+    data[..., 3] = np.repeat(np.linspace(1.0, 10.0, h)[:, None], w, 1)      # eye depth, row 0 nearest
+    tex = gpu.types.GPUTexture((w, h), format="RGBA32F", data=gpu.types.Buffer("FLOAT", data.size, data.ravel()))
+    pool = lx.targets.TargetPool()
+    d_near, d_far = lx.compose.reduce_range(pool, tex, (w, h), channel=3, above=0.0)
+    assert (d_near, d_far) == (1.0, 10.0)
+    mask = lx.compose.eye_blur_pass(pool, (w, h), tex, 6.0, d_near)
+    out = lx.compose.read_color(pool.framebuffer(colors=(mask,)), 0, (w, h), 1)
     width = lambda row: int(((out[row] > 0.01) & (out[row] < 0.99)).sum())  # noqa: E731
     assert width(0) >= 10 and width(h - 1) <= 2 and width(0) > width(h // 2) >= width(h - 1)
-    np.testing.assert_array_equal(lx.pipeline.eye_space_blur(shadow, depth, covered, 0.0), shadow)
+    np.testing.assert_array_equal(out[:, :34], 0.0)
+    np.testing.assert_array_equal(out[:, 46:], 1.0)
 
 
 def test_eye_blur_setting_reaches_the_render(lx, scene):
     shadow_scene(scene, "SUN")
     sharp, *_ = render(lx, scene, "uniform", 512, shadow=dict(pcf_kernel=1))
     soft, *_ = render(lx, scene, "uniform", 512, shadow=dict(pcf_kernel=1, eye_blur=4.0))
-    partial = lambda o: int(((o["shadow_mask"] > 0.01) & (o["shadow_mask"] < 0.99)).sum())  # noqa: E731
+    partial = lambda o: int(((o.shadow_mask > 0.01) & (o.shadow_mask < 0.99)).sum())  # noqa: E731
     assert partial(sharp) == 0 and partial(soft) > 100
-    np.testing.assert_array_equal(soft["shadow_raw"], sharp["shadow_raw"])
+    np.testing.assert_array_equal(soft.shadow_raw, sharp.shadow_raw)
 
 
 @pytest.mark.parametrize("selection", ["MINMAX", "SORT"])
@@ -527,8 +576,8 @@ def test_mdsm_on_every_map_of_a_multi_map_setup(lx, scene, selection):
     out, view, lt, setup, dg = render(lx, scene, "uniform", warp_options=opts,
                                       shadow=dict(mdsm_depths=3, mdsm_selection=selection, pcf_kernel=3))
     assert len(setup.maps) > 1
-    assert len(out["mdsm_keys"]) == len(setup.maps)
-    assert len(np.unique(out["map_index"][out["covered"]])) > 1
+    assert len(out.mdsm_keys) == len(setup.maps)
+    assert len(np.unique(out.map_index[out.covered])) > 1
     frac, n, _ = agreement(out, lt, dg)
     assert frac >= 0.99
 
@@ -542,5 +591,5 @@ def test_far_from_the_origin_shadows_keep_their_precision(lx, scene):
         ob.location.y -= 1.0e6
     out, view, lt, setup, dg = render(lx, scene, "uniform", 2048)
     frac, n, truth = agreement(out, lt, dg)
-    assert n > 5000 and truth[out["covered"]].mean() > 0.02
+    assert n > 5000 and truth[out.covered].mean() > 0.02
     assert frac >= 0.99

@@ -63,15 +63,16 @@ def test_render_writes_lixel_shadows(engine, scene, tmp_path):
     last = got[-1]
     assert last["scene"] == scene.name
     res = last["result"]
-    assert res["combined"].shape == (64, 96, 4)
-    assert 0.01 < res["shadow_mask"][res["covered"]].mean() < 0.5
-    assert res["counts"]["casters_drawn"] == 2
-    assert len(res["shadow_maps"]) == len(last["setup"].maps)
+    assert res.combined.shape == (64, 96, 4)
+    assert 0.01 < res.shadow_mask.mean() < 0.5
+    assert res.counts.casters_drawn == 2
+    assert res.footprint_heatmap.shape == (64, 96, 4) and res.shadow_map_preview.shape == (64, 96)
+    assert res.covered is None and res.world_position is None, "the engine reads back only its passes"
     img = bpy.data.images.load(str(tmp_path / "frame.exr"))
     try:
         px = np.empty(img.size[0] * img.size[1] * img.channels, dtype=np.float32)
         img.pixels.foreach_get(px)
-        np.testing.assert_allclose(px.reshape(64, 96, -1)[..., :3], res["combined"][..., :3], atol=1e-5)
+        np.testing.assert_allclose(px.reshape(64, 96, -1)[..., :3], res.combined[..., :3], atol=1e-5)
     finally:
         bpy.data.images.remove(img)
 
@@ -91,7 +92,7 @@ def test_settings_come_from_the_scene(engine, scene):
     assert last["method"] == "uniform"
     assert last["settings"].shadow.pcf_kernel == 1
     assert tuple(last["setup"].maps[0].size) == (512, 512)
-    assert set(np.unique(last["result"]["shadow_mask"])) <= {0.0, 1.0}  # k = 1: no PCF levels
+    assert set(np.unique(last["result"].shadow_mask)) <= {0.0, 1.0}  # k = 1: no PCF levels
 
 
 def test_second_render_uploads_nothing(engine, scene):
@@ -100,8 +101,9 @@ def test_second_render_uploads_nothing(engine, scene):
         bpy.ops.render.render(scene=scene.name)
         bpy.ops.render.render(scene=scene.name)
     first, second = (g["result"] for g in got)
-    assert second["counts"]["uploads"] == 0
-    np.testing.assert_array_equal(first["shadow_mask"], second["shadow_mask"])
+    c = second.counts
+    assert (c.uploads, c.matrix_uploads, c.list_uploads, c.target_allocations) == (0, 0, 0, 0)
+    np.testing.assert_array_equal(first.shadow_mask, second.shadow_mask)
 
 
 @pytest.mark.parametrize("missing,message", [
@@ -137,7 +139,7 @@ def test_nothing_of_a_render_outlives_it(engine, scene):
     with engine.watch_renders() as got:
         assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
     res = got[0]["result"]
-    arrays = [res["combined"], res["shadow_mask"], *res["shadow_maps"]]
+    arrays = [res.combined, res.shadow_mask, res.footprint_heatmap, res.shadow_map_preview]
     refs = [weakref.ref(a) for a in arrays]
     del got, res, arrays
     gc.collect()
@@ -168,7 +170,7 @@ engine = importlib.import_module(bconf.ADDON_MODULE + ".addon.render.engine")
 with engine.watch_renders() as got:
     bpy.ops.render.render(write_still=True, scene=scene.name)
 last = got[-1]
-print("LIXEL_RENDERED", last["scene"], float(last["result"]["shadow_mask"].mean()))
+print("LIXEL_RENDERED", last["scene"], float(last["result"].shadow_mask.mean()))
 bconf.disable_lixel()
 '''
 
@@ -214,10 +216,10 @@ def test_a_view_with_nothing_to_shadow_renders_with_a_warning(engine, scene, cap
     with engine.watch_renders() as got:
         assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
     res = got[-1]["result"]
-    assert not res["covered"].any()
+    assert res.counts.receivers_drawn == 0 and not res.shadow_mask.any()
     captured = capfd.readouterr()
     assert "no shadows in this view" in captured.err + captured.out
-    np.testing.assert_allclose(res["combined"][..., :3], np.broadcast_to(
+    np.testing.assert_allclose(res.combined[..., :3], np.broadcast_to(
         np.array(scene.world.color if scene.world else (0, 0, 0), dtype=np.float32), (64, 96, 3)), atol=1e-6)
 
 
@@ -229,9 +231,10 @@ def test_a_spot_lighting_nothing_visible_renders_ambient_only(engine, scene, cap
     with engine.watch_renders() as got:
         assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
     res = got[-1]["result"]
-    assert res["covered"].any() and not res["shadow_mask"].any()
+    covered = res.footprint_heatmap[..., :3].any(axis=-1)      # the heatmap is black where nothing is seen
+    assert covered.any() and not res.shadow_mask.any()
     ambient = np.array(scene.world.color if scene.world else (0, 0, 0), dtype=np.float32) * 0.8
-    np.testing.assert_allclose(res["combined"][res["covered"]][:, :3], np.broadcast_to(ambient, (res["covered"].sum(), 3)),
+    np.testing.assert_allclose(res.combined[covered][:, :3], np.broadcast_to(ambient, (covered.sum(), 3)),
                                atol=1e-6)
     captured = capfd.readouterr()
     assert "no shadows in this view" in captured.err + captured.out
