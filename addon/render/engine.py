@@ -45,17 +45,19 @@ _watchers: list = []
 
 
 @contextmanager
-def watch_renders():
+def watch_renders(read=()):
     """Collect what each engine render inside the block produced, in order: a
     list of :func:`render_depsgraph` dicts. The engine itself keeps nothing
     between renders; only the caller's list holds the results, for as long as
-    the caller keeps it."""
+    the caller keeps it. ``read``: images to read back besides the engine's
+    passes (``addon.gpu.result.RenderResult`` names, e.g. ``{"covered"}``)."""
     got: list = []
-    _watchers.append(got)
+    entry = (got, frozenset(read))
+    _watchers.append(entry)
     try:
         yield got
     finally:
-        _watchers.remove(got)
+        _watchers.remove(entry)
 
 
 def scene_settings(scene) -> LixelSettings:
@@ -173,13 +175,15 @@ class LixelRenderEngine(bpy.types.RenderEngine):
             from ..gpu.context import ensure_gpu_context
             ensure_gpu_context()
             warnings: list = []
-            out = render_depsgraph(depsgraph, warnings=warnings, timed=False)
+            from ..gpu.result import ENGINE_PASSES
+            read = ENGINE_PASSES.union(*(r for _, r in _watchers))
+            out = render_depsgraph(depsgraph, warnings=warnings, timed=False, read=read)
         except Exception as exc:  # noqa: BLE001 - the entry point's guard: a message, never a traceback
             self.report({"ERROR"}, f"Lixel: {user_message(exc, f'rendering scene {depsgraph.scene.name!r}')}")
             return
         for msg in warnings:
             self.report({"WARNING"}, msg)
-        for got in _watchers:
+        for got, _ in _watchers:
             got.append(out)
         res = out["result"]
         w, h = res.resolution  # the full frame (a render border is not cropped)

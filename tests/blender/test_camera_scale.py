@@ -76,9 +76,9 @@ def workbench_coverage(scene, tmp_path) -> np.ndarray:
 
 def lixel_coverage(engine, scene) -> np.ndarray:
     scene.render.engine = "LIXEL"
-    with engine.watch_renders() as got:
+    with engine.watch_renders(read={"covered"}) as got:
         assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
-    return got[-1]["result"]["covered"]
+    return got[-1]["result"].covered
 
 
 def _set_lens(cam, kind):

@@ -213,10 +213,10 @@ def test_a_view_with_nothing_to_shadow_renders_with_a_warning(engine, scene, cap
     cam = scene.camera
     cam.rotation_euler = (0.0, math.pi, 0.0)  # straight up at the sky
     cam.location = (0, 0, 10)
-    with engine.watch_renders() as got:
+    with engine.watch_renders(read={"covered"}) as got:
         assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
     res = got[-1]["result"]
-    assert res.counts.receivers_drawn == 0 and not res.shadow_mask.any()
+    assert not res.covered.any() and not res.shadow_mask.any()
     captured = capfd.readouterr()
     assert "no shadows in this view" in captured.err + captured.out
     np.testing.assert_allclose(res.combined[..., :3], np.broadcast_to(
@@ -228,10 +228,10 @@ def test_a_spot_lighting_nothing_visible_renders_ambient_only(engine, scene, cap
     spot = add(scene, "Spot", bpy.data.lights.new("Spot", "SPOT"))
     spot.location = (0, 0, 5)
     spot.rotation_euler = (0.0, math.pi, 0.0)  # pointing up, away from everything
-    with engine.watch_renders() as got:
+    with engine.watch_renders(read={"covered"}) as got:
         assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
     res = got[-1]["result"]
-    covered = res.footprint_heatmap[..., :3].any(axis=-1)      # the heatmap is black where nothing is seen
+    covered = res.covered
     assert covered.any() and not res.shadow_mask.any()
     ambient = np.array(scene.world.color if scene.world else (0, 0, 0), dtype=np.float32) * 0.8
     np.testing.assert_allclose(res.combined[covered][:, :3], np.broadcast_to(ambient, (covered.sum(), 3)),
