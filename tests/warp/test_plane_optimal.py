@@ -19,9 +19,9 @@ from hypothesis import strategies as st
 from addon.warp import WarpError, WarpOptions
 from addon.warp.plane_map import (PlaneOfInterest, default_plane, five_point_matrix, min_area_twist, plane_light_rows,
                                   plane_section, rotation2d)
-from plane_optimal_helpers import (FLOOR_PLANE, check_coverage, camera, camera_yaw_pitch, homography_jacobian, ndc,
-                                   pixel_to_texel_homography, plane_maps, point, region_pixels, run, scene, sun,
-                                   sun_at, try_run)
+from plane_optimal_helpers import (FLOOR_PLANE, assert_pixel_centres_are_lixel_centres, check_coverage, camera, camera_yaw_pitch, homography_jacobian, ndc,
+                                   pixel_to_texel_homography, plane_maps, plane_scale, point, region_pixels, run, scene,
+                                   sun, sun_at, try_run)
 
 ROOT = Path(__file__).resolve().parents[2]
 HYPO = settings(max_examples=60, deadline=None, derandomize=True,
@@ -48,39 +48,62 @@ def assert_uniform_on_plane(view, setup, expect_scale=None, rel=1e-9):
             assert np.max(np.abs(j - np.eye(2)[None])) <= rel
 
 
-def plane_scale(setup):
-    return setup.diagnostics.extra["budget"]["lixels_per_pixel"]
-
-
 # ---------------------------------------------------------------- exactness
 
 @HYPO
 @given(x=st.floats(-20, 20), y=st.floats(-30, 0), h=st.floats(0.3, 25), yaw=st.floats(-60, 60),
-       pitch=st.floats(-85, 5), fov=st.floats(25, 100), elev=st.floats(8, 90), azim=st.floats(0, 360))
-def test_identity_on_the_plane_at_one_lixel_per_pixel_sun(x, y, h, yaw, pitch, fov, elev, azim):
+       pitch=st.floats(-85, 5), fov=st.floats(25, 100), elev=st.floats(8, 90), azim=st.floats(0, 360),
+       size=st.sampled_from([1024, 2048, 4096]))
+def test_every_pixel_centre_is_a_lixel_centre_sun(x, y, h, yaw, pitch, fov, elev, azim, size):
     view = camera_yaw_pitch([x, y, h], yaw, pitch, fov_deg=fov)
-    setup, _ = try_run(view, sun_at(elev, azim), plane_budget=1.0, shadow_map_size=(4096, 4096))
+    setup, _ = try_run(view, sun_at(elev, azim), plane_budget=1.0, shadow_map_size=(size, size))
     assume(setup is not None and plane_maps(setup))
-    assert plane_scale(setup) == 1.0
-    assert_uniform_on_plane(view, setup, expect_scale=1.0)
-    _, m = plane_maps(setup)[0]
-    g = pixel_to_texel_homography(view, m, (0, 0, 1.0), (0, 0, 0.0))
-    g = g / g[2, 2]
-    # texel = pixel - (i0, j0) with an integer offset: the lower-left texel renumbered (0, 0)
-    assert np.allclose(g[:2, :2], np.eye(2), atol=1e-9) and np.allclose(g[2, :2], 0, atol=1e-12)
-    assert np.allclose(g[:2, 2], np.round(g[:2, 2]), atol=1e-6)
+    assert_uniform_on_plane(view, setup, expect_scale=plane_scale(setup))
+    assert_pixel_centres_are_lixel_centres(view, setup)
 
 
 @HYPO
 @given(x=st.floats(-20, 20), y=st.floats(-30, 0), h=st.floats(0.3, 25), yaw=st.floats(-60, 60),
        pitch=st.floats(-85, 5), fov=st.floats(25, 100), lx=st.floats(-30, 30), ly=st.floats(-30, 40),
-       lh=st.floats(0.5, 40))
-def test_identity_on_the_plane_at_one_lixel_per_pixel_point_light(x, y, h, yaw, pitch, fov, lx, ly, lh):
+       lh=st.floats(0.5, 40), size=st.sampled_from([1024, 2048, 4096]))
+def test_every_pixel_centre_is_a_lixel_centre_point_light(x, y, h, yaw, pitch, fov, lx, ly, lh, size):
     view = camera_yaw_pitch([x, y, h], yaw, pitch, fov_deg=fov)
-    setup, _ = try_run(view, point([lx, ly, lh]), plane_budget=1.0, shadow_map_size=(4096, 4096))
+    setup, _ = try_run(view, point([lx, ly, lh]), plane_budget=1.0, shadow_map_size=(size, size))
     assume(setup is not None and plane_maps(setup))
+    assert_uniform_on_plane(view, setup, expect_scale=plane_scale(setup))
+    assert_pixel_centres_are_lixel_centres(view, setup)
+
+
+def test_one_lixel_per_pixel_is_the_identity_up_to_renumbering():
+    """At one lixel per pixel (the budget holds it but not four): texel = pixel - (i0, j0)."""
+    view, light = CONFIGS["sun_oblique"]
+    setup, _ = run(view, light, shadow_map_size=(1024, 1024))
     assert plane_scale(setup) == 1.0
-    assert_uniform_on_plane(view, setup, expect_scale=1.0)
+    _, m = plane_maps(setup)[0]
+    g = pixel_to_texel_homography(view, m, (0, 0, 1.0), (0, 0, 0.0))
+    g = g / g[2, 2]
+    assert np.allclose(g[:2, :2], np.eye(2), atol=1e-9) and np.allclose(g[2, :2], 0, atol=1e-12)
+    assert np.allclose(g[:2, 2], np.round(g[:2, 2]), atol=1e-6)
+
+
+def test_whole_lixels_per_pixel_grow_with_the_map_and_leave_the_fallback_its_share():
+    """One lixel per pixel first; beyond it the largest whole N whose N² lixels
+    per pixel fit in 30 % of the texels (the fallback keeps 70 %), so the
+    plane maps and the fallback both get finer as the map grows."""
+    view, light = CONFIGS["sun_oblique"]
+    last_n, last_fallback = 0, 0
+    for size in (512, 1024, 2048, 4096, 8192):
+        setup, _ = run(view, light, shadow_map_size=(size, size))
+        budget = setup.diagnostics.extra["budget"]
+        n, total, need = plane_scale(setup), size * size, budget["one_lixel_texels"]
+        fallback = setup.maps[-1].size[0] * setup.maps[-1].size[1]
+        if need <= 0.75 * total:
+            assert n == max(1, math.isqrt(int(0.3 * total // need)))
+        if n > 1:
+            assert budget["plane_texels"] <= 0.3 * total and fallback >= 0.7 * total - 2 * size
+        assert n >= last_n and fallback > last_fallback
+        last_n, last_fallback = n, fallback
+    assert last_n >= 4
 
 
 @HYPO
@@ -238,7 +261,7 @@ def test_selection_order_and_budget_report():
     assert budget["plane_texels"] <= 0.75 * total
     fb = setup.maps[-1].size
     assert fb[0] * fb[1] <= total - budget["plane_texels"]
-    assert_uniform_on_plane(view, setup, expect_scale=1.0)
+    assert_pixel_centres_are_lixel_centres(view, setup)
     wall = setup.maps[1]
     assert np.allclose(np.abs(wall.region.normal), [0, 1, 0])
 
@@ -259,7 +282,7 @@ def test_default_plane_is_used_without_planes_and_limited_to_that_face():
     region = setup.maps[0].region
     assert np.allclose(region.normal, [0, 0, 1]) and region.offset == pytest.approx(0.0)
     assert np.all(np.abs(region.polygon[:, :2]) <= 50 + 1e-9)
-    assert_uniform_on_plane(view, setup, expect_scale=1.0)
+    assert_pixel_centres_are_lixel_centres(view, setup)
 
 
 def test_plane_extent_limits_the_region():
@@ -302,7 +325,7 @@ def test_cli_outputs_a_map_per_plane_and_the_fallback_with_regions(tmp_path):
     roles = [m["role"] for m in data["maps"]]
     assert roles == ["plane:0", "fallback"]
     assert set(data["maps"][0]["region"]) == {"normal", "offset", "polygon", "tolerance"}
-    assert data["diagnostics"]["budget"]["lixels_per_pixel"] == 1.0
+    assert data["diagnostics"]["budget"]["lixels_per_pixel"] == 1.0      # 1024², so one lixel per pixel
     out = subprocess.run([sys.executable, "-m", "addon.warp", "--method", "all", str(path)],
                          cwd=ROOT, capture_output=True, text=True, check=True)
     assert "plane_optimal" in json.loads(out.stdout)["methods"]

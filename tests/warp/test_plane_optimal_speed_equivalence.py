@@ -145,13 +145,13 @@ def test_clipping_to_an_extent_is_clipping_by_each_of_its_edges(seed):
 
 @pytest.mark.parametrize("seed", range(40))
 def test_texel_rectangles_in_plain_floats_are_the_matrix_formula(seed):
+    """The lixels whose cells (within ½ of their centres) cover s·R(θ)·(p - ½)."""
     rng = np.random.default_rng(seed)
     pixels = rng.uniform(-500, 2500, size=(int(rng.integers(3, 12)), 2))
-    s, theta = float(rng.uniform(0.05, 1.0)), float(rng.uniform(-math.pi / 4, math.pi / 4)) * (seed % 3 != 0)
-    q = s * pixels @ rotation2d(theta).T
-    lo, hi = q.min(axis=0), q.max(axis=0)
-    i0, j0 = math.floor(lo[0]), math.floor(lo[1])
-    expected = (i0, j0, max(math.ceil(hi[0]), i0 + 1), max(math.ceil(hi[1]), j0 + 1))
+    s, theta = float(rng.uniform(0.05, 4.0)), float(rng.uniform(-math.pi / 4, math.pi / 4)) * (seed % 3 != 0)
+    q = s * (pixels - 0.5) @ rotation2d(theta).T
+    lo, hi = np.floor(q.min(axis=0) + 0.5), np.floor(q.max(axis=0) + 0.5) + 1
+    expected = (int(lo[0]), int(lo[1]), int(hi[0]), int(hi[1]))
     assert plane_optimal._rect([tuple(p) for p in pixels.tolist()], s, theta) == expected
 
 
@@ -170,7 +170,7 @@ def _plane_jobs(seed, **options):
 @pytest.mark.parametrize("seed", range(20))
 def test_the_depth_fit_from_the_stored_points_is_the_unit_cube_fit(seed):
     view, _, _, opts, tol, jobs = _plane_jobs(seed, linear_z=seed % 2 == 0)
-    s = plane_optimal._share_budget(jobs, 0.75 * 1024 * 1024, "auto")
+    s = plane_optimal._share_budget(jobs, 0.75 * 1024 * 1024, 0.3 * 1024 * 1024, "auto")
     for job in jobs:
         got = plane_optimal._plane_map(job, s, view.position, tol, opts)
         m = got.matrix @ translation(view.position)

@@ -19,12 +19,16 @@ fallback map (§3):
   P ∩ R, with R = V ∩ S_r ∩ L the body's visible part (between near and far,
   in front of the camera, inside the spot cone and the receivers' bounds),
   limited to the plane's extent polygon if it has one. Their light image is
-  bounded by a rectangle with integer texel corners; its lower-left texel is
-  renumbered (0, 0). When the budget allows fewer lixels than the rectangle's
-  pixels, a uniform 2D scale s < 1 is included, the same for every plane, and
-  optionally a twist (a 2D rotation, ``WarpOptions.plane_twist``) that shrinks
-  the rectangle. Pixel (px, py) of a point on the plane then lands on texel
-  s·R(θ)·(px, py) - (i0, j0): exactly the identity at one lixel per pixel.
+  bounded by a rectangle of whole lixels; its lower-left lixel is renumbered
+  (0, 0). A uniform 2D scale s, the same for every plane, sets the lixels per
+  pixel: a whole number N >= 1 when the budget holds one lixel per pixel, else
+  s < 1 with optionally a twist (a 2D rotation, ``WarpOptions.plane_twist``)
+  that shrinks the rectangle. The point of the plane under pixel coordinates p
+  (pixel (i, j)'s centre at (i + ½, j + ½)) lands on lixel s·R(θ)·(p - ½) -
+  (i0, j0), whose centre is sampled at texel coordinate + ½: at N lixels per
+  pixel every pixel centre is a lixel centre (its lixel samples exactly the
+  pixel's point), and at one lixel per pixel the map is the identity up to the
+  renumbering.
 * **Regions and order** (§3): map k serves ``Region`` (the plane, the needed
   polygon, a tolerance): points within the tolerance of the plane whose
   projection falls in the polygon. Plane maps come first in plane order, the
@@ -34,8 +38,11 @@ fallback map (§3):
 * **Fallback**: the uniform method's frame maps (``frame_map``) over the hull
   of B minus the plane regions. The regions are slabs of width 2·tolerance, so
   that hull is B itself: the fallback covers every point of B.
-* **Budget**: T = shadow_map_size texels. Plane maps together take at most
-  ``plane_budget``·T and only what one lixel per pixel needs; every fallback
+* **Budget** (§3: each map gets a fixed number of lixels): T =
+  shadow_map_size texels. One lixel per pixel comes first and may take up to
+  ``plane_budget``·T; beyond it the plane maps buy whole lixels per pixel N
+  (the PCF kernel then spans k / N pixels, so the plane's error falls with the
+  map size) only while the fallback keeps FALLBACK_SHARE of T. Every fallback
   map gets the rest (T minus the plane maps' texels; the per-map convention of
   ``uniform.map_sizes``). Reported in ``diagnostics.extra["budget"]``.
 * **Planes**: ``WarpOptions.planes`` ((point, normal) or (point, normal,
@@ -78,6 +85,11 @@ REGION_TOLERANCE = 1e-6
 NEAR_FRACTION = 1e-6
 """A point light inside B: casters nearer than this fraction of the scene scale
 to the light's height are left out of a plane map (as ``frame.perspective_frame``)."""
+FALLBACK_SHARE = 0.7
+"""Beyond one lixel per pixel, plane maps buy more lixels per pixel only while
+the fallback keeps this share of the texel budget: the fallback serves every
+surface off the planes, and with 70 % its texels stay within 1/√0.7 ≈ 1.2x the
+uniform map's."""
 TWIST_GAIN = 0.99
 """plane_twist='auto' twists when the rotated rectangle is below this fraction
 of the unrotated one and the budget forces fewer lixels than pixels."""
@@ -410,58 +422,104 @@ def _area2d(p: list) -> float:
 
 
 def _rect(pixels: list, s: float, theta: float) -> tuple[int, int, int, int]:
-    """The texel rectangle (i0, j0, i1, j1) around the pixels (x, y) mapped by s·R(θ)."""
-    c, sn = math.cos(theta), math.sin(theta)
-    xs = [(s * x) * c - (s * y) * sn for x, y in pixels]
-    ys = [(s * x) * sn + (s * y) * c for x, y in pixels]
-    i0, j0 = math.floor(min(xs)), math.floor(min(ys))
-    i1, j1 = max(math.ceil(max(xs)), i0 + 1), max(math.ceil(max(ys)), j0 + 1)
-    return i0, j0, i1, j1
+    """The lixels (i0, j0, i1, j1), i1 and j1 excluded, whose cells cover the
+    pixels (x, y) mapped onto the lixel lattice by ``_lixel_of_pixel``: lixel
+    (i, j) has its centre at lattice point (i, j) and its cell within ½ of it."""
+    (a, b, e), (c, d, f) = _lixel_of_pixel(s, theta)
+    xs = [a * x + b * y + e for x, y in pixels]
+    ys = [c * x + d * y + f for x, y in pixels]
+    i0, j0 = math.floor(min(xs) + 0.5), math.floor(min(ys) + 0.5)
+    return i0, j0, math.floor(max(xs) + 0.5) + 1, math.floor(max(ys) + 0.5) + 1
+
+
+def _lixel_of_pixel(s: float, theta: float) -> list:
+    """The pixel -> lixel lattice map ℓ = s·R(θ)·(p - ½) (the first two rows
+    of its 3x3 matrix). Pixel (i, j) covers [i, i + 1] x [j, j + 1] (its centre
+    at p = (i + ½, j + ½), as the viewer's pixel map puts it), so with a whole
+    number s = N and no twist every pixel centre lands on the lattice point
+    N·(i, j): the centre of a lixel, which then samples exactly the pixel's
+    point of the plane (§2: "exactly one lixel ... samples the exact same
+    geometric point"; at N = 1 the identity up to the renumbering)."""
+    c, sn = s * math.cos(theta), s * math.sin(theta)
+    return [[c, -sn, -0.5 * (c - sn)], [sn, c, -0.5 * (sn + c)]]
 
 
 def _texels(rect) -> int:
     return (rect[2] - rect[0]) * (rect[3] - rect[1])
 
 
-def _share_budget(jobs: list[_PlaneJob], budget: float, twist_mode: str) -> float:
-    """The common lixels-per-pixel scale s <= 1 and each map's twist and rectangle."""
+def _rects(jobs: list[_PlaneJob], s: float) -> list[tuple[int, int, int, int]]:
+    """Each plane map's texel rectangle at s lixels per pixel (and its twist)."""
+    return [_rect(j.pixels, s, j.twist) for j in jobs]
+
+
+def _fits(rects: list, budget: float) -> bool:
+    """Whether the rectangles take at most ``budget`` texels, none wider than MAX_SIDE."""
+    return sum(map(_texels, rects)) <= budget and max(max(r[2] - r[0], r[3] - r[1]) for r in rects) <= MAX_SIDE
+
+
+def _share_budget(jobs: list[_PlaneJob], budget: float, extra_budget: float, twist_mode: str) -> float:
+    """The common lixels-per-pixel scale s of the plane maps, and each map's
+    twist and rectangle.
+
+    One lixel per pixel, the paper's exact sampling (§2), comes first: it may
+    take up to ``budget`` texels. More lixels per pixel are bought only in
+    whole numbers N per axis, so that every pixel centre stays a lixel centre
+    (``_lixel_of_pixel``) and a PCF kernel of k lixels spans k / N pixels (the
+    plane's error falls with the map size), and only within ``extra_budget``
+    texels. A budget below one lixel per pixel buys the largest s < 1 that
+    fits (the lixels then appear as squares of 1/s pixels, §2), with the twist
+    when it makes the rectangles smaller (``plane_twist``)."""
     if not jobs:
         return 1.0
     for j in jobs:
         j.twist = 0.0
-    unscaled = [_rect(j.pixels, 1.0, 0.0) for j in jobs]     # (the first try's rectangles unless a map twists)
-    need = sum(map(_texels, unscaled))
-    for j in jobs:
-        if twist_mode == "on" or (twist_mode == "auto" and need > budget):
-            p = np.array(j.pixels)
-            t = min_area_twist(p)
-            a0 = np.prod(np.ptp(p, axis=0))
-            q = p @ rotation2d(t).T
-            if twist_mode == "on" or np.prod(np.ptp(q, axis=0)) < TWIST_GAIN * a0:
-                j.twist = t
-    s = 1.0
-    for _ in range(60):
-        rects = [r if s == 1.0 and j.twist == 0.0 else _rect(j.pixels, s, j.twist) for j, r in zip(jobs, unscaled)]
-        total = sum(_texels(r) for r in rects)
-        side = max(max(r[2] - r[0], r[3] - r[1]) for r in rects)
-        if total <= budget and side <= MAX_SIDE:
-            break
-        shrink = min(math.sqrt(budget / total), MAX_SIDE / side)
-        s *= min(shrink, 1.0) * (1 - 1e-3) if shrink < 1 - 1e-3 else (1 - 1e-3)
+    need = sum(map(_texels, _rects(jobs, 1.0)))
+    if twist_mode == "on" or (twist_mode == "auto" and need > budget):
+        _choose_twists(jobs, always=twist_mode == "on")
+    if _fits(_rects(jobs, 1.0), budget):
+        extra = min(budget, extra_budget)
+        s = float(max(1, math.isqrt(int(extra // need))))
+        while s > 1.0 and not _fits(_rects(jobs, s), extra):
+            s -= 1.0
     else:
-        raise WarpError("plane_optimal: could not fit the plane maps into the texel budget")
-    for j, r in zip(jobs, rects):
+        s = _fraction_of_a_lixel(jobs, budget)
+    for j, r in zip(jobs, _rects(jobs, s)):
         j.rect = r
     return s
+
+
+def _choose_twists(jobs: list[_PlaneJob], always: bool) -> None:
+    """Each map's twist (§2): the rotation giving the tightest rectangle around
+    its pixels, kept when ``always`` or when it saves at least 1 - TWIST_GAIN."""
+    for j in jobs:
+        p = np.array(j.pixels)
+        t = min_area_twist(p)
+        if always or np.prod(np.ptp(p @ rotation2d(t).T, axis=0)) < TWIST_GAIN * np.prod(np.ptp(p, axis=0)):
+            j.twist = t
+
+
+def _fraction_of_a_lixel(jobs: list[_PlaneJob], budget: float) -> float:
+    """The largest s <= 1 (to 0.1 %) whose rectangles fit ``budget`` texels and MAX_SIDE."""
+    s = 1.0
+    for _ in range(60):
+        rects = _rects(jobs, s)
+        if _fits(rects, budget):
+            return s
+        total = sum(map(_texels, rects))
+        side = max(max(r[2] - r[0], r[3] - r[1]) for r in rects)
+        shrink = min(math.sqrt(budget / total), MAX_SIDE / side)
+        s *= min(shrink, 1.0) * (1 - 1e-3) if shrink < 1 - 1e-3 else (1 - 1e-3)
+    raise WarpError("plane_optimal: could not fit the plane maps into the texel budget")
 
 
 def _plane_map(job: _PlaneJob, s: float, origin: np.ndarray, tol: float, options: WarpOptions) -> ShadowMap:
     i0, j0, i1, j1 = job.rect
     wm, hm = i1 - i0, j1 - j0
-    c, sn = math.cos(job.twist), math.sin(job.twist)
-    to_texel = [[s * c, -s * sn, -i0], [s * sn, s * c, -j0]]         # s·R(θ)·pixel - (i0, j0)
+    to_texel = [[1.0, 0.0, 0.5 - i0], [0.0, 1.0, 0.5 - j0]]         # lixel (i0, j0)'s centre to texel (½, ½)
     to_ndc = [[2.0 / wm, 0.0, -1.0], [0.0, 2.0 / hm, -1.0]]
-    (ax, ay, a0), (bx, by, b0) = _affine_then(to_ndc, _affine_then(to_texel, job.pixel))
+    pixel_to_ndc = _affine_then(to_ndc, _affine_then(to_texel, _lixel_of_pixel(s, job.twist)))
+    (ax, ay, a0), (bx, by, b0) = _affine_then(pixel_to_ndc, job.pixel)
     x_row, y_row, w_row = job.rows.tolist()                  # on P: the viewer's clip x, y, w
     x_row, y_row = ([ax * x + ay * y + a0 * w for x, y, w in zip(x_row, y_row, w_row)],
                     [bx * x + by * y + b0 * w for x, y, w in zip(x_row, y_row, w_row)])
@@ -517,7 +575,7 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
         jobs = sorted(ranked[:max(room, 0)], key=lambda j: j.index)
     total = options.shadow_map_size[0] * options.shadow_map_size[1]
     plane_budget = options.plane_budget * total
-    s = _share_budget(jobs, plane_budget, options.plane_twist)
+    s = _share_budget(jobs, plane_budget, (1.0 - FALLBACK_SHARE) * total, options.plane_twist)
     maps = [_plane_map(j, s, origin, tol, options) for j in jobs]
     used = sum(m.size[0] * m.size[1] for m in maps)
     remaining = max(total - used, 1)
@@ -542,6 +600,7 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
     } for j in jobs]
     diag.extra["budget"] = {
         "plane_budget": options.plane_budget, "total_texels": total, "plane_texels": used,
+        "one_lixel_texels": sum(_texels(r) for r in _rects(jobs, 1.0)) if jobs else 0,
         "plane_share": used / total, "fallback_sizes": fb_sizes, "fallback_maps": len(frames),
         "lixels_per_pixel": s if jobs else None,
     }
