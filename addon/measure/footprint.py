@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..warp.aliasing import raster_jacobian, tangent_basis, texel_footprint, texel_footprint_area
+from ..warp.aliasing import perspective_aliasing, texel_footprint, texel_footprint_area
 
 
 def setup_footprints(view, setup, points, normals, map_index=None):
@@ -72,29 +72,17 @@ def footprint_stats(values, mask=None) -> FootprintStats:
 
 
 def perspective_footprints(view, light, setup, points, map_index=None) -> np.ndarray:
-    """Lloyd's perspective aliasing factor per point, the quantity his N_min bounds.
-
-    Both densities are taken per unit area on the plane through p perpendicular
-    to the light ray (so the surface orientation - projection aliasing, which
-    no warp can change - drops out): the pixels needed there are K / z(p)²
-    (``lloyd.pixel_density_constant``, z the eye depth; K alone for an
-    orthographic view), the texels given are |det H⊥| with H⊥ the map's raster
-    Jacobian on that plane. The factor is sqrt(needed / given); with the best
-    possible warp of N texels its maximum over the frustum is m_min =
-    sqrt(N_min / N). NaN for points served by no map."""
-    from .lloyd import pixel_density_constant
-
+    """Lloyd's perspective aliasing factor per point, the quantity his N_min bounds
+    (``addon.warp.aliasing.perspective_aliasing``: pixels needed K / z(p)² and
+    texels given |det H⊥| per unit area across the light ray, so the surface
+    orientation drops out), each point measured in the map that serves it.
+    With the best possible warp of N texels its maximum over the frustum is
+    m_min = sqrt(N_min / N). NaN for points served by no map."""
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     idx = setup.map_index(pts, view) if map_index is None else np.asarray(map_index)
-    rays = light.rays_to(pts)
-    basis = tangent_basis(rays)                      # two unit vectors perpendicular to each ray
-    k = pixel_density_constant(view)
-    need = np.full(len(pts), k) if view.orthographic else k / view.eye_depth(pts) ** 2
     out = np.full(len(pts), np.nan)
     for i, m in enumerate(setup.maps):
         sel = idx == i
         if sel.any():
-            given = np.abs(np.linalg.det(raster_jacobian(m.matrix, m.size, pts[sel]) @ basis[sel]))
-            with np.errstate(divide="ignore"):
-                out[sel] = np.sqrt(need[sel] / given)
+            out[sel] = perspective_aliasing(view, light, m.matrix, m.size, pts[sel])
     return out

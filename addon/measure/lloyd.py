@@ -57,20 +57,10 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from ..warp.aliasing import pixel_density_constant  # noqa: F401 - K lives with the other formulas
 from ..warp.geometry import normalize, perpendicular
 from ..warp.polyhedron import hexahedron_faces
 from ..warp.types import Light, View
-
-
-def pixel_density_constant(view: View) -> float:
-    """K = Rx·Ry / (4·tanθx·tanθy): pixels per unit area on a surface facing the
-    camera at eye depth 1 (perspective), or per unit area for an orthographic view.
-
-    Read from the projection matrix: an image plane at unit depth spans 2/P[0,0]
-    by 2/P[1,1] (lens shift does not change its area)."""
-    rx, ry = view.resolution
-    p = view.projection
-    return rx * ry * p[0, 0] * p[1, 1] / 4.0
 
 
 def _neg_log_divided_difference(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:

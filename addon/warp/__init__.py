@@ -10,7 +10,7 @@ from contextlib import contextmanager
 
 from . import body as _body
 from .body import IntersectionBody
-from .methods import METHODS
+from .methods import METHODS, SCENE_METHODS
 from .types import (Diagnostics, EmptyBodyError, Light, Region, SceneBounds, ShadowMap, ShadowSetup, View,
                     WarpError, WarpOptions)
 
@@ -51,4 +51,6 @@ def compute(method: str, view: View, light: Light, scene: SceneBounds, options: 
     if body is None:
         body = intersection_body(view, light, scene)
     with _warp_errors(f"The {method} light matrices"):
+        if method in SCENE_METHODS:         # the cascade builds one B per split from the scene
+            return METHODS[method](view, light, body, options, scene)
         return METHODS[method](view, light, body, options)

@@ -56,6 +56,20 @@ dp = ds·r_s·cosβ/(r_i·cosα) is its 1D form). Above 1, texels are magnified 
 screen. :func:`texel_footprint_area` gives |det G| / |det H|, pixels per texel
 by area. A surface edge-on to the map (H singular: projection aliasing) gives
 +inf; a point behind the camera or the map (w <= 0) gives NaN.
+
+**3. Lloyd's perspective aliasing factor** (:func:`perspective_aliasing`),
+the per-point quantity his physical limit m_min = sqrt(N_min / N) bounds
+(``addon/measure/lloyd.py``): both densities per unit area on the plane
+through p perpendicular to the light ray, so the surface's orientation
+(projection aliasing, which no warp changes) drops out,
+
+    m(p) = sqrt(K / z(p)² / |det H⊥(p)|),   K = R_x·R_y / (4·tanθ_x·tanθ_y),
+
+with z the eye depth (K alone for an orthographic view) and H⊥ the map's
+raster Jacobian on that plane. For a sun and any map that is a projection
+from the light, |det H⊥| = c / w³ with w the map's clip w, so m² = K·w³/(c·z²)
+is convex in the point (w and z are affine, w³/z² is the perspective of w³):
+its maximum over a convex region lies at a vertex.
 """
 from __future__ import annotations
 
@@ -268,6 +282,35 @@ def texel_footprint_area(view, shadow_map, points, normals) -> np.ndarray:
         with np.errstate(divide="ignore", invalid="ignore"):
             out[valid] = np.abs(np.linalg.det(g[valid])) / np.abs(np.linalg.det(h[valid]))
     return out
+
+
+def pixel_density_constant(view) -> float:
+    """K = R_x·R_y / (4·tanθ_x·tanθ_y): pixels per unit area on a surface facing
+    the camera at eye depth 1 (perspective), or per unit area for an
+    orthographic view. Read from the projection matrix: an image plane at unit
+    depth spans 2/P[0,0] by 2/P[1,1] (lens shift does not change its area)."""
+    rx, ry = view.resolution
+    p = view.projection
+    return rx * ry * p[0, 0] * p[1, 1] / 4.0
+
+
+def perspective_aliasing(view, light, matrix, size, points) -> np.ndarray:
+    """Lloyd's perspective aliasing factor m(p) of one map (``matrix`` onto a
+    ``size`` raster) at (N, 3) world points (module docs, part 3). NaN where
+    w <= 0 for the map.
+
+    The texels per unit area across the light ray, |det H⊥|, need no tangent
+    basis: for raster gradients ∇u, ∇v and an orthonormal basis (t1, t2) of the
+    plane across the unit ray r, det [∇u·t_j; ∇v·t_j] = (∇u × ∇v)·(t1 × t2) =
+    (∇u × ∇v)·r (Binet-Cauchy)."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    gradients = raster_jacobian(matrix, size, pts)                  # (N, 2, 3): ∇u, ∇v
+    rays = light.direction if light.is_directional else light.rays_to(pts)
+    given = np.abs(np.einsum("ij,ij->i", np.cross(gradients[:, 0], gradients[:, 1]), np.broadcast_to(rays, pts.shape)))
+    k = pixel_density_constant(view)
+    needed = np.full(len(pts), k) if view.orthographic else k / view.eye_depth(pts) ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.sqrt(needed / given)
 
 
 def setup_texel_footprint(view, setup, points, normals) -> np.ndarray:

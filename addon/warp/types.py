@@ -289,6 +289,10 @@ class ShadowMap:
     ``depth_row`` (optional, linear-z, Scherzer §4.2): a 4-vector r with
     z_ndc = r @ [x, y, z, 1] used instead of the matrix's z row after the
     divide; the matrix's own z row still defines the clip volume.
+
+    ``blend_band`` (cascades): the map also holds every point (and its
+    casters) up to this much eye depth past the end of ``view_depth_range``;
+    the shading pass fades from it into the map that serves those points.
     """
 
     matrix: np.ndarray
@@ -298,6 +302,7 @@ class ShadowMap:
     view_depth_range: Optional[tuple[float, float]] = None
     region: Optional[Region] = None
     depth_row: Optional[np.ndarray] = None
+    blend_band: float = 0.0
 
     def clip(self, points) -> np.ndarray:
         return transform_h(self.matrix, points)
@@ -335,6 +340,8 @@ class ShadowMap:
             out["region"] = self.region.to_json()
         if self.depth_row is not None:
             out["depth_row"] = np.asarray(self.depth_row).tolist()
+        if self.blend_band > 0:
+            out["blend_band"] = float(self.blend_band)
         return out
 
 
@@ -498,6 +505,10 @@ class ShadowSetup:
         return idx
 
 
+CASCADE_WARPS = ("uniform", "psm", "lispsm", "gmnpr", "auto")
+"""What ``WarpOptions.cascade_warp`` may name: a split's warp, or "auto"."""
+
+
 @dataclass(frozen=True)
 class WarpOptions:
     """Every method's knobs, with the defaults a fresh scene gets.
@@ -518,6 +529,21 @@ class WarpOptions:
     plane_twist: "auto" (rotate a plane map's image when the budget forces fewer
         lixels than pixels and the rotated rectangle is tighter), "on", "off"
         (Chong-Gortler §2, "twist").
+    cascade_splits: how many z-splits of the view's depth range the cascade
+        makes (1 to 8; ``methods/cascade.py``).
+    cascade_warp: each split's warp - "uniform", "psm", "lispsm", "gmnpr", or
+        "auto" (per split, the one with the lowest predicted error).
+    cascade_lambda: the practical split scheme's λ (PSSM: 1 logarithmic, 0
+        uniform), where the adaptive split starts.
+    cascade_adaptive: move the splits to minimise the largest predicted error
+        (Lloyd's model) instead of keeping the λ splits.
+    cascade_stable: quantised split depths and texel-snapped uniform maps in
+        each split's own light space, so a moving camera does not shimmer.
+    cascade_budget: "per_map" (every split a map of ``shadow_map_size``, as
+        PSSM) or "shared" (``shadow_map_size`` is the whole budget, shared by
+        predicted error).
+    cascade_blend: the blend band between splits, as a fraction of the
+        nearer split's depth extent (0: hard seams).
     """
 
     shadow_map_size: tuple[int, int] = (2048, 2048)
@@ -531,6 +557,13 @@ class WarpOptions:
     planes: tuple = ()
     plane_budget: float = 0.75
     plane_twist: str = "auto"
+    cascade_splits: int = 4
+    cascade_warp: str = "auto"
+    cascade_lambda: float = 0.5
+    cascade_adaptive: bool = True
+    cascade_stable: bool = False
+    cascade_budget: str = "per_map"
+    cascade_blend: float = 0.1
 
     def __post_init__(self):
         size = self.shadow_map_size
@@ -546,3 +579,18 @@ class WarpOptions:
             raise WarpError("plane_budget must be in (0, 1]")
         if self.plane_twist not in ("auto", "on", "off"):
             raise WarpError(f"plane_twist must be 'auto', 'on' or 'off' (got {self.plane_twist!r})")
+        self._check_cascade()
+
+    def _check_cascade(self) -> None:
+        splits = self.cascade_splits
+        if isinstance(splits, bool) or not isinstance(splits, (int, np.integer)) or not 1 <= splits <= 8:
+            raise WarpError(f"cascade_splits must be a whole number from 1 to 8 (got {splits!r})")
+        object.__setattr__(self, "cascade_splits", int(splits))
+        if self.cascade_warp not in CASCADE_WARPS:
+            raise WarpError(f"cascade_warp must be one of {', '.join(CASCADE_WARPS)} (got {self.cascade_warp!r})")
+        if not 0.0 <= self.cascade_lambda <= 1.0:
+            raise WarpError(f"cascade_lambda must be in [0, 1] (got {self.cascade_lambda!r})")
+        if self.cascade_budget not in ("per_map", "shared"):
+            raise WarpError(f"cascade_budget must be 'per_map' or 'shared' (got {self.cascade_budget!r})")
+        if not 0.0 <= self.cascade_blend <= 0.5:
+            raise WarpError(f"cascade_blend must be in [0, 0.5] (got {self.cascade_blend!r})")

@@ -35,6 +35,10 @@ OPTIONS: dict = {}
 
 RELATIVE = 1e-6
 
+PENDING = frozenset({"cascade"})
+"""Methods not in the golden yet: the cascade (issue 15) joins once its split
+scheme and warp choice settle."""
+
 
 def configurations() -> Iterator[tuple[str, object, object, object, object]]:
     """(name, view, light, scene, options) for every golden configuration."""
@@ -84,6 +88,8 @@ def snapshot() -> dict:
     for name, view, light, scene, options in configurations():
         body = intersection_body(view, light, scene)
         for method in METHODS:
+            if method in PENDING:
+                continue
             key = f"{name}/{method}"
             try:
                 setup = compute(method, view, light, scene, options, body=body)

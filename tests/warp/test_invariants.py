@@ -82,12 +82,30 @@ def check_finite(setup):
 
 
 def check_contained(setup, body, view, light):
+    split_bodies = setup.diagnostics.extra.get("split_bodies")
+    if split_bodies is not None:      # a cascade: each split's maps hold the split's own B instead
+        return check_splits_contained(setup, split_bodies, light)
     pts = covered_points(body, light)
     idx = setup.map_index(pts, view, NDC_TOL)
     assert (idx >= 0).all(), f"{(idx < 0).sum()} of {len(pts)} vertices of B in no map, e.g. {pts[idx < 0][:2].tolist()}"
     for i in np.unique(idx):
         p, w = ndc(setup.maps[i].matrix, pts[idx == i])
         assert np.all(w > 0) and np.all(np.abs(p) <= 1 + NDC_TOL)
+
+
+def check_splits_contained(setup, split_bodies, light):
+    """Every vertex of split i's B lies in the clip volume of one of split i's maps."""
+    owner = np.asarray(setup.diagnostics.extra["map_splits"])
+    for i, vertices in enumerate(split_bodies):
+        if vertices is None:
+            continue
+        pts = vertices
+        if not light.is_directional:
+            pts = pts[np.linalg.norm(pts - light.position, axis=1) > NEAR_LIGHT * np.ptp(pts, axis=0).max()]
+        held = np.zeros(len(pts), dtype=bool)
+        for k in np.flatnonzero(owner == i):
+            held |= setup.maps[k].contains(pts, NDC_TOL)
+        assert held.all(), f"split {i}: {(~held).sum()} of {len(pts)} vertices of its B in none of its maps"
 
 
 def check_light_rays(setup, body, view, light):

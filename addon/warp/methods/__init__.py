@@ -1,8 +1,10 @@
-"""The warp methods, by name. Each is ``method(view, light, body, options) -> ShadowSetup``."""
+"""The warp methods, by name. Each is ``method(view, light, body, options) -> ShadowSetup``;
+those in ``SCENE_METHODS`` also take the scene (the cascade builds one B per split)."""
 from __future__ import annotations
 
 from typing import Callable
 
+from .cascade import cascade
 from .lispsm import glpr, gmnpr, lispsm
 from .plane_optimal import plane_optimal
 from .psm import psm
@@ -15,4 +17,6 @@ METHODS: dict[str, Callable] = {
     "gmnpr": gmnpr,
     "glpr": glpr,
     "plane_optimal": plane_optimal,
+    "cascade": cascade,
 }
+SCENE_METHODS = frozenset({"cascade"})

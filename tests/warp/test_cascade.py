@@ -1,0 +1,255 @@
+"""The cascade (issue 15): z-splits of the view, each with its own B and warp.
+
+The claims of the papers and of the method's docs, each a test:
+
+* the practical split scheme is PSSM's blend of the logarithmic and uniform splits;
+* the splits tile the depth range with no gap, and so do the maps' view depth ranges;
+* each split's maps contain its B (Scherzer §4.1 over the split's part of the view);
+* Lloyd's perspective aliasing, maximised over a split's vertices, is its maximum over the split;
+* "auto" takes the warp with the lowest predicted error;
+* the adaptive splits never predict a larger max error than the PSSM λ splits;
+* stable splits sit on a ladder of depths and their maps on whole texels;
+* a shared budget keeps the configured texels and gives them where the error is;
+* the cascade beats the classic 3-split PSSM (``bench/reference_pssm.py``) at equal texels.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from addon.measure.box_scene import judge
+from addon.warp import WarpError, WarpOptions, compute, intersection_body
+from addon.warp.aliasing import perspective_aliasing
+from addon.warp.config import ConfigError, parse_config
+from addon.warp.methods.cascade import SPLIT_WARPS, build_split, split_options
+from addon.warp.partition.adaptive import max_error
+from addon.warp.partition.budget import shared_sizes
+from addon.warp.partition.splits import STEPS_PER_OCTAVE, practical_splits, quantised, split_view
+from bench.reference_pssm import reference_pssm
+from hard_cases import HARD_CASES, camera, point, sun, town
+
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = {p.stem: p for p in sorted((ROOT / "examples").glob("*.json"))}
+OPTIONS = WarpOptions(shadow_map_size=1024, cascade_splits=3)
+CASES = ["sun_behind_camera", "sun_perpendicular_axis_aligned", "sun_1deg_above_horizon", "near_0.1_far_1e4",
+         "point_light_behind_camera", "spot_over_scene", "camera_inside_scene_box", "flat_scene_point"]
+
+
+def example(name):
+    view, light, scene, _ = parse_config(json.loads(EXAMPLES[name].read_text()))
+    return view, light, scene
+
+
+def configurations():
+    return [example(n) for n in EXAMPLES] + [HARD_CASES[n] for n in CASES]
+
+
+def config_ids():
+    return list(EXAMPLES) + CASES
+
+
+# ----------------------------------------------------------------------------- the split scheme
+
+def test_practical_splits_blend_the_logarithmic_and_the_uniform_split():
+    n, f, count = 0.5, 400.0, 4
+    log = practical_splits(n, f, count, 1.0)
+    uni = practical_splits(n, f, count, 0.0)
+    assert np.allclose(log[1:] / log[:-1], (f / n) ** (1 / count))          # equal depth ratios
+    assert np.allclose(np.diff(uni), (f - n) / count)                        # equal depth steps
+    assert np.allclose(practical_splits(n, f, count, 0.3), 0.3 * log + 0.7 * uni)
+    for lam in (0.0, 0.5, 1.0):
+        c = practical_splits(n, f, count, lam)
+        assert c[0] == n and c[-1] == f and np.all(np.diff(c) > 0)
+
+
+def test_a_split_view_is_the_view_frustum_between_the_split_depths():
+    view = camera([3.0, -20.0, 5.0], [0.0, 10.0, 0.0], near=0.1, far=100.0)
+    part = split_view(view, 4.0, 9.0)
+    near_face, far_face = part.corners()[:4], part.corners()[4:]
+    assert np.allclose(view.eye_depth(near_face), 4.0) and np.allclose(view.eye_depth(far_face), 9.0)
+    # the corners lie on the original frustum's corner rays
+    for c_near, c_split in zip(view.corners()[:4], near_face):
+        ray = c_near - view.position
+        assert np.linalg.norm(np.cross(ray, c_split - view.position)) <= 1e-9 * np.linalg.norm(ray) ** 2 * 100
+
+
+@pytest.mark.parametrize("config", configurations(), ids=config_ids())
+def test_splits_tile_the_depth_range_with_no_gap(config):
+    view, light, scene = config
+    setup = compute("cascade", view, light, scene, OPTIONS)
+    splits = setup.diagnostics.extra["splits"]
+    fewer = any(what == "splits" for what, _ in setup.diagnostics.fallbacks)     # too many cube faces
+    assert (len(splits) < OPTIONS.cascade_splits + 1) if fewer else (len(splits) == OPTIONS.cascade_splits + 1)
+    assert np.all(np.diff(splits) > 0)
+    assert view.near <= splits[0] and splits[-1] <= view.far * (1 + 1e-12)
+    ranges = [m.view_depth_range for m in setup.maps]
+    starts = sorted({r[0] for r in ranges})
+    ends = sorted({r[1] for r in ranges})
+    assert starts[0] == view.near and ends[-1] == view.far
+    assert starts[1:] == ends[:-1], "each split's range starts exactly where the one before ends"
+    owner = setup.diagnostics.extra["map_splits"]
+    assert owner == sorted(owner), "the maps come split by split, nearest first"
+
+
+@pytest.mark.parametrize("config", configurations(), ids=config_ids())
+def test_each_splits_maps_contain_its_body(config):
+    view, light, scene = config
+    setup = compute("cascade", view, light, scene, OPTIONS)
+    owner = np.asarray(setup.diagnostics.extra["map_splits"])
+    bodies = setup.diagnostics.extra["split_bodies"]
+    assert sum(b is not None for b in bodies) >= 1
+    for i, vertices in enumerate(bodies):
+        if vertices is None:
+            continue
+        if not light.is_directional:        # a perspective map cannot hold its own centre
+            vertices = vertices[np.linalg.norm(vertices - light.position, axis=1) > 1e-5 * np.ptp(vertices, 0).max()]
+        held = np.zeros(len(vertices), dtype=bool)
+        for k in np.flatnonzero(owner == i):
+            held |= setup.maps[k].contains(vertices, 1e-6)
+        assert held.all(), f"split {i}: {(~held).sum()} vertices of its B outside its maps"
+
+
+def test_the_blend_band_reaches_into_the_next_split():
+    view, light, scene = example("outdoor_sun")
+    setup = compute("cascade", view, light, scene, dataclasses.replace(OPTIONS, cascade_blend=0.2))
+    splits = setup.diagnostics.extra["splits"]
+    bands = [m.blend_band for m in setup.maps]
+    assert bands[-1] == 0.0
+    for i, band in enumerate(bands[:-1]):
+        assert band == pytest.approx(0.2 * (splits[i + 1] - splits[i]))
+    # split 0's B is built over its range and the band: it reaches past C_1 by the band
+    depth = view.eye_depth(setup.diagnostics.extra["split_bodies"][0])
+    assert depth.max() >= splits[1] + 0.99 * bands[0]
+    hard = compute("cascade", view, light, scene, dataclasses.replace(OPTIONS, cascade_blend=0.0))
+    assert all(m.blend_band == 0.0 for m in hard.maps)
+
+
+# ----------------------------------------------------------------------------- Lloyd's model and the warps
+
+@pytest.mark.parametrize("name", ["outdoor_sun", "sun_behind_camera", "sun_overhead"])
+def test_the_predicted_error_is_lloyds_maximum_over_the_split(name):
+    """m² = K·w³/(c·z²) is convex for a sun, so its largest value over R_i is at a vertex."""
+    view, light, scene = example(name)
+    split = build_split(view, light, scene, 6.0, 20.0, 0.0, OPTIONS)
+    region = split.body.visible_vertices
+    rng = np.random.default_rng(7)
+    inside = rng.dirichlet(np.ones(len(region)) * 0.2, size=4000) @ region
+    for warp in SPLIT_WARPS:
+        setup = SPLIT_WARPS[warp](split.view, light, split.body, split_options(OPTIONS, (1024, 1024)))
+        m = setup.maps[0]
+        at_vertices = max_error(split.view, light, setup, region)
+        sampled = np.nanmax(perspective_aliasing(split.view, light, m.matrix, m.size, inside))
+        assert sampled <= at_vertices * (1 + 1e-9), warp
+
+
+def test_auto_takes_the_warp_with_the_lowest_predicted_error():
+    view, light, scene = example("sun_behind_camera")
+    auto = build_split(view, light, scene, 7.0, 25.0, 0.0, OPTIONS)
+    errors = {w: build_split(view, light, scene, 7.0, 25.0, 0.0, dataclasses.replace(OPTIONS, cascade_warp=w))
+              .predicted_error for w in SPLIT_WARPS}
+    assert auto.predicted_error == min(errors.values())
+    assert errors[auto.warp] == auto.predicted_error
+    assert len(set(np.round(list(errors.values()), 6))) > 1, "the warps differ here"
+
+
+@pytest.mark.parametrize("config", configurations(), ids=config_ids())
+def test_adaptive_splits_never_predict_a_larger_max_error_than_the_lambda_splits(config):
+    view, light, scene = config
+    adaptive = compute("cascade", view, light, scene, OPTIONS).diagnostics.extra
+    practical = compute("cascade", view, light, scene, dataclasses.replace(OPTIONS, cascade_adaptive=False)).diagnostics.extra
+    assert practical["split_scheme"] == "practical"
+    assert adaptive["predicted_max_error"] <= practical["predicted_max_error"] * (1 + 1e-12)
+
+
+def test_adaptive_splits_equalise_the_predicted_errors():
+    view, light, scene = example("sun_behind_camera")
+    adaptive = compute("cascade", view, light, scene, OPTIONS).diagnostics.extra
+    practical = compute("cascade", view, light, scene, dataclasses.replace(OPTIONS, cascade_adaptive=False)).diagnostics.extra
+    spread = lambda e: max(e) / min(e)                                       # noqa: E731
+    assert spread(adaptive["split_predicted_error"]) < 1.1 < spread(practical["split_predicted_error"])
+    assert adaptive["predicted_max_error"] < 0.9 * practical["predicted_max_error"]
+
+
+# ----------------------------------------------------------------------------- stable splits and budgets
+
+def test_quantised_splits_lie_on_the_ladder_and_hold_the_range():
+    c = practical_splits(0.37, 213.0, 4, 0.5)
+    q = quantised(c)
+    steps = np.log2(q) * STEPS_PER_OCTAVE
+    assert np.allclose(steps, np.round(steps))
+    assert q[0] <= c[0] and q[-1] >= c[-1] and np.all(np.diff(q) > 0)
+    assert np.array_equal(quantised(c * (1 + 1e-4)), q), "a small move of the range keeps the boundaries"
+
+
+def test_stable_cascades_keep_their_splits_and_texel_grids_while_the_camera_moves():
+    scene = town()
+    light = sun([0.4, 0.3, -0.6])
+    options = dataclasses.replace(OPTIONS, cascade_stable=True)
+    setups = [compute("cascade", camera([0.0, -20.0 + dy, 5.0], [0.0, 10.0 + dy, 0.0]), light, scene, options)
+              for dy in (0.0, 0.013)]
+    assert setups[0].diagnostics.extra["splits"] == setups[1].diagnostics.extra["splits"]
+    assert set(setups[0].diagnostics.extra["split_warps"]) == {"uniform"}
+    for a, b in zip(setups[0].maps, setups[1].maps):
+        assert np.allclose(a.matrix[:2, :3], b.matrix[:2, :3]), "same window size and orientation"
+        shift = (b.matrix[:2, 3] - a.matrix[:2, 3]) * np.asarray(a.size) / 2                 # in texels
+        assert np.allclose(shift, np.round(shift), atol=1e-6), "the window moves by whole texels"
+
+
+def test_a_shared_budget_keeps_the_texels_and_gives_them_where_the_error_is():
+    sizes = shared_sizes((2048, 2048), [1.0, 2.0, 4.0])
+    assert sum(w * h for w, h in sizes) == pytest.approx(2048 * 2048, rel=0.01)
+    assert sizes[0][0] < sizes[1][0] < sizes[2][0]
+    assert sizes[2][0] / sizes[1][0] == pytest.approx(2.0, rel=0.01)
+    view, light, scene = example("sun_behind_camera")
+    setup = compute("cascade", view, light, scene, dataclasses.replace(OPTIONS, cascade_budget="shared"))
+    assert sum(m.size[0] * m.size[1] for m in setup.maps) <= 1024 * 1024 * 1.01
+
+
+# ----------------------------------------------------------------------------- options
+
+@pytest.mark.parametrize("bad", [{"cascade_splits": 0}, {"cascade_splits": 9}, {"cascade_splits": 2.0},
+                                 {"cascade_splits": True}, {"cascade_warp": "glpr"}, {"cascade_lambda": 1.5},
+                                 {"cascade_budget": "all"}, {"cascade_blend": 0.9}])
+def test_bad_cascade_options_are_refused_with_their_name(bad):
+    with pytest.raises(WarpError, match=next(iter(bad))):
+        WarpOptions(**bad)
+    config = json.loads(EXAMPLES["outdoor_sun"].read_text())
+    config["options"] = bad
+    with pytest.raises(ConfigError, match=f"options.{next(iter(bad))}"):
+        parse_config(config)
+
+
+def test_the_cli_options_reach_the_cascade():
+    config = json.loads(EXAMPLES["outdoor_sun"].read_text())
+    config["options"] = {"cascade_splits": 2, "cascade_warp": "lispsm", "cascade_lambda": 0.8,
+                         "cascade_stable": False, "cascade_adaptive": False}
+    view, light, scene, options = parse_config(config)
+    extra = compute("cascade", view, light, scene, options).diagnostics.extra
+    assert extra["split_warps"] == ["lispsm", "lispsm"] and extra["split_scheme"] == "practical"
+    z = extra["splits"]
+    assert z[1] == pytest.approx(practical_splits(z[0], z[-1], 2, 0.8)[1])
+
+
+# ----------------------------------------------------------------------------- against the classic PSSM
+
+@pytest.mark.parametrize("name", list(EXAMPLES))
+def test_the_cascade_beats_the_classic_pssm_at_equal_texels(name):
+    """Each map of the config's size, three splits each: p95 footprint at most
+    0.8x the reference PSSM's, every visible point and its casters covered."""
+    view, light, scene = example(name)
+    ours = judge(view, light, scene, compute("cascade", view, light, scene, OPTIONS), samples=(96, 54))
+    reference = judge(view, light, scene, reference_pssm(view, light, scene, 1024, 3), samples=(96, 54))
+    assert (ours.uncovered, ours.casters_uncovered, ours.depth_order_wrong) == (0, 0, 0)
+    assert ours.footprint_p95 <= 0.8 * reference.footprint_p95
+
+
+def test_a_point_light_cascade_with_too_many_faces_makes_fewer_splits():
+    view, light, scene = HARD_CASES["point_light_inside_view"]
+    setup = compute("cascade", view, light, scene, dataclasses.replace(OPTIONS, cascade_splits=4))
+    assert len(setup.maps) <= 8
+    assert any(what == "splits" for what, _ in setup.diagnostics.fallbacks)
