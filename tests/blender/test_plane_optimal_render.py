@@ -1,0 +1,139 @@
+"""plane_optimal's claims (Chong & Gortler, "A Lixel for every Pixel"), rendered
+and judged against ray casting (``test_gpu_shadows``' helpers and truth):
+
+* on the plane of interest every pixel samples exactly its own point, so with
+  no filter its shadows are the ray-cast ones (§2: "exactly one lixel ...
+  samples the exact same geometric point");
+* the plane's error falls with the map size (whole lixels per pixel, so the
+  PCF kernel shrinks in pixels);
+* a box standing on the plane shadows it right up to its foot.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from test_gpu_shadows import aim, box, bvh_of, camera, light, lx, plane, ray_shadow, render, scene  # noqa: F401
+
+RES = (320, 180)
+
+
+def poles_scene(scene):
+    """A 60 m ground with thin poles (4 cm) whose shadows, under a low side
+    sun, are a pixel wide or less, seen from eye height."""
+    plane(scene, size=60.0)
+    for k, y in enumerate((3.0, 6.0, 9.0, 13.0, 18.0, 24.0)):
+        box(scene, f"Pole{k}", size=(0.04, 0.04, 3.0), location=(-2.0 + 0.7 * k, y, 1.5))
+    cam = camera(scene, (0.0, -4.0, 1.6), (0, 0, 0), res=RES)
+    aim(cam, (0.0, 12.0, 0.0))
+    sun = light(scene, "SUN", energy=3.0)
+    sun.rotation_euler = (math.radians(65), 0, math.radians(-70))     # 25° above the horizon, from the side
+    return sun
+
+
+def contact_scene(scene):
+    """A box standing on the ground, its shadow side towards the camera."""
+    plane(scene, size=30.0)
+    box(scene, size=(1.0, 1.0, 2.0), location=(0.0, 0.0, 1.0), rotation=(0, 0, 0.3))
+    cam = camera(scene, (3.0, -6.0, 3.5), (0, 0, 0), res=RES)
+    aim(cam, (0.0, 0.5, 0.3))
+    sun = light(scene, "SUN", energy=3.0)
+    sun.rotation_euler = (math.radians(50), 0, math.radians(150))     # 40° high, from behind the box
+    return sun
+
+
+def plane_pixels(lx, scene, map_size, **shadow):
+    """Render with plane_optimal; the plane map's pixels with their rendered
+    and ray-cast shadows, the world points and the setup."""
+    out, view, lt, setup, dg = render(lx, scene, "plane_optimal", map_size, shadow=shadow or None)
+    index = np.asarray(out.map_index)
+    roles = [m.role for m in setup.maps]
+    assert roles[0] == "plane:0", setup.diagnostics.fallbacks
+    on_plane = np.asarray(out.covered) & (index == 0)
+    ys, xs = np.nonzero(on_plane)
+    points = np.asarray(out.world_position)[ys, xs].astype(np.float64)
+    truth = ray_shadow(bvh_of(dg), lt, points)
+    got = np.asarray(out.shadow_mask)[ys, xs] > 0.5
+    return got, truth, points, (ys, xs), setup
+
+
+def lixels_per_pixel(setup):
+    return setup.diagnostics.extra["budget"]["lixels_per_pixel"]
+
+
+@pytest.mark.parametrize("map_size", [256, 1024])
+def test_every_pixel_of_the_plane_samples_its_own_point(lx, scene, map_size):
+    """With no filter (PCF 1) the plane map's shadows are the ray-cast ones at
+    every pixel of the plane, at one lixel per pixel (256²) and at several
+    (1024²), and each pixel's point lies at the centre of its lixel."""
+    poles_scene(scene)
+    got, truth, points, _, setup = plane_pixels(lx, scene, map_size, pcf_kernel=1)
+    n = lixels_per_pixel(setup)
+    assert n == (1.0 if map_size == 256 else int(n)) and (map_size == 256 or n >= 2)
+    assert len(points) > 10000 and truth.sum() > 100
+    wrong = int((got != truth).sum())
+    assert wrong <= 2, f"{wrong} of {len(points)} plane pixels disagree with ray casting at {n} lixels per pixel"
+    m = setup.maps[0]
+    h = np.column_stack([points, np.ones(len(points))]) @ m.matrix.T
+    texel = (h[:, :2] / h[:, 3:4] + 1) / 2 * np.array(m.size)
+    off_centre = np.abs(texel - np.floor(texel) - 0.5)
+    assert np.percentile(off_centre, 99) < 0.02 * n            # float32 positions: a few hundredths of a pixel
+
+
+def test_the_planes_error_falls_with_the_map_size(lx, scene):
+    """Default settings (PCF 3x3): at one lixel per pixel the filter spans 3
+    pixels and loses pole shadows thinner than a pixel; whole lixels per pixel
+    shrink it, so the plane's error never grows with the map and falls."""
+    poles_scene(scene)
+    errors, scales = [], []
+    for size in (256, 1024, 4096):
+        got, truth, _, _, setup = plane_pixels(lx, scene, size)
+        errors.append(int((got != truth).sum()))
+        scales.append(lixels_per_pixel(setup))
+    assert scales[0] == 1.0 and scales[1] < scales[2]
+    assert errors[0] > 20, f"the scene should have sub-pixel shadows the 3x3 filter loses at one lixel per pixel: {errors}"
+    assert errors[0] >= errors[1] >= errors[2] and errors[2] <= errors[0] / 4, errors
+
+
+@pytest.mark.parametrize("linear_z", [False, True])
+def test_a_box_standing_on_the_plane_shadows_it_to_its_foot(lx, scene, linear_z):
+    """No light leaks between a caster and the plane it stands on: every plane
+    pixel inside the box's true shadow is shadowed, right up to the foot (the
+    box's own pixels do not count as the shadow's edge), and rendered shadows
+    differ from ray casting only on the true shadow's edge (within a pixel,
+    which is N >= 1 lixels of the plane map)."""
+    contact_scene(scene)
+    options = lx.warp.WarpOptions(shadow_map_size=(2048, 2048), linear_z=linear_z)
+    out, view, lt, setup, dg = render(lx, scene, "plane_optimal", 2048, warp_options=options)
+    assert setup.maps[0].role == "plane:0"
+    on_plane = np.asarray(out.covered) & (np.asarray(out.map_index) == 0)
+    world = np.asarray(out.world_position)
+    ys, xs = np.nonzero(on_plane)
+    truth = np.zeros(on_plane.shape, dtype=bool)
+    truth[ys, xs] = ray_shadow(bvh_of(dg), lt, world[ys, xs].astype(np.float64))
+    got = np.asarray(out.shadow_mask) > 0.5
+    inside = on_plane & truth & _all_plane_neighbours(truth, on_plane)
+    outside = on_plane & ~truth & _all_plane_neighbours(~truth, on_plane)
+    foot = inside & (np.nan_to_num(_distance_to_box(world), nan=1.0) < 0.05)
+    assert foot.sum() > 10, "the box's shadow at its foot must be in view"
+    assert not (inside & ~got).any(), f"{(inside & ~got).sum()} plane pixels lit inside the box's shadow"
+    assert not (outside & got).any(), f"{(outside & got).sum()} plane pixels shadowed away from the shadow's edge"
+
+
+def _all_plane_neighbours(mask, on_plane):
+    """Pixels whose 8 neighbours that lie on the plane are all in ``mask``."""
+    ok = np.ones_like(mask)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            shifted_mask = np.roll(np.roll(mask, dy, 0), dx, 1)
+            shifted_plane = np.roll(np.roll(on_plane, dy, 0), dx, 1)
+            ok &= shifted_mask | ~shifted_plane
+    return ok
+
+
+def _distance_to_box(world):
+    """Horizontal distance of world points from the contact box's footprint (negative inside)."""
+    c, s = math.cos(-0.3), math.sin(-0.3)
+    x, y = world[..., 0], world[..., 1]
+    u, v = c * x - s * y, s * x + c * y                      # into the box's frame (turned 0.3 rad)
+    return np.maximum(np.abs(u), np.abs(v)) - 0.5
