@@ -29,6 +29,9 @@ def _scratch_env() -> None:
     scratch = Path(tempfile.gettempdir()) / "lixel-report"
     os.environ.setdefault("XDG_CACHE_HOME", str(scratch / "xdg"))
     os.environ.setdefault("BLENDER_USER_RESOURCES", str(scratch / "blender-user"))
+    # One BLAS thread (before numpy loads): Lixel's arrays are small, and idle BLAS threads
+    # spinning against llvmpipe's only add noise to the timings.
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
 def _csv(text: str) -> list[str]:

@@ -36,11 +36,11 @@ class Options:
     methods: list
     sizes: list
     resolution: tuple = (640, 360)
-    frames: int = 6
+    frames: int = 4
     peers: tuple = ("eevee", "cycles")
     eevee_samples: int = 1
     cycles_samples: int = 1
-    repeats: int = 7
+    repeats: int = 5
     peer_repeats: int = 3
     eevee_sizes: Optional[list] = None
     band_radius: int = 2
@@ -54,11 +54,11 @@ class Options:
 
 
 def quick_defaults() -> dict:
-    return dict(resolution=(240, 135), frames=3, repeats=5, peer_repeats=3)
+    return dict(resolution=(240, 135), frames=2, repeats=5, peer_repeats=3)
 
 
 def full_defaults() -> dict:
-    return dict(resolution=(640, 360), frames=6, repeats=7, peer_repeats=3)
+    return dict(resolution=(640, 360), frames=4, repeats=5, peer_repeats=3)
 
 
 DEFAULT_SIZES = (512, 1024, 2048, 4096)
