@@ -55,7 +55,7 @@ def main(argv=None):
             depsgraph = s.bpy.context.evaluated_depsgraph_get()
             geometry = renders.scene_geometry(depsgraph)
             res = renders.fit_resolution(st.view.resolution, args.longest)
-            images = []
+            images, labels = [], []
             for row in rows:
                 if "setup" not in row:
                     continue
@@ -63,10 +63,12 @@ def main(argv=None):
                 path = os.path.join(args.output_dir, f"{row['method']}.png")
                 renders.save_png(out.combined, path)
                 images.append(out.combined)
+                render_ms = sum(out.timings.values()) * 1000
+                labels.append(renders.method_label(row, render_ms))
                 doc["methods"][row["method"]]["picture"] = os.path.basename(path)
-                doc["methods"][row["method"]]["render_ms"] = sum(out.timings.values()) * 1000
+                doc["methods"][row["method"]]["render_ms"] = render_ms
             if images:
-                renders.save_png(renders.mosaic(images, columns=min(3, len(images))),
+                renders.save_png(renders.mosaic(images, columns=min(3, len(images)), labels=labels),
                                  os.path.join(args.output_dir, "comparison.png"))
         with open(os.path.join(args.output_dir, "comparison.json"), "w", encoding="utf-8") as fh:
             json.dump(doc, fh, indent=2)

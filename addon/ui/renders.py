@@ -63,8 +63,65 @@ def depth_to_rgba(depth: np.ndarray) -> np.ndarray:
     return out
 
 
-def mosaic(images: list, columns: int, gap: int = 4, background=(0.0, 0.0, 0.0, 1.0)) -> np.ndarray:
-    """Equal-size (H, W, 4) images in a grid, first image top-left (rows bottom-up in memory)."""
+LABEL_LINE = 17
+"""Pixels per text line of a tile label (blf size 13)."""
+LABEL_BACKGROUND = (0.08, 0.08, 0.09, 1.0)
+
+
+def label_strip(lines: list, width: int) -> np.ndarray:
+    """A (len(lines) * LABEL_LINE + 6, width, 4) strip with ``lines`` of white
+    text, drawn with blf off-screen (needs a GPU context)."""
+    import blf
+    import gpu
+    import mathutils
+    from ..warp.geometry import ortho_matrix
+    h = len(lines) * LABEL_LINE + 6
+    offscreen = gpu.types.GPUOffScreen(width, h)
+    try:
+        with offscreen.bind():
+            fb = gpu.state.active_framebuffer_get()
+            fb.clear(color=LABEL_BACKGROUND)
+            with gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
+                gpu.matrix.load_identity()
+                gpu.matrix.load_projection_matrix(mathutils.Matrix(ortho_matrix(0, width, 0, h, -1, 1).tolist()))
+                gpu.state.blend_set("ALPHA")
+                blf.size(0, 13)
+                blf.color(0, 1.0, 1.0, 1.0, 1.0)
+                for i, text in enumerate(lines):
+                    blf.position(0, 5, h - 4 - (i + 1) * LABEL_LINE + 4, 0)
+                    blf.draw(0, text)
+                gpu.state.blend_set("NONE")
+            out = np.empty((h, width * 4), dtype=np.float32)
+            fb.read_color(0, 0, width, h, 4, 0, "FLOAT", data=gpu.types.Buffer("FLOAT", out.shape, out))
+    finally:
+        offscreen.free()
+    rgba = out.reshape(h, width, 4)
+    rgba[..., 3] = 1.0
+    return rgba
+
+
+def method_label(row: dict, render_ms: Optional[float] = None) -> list:
+    """Two lines naming a method's tile (a row of ``live.compare_methods``)."""
+    deg = "—" if row.get("theta") is None else f"{math.degrees(row['theta']):.1f}°"
+    warp = f"n_opt {row['n_opt']:.3g}" if row.get("n_opt") is not None else \
+        (f"λ {row['lam']:.3g}" if row.get("lam") is not None else "no warp parameter")
+    first = f"{row['method']}: {row.get('maps', '?')} map(s)" + (f", {render_ms:.0f} ms" if render_ms else "")
+    if row.get("fallbacks"):
+        first += ", FELL BACK"
+    med, mx = row.get("footprint_median_px"), row.get("footprint_max_px")
+    fp = "" if med is None else f", texel footprint {med:.2g} px (max {mx:.2g})"
+    return [first, f"θ {deg}, {warp}{fp}"]
+
+
+def mosaic(images: list, columns: int, gap: int = 4, background=(0.0, 0.0, 0.0, 1.0), labels=None) -> np.ndarray:
+    """Equal-size (H, W, 4) images in a grid, first image top-left (rows bottom-up
+    in memory); ``labels``: per image a list of text lines drawn in a strip above
+    it (needs a GPU context)."""
+    if labels is not None:
+        width = images[0].shape[1]
+        lines = max(len(lab) for lab in labels)
+        images = [np.concatenate([img, label_strip(list(lab) + [""] * (lines - len(lab)), width)])
+                  for img, lab in zip(images, labels)]
     h, w = images[0].shape[:2]
     rows = math.ceil(len(images) / columns)
     out = np.empty((rows * h + (rows - 1) * gap, columns * w + (columns - 1) * gap, 4), dtype=np.float32)
@@ -102,16 +159,17 @@ def compare_renders(st: LiveState, depsgraph, rows: list, longest: int = 320) ->
     Returns (mosaic, [method names drawn])."""
     geometry = scene_geometry(depsgraph)
     res = fit_resolution(st.view.resolution, longest)
-    images, names = [], []
+    images, names, labels = [], [], []
     for row in rows:
         if "setup" not in row:
             continue
         out = render_state(st, depsgraph, res, setup=row["setup"], geometry=geometry, read={"combined"})
         images.append(np.ascontiguousarray(out.combined, dtype=np.float32))
         names.append(row["method"])
+        labels.append(method_label(row, 1000.0 * sum(out.timings.values())))
     if not images:
         raise ValueError("no method produced a setup to render")
-    return mosaic(images, columns=min(3, len(images))), names
+    return mosaic(images, columns=min(3, len(images)), labels=labels), names
 
 
 def to_image(name: str, rgba: np.ndarray, existing_ok: bool = True):
