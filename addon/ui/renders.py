@@ -172,27 +172,30 @@ def compare_renders(st: LiveState, depsgraph, rows: list, longest: int = 320) ->
     return mosaic(images, columns=min(3, len(images)), labels=labels), names
 
 
-def to_image(name: str, rgba: np.ndarray, existing_ok: bool = True):
+def to_image(name: str, rgba: np.ndarray, existing_ok: bool = True, linear: bool = True):
     """Lixel's Image datablock ``name`` holding ``rgba`` (the one Lixel made before
-    is reused or, at another size, replaced; a user's image of that name is never
-    touched). ``existing_ok=False``: always a new image."""
+    is reused or, at another size or kind, replaced; a user's image of that name
+    is never touched). ``existing_ok=False``: always a new image. ``linear``: the
+    values are scene-linear (a float image, shown and saved through the view
+    transform); False: they are display colours already (an 8-bit sRGB image,
+    saved as they are), as the viewport overlays draw them."""
     import bpy
     h, w = rgba.shape[:2]
     img = find_made(bpy.data.images, name) if existing_ok else None
-    if img is not None and tuple(img.size) != (w, h):
+    if img is not None and (tuple(img.size) != (w, h) or img.is_float != linear):
         bpy.data.images.remove(img)
         img = None
     if img is None:
-        img = mark_made(bpy.data.images.new(name, w, h, alpha=True, float_buffer=True), name)
+        img = mark_made(bpy.data.images.new(name, w, h, alpha=True, float_buffer=linear), name)
     img.pixels.foreach_set(np.ascontiguousarray(rgba, dtype=np.float32).ravel())
     img.update()
     return img
 
 
-def save_png(rgba: np.ndarray, path: str, name: Optional[str] = None) -> None:
-    """Write an image (linear float, row 0 at the bottom) to a PNG file."""
+def save_png(rgba: np.ndarray, path: str, name: Optional[str] = None, linear: bool = True) -> None:
+    """Write an image (row 0 at the bottom) to a PNG file; ``linear`` as in :func:`to_image`."""
     import bpy
-    img = to_image(name or "Lixel output", rgba, existing_ok=False)
+    img = to_image(name or "Lixel output", rgba, existing_ok=False, linear=linear)
     try:
         img.filepath_raw = str(path)
         img.file_format = "PNG"

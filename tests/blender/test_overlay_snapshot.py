@@ -1,0 +1,63 @@
+"""scripts/overlay_snapshot.py draws the viewport overlays off-screen for any
+scene, both ways of running a script, and refuses bad arguments; the observer
+view frames the view frustum and B and names what it leaves out."""
+import importlib
+import subprocess
+
+import numpy as np
+import pytest
+
+from test_scripts import MODES, blend, run  # noqa: F401 - the module fixture and helpers are shared
+
+
+def _png(path):
+    import bpy
+    img = bpy.data.images.load(str(path), check_existing=False)
+    try:
+        w, h = img.size
+        px = np.empty(w * h * 4, dtype=np.float32)
+        img.pixels.foreach_get(px)
+    finally:
+        bpy.data.images.remove(img)
+    return px.reshape(h, w, 4)
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_snapshots_of_a_scene_from_camera_and_observer(mode, blend, tmp_path):  # noqa: F811
+    out = tmp_path / "snaps"
+    r = run(mode, "overlay_snapshot.py", blend, "--output-dir", str(out), "--method", "lispsm", "--size", "16",
+            "--width", "320")
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    camera, observer = _png(out / "overlay_camera.png"), _png(out / "overlay_observer.png")
+    assert camera.shape[1] == 320 and observer.shape[:2] == (200, 320)
+    # the camera sees the texel checker on the ground: many light and many dark texels
+    light, dark = camera[..., 0] > 0.7, camera[..., 0] < 0.35   # over the grey backdrop at alpha 0.85
+    assert light.mean() > 0.05 and dark.mean() > 0.05
+    # the observer sees the view frustum's cyan lines and B's orange
+    assert (np.abs(observer[..., :3] - (0.3, 0.8, 1.0)).max(axis=-1) < 0.12).sum() > 20
+    assert ((observer[..., 0] > 0.6) & (observer[..., 2] < 0.35)).sum() > 8
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--output-dir", "d", "--views", "camera,sideways"], "unknown sideways"),
+    (["--output-dir", "d", "--observer-overlays", "body,bogus"], "unknown bogus"),
+    (["--output-dir", "d", "--method", "nosuch"], "choose one of"),
+])
+def test_bad_arguments_are_refused(blend, args, message):  # noqa: F811
+    r = run("module", "overlay_snapshot.py", blend, *args)
+    assert r.returncode == 2 and message in r.stderr
+
+
+def test_observer_frames_the_core_and_names_what_lies_beyond(lixel):
+    snapshot = importlib.import_module(f"{lixel.__name__}.addon.ui.snapshot")
+
+    class View:
+        direction = np.array([0.0, 1.0, 0.0])
+    box = np.array([[x, y, z] for x in (-1, 1) for y in (0, 10) for z in (0, 2)], dtype=float)
+    geometry = {"view_corners": box, "body_edges": box[:2][None], "light_lines": np.array([[[0, 0, 0], [0, 0, 500.0]]]),
+                "warp_lines": np.zeros((0, 2, 3)), "points": {"projection_centre": np.array([0, -1.0, 1])}}
+    vp, notes = snapshot.observer_view_projection(geometry, View(), 1.6)
+    clip = np.c_[box, np.ones(len(box))] @ vp.T
+    ndc = clip[:, :3] / clip[:, 3:]
+    assert (clip[:, 3] > 0).all() and (np.abs(ndc) <= 1).all()        # the view frustum is in the picture
+    assert len(notes) == 1 and notes[0].startswith("light frusta")     # the 500 m line runs out, and is named
