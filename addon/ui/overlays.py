@@ -68,6 +68,11 @@ def uniform_colour_shader():
     return builtin_shader("UNIFORM_COLOR", "3D_UNIFORM_COLOR")
 
 
+def point_shader():
+    """Points (``POINT_UNIFORM_COLOR`` since 4.5; drawing points with ``UNIFORM_COLOR`` is deprecated in 5.0)."""
+    return builtin_shader("POINT_UNIFORM_COLOR", "UNIFORM_COLOR", "3D_UNIFORM_COLOR")
+
+
 def line_shader():
     """Wide lines (uniforms ``viewportSize``, ``lineWidth``, ``color``)."""
     return builtin_shader("POLYLINE_UNIFORM_COLOR", "3D_POLYLINE_UNIFORM_COLOR")
@@ -410,13 +415,14 @@ def _draw_scene_overlays(scene, st, props, view_projection) -> None:
             batch = _cached(scene.name, name, st.generation, lambda s=segments: _line_batch(lines, s))
             lines.uniform_float("color", COLOURS[colour])
             batch.draw(lines)
-        shader.bind()
         if props.show_warp and geometry["points"]:
+            points = point_shader()
+            points.bind()
             gpu.state.point_size_set(8.0)
             pts = np.array(list(geometry["points"].values()))
-            batch = _cached(scene.name, "points", st.generation, lambda: _point_batch(shader, pts))
-            shader.uniform_float("color", COLOURS["point"])
-            batch.draw(shader)
+            batch = _cached(scene.name, "points", st.generation, lambda: _point_batch(points, pts))
+            points.uniform_float("color", COLOURS["point"])
+            batch.draw(points)
             gpu.state.point_size_set(1.0)
     finally:
         gpu.state.depth_test_set("NONE")

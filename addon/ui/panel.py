@@ -211,6 +211,7 @@ class LIXEL_PT_tools(LixelPanel, bpy.types.Panel):
         col = layout.column(align=True)
         col.operator("lixel.compare", icon="IMAGE_REFERENCE")
         col.operator("lixel.export_json", icon="EXPORT")
+        col.operator("lixel.overlay_snapshot", icon="RENDER_STILL")
         col.separator()
         col.operator("lixel.bake_debug", icon="OUTLINER_COLLECTION")
         col.operator("lixel.texel_grid_add", icon="TEXTURE")

@@ -110,13 +110,14 @@ def test_compare_lists_and_renders_every_method(scene, mods):
     rendered = [n for n in mods.warp.METHODS if f"\n{n} " in text and f"\n{n}  error" not in text
                 and f"\n{n} error" not in text]
     img = bpy.data.images["Lixel Comparison"]
-    # a grid of 64x36 pictures, 3 per row, 4 px apart
+    # a grid of 64x36 pictures, each under a two-line label strip, 3 per row, 4 px apart
+    label = 2 * importlib.import_module(f"{mods.live.__name__.rsplit('.', 1)[0]}.renders").LABEL_LINE + 6
     cols = min(3, len(rendered))
     rows = -(-len(rendered) // 3)
-    assert tuple(img.size) == (cols * 64 + (cols - 1) * 4, rows * 36 + (rows - 1) * 4)
+    assert tuple(img.size) == (cols * 64 + (cols - 1) * 4, rows * (36 + label) + (rows - 1) * 4)
     px = np.empty(img.size[0] * img.size[1] * 4, dtype=np.float32)
     img.pixels.foreach_get(px)
-    first = px.reshape(img.size[1], img.size[0], 4)[-36:, :64, :3]
+    first = px.reshape(img.size[1], img.size[0], 4)[-(36 + label):-label, :64, :3]
     assert first.std() > 0.01  # a picture of the scene, not a blank
     bpy.data.texts.remove(bpy.data.texts["Lixel Comparison"])
     bpy.data.images.remove(img)

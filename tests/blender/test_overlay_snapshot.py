@@ -61,3 +61,27 @@ def test_observer_frames_the_core_and_names_what_lies_beyond(lixel):
     ndc = clip[:, :3] / clip[:, 3:]
     assert (clip[:, 3] > 0).all() and (np.abs(ndc) <= 1).all()        # the view frustum is in the picture
     assert len(notes) == 1 and notes[0].startswith("light frusta")     # the 500 m line runs out, and is named
+
+
+def test_operator_saves_camera_and_observer_snapshots(lixel, tmp_path):
+    import bpy
+    from ui_scenes import active_scene
+    with active_scene("lixel_snapshot_op") as scene:
+        scene.lixel.show_texels = True
+        assert bpy.ops.lixel.overlay_snapshot(directory=str(tmp_path), width=160) == {"FINISHED"}
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["overlay_camera.png", "overlay_observer.png"]
+        camera = _png(tmp_path / "overlay_camera.png")
+        assert camera.shape[1] == 160 and (camera[..., 0] > 0.7).any() and (camera[..., 0] < 0.35).any()
+        scene.lixel.show_texels = False
+
+
+def test_operator_without_a_folder_or_camera_says_so(lixel, tmp_path):
+    import bpy
+    from ui_scenes import active_scene
+    with active_scene("lixel_snapshot_nofolder") as scene:
+        with pytest.raises(RuntimeError, match="choose a folder"):
+            bpy.ops.lixel.overlay_snapshot(directory="")
+    with active_scene("lixel_snapshot_nocam", camera=False):
+        with pytest.raises(RuntimeError, match="camera"):
+            bpy.ops.lixel.overlay_snapshot(directory=str(tmp_path))
+    assert not list(tmp_path.iterdir())

@@ -1,10 +1,10 @@
 """Lixel's operators (``LIXEL_OT_*``): refresh, overlays, bake, export, compare,
-planes of interest, geometry-node tooling."""
+overlay snapshots, planes of interest, geometry-node tooling."""
 import bpy
 
-from . import bake, export, planes, setup
+from . import bake, export, planes, setup, snapshot
 
-classes = setup.classes + bake.classes + export.classes + planes.classes
+classes = setup.classes + bake.classes + export.classes + snapshot.classes + planes.classes
 
 
 # Registered in order, unregistered in reverse.
