@@ -52,14 +52,17 @@ DEFINITIONS = [
                        "GMNPR/GLPR parameter. Empty where a method has none."),
     ("Fallbacks", "what a method did instead of its own construction, with its reason (from the method's "
                   "diagnostics); a method that fell back is marked ⚠ wherever it appears."),
-    ("times", "every timed point is the median of repeated runs, with min and max. Lixel: the LIXEL render "
-              "engine's whole frame (addon.render.engine.render_depsgraph): geometry from the cache, the scene "
-              "described, B and the warp, upload, depth pass, shading, read-back of the image and the maps, compose "
-              "— from its start to the pixels in memory; geometry and GPU batches stay cached between frames, as in "
-              "the engine; the first frame (shader compilation, uploads) is reported separately. The repeats of "
-              "all Lixel points of a scene are interleaved. Peers: one bpy.ops.render.render from its call to the "
-              "pixels in the Render Result, no file written, after one untimed render with shadows that compiles "
-              "the shaders."),
+    ("times", "every timed point is the median of repeated runs, with min and max. What is timed — Lixel: the "
+              "LIXEL render engine's whole frame (addon.render.engine.render_depsgraph): geometry from the cache, the "
+              "scene described, B and the warp, upload, depth pass, shading, read-back of the image and the maps, "
+              "compose — from its start to the pixels in memory; geometry and GPU batches stay cached between "
+              "frames, as in the engine; the first frame (shader compilation, uploads) is reported separately. The "
+              "repeats of all Lixel points of a scene are interleaved. Peers: one bpy.ops.render.render from its "
+              "call to the pixels in the Render Result, no file written, after one untimed render with shadows that "
+              "compiles the shaders. How — the CPU time of the whole process over that span (every thread: Blender, "
+              "llvmpipe's rasterizer threads, Cycles' render threads) is the timed point: this machine is shared, "
+              "and the wall clock measures the other work on it as much as the frame (it is given beside, with the "
+              "load average while it was measured). The stage times are the engine's own, wall clock."),
     ("peers", "EEVEE and Cycles with one grey diffuse material (Lixel's albedo), the scene's black world and its "
               "light only: the render with shadows divided by the one without, below 0.5 = shadow."),
     ("pictures", "every render is shown with one exposure per scene — the ground truth's unshadowed direct light at "
@@ -138,18 +141,20 @@ def _tables(scene: dict) -> dict:
                    else "", " ".join(r.get("explanation", []))])
     stage_names = list(dict.fromkeys(k for r in scene["methods"] if r.get("timing")
                                      for k in r["timing"]["stages_ms"]))
-    t_head = ["method", "map", "median ms", "min ms", "max ms", "runs", "first ms"] + [f"{k} ms" for k in stage_names]
+    t_head = (["method", "map", "CPU median ms", "CPU min", "CPU max", "wall median ms", "wall min", "wall max",
+               "runs", "load", "first (wall) ms"] + [f"{k} (wall) ms" for k in stage_names])
     tm = []
     for r in _records(scene):
         m, size = _label(r)
         t = r.get("timing")
         if r.get("status") != "ok" or not t:
             continue
-        tm.append([m, size, _num(t["median_ms"], "{:.1f}"), _num(t["min_ms"], "{:.1f}"), _num(t["max_ms"], "{:.1f}"),
-                   str(t["repeats"]), _num(t.get("first_ms"), "{:.0f}")]
+        tm.append([m, size] + [_num(t[k], "{:.1f}") for k in ("median_ms", "min_ms", "max_ms", "wall_median_ms",
+                                                               "wall_min_ms", "wall_max_ms")]
+                  + [str(t["repeats"]), _num(t.get("load"), "{:.1f}"), _num(t.get("first_ms"), "{:.0f}")]
                   + [_num(t["stages_ms"].get(k), "{:.1f}") for k in stage_names])
     big_head = ["method", "map", "error %", "false shadow", "false light", "edge error %", "flicker %",
-                "fp max", "fp mean", "m_min", "persp max/m_min", "median ms", "excluded"]
+                "fp max", "fp mean", "m_min", "persp max/m_min", "CPU median ms", "excluded"]
     big = []
     for r in _records(scene):
         m, size = _label(r)
@@ -214,8 +219,8 @@ def pareto_names(scene: dict) -> list[str]:
 
 def summary_rows(result: dict) -> list[list[str]]:
     """One row per scene: for each map size the Lixel method with the fewest
-    errors (its error % and median frame time), EEVEE at the largest size it
-    ran, and Cycles."""
+    errors (its error % and median CPU time a frame), EEVEE at the largest size
+    it ran, and Cycles."""
     sizes = sorted({m["size"] for s in result["scenes"] for m in s.get("methods", []) if m.get("status") == "ok"})
     rows = []
     for scene in result["scenes"]:
@@ -249,8 +254,8 @@ def _header(result: dict) -> list[str]:
             f"{', '.join(o['scenes'])}; methods {', '.join(o['methods'])}; map sizes "
             f"{', '.join(str(s) for s in o['sizes'])}; {o['resolution'][0]}×{o['resolution'][1]} pixels; "
             f"{o['frames']} frame(s) of camera animation; timing: median of {o['repeats']} frames per Lixel point, "
-            f"{o['peer_repeats']} renders per peer point; {ev}; Cycles {o['cycles_samples']} spp (direct light "
-            f"only). Took {result.get('seconds', 0):.0f} s."]
+            f"{o['peer_repeats']} renders per peer point, in process CPU time (wall clock beside it); {ev}; Cycles "
+            f"{o['cycles_samples']} spp (direct light only). Took {result.get('seconds', 0):.0f} s."]
 
 
 def blocks(result: dict, pics: dict) -> list:

@@ -93,11 +93,12 @@ def _fell(rec) -> str:
 
 
 def _ms(rec) -> str:
+    """The median CPU time of a timed record, as text."""
     t = rec.get("timing")
     if not t:
         return ""
     m = t["median_ms"]
-    return f"{m / 1000:.2f} s" if m >= 1000 else f"{m:.0f} ms"
+    return (f"{m / 1000:.2f} s" if m >= 1000 else f"{m:.0f} ms") + " CPU"
 
 
 # --------------------------------------------------------------------------- renders
@@ -382,7 +383,7 @@ def speed_error(scene: dict, path: Path) -> Path:
     if any(p[3] == 0 for p in pts):
         handles.append(Line2D([], [], color="0.3", marker="o", mfc="white", ls="", label="0 % (drawn at the floor)"))
     fig.legend(handles=handles, fontsize=8, loc="outside right upper")
-    ax.set_xlabel("time per frame [ms], median; bar: min to max\n"
+    ax.set_xlabel("CPU time per frame [ms] (the whole process, every thread), median; bar: min to max\n"
                   "(Lixel: the render engine's whole frame; peers: one render, no file written)")
     ax.set_ylabel("misclassified pixels [%]")
     ax.set_title(f"{scene['name']}: speed against error")
@@ -418,7 +419,7 @@ def comparison(scene: dict, methods: list, size: int, path: Path) -> Path:
                   interpolation="nearest")
         e = r["errors"]
         sz = f" {r['size']}²" if r.get("size") else ""
-        ax.set_title(f"{label}{sz}: {100 * e['error_rate']:.2f} % wrong, {_ms(r)} a frame\n"
+        ax.set_title(f"{label}{sz}: {100 * e['error_rate']:.2f} % wrong, {_ms(r)} time a frame\n"
                      f"{e['false_shadow']} false shadow (red), {e['false_light']} false light (blue)", fontsize=10)
     for ax in axes.ravel()[len(recs):]:
         _blank(ax)

@@ -8,7 +8,6 @@ a change of its type touches only :func:`frame`.
 """
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -43,6 +42,7 @@ class LixelFrame:
     combined: np.ndarray            # (H, W, 3) linear radiance
     shadow_maps: list               # window depth per map (H_m, W_m)
     seconds: float                  # wall clock of the whole frame
+    cpu_seconds: float              # process CPU time of the whole frame (every thread)
     stages: dict = field(default_factory=dict)   # the engine's own stage times (seconds)
     warnings: list = field(default_factory=list)
 
@@ -50,10 +50,11 @@ class LixelFrame:
 def frame(depsgraph, settings, resolution) -> LixelFrame:
     """Render the depsgraph's scene from its camera, as the LIXEL engine does."""
     from addon.render.engine import render_depsgraph
+    from .timing import Clocks
     warnings: list = []
-    t0 = time.perf_counter()
+    start = Clocks.now()
     out = render_depsgraph(depsgraph, tuple(int(v) for v in resolution), settings, warnings=warnings, read=READ)
-    seconds = time.perf_counter() - t0
+    seconds, cpu_seconds = start.since()
     res = out["result"]
     return LixelFrame(
         setup=out["setup"], method=out["method"],
@@ -63,4 +64,5 @@ def frame(depsgraph, settings, resolution) -> LixelFrame:
         map_index=np.asarray(res.map_index),
         combined=np.asarray(res.combined)[..., :3],
         shadow_maps=list(res.shadow_maps),
-        seconds=seconds, stages={k: float(v) for k, v in res.timings.items()}, warnings=warnings)
+        seconds=seconds, cpu_seconds=cpu_seconds, stages={k: float(v) for k, v in res.timings.items()},
+        warnings=warnings)

@@ -6,9 +6,9 @@ world and its one light: the render with shadows divided by the render with
 the light's shadows switched off (``Light.use_shadow``). A pixel is in shadow
 when the ratio is below 0.5.
 
-Timing, like Lixel's: a timed render is ``bpy.ops.render.render`` from its
-call to the pixels in Blender's Render Result (memory); nothing is written to
-a file inside the time (the result is saved as EXR afterwards, only to read
+Timing, like Lixel's (process CPU time and wall clock, ``timing``): a timed
+render is ``bpy.ops.render.render`` from its call to the pixels in Blender's
+Render Result (memory); nothing is written to a file inside the time (the result is saved as EXR afterwards, only to read
 it into numpy). Before the timed renders, one render with shadows absorbs
 EEVEE's shader compilation (it is reported as the first render's time). A
 point is the median of ``repeats`` renders.
@@ -28,12 +28,11 @@ from __future__ import annotations
 
 import os
 import tempfile
-import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from .timing import Timing, summarise
+from .timing import Clocks, Timing, load_average, summarise
 
 PEERS = ("eevee", "cycles")
 EEVEE_TILEMAP_TEXELS = 32 * 256
@@ -202,11 +201,12 @@ class PeerSession:
                 setattr(e, attr, val)
 
     # --- renders
-    def _render(self) -> float:
+    def _render(self) -> tuple[float, float]:
+        """One render: (wall seconds, process CPU seconds) from the call to the Render Result."""
         import bpy
-        t0 = time.perf_counter()
+        start = Clocks.now()
         bpy.ops.render.render(write_still=False, scene=self.scene.name)
-        return time.perf_counter() - t0
+        return start.since()
 
     def _read(self) -> np.ndarray:
         """The last Render Result as (H, W) luminance (saved to EXR outside any timing)."""
@@ -230,7 +230,7 @@ class PeerSession:
         self._render()
         self.open_image = self._read()
         self.light_obj.data.use_shadow = True
-        self.first_s = self._render()
+        self.first_s = self._render()[0]
 
     def shadowed(self, repeats: int, size=None) -> PeerResult:
         """Median of ``repeats`` timed renders with shadows (EEVEE: tile maps capped at ``size``²)."""
@@ -239,12 +239,14 @@ class PeerSession:
         if self.peer == "eevee" and size:
             self.scene.eevee.shadow_resolution_scale = eevee_resolution_scale(size)
         self.light_obj.data.use_shadow = True
-        seconds = [self._render() for _ in range(max(1, int(repeats)))]
+        load = load_average()
+        runs = [self._render() for _ in range(max(1, int(repeats)))]
+        load = 0.5 * (load + load_average())
         shadowed = self._read()
         open_ = self.open_image
         lit = open_ > 1e-4 * max(float(open_.max()), 1e-12)
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = np.where(lit, shadowed / np.where(lit, open_, 1.0), 1.0)
         return PeerResult(shadow=lit & (ratio < 0.5), ratio=ratio, lit=lit, image=shadowed,
-                          timing=summarise(seconds, first_s=self.first_s),
+                          timing=summarise(runs, first_s=self.first_s, load=load),
                           settings=stated_settings(self.peer, self.samples, size if self.peer == "eevee" else None))

@@ -389,27 +389,30 @@ def _time_methods(run: SceneRun) -> None:
     size (interleaved, so load bursts fall on all points alike)."""
     import bpy
     from .lixel import frame
-    from .timing import summarise
+    from .timing import load_average, summarise
     recs = [r for r in run.out["methods"] if r["status"] == "ok"]
-    seconds = {id(r): [] for r in recs}
+    runs = {id(r): [] for r in recs}
     stages = {id(r): [] for r in recs}
     run.scene.frame_set(run.frames[0])
+    loads = [load_average()]
     for r_i in range(run.opts.repeats):
         with run.progress.step("timing", f"{run.name}: timing round {r_i + 1}/{run.opts.repeats} "
                                          f"({len(recs)} points)", run.name):
             for rec in recs:
                 fr = frame(bpy.context.evaluated_depsgraph_get(), rec["_settings"], run.opts.resolution)
-                seconds[id(rec)].append(fr.seconds)
+                runs[id(rec)].append((fr.seconds, fr.cpu_seconds))
                 stages[id(rec)].append(fr.stages)
+        loads.append(load_average())
+    load = float(np.nanmean(loads))
     for rec in recs:
-        if seconds[id(rec)]:
-            rec["timing"] = summarise(seconds[id(rec)], stages[id(rec)], rec.pop("_first_s", math.nan)).to_json()
+        if runs[id(rec)]:
+            rec["timing"] = summarise(runs[id(rec)], stages[id(rec)], rec.pop("_first_s", math.nan), load).to_json()
     if recs:
         fastest = min(recs, key=lambda r: r["timing"]["median_ms"])
         slowest = max(recs, key=lambda r: r["timing"]["median_ms"])
         run.progress.log(f"{run.name}: Lixel frames {fastest['timing']['median_ms']:.0f} ms ({fastest['method']} "
                          f"@ {fastest['size']}) to {slowest['timing']['median_ms']:.0f} ms ({slowest['method']} "
-                         f"@ {slowest['size']}), medians of {run.opts.repeats}")
+                         f"@ {slowest['size']}) CPU time, medians of {run.opts.repeats} (load average {load:.1f})")
 
 
 def _explain(out: dict) -> None:
@@ -476,8 +479,9 @@ def _peer(run: SceneRun, peer: str) -> None:
                            excluded_pixels=int((gt.valid & ~comp).sum()),
                            _images={"render": res.image, "shadow": res.shadow, "comparable": comp})
                 run.progress.log(f"{run.name}: {peer}" + (f" @ {size}" if size else "") +
-                                 f": {100 * errs.error_rate:.2f} % wrong, {res.timing.median_ms / 1000:.2f} s a render "
-                                 f"(median of {res.timing.repeats})")
+                                 f": {100 * errs.error_rate:.2f} % wrong, {res.timing.median_ms / 1000:.2f} s CPU time "
+                                 f"a render ({res.timing.wall_median_ms / 1000:.2f} s wall; medians of "
+                                 f"{res.timing.repeats})")
     except Exception as exc:  # noqa: BLE001
         out["peers"].append({"method": peer, "status": "failed", "reason": f"{type(exc).__name__}: {exc}"})
         run.progress.log(f"{run.name}: {peer} FAILED: {exc}")

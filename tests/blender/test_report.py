@@ -77,8 +77,9 @@ def test_numbers_diagnostics_and_failures(report):
         assert isinstance(m["explanation"], list)
         t = m["timing"]
         assert t["repeats"] == 3 and t["min_ms"] <= t["median_ms"] <= t["max_ms"]
+        assert t["wall_min_ms"] <= t["wall_median_ms"] <= t["wall_max_ms"] and t["median_ms"] > 0
         assert {"warp", "depth_pass", "shading", "readback"} <= set(t["stages_ms"])
-        assert sum(t["stages_ms"].values()) <= t["max_ms"] * 1.05   # the stages lie inside the timed frame
+        assert sum(t["stages_ms"].values()) <= t["wall_max_ms"] * 1.05   # the stages lie inside the timed frame
     lispsm = next(m for m in ok if m["method"] == "lispsm")
     assert lispsm["diagnostics"]["n_opt"] is not None
     peers = {p["method"]: p for p in scene["peers"]}
@@ -141,8 +142,9 @@ def test_noise_filter_keeps_real_messages():
 
 def test_timing_summary_and_agreement():
     from bench.report.timing import agreement, summarise
-    t = summarise([0.010, 0.030, 0.020], [{"a": 0.001}, {"a": 0.003}, {"a": 0.002}])
-    assert (t.median_ms, t.min_ms, t.max_ms, t.repeats) == (20.0, 10.0, 30.0, 3)
+    t = summarise([(0.010, 0.005), (0.030, 0.004), (0.020, 0.006)], [{"a": 0.001}, {"a": 0.003}, {"a": 0.002}])
+    assert (t.wall_median_ms, t.wall_min_ms, t.wall_max_ms, t.repeats) == (20.0, 10.0, 30.0, 3)
+    assert (t.median_ms, t.min_ms, t.max_ms) == pytest.approx((5.0, 4.0, 6.0))   # the CPU time is the timed point
     assert t.stages_ms == {"a": 2.0}
     rep = lambda ms: {"scenes": [{"name": "s", "methods": [{"method": "m", "size": 8, "status": "ok",  # noqa: E731
                                                             "timing": {"median_ms": ms}}], "peers": []}]}
