@@ -626,6 +626,21 @@ def default_plane(receiver_boxes) -> Optional[PlaneOfInterest]:
     return _top_face(b[i, 0].tolist(), b[i, 1].tolist(), i)
 
 
+def flattest_box(receiver_boxes) -> Optional[tuple[int, float, float]]:
+    """(index, height, smaller horizontal side) of the receiver box whose
+    height is the least fraction of its smaller side: the one nearest to a
+    plane of interest (``default_plane`` takes it if that fraction is at most
+    FLAT_RATIO). None without boxes with a horizontal extent."""
+    b = np.asarray(receiver_boxes, dtype=np.float64).reshape(-1, 2, 3)
+    ext = b[:, 1] - b[:, 0]
+    side = np.minimum(ext[:, 0], ext[:, 1])
+    if not (side > 0).any():
+        return None
+    ratio = np.where(side > 0, ext[:, 2] / np.where(side > 0, side, 1.0), np.inf)
+    i = int(np.argmin(ratio))
+    return i, float(ext[i, 2]), float(side[i])
+
+
 def default_plane_of(receivers) -> Optional[PlaneOfInterest]:
     """``default_plane(receiver boxes)`` for the receivers a culling index
     selected (``culling.Selection``), without gathering every selected box: no

@@ -353,3 +353,24 @@ def test_enclosing_polygon_contains_and_limits_vertices():
     assert len(e) == 32
     assert Region(n, 0.0, e, 1e-12).contains(circle).all()
     assert polygon_area(e, n) < polygon_area(circle, n) * 1.01
+
+
+def test_receivers_no_plane_describes_get_the_uniform_map_and_the_reason():
+    """A hilly terrain (its box 11 % as high as wide) has no plane of interest
+    (Chong-Gortler §5): plane_optimal is the uniform map with the whole budget,
+    and says why and what to do."""
+    terrain = np.array([[-800.0, -500.0, -30.0], [800.0, 1100.0, 150.0]])
+    houses = [np.array([[x, y, 60.0], [x + 15, y + 15, 80.0]]) for x, y in ((0, 0), (40, 90), (-60, 200))]
+    from addon.warp import SceneBounds, compute, intersection_body
+    bounds = SceneBounds.from_boxes(np.array([terrain, *houses]))
+    view = camera([-60.0, -420.0, 230.0], [0.0, 0.0, 80.0], near=1.0, far=800.0)
+    light = sun([0.6, 0.35, -0.45])
+    body = intersection_body(view, light, bounds)
+    options = WarpOptions(shadow_map_size=(1024, 1024))
+    setup = compute("plane_optimal", view, light, bounds, options, body=body)
+    uniform = compute("uniform", view, light, bounds, options, body=body)
+    assert [m.role for m in setup.maps] == ["fallback"]
+    assert setup.maps[0].size == uniform.maps[0].size and np.array_equal(setup.maps[0].matrix, uniform.maps[0].matrix)
+    (what, why), = setup.diagnostics.fallbacks
+    assert what == "planes"
+    assert "receiver box 0, is 180 high over 1.6e+03, 11%" in why and "uniform map" in why and "give planes" in why

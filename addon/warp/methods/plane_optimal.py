@@ -64,8 +64,8 @@ from ..body import IntersectionBody
 from ..fit import fit_runs, window_matrix
 from ..frame import body_light_angles, light_frames
 from ..geometry import point_runs, translation
-from ..plane_map import (PlaneOfInterest, clip_to_polygon, convex_polygon_on_plane, default_plane, default_plane_of,
-                         enclosing_polygon, is_convex_polygon, min_area_twist, offset_steps,
+from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_to_polygon, convex_polygon_on_plane, default_plane,
+                         default_plane_of, enclosing_polygon, flattest_box, is_convex_polygon, min_area_twist, offset_steps,
                          VIEW_CORNER_RAYS, plane_light_matrix, plane_section, polygon_area,
                          rotation2d)
 from ..polyhedron import ConvexPolytope, Plane, clip_faces, unique_points
@@ -146,11 +146,26 @@ def _planes_of(options: WarpOptions, body: IntersectionBody, diag: Diagnostics) 
     else:
         plane = default_plane(getattr(body, "receiver_boxes", np.zeros((0, 2, 3))))
     if plane is None:
-        diag.fallback("planes", "no plane of interest given and no flat receiver box in view: "
-                                "only the fallback map is made (give \"planes\" in the config)")
+        diag.fallback("planes", _no_default_plane(getattr(body, "receiver_boxes", np.zeros((0, 2, 3)))))
         return []
     diag.extra["default_plane"] = plane.name
     return [plane]
+
+
+def _no_default_plane(receiver_boxes) -> str:
+    """Why no receiver gives a default plane, and what plane_optimal does then."""
+    flattest = flattest_box(receiver_boxes)
+    if flattest is None:
+        found = "no receiver box is in view"
+    else:
+        i, height, side = flattest
+        found = (f"no receiver in view is flat (a plane of interest needs a box at most {FLAT_RATIO:.0%} as high as "
+                 f"its smaller side; the flattest, receiver box {i}, is {height:.3g} high over {side:.3g}, "
+                 f"{height / side:.0%}): the receivers are not planar, e.g. a terrain")
+    return (f"no plane of interest given and {found}. plane_optimal renders with its fallback map alone, the "
+            f"uniform map with the whole texel budget (Chong-Gortler §5: where no plane describes the receivers "
+            f"the method has nothing to be exact on); give planes (Planes of Interest in the Lixel panel, or "
+            f"\"planes\" in the config) to add plane maps")
 
 
 def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: IntersectionBody,
