@@ -222,6 +222,12 @@ def readouts(st: Optional[LiveState]) -> list[tuple[str, str]]:
     if d.lam is not None:
         rows.append(("λ", f"{d.lam:.4g}"))
     rows.append(("B vertices", str(len(d.body_vertices))))
+    if "splits" in d.extra:              # a cascade: each split's depths, warp and predicted error
+        z, warps, errors = d.extra["splits"], d.extra["split_warps"], d.extra["split_predicted_error"]
+        for i, (warp, error) in enumerate(zip(warps, errors)):
+            rows.append((f"Split {i}", f"{z[i]:.3g}–{z[i + 1]:.3g} m, {warp}, predicted {error:.3g}" if warp
+                         else f"{z[i]:.3g}–{z[i + 1]:.3g} m, nothing visible"))
+        rows.append(("Predicted max", f"{d.extra['predicted_max_error']:.3g} (Lloyd, {d.extra['split_scheme']} splits)"))
     rows.append(("Maps", f"{len(st.setup.maps)}  ({', '.join(m.role for m in st.setup.maps)})"))
     if st.footprint is not None:
         rows.append(("Texel footprint", f"median {st.footprint['median']:.3g} px, max {st.footprint['max']:.3g} px"))

@@ -93,7 +93,10 @@ def overlay_geometry(view: View, setup: Optional[ShadowSetup], body_faces=None) 
       ``warp_corners`` (8, 3) or None and ``warp_lines``: the warp frustum P (Scherzer §4.4);
       ``points`` dict name -> (3,): the projection centre, B's centroid;
       ``vectors`` dict name -> (2, 3) segment: V_P and B's middle vector from B's centroid
-      (or the projection centre), scaled to B's size.
+      (or the projection centre), scaled to B's size;
+      ``splits``: a cascade's splits, nearest first, each a dict of ``body_edges`` (its
+      own B), ``light_lines`` (its maps' clip volumes) and ``view_lines`` (its slab of V),
+      each (E, 2, 3); the cascade's maps are drawn there and not in ``light_lines``.
     ``body_faces``: B as convex polygons (``IntersectionBody.faces``); when None,
     nothing of B is drawn.
     """
@@ -106,6 +109,7 @@ def overlay_geometry(view: View, setup: Optional[ShadowSetup], body_faces=None) 
         "warp_corners": None,
         "points": {},
         "vectors": {},
+        "splits": split_geometry(view, setup),
     }
     out["view_lines"] = hexahedron_lines(out["view_corners"])
     light_lines = []
@@ -118,7 +122,8 @@ def overlay_geometry(view: View, setup: Optional[ShadowSetup], body_faces=None) 
             if not np.all(np.isfinite(corners)):
                 continue
             out["light_corners"].append(corners)
-            light_lines.append(hexahedron_lines(corners))
+            if not out["splits"]:              # a cascade's maps are drawn with their splits
+                light_lines.append(hexahedron_lines(corners))
         diag = setup.diagnostics
         if diag.warp_frustum_corners is not None:
             wc = np.asarray(diag.warp_frustum_corners, dtype=np.float64).reshape(8, 3)
@@ -140,6 +145,34 @@ def overlay_geometry(view: View, setup: Optional[ShadowSetup], body_faces=None) 
                     out["vectors"][key] = np.stack([start, start + normalize(d) * extent * 0.5])
     out["light_lines"] = (np.concatenate(light_lines) if light_lines else np.zeros((0, 2, 3)))
     out["warp_lines"] = hexahedron_lines(out["warp_corners"]) if out["warp_corners"] is not None else np.zeros((0, 2, 3))
+    return out
+
+
+def clip_volume_lines(matrix) -> np.ndarray:
+    """(12, 2, 3) edges of a map's clip volume, or none when it is singular or reaches infinity."""
+    try:
+        corners = clip_volume_corners(matrix)
+    except np.linalg.LinAlgError:
+        return np.zeros((0, 2, 3))
+    return hexahedron_lines(corners) if np.all(np.isfinite(corners)) else np.zeros((0, 2, 3))
+
+
+def split_geometry(view: View, setup: Optional[ShadowSetup]) -> list:
+    """A cascade's splits (``overlay_geometry``'s ``splits``): each split's B,
+    its maps' clip volumes and its slab of the view frustum; [] for other setups."""
+    extra = setup.diagnostics.extra if setup is not None else {}
+    if "map_splits" not in extra:
+        return []
+    from ..warp.partition.splits import split_view
+    depths, owner, faces = extra["splits"], np.asarray(extra["map_splits"]), extra["split_body_faces"]
+    out = []
+    for i, (near, far) in enumerate(zip(depths[:-1], depths[1:])):
+        maps = [clip_volume_lines(setup.maps[k].matrix) for k in np.flatnonzero(owner == i)]
+        out.append({
+            "body_edges": polygon_edges(faces[i]) if faces[i] is not None else np.zeros((0, 2, 3)),
+            "light_lines": np.concatenate(maps) if maps else np.zeros((0, 2, 3)),
+            "view_lines": hexahedron_lines(split_view(view, near, far).corners()),
+        })
     return out
 
 

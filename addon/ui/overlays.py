@@ -43,6 +43,10 @@ COLOURS = {
     "middle_vector": (0.1, 0.6, 1.0, 1.0),
     "point": (1.0, 1.0, 1.0, 1.0),
 }
+SPLIT_COLOURS = ((1.0, 0.3, 0.3, 0.95), (0.3, 1.0, 0.4, 0.95), (0.35, 0.55, 1.0, 0.95), (1.0, 0.85, 0.2, 0.95),
+                 (0.85, 0.35, 1.0, 0.95), (0.2, 0.95, 0.95, 0.95), (1.0, 0.55, 0.15, 0.95), (0.8, 0.8, 0.8, 0.95))
+"""A cascade's splits, nearest first (at most 8): each split's B, maps and slab of the view in its own colour."""
+COLOURS.update({f"split{i}": c for i, c in enumerate(SPLIT_COLOURS)})
 
 GPU_OVERLAYS = ("show_map", "show_shadowed")
 PIP_BOTTOM = 60
@@ -357,6 +361,13 @@ def line_sets(props, geometry) -> list:
     if props.show_frusta:
         out.append(("view_lines", "view", geometry["view_lines"]))
         out.append(("light_lines", "light", geometry["light_lines"]))
+    for i, split in enumerate(geometry.get("splits", [])):
+        colour = f"split{i % len(SPLIT_COLOURS)}"
+        if props.show_body:
+            out.append((f"split{i}_body", colour, split["body_edges"]))
+        if props.show_frusta:
+            out.append((f"split{i}_view", colour, split["view_lines"]))
+            out.append((f"split{i}_light", colour, split["light_lines"]))
     if props.show_warp:
         out.append(("warp_lines", "warp", geometry["warp_lines"]))
         for name, seg in geometry["vectors"].items():

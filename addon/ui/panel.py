@@ -8,7 +8,7 @@ import bpy
 
 from ..guard import guarded_draw
 from . import live, overlays
-from .properties import LAMBDA_METHODS, N_OPT_METHODS, OVERLAYS, PLANE_METHODS
+from .properties import CASCADE_METHODS, CASCADE_SETTINGS, LAMBDA_METHODS, N_OPT_METHODS, OVERLAYS, PLANE_METHODS
 
 WARP_METHODS = N_OPT_METHODS + LAMBDA_METHODS
 """Methods with a perspective warp (V_P, middle vector, Δz apply)."""
@@ -25,6 +25,8 @@ def method_parameters(method: str, light_type: str = "") -> tuple[str, ...]:
         names += ["use_lambda", "lam"]
     if method in PLANE_METHODS:
         names += ["plane_budget", "plane_twist"]
+    if method in CASCADE_METHODS:
+        names += list(CASCADE_SETTINGS)
     if light_type in ("POINT", ""):
         names.append("max_frustum_angle")
     return tuple(names)
@@ -108,6 +110,8 @@ class LIXEL_PT_method(LixelPanel, bpy.types.Panel):
                 sub.enabled = props.use_visible_depth_range
             elif name == "lam":
                 sub.enabled = props.use_lambda
+            elif name == "cascade_warp":
+                sub.enabled = not props.cascade_stable        # a stable cascade's splits are uniform maps
             sub.prop(props, name)
         if props.method in PLANE_METHODS:
             draw_planes(layout, props)

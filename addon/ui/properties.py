@@ -26,11 +26,20 @@ METHOD_LABELS = {
     "glpr": ("GLPR", "Generalized LiSPSM reparameterisation, λ by Eq. 9 (Zhang et al.)"),
     "plane_optimal": ("Plane optimal", "One map per plane of interest, exact for that plane, plus a fallback "
                                        "map (Chong-Gortler §2-3)"),
+    "cascade": ("Cascade", "z-splits of the view, each with its own B and warp, placed by Lloyd's model "
+                           "(Scherzer §3, PSSM)"),
 }
 
 LAMBDA_METHODS = ("gmnpr", "glpr")
 N_OPT_METHODS = ("lispsm",)
 PLANE_METHODS = ("plane_optimal",)
+CASCADE_METHODS = ("cascade",)
+CASCADE_WARP_ITEMS = (
+    ("auto", "Auto", "Per split, the warp with the lowest predicted error (Lloyd's model)"),
+    ("uniform", "Uniform", "Every split a uniform map fitted to its B"),
+    ("psm", "PSM", "Every split a perspective shadow map (Stamminger-Drettakis)"),
+    ("lispsm", "LiSPSM", "Every split a LiSPSM warp (Scherzer §4.4)"),
+    ("gmnpr", "GMNPR", "Every split a GMNPR warp (Zhang et al. Eq. 8)"))
 
 
 def available_methods() -> tuple[str, ...]:
@@ -132,6 +141,28 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
                ("on", "On", "Always fit the rotated (twisted) rectangle (Chong-Gortler §2)"),
                ("off", "Off", "Never rotate the plane map's image")))
 
+    cascade_splits: IntProperty(name="Splits", default=4, min=1, max=8,
+                                description="z-splits of the view's depth range, each with its own map (cascade)")
+    cascade_warp: EnumProperty(name="Split Warp", default="auto", items=CASCADE_WARP_ITEMS,
+                               description="Each split's warp (cascade)")
+    cascade_lambda: FloatProperty(
+        name="Split λ", default=0.5, min=0.0, max=1.0, subtype="FACTOR",
+        description="The practical split scheme's blend of logarithmic (1) and uniform (0) splits (PSSM)")
+    cascade_adaptive: BoolProperty(
+        name="Adaptive Splits", default=True,
+        description="Move the splits to minimise the largest predicted error (Lloyd's model)")
+    cascade_stable: BoolProperty(
+        name="Stable", default=False,
+        description="Quantised split depths and texel-snapped uniform maps: no shimmer while the camera moves")
+    cascade_budget: EnumProperty(
+        name="Texel Budget", default="per_map",
+        items=(("per_map", "Per Map", "Every split a map of the configured size (PSSM)"),
+               ("shared", "Shared", "The configured size is the whole budget, shared by predicted error")),
+        description="How the cascade's texels are shared between its maps")
+    cascade_blend: FloatProperty(
+        name="Blend Band", default=0.1, min=0.0, max=0.5, subtype="FACTOR",
+        description="The band over which a split's shadow fades into the next one, as a part of the split")
+
     # ShadowSettings
     bias_mode: EnumProperty(
         name="Bias", default="CONSTANT_SLOPE",
@@ -195,7 +226,8 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
             shadow_map_size=(w, h), texel_snapping=self.texel_snapping, delta_z=self.delta_z,
             visible_depth_range=vis, middle_vector=self.middle_vector, linear_z=self.linear_z,
             lam=float(self.lam) if self.use_lambda else None, max_frustum_angle=float(self.max_frustum_angle),
-            planes=planes, plane_budget=float(self.plane_budget), plane_twist=self.plane_twist)
+            planes=planes, plane_budget=float(self.plane_budget), plane_twist=self.plane_twist,
+            **{name: getattr(self, name) for name in CASCADE_SETTINGS})
 
     def shadow_settings(self) -> ShadowSettings:
         return ShadowSettings(
@@ -227,6 +259,8 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
         self.max_frustum_angle = wo.max_frustum_angle
         self.plane_budget = wo.plane_budget
         self.plane_twist = wo.plane_twist
+        for name in CASCADE_SETTINGS:
+            setattr(self, name, getattr(wo, name))
         self.planes.clear()
         for point, normal in wo.planes:
             p = self.planes.add()
@@ -237,6 +271,11 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
 
     def any_overlay(self) -> bool:
         return any(getattr(self, name) for name, _, _ in OVERLAYS)
+
+
+CASCADE_SETTINGS = ("cascade_splits", "cascade_warp", "cascade_lambda", "cascade_adaptive", "cascade_stable",
+                    "cascade_budget", "cascade_blend")
+"""The cascade's WarpOptions fields, stored under the same names."""
 
 
 def preference_settings():
@@ -274,7 +313,7 @@ def _touched(self, _context):
 SETTING_NAMES = ("light", "method", "shadow_map_size", "texel_snapping", "delta_z", "use_visible_depth_range",
                  "visible_depth_range", "middle_vector", "linear_z", "use_lambda", "lam", "max_frustum_angle",
                  "plane_budget", "plane_twist", "bias_mode", "constant_bias", "slope_bias", "back_faces", "pcf_kernel",
-                 "mdsm_depths", "mdsm_selection", "mdsm_neighbourhood", "eye_blur")
+                 "mdsm_depths", "mdsm_selection", "mdsm_neighbourhood", "eye_blur") + CASCADE_SETTINGS
 for _name in SETTING_NAMES:  # one update callback for every setting (before registration)
     LixelSceneSettings.__annotations__[_name].keywords["update"] = _touched
 

@@ -83,8 +83,9 @@ def test_overlay_geometry_equals_the_warp_core(lixel, m, light_type):
                 assert len(g["warp_lines"]) == 12
             else:
                 assert len(g["warp_lines"]) == 0
-            # lines are the 12 edges of each hexahedron
-            assert len(g["light_lines"]) == 12 * len(setup.maps)
+            # lines are the 12 edges of each hexahedron (a cascade's drawn with its splits)
+            drawn = np.concatenate([g["light_lines"], *[split["light_lines"] for split in g["splits"]]])
+            assert len(drawn) == 12 * len(setup.maps)
             for a, b in g["view_lines"]:
                 assert np.sum(~np.isclose(a, b)) >= 1
 
@@ -168,3 +169,23 @@ def test_footprint_readout_of_a_top_down_sun(m):
     assert fp["max"] == pytest.approx(fp["median"], rel=1e-9)
     # a point no map serves is left out
     assert m.og.footprint_estimate(setup, view, light, np.array([[50.0, 0.0, 0.0]])) is None
+
+
+def test_a_cascade_draws_each_split_in_its_own_colour(lixel, m):
+    """Each split's B, maps and slab of the view frustum, nearest first, in distinct colours."""
+    from addon.ui import overlays
+    with active_scene("lixel_og_cascade", light="SUN") as scene:
+        view, light, bounds = m.describe.describe_scene(bpy.context)
+        setup = m.warp.compute("cascade", view, light, bounds, m.types.WarpOptions(cascade_splits=3))
+        g = m.og.overlay_geometry(view, setup, m.warp.intersection_body(view, light, bounds).faces)
+        extra = setup.diagnostics.extra
+        assert len(g["splits"]) == len(extra["splits"]) - 1 == 3
+        for i, split in enumerate(g["splits"]):
+            corners = split["view_lines"].reshape(-1, 3)
+            depth = view.eye_depth(corners)
+            assert depth.min() == pytest.approx(extra["splits"][i]) and depth.max() == pytest.approx(extra["splits"][i + 1])
+            faces = extra["split_body_faces"][i]
+            assert len(split["body_edges"]) == sum(len(f) for f in faces) // 2
+        props = type("Props", (), {"show_body": True, "show_frusta": True, "show_warp": False})()
+        colours = {c for name, c, _ in overlays.line_sets(props, g) if name.startswith("split")}
+        assert len({overlays.COLOURS[c] for c in colours}) == 3

@@ -229,6 +229,7 @@ def cascade(view: View, light: Light, body: IntersectionBody, options: WarpOptio
         "predicted_max_error": objective(errors, options.cascade_budget == "shared"),
         "map_splits": owner,
         "split_bodies": Deferred(lambda: [s.body.vertices if s.body is not None else None for s in splits]),
+        "split_body_faces": Deferred(lambda: [list(s.body.faces) if s.body is not None else None for s in splits]),
         "split_frusta": Deferred(lambda: [s.setup.diagnostics.warp_frustum_corners if s.setup is not None else None
                                           for s in splits]),
         "budget": options.cascade_budget,
