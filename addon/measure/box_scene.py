@@ -1,6 +1,7 @@
 """An independent judge of light matrices on box scenes (numpy only).
 
-It trusts nothing the warp core computed on the way (no B, no frames): it casts
+It trusts nothing the warp core computed on the way (no B, no frames, no
+visible region; only the slab test of ``addon.warp.rays`` is shared): it casts
 rays through a grid of camera pixels against the scene's boxes to find the
 visible points, walks each point's shadow ray toward the light through the
 caster boxes, and checks what an outside evaluation checks:
@@ -20,6 +21,7 @@ import numpy as np
 
 from ..warp.aliasing import setup_texel_footprint
 from ..warp.geometry import transform_h, transform_points
+from ..warp.rays import ray_boxes
 from ..warp.types import Light, SceneBounds, ShadowSetup, View
 
 
@@ -36,30 +38,6 @@ def pixel_rays(view: View, samples: tuple[int, int]) -> tuple[np.ndarray, np.nda
     d = far - near
     length = np.linalg.norm(d, axis=1)
     return near, d / length[:, None], length
-
-
-def ray_boxes(origins, directions, t_max, boxes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Nearest hit of each ray with (M, 2, 3) boxes within [0, t_max]:
-    (t, box index, hit-face normal); t = inf where nothing is hit."""
-    o = origins[:, None, :]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = 1.0 / directions[:, None, :]
-        t1 = (boxes[None, :, 0, :] - o) * inv
-        t2 = (boxes[None, :, 1, :] - o) * inv
-    t1 = np.where(np.isnan(t1), -np.inf, t1)
-    t2 = np.where(np.isnan(t2), np.inf, t2)
-    lo, hi = np.minimum(t1, t2), np.maximum(t1, t2)
-    enter, leave = lo.max(axis=2), hi.min(axis=2)
-    # Boxes are closed shells (meshes are surfaces): from inside, the hit is the inner wall.
-    t = np.where(enter >= 0, enter, np.where(leave >= 0, leave, np.inf))
-    hit = (enter <= leave) & (leave >= 0) & (t <= t_max[:, None])
-    t = np.where(hit, t, np.inf)
-    box = np.argmin(t, axis=1)
-    tt = t[np.arange(len(t)), box]
-    axis = np.argmax(lo[np.arange(len(t)), box], axis=1)
-    normal = np.zeros_like(origins)
-    normal[np.arange(len(t)), axis] = -np.sign(directions[np.arange(len(t)), axis])
-    return tt, box, normal
 
 
 def visible_points(view: View, scene: SceneBounds, samples=(96, 54)) -> tuple[np.ndarray, np.ndarray]:

@@ -28,7 +28,7 @@ import numpy as np
 from ..guard import user_message
 from ..scene.owned import is_debug_object
 from ..settings import LixelSettings
-from ..warp import compute, intersection_body
+from ..warp import compute, focused_body
 from ..warp.methods import METHODS
 from ..warp.types import Diagnostics, EmptyBodyError, ShadowMap, ShadowSetup, WarpError
 
@@ -92,8 +92,9 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     user-facing message.
 
     The frame, in order: the scene's geometry (cached: only what changed is
-    read and uploaded), the view and light, the camera pre-pass, B and the
-    warp, the depth pass, the shading pass, compose and one read-back of the
+    read and uploaded), the view and light, the camera pre-pass (read back per
+    tile: what the camera sees, ``addon.gpu.visibility``), B fitted to it and
+    the warp, the depth pass, the shading pass, compose and one read-back of the
     images in ``read`` (default: the engine's passes). ``timed``: wait for the
     GPU after every stage so each stage's time is its own (the engine's F12
     waits once, at the read-back). ``targets``: the render targets (default:
@@ -101,6 +102,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     from ..gpu.batches import shared_batches
     from ..gpu.pipeline import ShadowFrame
     from ..gpu.result import ENGINE_PASSES
+    from ..gpu.visibility import region_from_frame
     from ..scene.describe import check_finite_geometry, describe_scene, light_notes
     from ..scene.geometry import shared_cache
 
@@ -119,6 +121,9 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     timings["describe"] = time.perf_counter() - t
     frame = ShadowFrame(geometry, view, resolution or view.resolution, targets=targets, timed=timed)
     frame.camera_prepass()
+    visible = None
+    if settings.warp.focus == "visible":         # the warp is fitted to what the pre-pass saw
+        visible, timings["visibility"] = region_from_frame(frame)
     method = settings.method
     if method not in METHODS:
         if warnings is not None:
@@ -126,7 +131,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         method = "uniform"
     t = time.perf_counter()
     try:
-        body = intersection_body(view, light, bounds)
+        body = focused_body(view, light, bounds, settings.warp, visible)
         setup = compute(method, view, light, bounds, settings.warp, body=body)
     except EmptyBodyError as exc:
         # Nothing the camera sees can be shadowed (it looks at the sky, or no visible

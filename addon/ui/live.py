@@ -24,7 +24,7 @@ from ..scene.describe import describe_bounds, describe_light, describe_view, lig
 from ..scene.instances import walk_instances
 from ..scene.owned import is_debug_object
 from ..settings import LixelSettings
-from ..warp import METHODS, compute, intersection_body
+from ..warp import METHODS, compute, focused_body
 from ..warp.types import WarpError
 from .overlay_geometry import footprint_estimate, overlay_geometry
 
@@ -157,14 +157,16 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
 
     inputs_changed = not (_same(view, st.view) and _same(light, st.light) and _same(bounds, st.bounds))
     settings_changed = new_settings != st.settings
+    refocused = st.settings is None or st.settings.warp.focus != new_settings.warp.focus
     st.view, st.light, st.bounds, st.settings = view, light, bounds, new_settings
     if not inputs_changed and not settings_changed and st.setup is not None and not st.error:
         st.timings, st.recomputed = timings, ()
         return st
     try:
         body = st.body
-        if inputs_changed or body is None:
-            body = timed("B", intersection_body, view, light, bounds)
+        if inputs_changed or refocused or body is None:
+            # focused as the settings say: on the visible region (a coarse ray cast against the boxes)
+            body = timed("B", focused_body, view, light, bounds, new_settings.warp)
             recomputed.append("B")
         method, note = resolve_method(new_settings.method)
         setup = timed("warp", compute, method, view, light, bounds, new_settings.warp, body=body)
@@ -221,6 +223,12 @@ def readouts(st: Optional[LiveState]) -> list[tuple[str, str]]:
         rows.append(("n_opt", f"{d.n_opt:.4g}"))
     if d.lam is not None:
         rows.append(("λ", f"{d.lam:.4g}"))
+    if st.body is not None:
+        focus = st.body.focus
+        if st.body.visible is not None:
+            near, far = st.body.visible.depth_range
+            focus += f", depth {near:.3g}–{far:.3g}"
+        rows.append(("Focus", focus))
     rows.append(("B vertices", str(len(d.body_vertices))))
     if "splits" in d.extra:              # a cascade: each split's depths, warp and predicted error
         z, warps, errors = d.extra["splits"], d.extra["split_warps"], d.extra["split_predicted_error"]

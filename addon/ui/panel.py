@@ -16,13 +16,15 @@ WARP_METHODS = N_OPT_METHODS + LAMBDA_METHODS
 
 def method_parameters(method: str, light_type: str = "") -> tuple[str, ...]:
     """The ``scene.lixel`` properties that matter for ``method`` (and the light type)."""
-    names = ["shadow_map_size", "linear_z"]
+    names = ["shadow_map_size", "focus", "linear_z"]
     if method == "uniform":
         names.append("texel_snapping")
     if method in WARP_METHODS:
         names += ["delta_z", "use_visible_depth_range", "visible_depth_range", "middle_vector"]
     if method in LAMBDA_METHODS:
         names += ["use_lambda", "lam"]
+    if method == "glpr":
+        names.append("glpr_guard")
     if method in PLANE_METHODS:
         names += ["plane_budget", "plane_twist"]
     if method in CASCADE_METHODS:

@@ -104,6 +104,17 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
         name="Map Size", size=2, default=(2048, 2048), soft_min=MIN_MAP_SIZE, soft_max=8192,
         description=f"Shadow map texels (width, height); {MIN_MAP_SIZE} to {MAX_MAP_SIZE} per side. "
                     "Multi-map methods split this budget")
+    focus: EnumProperty(
+        name="Focus", default="visible",
+        items=(("visible", "What Is Visible", "Fit the maps to what the camera sees: the render's depth pre-pass, "
+                                              "or in the viewport a coarse ray cast against the objects' bounds "
+                                              "(Scherzer §4.4, Lauritzen et al. 2011)"),
+               ("view", "View Frustum", "Fit the maps to the whole view frustum (Scherzer §4.1; Lixel before 0.2)")),
+        description="What B, and so every map, is fitted to")
+    glpr_guard: BoolProperty(
+        name="GLPR Guard", default=True,
+        description="Keep GLPR's warp no worse than the uniform map, at its worst and over the visible pixels "
+                    "(docs/papers.md)")
     texel_snapping: BoolProperty(name="Texel Snapping", default=False,
                                  description="Snap the uniform map's window to whole texels so shadows do not crawl")
     delta_z: EnumProperty(
@@ -223,7 +234,8 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
                 raise WarpError(f"the visible range must satisfy 0 <= near < far (got {near}, {far})")
             vis = (near, far)
         return WarpOptions(
-            shadow_map_size=(w, h), texel_snapping=self.texel_snapping, delta_z=self.delta_z,
+            shadow_map_size=(w, h), focus=self.focus, glpr_guard=self.glpr_guard,
+            texel_snapping=self.texel_snapping, delta_z=self.delta_z,
             visible_depth_range=vis, middle_vector=self.middle_vector, linear_z=self.linear_z,
             lam=float(self.lam) if self.use_lambda else None, max_frustum_angle=float(self.max_frustum_angle),
             planes=planes, plane_budget=float(self.plane_budget), plane_twist=self.plane_twist,
@@ -246,6 +258,8 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
             self.method = settings.method
         wo, sh = settings.warp, settings.shadow
         self.shadow_map_size = wo.shadow_map_size
+        self.focus = wo.focus
+        self.glpr_guard = wo.glpr_guard
         self.texel_snapping = wo.texel_snapping
         self.delta_z = wo.delta_z
         self.use_visible_depth_range = wo.visible_depth_range is not None
@@ -310,7 +324,7 @@ def _touched(self, _context):
         self.initialised = True
 
 
-SETTING_NAMES = ("light", "method", "shadow_map_size", "texel_snapping", "delta_z", "use_visible_depth_range",
+SETTING_NAMES = ("light", "method", "shadow_map_size", "focus", "glpr_guard", "texel_snapping", "delta_z", "use_visible_depth_range",
                  "visible_depth_range", "middle_vector", "linear_z", "use_lambda", "lam", "max_frustum_angle",
                  "plane_budget", "plane_twist", "bias_mode", "constant_bias", "slope_bias", "back_faces", "pcf_kernel",
                  "mdsm_depths", "mdsm_selection", "mdsm_neighbourhood", "eye_blur") + CASCADE_SETTINGS

@@ -9,13 +9,16 @@ from __future__ import annotations
 from contextlib import contextmanager
 
 from . import body as _body
+from . import visibility as _visibility
 from .body import IntersectionBody
 from .methods import METHODS, SCENE_METHODS
 from .types import (Diagnostics, EmptyBodyError, Light, Region, SceneBounds, ShadowMap, ShadowSetup, View,
                     WarpError, WarpOptions)
+from .visibility import VisibleRegion, region_from_boxes
 
-__all__ = ["compute", "METHODS", "intersection_body", "IntersectionBody", "View", "Light", "SceneBounds",
-           "WarpOptions", "ShadowSetup", "ShadowMap", "Region", "Diagnostics", "WarpError", "EmptyBodyError"]
+__all__ = ["compute", "METHODS", "intersection_body", "focused_body", "IntersectionBody", "VisibleRegion",
+           "region_from_boxes", "View", "Light", "SceneBounds", "WarpOptions", "ShadowSetup", "ShadowMap", "Region",
+           "Diagnostics", "WarpError", "EmptyBodyError"]
 
 
 @contextmanager
@@ -34,23 +37,42 @@ def _warp_errors(what: str):
                         f"{exc}): check the camera's and the light's transforms and the camera's clip range") from exc
 
 
-def intersection_body(view: View, light: Light, scene: SceneBounds) -> IntersectionBody:
-    """B, the intersection body (Scherzer §4.1). Raises ``EmptyBodyError`` when
-    nothing the camera sees can be shadowed, ``WarpError`` for degenerate input."""
+def intersection_body(view: View, light: Light, scene: SceneBounds,
+                      visible: VisibleRegion | None = None) -> IntersectionBody:
+    """B, the intersection body (Scherzer §4.1), on the whole view frustum or
+    focused on ``visible``. Raises ``EmptyBodyError`` when nothing the camera
+    sees can be shadowed, ``WarpError`` for degenerate input."""
     with _warp_errors("The intersection body B"):
-        return _body.intersection_body(view, light, scene)
+        return _body.intersection_body(view, light, scene, visible)
+
+
+def focused_body(view: View, light: Light, scene: SceneBounds, options: WarpOptions | None = None,
+                 visible: VisibleRegion | None = None) -> IntersectionBody:
+    """B as ``options.focus`` says (``visibility.focused_body``): fitted to
+    ``visible`` (e.g. a depth pre-pass), else to a ray cast against the
+    scene's boxes, or to the whole view frustum (``focus="view"``)."""
+    with _warp_errors("The intersection body B"):
+        return _visibility.focused_body(view, light, scene, options, visible)
 
 
 def compute(method: str, view: View, light: Light, scene: SceneBounds, options: WarpOptions | None = None,
-            body: IntersectionBody | None = None) -> ShadowSetup:
-    """Light matrices for ``method``. B is computed unless given (share it across methods).
-    Errors are ``WarpError`` (see :func:`intersection_body`)."""
+            body: IntersectionBody | None = None, visible: VisibleRegion | None = None) -> ShadowSetup:
+    """Light matrices for ``method``. B is computed unless given (share it
+    across methods): focused as ``options.focus`` says, on ``visible`` when
+    given (e.g. a depth pre-pass), else on a ray cast against the scene's
+    boxes (:func:`focused_body`). ``diagnostics.extra["focus"]`` says what B
+    was fitted to. Errors are ``WarpError`` (see :func:`intersection_body`)."""
     if method not in METHODS:
         raise WarpError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     options = options or WarpOptions()
     if body is None:
-        body = intersection_body(view, light, scene)
+        body = focused_body(view, light, scene, options, visible)
     with _warp_errors(f"The {method} light matrices"):
         if method in SCENE_METHODS:         # the cascade builds one B per split from the scene
-            return METHODS[method](view, light, body, options, scene)
-        return METHODS[method](view, light, body, options)
+            setup = METHODS[method](view, light, body, options, scene)
+        else:
+            setup = METHODS[method](view, light, body, options)
+    setup.diagnostics.extra["focus"] = body.focus
+    if body.visible is not None:
+        setup.diagnostics.extra["visible_depth_range"] = body.visible.depth_range
+    return setup

@@ -15,7 +15,7 @@ import os
 import sys
 import traceback
 
-from . import METHODS, compute, intersection_body
+from . import METHODS, compute, focused_body
 from .config import parse_config
 from .types import EmptyBodyError, WarpError
 
@@ -73,7 +73,7 @@ def main(argv=None) -> int:
         print(f"lixel: error: config: {_internal(exc)}", file=sys.stderr)
         return 2
     try:
-        body = intersection_body(view, light, scene)
+        body = focused_body(view, light, scene, options)     # (as options.focus says: the visible region by default)
     except EmptyBodyError as exc:
         body = exc
         print(f"lixel: note: the intersection body is empty: {exc}", file=sys.stderr)

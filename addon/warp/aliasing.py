@@ -35,6 +35,13 @@ The λ selections, each a function of (θ, n, f, φ):
   floor (at φ) to GMNPR's λ2* (Eq. 7), reaching ∞ at θ = 0 (convergence to the
   uniform map) no more abruptly than GMNPR does.
 
+:func:`lambda_no_worse_than_uniform` and :func:`lambda_no_worse_on_average` are
+GLPR's guard: the least λ at which the warp's worst aliasing over the depths
+[n, f] is no worse than the uniform map's worst, and at which its aliasing over
+the visible pixels, in the L2 norm of its ratio to the uniform map's, is no
+worse either (GMNPR §3 warns that GLPR "might be over-strong"; docs/papers.md
+derives both).
+
 :func:`lispsm_inverse_n_opt` is Scherzer §4.4 Eq. 1 written as 1 / n_opt, finite
 for every γ (0 at γ = 0, the uniform limit).
 
@@ -213,6 +220,81 @@ def lambda_glpr(theta, n, f, phi) -> float:
         return math.inf
     w = theta / phi
     return math.exp(w * math.log(floor) + (1.0 - w) * math.log(g))
+
+
+def end_offsets(theta, n, f, phi) -> tuple[float, float]:
+    """GMNPR §3's (μ, ν): with them the aliasing at the two ends of [n, f] is
+
+        F(λ, θ, n) = U · (λ + μ)² / (λ(λ + 1)),   F(λ, θ, f) = U · (n/f) · (λ + ν)² / (λ(λ + 1)),
+
+    U = F(∞, θ, n) the uniform map's aliasing at n (its worst: uniform F ~ 1/z).
+    θ ≥ φ: μ = n / ((f - n) tanθ/tanφ + f + n), ν = 1 - f / ((f - n) tanθ/tanφ + f + n);
+    θ < φ: μ = 1/2 - (f - n)/(2f) · tanθ/tanφ, ν = 1/2."""
+    theta = float(theta)
+    ratio = math.tan(theta) / math.tan(phi) if theta < math.pi / 2 else math.inf    # tan θ / tan φ
+    if theta >= phi:
+        if not math.isfinite(ratio):
+            return 0.0, 1.0
+        d = (f - n) * ratio + f + n
+        return n / d, 1.0 - f / d
+    return 0.5 - (f - n) / (2.0 * f) * ratio, 0.5
+
+
+def lambda_no_worse_than_uniform(theta, n, f, phi) -> float:
+    """The least λ whose worst aliasing over [n, f] is no worse than the uniform
+    map's worst, max(F(λ, n), F(λ, f)) <= U (GMNPR Eq. 2 at the ends,
+    :func:`end_offsets`; F is convex in z, so its maximum over [n, f] is at an
+    end). The near end needs (λ + μ)² <= λ(λ + 1), i.e. λ >= μ² / (1 - 2μ);
+    the far end (λ + ν)² <= r λ(λ + 1) with r = f/n, i.e. λ at least the
+    positive root of (r - 1)λ² + (r - 2ν)λ - ν² = 0. In the ideal case
+    (θ = π/2: μ = 0, ν = 1) this is n / (f - n), GLPR's own λ, where GLPR's
+    far-end aliasing equals the uniform map's near-end aliasing exactly; at any
+    other angle GLPR's λ is below it. GMNPR's λ1 (θ >= φ, the minimax over
+    [n, f]) satisfies it; its λ2* below φ (Eq. 7, a heuristic) need not. ∞
+    (only the uniform map) when f <= n."""
+    if not f > n:
+        return math.inf
+    mu, nu = end_offsets(theta, n, f, phi)
+    near = mu * mu / (1.0 - 2.0 * mu) if mu < 0.5 else math.inf
+    r = f / n
+    b = r - 2.0 * nu
+    far = 2.0 * nu * nu / (b + math.sqrt(b * b + 4.0 * (r - 1.0) * nu * nu)) if nu > 0 else 0.0   # the positive root
+    return max(near, far)
+
+
+def lambda_no_worse_on_average(delta, weights=None) -> float:
+    """The least λ at which the warp's aliasing over the visible pixels, in the
+    L2 norm of its ratio to the uniform map's, is no worse than the uniform
+    map's (GMNPR §3: "we can define variant norms"; GMNPR itself minimizes the
+    L∞ norm along the view direction).
+
+    A pixel whose surface point lies at δ ∈ [0, 1] along B's extent on V_P
+    (δ = (h - h_min)/D, the warp's own depth coordinate) sees the warp's
+    texels along V_P at ρ(δ) = (λ + δ)²/(λ(λ + 1)) times the uniform map's
+    (the map coordinate s = (1 + λ)(1 - λ/(δ + λ)) has ds/dδ = λ(1 + λ)/(δ + λ)²;
+    the uniform map's ds/dδ is 1). Requiring E[ρ²] <= 1 over the pixels
+    (``delta`` weighted by the pixels each sample stands for) is, with the
+    moments m_k = E[δ^k],
+
+        p(λ) = (4m₁ - 2)λ³ + (6m₂ - 1)λ² + 4m₃λ + m₄ <= 0,
+
+    true for every λ beyond the largest positive root of p when m₁ < 1/2 (its
+    leading coefficient is negative) and for none otherwise (∞: with most
+    pixels in B's far half along V_P no warp wins). The mean of ρ (the L1
+    norm) would let a few pixels' texels grow tenfold for the many near ones'
+    gain; rendered shadows lose exactly there (small far casters vanish), so
+    the L2 norm, which weighs large losses more, is the guard."""
+    d = np.clip(np.asarray(delta, dtype=np.float64), 0.0, 1.0)
+    w = np.ones(len(d)) if weights is None else np.asarray(weights, dtype=np.float64)
+    total = float(w.sum())
+    if not len(d) or not total > 0:
+        return 0.0
+    m1, m2, m3, m4 = (float(w @ d ** k) / total for k in (1, 2, 3, 4))
+    if not m1 < 0.5:
+        return math.inf
+    roots = np.roots([4.0 * m1 - 2.0, 6.0 * m2 - 1.0, 4.0 * m3, m4])
+    real = roots.real[(np.abs(roots.imag) <= 1e-9 * np.maximum(1.0, np.abs(roots.real))) & (roots.real > 0)]
+    return float(real.max()) if len(real) else 0.0
 
 
 LAMBDA_RULES = {"lispsm": lambda_lispsm, "gmnpr": lambda_gmnpr, "glpr": lambda_glpr}

@@ -42,6 +42,7 @@ from .culling import BoxIndex, Selection
 from .light_hull import light_halfspaces, light_hull
 from .polyhedron import ConvexPolytope, Plane, float_rows
 from .types import EmptyBodyError, Light, SceneBounds, View
+from .visibility import VisibleRegion
 
 log = logging.getLogger(__name__)
 
@@ -104,6 +105,13 @@ class IntersectionBody:
     """The point B's ``polytope`` is expressed relative to (the camera position)."""
     visible_boundary: Brep | None = None
     """R's boundary relative to ``origin`` (see ``visible_polytope``)."""
+    visible: VisibleRegion | None = None
+    """The visible region R was focused on (None: R spans the view frustum)."""
+
+    @property
+    def focus(self) -> str:
+        """What R was fitted to: the visible region's source, or "view frustum"."""
+        return "view frustum" if self.visible is None else self.visible.source
 
     @property
     def visible_polytope(self) -> ConvexPolytope | None:
@@ -198,9 +206,25 @@ def _clip_to_box(b: Brep, box_o: list[float], tol: float) -> Brep | None:
     return brep.clip(b, [_BOX_NORMALS_LIST[i] for i in cuts], [box_o[i] for i in cuts], tol)
 
 
-def intersection_body(view: View, light: Light, scene: SceneBounds) -> IntersectionBody:
+def _focused(frustum: Brep, corners: np.ndarray, focus: tuple[list, list], tol: float) -> Brep | None:
+    """V cut by the visible region's half-spaces ``focus`` (camera-relative, like V)."""
+    try:
+        return brep.clip(frustum, *focus, tol)
+    except OpenCut as why:
+        log.debug("focused V by vertex enumeration: %s", why)
+        poly = ConvexPolytope.from_corners(corners, tol).clip(np.array(focus[0]), np.array(focus[1]))
+        return None if poly is None else poly.brep()
+
+
+def intersection_body(view: View, light: Light, scene: SceneBounds,
+                      visible: VisibleRegion | None = None) -> IntersectionBody:
     """B for this view, light and scene (Scherzer §4.1). Raises EmptyBodyError
-    (with the reason) when nothing visible can receive a shadow."""
+    (with the reason) when nothing visible can receive a shadow.
+
+    ``visible`` focuses B on what the camera sees (:mod:`.visibility`): V is
+    cut by the region's half-spaces first, so R holds the visible points only
+    while B = hull(R ∪ light) ∩ S_c still holds every caster that can shadow
+    one of them."""
     if scene.is_empty:
         raise EmptyBodyError("the scene has no shadow casters or receivers")
     origin = view.position
@@ -211,6 +235,13 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
     except OpenCut as why:
         log.debug("view frustum by vertex enumeration: %s", why)
         frustum = ConvexPolytope.from_corners(corners, RELATIVE_TOLERANCE * view_size).brep()
+    focus: tuple[list, list] = ([], [])
+    if visible is not None:
+        n, o = visible.halfspaces(view, light)
+        focus = (n.tolist(), (o - n @ origin).tolist())
+        frustum = _focused(frustum, corners, focus, RELATIVE_TOLERANCE * view_size)
+        if frustum is None:
+            raise EmptyBodyError(f"the visible region ({visible.source}) does not meet the view frustum")
     ln, lo = light_halfspaces(light, origin)
     cone = " and the spot cone" if len(ln) else ""
     if len(ln):
@@ -235,22 +266,23 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
     planes_n = _BOX_NORMALS_LIST + ln.tolist()
     planes_o = _box_offsets(s_r, max(BOX_PAD * scale, 512 * tol)) + lo.tolist()
     try:
-        visible = brep.clip(frustum, planes_n, planes_o, tol)
+        visible_r = brep.clip(frustum, planes_n, planes_o, tol)
     except OpenCut as why:
         log.debug("R by vertex enumeration: %s", why)
-        poly = ConvexPolytope.from_corners(corners, tol).clip(np.array(planes_n), np.array(planes_o))
-        visible = None if poly is None else poly.brep()
-    if visible is None:
+        poly = ConvexPolytope.from_corners(corners, tol).clip(np.array(planes_n + focus[0]),
+                                                              np.array(planes_o + focus[1]))
+        visible_r = None if poly is None else poly.brep()
+    if visible_r is None:
         raise EmptyBodyError("the view frustum does not meet the receivers" + (" inside the spot cone" if len(ln) else ""))
 
     # hull(R ∪ light) ∩ L, and the casters meeting it.
     light_h = light.homogeneous_from(origin)
     # hull(R ∪ light) ⊂ L already (L is a convex cone with its apex at the light and R ⊂ L),
     # so L's planes would only repeat what the hull says.
-    hull = light_hull(visible, light_h, tol)
+    hull = light_hull(visible_r, light_h, tol)
     hn, ho = hull.normals, hull.offsets + hull.normals @ origin
     casters = BoxIndex.of(scene, "casters").select(hull.normals, ho, tol)
-    axes = list(zip(*visible.vertices))
+    axes = list(zip(*visible_r.vertices))
     s_c = [[min(c) for c in axes], [max(c) for c in axes]]
     if casters.box is not None:
         lo_c, hi_c = (casters.box - origin).tolist()
@@ -272,7 +304,7 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
         body = ConvexPolytope.box(-np.array(box_o[:3]), np.array(box_o[3:]), tol).clip(hull.normals, hull.offsets)
     if body is None:
         raise EmptyBodyError("the light-extruded view does not meet the scene")
-    visible_vertices = float_rows(visible.vertices)
+    visible_vertices = float_rows(visible_r.vertices)
     return IntersectionBody(
         vertices=body.vertices + origin,
         faces=LazyFaces(body, origin),
@@ -285,5 +317,6 @@ def intersection_body(view: View, light: Light, scene: SceneBounds) -> Intersect
         scale=scale,
         polytope=body,
         origin=origin,
-        visible_boundary=visible,
+        visible_boundary=visible_r,
+        visible=visible,
     )

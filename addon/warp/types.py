@@ -507,6 +507,8 @@ class ShadowSetup:
 
 CASCADE_WARPS = ("uniform", "psm", "lispsm", "gmnpr", "auto")
 """What ``WarpOptions.cascade_warp`` may name: a split's warp, or "auto"."""
+FOCUS_MODES = ("visible", "view")
+"""``WarpOptions.focus``: B fitted to what the camera sees, or to the whole view frustum."""
 
 
 @dataclass(frozen=True)
@@ -514,12 +516,19 @@ class WarpOptions:
     """Every method's knobs, with the defaults a fresh scene gets.
 
     shadow_map_size: texels (w, h) of the map (split among maps for multi-map setups).
+    focus: what B is fitted to - "visible" (what the camera sees: the visible
+        region given to ``compute``, a depth pre-pass in the render engine, or a
+        coarse ray cast against the scene's boxes; see ``visibility``) or "view"
+        (the whole view frustum, Scherzer §4.1 as printed; Lixel before 0.2).
     texel_snapping: snap the uniform map's window to whole texels (no crawling).
     delta_z: Scherzer Eq. 1's Δz - "body" (extent of B) or "visible" (the
         ``visible_depth_range``); used for n_opt only, never for B.
     middle_vector: use B's middle vector as V_P (Scherzer §4.4) instead of Eq. 3.
     linear_z: linear depth distribution (Scherzer §4.2) - sets ShadowMap.depth_row.
-    lam: force GMNPR's λ (None = Eq. 8).
+    lam: force GMNPR's or GLPR's λ (None = Eq. 8 / GLPR's rule).
+    glpr_guard: raise GLPR's λ to the least λ whose worst aliasing over the
+        visible depths is no worse than the uniform map's
+        (``aliasing.lambda_no_worse_than_uniform``; docs/papers.md).
     max_frustum_angle: widest single perspective map for a point light (radians);
         wider needs take cube faces.
     planes: planes of interest for plane_optimal, [(point, normal), ...].
@@ -547,12 +556,14 @@ class WarpOptions:
     """
 
     shadow_map_size: tuple[int, int] = (2048, 2048)
+    focus: str = "visible"
     texel_snapping: bool = False
     delta_z: str = "body"
     visible_depth_range: Optional[tuple[float, float]] = None
     middle_vector: bool = False
     linear_z: bool = False
     lam: Optional[float] = None
+    glpr_guard: bool = True
     max_frustum_angle: float = math.radians(120.0)
     planes: tuple = ()
     plane_budget: float = 0.75
@@ -573,6 +584,8 @@ class WarpOptions:
         if not (1 <= w <= 16384 and 1 <= h <= 16384):
             raise WarpError(f"shadow map size must be between 1 and 16384 texels per side (got {w}x{h})")
         object.__setattr__(self, "shadow_map_size", (w, h))
+        if self.focus not in FOCUS_MODES:
+            raise WarpError(f"focus must be one of {', '.join(map(repr, FOCUS_MODES))} (got {self.focus!r})")
         if self.delta_z not in ("body", "visible"):
             raise WarpError(f"delta_z must be 'body' or 'visible' (got {self.delta_z!r})")
         if not (0.0 < self.plane_budget <= 1.0):

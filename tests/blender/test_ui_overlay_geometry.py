@@ -95,7 +95,7 @@ def test_live_state_draws_what_the_core_computes(lixel, m):
         st = m.live.update(scene, bpy.context.evaluated_depsgraph_get())
         assert st.ok, st.error
         view, light, bounds = m.describe.describe_scene(bpy.context)
-        body = m.warp.intersection_body(view, light, bounds)
+        body = m.warp.focused_body(view, light, bounds, scene.lixel.to_settings().warp)   # (as the live state does)
         check_body(m.og, st.geometry, body)
         setup = m.warp.compute(st.method_used, view, light, bounds, scene.lixel.to_settings().warp, body=body)
         for corners, smap in zip(st.geometry["light_corners"], setup.maps):

@@ -211,3 +211,54 @@ def test_eq2_at_near_and_far_matches_the_papers_case_values(theta_deg):
             ff = 2 / tt * (lam + nu) ** 2 / (lam * (lam + 1))
         assert float(al.aliasing_F(lam, theta, N, N, F, PHI)) == pytest.approx(fn, rel=1e-9)
         assert float(al.aliasing_F(lam, theta, F, N, F, PHI)) == pytest.approx(ff, rel=1e-9)
+
+
+# ----------------------------------------------------------------------------- GLPR's guard
+
+@pytest.mark.parametrize("n,f,phi", [(N, F, PHI), (1.0, 800.0, math.pi / 6), (128.0, 600.0, math.radians(25))])
+def test_at_the_guard_the_warps_worst_aliasing_is_the_uniform_maps_worst(n, f, phi):
+    """lambda_no_worse_than_uniform: over [n, f] the warp's largest F (GMNPR Eq. 2,
+    at an end: F is convex in z) equals the uniform map's largest (at n); any
+    stronger warp (smaller λ) is worse there."""
+    z = np.geomspace(n, f, 2001)
+    for theta in np.radians([2.0, 12.0, 25.0, 40.0, 65.0, 90.0]):
+        lam = al.lambda_no_worse_than_uniform(theta, n, f, phi)
+        worst_uniform = float(al.uniform_F(theta, n, n, f, phi))
+        assert al.aliasing_F(lam, theta, z, n, f, phi).max() == pytest.approx(worst_uniform, rel=1e-9)
+        assert al.aliasing_F(0.97 * lam, theta, z, n, f, phi).max() > worst_uniform * (1 + 1e-6)
+
+
+def test_in_the_ideal_case_the_guard_is_glprs_own_lambda_and_below_it_glpr_over_warps():
+    """θ = π/2: GLPR's far-end aliasing is exactly the uniform map's near-end one;
+    at every other angle GLPR's λ is below the guard (GMNPR §3: 'over-strong')."""
+    assert al.lambda_no_worse_than_uniform(math.pi / 2, N, F, PHI) == pytest.approx(al.lambda_glpr(math.pi / 2, N, F, PHI))
+    for theta in np.radians([5.0, 20.0, 31.0, 45.0, 80.0]):
+        assert al.lambda_glpr(theta, N, F, PHI) < al.lambda_no_worse_than_uniform(theta, N, F, PHI)
+
+
+def test_gmnprs_minimax_lambda_meets_the_guard_above_the_critical_angle():
+    for theta in np.radians([31.0, 45.0, 60.0, 89.0]):
+        assert al.lambda_gmnpr(theta, N, F, PHI) >= al.lambda_no_worse_than_uniform(theta, N, F, PHI)
+
+
+def test_the_average_guard_makes_the_l2_norm_of_the_texel_ratio_one():
+    """lambda_no_worse_on_average: at the returned λ, E[ρ²] = 1 over the pixels
+    (ρ = (λ + δ)²/(λ(λ + 1)), the warp's texel along V_P over the uniform map's);
+    a stronger warp makes it worse, a weaker one better."""
+    rng = np.random.default_rng(0)
+    for a, b in ((1, 4), (2, 5), (1, 8), (0.5, 1.5)):
+        delta = rng.beta(a, b, 4000)
+        weights = rng.uniform(0.5, 2.0, 4000)
+        lam = al.lambda_no_worse_on_average(delta, weights)
+
+        def l2(x):
+            rho = (x + delta) ** 2 / (x * (x + 1))
+            return float(weights @ rho ** 2 / weights.sum())
+        assert l2(lam) == pytest.approx(1.0, rel=1e-9)
+        assert l2(0.9 * lam) > 1.0 > l2(1.1 * lam)
+
+
+def test_no_warp_wins_when_most_pixels_are_far_along_v_p():
+    assert al.lambda_no_worse_on_average(np.full(10, 0.6)) == math.inf
+    assert al.lambda_no_worse_on_average(np.linspace(0.1, 1.0, 91)) == math.inf
+    assert al.lambda_no_worse_on_average(np.zeros(10)) == 0.0        # all at B's near side: any warp helps

@@ -490,3 +490,54 @@ def test_point_light_near_the_eye_plane_changes_the_map_continuously(method, y):
         return run(method, view, Light("POINT", position=pos + shift))[0]
 
     assert_continuous(moved, method, ([0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.6, 0.8]), body.vertices)
+
+
+# ----------------------------------------------------------------------------- GLPR's guard
+
+def _glpr_inputs(setup):
+    d = setup.diagnostics
+    z_n, z_f = d.extra["z_n"], d.extra["z_n"] + d.extra["delta_z"]
+    return d.theta, z_n, z_f, d.extra["phi"]
+
+
+def test_glprs_guard_acts_reports_and_keeps_the_warp_no_stronger_than_it():
+    """A view over far-reaching ground: GLPR's own λ (F ~ z) over-warps; the
+    guard raises it (a fallback note says from what to what and why) to at
+    least the λ at which the worst aliasing matches the uniform map's."""
+    from addon.warp import aliasing as al
+    view = camera([0.0, -10.0, 6.0], [0.0, 1.0, -0.25])
+    light = sun([0.3, 0.5, -0.6])
+    guarded = compute("glpr", view, light, SCENE, WarpOptions(shadow_map_size=1024))
+    raw = compute("glpr", view, light, SCENE, WarpOptions(shadow_map_size=1024, glpr_guard=False))
+    theta, z_n, z_f, phi = _glpr_inputs(raw)
+    assert raw.diagnostics.lam == pytest.approx(al.lambda_glpr(theta, z_n, z_f, phi))
+    assert not any("glpr guard" in what for what, _ in raw.diagnostics.fallbacks)
+    notes = [why for what, why in guarded.diagnostics.fallbacks if what == "main: glpr guard"]
+    assert len(notes) == 1 and "λ raised from" in notes[0]
+    lam = guarded.diagnostics.lam if guarded.diagnostics.lam is not None else math.inf
+    assert lam >= al.lambda_no_worse_than_uniform(theta, z_n, z_f, phi) * (1 - 1e-12)
+    assert lam > raw.diagnostics.lam
+
+
+def test_a_forced_lambda_is_not_guarded():
+    view = camera([0.0, -10.0, 6.0], [0.0, 1.0, -0.25])
+    setup = compute("glpr", view, sun([0.3, 0.5, -0.6]), SCENE, WarpOptions(shadow_map_size=1024, lam=1e-4))
+    assert setup.diagnostics.lam == pytest.approx(1e-4)
+    assert not any("glpr guard" in what for what, _ in setup.diagnostics.fallbacks)
+
+
+def test_where_warps_lose_on_average_the_guarded_glpr_is_nearly_the_uniform_map():
+    """Looking across a floor at a wall (most pixels far along V_P): no strong
+    warp's texels are smaller on average, so the guard leaves (nearly, or
+    exactly: λ = ∞) the uniform map, where GLPR's own λ would warp hard."""
+    view = camera([0.0, -3.0, 1.5], [0.0, 1.0, -0.05], near=0.1, far=30.0)
+    wall = [[-20.0, 4.0, 0.0], [20.0, 4.5, 12.0]]
+    scene = SceneBounds.from_boxes([GROUND, wall])
+    light = sun([0.2, 0.6, -0.7])
+    glpr = compute("glpr", view, light, scene, WarpOptions(shadow_map_size=1024))
+    raw = compute("glpr", view, light, scene, WarpOptions(shadow_map_size=1024, glpr_guard=False))
+    assert raw.diagnostics.lam < 1.0
+    assert glpr.diagnostics.lam is None or glpr.diagnostics.lam > 10.0
+    assert glpr.diagnostics.extra["warp_strength_mu"] < 0.1
+    assert any(what == "main: glpr guard" for what, _ in glpr.diagnostics.fallbacks)
+    assert not any("uniform limit" in what for what, _ in glpr.diagnostics.fallbacks)

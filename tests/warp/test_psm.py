@@ -224,7 +224,7 @@ def test_orthographic_camera_gives_the_uniform_map():
     ortho = View(persp.camera_to_world, ortho_matrix(-20, 20, -12, 12, 0.1, 100), 0.1, 100, (1280, 720), True)
     light = sun([0.2, 0.6, -0.5])
     setup, body = check_all(ortho, light, town(), applied=False)
-    base = compute("uniform", ortho, light, town(), WarpOptions(shadow_map_size=(SIZE, SIZE)))
+    base = compute("uniform", ortho, light, town(), WarpOptions(shadow_map_size=(SIZE, SIZE)), body=body)
     assert np.allclose(setup.maps[0].matrix, base.maps[0].matrix)
     assert setup.diagnostics.fallbacks[0][0] == "orthographic camera"
 

@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from addon.warp import View, WarpOptions, compute, intersection_body
+from addon.warp import View, WarpOptions, compute, focused_body, intersection_body
 from addon.warp.frame import (PARALLEL_BLEND, image_up, image_up_singularity, light_angles, light_cone,
                               point_frames)
 from addon.warp.methods.uniform import SNAP_STEPS_PER_OCTAVE, uniform
@@ -126,7 +126,7 @@ def test_texel_snapping_keeps_world_points_on_their_texels(name):
     view, light, scene = HARD_CASES[name]
     size = 1024
     opts = WarpOptions(shadow_map_size=(size, size), texel_snapping=True)
-    probe = intersection_body(view, light, scene).vertices.mean(axis=0)[None]
+    probe = focused_body(view, light, scene, opts).vertices.mean(axis=0)[None]
     base = compute("uniform", view, light, scene, opts)
     t0 = (ndc(base.maps[0].matrix, probe)[0][0, :2] + 1) / 2 * size
     same_scale = 0
@@ -135,7 +135,7 @@ def test_texel_snapping_keeps_world_points_on_their_texels(name):
         v2 = moved(view, rng.normal(size=3) * 0.05, rot_z(rng.normal() * 0.01))
         s2 = compute("uniform", v2, light, scene, opts)
         m = s2.maps[0].matrix
-        body2 = intersection_body(v2, light, scene)
+        body2 = focused_body(v2, light, scene, opts)
         assert s2.maps[0].contains(body2.vertices, 1e-9).all()
         if not np.allclose(m[:2, :3], base.maps[0].matrix[:2, :3], rtol=1e-12, atol=0):
             # A ladder step: the scale changed by 2^(k/8).

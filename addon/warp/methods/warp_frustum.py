@@ -83,12 +83,13 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable, Optional
 
 import numpy as np
 
-from ..aliasing import lambda_glpr, lambda_gmnpr, lispsm_inverse_n_opt
+from ..aliasing import (lambda_glpr, lambda_gmnpr, lambda_no_worse_on_average, lambda_no_worse_than_uniform,
+                        lispsm_inverse_n_opt)
 from ..body import IntersectionBody
 from ..fit import fit_runs, ndc_bounds, window_matrices, window_matrix
 from ..frame import (PARALLEL_BLEND, LightFrame, body_light_angles, light_frames, pyramid_sections,
@@ -109,6 +110,11 @@ class WarpContext:
 
     z_n: float
     z_f: float
+    visible: Optional[tuple[np.ndarray, np.ndarray]] = None
+    """The visible surface as weighted world points (``VisibleRegion.samples``), when B was focused."""
+    notes: dict = field(default_factory=dict)
+    """What a λ rule did besides its formula (what -> reason), e.g. GLPR's guard acting; moved to
+    the frame's notes after each rule call."""
 
     @property
     def delta_z(self) -> float:
@@ -144,6 +150,7 @@ class FrameGeometry:
     v_p_world: Optional[np.ndarray]
     light_dir: np.ndarray  # the light ray at the eye (world, unit)
     fade: float = 1.0
+    to_light: Optional[np.ndarray] = None   # the frame's world -> light space
 
 
 def _blend(v, s: float) -> tuple[float, float]:
@@ -218,7 +225,7 @@ def eye_depth_range(view: View, body: IntersectionBody, options: WarpOptions, di
             a, b = (float(v) for v in options.visible_depth_range)
             z_n = max(view.near, a)
             z_f = max(min(view.far, b), z_n)
-    return WarpContext(z_n, z_f)
+    return WarpContext(z_n, z_f, None if body.visible is None else body.visible.samples(view))
 
 
 def half_fov_towards(view: View, light_dir) -> float:
@@ -332,7 +339,7 @@ def frame_geometry(at: LightAtEye, frame: LightFrame, axes, h_range, world_range
         v_p, body_extent = at.v_p, at.body_extent
         extent_world = world_range[1] - world_range[0] if v_p is not None else 0.0
     return FrameGeometry(a, (a[1], -a[0]), eye_ls, h_min, extent, extent_world,
-                         body_extent, at.gamma, v_p, at.ell, fade)
+                         body_extent, at.gamma, v_p, at.ell, fade, frame.to_light)
 
 
 def warp_matrix(g: FrameGeometry, mu: float) -> np.ndarray:
@@ -396,12 +403,35 @@ def rule_gmnpr(g: FrameGeometry, ctx: WarpContext, phi: float, options: WarpOpti
 
 
 def rule_glpr(g: FrameGeometry, ctx: WarpContext, phi: float, options: WarpOptions) -> float:
-    """GLPR, F(z) ~ z (or the forced ``options.lam``)."""
+    """GLPR, F(z) ~ z (or the forced ``options.lam``), raised by its guard
+    (``options.glpr_guard``, docs/papers.md "GLPR's guard") to the least λ at
+    which the warp is no worse than the uniform map: at its worst over the
+    visible depths (GMNPR Eq. 2, ``lambda_no_worse_than_uniform``) and, when B
+    was focused on the visible region, over the visible pixels in the L2 norm
+    (``lambda_no_worse_on_average`` of their δ along this frame's V_P)."""
     forced = _forced(options)
     if forced is not None:
         return forced
     theta = min(g.gamma, math.pi - g.gamma)
-    return lambda_glpr(theta, ctx.z_n, ctx.z_f, phi)
+    lam = lambda_glpr(theta, ctx.z_n, ctx.z_f, phi)
+    if not options.glpr_guard:
+        return lam
+    worst = lambda_no_worse_than_uniform(theta, ctx.z_n, ctx.z_f, phi)
+    mean = 0.0
+    if ctx.visible is not None and g.to_light is not None and g.extent > 0 and g.body_extent_world > 0:
+        points, weights = ctx.visible
+        h = points @ g.to_light[:, :3].T + g.to_light[:, 3]
+        along = (h[:, 0] * g.a[0] + h[:, 1] * g.a[1]) / h[:, 3]
+        # (λ of this frame's extent, in units of all of B's as the rules give it)
+        mean = lambda_no_worse_on_average((along - g.h_min) / g.extent, weights) * g.extent_world / g.body_extent_world
+    guard = max(worst, mean)
+    if guard > lam:
+        why = (f"its worst aliasing over the visible depths [{ctx.z_n:.4g}, {ctx.z_f:.4g}]" if worst >= mean
+               else "its aliasing over the visible pixels (L2 norm of its ratio to the uniform map's)")
+        ctx.notes["glpr guard"] = (f"λ raised from {lam:.4g} to {guard:.4g}: below it {why} would be worse than the "
+                                   f"uniform map's (θ = {math.degrees(theta):.1f}°, φ = {math.degrees(phi):.1f}°)")
+        return guard
+    return lam
 
 
 def _finite_or_none(x: float) -> Optional[float]:
@@ -467,13 +497,16 @@ def frame_warps(frames: list, view: View, at: Optional[LightAtEye], reason: str,
         geo = frame_geometry(at, w.frame, ax, h_range, world_range, body)
         role = w.frame.role
         lam = rule(geo, ctx, phi, options)
+        guarded = bool(ctx.notes)
+        w.notes.extend((f"{role}: {what}", why) for what, why in ctx.notes.items())
+        ctx.notes.clear()
         p_n = lam * geo.body_extent_world if math.isfinite(lam) else math.inf     # P_n in world units
         lam_frame = p_n / geo.extent_world if geo.extent_world > 0 else math.inf  # λ for this frame's part of B
         mu = 0.0 if not math.isfinite(lam_frame) else geo.fade / lam_frame
         if geo.fade < 1.0:
             w.notes.append((f"{role}: warp faded", f"the eye's image is far outside B's image in this frame; "
                                                   f"warp strength x{geo.fade:.3g}" + (" (uniform)" if geo.fade == 0 else "")))
-        if mu == 0.0 and geo.fade > 0.0:
+        if mu == 0.0 and geo.fade > 0.0 and not guarded:     # (a guard that made it uniform says why itself)
             w.notes.append((f"{role}: uniform limit", "light parallel to the view direction (γ = 0): "
                                                      "n_opt = ∞, the warp is the uniform map"))
         w.geo, w.lam, w.p_n, w.lam_frame, w.mu = geo, lam, p_n, lam_frame, mu

@@ -1,0 +1,587 @@
+"""What the camera sees: the visible region that focuses B.
+
+Scherzer §4.4 takes the near distance and Δz of n_opt "from a visibility
+algorithm"; Lauritzen et al. (*Sample Distribution Shadow Maps*, I3D 2011)
+fit the maps to the samples the camera actually shades. Lixel does both: a
+:class:`VisibleRegion` holds, per screen tile, the nearest and farthest eye
+depth of what is visible there, and B is built from the part of the view
+frustum that holds those tiles instead of the whole frustum
+(``body.intersection_body(..., visible=region)``). Every method benefits: the
+uniform map covers less, z_n is the nearest *visible* depth (on a terrain seen
+from afar, 128 m rather than the near plane's 1 m), and Δz the visible range.
+
+**Why B stays right.** Scherzer warns that a far plane from visibility must
+not be used for B itself: an object hidden from the camera can still shadow a
+visible point. Lixel does not cut B; it cuts R (the visible part of the view,
+``body.py``) and keeps B = hull(R ∪ light) ∩ S_c: every caster that shadows a
+visible point lies on the segment from that point towards the light, which
+hull(R ∪ light) contains. So the caster selection and the map's depth range
+stay complete, only the receivers nobody sees are dropped.
+
+**Conservative by construction.** A map fitted to sampled visibility must
+hold every visible point, not only the samples:
+
+* tiles take the min / max over their samples, never a point sample, and
+  depth is padded by its precision (a float32 depth buffer: a few ulps,
+  through the hyperbolic depth);
+* the depth pre-pass (``addon/gpu/visibility.py``) samples exactly the pixel
+  centres the shading pass shades, so its tiles are exact up to precision;
+* a coarse ray cast against the scene's boxes (:func:`region_from_boxes`,
+  without Blender) samples less finely, so each sample's reach is widened to
+  its neighbours on the same box (the depth it may take within one sample
+  spacing) and bounded by its box's own depth range, each tile takes its
+  neighbours' samples as well (one sample spacing of padding), and boxes small
+  enough to slip between samples add their whole depth range to the tiles
+  they overlap.
+
+:meth:`VisibleRegion.halfspaces` turns the tiles into a convex region for B:
+the visible eye-depth range, the screen rectangle of the seen tiles, and a
+k-DOP of the tiles' corners in the directions that bound a light's map (the
+light's depth direction and 8 directions across it, through the light for a
+point or spot light, so a perspective map's window is tight too).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .culling import BoxIndex
+from .rays import ray_index, slab_intervals
+from .types import EmptyBodyError, Light, SceneBounds, View, WarpOptions
+
+SOURCES = ("depth pre-pass", "previous frame", "scene boxes", "given")
+"""Where a visible region came from (``VisibleRegion.source``)."""
+
+BOX_SAMPLES = (64, 36)
+"""The ray grid of :func:`region_from_boxes` (columns, rows) over the image."""
+BOX_TILE = 4
+"""Samples per tile side of :func:`region_from_boxes`."""
+PIXEL_TILE = 16
+"""Pixels per tile side of a depth pre-pass (``addon.gpu.visibility``)."""
+DEPTH_ULPS = 16
+"""Float32 depth-buffer precision padded on each tile's window depth: this many
+ulps of 1.0 (2^-24 each), pushed through the hyperbolic depth to eye depth."""
+KDOP_DIRECTIONS = 8
+"""Directions across the light in which the k-DOP bounds the tiles (every 180°/8)."""
+KDOP_PAD = 1e-3
+"""The k-DOP's planes are moved out by this fraction of the region's extent
+(and its angles by this fraction of its angular extent), so points on the
+region's boundary stay inside the maps after float32 rounding on the GPU."""
+
+
+@dataclass(frozen=True)
+class TileDepths:
+    """Per screen tile, the eye-depth interval [near, far] that holds every
+    visible point seen through it (near > far: nothing is seen there).
+    ``x_edges`` (nx + 1) and ``y_edges`` (ny + 1) are the tiles' NDC edges,
+    ``near`` and ``far`` (ny, nx) arrays with row 0 at the bottom (y = -1)."""
+
+    x_edges: np.ndarray
+    y_edges: np.ndarray
+    near: np.ndarray
+    far: np.ndarray
+    samples: np.ndarray | None = None
+    """(ny, nx): how many of the tile's samples (pixels, rays) hit a surface;
+    with ``near`` and ``far`` the distribution of visible depths (None: unknown)."""
+
+    @property
+    def seen(self) -> np.ndarray:
+        """(ny, nx): the tiles through which something is visible."""
+        return self.near <= self.far
+
+
+@dataclass(frozen=True)
+class VisibleRegion:
+    """What the camera sees, conservatively: per screen tile the eye-depth
+    interval of its visible points (:class:`TileDepths`), and where that came
+    from (``source``, one of ``SOURCES``). Plain data; made by
+    :func:`region_from_eye_depths`, :func:`region_from_boxes` or
+    ``addon.gpu.visibility.region_from_prepass``."""
+
+    tiles: TileDepths
+    source: str
+
+    @property
+    def is_empty(self) -> bool:
+        return not self.tiles.seen.any()
+
+    @property
+    def depth_range(self) -> tuple[float, float]:
+        """The nearest and farthest visible eye depth (z_n and z_n + Δz of Scherzer Eq. 1)."""
+        seen = self.tiles.seen
+        return float(self.tiles.near[seen].min()), float(self.tiles.far[seen].max())
+
+    @property
+    def screen(self) -> tuple[float, float, float, float]:
+        """(x0, x1, y0, y1): the NDC rectangle of the seen tiles."""
+        rows, cols = np.nonzero(self.tiles.seen)
+        t = self.tiles
+        return (float(t.x_edges[cols.min()]), float(t.x_edges[cols.max() + 1]),
+                float(t.y_edges[rows.min()]), float(t.y_edges[rows.max() + 1]))
+
+    def samples(self, view: View) -> tuple[np.ndarray, np.ndarray]:
+        """The visible surface as weighted world points: each seen tile's centre
+        at its near and at its far depth, each weighing half the tile's samples
+        (equal weights when the counts are unknown). How the visible pixels
+        are distributed in the world (GLPR's guard averages over them)."""
+        t = self.tiles
+        rows, cols = np.nonzero(t.seen)
+        x = (t.x_edges[cols] + t.x_edges[cols + 1]) / 2
+        y = (t.y_edges[rows] + t.y_edges[rows + 1]) / 2
+        points = unproject(view, np.concatenate([x, x]), np.concatenate([y, y]),
+                           np.concatenate([t.near[rows, cols], t.far[rows, cols]]))
+        w = np.ones(len(rows)) if t.samples is None else t.samples[rows, cols].astype(np.float64)
+        return points, np.concatenate([w, w]) / 2.0
+
+    def tile_corners(self, view: View) -> np.ndarray:
+        """(8 T, 3) world-space corners of the T seen tiles' depth slabs: their
+        convex hull holds every visible point."""
+        t = self.tiles
+        rows, cols = np.nonzero(t.seen)
+        x = np.stack([t.x_edges[cols], t.x_edges[cols + 1]], axis=1)[:, [0, 1, 0, 1]]       # (T, 4)
+        y = np.stack([t.y_edges[rows], t.y_edges[rows + 1]], axis=1)[:, [0, 0, 1, 1]]
+        near, far = t.near[rows, cols], t.far[rows, cols]
+        xs = np.concatenate([x, x], axis=1).ravel()
+        ys = np.concatenate([y, y], axis=1).ravel()
+        ds = np.concatenate([np.repeat(near[:, None], 4, axis=1), np.repeat(far[:, None], 4, axis=1)], axis=1).ravel()
+        return unproject(view, xs, ys, ds)
+
+    def contains(self, view: View, points, tol: float = 1e-9) -> np.ndarray:
+        """Which (N, 3) world points lie in a seen tile's depth slab (what a
+        region must hold: every visible point), depths within ``tol`` relative."""
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        h = p @ view.world_to_clip[:, :3].T + view.world_to_clip[:, 3]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x, y = h[:, 0] / h[:, 3], h[:, 1] / h[:, 3]
+        d = view.eye_depth(p)
+        t = self.tiles
+        col = np.searchsorted(t.x_edges, x, side="right") - 1
+        row = np.searchsorted(t.y_edges, y, side="right") - 1
+        # A point on the last edge belongs to the last tile.
+        col = np.where(x == t.x_edges[-1], len(t.x_edges) - 2, col)
+        row = np.where(y == t.y_edges[-1], len(t.y_edges) - 2, row)
+        ok = (h[:, 3] > 0) & (col >= 0) & (col < len(t.x_edges) - 1) & (row >= 0) & (row < len(t.y_edges) - 1)
+        c, r = np.where(ok, col, 0), np.where(ok, row, 0)
+        near, far = t.near[r, c], t.far[r, c]
+        return ok & (d >= near - tol * np.abs(near)) & (d <= far + tol * np.abs(far))
+
+    def halfspaces(self, view: View, light: Light) -> tuple[np.ndarray, np.ndarray]:
+        """World-space half-spaces ``normals @ x <= offsets`` whose intersection
+        holds every seen tile's depth slab (hence every visible point): the
+        eye-depth range, the screen rectangle and a k-DOP of the tile corners
+        around the light (module docs). B's R is the view frustum cut by them."""
+        corners = self.tile_corners(view)
+        pad = KDOP_PAD * (float(np.ptp(corners, axis=0).max()) or 1.0)
+        z_lo, z_hi = self.depth_range
+        z_lo, z_hi = max(z_lo - pad, view.near), z_hi + pad       # (a flat region keeps a thickness)
+        row = view.world_to_camera[2]                          # eye depth = -(row . [x, 1])
+        normals = [row[:3], -row[:3]]
+        offsets = [-z_lo - row[3], z_hi + row[3]]
+        x0, x1, y0, y1 = self.screen
+        m = view.world_to_clip
+        for r, v in ((0, x1), (1, y1)):                        # ndc <= v: clip_r - v w <= 0
+            plane = m[r] - v * m[3]
+            normals.append(plane[:3])
+            offsets.append(-plane[3])
+        for r, v in ((0, x0), (1, y0)):                        # ndc >= v: v w - clip_r <= 0
+            plane = v * m[3] - m[r]
+            normals.append(plane[:3])
+            offsets.append(-plane[3])
+        kn, ko = kdop_halfspaces(corners, view, light)
+        return np.concatenate([np.array(normals), kn]), np.concatenate([np.array(offsets), ko])
+
+
+def unproject(view: View, x, y, depth) -> np.ndarray:
+    """World points at NDC (x, y) and eye depth ``depth`` (arrays of one shape):
+    camera-space (X, Y) solve the projection's x and y rows at z = -depth."""
+    x, y, d = (np.asarray(a, dtype=np.float64).ravel() for a in (x, y, depth))
+    p = view.projection
+    z = -d
+    # Row r of the projection: ndc_r · w = p[r] . (X, Y, z, 1) with w = p[3] . (X, Y, z, 1).
+    a00, a01 = p[0, 0] - x * p[3, 0], p[0, 1] - x * p[3, 1]
+    a10, a11 = p[1, 0] - y * p[3, 0], p[1, 1] - y * p[3, 1]
+    b0 = x * (p[3, 2] * z + p[3, 3]) - p[0, 2] * z - p[0, 3]
+    b1 = y * (p[3, 2] * z + p[3, 3]) - p[1, 2] * z - p[1, 3]
+    det = a00 * a11 - a01 * a10
+    cam = np.stack([(b0 * a11 - a01 * b1) / det, (a00 * b1 - b0 * a10) / det, z, np.ones_like(z)], axis=1)
+    world = cam @ view.camera_to_world.T
+    return world[:, :3] / world[:, 3:]
+
+
+def eye_depth_from_ndc(view: View, z_ndc) -> np.ndarray:
+    """Eye depth of NDC depths ``z_ndc`` on the view axis (the projection's z
+    and w rows at X = Y = 0: z_ndc = (p22 z + p23) / (p32 z + p33), depth = -z)."""
+    p = view.projection
+    z = np.asarray(z_ndc, dtype=np.float64)
+    return -(p[2, 3] - z * p[3, 3]) / (z * p[3, 2] - p[2, 2])
+
+
+def kdop_halfspaces(corners: np.ndarray, view: View, light: Light) -> tuple[np.ndarray, np.ndarray]:
+    """A k-DOP of ``corners`` around the light: the planes across the light's
+    depth direction ℓ nearest and farthest from the light and, in
+    ``KDOP_DIRECTIONS`` directions m across ℓ, the tightest planes parallel to
+    ℓ (a sun) or through the light (a point or spot light that sees every
+    corner well in front of it); each moved out by ``KDOP_PAD``."""
+    base = np.zeros(3) if light.is_directional else np.asarray(light.position, dtype=np.float64)
+    rel = corners - base
+    if light.is_directional:
+        ell = np.asarray(light.direction, dtype=np.float64)
+    else:
+        mid = rel.mean(axis=0)
+        length = math.sqrt(mid @ mid)
+        ell = mid / length if length > 0 else view.direction
+    across = _across(ell, view)                                     # (K, 3)
+    along, sideways = rel @ ell, rel @ across.T                     # (N,), (N, K)
+    pad = KDOP_PAD * (float(np.ptp(corners, axis=0).max()) or 1.0)
+    normals = [ell[None], -ell[None]]
+    offsets = [[along.max() + pad], [pad - along.min()]]
+    dist = np.sqrt(np.einsum("ij,ij->i", rel, rel))
+    if not light.is_directional and along.min() > 0.05 * dist.max():
+        # Planes through the light: angle(rel, ℓ towards m) <= a  <=>  (m cos a - ℓ sin a) . rel <= 0.
+        angle = np.arctan2(sideways, along[:, None])
+        hi, lo = angle.max(axis=0), angle.min(axis=0)
+        spread = KDOP_PAD * float((hi - lo).max())
+        hi, lo = np.minimum(hi + spread, 0.49 * math.pi), np.maximum(lo - spread, -0.49 * math.pi)
+        normals += [np.cos(hi)[:, None] * across - np.sin(hi)[:, None] * ell,
+                    np.sin(lo)[:, None] * ell - np.cos(lo)[:, None] * across]
+        offsets += [np.zeros(KDOP_DIRECTIONS), np.zeros(KDOP_DIRECTIONS)]
+    else:
+        normals += [across, -across]
+        offsets += [sideways.max(axis=0) + pad, pad - sideways.min(axis=0)]
+    n = np.concatenate(normals)
+    return n, np.concatenate(offsets) + n @ base
+
+
+def _across(ell: np.ndarray, view: View) -> np.ndarray:
+    """(K, 3) unit directions across ℓ, every 180°/K from the view direction
+    projected across ℓ (the map's V_P, Scherzer Eq. 3; the camera's up when
+    they are parallel), so the k-DOP bounds a map's own axes exactly."""
+    for v in (view.direction, view.up, np.eye(3)[int(np.argmin(np.abs(ell)))]):
+        u = v - (v @ ell) * ell
+        n = math.sqrt(u @ u)
+        if n > 1e-6:
+            break
+    u = u / n
+    q = np.cross(ell, u)
+    a = np.arange(KDOP_DIRECTIONS) * (math.pi / KDOP_DIRECTIONS)
+    return np.cos(a)[:, None] * u + np.sin(a)[:, None] * q
+
+
+# ---------------------------------------------------------------- sources
+
+def tile_reduce(near_samples: np.ndarray, far_samples: np.ndarray, tile: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per ``tile`` x ``tile`` block of (H, W) samples, the least of
+    ``near_samples`` and the greatest of ``far_samples`` (+inf / -inf mark
+    samples where nothing is seen; partial blocks at the top and right)."""
+    h, w = near_samples.shape
+    ny, nx = -(-h // tile), -(-w // tile)
+    pad = ((0, ny * tile - h), (0, nx * tile - w))
+    near = np.pad(near_samples, pad, constant_values=np.inf).reshape(ny, tile, nx, tile).min(axis=(1, 3))
+    far = np.pad(far_samples, pad, constant_values=-np.inf).reshape(ny, tile, nx, tile).max(axis=(1, 3))
+    return near, far
+
+
+def tile_counts(hits: np.ndarray, tile: int) -> np.ndarray:
+    """Per ``tile`` x ``tile`` block of an (H, W) boolean image, how many are set."""
+    h, w = hits.shape
+    ny, nx = -(-h // tile), -(-w // tile)
+    padded = np.pad(hits, ((0, ny * tile - h), (0, nx * tile - w)))
+    return padded.reshape(ny, tile, nx, tile).sum(axis=(1, 3))
+
+
+def tile_edges(samples: int, tile: int) -> np.ndarray:
+    """NDC edges of the tiles over ``samples`` sample cells spanning [-1, 1]."""
+    cells = np.minimum(np.arange(0, samples + tile, tile), samples)
+    return np.unique(cells) * (2.0 / samples) - 1.0
+
+
+def region_from_eye_depths(view: View, near_samples: np.ndarray, far_samples: np.ndarray, tile: int,
+                           source: str) -> VisibleRegion:
+    """A region from per-sample eye-depth intervals on a grid of (H, W) cells
+    spanning the image (row 0 at the bottom; +inf / -inf where nothing is
+    seen), reduced per ``tile`` x ``tile`` cells. Depths are clamped to the
+    view's clip range."""
+    near_samples, far_samples = np.asarray(near_samples, np.float64), np.asarray(far_samples, np.float64)
+    near, far = tile_reduce(near_samples, far_samples, tile)
+    h, w = near_samples.shape
+    return _region(view, near, far, (w, h), tile, source, tile_counts(near_samples <= far_samples, tile))
+
+
+def _region(view: View, near, far, samples: tuple[int, int], tile: int, source: str, counts=None) -> VisibleRegion:
+    """A region from tile intervals (near > far: nothing seen) over a grid of
+    ``samples`` = (columns, rows) cells, clamped to the view's clip range."""
+    seen = near <= far
+    near = np.where(seen, np.clip(near, view.near, view.far), np.inf)
+    far = np.where(seen, np.clip(far, view.near, view.far), -np.inf)
+    w, h = samples
+    return VisibleRegion(TileDepths(tile_edges(w, tile), tile_edges(h, tile), near, far, counts), source)
+
+
+def region_from_window_depth(view: View, window_depth: np.ndarray, tile: int = PIXEL_TILE,
+                             source: str = "depth pre-pass") -> VisibleRegion:
+    """A region from a camera depth buffer read back as (H, W) window depths in
+    [0, 1] (row 0 at the bottom; 1 where nothing was drawn). Tiles are reduced
+    in window depth (monotonic in eye depth), padded by ``DEPTH_ULPS`` and
+    only then converted, so the conversion runs once per tile."""
+    d = np.asarray(window_depth)
+    near, far = tile_reduce(d, np.where(d < 1.0, d, -np.inf), tile)
+    seen = near < 1.0
+    pad = DEPTH_ULPS * 2.0 ** -24
+    near_eye = eye_depth_from_ndc(view, 2.0 * np.clip(near.astype(np.float64) - pad, 0.0, 1.0) - 1.0)
+    far_eye = eye_depth_from_ndc(view, 2.0 * np.clip(far.astype(np.float64) + pad, 0.0, 1.0) - 1.0)
+    h, w = d.shape
+    tiles = TileDepths(tile_edges(w, tile), tile_edges(h, tile),
+                       np.where(seen, np.clip(near_eye, view.near, view.far), np.inf),
+                       np.where(seen, np.clip(far_eye, view.near, view.far), -np.inf),
+                       tile_counts(d < 1.0, tile))
+    return VisibleRegion(tiles, source)
+
+
+def sample_rays(view: View, samples: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Origins on the near plane, unit directions and lengths to the far plane
+    of rays through the centres of a ``samples`` = (columns, rows) grid over
+    the image, row 0 at the bottom."""
+    nx, ny = samples
+    x = (np.arange(nx) + 0.5) / nx * 2 - 1
+    y = (np.arange(ny) + 0.5) / ny * 2 - 1
+    gx, gy = np.meshgrid(x, y)
+    near = unproject(view, gx, gy, np.full(gx.size, view.near))
+    far = unproject(view, gx, gy, np.full(gx.size, view.far))
+    d = far - near
+    length = np.sqrt(np.einsum("ij,ij->i", d, d))
+    return near, d / length[:, None], length
+
+
+def region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int] = BOX_SAMPLES,
+                      tile: int = BOX_TILE) -> VisibleRegion:
+    """The visible region of a box scene without a GPU: a ray through every
+    cell of a ``samples`` grid finds the nearest receiver box (``rays.ray_index``
+    over the receivers the view frustum meets), then each sample's reach and
+    the tiles are widened as the module docs say so the region holds every
+    visible point, not only the sampled ones. The last region of each scene is
+    kept for its view (methods computed one after another share it)."""
+    key = (view.camera_to_world.tobytes(), view.projection.tobytes(), view.near, view.far, samples, tile)
+    last = scene.cached("visible region", dict)
+    if last.get("key") != key:
+        last.clear()
+        last.update(key=key, region=_region_from_boxes(view, scene, samples, tile))
+    return last["region"]
+
+
+def _region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int], tile: int) -> VisibleRegion:
+    nx, ny = samples
+    index = BoxIndex.of(scene, "receivers")
+    selection = index.select(*_frustum_halfspaces(view))
+    origins, dirs, length = sample_rays(view, samples)
+    t, box = ray_index(origins, dirs, length, index, selection)
+    # What each sample's face may show within one sample spacing: its plane's depth at the corners of
+    # the square reaching to the neighbouring samples (a plane's depth is monotonic along each screen
+    # axis), bounded by its box's own eye-depth range.
+    lo_box, hi_box = _box_depths(view, scene.receivers)
+    near_s, far_s = _face_reach(view, scene.receivers, origins, dirs, t, box.ravel(), samples, lo_box, hi_box)
+    box = box.reshape(ny, nx)
+    # Each tile also takes its neighbouring samples (one sample spacing of padding).
+    near_s, far_s = _dilate(near_s, np.minimum, np.inf), _dilate(far_s, np.maximum, -np.inf)
+    near, far = tile_reduce(near_s, far_s, tile)
+    missed = selection.mask
+    missed[box[box >= 0]] = False
+    _add_small_boxes(view, scene.receivers, missed, lo_box, hi_box, samples, tile, near, far)
+    return _region(view, near, far, samples, tile, "scene boxes", tile_counts(box >= 0, tile))
+
+
+def _face_reach(view: View, boxes, origins, dirs, t, box, samples, lo_box, hi_box):
+    """Per ray sample (row-major over ``samples``), the eye-depth interval the
+    face it hit takes over the square from its left-below to its right-above
+    neighbouring sample (+inf / -inf where it hit nothing), clamped to the
+    hit box's own depth range and the view's clip range."""
+    nx, ny = samples
+    hit = np.flatnonzero(box >= 0)
+    near = np.full(nx * ny, np.inf)
+    far = np.full(nx * ny, -np.inf)
+    if not len(hit):
+        return near.reshape(ny, nx), far.reshape(ny, nx)
+    b = boxes[box[hit]]                                                      # (H, 2, 3)
+    p = origins[hit] + t[hit, None] * dirs[hit]
+    # The face hit: the box boundary plane nearest the hit point.
+    gap = np.abs(np.concatenate([p - b[:, 0], p - b[:, 1]], axis=1))        # (H, 6)
+    face = gap.argmin(axis=1)
+    axis, side = face % 3, face // 3
+    plane = b[np.arange(len(hit)), side, axis]
+    # The square's corners in NDC (one sample spacing out, within the image).
+    col, row = hit % nx, hit // nx
+    x = (col + 0.5) / nx * 2 - 1
+    y = (row + 0.5) / ny * 2 - 1
+    sx, sy = 2.0 / nx, 2.0 / ny
+    cx = np.clip(np.stack([x - sx, x + sx, x - sx, x + sx], axis=1), -1, 1).ravel()
+    cy = np.clip(np.stack([y - sy, y - sy, y + sy, y + sy], axis=1), -1, 1).ravel()
+    # Each corner's ray as p(d) = p1 + (d - d1) (p2 - p1) / (d2 - d1), met with the face's plane.
+    d1, d2 = view.near, view.far
+    p1, p2 = unproject(view, cx, cy, np.full(len(cx), d1)), unproject(view, cx, cy, np.full(len(cx), d2))
+    a4 = np.repeat(axis, 4)
+    rows = np.arange(len(cx))
+    rate = p2[rows, a4] - p1[rows, a4]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = d1 + (np.repeat(plane, 4) - p1[rows, a4]) * (d2 - d1) / rate
+    # Where the corners' rays meet the plane, and whether that is still on the face (else the square
+    # holds the face's edge, and the box's other faces may show there too).
+    on_plane = p1 + ((np.where(np.isfinite(d), d, d1) - d1) / (d2 - d1))[:, None] * (p2 - p1)
+    bb = np.repeat(b, 4, axis=0)
+    size = np.abs(bb[:, 1] - bb[:, 0]).max(axis=1, keepdims=True)
+    inside = ((on_plane >= bb[:, 0] - 1e-9 * size) & (on_plane <= bb[:, 1] + 1e-9 * size)).all(axis=1)
+    d = np.where(np.isfinite(d) & (d > 0) & inside, d, np.nan).reshape(-1, 4)
+    lo, hi = lo_box[box[hit]], hi_box[box[hit]]
+    # A corner off the face, or whose ray misses its plane in front (grazing): the depths of the
+    # whole part of the box inside the square's pyramid.
+    whole = np.isnan(d).any(axis=1)
+    if whole.any():
+        square = np.stack([cx, cy], axis=1).reshape(-1, 4, 2)[whole]
+        lo, hi = lo.copy(), hi.copy()
+        lo[whole], hi[whole] = _box_depths_in_squares(view, b[whole], square[:, 0], square[:, 3], lo[whole], hi[whole])
+    near[hit] = np.where(whole, lo, np.maximum(np.nanmin(np.where(whole[:, None], 0.0, d), axis=1), lo))
+    far[hit] = np.where(whole, hi, np.minimum(np.nanmax(np.where(whole[:, None], 0.0, d), axis=1), hi))
+    return near.reshape(ny, nx), far.reshape(ny, nx)
+
+
+def _box_depths_in_squares(view: View, boxes, low, high, lo, hi) -> tuple[np.ndarray, np.ndarray]:
+    """The least and greatest eye depth over box_i ∩ the pyramid of the NDC
+    square [low_i, high_i] (S boxes and squares at once): the extremes of a
+    linear function over a convex polytope are at its vertices, which are box
+    corners inside the pyramid, where the pyramid's 4 edges (corner rays)
+    enter and leave the box, and where the box's 12 edges cross the pyramid's
+    4 sides. ``lo``/``hi`` (the boxes' own ranges) where they do not meet."""
+    m = view.world_to_clip
+    # The pyramid's sides as world half-spaces side . [x, 1] <= 0 (x <= x1: clip_x - x1 w <= 0, ...).
+    sides = np.stack([m[0] - high[:, 0, None] * m[3], low[:, 0, None] * m[3] - m[0],
+                      m[1] - high[:, 1, None] * m[3], low[:, 1, None] * m[3] - m[1]], axis=1)        # (S, 4, 4)
+    corners = boxes[:, _CORNER_PICK, [0, 1, 2]]                                                # (S, 8, 3)
+    value = corners @ sides[:, :, :3].transpose(0, 2, 1) + sides[:, None, :, 3]                 # (S, 8, 4)
+    tol = 1e-9 * np.abs(value).max(axis=(1, 2), keepdims=True)
+    points, keep = [corners], [(value <= tol).all(axis=2)]
+    # Box edges crossing a side: t = v_a / (v_a - v_b) between the corners a, b of each edge.
+    va, vb = value[:, _EDGES[:, 0]], value[:, _EDGES[:, 1]]                                    # (S, 12, 4)
+    ca, cb = corners[:, _EDGES[:, 0]], corners[:, _EDGES[:, 1]]                                # (S, 12, 3)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = va / (va - vb)
+    on_edge = ((t >= 0) & (t <= 1)).reshape(len(boxes), -1)               # (an edge in a side's plane: NaN, dropped)
+    t = np.where(np.isfinite(t), t, 0.0)
+    cross = (ca[:, :, None] + t[..., None] * (cb - ca)[:, :, None]).reshape(len(boxes), -1, 3)
+    cv = cross @ sides[:, :, :3].transpose(0, 2, 1) + sides[:, None, :, 3]
+    points.append(cross)
+    keep.append(on_edge & (cv <= tol).all(axis=2))
+    # The pyramid's corner rays through the box (from the near plane towards the far plane).
+    cx = np.stack([low[:, 0], high[:, 0], low[:, 0], high[:, 0]], axis=1).ravel()
+    cy = np.stack([low[:, 1], low[:, 1], high[:, 1], high[:, 1]], axis=1).ravel()
+    start = unproject(view, cx, cy, np.full(len(cx), view.near))
+    ray = unproject(view, cx, cy, np.full(len(cx), view.far)) - start
+    bb = np.repeat(boxes, 4, axis=0)
+    with np.errstate(divide="ignore"):
+        enter, leave = slab_intervals(start, 1.0 / ray, bb[:, 0], bb[:, 1])
+    enter, leave = np.clip(enter, 0.0, 1.0), np.clip(leave, 0.0, 1.0)
+    met = (enter <= leave).reshape(len(boxes), 4)
+    for a in (enter, leave):
+        points.append((start + np.nan_to_num(a)[:, None] * ray).reshape(len(boxes), 4, 3))
+        keep.append(met)
+    p, k = np.concatenate(points, axis=1), np.concatenate(keep, axis=1)
+    depth = view.eye_depth(p.reshape(-1, 3)).reshape(k.shape)
+    found = k.any(axis=1)
+    least = np.where(found, np.where(k, depth, np.inf).min(axis=1), lo)
+    most = np.where(found, np.where(k, depth, -np.inf).max(axis=1), hi)
+    return np.maximum(least, lo), np.minimum(most, hi)
+
+
+_EDGES = np.array([[a, b] for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1])
+"""The 12 edges of a box as pairs of its corners (``_CORNER_PICK`` order): corners differing in one axis."""
+
+
+def _frustum_halfspaces(view: View) -> tuple[np.ndarray, np.ndarray]:
+    """The view frustum's six half-spaces in world space (clip-space -w <= c <= w)."""
+    m = view.world_to_clip
+    rows = np.array([m[r] * s - m[3] for r in range(3) for s in (1.0, -1.0)])
+    return rows[:, :3], -rows[:, 3]
+
+
+def _box_depths(view: View, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each (M, 2, 3) box's least and greatest eye depth (over its corners)."""
+    row = -view.world_to_camera[2]                          # eye depth = row . [x, 1]
+    pos, neg = np.maximum(row[:3], 0.0), np.minimum(row[:3], 0.0)
+    lo = boxes[:, 0] @ pos + boxes[:, 1] @ neg + row[3]
+    hi = boxes[:, 1] @ pos + boxes[:, 0] @ neg + row[3]
+    return lo, hi
+
+
+def _shifted(a: np.ndarray, dy: int, dx: int, fill) -> np.ndarray:
+    """``a`` moved so that out[i, j] = a[i + dy, j + dx] (``fill`` outside)."""
+    out = np.full_like(a, fill)
+    h, w = a.shape
+    out[max(0, -dy):h - max(0, dy), max(0, -dx):w - max(0, dx)] = a[max(0, dy):h - max(0, -dy) or None,
+                                                                    max(0, dx):w - max(0, -dx) or None]
+    return out
+
+
+def _dilate(a: np.ndarray, pick, fill) -> np.ndarray:
+    """``pick`` (min or max) over each sample's 3 x 3 neighbourhood."""
+    out = a.copy()
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            if dy or dx:
+                out = pick(out, _shifted(a, dy, dx, fill))
+    return out
+
+
+def _add_small_boxes(view: View, boxes, missed, lo_box, hi_box, samples, tile, near, far) -> None:
+    """Receivers that no ray hit and whose image is narrower than two sample
+    spacings may have fallen between the rays: each adds its whole eye-depth
+    range to the tiles its image's bounding rectangle meets (in place). A box
+    crossing the near plane is never small (its image is unbounded)."""
+    ids = np.flatnonzero(missed)
+    if not len(ids):
+        return
+    b = boxes[ids]
+    corners = b[:, _CORNER_PICK, [0, 1, 2]]                                       # (M, 8, 3)
+    h = corners @ view.world_to_clip[:, :3].T + view.world_to_clip[:, 3]
+    front = (h[..., 3] > 0).all(axis=1)
+    w = np.where(h[..., 3] > 0, h[..., 3], 1.0)
+    nx, ny = samples
+    # The image's rectangle in sample cells (cell i spans [i, i + 1) of (ndc + 1) / 2 · n).
+    x, y = (h[..., 0] / w + 1) * (nx / 2), (h[..., 1] / w + 1) * (ny / 2)
+    x0, x1, y0, y1 = x.min(axis=1), x.max(axis=1), y.min(axis=1), y.max(axis=1)
+    small = front & ((x1 - x0 < 2.0) | (y1 - y0 < 2.0)) & (x1 >= 0) & (x0 < nx) & (y1 >= 0) & (y0 < ny)
+    if not small.any():
+        return
+    ty, tx = near.shape
+    i0, i1 = (np.clip(np.floor(v[small]).astype(np.int64), 0, n - 1) // tile for v, n in ((x0, nx), (x1, nx)))
+    j0, j1 = (np.clip(np.floor(v[small]).astype(np.int64), 0, n - 1) // tile for v, n in ((y0, ny), (y1, ny)))
+    lo, hi = lo_box[ids[small]], hi_box[ids[small]]
+    # Every (box, tile) pair of the boxes' tile rectangles, then a scattered min / max.
+    wide, tall = i1 - i0 + 1, j1 - j0 + 1
+    count = wide * tall
+    which = np.repeat(np.arange(len(count)), count)
+    k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    cells = (j0[which] + k // wide[which]) * tx + i0[which] + k % wide[which]
+    np.minimum.at(near.reshape(-1), cells, lo[which])
+    np.maximum.at(far.reshape(-1), cells, hi[which])
+
+
+_CORNER_PICK = np.array([[(i >> a) & 1 for a in range(3)] for i in range(8)])
+"""Which of a box's [lo, hi] each of its 8 corners takes per axis."""
+
+
+def focused_body(view: View, light: Light, scene: SceneBounds, options: WarpOptions | None = None,
+                 visible: VisibleRegion | None = None):
+    """B as ``options.focus`` asks: on the visible region (``visible``, or the
+    scene's boxes ray-cast when none is given) or on the whole view frustum
+    (``focus="view"``: Scherzer §4.1 as printed). Raises EmptyBodyError when
+    nothing is visible."""
+    from .body import intersection_body
+    options = options or WarpOptions()
+    if options.focus == "view":
+        return intersection_body(view, light, scene)
+    if scene.is_empty:
+        raise EmptyBodyError("the scene has no shadow casters or receivers")
+    if visible is None:
+        visible = region_from_boxes(view, scene)
+    if visible.is_empty:
+        raise EmptyBodyError(f"the camera sees no shadow receiver ({visible.source})")
+    return intersection_body(view, light, scene, visible)

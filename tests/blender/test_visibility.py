@@ -1,0 +1,144 @@
+"""The warp sees what the camera sees, through the render engine (issue 12).
+
+The engine draws the camera's depth pre-pass first, reads it back per tile and
+fits B to it, so z_n is the nearest *visible* depth and the maps hold exactly
+what the shading pass shades.
+"""
+import importlib
+import math
+from pathlib import Path
+
+import bpy
+import numpy as np
+import pytest
+from mathutils import Vector
+
+from conftest import remove_objects_and_orphans
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def mods(lixel):
+    class M:
+        pass
+    m = M()
+    for name in ("render.engine", "gpu.pipeline", "gpu.visibility", "gpu.context", "gpu.result", "scene.describe",
+                 "scene.geometry", "settings", "warp"):
+        setattr(m, name.split(".")[-1], importlib.import_module(f"{lixel.__name__}.addon.{name}"))
+    return m
+
+
+def add(scene, name, data):
+    ob = bpy.data.objects.new(name, data)
+    scene.collection.objects.link(ob)
+    return ob
+
+
+def box_mesh(name, lo, hi):
+    me = bpy.data.meshes.new(name)
+    me.from_pydata([(x, y, z) for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])], [],
+                   [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)])
+    return me
+
+
+def overlook(scene, height=30.0):
+    """A camera 30 m up looking down at 45° over a 400 m ground with a few
+    boxes and a tower in view (the tower makes the unfocused B reach the
+    near plane), near 0.1 m, far 300 m, and a sun."""
+    ground = bpy.data.meshes.new("Ground")
+    ground.from_pydata([(-200, -200, 0), (200, -200, 0), (200, 200, 0), (-200, 200, 0)], [], [(0, 1, 2, 3)])
+    add(scene, "Ground", ground)
+    for i, x in enumerate((-8.0, 0.0, 8.0)):
+        add(scene, f"Box{i}", box_mesh(f"Box{i}", (x, 25.0, 0.0), (x + 2.0, 27.0, 3.0)))
+    add(scene, "Tower", box_mesh("Tower", (-2.0, 36.0, 0.0), (2.0, 38.0, 45.0)))
+    cam = add(scene, "Cam", bpy.data.cameras.new("Cam"))
+    cam.data.clip_start, cam.data.clip_end = 0.1, 300.0
+    cam.location = (0.0, 0.0, height)
+    cam.rotation_euler = (Vector((0.0, height, 0.0)) - cam.location).to_track_quat("-Z", "Y").to_euler()
+    scene.camera = cam
+    sun = add(scene, "Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.rotation_euler = (math.radians(40), 0, math.radians(30))
+    scene.render.engine = "LIXEL"
+    scene.render.resolution_x, scene.render.resolution_y = 160, 90
+    scene.render.resolution_percentage = 100
+
+
+def render(mods, scene, method="lispsm", **warp):
+    settings = mods.settings.LixelSettings(method=method)
+    if warp:
+        from dataclasses import replace
+        settings = replace(settings, warp=replace(settings.warp, **warp))
+    dg = scene.view_layers[0].depsgraph
+    dg.update()
+    mods.context.ensure_gpu_context()
+    return mods.engine.render_depsgraph(dg, settings=settings, read=mods.result.ANALYSIS)
+
+
+def test_the_engine_fits_the_warp_to_its_depth_prepass(mods, fresh_scene):
+    """z_n is the nearest visible eye depth the pre-pass saw (the bottom edge of
+    the image on the ground), not the near plane; focus says where it came from."""
+    overlook(fresh_scene)
+    last = render(mods, fresh_scene)
+    d = last["setup"].diagnostics
+    res = last["result"]
+    nearest_shaded = float(res.eye_depth[res.covered].min())
+    assert d.extra["focus"] == "depth pre-pass"
+    near, far = d.extra["visible_depth_range"]
+    assert near <= nearest_shaded and near > 0.97 * nearest_shaded
+    assert far >= float(res.eye_depth[res.covered].max())
+    assert 0.9 * nearest_shaded <= d.extra["z_n"] <= nearest_shaded
+    assert "visibility" in res.timings and "camera_prepass" in res.timings
+    old = render(mods, fresh_scene, focus="view")
+    assert old["setup"].diagnostics.extra["focus"] == "view frustum"
+    assert old["setup"].diagnostics.extra["z_n"] < 0.1 * nearest_shaded
+
+
+def test_the_prepass_region_holds_every_shaded_point(mods, fresh_scene):
+    """Every pixel the shading pass shades (its world position) lies in the
+    region read back from the depth target that pass reuses."""
+    overlook(fresh_scene)
+    dg = fresh_scene.view_layers[0].depsgraph
+    dg.update()
+    mods.context.ensure_gpu_context()
+    geometry = mods.geometry.GeometryCache().update(dg)
+    view, light, bounds = mods.describe.describe_scene(fresh_scene, dg, instances=geometry.instances)
+    frame = mods.pipeline.ShadowFrame(geometry, view)
+    frame.camera_prepass()
+    region, seconds = mods.visibility.region_from_frame(frame)
+    assert seconds >= 0 and region.source == "depth pre-pass"
+    body = mods.warp.focused_body(view, light, bounds, visible=region)
+    setup = mods.warp.compute("uniform", view, light, bounds, mods.warp.WarpOptions(shadow_map_size=256), body=body)
+    shadow = mods.settings.ShadowSettings()
+    frame.draw_maps(setup, shadow, body)
+    frame.shade(light, setup, shadow, world=True)
+    out = frame.finish(shadow, read={"world_position", "covered", "map_index"})
+    points = out.world_position[out.covered]
+    assert len(points) > 1000
+    assert region.contains(view, points, tol=1e-5).all()
+    assert (out.map_index[out.covered] == 0).all()               # and the map serves every one of them
+
+
+def test_on_the_terrain_view_z_n_comes_from_the_depth_prepass(mods):
+    """The terrain sample: nothing is visible nearer than about 128 m, with the
+    camera's near plane at 1 m. z_n follows what is seen (issue 12's diagnosis)."""
+    path = ROOT / "sample_blends" / "terrain.blend"
+    with bpy.data.libraries.load(str(path)) as (src, dst):
+        dst.scenes = list(src.scenes)
+    scene = dst.scenes[0]
+    try:
+        scene.render.resolution_x, scene.render.resolution_y = 320, 180
+        scene.render.resolution_percentage = 100
+        scene.frame_set(scene.frame_start)
+        last = render(mods, scene, "glpr")
+        d = last["setup"].diagnostics
+        assert d.extra["focus"] == "depth pre-pass"
+        assert d.extra["z_n"] > 100.0
+        cam = scene.camera.data
+        assert cam.clip_start <= 1.0
+        # GLPR's own λ at these depths over-warps: the guard acts and says so
+        assert any(what.endswith("glpr guard") for what, _ in d.fallbacks)
+    finally:
+        for s in dst.scenes:
+            remove_objects_and_orphans(s)
+            bpy.data.scenes.remove(s)
