@@ -39,7 +39,7 @@ def scene(lixel, mods):
 
 
 def test_a_bug_behind_an_operator_is_one_line_naming_it(scene, mods, monkeypatch, capfd, caplog):
-    monkeypatch.setattr(mods.live, "intersection_body", _explode)
+    monkeypatch.setattr(mods.live, "focused_body", _explode)     # (the live state builds B with it)
     with caplog.at_level(logging.DEBUG):
         with pytest.raises(RuntimeError) as info:
             bpy.ops.lixel.refresh()
