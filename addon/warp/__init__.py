@@ -6,7 +6,10 @@ See docs/architecture.md for the contract and the papers in ../shared/papers.
 """
 from __future__ import annotations
 
+import math
 from contextlib import contextmanager
+
+import numpy as np
 
 from . import body as _body
 from . import visibility as _visibility
@@ -37,11 +40,46 @@ def _warp_errors(what: str):
                         f"{exc}): check the camera's and the light's transforms and the camera's clip range") from exc
 
 
+MAX_COORDINATE = 1e12
+"""The largest coordinate (camera, light, box) the core works with. Its tolerances
+are relative to B's size; a scene that mixes this with millimetres is already at
+the edge of float64 (1e12 carries 1e-4 absolutely), and beyond it a single huge
+box makes every relative tolerance swallow the rest of the scene."""
+
+
+MIN_RESOLVED = 1e-9
+"""The smallest view frustum (its bounding box's diagonal) relative to the
+camera's distance from the origin that the core works with: below it float64
+keeps fewer than about 1e7 steps across the frustum and the fits lose coverage."""
+
+
+def _check_range(view: View, light: Light, scene: SceneBounds) -> None:
+    """WarpError for coordinates beyond :data:`MAX_COORDINATE`, or a view frustum
+    too small to resolve where it is (:data:`MIN_RESOLVED`), naming the input."""
+    reach = scene.cached("max_coordinate", lambda: max(
+        (float(np.abs(b).max()) for b in (scene.receivers, scene.casters) if b.size), default=0.0))
+    checks = [("The scene's boxes", reach), ("The camera's position", max(map(abs, view.position.tolist())))]
+    if light.position is not None:
+        checks.append((f"The position of light '{light.name}'", max(map(abs, light.position.tolist()))))
+    for what, value in checks:
+        if value > MAX_COORDINATE:
+            raise WarpError(f"{what} reaches {value:.3g} from the origin, beyond the {MAX_COORDINATE:.0e} Lixel can "
+                            f"compute with: move the scene closer to the origin or scale it down")
+    extent = math.hypot(*(max(c) - min(c) for c in zip(*view.corners().tolist())))  # the frustum's box diagonal
+    where = max(1.0, checks[1][1])
+    if not extent >= MIN_RESOLVED * where:
+        raise WarpError(f"The camera's view frustum is {extent:.3g} across at {where:.3g} from the origin, below what "
+                        f"float64 resolves there: widen the camera's clip range or move the scene closer to the "
+                        f"origin")
+
+
 def intersection_body(view: View, light: Light, scene: SceneBounds,
                       visible: VisibleRegion | None = None) -> IntersectionBody:
     """B, the intersection body (Scherzer §4.1), on the whole view frustum or
     focused on ``visible``. Raises ``EmptyBodyError`` when nothing the camera
-    sees can be shadowed, ``WarpError`` for degenerate input."""
+    sees can be shadowed, ``WarpError`` for degenerate input (coordinates
+    beyond :data:`MAX_COORDINATE` included)."""
+    _check_range(view, light, scene)
     with _warp_errors("The intersection body B"):
         return _body.intersection_body(view, light, scene, visible)
 
@@ -50,7 +88,9 @@ def focused_body(view: View, light: Light, scene: SceneBounds, options: WarpOpti
                  visible: VisibleRegion | None = None) -> IntersectionBody:
     """B as ``options.focus`` says (``visibility.focused_body``): fitted to
     ``visible`` (e.g. a depth pre-pass), else to a ray cast against the
-    scene's boxes, or to the whole view frustum (``focus="view"``)."""
+    scene's boxes, or to the whole view frustum (``focus="view"``). Errors as
+    :func:`intersection_body`."""
+    _check_range(view, light, scene)
     with _warp_errors("The intersection body B"):
         return _visibility.focused_body(view, light, scene, options, visible)
 
@@ -72,6 +112,9 @@ def compute(method: str, view: View, light: Light, scene: SceneBounds, options: 
             setup = METHODS[method](view, light, body, options, scene)
         else:
             setup = METHODS[method](view, light, body, options)
+    if not all(np.isfinite(m.matrix).all() for m in setup.maps):
+        raise WarpError(f"The {method} light matrices came out non-finite for this camera, light and scene: check "
+                        f"the camera's clip range and the scene's size")
     setup.diagnostics.extra["focus"] = body.focus
     if body.visible is not None:
         setup.diagnostics.extra["visible_depth_range"] = body.visible.depth_range
