@@ -15,6 +15,8 @@ import os
 import sys
 import traceback
 
+import numpy as np
+
 from . import METHODS, compute, focused_body
 from .config import parse_config
 from .types import EmptyBodyError, WarpError
@@ -39,6 +41,11 @@ def run_method(name, view, light, scene, options, body):
 
 
 def main(argv=None) -> int:
+    with np.errstate(all="ignore"):  # numpy's RuntimeWarnings are no message for a user: errors are lines of their own
+        return _main(argv)
+
+
+def _main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m addon.warp", description="Lixel light matrices for a config.")
     parser.add_argument("--method", required=True, help=f"one of {', '.join(METHODS)}, or 'all'")
     parser.add_argument("config", help="JSON config file ('-' for standard input)")

@@ -10,7 +10,9 @@
      "options": {...}}                            (optional WarpOptions fields)
 
 An orthographic camera gives ``"orthographic": true`` and ``"ortho_height"``
-instead of ``fov_y_deg``. Every error names the field (``ConfigError``).
+instead of ``fov_y_deg``. Every error names the field (``ConfigError``); a key
+the config format does not know (``light.energy``), or one that does not apply
+(a sun's ``position``), is an error too, never silently ignored.
 """
 from __future__ import annotations
 
@@ -20,12 +22,43 @@ from typing import Any
 
 import numpy as np
 
+from . import MAX_COORDINATE
 from .geometry import ortho_matrix
 from .types import Light, SceneBounds, View, WarpError, WarpOptions
 
 
 class ConfigError(WarpError):
     """A malformed config; the message starts with the offending field."""
+
+
+KEYS = {
+    "": ("camera", "light", "boxes", "shadow_map_size", "planes", "options"),
+    "camera": ("matrix_world", "fov_y_deg", "aspect", "near", "far", "resolution", "orthographic", "ortho_height"),
+    "light": ("type", "name", "direction", "position", "spot_angle_deg"),
+    "box": ("min", "max"),
+    "plane": ("point", "normal"),
+}
+"""The keys each object of the config may have."""
+LIGHT_KEYS = {"SUN": ("direction",), "POINT": ("position",), "SPOT": ("direction", "position", "spot_angle_deg")}
+"""The keys each light type uses besides ``type`` and ``name``."""
+ASPECT_RANGE = (1e-6, 1e6)
+AXIS_RANGE = (1e-6, 1e6)
+"""Lengths a camera matrix's axes may have (a scaled camera is fine, a degenerate one is not)."""
+MAX_PROJECTION_CONDITION = 1e12
+"""A projection beyond this condition number (a 1e-300° field of view, a 1e-300 clip
+start) cannot be inverted in float64 to the frustum the core clips with. Clip
+ranges of 1:1e15 from a 1e-6 start stay far below it (about 1e6)."""
+
+
+def _only_known(obj, path: str, kind: str) -> None:
+    """ConfigError naming the first key of ``obj`` that the format does not know."""
+    if not isinstance(obj, dict):
+        return
+    known = KEYS[kind]
+    for key in obj:
+        if key not in known:
+            where = f"{path}.{key}" if path else str(key)
+            raise ConfigError(f"{where}: unknown key; known: {', '.join(known)}")
 
 
 def _get(obj: dict, key: str, path: str, default: Any = ...):
@@ -46,13 +79,16 @@ def _number(value, field: str, *, positive=False) -> float:
     return float(value)
 
 
-def _vector(value, field: str, n: int = 3) -> np.ndarray:
+def _vector(value, field: str, n: int = 3, coordinates: bool = False) -> np.ndarray:
+    """``n`` finite numbers; ``coordinates``: within the core's ±MAX_COORDINATE."""
     try:
         a = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
         raise ConfigError(f"{field}: must be a list of {n} numbers") from None
     if a.shape != (n,) or not np.all(np.isfinite(a)):
         raise ConfigError(f"{field}: must be a list of {n} finite numbers (got {value!r})")
+    if coordinates and float(np.abs(a).max()) > MAX_COORDINATE:
+        raise ConfigError(f"{field}: coordinates must be within ±{MAX_COORDINATE:.0e} (got {value!r})")
     return a
 
 
@@ -65,9 +101,15 @@ def _matrix(value, field: str) -> np.ndarray:
         raise ConfigError(f"{field}: must be a 4x4 list of finite numbers")
     if not np.array_equal(a[3], [0.0, 0.0, 0.0, 1.0]):
         raise ConfigError(f"{field}: the last row must be [0, 0, 0, 1] (an affine transform)")
+    if float(np.abs(a[:3, 3]).max()) > MAX_COORDINATE:
+        raise ConfigError(f"{field}: the position {a[:3, 3].tolist()} is beyond ±{MAX_COORDINATE:.0e}")
     scale = float(np.abs(a[:3, :3]).max())
-    if scale == 0 or abs(np.linalg.det(a[:3, :3])) < 1e-12 * scale ** 3:
+    if scale == 0 or abs(np.linalg.det(a[:3, :3] / scale)) < 1e-12:
         raise ConfigError(f"{field}: the rotation part is singular")
+    lengths = np.linalg.norm(a[:3, :3], axis=0)
+    if not (AXIS_RANGE[0] <= lengths.min() and lengths.max() <= AXIS_RANGE[1]):
+        raise ConfigError(f"{field}: the axes' lengths must be between {AXIS_RANGE[0]:g} and {AXIS_RANGE[1]:g} "
+                          f"(got {', '.join(f'{v:.3g}' for v in lengths)})")
     return a
 
 
@@ -86,6 +128,7 @@ def _size(value, field: str) -> tuple[int, int]:
 
 
 def parse_view(cam: dict) -> View:
+    _only_known(cam, "camera", "camera")
     m = _matrix(_get(cam, "matrix_world", "camera"), "camera.matrix_world")
     near = _number(_get(cam, "near", "camera"), "camera.near", positive=True)
     far = _number(_get(cam, "far", "camera"), "camera.far", positive=True)
@@ -93,28 +136,47 @@ def parse_view(cam: dict) -> View:
         raise ConfigError(f"camera.far: must be greater than camera.near ({far} <= {near})")
     res = _size(_get(cam, "resolution", "camera", [1920, 1080]), "camera.resolution")
     aspect = _number(_get(cam, "aspect", "camera", res[0] / res[1]), "camera.aspect", positive=True)
+    if not ASPECT_RANGE[0] <= aspect <= ASPECT_RANGE[1]:
+        raise ConfigError(f"camera.aspect: must be between {ASPECT_RANGE[0]:g} and {ASPECT_RANGE[1]:g} (got {aspect!r})")
     ortho = _get(cam, "orthographic", "camera", False)
     if not isinstance(ortho, bool):
         raise ConfigError(f"camera.orthographic: must be true or false (got {ortho!r})")
+    unused, wanted = ("fov_y_deg", "ortho_height") if ortho else ("ortho_height", "fov_y_deg")
+    if unused in cam:
+        raise ConfigError(f"camera.{unused}: a{'n orthographic' if ortho else ' perspective'} camera does not take "
+                          f"it; give camera.{wanted} instead")
     try:
         if ortho:
             h = _number(_get(cam, "ortho_height", "camera"), "camera.ortho_height", positive=True)
-            proj = ortho_matrix(-h * aspect / 2, h * aspect / 2, -h / 2, h / 2, near, far)
-            return View(m, proj, near, far, res, orthographic=True)
-        fov = _number(_get(cam, "fov_y_deg", "camera"), "camera.fov_y_deg", positive=True)
-        if fov >= 180:
-            raise ConfigError(f"camera.fov_y_deg: must be below 180 (got {fov})")
-        return View.perspective(m, math.radians(fov), aspect, near, far, res)
+            view = View(m, ortho_matrix(-h * aspect / 2, h * aspect / 2, -h / 2, h / 2, near, far), near, far, res,
+                        orthographic=True)
+        else:
+            fov = _number(_get(cam, "fov_y_deg", "camera"), "camera.fov_y_deg", positive=True)
+            if fov >= 180:
+                raise ConfigError(f"camera.fov_y_deg: must be below 180 (got {fov})")
+            view = View.perspective(m, math.radians(fov), aspect, near, far, res)
     except ConfigError:
         raise
     except WarpError as exc:
         raise ConfigError(f"camera: {exc}") from None
+    with np.errstate(all="ignore"):
+        cond = float(np.linalg.cond(view.projection)) if np.all(np.isfinite(view.projection)) else math.inf
+    if not cond < MAX_PROJECTION_CONDITION:
+        lens = "ortho_height" if ortho else "fov_y_deg"
+        raise ConfigError(f"camera: {lens}, aspect, near and far give a projection too ill-conditioned for floating "
+                          f"point (condition number {cond:.3g}); use less extreme values")
+    return view
 
 
 def parse_light(light: dict) -> Light:
+    _only_known(light, "light", "light")
     kind = _get(light, "type", "light")
     if kind not in ("SUN", "POINT", "SPOT"):
         raise ConfigError(f"light.type: must be SUN, POINT or SPOT (got {kind!r})")
+    for key in light:
+        if key not in ("type", "name") + LIGHT_KEYS[kind]:
+            raise ConfigError(f"light.{key}: a {kind} light has no {key}; it takes "
+                              f"{', '.join(LIGHT_KEYS[kind])} (and name)")
     kw: dict[str, Any] = {"type": kind, "name": str(light.get("name", "light"))}
     if kind in ("SUN", "SPOT"):
         d = _vector(_get(light, "direction", "light"), "light.direction")
@@ -123,7 +185,7 @@ def parse_light(light: dict) -> Light:
             raise ConfigError("light.direction: must be a non-zero vector")
         kw["direction"] = d
     if kind in ("POINT", "SPOT"):
-        kw["position"] = _vector(_get(light, "position", "light"), "light.position")
+        kw["position"] = _vector(_get(light, "position", "light"), "light.position", coordinates=True)
     if kind == "SPOT":
         angle = _number(_get(light, "spot_angle_deg", "light"), "light.spot_angle_deg", positive=True)
         if angle >= 180:
@@ -137,8 +199,9 @@ def parse_boxes(boxes) -> SceneBounds:
         raise ConfigError("boxes: must be a list of {\"min\": [...], \"max\": [...]}")
     out = []
     for i, b in enumerate(boxes):
-        lo = _vector(_get(b, "min", f"boxes[{i}]"), f"boxes[{i}].min")
-        hi = _vector(_get(b, "max", f"boxes[{i}]"), f"boxes[{i}].max")
+        _only_known(b, f"boxes[{i}]", "box")
+        lo = _vector(_get(b, "min", f"boxes[{i}]"), f"boxes[{i}].min", coordinates=True)
+        hi = _vector(_get(b, "max", f"boxes[{i}]"), f"boxes[{i}].max", coordinates=True)
         if np.any(lo > hi):
             raise ConfigError(f"boxes[{i}]: min must not exceed max")
         out.append([lo, hi])
@@ -150,7 +213,8 @@ def parse_planes(planes) -> tuple:
         raise ConfigError("planes: must be a list of {\"point\": [...], \"normal\": [...]}")
     out = []
     for i, p in enumerate(planes):
-        point = _vector(_get(p, "point", f"planes[{i}]"), f"planes[{i}].point")
+        _only_known(p, f"planes[{i}]", "plane")
+        point = _vector(_get(p, "point", f"planes[{i}]"), f"planes[{i}].point", coordinates=True)
         normal = _vector(_get(p, "normal", f"planes[{i}]"), f"planes[{i}].normal")
         if not np.any(normal):
             raise ConfigError(f"planes[{i}].normal: must not be zero")
@@ -218,6 +282,7 @@ def parse_options(config: dict) -> WarpOptions:
 def parse_config(config: dict) -> tuple[View, Light, SceneBounds, WarpOptions]:
     if not isinstance(config, dict):
         raise ConfigError("config: must be a JSON object")
+    _only_known(config, "", "")
     view = parse_view(_get(config, "camera", ""))
     try:
         light = parse_light(_get(config, "light", ""))

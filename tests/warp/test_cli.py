@@ -218,6 +218,28 @@ MALFORMED = {
     "plane_without_normal": (_set(["planes"], [{"point": [0, 0, 0]}]), "planes[0].normal"),
     "plane_zero_normal": (_set(["planes"], [{"point": [0, 0, 0], "normal": [0, 0, 0]}]), "planes[0].normal"),
     "plane_not_an_object": (_set(["planes"], [[0, 0, 0]]), "planes[0]"),
+    # keys the format does not know, or that do not apply, are refused by name (issue 14)
+    "light_energy": (_set(["light", "energy"], 3.0), "light.energy"),
+    "camera_unknown_key": (_set(["camera", "lens_mm"], 50), "camera.lens_mm"),
+    "top_level_unknown_key": (_set(["lights"], []), "lights"),
+    "box_unknown_key": (_set(["boxes", 0, "centre"], [0, 0, 0]), "boxes[0].centre"),
+    "plane_unknown_key": (_set(["planes"], [{"point": [0, 0, 0], "normal": [0, 0, 1], "up": 1}]), "planes[0].up"),
+    "sun_with_position": (_set(["light", "position"], [0, 0, 10]), "light.position"),
+    "point_with_direction": (_set(["light"], {"type": "POINT", "position": [0, 0, 5], "direction": [0, 0, -1]}),
+                             "light.direction"),
+    "perspective_with_ortho_height": (_set(["camera", "ortho_height"], 5), "camera.ortho_height"),
+    # numbers beyond floating point: a clear message naming the field, not "internal error"
+    "aspect_1e-300": (_set(["camera", "aspect"], 1e-300), "camera.aspect"),
+    "aspect_1e300": (_set(["camera", "aspect"], 1e300), "camera.aspect"),
+    "matrix_1e300": (_set(["camera", "matrix_world"], [[1e300, 0, 0, 0], [0, 1e300, 0, 0], [0, 0, 1e300, 1e300],
+                                                       [0, 0, 0, 1]]), "camera.matrix_world"),
+    "matrix_position_1e300": (_set(["camera", "matrix_world"], [[1, 0, 0, 0], [0, 1, 0, 1e300], [0, 0, 1, 0],
+                                                                [0, 0, 0, 1]]), "camera.matrix_world"),
+    "matrix_axes_1e-300": (_set(["camera", "matrix_world"], [[1e-300, 0, 0, 0], [0, 1e-300, 0, 0],
+                                                             [0, 0, 1e-300, 0], [0, 0, 0, 1]]), "camera.matrix_world"),
+    "fov_1e-300": (_set(["camera", "fov_y_deg"], 1e-300), "camera"),
+    "box_1e300": (_set(["boxes", 1, "max"], [1, 1, 1e300]), "boxes[1].max"),
+    "point_position_1e300": (_set(["light"], {"type": "POINT", "position": [0, 1e300, 1]}), "light.position"),
 }
 
 
@@ -255,7 +277,7 @@ def test_malformed_config_gets_one_line_naming_the_field(name, tmp_path, capsys)
 
 SUBPROCESS_SAMPLE = ["camera_missing", "matrix_nan", "matrix_projective_row", "fov_string", "near_beyond_far",
                      "light_type_area", "light_direction_denormal", "box_inverted", "size_absurd", "option_lam_string",
-                     "option_depth_range_short", "plane_zero_normal"]
+                     "option_depth_range_short", "plane_zero_normal", "light_energy", "aspect_1e-300", "matrix_1e300"]
 
 
 @pytest.mark.parametrize("name", SUBPROCESS_SAMPLE)
