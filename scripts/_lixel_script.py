@@ -15,6 +15,7 @@ as does anything unexpected (one line; ``LIXEL_DEBUG=1`` shows the traceback).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import importlib.util
 import os
@@ -72,6 +73,34 @@ def parse(parser: argparse.ArgumentParser, argv=None):
             parser.error(f"--size {args.size} is out of range: use {limits.MIN_MAP_SIZE}..{limits.MAX_MAP_SIZE} "
                          f"texels per side")
     return args
+
+
+@contextlib.contextmanager
+def data_stdout(reserve: bool = True):
+    """Standard output kept for the script's data (``--output -``): while the
+    block runs, everything else written to it (Blender's "Read blend: ..." line,
+    which C code prints to file descriptor 1 when a file is opened, and any
+    Python print) goes to standard error instead; yields the text stream that
+    reaches the real standard output. ``reserve=False``: plain ``sys.stdout``.
+
+    Inside the Blender binary, lines Blender prints *before* the script runs
+    (opening the file given on its command line) cannot be taken back: run it
+    as ``blender -b -q file.blend --python ...`` (``-q``: no status lines)."""
+    if not reserve:
+        yield sys.stdout
+        return
+    sys.stdout.flush()
+    saved = os.dup(1)
+    os.dup2(2, 1)
+    data = os.fdopen(os.dup(saved), "w", encoding="utf-8")
+    try:
+        yield data
+    finally:
+        data.flush()
+        data.close()
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 class Session:

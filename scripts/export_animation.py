@@ -5,7 +5,9 @@ animation, in the command line's JSON format per frame.
     python scripts/export_animation.py scene.blend --output anim.json [--method lispsm] [--frames 1:48:2]
 
 Output: {"scene", "method", "frames": [{"frame": f, "maps": [...], "diagnostics": {...}} |
-{"frame": f, "error": "..."}]}. A frame Lixel cannot handle (e.g. the camera
+{"frame": f, "error": "..."}]}. With ``--output -`` standard output carries the
+JSON only (everything else goes to standard error; with the Blender binary add
+``-q`` so Blender's own status lines, printed before the script runs, stay out). A frame Lixel cannot handle (e.g. the camera
 sees nothing) is recorded with its error; the exit status is 0 unless every
 frame failed.
 """
@@ -42,7 +44,7 @@ def main(argv=None):
     args = ls.parse(p, argv)
     if args.frames is not None:
         frame_range(p, args.frames, None)  # bad ranges fail before the file is loaded
-    with ls.Session(args) as s:
+    with ls.data_stdout(args.output == "-") as data, ls.Session(args) as s:
         methods = s.module("addon.warp.methods").METHODS
         if args.method is not None and args.method not in methods:
             p.error(f"--method {args.method!r}: choose one of {', '.join(methods)}")
@@ -64,7 +66,7 @@ def main(argv=None):
             doc["frames"].append({"frame": f, **st.setup.to_json()})
         text = json.dumps(doc, indent=1)
         if args.output == "-":
-            print(text)
+            print(text, file=data)
         else:
             with open(args.output, "w", encoding="utf-8") as fh:
                 fh.write(text + "\n")

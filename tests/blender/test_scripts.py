@@ -78,6 +78,16 @@ def test_export_animation(mode, blend, tmp_path):
         assert body[:, 2].max() >= 1.0 - 1e-6 and body[:, 2].min() <= 1e-6
 
 
+def test_export_animation_to_stdout_is_json_only(blend):
+    """``--output -``: Blender's "Read blend" line (printed by C code when the
+    script opens the file) and any note go to stderr; stdout parses as JSON."""
+    r = run("module", "export_animation.py", blend, "--output", "-", "--frames", "1:3", "--method", "uniform")
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    assert [f["frame"] for f in doc["frames"]] == [1, 2, 3]
+    assert "Read blend" in r.stderr or "Read" not in r.stdout
+
+
 @pytest.mark.parametrize("mode", MODES)
 def test_render_method_writes_pictures_and_json(mode, blend, tmp_path):
     png, mask, js = tmp_path / "r.png", tmp_path / "mask.png", tmp_path / "r.json"
