@@ -301,11 +301,10 @@ def on_load_pre(*_args):
 @persistent
 @guarded_callback("setting up Lixel's overlays after a file load")
 def on_load_post(*_args):
-    """Re-add the draw handlers if the loaded file has overlays switched on, and
-    give never-set-up scenes the preference defaults."""
-    from .properties import ensure_defaults
-    for scene in bpy.data.scenes:
-        ensure_defaults(scene)
+    """Re-add the draw handlers if the loaded file has overlays switched on.
+    Nothing is written into the file's scenes: one never set up renders with the
+    preference defaults (``LixelSceneSettings.to_settings``) until the user
+    changes a setting or runs an operator."""
     sync_handlers()
 
 

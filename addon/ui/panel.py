@@ -77,7 +77,9 @@ class LIXEL_PT_main(LixelPanel, bpy.types.Panel):
         elif st is not None and st.note:
             layout.label(text=st.note, icon="INFO")
         if not props.initialised:
-            layout.operator("lixel.reset_settings", text="Use Preference Defaults", icon="PREFERENCES")
+            box = layout.box()
+            box.label(text="Not set up: renders with the preference defaults", icon="PREFERENCES")
+            box.operator("lixel.reset_settings", text="Set Up From Preferences")
 
 
 def _wrap(text: str, width: int) -> list:

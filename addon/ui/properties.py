@@ -6,6 +6,7 @@ Defaults of a scene that has never been set up come from the add-on
 preferences (``addon.ui.preferences``), applied by :func:`ensure_defaults`.
 """
 import math
+from dataclasses import replace
 
 import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, FloatVectorProperty,
@@ -221,12 +222,7 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
         if not (MIN_MAP_SIZE <= w <= MAX_MAP_SIZE and MIN_MAP_SIZE <= h <= MAX_MAP_SIZE):
             raise WarpError(f"Scene '{self.id_data.name}' has a shadow map size of {w}x{h}, out of range: use "
                             f"{MIN_MAP_SIZE}..{MAX_MAP_SIZE} texels per side (Lixel panel > Method > Map Size)")
-        planes = tuple((tuple(p.point), tuple(p.normal)) for p in self.planes)
-        for p, (point, normal) in zip(self.planes, planes):
-            if not all(math.isfinite(v) for v in point + normal) or not any(normal):
-                raise WarpError(f"Plane of interest '{p.source or 'unnamed'}' of scene '{self.id_data.name}' has a "
-                                f"non-finite point or a zero normal: remove it or take it again from the selection "
-                                f"(Lixel panel > Method > Planes of Interest)")
+        planes = self.planes_of_interest()
         vis = None
         if self.use_visible_depth_range:
             near, far = (float(v) for v in self.visible_depth_range)
@@ -241,6 +237,16 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
             planes=planes, plane_budget=float(self.plane_budget), plane_twist=self.plane_twist,
             **{name: getattr(self, name) for name in CASCADE_SETTINGS})
 
+    def planes_of_interest(self) -> tuple:
+        """((point, normal), ...) of the planes of interest; WarpError naming a bad one."""
+        planes = tuple((tuple(p.point), tuple(p.normal)) for p in self.planes)
+        for p, (point, normal) in zip(self.planes, planes):
+            if not all(math.isfinite(v) for v in point + normal) or not any(normal):
+                raise WarpError(f"Plane of interest '{p.source or 'unnamed'}' of scene '{self.id_data.name}' has a "
+                                f"non-finite point or a zero normal: remove it or take it again from the selection "
+                                f"(Lixel panel > Method > Planes of Interest)")
+        return planes
+
     def shadow_settings(self) -> ShadowSettings:
         return ShadowSettings(
             bias_mode=self.bias_mode, constant_bias=float(self.constant_bias), slope_bias=float(self.slope_bias),
@@ -249,11 +255,21 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
             eye_blur=float(self.eye_blur))
 
     def to_settings(self) -> LixelSettings:
-        """The plain ``LixelSettings`` the render engine, scripts and overlays use."""
+        """The plain ``LixelSettings`` the render engine, scripts and overlays use.
+        A scene never set up (``initialised`` False) renders with the add-on
+        preferences' defaults, read here and written nowhere: opening a file
+        leaves its scenes as they were saved."""
+        if not self.initialised:
+            prefs = preference_settings()
+            if prefs is not None:
+                return replace(prefs, warp=replace(prefs.warp, planes=self.planes_of_interest()))
         return LixelSettings(method=self.method, warp=self.warp_options(), shadow=self.shadow_settings())
 
-    def from_settings(self, settings: LixelSettings) -> None:
-        """Write plain settings into these properties (preferences, scripts)."""
+    def from_settings(self, settings: LixelSettings, planes: bool = True) -> None:
+        """Write plain settings into these properties (preferences, scripts); the
+        scene counts as set up from then on. ``planes=False`` keeps the planes of
+        interest as they are."""
+        self.initialised = True  # first: the writes below must not apply the preferences again (_touched)
         if settings.method in available_methods():
             self.method = settings.method
         wo, sh = settings.warp, settings.shadow
@@ -275,10 +291,11 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
         self.plane_twist = wo.plane_twist
         for name in CASCADE_SETTINGS:
             setattr(self, name, getattr(wo, name))
-        self.planes.clear()
-        for point, normal in wo.planes:
-            p = self.planes.add()
-            p.point, p.normal = point, normal
+        if planes:
+            self.planes.clear()
+            for point, normal in wo.planes:
+                p = self.planes.add()
+                p.point, p.normal = point, normal
         for name in ("bias_mode", "constant_bias", "slope_bias", "back_faces", "pcf_kernel", "mdsm_depths",
                      "mdsm_selection", "mdsm_neighbourhood", "eye_blur"):
             setattr(self, name, getattr(sh, name))
@@ -312,16 +329,27 @@ def ensure_defaults(scene) -> bool:
         return False
     prefs = preference_settings()
     if prefs is not None:
-        props.from_settings(prefs)
+        props.from_settings(prefs, planes=False)
     props.initialised = True
     return True
 
 
-def _touched(self, _context):
-    """Any edit by the user marks the scene as set up, so the preference
-    defaults never overwrite a choice made before the first Refresh."""
-    if not self.initialised:
+def _touched(name: str):
+    """The update callback of setting ``name``: the user's first edit in a scene
+    never set up writes the preference defaults the scene was rendering with,
+    then keeps the edited value; from then on the scene is set up and the
+    preferences never overwrite it."""
+    def update(self, _context):
+        if self.initialised:
+            return
+        value = getattr(self, name)
+        value = tuple(value) if hasattr(value, "__len__") and not isinstance(value, str) else value
+        prefs = preference_settings()
         self.initialised = True
+        if prefs is not None:
+            self.from_settings(prefs, planes=False)
+            setattr(self, name, value)
+    return update
 
 
 SETTING_NAMES = ("light", "method", "shadow_map_size", "focus", "glpr_guard", "texel_snapping", "delta_z", "use_visible_depth_range",
@@ -329,7 +357,7 @@ SETTING_NAMES = ("light", "method", "shadow_map_size", "focus", "glpr_guard", "t
                  "plane_budget", "plane_twist", "bias_mode", "constant_bias", "slope_bias", "back_faces", "pcf_kernel",
                  "mdsm_depths", "mdsm_selection", "mdsm_neighbourhood", "eye_blur") + CASCADE_SETTINGS
 for _name in SETTING_NAMES:  # one update callback for every setting (before registration)
-    LixelSceneSettings.__annotations__[_name].keywords["update"] = _touched
+    LixelSceneSettings.__annotations__[_name].keywords["update"] = _touched(_name)
 
 classes = (LixelPlane, LixelSceneSettings)
 

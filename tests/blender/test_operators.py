@@ -233,3 +233,11 @@ def test_overlay_on_in_a_scene_without_camera_says_why(lixel, mods):
         sc.lixel.show_body = False
         mods.overlays.sync_handlers()
         assert mods.overlays.draw_handlers_active() == ()
+
+
+def test_every_operator_that_changes_data_can_be_undone(lixel):
+    """Each of Lixel's operators writes scene data (a first refresh or export sets
+    the scene up, toggling an overlay writes its switch): each gets an undo step."""
+    ops = importlib.import_module(f"{lixel.__name__}.addon.ui.operators")
+    assert len(ops.classes) == 11
+    assert [c.bl_idname for c in ops.classes if "UNDO" not in c.bl_options] == []

@@ -78,9 +78,14 @@ def test_preferences_apply_to_new_scenes_only(lixel, mods):
             assert (got.method, got.warp.shadow_map_size, got.shadow.pcf_kernel) == ("uniform", (512, 512), 2)
             assert not mods.properties.ensure_defaults(scene)  # only once
         with active_scene("lixel_prefs_edited") as scene:
-            scene.lixel.method = "psm"  # the user's choice, before any refresh
+            # never set up: it renders with the preferences, and nothing is written into it
+            assert not scene.lixel.initialised and scene.lixel.method == "lispsm"
+            got = scene.lixel.to_settings()
+            assert (got.method, got.warp.shadow_map_size, got.shadow.pcf_kernel) == ("uniform", (512, 512), 2)
+            scene.lixel.method = "psm"  # the user's first choice, before any refresh: the rest stays as rendered
             assert not mods.properties.ensure_defaults(scene)
-            assert scene.lixel.method == "psm" and scene.lixel.pcf_kernel == 3
+            assert scene.lixel.method == "psm" and scene.lixel.pcf_kernel == 2
+            assert tuple(scene.lixel.shadow_map_size) == (512, 512)
     finally:
         prefs.method, prefs.map_size, prefs.pcf_kernel = old
 
@@ -90,3 +95,54 @@ def test_light_poll_accepts_only_lights(lixel):
         poll = type(scene.lixel).__annotations__["light"].keywords["poll"]
         assert poll(scene.lixel, scene.objects["lixel_props_light light"])
         assert not poll(scene.lixel, scene.camera)
+
+
+LOAD_SUBPROCESS = r'''
+import importlib, importlib.util, json, sys
+import bpy
+conftest, blend = sys.argv[1:3]
+spec = importlib.util.spec_from_file_location("bconf", conftest)
+bconf = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(bconf)
+root = bconf.enable_lixel()
+prefs = importlib.import_module(root.__name__ + ".addon.ui.preferences").preferences()
+prefs.method, prefs.map_size = "uniform", 512
+bpy.ops.wm.open_mainfile(filepath=blend)
+engine = importlib.import_module(root.__name__ + ".addon.render.engine")
+out = {"scenes": {}}
+for sc in bpy.data.scenes:
+    s = engine.scene_settings(sc)
+    out["scenes"][sc.name] = {"initialised": sc.lixel.initialised, "method": sc.lixel.method,
+                              "renders_with": [s.method, list(s.warp.shadow_map_size)]}
+print("LIXEL_LOADED " + json.dumps(out))
+bconf.disable_lixel()
+'''
+
+
+def test_opening_a_file_writes_nothing_into_its_scenes(lixel, tmp_path):
+    """Opening a .blend leaves every scene as saved (no Lixel settings written on
+    load); a scene never set up renders with the preference defaults."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+    blend = tmp_path / "two_scenes.blend"
+    first = bpy.data.scenes.new("lixel_never_set_up_a")
+    second = bpy.data.scenes.new("lixel_never_set_up_b")
+    try:
+        bpy.ops.wm.save_as_mainfile(filepath=str(blend), copy=True)
+    finally:
+        bpy.data.scenes.remove(first)
+        bpy.data.scenes.remove(second)
+    script = tmp_path / "load.py"
+    script.write_text(LOAD_SUBPROCESS)
+    conftest = Path(__file__).with_name("conftest.py")
+    proc = subprocess.run([sys.executable, str(script), str(conftest), str(blend)], capture_output=True, text=True,
+                          timeout=300, env=dict(os.environ))
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    line = [ln for ln in proc.stdout.splitlines() if ln.startswith("LIXEL_LOADED ")]
+    got = json.loads(line[0].split(" ", 1)[1])
+    # (bpy.data.is_dirty cannot tell: it is True after any open_mainfile in background mode)
+    for name in ("lixel_never_set_up_a", "lixel_never_set_up_b"):
+        assert got["scenes"][name] == {"initialised": False, "method": "lispsm", "renders_with": ["uniform", [512, 512]]}

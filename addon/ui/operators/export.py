@@ -37,7 +37,7 @@ class LIXEL_OT_export_json(LixelSceneOperator, bpy.types.Operator, ExportHelper)
 
     bl_idname = "lixel.export_json"
     bl_label = "Export Matrices (JSON)"
-    bl_options = {"REGISTER"}
+    bl_options = {"REGISTER", "UNDO"}  # a scene's first export writes its settings
 
     filename_ext = ".json"
     filter_glob: StringProperty(default="*.json", options={"HIDDEN"})

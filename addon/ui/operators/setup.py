@@ -14,7 +14,7 @@ class LIXEL_OT_refresh(LixelSceneOperator, bpy.types.Operator):
 
     bl_idname = "lixel.refresh"
     bl_label = "Refresh Setup"
-    bl_options = {"REGISTER"}
+    bl_options = {"REGISTER", "UNDO"}  # a scene's first refresh writes its settings
 
     @guarded_operator
     def execute(self, context):
@@ -38,13 +38,8 @@ class LIXEL_OT_reset_settings(LixelSceneOperator, bpy.types.Operator):
     @guarded_operator
     def execute(self, context):
         props = context.scene.lixel
-        planes = [(tuple(p.point), tuple(p.normal), p.source) for p in props.planes]
         settings = preference_settings() or LixelSettings()
-        props.from_settings(settings)
-        for point, normal, source in planes:
-            p = props.planes.add()
-            p.point, p.normal, p.source = point, normal, source
-        props.initialised = True
+        props.from_settings(settings, planes=False)
         self.report({"INFO"}, f"Lixel settings reset to the preferences (method {props.method})")
         return {"FINISHED"}
 
@@ -54,7 +49,7 @@ class LIXEL_OT_toggle_overlay(LixelSceneOperator, bpy.types.Operator):
 
     bl_idname = "lixel.toggle_overlay"
     bl_label = "Toggle Lixel Overlay"
-    bl_options = {"REGISTER"}
+    bl_options = {"REGISTER", "UNDO"}
 
     overlay: EnumProperty(name="Overlay", items=[(name, label, desc) for name, label, desc in OVERLAYS])
 
