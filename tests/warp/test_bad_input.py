@@ -16,7 +16,8 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
-from hypothesis import HealthCheck, example, given, settings, strategies as st
+import pytest
+from hypothesis import HealthCheck, Phase, example, given, settings, strategies as st
 
 from addon.warp import METHODS, Light, SceneBounds, View, WarpError, WarpOptions, compute, intersection_body
 from addon.warp.geometry import look_along, ortho_matrix
@@ -31,8 +32,17 @@ Tighter is the float64 floor at the extremes drawn here (a 1e-8 near plane 1e3 f
 DEEP = int(os.environ.get("LIXEL_HYPOTHESIS_EXAMPLES", "0"))
 """Set it to search further (random, not derandomized) when working on the core;
 CI runs the same fixed 120 examples every time."""
-CONTRACT = settings(max_examples=DEEP or 120, derandomize=not DEEP, deadline=None, database=None,
+CONTRACT = settings(max_examples=DEEP or 30, derandomize=not DEEP, deadline=None, database=None,
+                    phases=list(Phase) if DEEP else [Phase.explicit, Phase.generate],
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+"""30 examples per method (and the fixed ones below), the same every run; no shrinking in CI (a failure
+prints its whole Case, which rebuilds it)."""
+
+KNOWN_GAPS = {
+    "cascade": "cascade (issue 15, first step) leaves points of B at the near plane and inside a split uncovered: "
+               "reported to its owner; remove this mark when it covers B",
+}
+"""Methods known to break the contract, by its owner's issue; strict, so the mark goes when they are fixed."""
 
 BAD = st.sampled_from([float("nan"), float("inf"), -float("inf"), 1e300, -1e300, 1e150])
 SCALE = st.sampled_from([1e-3, 1.0, 10.0, 1e3, 1e7])
@@ -185,12 +195,14 @@ HUGE_BOX_POINT_LIGHT = _case(  # a 1e150 box: every relative tolerance swallowed
     scale=1e-3)
 
 
+@pytest.mark.parametrize("method", [pytest.param(m, marks=pytest.mark.xfail(strict=True, reason=KNOWN_GAPS[m]))
+                                    if m in KNOWN_GAPS else m for m in METHODS])
 @CONTRACT
 @example(TINY_FAR_FRUSTUM)
 @example(HUGE_BOX_POINT_LIGHT)
 @given(descriptions())
-def test_every_method_returns_covering_finite_maps_or_a_warp_error(case):
-    method, options = case.method, WarpOptions(shadow_map_size=case.size)
+def test_every_method_returns_covering_finite_maps_or_a_warp_error(method, case):
+    options = WarpOptions(shadow_map_size=case.size)
     try:
         view, light, bounds = case.build()
         body = intersection_body(view, light, bounds)
