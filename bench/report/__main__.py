@@ -71,10 +71,9 @@ def parse(argv=None) -> argparse.Namespace:
     ap.add_argument("--eevee-samples", type=int, default=None, help="EEVEE render samples (default 1)")
     ap.add_argument("--no-overlays", action="store_true", help="skip the overlay snapshots")
     ap.add_argument("--out", type=Path, default=ROOT / "out", help="report folder (default: out/)")
-    ap.add_argument("--readme-picture", type=Path, default=None,
-                    help="also write the comparison picture here (e.g. docs/images/comparison.png)")
-    ap.add_argument("--readme-overlay", type=Path, default=None,
-                    help="also copy the first scene's observer overlay snapshot here (e.g. docs/images/overlay.png)")
+    ap.add_argument("--readme-pictures", type=Path, default=None, metavar="DIR",
+                    help="also write the README's pictures for the first scene into DIR (docs/images): "
+                         "comparison.png, overlay_observer.png, overlay_texels.png")
     return ap.parse_args(argv)
 
 
@@ -159,15 +158,10 @@ def main(argv=None) -> int:
     try:
         result = run(opts, progress)
         paths = document.write(result, partial, progress)
-        if args.readme_picture is not None:
-            document.readme_picture(result, args.readme_picture)
         publish(partial, out)
-        if args.readme_overlay is not None:
-            first = next((s for s in result["scenes"] if s.get("overlay_files")), None)
-            observer = [f for f in (first or {}).get("overlay_files", []) if "observer" in f]
-            if observer:
-                args.readme_overlay.parent.mkdir(parents=True, exist_ok=True)
-                shutil.copyfile(out / observer[0], args.readme_overlay)
+        if args.readme_pictures is not None:
+            for path in document.readme_pictures(result, out, args.readme_pictures):
+                progress.log(f"wrote {path}")
         failed = [s["name"] for s in result["scenes"] if s.get("status") != "ok"]
         progress.log(f"wrote {out / paths['html'].name} and {out / paths['md'].name} in {progress.elapsed():.0f} s"
                      + (f"; FAILED scenes: {', '.join(failed)}" if failed else ""))

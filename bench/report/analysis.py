@@ -73,6 +73,7 @@ class ErrorAnatomy:
     interior_false_shadow: float  # away from edges and false shadow: acne, shadows spread or spilled
     unserved: float             # no map served the pixel
     grazing: float              # on surfaces with n·l < NDL_MIN (left out of the footprint statistic)
+    edge_false_light: float     # of the wrong pixels at edges, the false-light share (shadows shrunk, light leaking)
     edge_footprint_p95: float   # analytic footprint p95 over the facing pixels at true shadow edges (both sides)
 
     def to_json(self) -> dict:
@@ -93,10 +94,13 @@ def anatomy(shadow, truth, counted, facing_mask, map_index, fp_image, band_radiu
     def share(mask) -> float:
         return float((mask & wrong).sum() / n) if n else float("nan")
 
+    at_edges = int((wrong & band).sum())
+
     return ErrorAnatomy(
         errors=n, false_light=share(fl), at_edges=share(band),
         interior_false_light=share(fl & ~band), interior_false_shadow=share(wrong & ~t & ~band),
         unserved=share(np.asarray(map_index) < 0), grazing=share(~facing_mask),
+        edge_false_light=float((fl & band).sum() / at_edges) if at_edges else float("nan"),
         edge_footprint_p95=float(np.percentile(edge_fp, 95)) if len(edge_fp) else float("nan"))
 
 
@@ -110,27 +114,42 @@ def _pct(x: float) -> str:
     return f"{100 * x:.0f} %"
 
 
+SIGNIFICANCE = 3.0
+"""Error counts differ significantly when the difference exceeds this many
+standard deviations of counting noise (sqrt of the summed counts)."""
+
+
+def _trend(ratio: float, factor: float) -> str:
+    return "smaller" if ratio < 1 / factor else "larger" if ratio > factor else "about the same"
+
+
 def explain(rec: dict, ref: dict, ref_label: str) -> Optional[str]:
     """A sentence when the analytic footprint and the rendered error rank ``rec``
     against ``ref`` differently (None when they agree or cannot be compared).
 
     Both are records of the report (``footprint_lit``, ``errors``, ``anatomy``,
     ``fallbacks``). The footprint predicts a smaller error when its p95 is below
-    the reference's by more than AGREE_FOOTPRINT, a larger one when above; the
-    rendered error disagrees when it goes the other way by more than AGREE_ERROR
-    (or changes by more than AGREE_ERROR while the footprint stays within it)."""
+    the reference's by more than AGREE_FOOTPRINT, a larger one when above, about
+    the same otherwise. The rendered error is smaller or larger when it differs
+    by more than AGREE_ERROR and the difference in wrong pixels exceeds the
+    counting noise (SIGNIFICANCE); about the same otherwise. They disagree when
+    the two differ; the sentence then names what the error's anatomy shows."""
     fa = _ratio(rec["footprint_lit"]["p95"], ref["footprint_lit"]["p95"])
     ea, eb = rec["errors"]["error_rate"], ref["errors"]["error_rate"]
-    if fa is None or eb is None or ea is None:
+    if fa is None or ea is None or eb is None:
         return None
+    na = rec["errors"].get("false_light", 0) + rec["errors"].get("false_shadow", 0)
+    nb = ref["errors"].get("false_light", 0) + ref["errors"].get("false_shadow", 0)
     er = ea / eb if eb > 0 else (1.0 if ea == 0 else math.inf)
-    predicts = "smaller" if fa < 1 / AGREE_FOOTPRINT else "larger" if fa > AGREE_FOOTPRINT else "same"
-    got = "smaller" if er < 1 / AGREE_ERROR else "larger" if er > AGREE_ERROR else "same"
-    if predicts == got or (predicts != "same" and got == "same"):
+    significant = abs(na - nb) > SIGNIFICANCE * math.sqrt(na + nb + 1)
+    predicts = _trend(fa, AGREE_FOOTPRINT)
+    got = _trend(er, AGREE_ERROR) if significant else "about the same"
+    if predicts == got:
         return None
     a = rec["anatomy"]
-    head = (f"footprint p95 {fa:.2f}× {ref_label}'s predicts a {predicts} error; rendered "
-            f"{'∞' if math.isinf(er) else f'{er:.2f}'}× {ref_label}'s.")
+    head = (f"footprint p95 {fa:.2f}× {ref_label}'s predicts {'an' if predicts == 'about the same' else 'a'} "
+            f"{predicts} error; rendered {'∞' if math.isinf(er) else f'{er:.2f}'}× {ref_label}'s "
+            f"({na} against {nb} wrong pixels).")
     why = []
     for what, reason in rec.get("fallbacks", []):
         why.append(f"it fell back ({what}: {reason})")
@@ -146,18 +165,22 @@ def explain(rec: dict, ref: dict, ref_label: str) -> Optional[str]:
     if a["grazing"] is not None and a["grazing"] > 0.3:
         why.append(f"{_pct(a['grazing'])} of its wrong pixels lie on surfaces grazing the light (n·l < {NDL_MIN}), "
                    f"which the footprint statistic leaves out")
-    ref_edge = ref["anatomy"]["edge_footprint_p95"]
-    fe = _ratio(a["edge_footprint_p95"], ref_edge)
+    fe = _ratio(a["edge_footprint_p95"], ref["anatomy"]["edge_footprint_p95"])
     if a["at_edges"] is not None and a["at_edges"] > 0.5 and fe is not None:
-        if (fe < 1) != (fa < 1) or abs(math.log(fe)) < math.log(AGREE_FOOTPRINT):
-            why.append(f"{_pct(a['at_edges'])} of its wrong pixels are at shadow edges, where its footprint p95 is "
-                       f"{fe:.2f}× {ref_label}'s: the pixels that carry the edges see other texels than the average")
+        edges = f"{_pct(a['at_edges'])} of its wrong pixels are at shadow edges"
+        if _trend(fe, AGREE_FOOTPRINT) == got:
+            why.append(f"{edges}, and there its footprint p95 is {fe:.2f}× {ref_label}'s: the edges fall where its "
+                       f"texels are {'smaller' if fe < 1 else 'larger'} than over the lit surfaces as a whole")
+        elif a["edge_false_light"] is not None and max(a["edge_false_light"], 1 - a["edge_false_light"]) >= 0.7:
+            kind = ("false light (shadows shrunk, light leaking past casters)" if a["edge_false_light"] >= 0.7
+                    else "false shadow (shadows grown)")
+            why.append(f"{edges}, {_pct(max(a['edge_false_light'], 1 - a['edge_false_light']))} of them {kind}, "
+                       f"where its footprint p95 is {fe:.2f}× {ref_label}'s: one-sided edge errors come from the depth "
+                       f"comparison at the edges (a bias in each map's own depth units means a different offset in "
+                       f"the world), not from the texel size")
         else:
-            why.append(f"{_pct(a['at_edges'])} of its wrong pixels are at shadow edges (edge footprint p95 "
-                       f"{fe:.2f}× {ref_label}'s): at this few wrong pixels the edge rasterisation, not the "
-                       f"footprint, decides" if a["errors"] < 200 else
-                       f"{_pct(a['at_edges'])} of its wrong pixels are at shadow edges (edge footprint p95 "
-                       f"{fe:.2f}× {ref_label}'s): the texel grid's phase along the edges, which a p95 does not see")
+            why.append(f"{edges}, both kinds alike, where its footprint p95 is {fe:.2f}× {ref_label}'s: the texel "
+                       f"footprint does not explain this difference")
     if not why:
         why.append(f"its wrong pixels: {_pct(a['false_light'] or 0)} false light, {_pct(a['at_edges'] or 0)} at "
                    f"shadow edges; no single cause stands out")

@@ -435,21 +435,32 @@ def write_figures(result: dict, out: Path, progress=None) -> dict:
     return pics
 
 
-def readme_picture(result: dict, path: Path) -> Path | None:
-    """The comparison picture for the README: the first scene with results,
-    at its middle map size (the one EEVEE ran at when it ran at one only)."""
+README_SIZE = 2048
+"""The map size of the README's comparison picture (the run's size nearest to it)."""
+
+
+def readme_pictures(result: dict, out: Path, folder: Path) -> list:
+    """The README's pictures from the first scene with results: the comparison
+    (its error images at the size nearest README_SIZE that EEVEE also ran at)
+    and copies of its observer and texel-grid overlay snapshots. Returns the paths."""
+    import shutil
     for scene in result["scenes"]:
         ok = [m for m in scene.get("methods", []) if m.get("status") == "ok"]
         if scene.get("status") != "ok" or not ok:
             continue
         sizes = sorted({m["size"] for m in ok})
-        eevee = [p["size"] for p in scene["peers"] if p["method"] == "eevee" and p.get("size")]
-        size = eevee[-1] if len(eevee) == 1 and eevee[0] in sizes else sizes[len(sizes) // 2]
+        eevee = [p["size"] for p in scene["peers"] if p["method"] == "eevee" and p.get("size") in sizes]
+        size = min(eevee or sizes, key=lambda s: abs(s - README_SIZE))
         methods = list(dict.fromkeys(m["method"] for m in ok))
         preferred = [m for m in README_METHODS if m in methods] or methods[:3]
-        path.parent.mkdir(parents=True, exist_ok=True)
-        return figures.comparison(scene, preferred, size, path)
-    return None
+        folder.mkdir(parents=True, exist_ok=True)
+        written = [figures.comparison(scene, preferred, size, folder / "comparison.png")]
+        for f in scene.get("overlay_files", []):
+            if "observer" in f or "texels" in f:
+                shutil.copyfile(out / f, folder / Path(f).name)
+                written.append(folder / Path(f).name)
+        return written
+    return []
 
 
 def write(result: dict, out: Path, progress=None) -> dict:

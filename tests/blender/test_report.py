@@ -26,8 +26,8 @@ def _run(args, out, timeout=600):
 def report(tmp_path_factory):
     out = tmp_path_factory.mktemp("report")
     # 20000 texels is beyond the GPU limit: every method must fail at that size with a reason
-    proc = _run(["--methods", "uniform,lispsm", "--sizes", "128,20000", "--readme-picture",
-                 str(out / "comparison.png")], out / "report")
+    proc = _run(["--methods", "uniform,lispsm", "--sizes", "128,20000", "--readme-pictures", str(out / "readme")],
+                out / "report")
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     return out / "report", proc.stdout, proc.stderr
 
@@ -47,7 +47,8 @@ def test_every_section_and_figure_in_both_documents(report):
         path = out / "tiny" / f"{png}.png"
         assert path.stat().st_size > 1000, path
         assert f"tiny/{png}.png" in html and f"tiny/{png}.png" in md
-    assert (out.parent / "comparison.png").stat().st_size > 1000
+    for png in ("comparison", "overlay_observer", "overlay_texels"):
+        assert (out.parent / "readme" / f"{png}.png").stat().st_size > 1000
     assert "figure failed" not in html
     assert "n·l ≥ 0.1" in md                      # the lit-facing threshold is stated
     assert "false light = lit where the truth is dark (blue)" in md
@@ -160,13 +161,22 @@ def test_pareto_front_keeps_only_undominated_points():
 
 def test_explanation_names_lost_shadows_when_footprint_and_error_disagree():
     from bench.report.analysis import explain
-    ref = {"footprint_lit": {"p95": 2.0}, "errors": {"error_rate": 0.01},
+    ref = {"footprint_lit": {"p95": 2.0}, "errors": {"error_rate": 0.01, "false_light": 200, "false_shadow": 100},
            "anatomy": {"edge_footprint_p95": 2.0}}
-    rec = {"footprint_lit": {"p95": 0.5}, "errors": {"error_rate": 0.03}, "fallbacks": [],
-           "anatomy": {"unserved": 0.0, "interior_false_light": 0.8, "interior_false_shadow": 0.05,
-                       "grazing": 0.0, "at_edges": 0.15, "false_light": 0.85, "edge_footprint_p95": 0.6,
-                       "errors": 900}}
+    anatomy = {"unserved": 0.0, "interior_false_light": 0.8, "interior_false_shadow": 0.05, "grazing": 0.0,
+               "at_edges": 0.15, "false_light": 0.85, "edge_false_light": 0.5, "edge_footprint_p95": 0.6,
+               "errors": 900}
+    rec = {"footprint_lit": {"p95": 0.5}, "errors": {"error_rate": 0.03, "false_light": 765, "false_shadow": 135},
+           "fallbacks": [], "anatomy": anatomy}
     text = explain(rec, ref, "uniform")
-    assert "predicts a smaller error" in text and "whole shadows lost" in text
-    agree = dict(rec, errors={"error_rate": 0.004})
-    assert explain(agree, ref, "uniform") is None
+    assert "predicts a smaller error" in text and "whole shadows lost" in text and "(900 against 300" in text
+    # a smaller footprint and a smaller error agree
+    assert explain(dict(rec, errors={"error_rate": 0.004, "false_light": 90, "false_shadow": 30}), ref, "u") is None
+    # a smaller footprint and the same error disagree: warping bought nothing
+    same = dict(rec, errors={"error_rate": 0.0102, "false_light": 200, "false_shadow": 106})
+    assert "predicts a smaller error; rendered 1.02×" in explain(same, ref, "uniform")
+    # the same footprint and a difference within counting noise agree
+    noise_ref = dict(ref, footprint_lit={"p95": 0.52}, errors={"error_rate": 0.0002, "false_light": 4,
+                                                               "false_shadow": 2})
+    noisy = dict(rec, errors={"error_rate": 0.0004, "false_light": 9, "false_shadow": 3})
+    assert explain(noisy, noise_ref, "uniform") is None
