@@ -284,44 +284,46 @@ def footprints(scene: dict, path: Path) -> Path:
 
 # --------------------------------------------------------------------------- shadow maps
 
-def shadow_maps(scene: dict, path: Path) -> Path:
-    """The depth maps of each method (columns) at the largest size, one row per
-    map (up to 4), each with its own depth bar; dark blue: no caster drawn."""
+def shadow_maps(scene: dict, path: Path, columns: int = 6) -> Path:
+    """Every map of each method at the largest size (up to 6 a method), one
+    panel each in reading order, each with its own depth bar; dark blue: no
+    caster drawn there."""
     sizes, names = _grid(scene)
     ok_sizes = sorted({m["size"] for m in _ok(scene["methods"])})
     size = max(ok_sizes or sizes or [0])
-    recs = [(n, _lookup(scene["methods"], n, size)) for n in names]
-    rows = max([len(r["_images"]["maps"]) for _, r in recs if r and r.get("status") == "ok"] + [1])
-    fig, axes = _figure(rows, max(len(recs), 1), 1.0)
-    fig.set_size_inches(PANEL_W * 1.25 * max(len(recs), 1), PANEL_W * rows + 0.8)
+    panels = []
+    for name in names:
+        rec = _lookup(scene["methods"], name, size)
+        if rec and rec.get("status") == "ok":
+            for depth, role in zip(rec["_images"]["maps"], rec["_images"]["map_roles"]):
+                panels.append((f"{name}{_fell(rec)} {size}²: {role}", depth, None))
+        else:
+            panels.append((f"{name} {size}²", None, rec))
+    cols = max(1, min(columns, len(panels)))
+    rows = math.ceil(len(panels) / cols)
+    fig, axes = _figure(rows, cols, 1.0)
+    fig.set_size_inches(PANEL_W * 1.25 * cols, PANEL_W * rows + 0.8)
     empty = mcolors.ListedColormap([(0.05, 0.05, 0.15)])
-    for j, (name, rec) in enumerate(recs):
-        if not (rec and rec.get("status") == "ok"):
-            axes[0, j].set_title(f"{name} {size}²", fontsize=9)
-            _failed(axes[0, j], rec)
-            for i in range(1, rows):
-                _blank(axes[i, j])
+    for ax, (title, depth, rec) in zip(axes.ravel(), panels):
+        ax.set_title(title, fontsize=9)
+        if depth is None:
+            _failed(ax, rec)
             continue
-        maps = rec["_images"]["maps"]
-        for i in range(rows):
-            ax = axes[i, j]
-            if i >= len(maps):
-                _blank(ax)
-                continue
-            d = np.asarray(maps[i], dtype=np.float64)
-            step = max(1, max(d.shape) // 512)
-            d = d[::step, ::step]
-            written = (d > 0) & (d < 1)
-            lo, hi = (np.percentile(d[written], [1, 99]) if written.any() else (0.0, 1.0))
-            ax.imshow(np.ma.masked_where(written, np.zeros_like(d)), origin="lower", cmap=empty,
-                      interpolation="nearest")
-            im = ax.imshow(np.ma.masked_where(~written, d), origin="lower", cmap="gray_r",
-                           vmin=lo, vmax=max(hi, lo + 1e-6), interpolation="nearest")
-            cb = fig.colorbar(im, ax=ax, shrink=0.85, pad=0.02)
-            cb.ax.tick_params(labelsize=6)
-            cb.set_label("window depth (0 = near the light)", fontsize=6)
-            ax.set_title(f"{name} {size}²: {rec['_images']['map_roles'][i]}", fontsize=9)
-    fig.supxlabel("bright = near the light; dark blue = no caster drawn there (the map's clear value)", fontsize=8)
+        d = np.asarray(depth, dtype=np.float64)
+        step = max(1, max(d.shape) // 512)
+        d = d[::step, ::step]
+        written = (d > 0) & (d < 1)
+        lo, hi = (np.percentile(d[written], [1, 99]) if written.any() else (0.0, 1.0))
+        ax.imshow(np.ma.masked_where(written, np.zeros_like(d)), origin="lower", cmap=empty, interpolation="nearest")
+        im = ax.imshow(np.ma.masked_where(~written, d), origin="lower", cmap="gray_r", vmin=lo,
+                       vmax=max(hi, lo + 1e-6), interpolation="nearest")
+        cb = fig.colorbar(im, ax=ax, shrink=0.85, pad=0.02)
+        cb.ax.tick_params(labelsize=6)
+        cb.set_label("window depth (0 = near the light)", fontsize=6)
+    for ax in axes.ravel()[len(panels):]:
+        _blank(ax)
+    fig.supxlabel("bright = near the light; dark blue = no caster drawn there (the map's clear value); each panel's "
+                  "grey scale spans its own 1st to 99th percentile of depth", fontsize=8)
     return _save(fig, path)
 
 

@@ -4,7 +4,9 @@ described, B and the warp, then ``render_shadows``: upload, depth pass,
 shading, read-back, compose), timed from its start to the pixels in memory.
 
 This module is the one place where the report reads the pipeline's result, so
-a change of its type touches only :func:`frame`.
+a change of its type touches only :func:`frame`. The timed frames
+(:func:`timed_frame`) are the engine's F12 frames; the measured ones
+(:func:`frame`) also read back what the report compares and time each stage.
 """
 from __future__ import annotations
 
@@ -47,8 +49,28 @@ class LixelFrame:
     warnings: list = field(default_factory=list)
 
 
+def timed_frame(depsgraph, settings, resolution) -> tuple[float, float]:
+    """(wall seconds, process CPU seconds) of one frame exactly as the LIXEL
+    engine renders for F12: no wait for the GPU between stages, and only the
+    engine's own passes read back. Python's garbage collector is held off for
+    the frame (as ``timeit`` does); what it would collect is collected before."""
+    import gc
+    from addon.render.engine import render_depsgraph
+    from .timing import Clocks
+    gc.collect()
+    gc.disable()
+    try:
+        start = Clocks.now()
+        render_depsgraph(depsgraph, tuple(int(v) for v in resolution), settings, warnings=[], timed=False)
+        return start.since()
+    finally:
+        gc.enable()
+
+
 def frame(depsgraph, settings, resolution) -> LixelFrame:
-    """Render the depsgraph's scene from its camera, as the LIXEL engine does."""
+    """Render the depsgraph's scene from its camera, as the LIXEL engine does,
+    reading back what the report measures (:data:`READ`) and waiting for the
+    GPU after each stage so that each stage's time is its own."""
     from addon.render.engine import render_depsgraph
     from .timing import Clocks
     warnings: list = []

@@ -40,7 +40,7 @@ class Options:
     peers: tuple = ("eevee", "cycles")
     eevee_samples: int = 1
     cycles_samples: int = 1
-    repeats: int = 5
+    repeats: int = 7
     peer_repeats: int = 3
     eevee_sizes: Optional[list] = None
     band_radius: int = 2
@@ -54,11 +54,11 @@ class Options:
 
 
 def quick_defaults() -> dict:
-    return dict(resolution=(240, 135), frames=2, repeats=5, peer_repeats=3)
+    return dict(resolution=(240, 135), frames=2, repeats=7, peer_repeats=3)
 
 
 def full_defaults() -> dict:
-    return dict(resolution=(640, 360), frames=4, repeats=5, peer_repeats=3)
+    return dict(resolution=(640, 360), frames=4, repeats=7, peer_repeats=3)
 
 
 DEFAULT_SIZES = (512, 1024, 2048, 4096)
@@ -321,16 +321,18 @@ def _method(run: SceneRun, method: str, size: int, lit: np.ndarray, gpu_error: O
     opts, out, gts = run.opts, run.out, run.gts
     settings = report_settings(method, size)
     try:
-        states, valids = [], []
+        states, valids, stages = [], [], []
         for k, f in enumerate(run.frames):
             run.scene.frame_set(f)
             fr = frame(bpy.context.evaluated_depsgraph_get(), settings, opts.resolution)
             comp = comparable_mask(gts[k], fr)
             states.append(fr.shadow)
             valids.append(comp)
+            stages.append(fr.stages)
             if k == 0:
                 first = fr
                 rec["_first_s"] = fr.seconds  # the point's first frame: shader variants, uploads
+        rec["_stages"] = stages[1:] or stages   # the stage times of the warm frames
         gt = gts[0]
         view, light, _ = run.views[0]
         fr, comp = first, valids[0]
@@ -364,7 +366,7 @@ def _method(run: SceneRun, method: str, size: int, lit: np.ndarray, gpu_error: O
         if len(run.frames) > 1:
             rec["flicker"] = flicker(np.stack(states), np.stack([g.shadow for g in gts]), np.stack(valids)).to_json()
         rec["_images"] = {"render": fr.combined, "shadow": fr.shadow, "comparable": comp, "footprint": fp_img,
-                          "maps": fr.shadow_maps[:4], "map_roles": [m.role for m in setup.maps][:4]}
+                          "maps": fr.shadow_maps[:6], "map_roles": [m.role for m in setup.maps][:6]}
         rec["_settings"] = settings
     except Exception as exc:  # noqa: BLE001 - a failed method is reported, never fatal
         rec.clear()
@@ -388,25 +390,24 @@ def _time_methods(run: SceneRun) -> None:
     """The timing rounds: each round renders frame 0 once with every method and
     size (interleaved, so load bursts fall on all points alike)."""
     import bpy
-    from .lixel import frame
+    from .lixel import timed_frame
     from .timing import load_average, summarise
     recs = [r for r in run.out["methods"] if r["status"] == "ok"]
     runs = {id(r): [] for r in recs}
-    stages = {id(r): [] for r in recs}
     run.scene.frame_set(run.frames[0])
     loads = [load_average()]
     for r_i in range(run.opts.repeats):
         with run.progress.step("timing", f"{run.name}: timing round {r_i + 1}/{run.opts.repeats} "
                                          f"({len(recs)} points)", run.name):
             for rec in recs:
-                fr = frame(bpy.context.evaluated_depsgraph_get(), rec["_settings"], run.opts.resolution)
-                runs[id(rec)].append((fr.seconds, fr.cpu_seconds))
-                stages[id(rec)].append(fr.stages)
+                runs[id(rec)].append(timed_frame(bpy.context.evaluated_depsgraph_get(), rec["_settings"],
+                                                 run.opts.resolution))
         loads.append(load_average())
     load = float(np.nanmean(loads))
     for rec in recs:
         if runs[id(rec)]:
-            rec["timing"] = summarise(runs[id(rec)], stages[id(rec)], rec.pop("_first_s", math.nan), load).to_json()
+            rec["timing"] = summarise(runs[id(rec)], rec.pop("_stages", []), rec.pop("_first_s", math.nan),
+                                      load).to_json()
     if recs:
         fastest = min(recs, key=lambda r: r["timing"]["median_ms"])
         slowest = max(recs, key=lambda r: r["timing"]["median_ms"])
