@@ -110,6 +110,25 @@ def eye_blur_pass(targets, size, data, radius: float, d_near: float):
     return mask
 
 
+def reduce_blocks(targets, source, size, block: int, channel: int = 0, above: float = -BIG, below: float = BIG,
+                  depth_source: bool = False, name: str = "reduce_blocks") -> np.ndarray:
+    """One reduction step read back: per ``block`` x ``block`` texels of
+    ``source`` (the last row and column of blocks partial), (least, greatest,
+    count) of its channel over the values strictly between ``above`` and
+    ``below``, as a (ceil(h / block), ceil(w / block), 3) array, row 0 at the
+    bottom; (+BIG, -BIG, 0) where there are none (e.g. the per-tile window
+    depth of a camera pre-pass, ``addon.gpu.visibility``)."""
+    w, h = -(-int(size[0]) // block), -(-int(size[1]) // block)
+    out = targets.texture(name, (w, h), "RGBA32F")
+    fb = targets.framebuffer(colors=(out,))
+    sh = shaders.reduce_shader(depth_source)
+    sh.bind()
+    sh.uniform_sampler("u_source", source)
+    sh.uniform_float("u_reduce", (float(channel), float(above), float(below), float(block)))
+    _draw_fullscreen(fb, (w, h), sh)
+    return read_color(fb, 0, (w, h), 4)[..., :3]
+
+
 def reduce_range(targets, source, size, channel: int, above: float = -BIG, below: float = BIG,
                  depth_source: bool = False) -> tuple[float, float]:
     """(least, greatest) of ``source``'s channel over the values strictly

@@ -1,29 +1,37 @@
 """What the camera sees, from the frame's own depth pre-pass.
 
 The render engine draws the camera's depth pre-pass first
-(``ShadowFrame.camera_prepass``), reads it back and reduces it per tile to the
-nearest and farthest window depth seen there
-(``addon.warp.visibility.region_from_window_depth``), so the warp computed next
-is fitted to exactly the pixels the shading pass will shade (Lauritzen et al.,
-*Sample Distribution Shadow Maps*, I3D 2011; Scherzer §4.4's Δz from
-visibility). The shading pass then tests against the same depth target.
+(``ShadowFrame.camera_prepass``), reduces it on the GPU per 16 x 16-pixel tile
+to the least and greatest window depth drawn there and how many pixels were
+(``compose.reduce_blocks``: one pass, a few thousand texels read back), and
+turns that into a :class:`~addon.warp.visibility.VisibleRegion`
+(``region_from_window_tiles``), so the warp computed next is fitted to exactly
+the pixels the shading pass will shade (Lauritzen et al., *Sample Distribution
+Shadow Maps*, I3D 2011; Scherzer §4.4's Δz from visibility). The shading pass
+then tests against the same depth target. ``bench/visibility.py`` times it.
 """
 from __future__ import annotations
 
 import time
 
-from ..warp.visibility import PIXEL_TILE, VisibleRegion, region_from_window_depth
+from ..warp.visibility import PIXEL_TILE, VisibleRegion, region_from_window_depth, region_from_window_tiles
 from . import compose
 
 
-def region_from_frame(frame, tile: int = PIXEL_TILE, source: str = "depth pre-pass") -> tuple[VisibleRegion, float]:
+def region_from_frame(frame, tile: int = PIXEL_TILE, source: str = "depth pre-pass",
+                      on_gpu: bool = True) -> tuple[VisibleRegion, float]:
     """The visible region of ``frame.view`` from the frame's camera pre-pass
-    (drawn now if it was not), and the seconds the read-back and reduction
-    took: the depth target read back whole into a preallocated array (0.2 ms
-    at 640x360, 1-2 ms at 1920x1080 on llvmpipe, shared notes §2), then one
-    min and one max per tile in numpy."""
+    (drawn now if it was not), and the seconds it took. ``on_gpu``: reduce the
+    tiles on the GPU and read back only them; else read the whole depth target
+    back and reduce in numpy (the reference; slower from 1280x720 on)."""
     depth = frame.camera_prepass()
     t = time.perf_counter()
-    window = compose.read_depth(frame.targets.framebuffer(depth=depth), frame.size)
-    region = region_from_window_depth(frame.view, window, tile, source)
+    if on_gpu:
+        blocks = compose.reduce_blocks(frame.targets, depth, frame.size, tile, channel=0, above=-1.0, below=1.0,
+                                       depth_source=True, name="visible_tiles")
+        region = region_from_window_tiles(frame.view, blocks[..., 0], blocks[..., 1], blocks[..., 2], frame.size,
+                                          tile, source)
+    else:
+        window = compose.read_depth(frame.targets.framebuffer(depth=depth), frame.size)
+        region = region_from_window_depth(frame.view, window, tile, source)
     return region, time.perf_counter() - t

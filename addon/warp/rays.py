@@ -64,8 +64,29 @@ def ray_boxes(origins, directions, t_max, boxes) -> tuple[np.ndarray, np.ndarray
     return tt, box, normal
 
 
+CHUNK = 1 << 14
+"""(ray, cluster) or (ray, box) pairs tested at once: temporaries stay small
+enough for the cache (a 10,000-box scene's every-pair arrays would not)."""
+
+
+def _pair_intervals(o, inv, lo, hi, rays, boxes) -> tuple[np.ndarray, np.ndarray]:
+    """``slab_intervals`` of pairs: ray ``rays[i]`` against box ``boxes[i]``,
+    from (3, R) origins and inverse directions and (3, M) box corners (axis
+    by axis over contiguous rows: numpy is slow across a short last axis)."""
+    enter = leave = None
+    for axis in range(3):
+        oa, ia = o[axis, rays], inv[axis, rays]
+        with np.errstate(invalid="ignore"):
+            t1 = (lo[axis, boxes] - oa) * ia
+            t2 = (hi[axis, boxes] - oa) * ia
+        near, far = np.minimum(t1, t2), np.maximum(t1, t2)
+        enter = near if enter is None else np.fmax(enter, near)
+        leave = far if leave is None else np.fmin(leave, far)
+    return enter, leave
+
+
 def ray_index(origins, directions, t_max, index: BoxIndex, selection: Selection | None = None,
-              ranks_per_round: int = 4) -> tuple[np.ndarray, np.ndarray]:
+              ranks_per_round: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """Nearest hit of each ray with the boxes of a culling index (only those
     of ``selection``, if given) within [0, t_max]: (t, box index in the
     index's original order; inf and -1 where nothing is hit). Equals
@@ -75,11 +96,11 @@ def ray_index(origins, directions, t_max, index: BoxIndex, selection: Selection 
     it meets nearest first, ``ranks_per_round`` at a time for all rays at
     once, and stops once its nearest hit is nearer than the next cluster's
     entry, so a scene of thousands of boxes costs about what the few clusters
-    in front of each ray hold."""
-    origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
-    inv = _inverse(np.asarray(directions, dtype=np.float64).reshape(-1, 3))
+    in front of each ray hold. Pairs are tested ``CHUNK`` at a time."""
+    o = np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3).T)
+    inv = np.ascontiguousarray(_inverse(np.asarray(directions, dtype=np.float64).reshape(-1, 3)).T)
     t_max = np.asarray(t_max, dtype=np.float64).reshape(-1)
-    n = len(origins)
+    n = o.shape[1]
     best, which = np.full(n, np.inf), np.full(n, -1, dtype=np.int64)
     k = index.c_box_bounds.shape[2]
     usable = (np.arange(index.c_bounds.shape[1] * k) < index.count).reshape(-1, k)   # the last cluster is padded
@@ -88,41 +109,53 @@ def ray_index(origins, directions, t_max, index: BoxIndex, selection: Selection 
     clusters = np.flatnonzero(usable.any(axis=1))
     if n == 0 or not len(clusters):
         return best, which
-    # Each cluster's usable boxes as a run of slots (clusters in order), and their bounds.
+    # Each cluster's usable boxes as a run of slots (clusters in order), and their bounds (3, S).
     counts = usable[clusters].sum(axis=1)
     slots = (clusters[:, None] * k + np.arange(k))[usable[clusters]]
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     flat = index.c_box_bounds.reshape(6, -1)[:, slots]
-    box_lo, box_hi = flat[:3].T, -flat[3:].T                                        # (S, 3)
-    c_lo, c_hi = index.c_bounds[:3, clusters].T, -index.c_bounds[3:, clusters].T      # (C, 3)
-    enter, leave = slab_intervals(origins[:, None, :], inv[:, None, :], c_lo[None], c_hi[None])
-    near = np.maximum(enter, 0.0)
-    ray, slot = np.nonzero((enter <= leave) & (leave >= 0) & (near <= t_max[:, None]))
+    box_lo, box_hi = np.ascontiguousarray(flat[:3]), np.ascontiguousarray(-flat[3:])
+    c_lo, c_hi = index.c_bounds[:3, clusters], -index.c_bounds[3:, clusters]         # (3, C)
+    # The clusters each ray meets, with its entry distance, rays a chunk at a time.
+    per_chunk = max(1, CHUNK // len(clusters))
+    found = []
+    for first in range(0, n, per_chunk):
+        r = np.arange(first, min(n, first + per_chunk))
+        rr, cc = np.repeat(r, len(clusters)), np.tile(np.arange(len(clusters)), len(r))
+        enter, leave = _pair_intervals(o, inv, c_lo, c_hi, rr, cc)
+        near = np.maximum(enter, 0.0)
+        meet = (enter <= leave) & (leave >= 0) & (near <= t_max[rr])
+        found.append((rr[meet], cc[meet], near[meet]))
+    ray, slot, near = (np.concatenate(a) for a in zip(*found))
     if not len(ray):
         return best, which
-    near = near[ray, slot]
     order = np.lexsort((near, ray))                          # by ray, nearest cluster first
     ray, slot, near = ray[order], slot[order], near[order]
     rank = np.arange(len(ray)) - np.searchsorted(ray, ray, side="left")
     for lowest in range(0, int(rank.max()) + 1, ranks_per_round):
         pick = (rank >= lowest) & (rank < lowest + ranks_per_round)
         pick[pick] &= near[pick] < best[ray[pick]]
-        if not pick.any():
-            continue
-        r, c = ray[pick], slot[pick]
-        # Every (ray, box) pair of the picked (ray, cluster) pairs.
-        per = counts[c]
-        pair_ray = np.repeat(r, per)
-        box = np.repeat(starts[c] - np.cumsum(per) + per, per) + np.arange(per.sum())
-        e, l = slab_intervals(origins[pair_ray], inv[pair_ray], box_lo[box], box_hi[box])
-        t = _first_hits(e, l, t_max[pair_ray])
-        # The pairs come ray by ray (``ray`` is sorted): each ray's nearest over its run.
-        run = np.flatnonzero(np.diff(pair_ray, prepend=-1))
-        nearest = np.minimum.reduceat(t, run)
-        rays = pair_ray[run]
-        better = nearest < best[rays]
-        best[rays[better]] = nearest[better]
-        won = np.isfinite(t) & (t == best[pair_ray])
-        which[pair_ray[won]] = index.perm[slots[box[won]]]
+        picked = np.flatnonzero(pick)
+        # Every (ray, box) pair of the picked (ray, cluster) pairs, a chunk of pairs at a time.
+        ends = np.cumsum(counts[slot[picked]])
+        cut = 0
+        while cut < len(picked):
+            stop = int(np.searchsorted(ends, (ends[cut - 1] if cut else 0) + CHUNK, side="right"))
+            stop = max(stop, cut + 1)
+            r, c = ray[picked[cut:stop]], slot[picked[cut:stop]]
+            cut = stop
+            per = counts[c]
+            pair_ray = np.repeat(r, per)
+            box = np.repeat(starts[c] - np.cumsum(per) + per, per) + np.arange(per.sum())
+            e, l = _pair_intervals(o, inv, box_lo, box_hi, pair_ray, box)
+            t = _first_hits(e, l, t_max[pair_ray])
+            # The pairs come ray by ray (``ray`` is sorted): each ray's nearest over its run.
+            run = np.flatnonzero(np.diff(pair_ray, prepend=-1))
+            nearest = np.minimum.reduceat(t, run)
+            rays = pair_ray[run]
+            better = nearest < best[rays]
+            best[rays[better]] = nearest[better]
+            won = np.isfinite(t) & (t == best[pair_ray])
+            which[pair_ray[won]] = index.perm[slots[box[won]]]
     which[~np.isfinite(best)] = -1
     return best, which

@@ -54,9 +54,9 @@ from .types import EmptyBodyError, Light, SceneBounds, View, WarpOptions
 SOURCES = ("depth pre-pass", "previous frame", "scene boxes", "given")
 """Where a visible region came from (``VisibleRegion.source``)."""
 
-BOX_SAMPLES = (64, 36)
+BOX_SAMPLES = (48, 27)
 """The ray grid of :func:`region_from_boxes` (columns, rows) over the image."""
-BOX_TILE = 4
+BOX_TILE = 3
 """Samples per tile side of :func:`region_from_boxes`."""
 PIXEL_TILE = 16
 """Pixels per tile side of a depth pre-pass (``addon.gpu.visibility``)."""
@@ -98,7 +98,7 @@ class VisibleRegion:
     interval of its visible points (:class:`TileDepths`), and where that came
     from (``source``, one of ``SOURCES``). Plain data; made by
     :func:`region_from_eye_depths`, :func:`region_from_boxes` or
-    ``addon.gpu.visibility.region_from_prepass``."""
+    ``addon.gpu.visibility.region_from_frame``."""
 
     tiles: TileDepths
     source: str
@@ -322,20 +322,34 @@ def _region(view: View, near, far, samples: tuple[int, int], tile: int, source: 
 def region_from_window_depth(view: View, window_depth: np.ndarray, tile: int = PIXEL_TILE,
                              source: str = "depth pre-pass") -> VisibleRegion:
     """A region from a camera depth buffer read back as (H, W) window depths in
-    [0, 1] (row 0 at the bottom; 1 where nothing was drawn). Tiles are reduced
-    in window depth (monotonic in eye depth), padded by ``DEPTH_ULPS`` and
-    only then converted, so the conversion runs once per tile."""
+    [0, 1] (row 0 at the bottom; 1 where nothing was drawn), reduced per tile
+    in numpy (the reference for the GPU's reduction, ``addon.gpu.visibility``)."""
     d = np.asarray(window_depth)
-    near, far = tile_reduce(d, np.where(d < 1.0, d, -np.inf), tile)
-    seen = near < 1.0
-    pad = DEPTH_ULPS * 2.0 ** -24
-    near_eye = eye_depth_from_ndc(view, 2.0 * np.clip(near.astype(np.float64) - pad, 0.0, 1.0) - 1.0)
-    far_eye = eye_depth_from_ndc(view, 2.0 * np.clip(far.astype(np.float64) + pad, 0.0, 1.0) - 1.0)
+    drawn = d < 1.0
+    near, far = tile_reduce(d, np.where(drawn, d, -np.inf), tile)
     h, w = d.shape
+    return region_from_window_tiles(view, near, far, tile_counts(drawn, tile), (w, h), tile, source)
+
+
+def region_from_window_tiles(view: View, near, far, counts, size: tuple[int, int], tile: int = PIXEL_TILE,
+                             source: str = "depth pre-pass") -> VisibleRegion:
+    """A region from the per-tile least and greatest window depth of what a
+    camera depth buffer of ``size`` = (W, H) pixels drew, and how many pixels
+    it drew per tile (none: not seen). Reduced in window depth (monotonic in
+    eye depth), each tile is padded by ``DEPTH_ULPS`` and only then converted,
+    so the conversion runs once per tile."""
+    near, far = np.asarray(near, np.float64), np.asarray(far, np.float64)
+    counts = np.asarray(counts)
+    seen = counts > 0
+    pad = DEPTH_ULPS * 2.0 ** -24
+    with np.errstate(invalid="ignore", divide="ignore"):
+        near_eye = eye_depth_from_ndc(view, 2.0 * np.clip(near - pad, 0.0, 1.0) - 1.0)
+        far_eye = eye_depth_from_ndc(view, 2.0 * np.clip(far + pad, 0.0, 1.0) - 1.0)
+    w, h = size
     tiles = TileDepths(tile_edges(w, tile), tile_edges(h, tile),
                        np.where(seen, np.clip(near_eye, view.near, view.far), np.inf),
                        np.where(seen, np.clip(far_eye, view.near, view.far), -np.inf),
-                       tile_counts(d < 1.0, tile))
+                       np.where(seen, counts, 0).astype(np.int64))
     return VisibleRegion(tiles, source)
 
 

@@ -142,3 +142,30 @@ def test_on_the_terrain_view_z_n_comes_from_the_depth_prepass(mods):
         for s in dst.scenes:
             remove_objects_and_orphans(s)
             bpy.data.scenes.remove(s)
+
+
+def test_the_gpu_tile_reduction_equals_the_read_back_one(mods, fresh_scene):
+    """The engine reduces the pre-pass per tile on the GPU; reading the whole
+    depth back and reducing in numpy gives the same region, tile for tile."""
+    overlook(fresh_scene)
+    fresh_scene.render.resolution_x, fresh_scene.render.resolution_y = 173, 97     # partial tiles at the edges
+    cam = fresh_scene.camera                                                       # up to the horizon: some sky
+    cam.rotation_euler = (Vector((0.0, 150.0, 25.0)) - cam.location).to_track_quat("-Z", "Y").to_euler()
+    dg = fresh_scene.view_layers[0].depsgraph
+    dg.update()
+    mods.context.ensure_gpu_context()
+    geometry = mods.geometry.GeometryCache().update(dg)
+    view, _, _ = mods.describe.describe_scene(fresh_scene, dg, instances=geometry.instances)
+    frame = mods.pipeline.ShadowFrame(geometry, view)
+    frame.camera_prepass()
+    gpu_region, _ = mods.visibility.region_from_frame(frame)
+    cpu_region, _ = mods.visibility.region_from_frame(frame, on_gpu=False)
+    a, b = gpu_region.tiles, cpu_region.tiles
+    assert a.near.shape == b.near.shape == (7, 11)
+    np.testing.assert_array_equal(a.x_edges, b.x_edges)
+    np.testing.assert_array_equal(a.y_edges, b.y_edges)
+    np.testing.assert_array_equal(a.seen, b.seen)
+    np.testing.assert_array_equal(a.samples, b.samples)
+    np.testing.assert_array_equal(a.near[a.seen], b.near[b.seen])
+    np.testing.assert_array_equal(a.far[a.seen], b.far[b.seen])
+    assert 0 < a.seen.sum() < a.seen.size                                 # ground below, sky above
