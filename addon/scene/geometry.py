@@ -252,7 +252,8 @@ class GeometryCache:
             used[key] = MeshData(key, pos, tris, fp, version=(old.version + 1) if old is not None else 1)
             return True
 
-        instances = scene_instances(depsgraph, on_geometry)
+        last = self._last
+        instances = scene_instances(depsgraph, on_geometry, last.instances if last is not None else None)
         # Keep entries of objects not drawn this time (hidden, another scene) for a
         # while, then forget them (deleted objects must not pin memory).
         self._generation += 1
@@ -263,7 +264,6 @@ class GeometryCache:
             del self._last_used[k]
             self.meshes.pop(k, None)
         self._last_depsgraph = depsgraph.as_pointer()
-        last = self._last
         if last is not None and last.meshes.keys() == used.keys() and \
                 all(last.meshes[k] is m for k, m in used.items()) and instances.same_as(last.instances):
             return last

@@ -178,6 +178,8 @@ class InstanceSet:
 
     def same_as(self, other: Optional["InstanceSet"]) -> bool:
         """Whether ``other`` holds the same instances (keys, matrices, visibility)."""
+        if other is self:
+            return True
         return (other is not None and self.key_list == other.key_list
                 and np.array_equal(self.key_ids, other.key_ids)
                 and np.array_equal(self.casts, other.casts) and np.array_equal(self.receives, other.receives)
@@ -263,8 +265,15 @@ def _has_nodes(ob) -> bool:
 
 
 class _Reader:
-    """State of one :func:`read_instances` call: instances are gathered as
-    array chunks (key ids, matrices, flags, owner) and concatenated once."""
+    """State of one :func:`read_instances` call.
+
+    Instances are gathered as chunks (a key id, visibility, owner and where
+    their matrices come from) over the raw arrays read from Blender (an
+    object's world matrix; an instancer's world matrix, instance transforms
+    and reference indices). When every raw array equals the previous read's,
+    the previous :class:`InstanceSet` is the answer and no matrix is made;
+    otherwise the chunks' matrices are composed and concatenated once.
+    """
 
     def __init__(self, depsgraph, on_geometry):
         self.depsgraph = depsgraph
@@ -274,7 +283,8 @@ class _Reader:
         self.boxes: list = []
         self.generated: dict = {}
         self.owners: list = []
-        self.chunks: list = []        # (key ids, matrices, casts, receives, owner id)
+        self.sources: list = []       # raw arrays: (world,) or (world, column-major transforms, reference index)
+        self.chunks: list = []        # (key id, flags, owner id, source index, reference or None, local or None)
 
     def key_id(self, key, ob, mesh=None) -> Optional[int]:
         k = self.accepted.get(key, -1)
@@ -294,9 +304,6 @@ class _Reader:
         self.owners.append(name)
         return len(self.owners) - 1
 
-    def add(self, ids, matrices, flags, owner) -> None:
-        self.chunks.append((np.asarray(ids, dtype=np.int64), matrices, flags, owner))
-
     def object(self, ob) -> None:
         if ob.instance_type != "NONE" or len(getattr(ob, "particle_systems", ())):
             raise _NeedsWalk(f"{ob.name} makes instances the walk reads")
@@ -304,9 +311,10 @@ class _Reader:
         if ob.type in GEOMETRY_TYPES and not (ob.type == "MESH" and len(ob.data.polygons) == 0):
             k = self.key_id(object_key(ob), ob)
             if k is not None:
-                self.add([k], world[None], _flags(ob), self.owner(ob.name))
+                self.sources.append((world,))
+                self.chunks.append((k, _flags(ob), self.owner(ob.name), len(self.sources) - 1, None, None))
         if ob.type in INSTANCER_TYPES and _has_nodes(ob):
-            self.instances_of(ob.evaluated_geometry(), ob, world, ob.name)
+            self.instances_of(ob.evaluated_geometry(), ob, world)
 
     def leaves(self, ref, instancer) -> list:
         """What one instance reference draws: [(key id, local matrix or None, flags, owner)]."""
@@ -330,50 +338,91 @@ class _Reader:
                 out.append((k, None, _flags(instancer), f"{instancer.name}/{mesh.name}"))
         nested = ref.instances_pointcloud()
         if nested is not None and len(nested.points):
-            transforms, ref_index = _instance_arrays(nested)
+            flat, ref_index = _instance_arrays(nested)
+            transforms = _row_major(flat)
             inner = [self.leaves(r, instancer) for r in ref.instance_references()]
             for t, r in zip(transforms, ref_index):
                 for k, m, flags, name in inner[r]:
                     out.append((k, t if m is None else t @ m, flags, name))
         return out
 
-    def instances_of(self, gs, instancer, world: np.ndarray, owner: str) -> None:
+    def instances_of(self, gs, instancer, world: np.ndarray) -> None:
         cloud = gs.instances_pointcloud()
         if cloud is None or len(cloud.points) == 0:
             return
-        transforms, ref_index = _instance_arrays(cloud)
+        flat, ref_index = _instance_arrays(cloud)
         refs = gs.instance_references()
-        identity = np.array_equal(world, np.eye(4))
+        self.sources.append((world, flat, ref_index))
+        source = len(self.sources) - 1
         for r, ref in enumerate(refs):
-            which = np.flatnonzero(ref_index == r)
-            if len(which) == 0:
-                continue
             for k, local, flags, name in self.leaves(ref, instancer):
-                m = transforms[which]
-                if local is not None:
-                    m = m @ local
-                if not identity:
-                    m = world @ m
-                self.add(np.full(len(which), k), m, flags, self.owner(name))
+                self.chunks.append((k, flags, self.owner(name), source, r if len(refs) > 1 else None, local))
 
-    def result(self) -> InstanceSet:
+    def same_as(self, previous: Optional["InstanceSet"]) -> bool:
+        """Whether this read gives exactly ``previous`` (same keys, chunks and raw arrays)."""
+        old = getattr(previous, "_source", None)
+        if old is None:
+            return False
+        key_list, chunks, sources = old
+        if key_list != self.key_list or len(chunks) != len(self.chunks) or len(sources) != len(self.sources):
+            return False
+        for a, b in zip(chunks, self.chunks):
+            if a[:2] != b[:2] or a[3:5] != b[3:5] or not _same_local(a[5], b[5]):
+                return False
+        return all(len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b))
+                   for a, b in zip(sources, self.sources))
+
+    def result(self, previous: Optional["InstanceSet"] = None) -> InstanceSet:
+        if previous is not None and self.same_as(previous):
+            return previous
         if not self.chunks:
             return InstanceSet()
-        ids = np.concatenate([c[0] for c in self.chunks])
-        counts = [len(c[0]) for c in self.chunks]
-        mats = np.concatenate([c[1] for c in self.chunks]).reshape(-1, 4, 4)
-        flags = np.array([c[2] for c in self.chunks], dtype=bool).reshape(-1, 2)
-        casts = np.repeat(flags[:, 0], counts)
-        receives = np.repeat(flags[:, 1], counts)
-        owner_ids = np.repeat(np.array([c[3] for c in self.chunks], dtype=np.int64), counts)
-        return InstanceSet(key_list=self.key_list, key_ids=ids, matrices=mats,
-                           key_boxes=np.array(self.boxes, dtype=np.float64).reshape(-1, 2, 3),
-                           casts=casts, receives=receives, owners=self.owners, owner_ids=owner_ids)
+        ids, mats, flags, owners = [], [], [], []
+        transforms: dict = {}
+        for k, flag, owner, source, reference, local in self.chunks:
+            src = self.sources[source]
+            world = src[0]
+            if len(src) == 1:
+                m = world[None]
+            else:
+                if source not in transforms:
+                    transforms[source] = _row_major(src[1])
+                m = transforms[source]
+                if reference is not None:
+                    m = m[src[2] == reference]
+                if local is not None:
+                    m = m @ local
+                if not np.array_equal(world, np.eye(4)):
+                    m = world @ m
+            ids.append(len(m))
+            mats.append(m)
+            flags.append(flag)
+            owners.append(owner)
+        counts = ids
+        key_ids = np.repeat(np.array([c[0] for c in self.chunks], dtype=np.int64), counts)
+        flags = np.array(flags, dtype=bool).reshape(-1, 2)
+        out = InstanceSet(key_list=self.key_list, key_ids=key_ids, matrices=np.concatenate(mats).reshape(-1, 4, 4),
+                          key_boxes=np.array(self.boxes, dtype=np.float64).reshape(-1, 2, 3),
+                          casts=np.repeat(flags[:, 0], counts), receives=np.repeat(flags[:, 1], counts),
+                          owners=self.owners, owner_ids=np.repeat(np.array(owners, dtype=np.int64), counts))
+        out._source = (self.key_list, self.chunks, self.sources)
+        return out
+
+
+def _same_local(a, b) -> bool:
+    if a is None or b is None:
+        return a is b
+    return np.array_equal(a, b)
+
+
+def _row_major(flat: np.ndarray) -> np.ndarray:
+    """(N, 4, 4) float64 matrices from Blender's column-major float32 instance transforms."""
+    return flat.reshape(-1, 4, 4).transpose(0, 2, 1).astype(np.float64)
 
 
 def _instance_arrays(cloud) -> tuple[np.ndarray, np.ndarray]:
-    """(N, 4, 4) float64 instance transforms and (N,) reference indices of an
-    instances point cloud (the transforms are stored column-major)."""
+    """The instance transforms of an instances point cloud as read, (N * 16)
+    float32 column-major, and its (N,) reference indices."""
     n = len(cloud.points)
     flat = np.empty(n * 16, dtype=np.float32)
     cloud.attributes["instance_transform"].data.foreach_get("value", flat)
@@ -381,7 +430,7 @@ def _instance_arrays(cloud) -> tuple[np.ndarray, np.ndarray]:
     attr = cloud.attributes.get(".reference_index")
     if attr is not None:
         attr.data.foreach_get("value", ref_index)
-    return flat.reshape(n, 4, 4).transpose(0, 2, 1).astype(np.float64), ref_index
+    return flat, ref_index
 
 
 def fast_reader_available() -> bool:
@@ -390,11 +439,13 @@ def fast_reader_available() -> bool:
     return hasattr(bpy.types.Object, "evaluated_geometry")
 
 
-def read_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Optional[InstanceSet]:
+def read_instances(depsgraph, on_geometry: Optional[Callable] = None,
+                   previous: Optional[InstanceSet] = None) -> Optional[InstanceSet]:
     """The scene's instances read as arrays (Blender 4.3+), or None where only
     :func:`walk_instances` reads them right (see the module docstring).
     ``on_geometry(key, ob_eval, mesh)``: as for the walk; ``mesh`` is the
-    geometry-nodes mesh to read for "GN" keys (None: read ``ob_eval``)."""
+    geometry-nodes mesh to read for "GN" keys (None: read ``ob_eval``).
+    ``previous``: an earlier read; returned as it is when nothing changed."""
     if not fast_reader_available():
         return None
     reader = _Reader(depsgraph, on_geometry)
@@ -403,13 +454,14 @@ def read_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Optiona
             reader.object(ob)
     except _NeedsWalk:
         return None
-    return reader.result()
+    return reader.result(previous)
 
 
-def scene_instances(depsgraph, on_geometry: Optional[Callable] = None) -> InstanceSet:
+def scene_instances(depsgraph, on_geometry: Optional[Callable] = None,
+                    previous: Optional[InstanceSet] = None) -> InstanceSet:
     """:func:`read_instances`, or the walk where it cannot read the scene.
     ``on_geometry(key, ob_eval, mesh)`` as for :func:`read_instances`."""
-    got = read_instances(depsgraph, on_geometry)
+    got = read_instances(depsgraph, on_geometry, previous)
     if got is not None:
         return got
     walk_cb = None if on_geometry is None else (lambda key, ob: on_geometry(key, ob, None))

@@ -213,3 +213,30 @@ def test_array_reader_leaves_particles_to_the_walk(geom, scene):
         assert len(g.instances) == 2    # the box and its collection instance, through the walk
     finally:
         bpy.data.collections.remove(coll)
+
+
+def test_an_unchanged_scene_gives_the_same_instance_set_and_a_change_a_new_one(geom, scene):
+    """Only what changed is redone: the cache hands out the same InstanceSet (so
+    its bounds and culling index) while nothing changed, and a new one when an
+    instance transform inside a node tree or an object's matrix changes."""
+    tree = mesh(scene, "Tree", [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 2)], [(0, 1, 2), (0, 1, 3), (1, 2, 3)])
+    host = mesh(scene, "Host", [(0, 0, 0), (4, 0, 0), (4, 4, 0)], [(0, 1, 2)])
+    ng = _scatter(host, tree, as_instance=False, count=50)
+    try:
+        cache = geom.GeometryCache()
+        g1 = cache.update(depsgraph(scene))
+        g2 = cache.update(depsgraph(scene))
+        assert g2 is g1 and g2.instances.bounds is g1.instances.bounds and cache.instance_sets == 1
+        seed = next(n for n in ng.nodes if n.bl_idname == "FunctionNodeRandomValue")
+        seed.inputs["Seed"].default_value = 5
+        g3 = cache.update(depsgraph(scene))
+        assert g3.instances is not g1.instances and cache.instance_sets == 2
+        assert not np.array_equal(g3.instances.matrices, g1.instances.matrices)
+        host.location.z += 1.0
+        g4 = cache.update(depsgraph(scene))
+        assert g4.instances is not g3.instances and cache.instance_sets == 3
+        moved = np.abs(g4.instances.matrices[:, 2, 3] - g3.instances.matrices[:, 2, 3] - 1.0) < 1e-6
+        assert moved.sum() == 1 + 50      # the host and its instances; the tree object stays
+        assert cache.extractions == 3   # tree geometry, host: read once; the instances' mesh read once
+    finally:
+        bpy.data.node_groups.remove(ng)
