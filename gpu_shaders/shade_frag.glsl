@@ -15,18 +15,37 @@
  * k/2 texels away along each axis, where the surface's own depth differs by up
  * to r * (|dz/du| + |dz/dv|).
  *
- * Outputs: out_direct = (unshadowed direct light * albedo / pi, coverage),
- *          out_data   = (shadow 0..1, map index or -1, shadow-map texels per pixel, eye depth),
- *          out_world  = (world position, 1), only with LIXEL_WORLD.
+ * One variant per configuration (addon/gpu/shaders.py ShadeVariant): a
+ * software rasterizer runs every branch that a SIMD group of fragments
+ * disagrees on, and every iteration of a loop whose count it cannot see, so
+ * what the setup and settings fix is compiled in rather than branched on:
+ *   LIXEL_MAP_COUNT  maps (1..8; with one map and neither regions nor depth
+ *                    ranges the map is chosen without a loop)
+ *   LIXEL_REGIONS / LIXEL_RANGES  some map has a region / a view depth range
+ *   LIXEL_LIGHT      0 sun, 1 point, 2 spot
+ *   LIXEL_PCF        the PCF kernel k;  LIXEL_MDSM  n > 1 depths per texel
+ *   LIXEL_SLOPE_BIAS the slope-scale term is on
+ *   LIXEL_BLURRED    the eye-space blur follows: out_color is the unshadowed
+ *                    light (compose_frag.glsl shadows it after the blur)
+ *   LIXEL_DATA / LIXEL_WORLD  the analysis targets are written
+ *
+ * Outputs (addon/gpu/pipeline.py ShadowFrame.shade):
+ *   out_color     = (ambient * albedo + direct * (1 - shadow), 1), or
+ *                   (direct, 1) with LIXEL_BLURRED; direct = light * albedo / pi
+ *   out_shadow    = (shadow 0..1, 0, 0, 1)
+ *   out_footprint = the footprint heatmap of the texels per pixel t
+ *                   (log2 t / 4 clamped to [-1, 1]: red below one texel per
+ *                   pixel (undersampled), green at one, blue above)
+ *   out_data      = (shadow, map index or -1, texels per pixel, eye depth), LIXEL_DATA
+ *   out_world     = (world position, 1), LIXEL_WORLD
+ * Pixels no surface covers keep the targets' clear values (the world colour
+ * in out_color, zero elsewhere, black in out_footprint).
  * Positions are relative to the frame's origin; the uniform block `lixel` is
- * declared in addon/gpu/layout.py (LIXEL_SHADE).
- * The combined image (ambient + direct * (1 - shadow)) is composed after the
- * optional eye-space blur of the shadow channel (Scherzer §4.3). */
+ * declared in addon/gpu/layout.py (LIXEL_SHADE). */
 #define LIXEL_PI 3.14159265358979
 
 /* Only the samplers of maps that exist are reachable (LIXEL_MAP_COUNT is the
- * setup's map count): a software rasterizer runs every branch a SIMD group
- * disagrees on, so an 8-way switch would cost 8 fetches per tap. */
+ * setup's map count): an 8-way switch would cost 8 fetches per tap. */
 vec4 lixel_fetch(int i, ivec2 t)
 {
 #if LIXEL_MAP_COUNT > 1
@@ -51,6 +70,32 @@ vec4 lixel_fetch(int i, ivec2 t)
   if (i == 7) return texelFetch(u_map7, t, 0);
 #endif
   return texelFetch(u_map0, t, 0);
+}
+
+vec4 lixel_gather(int i, vec2 uv)
+{
+#if LIXEL_MAP_COUNT > 1
+  if (i == 1) return textureGather(u_map1, uv);
+#endif
+#if LIXEL_MAP_COUNT > 2
+  if (i == 2) return textureGather(u_map2, uv);
+#endif
+#if LIXEL_MAP_COUNT > 3
+  if (i == 3) return textureGather(u_map3, uv);
+#endif
+#if LIXEL_MAP_COUNT > 4
+  if (i == 4) return textureGather(u_map4, uv);
+#endif
+#if LIXEL_MAP_COUNT > 5
+  if (i == 5) return textureGather(u_map5, uv);
+#endif
+#if LIXEL_MAP_COUNT > 6
+  if (i == 6) return textureGather(u_map6, uv);
+#endif
+#if LIXEL_MAP_COUNT > 7
+  if (i == 7) return textureGather(u_map7, uv);
+#endif
+  return textureGather(u_map0, uv);
 }
 
 /* Maps are read in place (lixel.maps[i].member): copying a LixelMap (with its
@@ -107,6 +152,33 @@ float lixel_depth_slope(int i, vec3 P, vec3 N, vec4 h, vec3 ndc, vec2 size)
   return min(abs(a) * 2.0 / size.x + abs(b) * 2.0 / size.y, limit);
 }
 
+vec4 lixel_footprint_colour(float texels_per_pixel)
+{
+  float t = clamp(log2(max(texels_per_pixel, 1e-6)) / 4.0, -1.0, 1.0);
+  return vec4(clamp(-t, 0.0, 1.0), 1.0 - abs(t), clamp(t, 0.0, 1.0), 1.0);
+}
+
+/* Whether map i serves P (clip volume, depth range, region); h = its clip position. */
+bool lixel_serves(int i, vec3 P, float eye_depth, out vec4 h)
+{
+  h = lixel.maps[i].matrix * vec4(P, 1.0);
+  if (h.w <= 0.0 || any(greaterThan(abs(h.xyz / h.w), vec3(1.0)))) {
+    return false;
+  }
+#ifdef LIXEL_RANGES
+  vec4 range = lixel.maps[i].range;
+  if (range.z > 0.5 && (eye_depth < range.x || eye_depth > range.y)) {
+    return false;
+  }
+#endif
+#ifdef LIXEL_REGIONS
+  if (!lixel_region_contains(i, P)) {
+    return false;
+  }
+#endif
+  return true;
+}
+
 void main()
 {
   vec3 P = v_world;
@@ -118,89 +190,114 @@ void main()
     N = -N;
   }
   float eye_depth = -dot(lixel.eye_row, vec4(P, 1.0));
-  int map_count = int(lixel.params.z);
 
+  /* The first map that serves P. */
   int index = -1;
-  vec3 ndc = vec3(0.0);
-  vec4 hsel = vec4(1.0);
-  for (int i = 0; i < map_count; i++) {
-    vec4 h = lixel.maps[i].matrix * vec4(P, 1.0);
-    if (h.w <= 0.0) continue;
-    vec3 c = h.xyz / h.w;
-    if (any(greaterThan(abs(c), vec3(1.0)))) continue;
-    vec4 range = lixel.maps[i].range;
-    if (range.z > 0.5 && (eye_depth < range.x || eye_depth > range.y)) continue;
-    if (!lixel_region_contains(i, P)) continue;
-    index = i;
-    ndc = c;
-    hsel = h;
-    break;
+  vec4 hsel = vec4(0.0, 0.0, 0.0, 1.0);
+#if LIXEL_MAP_COUNT == 1
+  const int m = 0;
+  if (lixel_serves(0, P, eye_depth, hsel)) {
+    index = 0;
   }
+#else
+  for (int i = 0; i < LIXEL_MAP_COUNT; i++) {
+    vec4 h;
+    if (lixel_serves(i, P, eye_depth, h)) {
+      index = i;
+      hsel = h;
+      break;
+    }
+  }
+  int m = max(index, 0);
+#endif
+  vec3 ndc = hsel.xyz / hsel.w;
+  vec4 info = lixel.maps[m].info;
+  ivec2 size = ivec2(info.xy);
+  vec2 tc = (ndc.xy * 0.5 + 0.5) * vec2(size);
+  float footprint = sqrt(abs(determinant(mat2(dFdx(tc), dFdy(tc)))));  /* in uniform control flow */
+  float texels_per_pixel = index >= 0 ? footprint : 0.0;
 
   float shadow = 0.0;
-  float texels_per_pixel = 0.0;
   if (index >= 0) {
-    vec4 info = lixel.maps[index].info;
-    ivec2 size = ivec2(info.xy);
     bool greater = info.z > 0.5;
-    float z = info.w > 0.5 ? dot(lixel.maps[index].depth_row, vec4(P, 1.0)) : ndc.z;
+    float z = info.w > 0.5 ? dot(lixel.maps[m].depth_row, vec4(P, 1.0)) : ndc.z;
     float bias = lixel.bias.x;
-    if (lixel.bias.y > 0.0) {
-      bias += lixel.bias.y * lixel.bias.z * lixel_depth_slope(index, P, N, hsel, ndc, vec2(size));
-    }
+#ifdef LIXEL_SLOPE_BIAS
+    bias += lixel.bias.y * lixel.bias.z * lixel_depth_slope(m, P, N, hsel, ndc, vec2(size));
+#endif
     z += greater ? bias : -bias; /* towards the light */
     float d = z * 0.5 + 0.5;
     float ref = greater ? 1.0 - d : d;
-    vec2 tc = (ndc.xy * 0.5 + 0.5) * vec2(size);
-    texels_per_pixel = sqrt(abs(determinant(mat2(dFdx(tc), dFdy(tc)))));
-    int k = int(lixel.params.x);
-    int n = int(lixel.params.y);
+    const int k = LIXEL_PCF;
     ivec2 base = (k % 2 == 1) ? ivec2(floor(tc)) - (k - 1) / 2 : ivec2(floor(tc - 0.5)) - (k / 2 - 1);
     float hits = 0.0;
+#if defined(LIXEL_MDSM) || LIXEL_PCF == 1
     for (int dy = 0; dy < k; dy++) {
       for (int dx = 0; dx < k; dx++) {
         ivec2 s = clamp(base + ivec2(dx, dy), ivec2(0), size - 1);
-        vec4 t = lixel_fetch(index, s);
-#ifdef LIXEL_MDSM
+        vec4 t = lixel_fetch(m, s);
+#  ifdef LIXEL_MDSM
         /* keys: smaller = nearer the light; channels beyond n repeat key 0 */
         float c = 0.0;
-        for (int j = 0; j < n; j++) {
+        for (int j = 0; j < LIXEL_MDSM; j++) {
           c += t[j] < ref ? 1.0 : 0.0;
         }
-        hits += c / float(n);
-#else
+        hits += c / float(LIXEL_MDSM);
+#  else
         float key = greater ? 1.0 - t.r : t.r;
         hits += key < ref ? 1.0 : 0.0;
-#endif
+#  endif
       }
     }
+#else
+    /* The k x k taps as 2 x 2 gathers (a gather costs about one texelFetch on
+     * a software rasterizer): the gather at the corner between texels c and
+     * c + 1 returns (c, c+1) x (c, c+1), clamped to the edge like the taps,
+     * as x = (c, c+1), y = (c+1, c+1), z = (c+1, c), w = (c, c). Taps beyond
+     * k - 1 are not counted. */
+    for (int gy = 0; gy < k; gy += 2) {
+      for (int gx = 0; gx < k; gx += 2) {
+        vec4 t = lixel_gather(m, (vec2(base + ivec2(gx, gy)) + 1.0) / vec2(size));
+        vec4 key = greater ? 1.0 - t : t;
+        vec4 counted = vec4(gy + 1 < k ? 1.0 : 0.0, (gx + 1 < k && gy + 1 < k) ? 1.0 : 0.0,
+                            gx + 1 < k ? 1.0 : 0.0, 1.0);
+        hits += dot(counted, vec4(lessThan(key, vec4(ref))));
+      }
+    }
+#endif
     shadow = hits / float(k * k);
   }
 
-  int type = int(lixel.light_pos.w);
   vec3 L;
   float irradiance = 1.0;
-  if (type == 0) {
-    L = -lixel.light_dir.xyz;
-  }
-  else {
-    vec3 to_light = lixel.light_pos.xyz - P;
-    float r2 = max(dot(to_light, to_light), 1e-12);
-    L = to_light * inversesqrt(r2);
-    irradiance = 1.0 / (4.0 * LIXEL_PI * r2);
-    if (type == 2) {
-      /* Blender's spot mask: smoothstep over the outer blend * (1 - cos half) of the cone. */
-      float cos_half = lixel.light_dir.w;
-      float x = dot(-L, lixel.light_dir.xyz) - cos_half;
-      float blend = lixel.params.w * (1.0 - cos_half);
-      irradiance *= blend > 0.0 ? smoothstep(0.0, 1.0, x / blend) : step(0.0, x);
-    }
-  }
+#if LIXEL_LIGHT == 0
+  L = -lixel.light_dir.xyz;
+#else
+  vec3 to_light = lixel.light_pos.xyz - P;
+  float r2 = max(dot(to_light, to_light), 1e-12);
+  L = to_light * inversesqrt(r2);
+  irradiance = 1.0 / (4.0 * LIXEL_PI * r2);
+#  if LIXEL_LIGHT == 2
+  /* Blender's spot mask: smoothstep over the outer blend * (1 - cos half) of the cone. */
+  float cos_half = lixel.light_dir.w;
+  float x = dot(-L, lixel.light_dir.xyz) - cos_half;
+  float blend = lixel.spot.x * (1.0 - cos_half);
+  irradiance *= blend > 0.0 ? smoothstep(0.0, 1.0, x / blend) : step(0.0, x);
+#  endif
+#endif
   float ndl = max(dot(N, L), 0.0);
   vec3 direct = lixel.light_color.rgb * (irradiance * ndl * lixel.light_color.w / LIXEL_PI);
 
-  out_direct = vec4(direct, 1.0);
+#ifdef LIXEL_BLURRED
+  out_color = vec4(direct, 1.0);
+#else
+  out_color = vec4(direct * (1.0 - shadow) + lixel.ambient.rgb * lixel.light_color.w, 1.0);
+#endif
+  out_shadow = vec4(shadow, 0.0, 0.0, 1.0);
+  out_footprint = lixel_footprint_colour(texels_per_pixel);
+#ifdef LIXEL_DATA
   out_data = vec4(shadow, float(index), texels_per_pixel, eye_depth);
+#endif
 #ifdef LIXEL_WORLD
   out_world = vec4(P, 1.0);
 #endif

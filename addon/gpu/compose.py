@@ -1,7 +1,8 @@
 """Full-screen GPU passes after the shading pass, and reading images back.
 
-* :func:`compose_pass`: the combined image, the shadow mask and the footprint
-  heatmap in one pass (``gpu_shaders/compose_frag.glsl``);
+* :func:`compose_pass`: the combined image after the eye-space blur
+  (``gpu_shaders/compose_frag.glsl``; without the blur the shading pass
+  writes it itself, with the shadow and the footprint heatmap);
 * :func:`eye_blur_pass`: the depth-dependent eye-space blur (Scherzer §4.3);
 * :func:`map_preview_pass`: a shadow map resampled to a picture (the render
   engine's "Shadow Map" pass, the viewport's picture-in-picture);
@@ -79,20 +80,16 @@ def _draw_fullscreen(fb, size, shader) -> None:
         fullscreen_batch().draw(shader)
 
 
-def compose_pass(targets, size, direct, data, ambient, albedo: float, mask=None):
-    """Combined, shadow mask and footprint heatmap from the shading pass's
-    ``direct`` and ``data`` textures (``mask``: the eye-blurred shadow).
-    Returns the framebuffer (slots 0, 1, 2)."""
+def compose_pass(targets, size, direct, mask, ambient, albedo: float):
+    """The combined image (an RGBA32F target) after the eye-space blur, from the
+    shading pass's unshadowed light ``direct`` and the blurred shadow ``mask``.
+    Returns its framebuffer."""
     combined = targets.texture("combined", size, "RGBA32F")
-    shadow = targets.texture("shadow", size, "R32F")
-    footprint = targets.texture("footprint", size, "RGBA32F")
-    fb = targets.framebuffer(colors=(combined, shadow, footprint))
-    sh = shaders.compose_shader(mask is not None)
+    fb = targets.framebuffer(colors=(combined,))
+    sh = shaders.compose_shader()
     sh.bind()
     sh.uniform_sampler("u_direct", direct)
-    sh.uniform_sampler("u_data", data)
-    if mask is not None:
-        sh.uniform_sampler("u_mask", mask)
+    sh.uniform_sampler("u_mask", mask)
     sh.uniform_float("u_ambient", (*(float(c) for c in ambient), float(albedo)))
     _draw_fullscreen(fb, size, sh)
     return fb

@@ -143,7 +143,8 @@ LIXEL_SHADE = Struct("LixelShade", (
     Member("light_pos", "vec4", "(position.xyz, type: 0 sun, 1 point, 2 spot)"),
     Member("light_dir", "vec4", "(travel direction.xyz, cos of the spot's half angle)"),
     Member("light_color", "vec4", "(colour * energy, albedo)"),
-    Member("params", "vec4", "(PCF kernel k, MDSM depth count n, map count, spot blend 0..1)"),
+    Member("spot", "vec4", "(Blender's spot blend 0..1, 0, 0, 0)"),
+    Member("ambient", "vec4", "(world colour, 0): ambient light, times the albedo"),
     Member("bias", "vec4", "(constant c, slope factor s, PCF reach r, largest slope term), NDC depth units"),
     Member("maps", LIXEL_MAP, "the setup's maps", MAX_MAPS),
 ), doc="The shading pass's uniform block (addon/gpu/layout.py); positions relative to the frame's origin.")

@@ -8,12 +8,13 @@ A frame is a :class:`ShadowFrame`, run in the order its steps depend on::
     frame.camera_prepass()                            # receivers in the view; the camera's depth
     ...                                               # (the warp may read the pre-pass here)
     frame.draw_maps(setup, shadow, body)              # casters that can shadow what is seen; MDSM keys
-    frame.shade(light, setup, shadow)                 # shading on the pre-pass depth (LESS_EQUAL)
-    result = frame.finish(read=...)                   # compose on the GPU, read back once
+    frame.shade(light, setup, shadow, ambient=...)    # shading on the pre-pass depth (LESS_EQUAL)
+    result = frame.finish(read=...)                   # blur/preview on the GPU, read back once
 
 :func:`render_shadows` runs all of it in one call (report, UI, tests). Each
-step is timed (stages: upload, camera_prepass, depth_pass, mdsm, shading,
-compose, readback); ``ShadowFrame(..., timed=False)`` drops the per-stage
+step is timed (stages: upload (the GPU scene brought up to date), cull
+(receivers to the view, casters to B's hull, their draw lists), camera_prepass,
+depth_pass, mdsm, shading, compose, readback); ``ShadowFrame(..., timed=False)`` drops the per-stage
 waits for the GPU (the render engine: one wait, at the read-back).
 """
 from __future__ import annotations
@@ -182,7 +183,8 @@ def mdsm_pass(maps: list, setup: ShadowSetup, shadow: ShadowSettings, targets: O
 
 
 def shade_block(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSettings,
-                albedo: float = DEFAULT_ALBEDO, origin=(0.0, 0.0, 0.0), spot_blend: float = 0.0) -> np.ndarray:
+                albedo: float = DEFAULT_ALBEDO, origin=(0.0, 0.0, 0.0), spot_blend: float = 0.0,
+                ambient=DEFAULT_AMBIENT) -> np.ndarray:
     """The shading pass's uniform block (``layout.LIXEL_SHADE``) as float32
     rows, positions relative to ``origin``."""
     o = np.asarray(origin, dtype=np.float64)
@@ -195,7 +197,8 @@ def shade_block(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSett
     cos_half = math.cos(light.spot_angle / 2) if light.type == "SPOT" else -1.0
     b.light_dir[:] = (*(light.direction if light.direction is not None else (0, 0, -1)), cos_half)
     b.light_color[:] = (*(np.asarray(light.color, dtype=np.float64) * light.energy), albedo)
-    b.params[:] = (shadow.pcf_kernel, shadow.mdsm_depths, len(setup.maps), min(max(float(spot_blend), 0.0), 1.0))
+    b.spot[0] = min(max(float(spot_blend), 0.0), 1.0)
+    b.ambient[:3] = ambient
     b.bias[:] = bias_vector(shadow)
     for i, m in enumerate(setup.maps):
         bm = b.maps[i]
@@ -276,8 +279,7 @@ class ShadowFrame:
         self.keys: list = []
         self.setup: Optional[ShadowSetup] = None
         self._depth = None
-        self._shade_fb = None
-        self._world = False
+        self._shaded = None
 
     # ------------------------------------------------------------ steps
 
@@ -309,6 +311,8 @@ class ShadowFrame:
         self.counts.receivers_drawn = self.receivers.instance_count
         self.counts.receiver_triangles_drawn = self.receivers.triangle_count
         self._view_proj = _gl_matrix(relative(view.world_to_clip, self.origin))
+        self._stage("cull", t)
+        t = time.perf_counter()
         w, h = self.size
         depth = self.targets.texture("camera_depth", self.size, "DEPTH_COMPONENT32F")
         fb = self.targets.framebuffer(depth=depth)
@@ -353,7 +357,7 @@ class ShadowFrame:
         c.non_casters = int((~inst.casts).sum())
         c.caster_triangles_drawn = self.casters.triangle_count
         c.caster_triangles_culled = int(self.geometry.key_triangles[inst.key_ids[culled]].sum())
-        self.timings["upload"] += time.perf_counter() - t
+        self._stage("cull", t)
         t = time.perf_counter()
         self.setup = setup
         self.maps = depth_pass(setup, self.scene, self.casters, shadow, self.targets)
@@ -364,81 +368,100 @@ class ShadowFrame:
         return self.maps
 
     def shade(self, light: Light, setup: ShadowSetup, shadow: ShadowSettings, albedo: float = DEFAULT_ALBEDO,
-              spot_blend: float = 0.0, world: bool = False) -> None:
+              spot_blend: float = 0.0, ambient=DEFAULT_AMBIENT, data: bool = False, world: bool = False) -> None:
         """The shading pass over the pre-pass depth (LESS_EQUAL, no depth
-        writes): per pixel the direct light and (shadow, map index, texels per
-        pixel, eye depth); ``world``: also the world position (the report)."""
+        writes): the combined image, the shadow and the footprint heatmap per
+        pixel (the unshadowed light when the eye-space blur follows, see
+        :meth:`finish`); ``data``: also (shadow, map index, texels per pixel,
+        eye depth); ``world``: also the world position (the report)."""
         import gpu
         if self._depth is None:
             self.camera_prepass()
         if setup is not self.setup:
             raise WarpError("shade() takes the setup whose maps draw_maps() drew")
         t = time.perf_counter()
-        direct = self.targets.texture("direct", self.size, "RGBA32F")
-        data = self.targets.texture("data", self.size, "RGBA32F")
-        colors = (direct, data) + ((self.targets.texture("world", self.size, "RGBA32F"),) if world else ())
-        fb = self.targets.framebuffer(depth=self._depth, colors=colors)
-        mdsm = bool(self.keys)
-        block = shade_block(self.view, light, setup, shadow, albedo, self.origin, spot_blend)
+        blurred = shadow.eye_blur > 0
+        variant = shaders.ShadeVariant(
+            map_count=len(setup.maps), light=light.type, pcf=shadow.pcf_kernel, mdsm=shadow.mdsm_depths,
+            slope_bias=bias_vector(shadow)[1] > 0, regions=any(m.region is not None for m in setup.maps),
+            ranges=any(m.view_depth_range is not None for m in setup.maps), blurred=blurred,
+            data=data or blurred, world=world)
+        ambient = tuple(float(c) for c in ambient)
+        spec = [("color", "RGBA32F"), ("shadow", "R32F"), ("footprint", "RGBA32F")]
+        spec += [("data", "RGBA32F")] if variant.data else []
+        spec += [("world", "RGBA32F")] if world else []
+        textures = {name: self.targets.texture(name, self.size, fmt) for name, fmt in spec}
+        fb = self.targets.framebuffer(depth=self._depth, colors=tuple(textures.values()))
+        block = shade_block(self.view, light, setup, shadow, albedo, self.origin, spot_blend, ambient)
         ubo = gpu.types.GPUUniformBuf(block.tobytes())
         w, h = self.size
         with fb.bind():
             gpu.state.viewport_set(0, 0, w, h)
-            fb.clear(color=(0.0, 0.0, 0.0, 0.0))
             gpu.state.depth_test_set("LESS_EQUAL")
             gpu.state.depth_mask_set(False)
-            sh = shaders.shade_shader(mdsm, len(setup.maps), world)
+            # The background first: what no receiver covers (no target is cleared).
+            bg = shaders.background_shader(variant.data, variant.world)
+            bg.bind()
+            bg.uniform_float("u_background", (0.0, 0.0, 0.0, 0.0) if blurred else (*ambient, 1.0))
+            compose.fullscreen_batch().draw(bg)
+            sh = shaders.shade_shader(variant)
             sh.bind()
             sh.uniform_float("u_view_proj", self._view_proj)
             sh.uniform_block("lixel", ubo)
             maps = self.keys or self.maps
-            dummy = _dummy("RGBA32F" if mdsm else "DEPTH_COMPONENT32F")
+            dummy = _dummy("RGBA32F" if self.keys else "DEPTH_COMPONENT32F")
             for i in range(shaders.MAX_MAPS):
                 sh.uniform_sampler(f"u_map{i}", maps[i][0] if i < len(maps) else dummy)
             self.scene.draw(sh, self.receivers)
             gpu.state.depth_test_set("NONE")
-        self._shade_fb = fb
-        self._world = world
-        self._direct, self._data = direct, data
+        self._shaded = dict(textures=textures, variant=variant, ambient=ambient, albedo=float(albedo),
+                            eye_blur=float(shadow.eye_blur))
         self._stage("shading", t, fb, color=True)
 
-    def finish(self, shadow: ShadowSettings, ambient=DEFAULT_AMBIENT, albedo: float = DEFAULT_ALBEDO,
-               read=ANALYSIS) -> RenderResult:
-        """Compose on the GPU and read back the images named in ``read`` (see
-        :class:`RenderResult`), each once."""
+    def _read_target(self, name: str, channels: int = 4) -> np.ndarray:
+        tex = self._shaded["textures"][name]
+        return compose.read_color(self.targets.framebuffer(colors=(tex,)), 0, self.size, channels)
+
+    def finish(self, read=ANALYSIS) -> RenderResult:
+        """Finish on the GPU (the eye-space blur and compose when the blur is on,
+        the map preview when asked for) and read back the images named in
+        ``read`` (see :class:`RenderResult`), each once."""
         read = check_read(read)
-        if self._shade_fb is None:
+        if self._shaded is None:
             raise WarpError("finish() needs shade() first")
-        if "world_position" in read and not self._world:
+        sh = self._shaded
+        variant = sh["variant"]
+        data_images = {"shadow_raw", "covered", "eye_depth", "map_index", "texels_per_pixel"}
+        if "world_position" in read and not variant.world:
             raise WarpError("the world position is made only when shade(world=True) asks for it")
+        if read & (data_images - {"shadow_raw"}) and not variant.data:
+            raise WarpError(f"{', '.join(sorted(read & data_images))}: made only when shade(data=True) asks for them")
         t = time.perf_counter()
-        size, targets = self.size, self.targets
-        mask = None
-        if shadow.eye_blur > 0 and read & {"combined", "shadow_mask", "footprint_heatmap"}:
-            d_near, _ = compose.reduce_range(targets, self._data, size, channel=3, above=0.0)
-            if math.isfinite(d_near):
-                mask = compose.eye_blur_pass(targets, size, self._data, shadow.eye_blur, d_near)
-        fb = None
-        if read & {"combined", "shadow_mask", "footprint_heatmap"}:
-            fb = compose.compose_pass(targets, size, self._direct, self._data, ambient, albedo, mask)
+        size, targets, tex = self.size, self.targets, sh["textures"]
+        combined_fb = mask_fb = None
+        if variant.blurred and read & {"combined", "shadow_mask"}:
+            d_near, _ = compose.reduce_range(targets, tex["data"], size, channel=3, above=0.0)
+            mask = compose.eye_blur_pass(targets, size, tex["data"], sh["eye_blur"], d_near) \
+                if math.isfinite(d_near) else tex["shadow"]
+            mask_fb = targets.framebuffer(colors=(mask,))
+            combined_fb = compose.compose_pass(targets, size, tex["color"], mask, sh["ambient"], sh["albedo"])
         preview = None
         if "shadow_map_preview" in read:
             _, preview = compose.map_preview_pass(targets, "map_preview", size, self.maps[0][0], stretch=False)
-        self._stage("compose", t, fb, color=True)
+        self._stage("compose", t, combined_fb or preview, color=True)
 
         t = time.perf_counter()
         out = RenderResult()
-        if fb is not None:
-            if "combined" in read:
-                out.combined = compose.read_color(fb, 0, size)
-            if "shadow_mask" in read:
-                out.shadow_mask = compose.read_color(fb, 1, size, 1)
-            if "footprint_heatmap" in read:
-                out.footprint_heatmap = compose.read_color(fb, 2, size)
+        if "combined" in read:
+            out.combined = compose.read_color(combined_fb, 0, size) if combined_fb else self._read_target("color")
+        if "shadow_mask" in read:
+            out.shadow_mask = compose.read_color(mask_fb, 0, size, 1) if mask_fb else self._read_target("shadow", 1)
+        if "footprint_heatmap" in read:
+            out.footprint_heatmap = self._read_target("footprint")
         if preview is not None:
             out.shadow_map_preview = compose.read_color(preview, 0, size, 1)
-        if read & {"shadow_raw", "covered", "eye_depth", "map_index", "texels_per_pixel", "world_position"}:
-            data = compose.read_color(self._shade_fb, 1, size)
+        if variant.data and read & (data_images | {"world_position"}):
+            data = self._read_target("data")
             covered = data[..., 3] > 0.0
             if "covered" in read:
                 out.covered = covered
@@ -451,8 +474,10 @@ class ShadowFrame:
             if "texels_per_pixel" in read:
                 out.texels_per_pixel = np.where(covered, data[..., 2], 0.0).astype(np.float32)
             if "world_position" in read:
-                world = compose.read_color(self._shade_fb, 2, size)
+                world = self._read_target("world")
                 out.world_position = np.where(covered[..., None], world[..., :3] + self.origin, np.nan)
+        elif "shadow_raw" in read:
+            out.shadow_raw = self._read_target("shadow", 1)
         if "shadow_maps" in read:
             out.shadow_maps = [compose.read_depth(f, tuple(int(v) for v in m.size))
                                for (_, f), m in zip(self.maps, self.setup.maps)]
@@ -473,12 +498,17 @@ class ShadowFrame:
             per_map_bytes=map_bytes,
             mdsm_bytes_per_layer=list(map_bytes) if self.keys else [],
             mdsm_texture_bytes=[b * 4 for b in map_bytes] if self.keys else [],
-            render_target_bytes=w * h * (4 + 2 * 16 + (16 if self._world else 0)),
+            render_target_bytes=w * h * (4 + 16 + 4 + 16 + 16 * (variant.data + variant.world)),
         )
         out.timings = dict(self.timings)
         out.counts = c
         self.targets.trim()
         return out
+
+
+def needs_data(read) -> bool:
+    """Whether the images in ``read`` need the shading pass's data target."""
+    return bool(set(read) & {"covered", "eye_depth", "map_index", "texels_per_pixel", "world_position"})
 
 
 def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, settings=None,
@@ -520,5 +550,6 @@ def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, setti
             body = None
     frame.camera_prepass()
     frame.draw_maps(setup, shadow, body)
-    frame.shade(light, setup, shadow, albedo, spot_blend, world="world_position" in read)
-    return frame.finish(shadow, ambient, albedo, read)
+    frame.shade(light, setup, shadow, albedo, spot_blend, ambient, data=needs_data(read),
+                world="world_position" in read)
+    return frame.finish(read)

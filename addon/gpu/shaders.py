@@ -8,6 +8,7 @@ where that exists (Blender 4.2 lacks it and compiles ``gl_FragDepth`` without).
 from __future__ import annotations
 
 import functools
+from dataclasses import dataclass
 from pathlib import Path
 
 from ..warp.types import WarpError
@@ -80,15 +81,45 @@ def depth_shader(linear_z: bool):
     return _create(info, "depth pass")
 
 
-def _shade_info(prepass: bool, mdsm: bool, map_count: int = 1, world: bool = False):
+@dataclass(frozen=True)
+class ShadeVariant:
+    """What a shading-pass variant compiles in (``gpu_shaders/shade_frag.glsl``
+    explains why each is a define and not a branch)."""
+
+    map_count: int = 1
+    light: str = "SUN"
+    """SUN, POINT or SPOT."""
+    pcf: int = 3
+    mdsm: int = 1
+    """Depths per texel (n); > 1 samples RGBA32F key maps."""
+    slope_bias: bool = True
+    regions: bool = False
+    ranges: bool = False
+    blurred: bool = False
+    """The eye-space blur follows: the colour target gets the unshadowed light."""
+    data: bool = False
+    """Also write (shadow, map index, texels per pixel, eye depth)."""
+    world: bool = False
+    """Also write the world position."""
+
+    def __post_init__(self):
+        if not 1 <= self.map_count <= MAX_MAPS:
+            raise ShaderBuildError(f"the shading pass takes 1 to {MAX_MAPS} maps (got {self.map_count})")
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        """The fragment outputs, in target order."""
+        return ("out_color", "out_shadow", "out_footprint") + (("out_data",) if self.data else ()) + \
+            (("out_world",) if self.world else ())
+
+
+LIGHT_CODES = {"SUN": 0, "POINT": 1, "SPOT": 2}
+
+
+def _shade_info(prepass: bool, variant: ShadeVariant = ShadeVariant()):
     import gpu
     info = gpu.types.GPUShaderCreateInfo()
     _common_defines(info)
-    info.define("LIXEL_MAP_COUNT", str(int(map_count)))
-    if mdsm:
-        info.define("LIXEL_MDSM")
-    if world:
-        info.define("LIXEL_WORLD")
     iface = gpu.types.GPUStageInterfaceInfo("lixel_shade_iface")
     iface.smooth("VEC3", "v_world")
     info.vertex_out(iface)
@@ -98,26 +129,29 @@ def _shade_info(prepass: bool, mdsm: bool, map_count: int = 1, world: bool = Fal
     if prepass:
         info.fragment_source(source("bare_frag.glsl"))
         return info
+    v = variant
+    info.define("LIXEL_MAP_COUNT", str(v.map_count))
+    info.define("LIXEL_LIGHT", str(LIGHT_CODES[v.light]))
+    info.define("LIXEL_PCF", str(int(v.pcf)))
+    for flag, name in ((v.mdsm > 1, "LIXEL_MDSM"), (v.slope_bias, "LIXEL_SLOPE_BIAS"), (v.regions, "LIXEL_REGIONS"),
+                       (v.ranges, "LIXEL_RANGES"), (v.blurred, "LIXEL_BLURRED"), (v.data, "LIXEL_DATA"),
+                       (v.world, "LIXEL_WORLD")):
+        if flag:
+            info.define(name, str(int(v.mdsm)) if name == "LIXEL_MDSM" else "1")
     info.typedef_source(LIXEL_SHADE.glsl())
     info.uniform_buf(0, LIXEL_SHADE.name, "lixel")
     for i in range(MAX_MAPS):
-        info.sampler(i, "FLOAT_2D" if mdsm else "DEPTH_2D", f"u_map{i}")
-    info.fragment_out(0, "VEC4", "out_direct")
-    info.fragment_out(1, "VEC4", "out_data")
-    if world:
-        info.fragment_out(2, "VEC4", "out_world")
+        info.sampler(i, "FLOAT_2D" if v.mdsm > 1 else "DEPTH_2D", f"u_map{i}")
+    for slot, name in enumerate(v.outputs):
+        info.fragment_out(slot, "VEC4", name)
     info.fragment_source(source("shade_frag.glsl"))
     return info
 
 
 @functools.lru_cache(maxsize=None)
-def shade_shader(mdsm: bool, map_count: int = 1, world: bool = False):
-    """Shading pass from the camera for ``map_count`` maps (1..MAX_MAPS);
-    ``mdsm`` samples RGBA32F key maps; ``world`` also writes the world
-    position (a third colour target)."""
-    if not 1 <= map_count <= MAX_MAPS:
-        raise ShaderBuildError(f"the shading pass takes 1 to {MAX_MAPS} maps (got {map_count})")
-    return _create(_shade_info(False, mdsm, map_count, world), "shading pass")
+def shade_shader(variant: ShadeVariant):
+    """The shading pass from the camera, compiled for ``variant`` (once per process)."""
+    return _create(_shade_info(False, variant), "shading pass")
 
 
 @functools.lru_cache(maxsize=None)
@@ -126,10 +160,13 @@ def prepass_shader():
     return _create(_shade_info(True, False), "camera depth pre-pass")
 
 
-def _fullscreen_info(name: str):
-    """A full-screen pass (``fullscreen_vert.glsl``) with ``gpu_shaders/<name>``."""
+def _fullscreen_info(name: str, at_far: bool = False):
+    """A full-screen pass (``fullscreen_vert.glsl``) with ``gpu_shaders/<name>``;
+    ``at_far``: on the far plane (depth tested against what was drawn)."""
     import gpu
     info = gpu.types.GPUShaderCreateInfo()
+    if at_far:
+        info.define("LIXEL_AT_FAR")
     info.vertex_in(0, "VEC3", "pos")
     info.vertex_source(source("fullscreen_vert.glsl"))
     info.fragment_source(source(name))
@@ -137,20 +174,28 @@ def _fullscreen_info(name: str):
 
 
 @functools.lru_cache(maxsize=None)
-def compose_shader(blurred: bool):
-    """The combined image, the shadow mask and the footprint heatmap from the
-    shading pass's targets (``compose_frag.glsl``); ``blurred`` takes the
-    shadow from the eye-space blur's mask instead of the shading pass."""
+def background_shader(data: bool, world: bool):
+    """Every target of a shading pass (:class:`ShadeVariant` ``data``/``world``)
+    where no receiver is seen (``background_frag.glsl``)."""
+    info = _fullscreen_info("background_frag.glsl", at_far=True)
+    info.push_constant("VEC4", "u_background")
+    outputs = ShadeVariant(data=data, world=world).outputs
+    for flag, name in ((data, "LIXEL_DATA"), (world, "LIXEL_WORLD")):
+        if flag:
+            info.define(name, "1")
+    for slot, name in enumerate(outputs):
+        info.fragment_out(slot, "VEC4", name)
+    return _create(info, "shading background")
+
+
+@functools.lru_cache(maxsize=None)
+def compose_shader():
+    """The combined image and shadow mask after the eye-space blur (``compose_frag.glsl``)."""
     info = _fullscreen_info("compose_frag.glsl")
-    if blurred:
-        info.define("LIXEL_BLURRED")
-        info.sampler(2, "FLOAT_2D", "u_mask")
     info.sampler(0, "FLOAT_2D", "u_direct")
-    info.sampler(1, "FLOAT_2D", "u_data")
+    info.sampler(1, "FLOAT_2D", "u_mask")
     info.push_constant("VEC4", "u_ambient")
     info.fragment_out(0, "VEC4", "out_combined")
-    info.fragment_out(1, "VEC4", "out_shadow")
-    info.fragment_out(2, "VEC4", "out_footprint")
     return _create(info, "compose")
 
 

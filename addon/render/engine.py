@@ -100,7 +100,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     waits once, at the read-back). ``targets``: the render targets (default:
     the process-wide pool)."""
     from ..gpu.batches import shared_batches
-    from ..gpu.pipeline import ShadowFrame
+    from ..gpu.pipeline import ShadowFrame, needs_data
     from ..gpu.result import ENGINE_PASSES
     from ..gpu.visibility import region_from_frame
     from ..scene.describe import check_finite_geometry, describe_scene, light_notes
@@ -147,8 +147,9 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     blend = float(getattr(light_obj.data, "spot_blend", 0.0)) if light_obj is not None and \
         light_obj.type == "LIGHT" and light_obj.data.type == "SPOT" else 0.0
     frame.draw_maps(setup, settings.shadow, body)
-    frame.shade(light, setup, settings.shadow, spot_blend=blend, world="world_position" in read)
-    result = frame.finish(settings.shadow, ambient=_world_colour(scene), read=read)
+    frame.shade(light, setup, settings.shadow, spot_blend=blend, ambient=_world_colour(scene),
+                data=needs_data(read), world="world_position" in read)
+    result = frame.finish(read)
     result.timings = {**timings, **result.timings}
     return {"setup": setup, "settings": settings, "result": result, "scene": scene.name, "method": method}
 
@@ -191,6 +192,7 @@ class LixelRenderEngine(bpy.types.RenderEngine):
         for got, _ in _watchers:
             got.append(out)
         res = out["result"]
+        t = time.perf_counter()
         w, h = res.resolution  # the full frame (a render border is not cropped)
         for name, channels, chan_id, _ in EXTRA_PASSES:
             self.add_pass(name, channels, chan_id)
@@ -201,6 +203,7 @@ class LixelRenderEngine(bpy.types.RenderEngine):
         _set_pass(layer, "Footprint", res.footprint_heatmap)
         _set_pass(layer, "Shadow Map", res.shadow_map_preview)
         self.end_result(result)
+        res.timings["passes"] = time.perf_counter() - t
         c = res.counts
         self.update_stats("Lixel", f"{out['method']}: {c.maps} map(s), {c.casters_drawn} casters drawn "
                                    f"({c.caster_triangles_drawn} tris), {c.casters_culled} culled")
