@@ -373,7 +373,7 @@ class ShadowFrame:
         writes): the combined image, the shadow and the footprint heatmap per
         pixel (the unshadowed light when the eye-space blur follows, see
         :meth:`finish`); ``data``: also (shadow, map index, texels per pixel,
-        eye depth); ``world``: also the world position (the report)."""
+        eye depth); ``world``: also the world position (the report; implies ``data``)."""
         import gpu
         if self._depth is None:
             self.camera_prepass()
@@ -385,7 +385,7 @@ class ShadowFrame:
             map_count=len(setup.maps), light=light.type, pcf=shadow.pcf_kernel, mdsm=shadow.mdsm_depths,
             slope_bias=bias_vector(shadow)[1] > 0, regions=any(m.region is not None for m in setup.maps),
             ranges=any(m.view_depth_range is not None for m in setup.maps), blurred=blurred,
-            data=data or blurred, world=world)
+            data=data or blurred or world, world=world)
         ambient = tuple(float(c) for c in ambient)
         spec = [("color", "RGBA32F"), ("shadow", "R32F"), ("footprint", "RGBA32F")]
         spec += [("data", "RGBA32F")] if variant.data else []

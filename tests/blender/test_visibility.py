@@ -112,7 +112,7 @@ def test_the_prepass_region_holds_every_shaded_point(mods, fresh_scene):
     shadow = mods.settings.ShadowSettings()
     frame.draw_maps(setup, shadow, body)
     frame.shade(light, setup, shadow, world=True)
-    out = frame.finish(shadow, read={"world_position", "covered", "map_index"})
+    out = frame.finish(read={"world_position", "covered", "map_index"})
     points = out.world_position[out.covered]
     assert len(points) > 1000
     assert region.contains(view, points, tol=1e-5).all()
