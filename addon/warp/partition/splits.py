@@ -19,16 +19,20 @@ logarithmic split, whose depth ratio C_(i+1)/C_i is the same for every split
 **The depth range is tightened** to where a shadow can be seen: z_n is the
 nearest visible receiver depth (``post_perspective.nearest_visible_depth``,
 PSM §6's near plane "as far away as possible"), z_f the farthest depth of R =
-V ∩ S_r ∩ L (what B is built from), both clipped to a caller's visible depth
-range (a depth pre-pass, ``WarpOptions.visible_depth_range``). A split that
-starts at the camera's near plane while the first visible receiver is 3 m away
-would spend its texels, and its warp, on empty air.
+V ∩ S_r ∩ L (what B is built from), both clipped to the visible region's depth
+range (``visibility``: a depth pre-pass, or the scene's boxes ray-cast) and to
+a caller's ``WarpOptions.visible_depth_range``. A split that starts at the
+camera's near plane while the first visible receiver is 3 m away would spend
+its texels, and its warp, on empty air.
 
-**Stable splits.** Under a moving camera the tightened range moves every
-frame, and with it every split boundary. ``quantised`` rounds the range's ends
-outwards and the boundaries to a geometric ladder (``STEPS_PER_OCTAVE`` per
-doubling of depth), so boundaries stay put while the range moves within one
-step.
+**Each split sees its part of the visible region** (:func:`split_region`):
+every screen tile's interval of visible depths clipped to the split's, so a
+split's B holds what is visible in it, not all that the whole view sees within
+its depths' slab.
+
+Under a moving camera the tightened range moves every frame, and with it
+every split boundary; a stable cascade widens it to whole octaves first
+(``partition.stable``).
 """
 from __future__ import annotations
 
@@ -39,10 +43,7 @@ import numpy as np
 from ..body import IntersectionBody
 from ..post_perspective import nearest_visible_depth
 from ..types import Light, View, WarpError, WarpOptions
-
-STEPS_PER_OCTAVE = 8
-"""Stable splits: depths are quantised to 2^(k/8), about 9 % apart."""
-
+from ..visibility import TileDepths, VisibleRegion
 
 def practical_splits(z_n: float, z_f: float, count: int, lam: float) -> np.ndarray:
     """The PSSM split depths C_0..C_N (``count`` + 1 values, C_0 = z_n and C_N
@@ -59,23 +60,15 @@ def practical_splits(z_n: float, z_f: float, count: int, lam: float) -> np.ndarr
     return c
 
 
-def quantised(splits: np.ndarray) -> np.ndarray:
-    """Split depths on the geometric ladder 2^(k/STEPS_PER_OCTAVE): the range's
-    ends rounded outwards (so it still holds what it held), the inner
-    boundaries to the nearest step, at least one step apart."""
-    k = np.log2(np.asarray(splits, dtype=np.float64)) * STEPS_PER_OCTAVE
-    k = np.concatenate([[math.floor(k[0])], np.rint(k[1:-1]), [math.ceil(k[-1])]])
-    i = np.arange(len(k))
-    k = np.maximum.accumulate(k - i) + i                  # k_(i+1) >= k_i + 1
-    return 2.0 ** (k / STEPS_PER_OCTAVE)
-
-
 def tightened_depth_range(view: View, light: Light, body: IntersectionBody,
                           options: WarpOptions) -> tuple[float, float]:
     """[z_n, z_f]: the eye depths between which a shadowed receiver can be
     seen (module docs), never outside the camera's clip range."""
     z_n = nearest_visible_depth(view, light, body)
     z_f = float(view.eye_depth(body.visible_vertices).max())
+    if body.visible is not None:
+        near, far = body.visible.depth_range
+        z_n, z_f = max(z_n, near), min(z_f, far)
     if options.visible_depth_range is not None:
         near, far = options.visible_depth_range
         z_n, z_f = max(z_n, float(near)), min(z_f, float(far))
@@ -100,3 +93,11 @@ def split_view(view: View, near: float, far: float) -> View:
     of the view frustum V is this view's frustum."""
     projection = with_clip_range(view.projection, near, far, view.orthographic)
     return View(view.camera_to_world, projection, near, far, view.resolution, view.orthographic)
+
+
+def split_region(region: VisibleRegion, near: float, far: float) -> VisibleRegion:
+    """The part of a visible region between eye depths ``near`` and ``far``:
+    each tile's interval clipped to [near, far] (empty where they do not meet)."""
+    t = region.tiles
+    tiles = TileDepths(t.x_edges, t.y_edges, np.maximum(t.near, near), np.minimum(t.far, far), t.samples)
+    return VisibleRegion(tiles, region.source)

@@ -1,0 +1,346 @@
+"""The cascade's numbers (issue 15): against a classic PSSM, against the physical limit, under motion.
+
+    python -m bench.cascade judge                     # numpy only: p95 vs the reference PSSM at equal texels
+    python -m bench.cascade limit [--scenes ...]      # Blender: max error / m_min per sample scene
+    python -m bench.cascade flicker [--scenes ...]    # Blender: flicker over the camera animations, stable on/off
+    python -m bench.cascade all --json out/cascade.json
+
+**judge.** Every bundled example, every named hard case and ``--generated``
+seeded "normal" configurations (a town of boxes, a camera above it, a sun,
+point or spot light): the independent judge (``addon.measure.box_scene``)
+measures coverage and the p95 texel footprint of the cascade with
+``--splits`` splits, each map of the config's size, and of the classic PSSM
+(``bench.reference_pssm``) with as many maps of the same size: equal texels.
+It also runs the cascade with a shared budget of the same total texels.
+Criteria: coverage everywhere, p95 <= 0.8x the reference on every normal
+configuration and <= 1.0x on every hard one.
+
+**limit.** For each sample scene (``sample_blends``), the ground truth's
+visible points (the report's ray caster) and Lloyd's N_min over the view
+(``addon.measure.lloyd``): every single-map method and cascades of 2, 3 and 4
+splits (per map and shared at equal texels) give their measured maximum
+perspective aliasing over the visible points (``perspective_footprints``) over
+m_min = sqrt(N_min / texels); the cascades also their predicted maximum (Lloyd's
+model over each split). Criterion: a 4-split cascade within 3x of m_min on the
+sun scenes.
+
+**flicker.** Each sample scene's camera animation (``--frames`` whole frames,
+as the report takes them), every method with the stable option off and on
+(``cascade_stable`` for the cascade, ``texel_snapping`` for the others), two
+measures:
+
+* *pixel flicker*, the report's (``addon.measure.flicker``): pixels whose
+  shadow changes between consecutive frames where the ground truth keeps its
+  state, each frame rendered through the engine (``bench.report.lixel.frame``).
+  The sample cameras travel metres between frames, so every pixel then shows
+  another world point: a shadow edge that is a texel off the truth, however
+  still it stands in the world, crosses pixels where the truth's edge does
+  not, and counts. This measures the error along edges as much as shimmer.
+* *shimmer*: pixels whose shadow changes when only the maps change, the camera
+  held still: frame k + 1 rendered once with its own maps and once with frame
+  k's (``render_shadows``, same view, geometry and settings). A map that keeps
+  every world point on its texel changes nothing; one whose texel grid moves
+  with the camera changes its jagged edges. This is what the stable option is
+  for ("a static scene under a moving camera does not shimmer").
+
+Criterion: the stable cascade shimmers on at most half the pixels of the
+unstable one (and its pixel flicker is reported beside it).
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+SUN_SCENES = ("forest", "floor_wall", "terrain")
+"""The sample scenes lit by a sun (chess and telephoto have spots)."""
+
+
+# --------------------------------------------------------------------------- judge (numpy only)
+
+def generated_configurations(count: int, seed: int = 1) -> dict:
+    """``count`` normal configurations: a town of random boxes on a 300 m ground, a
+    camera 1.5-30 m above it looking 3-40 degrees down, a sun (8-85 degrees high),
+    a point light above the camera or a spot aimed ahead of it."""
+    sys.path.insert(0, str(ROOT / "tests" / "warp"))
+    from hard_cases import camera, point, spot, sun
+    from addon.warp import SceneBounds
+    rng = np.random.default_rng(seed)
+    out = {}
+    for k in range(count):
+        boxes = [[[-150, -150, -0.1], [150, 150, 0.0]]]
+        for _ in range(int(rng.integers(20, 120))):
+            c, h, s = rng.uniform(-100, 100, 2), rng.uniform(0.5, 15), rng.uniform(0.3, 4, 2)
+            boxes.append([[c[0] - s[0], c[1] - s[1], 0], [c[0] + s[0], c[1] + s[1], h]])
+        scene = SceneBounds.from_boxes(np.array(boxes))
+        pos = np.array([*rng.uniform(-60, 60, 2), rng.uniform(1.5, 30)])
+        yaw, pitch = rng.uniform(0, 2 * np.pi), -math.radians(rng.uniform(3, 40))
+        forward = np.array([math.cos(yaw) * math.cos(pitch), math.sin(yaw) * math.cos(pitch), math.sin(pitch)])
+        view = camera(pos, forward=forward, fov=rng.uniform(40, 75), near=float(rng.choice([0.05, 0.1, 0.5, 1.0])),
+                      far=rng.uniform(80, 400))
+        kind = rng.choice(["SUN"] * 6 + ["POINT", "SPOT"])
+        if kind == "SUN":
+            el, az = math.radians(rng.uniform(8, 85)), rng.uniform(0, 2 * np.pi)
+            light = sun([math.cos(az) * math.cos(el), math.sin(az) * math.cos(el), -math.sin(el)])
+        elif kind == "POINT":
+            light = point(pos + np.array([*rng.uniform(-40, 40, 2), rng.uniform(20, 60)]))
+        else:
+            at = pos + 40 * forward
+            at[2] = 0.0
+            p = pos + np.array([*rng.uniform(-30, 30, 2), rng.uniform(15, 40)])
+            light = spot(p, at - p, math.radians(rng.uniform(40, 100)))
+        out[f"generated_{k:02d}_{kind.lower()}"] = (view, light, scene)
+    return out
+
+
+def judge_configurations(generated: int) -> list:
+    """(name, kind, view, light, scene): the examples and generated ones are
+    "normal", the named hard cases "hard"."""
+    sys.path.insert(0, str(ROOT / "tests" / "warp"))
+    from hard_cases import EMPTY_CASES, HARD_CASES
+    from addon.warp.config import parse_config
+    out = []
+    for path in sorted((ROOT / "examples").glob("*.json")):
+        view, light, scene, _ = parse_config(json.loads(path.read_text()))
+        out.append((path.stem, "normal", view, light, scene))
+    out += [(n, "normal", *c) for n, c in generated_configurations(generated).items()]
+    out += [(n, "hard", *c) for n, c in HARD_CASES.items() if n not in EMPTY_CASES]
+    return out
+
+
+def run_judge(splits: int, size: int, generated: int, samples=(96, 54), log=print) -> list:
+    from addon.measure.box_scene import judge
+    from addon.warp import WarpOptions, compute
+    from bench.reference_pssm import reference_pssm
+    rows = []
+    for name, kind, view, light, scene in judge_configurations(generated):
+        ref = judge(view, light, scene, reference_pssm(view, light, scene, size, splits), samples=samples)
+        row = {"config": name, "kind": kind, "reference_p95": ref.footprint_p95}
+        for budget, total in (("per_map", size), ("shared", None)):
+            options = WarpOptions(shadow_map_size=size, cascade_splits=splits, cascade_budget=budget)
+            t = time.thread_time()
+            setup = compute("cascade", view, light, scene, options)
+            seconds = time.thread_time() - t
+            if budget == "shared":         # the same texels as the per-map cascade, shared by predicted error
+                texels = sum(m.size[0] * m.size[1] for m in row["_maps"])
+                side = int(round(math.sqrt(texels)))
+                setup = compute("cascade", view, light, scene, dataclasses.replace(options, shadow_map_size=side))
+            j = judge(view, light, scene, setup, samples=samples)
+            row[budget] = {"p95": j.footprint_p95, "ratio": j.footprint_p95 / ref.footprint_p95,
+                           "uncovered": j.uncovered, "casters_uncovered": j.casters_uncovered,
+                           "depth_order_wrong": j.depth_order_wrong, "visible": j.visible,
+                           "maps": len(setup.maps), "warps": setup.diagnostics.extra["split_warps"],
+                           "cpu_ms": 1000 * seconds}
+            row["_maps"] = setup.maps if budget == "per_map" else row["_maps"]
+        del row["_maps"]
+        rows.append(row)
+        p, s = row["per_map"], row["shared"]
+        log(f"{name:34s} {kind:6s} ref p95 {ref.footprint_p95:9.3f}  cascade {p['ratio']:5.2f}x "
+            f"(shared {s['ratio']:5.2f}x)  cover {p['uncovered']},{p['casters_uncovered']},{p['depth_order_wrong']}  "
+            f"{p['cpu_ms']:5.0f} ms  {p['warps']}")
+    return rows
+
+
+def judge_checks(rows: list) -> list:
+    lines = []
+    for r in rows:
+        p = r["per_map"]
+        covered = (p["uncovered"], p["casters_uncovered"], p["depth_order_wrong"]) == (0, 0, 0)
+        lines.append((covered, f"coverage: {r['config']}: {p['uncovered']} visible, {p['casters_uncovered']} "
+                               f"casters uncovered, {p['depth_order_wrong']} depth order wrong"))
+        limit = 0.8 if r["kind"] == "normal" else 1.0
+        lines.append((p["ratio"] <= limit, f"p95 vs PSSM: {r['config']} ({r['kind']}): {p['ratio']:.2f}x "
+                                           f"(limit {limit}x)"))
+    return lines
+
+
+# --------------------------------------------------------------------------- the sample scenes (Blender)
+
+def _open(name: str):
+    import bpy
+    bpy.ops.wm.open_mainfile(filepath=str(ROOT / "sample_blends" / f"{name}.blend"))
+    return bpy.context.scene
+
+
+def _truth(scene, resolution, frames):
+    """(views, ground truths) at the (frame, subframe) pairs ``frames`` and ``resolution``."""
+    import bpy
+    from addon.scene.describe import describe_scene
+    from addon.scene.geometry import GeometryCache
+    from bench.report import ground_truth as G
+    scene.render.resolution_x, scene.render.resolution_y = resolution
+    scene.render.resolution_percentage = 100
+    scene.frame_set(frames[0][0], subframe=frames[0][1])
+    geometry = GeometryCache().update(bpy.context.evaluated_depsgraph_get())
+    bvh = G.build_bvh(G.world_triangles(geometry))
+    views, truths = [], []
+    for f, sub in frames:
+        scene.frame_set(f, subframe=sub)
+        view, light, bounds = describe_scene(scene, bpy.context.evaluated_depsgraph_get())
+        views.append((view, light, bounds))
+        truths.append(G.ground_truth(view, light, bvh, bounds.scale()))
+    return views, truths
+
+
+LIMIT_VARIANTS = {"uniform": {}, "psm": {}, "lispsm": {}, "gmnpr": {}, "glpr": {}, "plane_optimal": {},
+                  **{f"cascade {n}": {"cascade_splits": n} for n in (2, 3, 4)},
+                  **{f"cascade {n} shared": {"cascade_splits": n, "cascade_budget": "shared"} for n in (2, 3, 4)}}
+
+
+def run_limit(scenes, size: int, resolution, log=print) -> list:
+    from addon.measure import lloyd
+    from addon.measure.footprint import perspective_footprints
+    from addon.warp import METHODS, WarpOptions, compute
+    rows = []
+    for name in scenes:
+        scene = _open(name)
+        views, truths = _truth(scene, resolution, [(scene.frame_start, 0.0)])
+        (view, light, bounds), truth = views[0], truths[0]
+        points = truth.points[truth.valid]
+        n_min = lloyd.n_min(view, light)
+        for label, fields in LIMIT_VARIANTS.items():
+            method = "cascade" if label.startswith("cascade") else label
+            if method not in METHODS:
+                continue
+            options = WarpOptions(shadow_map_size=size, **fields)
+            if fields.get("cascade_budget") == "shared":       # equal texels with the per-map cascade
+                options = dataclasses.replace(options, shadow_map_size=int(round(size * math.sqrt(fields["cascade_splits"]))))
+            setup = compute(method, view, light, bounds, options)
+            texels = float(sum(m.size[0] * m.size[1] for m in setup.maps))
+            m_min = lloyd.m_min(n_min, texels)
+            measured = float(np.nanmax(perspective_footprints(view, light, setup, points)))
+            row = {"scene": name, "light": light.type, "variant": label, "maps": len(setup.maps), "texels": texels,
+                   "m_min": m_min, "measured_over_limit": measured / m_min}
+            predicted = setup.diagnostics.extra.get("predicted_max_error")
+            if predicted is not None:
+                row["predicted_over_limit"] = predicted / m_min
+            rows.append(row)
+            log(f"{name:10s} {label:18s} {len(setup.maps)} maps  max/m_min measured {row['measured_over_limit']:7.2f}"
+                + (f"  predicted {row['predicted_over_limit']:6.2f}" if predicted is not None else ""))
+    return rows
+
+
+def limit_checks(rows: list) -> list:
+    return [(r["measured_over_limit"] <= 3.0, f"near the limit: {r['scene']} {r['variant']}: max/m_min "
+                                               f"{r['measured_over_limit']:.2f} (limit 3)")
+            for r in rows if r["variant"] == "cascade 4" and r["scene"] in SUN_SCENES]
+
+
+def _shadows(view, light, setup, geometry, settings, resolution) -> tuple[np.ndarray, np.ndarray]:
+    """(shadowed, covered) images of ``setup`` seen from ``view``."""
+    from addon.gpu.pipeline import render_shadows
+    from bench.report.lixel import SHADOW_THRESHOLD
+    res = render_shadows(view, light, setup, geometry, settings, resolution, read={"shadow_raw", "covered"})
+    return np.asarray(res.shadow_raw) >= SHADOW_THRESHOLD, np.asarray(res.covered, dtype=bool)
+
+
+def run_flicker(scenes, size: int, resolution, frames: int, log=print) -> list:
+    import bpy
+    from addon.gpu.context import ensure_gpu_context
+    from addon.measure import flicker
+    from addon.scene.geometry import GeometryCache
+    from addon.warp import METHODS, compute
+    from bench.report.lixel import frame, report_settings
+    from bench.report.run import comparable_mask
+    ensure_gpu_context()
+    rows = []
+    for name in scenes:
+        scene = _open(name)
+        shown = [(f, 0.0) for f in range(scene.frame_start, min(scene.frame_start + frames, scene.frame_end + 1))]
+        views, truths = _truth(scene, resolution, shown)
+        geometry = GeometryCache().update(bpy.context.evaluated_depsgraph_get())
+        for method in METHODS:
+            for stable in (False, True):
+                settings = report_settings(method, size)
+                field = "cascade_stable" if method == "cascade" else "texel_snapping"
+                settings = dataclasses.replace(settings, warp=dataclasses.replace(settings.warp, **{field: stable}))
+                states, valid = [], []
+                for k, (f, _) in enumerate(shown):
+                    scene.frame_set(f)
+                    fr = frame(bpy.context.evaluated_depsgraph_get(), settings, resolution)
+                    states.append(fr.shadow)
+                    valid.append(comparable_mask(truths[k], fr))
+                fl = flicker(np.stack(states), np.stack([t.shadow for t in truths]), np.stack(valid))
+                setups = [compute(method, v, l, b, settings.warp) for v, l, b in views]
+                shimmer, seen = 0, 0
+                for k in range(1, len(views)):
+                    view, light, _ = views[k]
+                    new, covered = _shadows(view, light, setups[k], geometry, settings, resolution)
+                    old, covered_old = _shadows(view, light, setups[k - 1], geometry, settings, resolution)
+                    both = covered & covered_old
+                    shimmer += int((both & (new != old)).sum())
+                    seen += int(both.sum())
+                rows.append({"scene": name, "method": method, "stable": stable, **fl.to_json(),
+                             "shimmer": shimmer, "shimmer_pixels": seen})
+                log(f"{name:10s} {method:14s} stable {'on ' if stable else 'off'}  shimmer {shimmer:6d} of {seen} "
+                    f"pixels ({100 * shimmer / max(seen, 1):.3f} %)  pixel flicker {fl.flips:6d} of "
+                    f"{fl.stable_transitions} ({100 * fl.rate:.3f} %)")
+    return rows
+
+
+def flicker_checks(rows: list) -> list:
+    lines = []
+    for name in sorted({r["scene"] for r in rows}):
+        by = {r["stable"]: r for r in rows if r["scene"] == name and r["method"] == "cascade"}
+        if len(by) == 2:
+            lines.append((by[True]["shimmer"] <= 0.5 * by[False]["shimmer"],
+                          f"stable: {name}: {by[True]['shimmer']} shimmering pixels stable vs {by[False]['shimmer']} "
+                          f"unstable (limit half; pixel flicker {by[True]['flips']} vs {by[False]['flips']})"))
+    return lines
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m bench.cascade", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("what", choices=("judge", "limit", "flicker", "all"))
+    ap.add_argument("--splits", type=int, default=3, help="judge: the cascade's and the reference's splits")
+    ap.add_argument("--size", type=int, default=1024, help="texels per side of each map")
+    ap.add_argument("--generated", type=int, default=24, help="judge: generated normal configurations")
+    ap.add_argument("--scenes", default="forest,chess,floor_wall,terrain,telephoto")
+    ap.add_argument("--resolution", default="640x360")
+    ap.add_argument("--frames", type=int, default=8, help="flicker: frames of each camera animation")
+    ap.add_argument("--json", type=Path, default=None)
+    args = ap.parse_args(argv)
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    scratch = Path(tempfile.gettempdir()) / "lixel-cascade-bench"
+    os.environ.setdefault("XDG_CACHE_HOME", str(scratch / "xdg"))
+    os.environ.setdefault("BLENDER_USER_RESOURCES", str(scratch / "blender-user"))
+    resolution = tuple(int(v) for v in args.resolution.lower().split("x"))
+    scenes = [s for s in args.scenes.split(",") if s]
+    say = lambda s: print(s, flush=True)      # noqa: E731
+    out, checks = {}, []
+    if args.what in ("judge", "all"):
+        out["judge"] = run_judge(args.splits, args.size, args.generated, log=say)
+        checks += judge_checks(out["judge"])
+    if args.what in ("limit", "all"):
+        import bpy  # noqa: F401 - Blender before mathutils
+        out["limit"] = run_limit(scenes, args.size, resolution, log=say)
+        checks += limit_checks(out["limit"])
+    if args.what in ("flicker", "all"):
+        import bpy  # noqa: F401
+        out["flicker"] = run_flicker(scenes, args.size, resolution, args.frames, log=say)
+        checks += flicker_checks(out["flicker"])
+    failed = [line for ok, line in checks if not ok]
+    print(f"\n{len(checks) - len(failed)} of {len(checks)} checks hold")
+    for line in failed:
+        print("FAIL", line)
+    if args.json is not None:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps({**out, "checks": [{"holds": ok, "what": w} for ok, w in checks]}, indent=1))
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    code = main()
+    sys.stdout.flush()
+    os._exit(code)  # Blender 4.2/4.5 may crash or hang at interpreter exit
