@@ -1,6 +1,7 @@
 /* Shading pass: per fragment, world position -> light clip of the first map
  * that serves it (regions first, fallback last: ShadowSetup.map_index), a
- * PCF k x k shadow test with texelFetch on an n-depth map (Pagot et al. §4.2:
+ * PCF k x k shadow test (a plane map: its one lixel, which samples the pixel's
+ * own point) with texelFetch on an n-depth map (Pagot et al. §4.2:
  * the n-shadow test counts the stored keys nearer the light than the fragment,
  * giving n + 1 outcomes per sample and n*k*k + 1 per PCF(k*k, n)), and Lambert
  * lighting in the light's colour.
@@ -158,6 +159,24 @@ vec4 lixel_footprint_colour(float texels_per_pixel)
   return vec4(clamp(-t, 0.0, 1.0), 1.0 - abs(t), clamp(t, 0.0, 1.0), 1.0);
 }
 
+/* One texel's shadow test against the fragment's reference depth: 0 or 1, or
+ * with n depths per texel the n-shadow test's fraction (MDSM §4.2; keys:
+ * smaller = nearer the light, channels beyond n repeat key 0). */
+float lixel_test(int m, ivec2 s, float ref, bool greater)
+{
+  vec4 t = lixel_fetch(m, s);
+#ifdef LIXEL_MDSM
+  float c = 0.0;
+  for (int j = 0; j < LIXEL_MDSM; j++) {
+    c += t[j] < ref ? 1.0 : 0.0;
+  }
+  return c / float(LIXEL_MDSM);
+#else
+  float key = greater ? 1.0 - t.r : t.r;
+  return key < ref ? 1.0 : 0.0;
+#endif
+}
+
 /* Whether map i serves P (clip volume, depth range, region); h = its clip position. */
 bool lixel_serves(int i, vec3 P, float eye_depth, out vec4 h)
 {
@@ -234,19 +253,7 @@ void main()
 #if defined(LIXEL_MDSM) || LIXEL_PCF == 1
     for (int dy = 0; dy < k; dy++) {
       for (int dx = 0; dx < k; dx++) {
-        ivec2 s = clamp(base + ivec2(dx, dy), ivec2(0), size - 1);
-        vec4 t = lixel_fetch(m, s);
-#  ifdef LIXEL_MDSM
-        /* keys: smaller = nearer the light; channels beyond n repeat key 0 */
-        float c = 0.0;
-        for (int j = 0; j < LIXEL_MDSM; j++) {
-          c += t[j] < ref ? 1.0 : 0.0;
-        }
-        hits += c / float(LIXEL_MDSM);
-#  else
-        float key = greater ? 1.0 - t.r : t.r;
-        hits += key < ref ? 1.0 : 0.0;
-#  endif
+        hits += lixel_test(m, clamp(base + ivec2(dx, dy), ivec2(0), size - 1), ref, greater);
       }
     }
 #else
@@ -266,6 +273,14 @@ void main()
     }
 #endif
     shadow = hits / float(k * k);
+#ifdef LIXEL_REGIONS
+    /* A plane map (a map with a region) samples each pixel's own point of its
+     * plane (Chong-Gortler §2): the test of that one lixel is the exact shadow
+     * there, and the k x k taps would only blur it over k pixels. */
+    if (lixel.maps[m].range.w > 0.5) {
+      shadow = lixel_test(m, ivec2(floor(tc)), ref, greater);
+    }
+#endif
   }
 
   vec3 L;

@@ -533,8 +533,8 @@ class WarpOptions:
         wider needs take cube faces.
     planes: planes of interest for plane_optimal, [(point, normal), ...].
     plane_budget: the most of the texel budget (shadow_map_size area) plane maps
-        may take for one lixel per pixel; more lixels per pixel (whole numbers)
-        only while the fallback keeps 70 %; the fallback gets the rest (plane_optimal).
+        may take; they take only what one lixel per pixel needs, the fallback
+        gets the rest (plane_optimal).
     plane_twist: "auto" (rotate a plane map's image when the budget forces fewer
         lixels than pixels and the rotated rectangle is tighter), "on", "off"
         (Chong-Gortler §2, "twist").

@@ -86,18 +86,15 @@ def plane_scale(setup):
 
 def assert_pixel_centres_are_lixel_centres(view, setup):
     """Chong-Gortler §2, "for each pixel ... exactly one lixel ... samples the
-    exact same geometric point", with N (a whole number) lixels per pixel along
-    each axis: on the plane, pixel -> texel is t = N·p + c (no rotation, no
-    perspective), and the centre p = i + ½ of every pixel i lands on the centre
-    of texel N·i + k: N(i + ½) + c - ½ is a whole number for every i."""
-    n = plane_scale(setup)
-    assert n >= 1 and n == int(n)
+    exact same geometric point": one lixel per pixel, and on the plane pixel
+    -> texel is t = p + c (no scale, rotation or perspective) with c a whole
+    number, so the centre p = i + ½ of every pixel i is the centre of texel i + c."""
+    assert plane_scale(setup) == 1.0
     for _, m in plane_maps(setup):
         g = pixel_to_texel_homography(view, m, m.region.normal, m.region.normal * m.region.offset)
         g = g / g[2, 2]
-        assert np.allclose(g[:2, :2], n * np.eye(2), atol=1e-9 * n) and np.allclose(g[2, :2], 0, atol=1e-12)
-        first_centre = g[:2, 2] + n / 2 - 0.5         # pixel (0, 0)'s centre, in texels, less ½
-        assert np.allclose(first_centre, np.round(first_centre), atol=1e-6)
+        assert np.allclose(g[:2, :2], np.eye(2), atol=1e-9) and np.allclose(g[2, :2], 0, atol=1e-12)
+        assert np.allclose(g[:2, 2], np.round(g[:2, 2]), atol=1e-6)
 
 
 def plane_basis(normal, point):

@@ -170,7 +170,7 @@ def _plane_jobs(seed, **options):
 @pytest.mark.parametrize("seed", range(20))
 def test_the_depth_fit_from_the_stored_points_is_the_unit_cube_fit(seed):
     view, _, _, opts, tol, jobs = _plane_jobs(seed, linear_z=seed % 2 == 0)
-    s = plane_optimal._share_budget(jobs, 0.75 * 1024 * 1024, 0.3 * 1024 * 1024, "auto")
+    s = plane_optimal._share_budget(jobs, 0.75 * 1024 * 1024, "auto")
     for job in jobs:
         got = plane_optimal._plane_map(job, s, view.position, tol, opts)
         m = got.matrix @ translation(view.position)

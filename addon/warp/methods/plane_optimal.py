@@ -20,15 +20,17 @@ fallback map (§3):
   in front of the camera, inside the spot cone and the receivers' bounds),
   limited to the plane's extent polygon if it has one. Their light image is
   bounded by a rectangle of whole lixels; its lower-left lixel is renumbered
-  (0, 0). A uniform 2D scale s, the same for every plane, sets the lixels per
-  pixel: a whole number N >= 1 when the budget holds one lixel per pixel, else
-  s < 1 with optionally a twist (a 2D rotation, ``WarpOptions.plane_twist``)
-  that shrinks the rectangle. The point of the plane under pixel coordinates p
-  (pixel (i, j)'s centre at (i + ½, j + ½)) lands on lixel s·R(θ)·(p - ½) -
-  (i0, j0), whose centre is sampled at texel coordinate + ½: at N lixels per
-  pixel every pixel centre is a lixel centre (its lixel samples exactly the
-  pixel's point), and at one lixel per pixel the map is the identity up to the
-  renumbering.
+  (0, 0). The point of the plane under pixel coordinates p (pixel (i, j)'s
+  centre at (i + ½, j + ½)) lands on lixel s·R(θ)·(p - ½) - (i0, j0), whose
+  centre is sampled at texel coordinate + ½. At one lixel per pixel (s = 1,
+  no twist) the map is the identity up to the renumbering: every pixel centre
+  is a lixel centre, so the lixel samples exactly the pixel's point, and the
+  shading pass reads that one lixel unfiltered (``gpu_shaders/shade_frag.glsl``:
+  the shadow on the plane is then the ray-cast one; a PCF kernel would only
+  blur it over k pixels). When the budget holds fewer lixels than pixels, a
+  uniform 2D scale s < 1 is included, the same for every plane, and
+  optionally a twist (a 2D rotation, ``WarpOptions.plane_twist``) that shrinks
+  the rectangle.
 * **Regions and order** (§3): map k serves ``Region`` (the plane, the needed
   polygon, a tolerance): points within the tolerance of the plane whose
   projection falls in the polygon. Plane maps come first in plane order, the
@@ -39,12 +41,11 @@ fallback map (§3):
   of B minus the plane regions. The regions are slabs of width 2·tolerance, so
   that hull is B itself: the fallback covers every point of B.
 * **Budget** (§3: each map gets a fixed number of lixels): T =
-  shadow_map_size texels. One lixel per pixel comes first and may take up to
-  ``plane_budget``·T; beyond it the plane maps buy whole lixels per pixel N
-  (the PCF kernel then spans k / N pixels, so the plane's error falls with the
-  map size) only while the fallback keeps FALLBACK_SHARE of T. Every fallback
-  map gets the rest (T minus the plane maps' texels; the per-map convention of
-  ``uniform.map_sizes``). Reported in ``diagnostics.extra["budget"]``.
+  shadow_map_size texels. Plane maps together take at most ``plane_budget``·T
+  and only what one lixel per pixel needs (more would sample the same points
+  again); every fallback map gets the rest (T minus the plane maps' texels;
+  the per-map convention of ``uniform.map_sizes``), so a larger T refines the
+  fallback. Reported in ``diagnostics.extra["budget"]``.
 * **Planes**: ``WarpOptions.planes`` ((point, normal) or (point, normal,
   extent polygon)); without any, the top face of the widest flat receiver box
   (``plane_map.default_plane``).
@@ -85,11 +86,6 @@ REGION_TOLERANCE = 1e-6
 NEAR_FRACTION = 1e-6
 """A point light inside B: casters nearer than this fraction of the scene scale
 to the light's height are left out of a plane map (as ``frame.perspective_frame``)."""
-FALLBACK_SHARE = 0.7
-"""Beyond one lixel per pixel, plane maps buy more lixels per pixel only while
-the fallback keeps this share of the texel budget: the fallback serves every
-surface off the planes, and with 70 % its texels stay within 1/√0.7 ≈ 1.2x the
-uniform map's."""
 TWIST_GAIN = 0.99
 """plane_twist='auto' twists when the rotated rectangle is below this fraction
 of the unrotated one and the budget forces fewer lixels than pixels."""
@@ -450,11 +446,10 @@ def _rect(pixels: list, s: float, theta: float) -> tuple[int, int, int, int]:
 def _lixel_of_pixel(s: float, theta: float) -> list:
     """The pixel -> lixel lattice map ℓ = s·R(θ)·(p - ½) (the first two rows
     of its 3x3 matrix). Pixel (i, j) covers [i, i + 1] x [j, j + 1] (its centre
-    at p = (i + ½, j + ½), as the viewer's pixel map puts it), so with a whole
-    number s = N and no twist every pixel centre lands on the lattice point
-    N·(i, j): the centre of a lixel, which then samples exactly the pixel's
-    point of the plane (§2: "exactly one lixel ... samples the exact same
-    geometric point"; at N = 1 the identity up to the renumbering)."""
+    at p = (i + ½, j + ½), as the viewer's pixel map puts it), so at s = 1 and
+    no twist every pixel centre lands on the lattice point (i, j): the centre
+    of a lixel, which then samples exactly the pixel's point of the plane (§2:
+    "exactly one lixel ... samples the exact same geometric point")."""
     c, sn = s * math.cos(theta), s * math.sin(theta)
     return [[c, -sn, -0.5 * (c - sn)], [sn, c, -0.5 * (sn + c)]]
 
@@ -473,18 +468,12 @@ def _fits(rects: list, budget: float) -> bool:
     return sum(map(_texels, rects)) <= budget and max(max(r[2] - r[0], r[3] - r[1]) for r in rects) <= MAX_SIDE
 
 
-def _share_budget(jobs: list[_PlaneJob], budget: float, extra_budget: float, twist_mode: str) -> float:
+def _share_budget(jobs: list[_PlaneJob], budget: float, twist_mode: str) -> float:
     """The common lixels-per-pixel scale s of the plane maps, and each map's
-    twist and rectangle.
-
-    One lixel per pixel, the paper's exact sampling (§2), comes first: it may
-    take up to ``budget`` texels. More lixels per pixel are bought only in
-    whole numbers N per axis, so that every pixel centre stays a lixel centre
-    (``_lixel_of_pixel``) and a PCF kernel of k lixels spans k / N pixels (the
-    plane's error falls with the map size), and only within ``extra_budget``
-    texels. A budget below one lixel per pixel buys the largest s < 1 that
-    fits (the lixels then appear as squares of 1/s pixels, §2), with the twist
-    when it makes the rectangles smaller (``plane_twist``)."""
+    twist and rectangle, within ``budget`` texels: one lixel per pixel (the
+    paper's exact sampling, §2) when it fits, else the largest s < 1 that does
+    (the lixels then appear as squares of 1/s pixels, §2), with the twist when
+    it makes the rectangles smaller (``plane_twist``)."""
     if not jobs:
         return 1.0
     for j in jobs:
@@ -492,13 +481,7 @@ def _share_budget(jobs: list[_PlaneJob], budget: float, extra_budget: float, twi
     need = sum(map(_texels, _rects(jobs, 1.0)))
     if twist_mode == "on" or (twist_mode == "auto" and need > budget):
         _choose_twists(jobs, always=twist_mode == "on")
-    if _fits(_rects(jobs, 1.0), budget):
-        extra = min(budget, extra_budget)
-        s = float(max(1, math.isqrt(int(extra // need))))
-        while s > 1.0 and not _fits(_rects(jobs, s), extra):
-            s -= 1.0
-    else:
-        s = _fraction_of_a_lixel(jobs, budget)
+    s = 1.0 if _fits(_rects(jobs, 1.0), budget) else _fraction_of_a_lixel(jobs, budget)
     for j, r in zip(jobs, _rects(jobs, s)):
         j.rect = r
     return s
@@ -590,7 +573,7 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
         jobs = sorted(ranked[:max(room, 0)], key=lambda j: j.index)
     total = options.shadow_map_size[0] * options.shadow_map_size[1]
     plane_budget = options.plane_budget * total
-    s = _share_budget(jobs, plane_budget, (1.0 - FALLBACK_SHARE) * total, options.plane_twist)
+    s = _share_budget(jobs, plane_budget, options.plane_twist)
     maps = [_plane_map(j, s, origin, tol, options) for j in jobs]
     used = sum(m.size[0] * m.size[1] for m in maps)
     remaining = max(total - used, 1)
