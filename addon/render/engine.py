@@ -47,7 +47,7 @@ _watchers: list = []
 @contextmanager
 def watch_renders(read=()):
     """Collect what each engine render inside the block produced, in order: a
-    list of :func:`render_depsgraph` dicts. The engine itself keeps nothing
+    list of :func:`render_depsgraph` dicts, with the ``warnings`` it reported. The engine itself keeps nothing
     between renders; only the caller's list holds the results, for as long as
     the caller keeps it. ``read``: images to read back besides the engine's
     passes (``addon.gpu.result.RenderResult`` names, e.g. ``{"covered"}``)."""
@@ -190,7 +190,7 @@ class LixelRenderEngine(bpy.types.RenderEngine):
         for msg in warnings:
             self.report({"WARNING"}, msg)
         for got, _ in _watchers:
-            got.append(out)
+            got.append({**out, "warnings": tuple(warnings)})
         res = out["result"]
         t = time.perf_counter()
         w, h = res.resolution  # the full frame (a render border is not cropped)

@@ -2,14 +2,13 @@
 makes is marked (addon/scene/owned.py); when a user's datablock already has the
 name Lixel wants, Lixel's gets Blender's next free name and the user's is left
 exactly as it was. Checked for every operator that makes data."""
-import hashlib
 import importlib
 
 import bpy
 import numpy as np
 import pytest
 
-from ui_scenes import active_scene
+from ui_scenes import active_scene, digest
 
 LIXEL_NAMES = ("Lixel B", "Lixel View Frustum", "Lixel Light Frustum 0 (main)", "Lixel Light Matrices",
                "Lixel Frustum (map 0)")
@@ -45,37 +44,6 @@ def _geometry_node_group(name):
     tree.nodes.new("GeometryNodeMeshCube").name = "user's cube"
     tree.links.new(a.outputs[0], b.inputs[0])
     return tree
-
-
-def digest(idb) -> str:
-    """A fingerprint of everything a user would notice changed in a datablock."""
-    h = hashlib.sha256()
-    h.update(repr((type(idb).__name__, idb.name, sorted(idb.keys()))).encode())
-    if isinstance(idb, bpy.types.Mesh):
-        co = np.empty(len(idb.vertices) * 3)
-        idb.vertices.foreach_get("co", co)
-        h.update(co.tobytes())
-        h.update(repr((len(idb.polygons), len(idb.edges), [m.name if m else None for m in idb.materials],
-                       sorted(a.name for a in idb.attributes))).encode())
-    elif isinstance(idb, bpy.types.Object):
-        h.update(repr((idb.data.name if idb.data else None, [tuple(r) for r in idb.matrix_world],
-                       [(m.name, m.type) for m in idb.modifiers], idb.hide_render,
-                       sorted(c.name for c in idb.users_collection))).encode())
-    elif isinstance(idb, bpy.types.Collection):
-        h.update(repr(sorted(o.name for o in idb.objects)).encode())
-    elif isinstance(idb, bpy.types.NodeTree):
-        h.update(repr((sorted(n.name for n in idb.nodes), len(idb.links),
-                       [i.name for i in idb.interface.items_tree])).encode())
-    elif isinstance(idb, bpy.types.Material):
-        h.update(repr((tuple(idb.diffuse_color),
-                       sorted(n.name for n in idb.node_tree.nodes) if idb.node_tree else None)).encode())
-    elif isinstance(idb, bpy.types.Text):
-        h.update(idb.as_string().encode())
-    elif isinstance(idb, bpy.types.Image):
-        px = np.empty(idb.size[0] * idb.size[1] * 4, dtype=np.float32)
-        idb.pixels.foreach_get(px)
-        h.update(repr(tuple(idb.size)).encode() + px.tobytes())
-    return h.hexdigest()
 
 
 @pytest.fixture

@@ -1,10 +1,12 @@
 """Tiny scenes for the UI, operator, node and script tests, built with bpy.data
 (no operators, so building never depends on what is being tested)."""
 import contextlib
+import hashlib
 import math
 
 import bpy
 import mathutils
+import numpy as np
 
 
 def _link(scene, name, data, location=(0, 0, 0), rotation=(0, 0, 0)):
@@ -89,3 +91,34 @@ def active_scene(name="lixel_ui", **kw):
     finally:
         window.scene = old
         remove_scene(scene)
+
+
+def digest(idb) -> str:
+    """A fingerprint of everything a user would notice changed in a datablock."""
+    h = hashlib.sha256()
+    h.update(repr((type(idb).__name__, idb.name, sorted(idb.keys()))).encode())
+    if isinstance(idb, bpy.types.Mesh):
+        co = np.empty(len(idb.vertices) * 3)
+        idb.vertices.foreach_get("co", co)
+        h.update(co.tobytes())
+        h.update(repr((len(idb.polygons), len(idb.edges), [m.name if m else None for m in idb.materials],
+                       sorted(a.name for a in idb.attributes))).encode())
+    elif isinstance(idb, bpy.types.Object):
+        h.update(repr((idb.data.name if idb.data else None, [tuple(r) for r in idb.matrix_world],
+                       [(m.name, m.type) for m in idb.modifiers], idb.hide_render,
+                       sorted(c.name for c in idb.users_collection))).encode())
+    elif isinstance(idb, bpy.types.Collection):
+        h.update(repr(sorted(o.name for o in idb.objects)).encode())
+    elif isinstance(idb, bpy.types.NodeTree):
+        h.update(repr((sorted(n.name for n in idb.nodes), len(idb.links),
+                       [i.name for i in idb.interface.items_tree])).encode())
+    elif isinstance(idb, bpy.types.Material):
+        h.update(repr((tuple(idb.diffuse_color),
+                       sorted(n.name for n in idb.node_tree.nodes) if idb.node_tree else None)).encode())
+    elif isinstance(idb, bpy.types.Text):
+        h.update(idb.as_string().encode())
+    elif isinstance(idb, bpy.types.Image):
+        px = np.empty(idb.size[0] * idb.size[1] * 4, dtype=np.float32)
+        idb.pixels.foreach_get(px)
+        h.update(repr(tuple(idb.size)).encode() + px.tobytes())
+    return h.hexdigest()
