@@ -249,7 +249,8 @@ def classify_updates(scene, depsgraph) -> set:
         orig = getattr(idb, "original", idb)
         if isinstance(orig, bpy.types.Scene):
             changed.add("settings")
-            changed.add("view")  # the scene camera or the render size may have changed
+            changed.add("view")   # the scene camera or the render size may have changed
+            changed.add("light")  # an object added or deleted (the light itself) changes which light Lixel uses
         elif isinstance(orig, bpy.types.Object):
             if cam is not None and orig == cam:
                 changed.add("view")

@@ -273,6 +273,27 @@ def test_the_audit_catalogue(mods, catalogue_scene, tmp_path, name, entry):
         CHECKS[case.check](mods, scene, result, message, tmp_path)
 
 
+LIVE_CASES = [n for n, c in CASES.items() if c.refused and not c.operators_may_work and n not in ("empty_scene",)]
+
+
+@pytest.mark.parametrize("name", LIVE_CASES)
+def test_live_updates_after_a_case_say_why_and_print_nothing(mods, catalogue_scene, name):
+    """With live update on (the default), the scene was computed, then the user
+    makes it bad: every depsgraph update after that keeps the message in the
+    live state (the panel and the overlay's status line show it), never a
+    traceback from the handler."""
+    scene = catalogue_scene
+    assert scene.lixel.live_update
+    assert bpy.ops.lixel.refresh() == {"FINISHED"}
+    with captured() as out:
+        CASES[name].change(scene)
+        bpy.context.view_layer.update()
+        scene.frame_set(scene.frame_current)  # and one more update
+    assert "Traceback" not in out[0], out[0][-3000:]
+    st = mods.live.state(scene)
+    assert st is not None and re.search(CASES[name].refused, st.error), st.error
+
+
 # --- what a rendered image must be ------------------------------------------------------------------------------
 
 def _mismatch(a, b) -> float:
