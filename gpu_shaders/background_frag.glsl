@@ -6,8 +6,12 @@
 void main()
 {
   out_color = u_background;
+#ifdef LIXEL_SHADOW_TARGET
   out_shadow = vec4(0.0, 0.0, 0.0, 1.0);
+#endif
+#ifdef LIXEL_FOOTPRINT
   out_footprint = vec4(0.0, 0.0, 0.0, 1.0);
+#endif
 #ifdef LIXEL_DATA
   out_data = vec4(0.0);
 #endif

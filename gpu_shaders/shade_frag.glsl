@@ -28,15 +28,16 @@
  *   LIXEL_SLOPE_BIAS the slope-scale term is on
  *   LIXEL_BLURRED    the eye-space blur follows: out_color is the unshadowed
  *                    light (compose_frag.glsl shadows it after the blur)
- *   LIXEL_DATA / LIXEL_WORLD  the analysis targets are written
+ *   LIXEL_SHADOW_TARGET / LIXEL_FOOTPRINT / LIXEL_DATA / LIXEL_WORLD
+ *                    the optional targets (what the frame reads back)
  *
  * Outputs (addon/gpu/pipeline.py ShadowFrame.shade):
  *   out_color     = (ambient * albedo + direct * (1 - shadow), 1), or
  *                   (direct, 1) with LIXEL_BLURRED; direct = light * albedo / pi
- *   out_shadow    = (shadow 0..1, 0, 0, 1)
+ *   out_shadow    = (shadow 0..1, 0, 0, 1), LIXEL_SHADOW_TARGET
  *   out_footprint = the footprint heatmap of the texels per pixel t
  *                   (log2 t / 4 clamped to [-1, 1]: red below one texel per
- *                   pixel (undersampled), green at one, blue above)
+ *                   pixel (undersampled), green at one, blue above), LIXEL_FOOTPRINT
  *   out_data      = (shadow, map index or -1, texels per pixel, eye depth), LIXEL_DATA
  *   out_world     = (world position, 1), LIXEL_WORLD
  * Pixels no surface covers keep the targets' clear values (the world colour
@@ -308,8 +309,12 @@ void main()
 #else
   out_color = vec4(direct * (1.0 - shadow) + lixel.ambient.rgb * lixel.light_color.w, 1.0);
 #endif
+#ifdef LIXEL_SHADOW_TARGET
   out_shadow = vec4(shadow, 0.0, 0.0, 1.0);
+#endif
+#ifdef LIXEL_FOOTPRINT
   out_footprint = lixel_footprint_colour(texels_per_pixel);
+#endif
 #ifdef LIXEL_DATA
   out_data = vec4(shadow, float(index), texels_per_pixel, eye_depth);
 #endif

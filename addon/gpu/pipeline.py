@@ -368,26 +368,32 @@ class ShadowFrame:
         return self.maps
 
     def shade(self, light: Light, setup: ShadowSetup, shadow: ShadowSettings, albedo: float = DEFAULT_ALBEDO,
-              spot_blend: float = 0.0, ambient=DEFAULT_AMBIENT, data: bool = False, world: bool = False) -> None:
+              spot_blend: float = 0.0, ambient=DEFAULT_AMBIENT, read=ANALYSIS) -> None:
         """The shading pass over the pre-pass depth (LESS_EQUAL, no depth
-        writes): the combined image, the shadow and the footprint heatmap per
-        pixel (the unshadowed light when the eye-space blur follows, see
-        :meth:`finish`); ``data``: also (shadow, map index, texels per pixel,
-        eye depth); ``world``: also the world position (the report; implies ``data``)."""
+        writes), writing only the targets the images in ``read`` come from
+        (the :meth:`finish` that follows takes the same ``read``): the
+        combined image (the unshadowed light when the eye-space blur follows),
+        the shadow, the footprint heatmap, (shadow, map index, texels per
+        pixel, eye depth), the world position."""
         import gpu
         if self._depth is None:
             self.camera_prepass()
         if setup is not self.setup:
             raise WarpError("shade() takes the setup whose maps draw_maps() drew")
         t = time.perf_counter()
+        read = check_read(read)
         blurred = shadow.eye_blur > 0
+        world = "world_position" in read
         variant = shaders.ShadeVariant(
             map_count=len(setup.maps), light=light.type, pcf=shadow.pcf_kernel, mdsm=shadow.mdsm_depths,
             slope_bias=bias_vector(shadow)[1] > 0, regions=any(m.region is not None for m in setup.maps),
             ranges=any(m.view_depth_range is not None for m in setup.maps), blurred=blurred,
-            data=data or blurred or world, world=world)
+            shadow_target=not blurred and bool(read & {"shadow_mask", "shadow_raw"}),
+            footprint="footprint_heatmap" in read, data=needs_data(read) or blurred, world=world)
         ambient = tuple(float(c) for c in ambient)
-        spec = [("color", "RGBA32F"), ("shadow", "R32F"), ("footprint", "RGBA32F")]
+        spec = [("color", "RGBA32F")]
+        spec += [("shadow", "R32F")] if variant.shadow_target else []
+        spec += [("footprint", "RGBA32F")] if variant.footprint else []
         spec += [("data", "RGBA32F")] if variant.data else []
         spec += [("world", "RGBA32F")] if world else []
         textures = {name: self.targets.texture(name, self.size, fmt) for name, fmt in spec}
@@ -400,7 +406,7 @@ class ShadowFrame:
             gpu.state.depth_test_set("LESS_EQUAL")
             gpu.state.depth_mask_set(False)
             # The background first: what no receiver covers (no target is cleared).
-            bg = shaders.background_shader(variant.data, variant.world)
+            bg = shaders.background_shader(variant)
             bg.bind()
             bg.uniform_float("u_background", (0.0, 0.0, 0.0, 0.0) if blurred else (*ambient, 1.0))
             compose.fullscreen_batch().draw(bg)
@@ -432,17 +438,19 @@ class ShadowFrame:
         sh = self._shaded
         variant = sh["variant"]
         data_images = {"shadow_raw", "covered", "eye_depth", "map_index", "texels_per_pixel"}
-        if "world_position" in read and not variant.world:
-            raise WarpError("the world position is made only when shade(world=True) asks for it")
-        if read & (data_images - {"shadow_raw"}) and not variant.data:
-            raise WarpError(f"{', '.join(sorted(read & data_images))}: made only when shade(data=True) asks for them")
+        missing = (read & {"world_position"} if not variant.world else set()) | \
+            (read & (data_images - {"shadow_raw"}) if not variant.data else set()) | \
+            (read & {"footprint_heatmap"} if not variant.footprint else set()) | \
+            (read & {"shadow_mask", "shadow_raw"} if not (variant.shadow_target or variant.blurred) else set())
+        if missing:
+            raise WarpError(f"{', '.join(sorted(missing))}: made only when shade(read=...) asks for them")
         t = time.perf_counter()
         size, targets, tex = self.size, self.targets, sh["textures"]
         combined_fb = mask_fb = None
         if variant.blurred and read & {"combined", "shadow_mask"}:
             d_near, _ = compose.reduce_range(targets, tex["data"], size, channel=3, above=0.0)
-            mask = compose.eye_blur_pass(targets, size, tex["data"], sh["eye_blur"], d_near) \
-                if math.isfinite(d_near) else tex["shadow"]
+            mask = compose.eye_blur_pass(targets, size, tex["data"], sh["eye_blur"], d_near if math.isfinite(d_near)
+                                         else 1.0)
             mask_fb = targets.framebuffer(colors=(mask,))
             combined_fb = compose.compose_pass(targets, size, tex["color"], mask, sh["ambient"], sh["albedo"])
         preview = None
@@ -477,7 +485,7 @@ class ShadowFrame:
                 world = self._read_target("world")
                 out.world_position = np.where(covered[..., None], world[..., :3] + self.origin, np.nan)
         elif "shadow_raw" in read:
-            out.shadow_raw = self._read_target("shadow", 1)
+            out.shadow_raw = out.shadow_mask if out.shadow_mask is not None else self._read_target("shadow", 1)
         if "shadow_maps" in read:
             out.shadow_maps = [compose.read_depth(f, tuple(int(v) for v in m.size))
                                for (_, f), m in zip(self.maps, self.setup.maps)]
@@ -498,7 +506,8 @@ class ShadowFrame:
             per_map_bytes=map_bytes,
             mdsm_bytes_per_layer=list(map_bytes) if self.keys else [],
             mdsm_texture_bytes=[b * 4 for b in map_bytes] if self.keys else [],
-            render_target_bytes=w * h * (4 + 16 + 4 + 16 + 16 * (variant.data + variant.world)),
+            render_target_bytes=w * h * (4 + 16 + 4 * variant.shadow_target + 16 * (variant.footprint + variant.data +
+                                                                              variant.world)),
         )
         out.timings = dict(self.timings)
         out.counts = c
@@ -550,6 +559,5 @@ def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, setti
             body = None
     frame.camera_prepass()
     frame.draw_maps(setup, shadow, body)
-    frame.shade(light, setup, shadow, albedo, spot_blend, ambient, data=needs_data(read),
-                world="world_position" in read)
+    frame.shade(light, setup, shadow, albedo, spot_blend, ambient, read)
     return frame.finish(read)

@@ -12,8 +12,6 @@ from typing import Optional
 
 import numpy as np
 
-ENGINE_PASSES = frozenset({"combined", "shadow_mask", "footprint_heatmap", "shadow_map_preview"})
-"""What the render engine writes into its passes."""
 ANALYSIS = frozenset({"combined", "shadow_mask", "shadow_raw", "covered", "eye_depth", "map_index",
                       "texels_per_pixel", "footprint_heatmap"})
 """The per-pixel images of the shading pass (the default read)."""

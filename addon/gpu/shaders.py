@@ -97,6 +97,10 @@ class ShadeVariant:
     ranges: bool = False
     blurred: bool = False
     """The eye-space blur follows: the colour target gets the unshadowed light."""
+    shadow_target: bool = True
+    """Write the shadow into a target of its own (the Shadow pass)."""
+    footprint: bool = True
+    """Write the footprint heatmap (the Footprint pass)."""
     data: bool = False
     """Also write (shadow, map index, texels per pixel, eye depth)."""
     world: bool = False
@@ -109,8 +113,15 @@ class ShadeVariant:
     @property
     def outputs(self) -> tuple[str, ...]:
         """The fragment outputs, in target order."""
-        return ("out_color", "out_shadow", "out_footprint") + (("out_data",) if self.data else ()) + \
+        return ("out_color",) + (("out_shadow",) if self.shadow_target else ()) + \
+            (("out_footprint",) if self.footprint else ()) + (("out_data",) if self.data else ()) + \
             (("out_world",) if self.world else ())
+
+    @property
+    def flags(self) -> dict:
+        """The GLSL defines of the optional targets."""
+        return {"LIXEL_SHADOW_TARGET": self.shadow_target, "LIXEL_FOOTPRINT": self.footprint,
+                "LIXEL_DATA": self.data, "LIXEL_WORLD": self.world}
 
 
 LIGHT_CODES = {"SUN": 0, "POINT": 1, "SPOT": 2}
@@ -133,11 +144,13 @@ def _shade_info(prepass: bool, variant: ShadeVariant = ShadeVariant()):
     info.define("LIXEL_MAP_COUNT", str(v.map_count))
     info.define("LIXEL_LIGHT", str(LIGHT_CODES[v.light]))
     info.define("LIXEL_PCF", str(int(v.pcf)))
-    for flag, name in ((v.mdsm > 1, "LIXEL_MDSM"), (v.slope_bias, "LIXEL_SLOPE_BIAS"), (v.regions, "LIXEL_REGIONS"),
-                       (v.ranges, "LIXEL_RANGES"), (v.blurred, "LIXEL_BLURRED"), (v.data, "LIXEL_DATA"),
-                       (v.world, "LIXEL_WORLD")):
-        if flag:
-            info.define(name, str(int(v.mdsm)) if name == "LIXEL_MDSM" else "1")
+    if v.mdsm > 1:
+        info.define("LIXEL_MDSM", str(int(v.mdsm)))
+    flags = {"LIXEL_SLOPE_BIAS": v.slope_bias, "LIXEL_REGIONS": v.regions, "LIXEL_RANGES": v.ranges,
+             "LIXEL_BLURRED": v.blurred, **v.flags}
+    for name, on in flags.items():
+        if on:
+            info.define(name, "1")
     info.typedef_source(LIXEL_SHADE.glsl())
     info.uniform_buf(0, LIXEL_SHADE.name, "lixel")
     for i in range(MAX_MAPS):
@@ -173,16 +186,18 @@ def _fullscreen_info(name: str, at_far: bool = False):
     return info
 
 
+def background_shader(variant: ShadeVariant):
+    """Every target of a shading pass of ``variant`` where no receiver is seen
+    (``background_frag.glsl``)."""
+    return _background_shader(variant.outputs, tuple(sorted(n for n, on in variant.flags.items() if on)))
+
+
 @functools.lru_cache(maxsize=None)
-def background_shader(data: bool, world: bool):
-    """Every target of a shading pass (:class:`ShadeVariant` ``data``/``world``)
-    where no receiver is seen (``background_frag.glsl``)."""
+def _background_shader(outputs: tuple, defines: tuple):
     info = _fullscreen_info("background_frag.glsl", at_far=True)
     info.push_constant("VEC4", "u_background")
-    outputs = ShadeVariant(data=data, world=world).outputs
-    for flag, name in ((data, "LIXEL_DATA"), (world, "LIXEL_WORLD")):
-        if flag:
-            info.define(name, "1")
+    for name in defines:
+        info.define(name, "1")
     for slot, name in enumerate(outputs):
         info.fragment_out(slot, "VEC4", name)
     return _create(info, "shading background")

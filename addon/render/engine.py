@@ -2,10 +2,14 @@
 ``bpy.ops.render.render()`` render the scene's camera view shaded with Lixel's
 warped shadow maps.
 
-Passes: Combined; "Shadow" (0 lit .. 1 fully shadowed); "Footprint" (the
-shadow-map texel footprint heatmap, see ``gpu_shaders/compose_frag.glsl``);
-"Shadow Map" (the first map's window depth, resampled to the render size).
-The frame stays on the GPU until these four images are read back, once.
+Passes: Combined, and per view layer (View Layer properties > Lixel Passes,
+``view_layer.lixel_passes``) "Shadow" (0 lit .. 1 fully shadowed; on by
+default), "Footprint" (the shadow-map texel footprint heatmap, see
+``gpu_shaders/shade_frag.glsl``) and "Shadow Map" (the first map's window
+depth, resampled to the render size), both off by default like Blender's own
+extra passes: each costs the frame a target, a read-back and the memory of
+the pass. The frame stays on the GPU until the passes asked for are read
+back, once.
 Nothing is kept after a render: the result (every map at full resolution,
 timings, counts; a 16384² map alone is 1 GiB) is freed when the render ends.
 Code that wants it (tests, tools) collects it with :func:`watch_renders`.
@@ -25,7 +29,7 @@ from typing import Optional
 import bpy
 import numpy as np
 
-from ..guard import user_message
+from ..guard import guarded_draw, user_message
 from ..scene.owned import is_debug_object
 from ..settings import LixelSettings
 from ..warp import compute, focused_body
@@ -35,11 +39,59 @@ from ..warp.types import Diagnostics, EmptyBodyError, ShadowMap, ShadowSetup, Wa
 log = logging.getLogger(__name__)
 
 EXTRA_PASSES = (
-    # name, channels, channel ids, compositor socket type
-    ("Shadow", 1, "X", "VALUE"),
-    ("Footprint", 4, "RGBA", "COLOR"),
-    ("Shadow Map", 1, "Z", "VALUE"),
+    # name, channels, channel ids, compositor socket type, view-layer switch, RenderResult image
+    ("Shadow", 1, "X", "VALUE", "shadow", "shadow_mask"),
+    ("Footprint", 4, "RGBA", "COLOR", "footprint", "footprint_heatmap"),
+    ("Shadow Map", 1, "Z", "VALUE", "shadow_map", "shadow_map_preview"),
 )
+
+
+def _passes_changed(self, context):
+    view_layer = getattr(context, "view_layer", None)
+    if view_layer is not None:
+        view_layer.update_render_passes()
+
+
+class LIXEL_PG_passes(bpy.types.PropertyGroup):
+    """Which of Lixel's own render passes a view layer gets (besides Combined)."""
+
+    shadow: bpy.props.BoolProperty(
+        name="Shadow", default=True, update=_passes_changed,
+        description="The shadow term: 0 lit .. 1 fully shadowed (after the eye-space blur)")
+    footprint: bpy.props.BoolProperty(
+        name="Footprint", default=False, update=_passes_changed,
+        description="Shadow-map texels per pixel as colours: red undersampled, green one, blue oversampled")
+    shadow_map: bpy.props.BoolProperty(
+        name="Shadow Map", default=False, update=_passes_changed,
+        description="The first shadow map's window depth, resampled to the render size")
+
+
+def enabled_passes(view_layer) -> list:
+    """The :data:`EXTRA_PASSES` rows switched on for ``view_layer`` (all of them
+    when the switches are not registered)."""
+    switches = getattr(view_layer, "lixel_passes", None) if view_layer is not None else None
+    return [row for row in EXTRA_PASSES if switches is None or getattr(switches, row[4])]
+
+
+class LIXEL_PT_view_layer_passes(bpy.types.Panel):
+    bl_label = "Lixel Passes"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "view_layer"
+    COMPAT_ENGINES = {"LIXEL"}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES
+
+    @guarded_draw("drawing Lixel's passes panel")
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        switches = context.view_layer.lixel_passes
+        col = layout.column(heading="Include")
+        for row in EXTRA_PASSES:
+            col.prop(switches, row[4])
 
 _watchers: list = []
 
@@ -95,20 +147,19 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     read and uploaded), the view and light, the camera pre-pass (read back per
     tile: what the camera sees, ``addon.gpu.visibility``), B fitted to it and
     the warp, the depth pass, the shading pass, compose and one read-back of the
-    images in ``read`` (default: the engine's passes). ``timed``: wait for the
+    images in ``read`` (default: the combined image and the shadow). ``timed``: wait for the
     GPU after every stage so each stage's time is its own (the engine's F12
     waits once, at the read-back). ``targets``: the render targets (default:
     the process-wide pool)."""
     from ..gpu.batches import shared_batches
-    from ..gpu.pipeline import ShadowFrame, needs_data
-    from ..gpu.result import ENGINE_PASSES
+    from ..gpu.pipeline import ShadowFrame
     from ..gpu.visibility import region_from_frame
     from ..scene.describe import check_finite_geometry, describe_scene, light_notes
     from ..scene.geometry import shared_cache
 
     scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
     settings = settings or scene_settings(scene)
-    read = ENGINE_PASSES if read is None else read
+    read = ("combined", "shadow_mask") if read is None else read
     timings = {}
     t = time.perf_counter()
     cache = shared_cache()
@@ -147,8 +198,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     blend = float(getattr(light_obj.data, "spot_blend", 0.0)) if light_obj is not None and \
         light_obj.type == "LIGHT" and light_obj.data.type == "SPOT" else 0.0
     frame.draw_maps(setup, settings.shadow, body)
-    frame.shade(light, setup, settings.shadow, spot_blend=blend, ambient=_world_colour(scene),
-                data=needs_data(read), world="world_position" in read)
+    frame.shade(light, setup, settings.shadow, spot_blend=blend, ambient=_world_colour(scene), read=read)
     result = frame.finish(read)
     result.timings = {**timings, **result.timings}
     return {"setup": setup, "settings": settings, "result": result, "scene": scene.name, "method": method}
@@ -181,8 +231,8 @@ class LixelRenderEngine(bpy.types.RenderEngine):
             from ..gpu.context import ensure_gpu_context
             ensure_gpu_context()
             warnings: list = []
-            from ..gpu.result import ENGINE_PASSES
-            read = ENGINE_PASSES.union(*(r for _, r in _watchers))
+            passes = enabled_passes(depsgraph.view_layer)
+            read = frozenset({"combined"} | {row[5] for row in passes}).union(*(r for _, r in _watchers))
             out = render_depsgraph(depsgraph, warnings=warnings, timed=False, read=read)
         except Exception as exc:  # noqa: BLE001 - the entry point's guard: a message, never a traceback
             self.report({"ERROR"}, f"Lixel: {user_message(exc, f'rendering scene {depsgraph.scene.name!r}')}")
@@ -194,14 +244,13 @@ class LixelRenderEngine(bpy.types.RenderEngine):
         res = out["result"]
         t = time.perf_counter()
         w, h = res.resolution  # the full frame (a render border is not cropped)
-        for name, channels, chan_id, _ in EXTRA_PASSES:
+        for name, channels, chan_id, *_ in passes:
             self.add_pass(name, channels, chan_id)
         result = self.begin_result(0, 0, w, h)
         layer = result.layers[0]
         _set_pass(layer, "Combined", res.combined)
-        _set_pass(layer, "Shadow", res.shadow_mask)
-        _set_pass(layer, "Footprint", res.footprint_heatmap)
-        _set_pass(layer, "Shadow Map", res.shadow_map_preview)
+        for name, *_, image in passes:
+            _set_pass(layer, name, getattr(res, image))
         self.end_result(result)
         res.timings["passes"] = time.perf_counter() - t
         c = res.counts
@@ -210,7 +259,7 @@ class LixelRenderEngine(bpy.types.RenderEngine):
 
     def update_render_passes(self, scene=None, renderlayer=None):
         self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")
-        for name, channels, chan_id, kind in EXTRA_PASSES:
+        for name, channels, chan_id, kind, *_ in enabled_passes(renderlayer):
             self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
 
 
@@ -226,12 +275,13 @@ def _panels():
                 yield panel
 
 
-classes = (LixelRenderEngine,)
+classes = (LIXEL_PG_passes, LIXEL_PT_view_layer_passes, LixelRenderEngine)
 
 
 def register():
     for cls in classes:
         bpy.utils.register_class(cls)
+    bpy.types.ViewLayer.lixel_passes = bpy.props.PointerProperty(type=LIXEL_PG_passes)
     for panel in _panels():
         panel.COMPAT_ENGINES.add(LixelRenderEngine.bl_idname)
 
@@ -239,5 +289,6 @@ def register():
 def unregister():
     for panel in _panels():
         panel.COMPAT_ENGINES.discard(LixelRenderEngine.bl_idname)
+    del bpy.types.ViewLayer.lixel_passes
     for cls in reversed(classes):
         bpy.utils.unregister_class(cls)

@@ -66,7 +66,7 @@ def test_render_writes_lixel_shadows(engine, scene, tmp_path):
     assert res.combined.shape == (64, 96, 4)
     assert 0.01 < res.shadow_mask.mean() < 0.5
     assert res.counts.casters_drawn == 2
-    assert res.footprint_heatmap.shape == (64, 96, 4) and res.shadow_map_preview.shape == (64, 96)
+    assert res.footprint_heatmap is None and res.shadow_map_preview is None, "debug passes are off by default"
     assert res.covered is None and res.world_position is None, "the engine reads back only its passes"
     img = bpy.data.images.load(str(tmp_path / "frame.exr"))
     try:
@@ -75,6 +75,28 @@ def test_render_writes_lixel_shadows(engine, scene, tmp_path):
         np.testing.assert_allclose(px.reshape(64, 96, -1)[..., :3], res.combined[..., :3], atol=1e-5)
     finally:
         bpy.data.images.remove(img)
+
+
+def test_view_layer_switches_choose_the_passes(engine, scene):
+    """Shadow on, Footprint and Shadow Map off by default; each switch adds its
+    pass (and only then is it drawn and read back)."""
+    build(scene)
+    switches = scene.view_layers[0].lixel_passes
+    assert (switches.shadow, switches.footprint, switches.shadow_map) == (True, False, False)
+    switches.footprint = switches.shadow_map = True
+    switches.shadow = False
+    try:
+        with engine.watch_renders() as got:
+            assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+        res = got[-1]["result"]
+        assert res.footprint_heatmap.shape == (64, 96, 4) and res.shadow_map_preview.shape == (64, 96)
+        assert res.shadow_mask is None
+        covered = res.footprint_heatmap[..., :3].any(axis=-1)        # black where nothing is seen
+        assert covered.mean() > 0.2
+        assert 0.0 < res.shadow_map_preview.min() < res.shadow_map_preview.max() <= 1.0
+    finally:
+        switches.footprint = switches.shadow_map = False
+        switches.shadow = True
 
 
 def test_settings_come_from_the_scene(engine, scene):
@@ -139,7 +161,7 @@ def test_nothing_of_a_render_outlives_it(engine, scene):
     with engine.watch_renders() as got:
         assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
     res = got[0]["result"]
-    arrays = [res.combined, res.shadow_mask, res.footprint_heatmap, res.shadow_map_preview]
+    arrays = [res.combined, res.shadow_mask]
     refs = [weakref.ref(a) for a in arrays]
     del got, res, arrays
     gc.collect()

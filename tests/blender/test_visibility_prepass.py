@@ -111,8 +111,9 @@ def test_the_prepass_region_holds_every_shaded_point(mods, fresh_scene):
     setup = mods.warp.compute("uniform", view, light, bounds, mods.warp.WarpOptions(shadow_map_size=256), body=body)
     shadow = mods.settings.ShadowSettings()
     frame.draw_maps(setup, shadow, body)
-    frame.shade(light, setup, shadow, world=True)
-    out = frame.finish(read={"world_position", "covered", "map_index"})
+    read = {"world_position", "covered", "map_index"}
+    frame.shade(light, setup, shadow, read=read)
+    out = frame.finish(read)
     points = out.world_position[out.covered]
     assert len(points) > 1000
     assert region.contains(view, points, tol=1e-5).all()
