@@ -23,8 +23,8 @@ def method_parameters(method: str, light_type: str = "") -> tuple[str, ...]:
         names += ["delta_z", "use_visible_depth_range", "visible_depth_range", "middle_vector"]
     if method in LAMBDA_METHODS:
         names += ["use_lambda", "lam"]
-    if method == "glpr":
-        names.append("glpr_guard")
+    if method in WARP_METHODS:
+        names.append("lambda_guard")
     if method in PLANE_METHODS:
         names += ["plane_budget", "plane_twist"]
     if method in CASCADE_METHODS:

@@ -112,10 +112,13 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
                                               "(Scherzer §4.4, Lauritzen et al. 2011)"),
                ("view", "View Frustum", "Fit the maps to the whole view frustum (Scherzer §4.1; Lixel before 0.2)")),
         description="What B, and so every map, is fitted to")
-    glpr_guard: BoolProperty(
-        name="GLPR Guard", default=True,
-        description="Keep GLPR's warp no worse than the uniform map, at its worst and over the visible pixels "
-                    "(docs/papers.md)")
+    lambda_guard: EnumProperty(
+        name="λ Guard", default="all",
+        items=(("all", "Every Warp", "Keep LiSPSM's, GMNPR's and GLPR's warp no worse than the uniform map, at its worst "
+                                     "and over the visible pixels (docs/papers.md)"),
+               ("glpr", "GLPR Only", "Guard only GLPR, the over-strong warp GMNPR §3 warns of"),
+               ("off", "Off", "Every warp's λ exactly as its paper gives it")),
+        description="Raise a warp's λ where its own rule would make the shadows worse than the uniform map's")
     texel_snapping: BoolProperty(name="Texel Snapping", default=False,
                                  description="Snap the uniform map's window to whole texels so shadows do not crawl")
     delta_z: EnumProperty(
@@ -230,7 +233,7 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
                 raise WarpError(f"the visible range must satisfy 0 <= near < far (got {near}, {far})")
             vis = (near, far)
         return WarpOptions(
-            shadow_map_size=(w, h), focus=self.focus, glpr_guard=self.glpr_guard,
+            shadow_map_size=(w, h), focus=self.focus, lambda_guard=self.lambda_guard,
             texel_snapping=self.texel_snapping, delta_z=self.delta_z,
             visible_depth_range=vis, middle_vector=self.middle_vector, linear_z=self.linear_z,
             lam=float(self.lam) if self.use_lambda else None, max_frustum_angle=float(self.max_frustum_angle),
@@ -275,7 +278,7 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
         wo, sh = settings.warp, settings.shadow
         self.shadow_map_size = wo.shadow_map_size
         self.focus = wo.focus
-        self.glpr_guard = wo.glpr_guard
+        self.lambda_guard = wo.lambda_guard
         self.texel_snapping = wo.texel_snapping
         self.delta_z = wo.delta_z
         self.use_visible_depth_range = wo.visible_depth_range is not None
@@ -352,7 +355,7 @@ def _touched(name: str):
     return update
 
 
-SETTING_NAMES = ("light", "method", "shadow_map_size", "focus", "glpr_guard", "texel_snapping", "delta_z", "use_visible_depth_range",
+SETTING_NAMES = ("light", "method", "shadow_map_size", "focus", "lambda_guard", "texel_snapping", "delta_z", "use_visible_depth_range",
                  "visible_depth_range", "middle_vector", "linear_z", "use_lambda", "lam", "max_frustum_angle",
                  "plane_budget", "plane_twist", "bias_mode", "constant_bias", "slope_bias", "back_faces", "pcf_kernel",
                  "mdsm_depths", "mdsm_selection", "mdsm_neighbourhood", "eye_blur") + CASCADE_SETTINGS

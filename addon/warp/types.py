@@ -509,6 +509,8 @@ CASCADE_WARPS = ("uniform", "psm", "lispsm", "gmnpr", "auto")
 """What ``WarpOptions.cascade_warp`` may name: a split's warp, or "auto"."""
 FOCUS_MODES = ("visible", "view")
 """``WarpOptions.focus``: B fitted to what the camera sees, or to the whole view frustum."""
+LAMBDA_GUARDS = ("all", "glpr", "off")
+"""``WarpOptions.lambda_guard``: the warps whose λ is kept no worse than the uniform map."""
 
 
 @dataclass(frozen=True)
@@ -526,9 +528,11 @@ class WarpOptions:
     middle_vector: use B's middle vector as V_P (Scherzer §4.4) instead of Eq. 3.
     linear_z: linear depth distribution (Scherzer §4.2) - sets ShadowMap.depth_row.
     lam: force GMNPR's or GLPR's λ (None = Eq. 8 / GLPR's rule).
-    glpr_guard: raise GLPR's λ to the least λ whose worst aliasing over the
-        visible depths is no worse than the uniform map's
-        (``aliasing.lambda_no_worse_than_uniform``; docs/papers.md).
+    lambda_guard: which warps' λ is raised, where needed, to the least λ at
+        which the warp is no worse than the uniform map, at its worst and over
+        the visible pixels (``warp_frustum.guard_lambda``; docs/papers.md, "The
+        λ guard"): "all" (lispsm, gmnpr, glpr), "glpr" (the over-warper GMNPR
+        §3 names) or "off". A forced ``lam`` is never guarded.
     max_frustum_angle: widest single perspective map for a point light (radians);
         wider needs take cube faces.
     planes: planes of interest for plane_optimal, [(point, normal), ...].
@@ -564,7 +568,7 @@ class WarpOptions:
     middle_vector: bool = False
     linear_z: bool = False
     lam: Optional[float] = None
-    glpr_guard: bool = True
+    lambda_guard: str = "all"
     max_frustum_angle: float = math.radians(120.0)
     planes: tuple = ()
     plane_budget: float = 0.75
@@ -585,6 +589,9 @@ class WarpOptions:
         if not (1 <= w <= 16384 and 1 <= h <= 16384):
             raise WarpError(f"shadow map size must be between 1 and 16384 texels per side (got {w}x{h})")
         object.__setattr__(self, "shadow_map_size", (w, h))
+        if self.lambda_guard not in LAMBDA_GUARDS:
+            raise WarpError(f"lambda_guard must be one of {', '.join(map(repr, LAMBDA_GUARDS))} "
+                            f"(got {self.lambda_guard!r})")
         if self.focus not in FOCUS_MODES:
             raise WarpError(f"focus must be one of {', '.join(map(repr, FOCUS_MODES))} (got {self.focus!r})")
         if self.delta_z not in ("body", "visible"):

@@ -27,7 +27,7 @@ def mods(lixel):
 def custom_settings(mods):
     """Every field away from its default."""
     warp = mods.types.WarpOptions(
-        shadow_map_size=(1024, 512), focus="view", glpr_guard=False, texel_snapping=True, delta_z="visible", visible_depth_range=(0.5, 40.0),
+        shadow_map_size=(1024, 512), focus="view", lambda_guard="off", texel_snapping=True, delta_z="visible", visible_depth_range=(0.5, 40.0),
         middle_vector=True, linear_z=True, lam=0.25, max_frustum_angle=math.radians(95.0),
         planes=(((0.0, 0.0, 0.5), (0.0, 0.0, 1.0)), ((1.0, 0.0, 0.0), (1.0, 0.0, 0.0))), plane_budget=0.5,
         plane_twist="off", cascade_splits=3, cascade_warp="lispsm", cascade_lambda=0.75, cascade_adaptive=False,

@@ -138,7 +138,7 @@ def test_on_the_terrain_view_z_n_comes_from_the_depth_prepass(mods):
         cam = scene.camera.data
         assert cam.clip_start <= 1.0
         # GLPR's own λ at these depths over-warps: the guard acts and says so
-        assert any(what.endswith("glpr guard") for what, _ in d.fallbacks)
+        assert any(what.endswith("λ guard") for what, _ in d.fallbacks)
     finally:
         for s in dst.scenes:
             remove_objects_and_orphans(s)

@@ -30,10 +30,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 GOLDEN = Path(__file__).with_name("golden.json.gz")
 
-OPTIONS: dict = {"focus": "view", "glpr_guard": False}
+OPTIONS: dict = {"focus": "view", "lambda_guard": "off"}
 """WarpOptions fields every golden configuration is computed with (besides its own):
-B over the whole view frustum and GLPR unguarded, the behaviour before issue 12
-(the golden passes its own unfocused B, so ``focus`` only documents that)."""
+B over the whole view frustum and every λ as its paper gives it, the behaviour
+before issue 12 (the golden passes its own unfocused B, so ``focus`` only
+documents that)."""
 
 RELATIVE = 1e-6
 

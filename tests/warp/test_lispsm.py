@@ -86,6 +86,10 @@ def check(setup, view, light, body):
             assert np.all(zb > za)
 
 
+PAPERS = WarpOptions(lambda_guard="off")
+"""Every λ exactly as its paper gives it (no λ guard)."""
+
+
 def run(method, view, light, scene=SCENE, options=None):
     body = intersection_body(view, light, scene)
     setup = compute(method, view, light, scene, options or WarpOptions(), body=body)
@@ -180,14 +184,14 @@ def test_lispsm_n_opt_is_scherzer_eq1_with_eye_depths_and_lambda_is_gmnpr_eq9():
     for gamma_deg in (90.0, 120.0, 60.0, 40.0, 20.0, 10.0):
         g = math.radians(gamma_deg)
         light = sun([0.0, math.cos(g), -math.sin(g)])   # in the camera's vertical plane
-        s, body = run("lispsm", view, light, big)
+        s, body = run("lispsm", view, light, big, PAPERS)
         d = s.diagnostics
         theta = min(g, math.pi - g)
         assert d.extra["z_n"] == pytest.approx(n, rel=1e-9)
         assert d.extra["delta_z"] == pytest.approx(f - n, rel=1e-9)
         assert d.n_opt == pytest.approx((n + math.sqrt(n * f)) / math.sin(g), rel=1e-9)
         assert d.extra["lambda"] == pytest.approx(lambda_lispsm(theta, n, f, phi), rel=1e-6)
-        sg, _ = run("gmnpr", view, light, big)
+        sg, _ = run("gmnpr", view, light, big, PAPERS)
         assert sg.diagnostics.extra["phi"] == pytest.approx(phi, rel=1e-12)
         assert sg.diagnostics.lam == pytest.approx(lambda_gmnpr(theta, n, f, phi), rel=1e-9)
 
@@ -508,11 +512,11 @@ def test_glprs_guard_acts_reports_and_keeps_the_warp_no_stronger_than_it():
     view = camera([0.0, -10.0, 6.0], [0.0, 1.0, -0.25])
     light = sun([0.3, 0.5, -0.6])
     guarded = compute("glpr", view, light, SCENE, WarpOptions(shadow_map_size=1024))
-    raw = compute("glpr", view, light, SCENE, WarpOptions(shadow_map_size=1024, glpr_guard=False))
+    raw = compute("glpr", view, light, SCENE, WarpOptions(shadow_map_size=1024, lambda_guard="off"))
     theta, z_n, z_f, phi = _glpr_inputs(raw)
     assert raw.diagnostics.lam == pytest.approx(al.lambda_glpr(theta, z_n, z_f, phi))
-    assert not any("glpr guard" in what for what, _ in raw.diagnostics.fallbacks)
-    notes = [why for what, why in guarded.diagnostics.fallbacks if what == "main: glpr guard"]
+    assert not any("λ guard" in what for what, _ in raw.diagnostics.fallbacks)
+    notes = [why for what, why in guarded.diagnostics.fallbacks if what == "main: λ guard"]
     assert len(notes) == 1 and "λ raised from" in notes[0]
     lam = guarded.diagnostics.lam if guarded.diagnostics.lam is not None else math.inf
     assert lam >= al.lambda_no_worse_than_uniform(theta, z_n, z_f, phi) * (1 - 1e-12)
@@ -523,21 +527,41 @@ def test_a_forced_lambda_is_not_guarded():
     view = camera([0.0, -10.0, 6.0], [0.0, 1.0, -0.25])
     setup = compute("glpr", view, sun([0.3, 0.5, -0.6]), SCENE, WarpOptions(shadow_map_size=1024, lam=1e-4))
     assert setup.diagnostics.lam == pytest.approx(1e-4)
-    assert not any("glpr guard" in what for what, _ in setup.diagnostics.fallbacks)
+    assert not any("λ guard" in what for what, _ in setup.diagnostics.fallbacks)
 
 
-def test_where_warps_lose_on_average_the_guarded_glpr_is_nearly_the_uniform_map():
+@pytest.mark.parametrize("method", WARPS)
+def test_where_warps_lose_on_average_the_guarded_warp_is_nearly_the_uniform_map(method):
     """Looking across a floor at a wall (most pixels far along V_P): no strong
-    warp's texels are smaller on average, so the guard leaves (nearly, or
-    exactly: λ = ∞) the uniform map, where GLPR's own λ would warp hard."""
+    warp's texels are smaller there, so the guard leaves (nearly, or exactly:
+    λ = ∞) the uniform map, where the warp's own λ would warp hard."""
     view = camera([0.0, -3.0, 1.5], [0.0, 1.0, -0.05], near=0.1, far=30.0)
     wall = [[-20.0, 4.0, 0.0], [20.0, 4.5, 12.0]]
     scene = SceneBounds.from_boxes([GROUND, wall])
     light = sun([0.2, 0.6, -0.7])
-    glpr = compute("glpr", view, light, scene, WarpOptions(shadow_map_size=1024))
-    raw = compute("glpr", view, light, scene, WarpOptions(shadow_map_size=1024, glpr_guard=False))
-    assert raw.diagnostics.lam < 1.0
-    assert glpr.diagnostics.lam is None or glpr.diagnostics.lam > 10.0
-    assert glpr.diagnostics.extra["warp_strength_mu"] < 0.1
-    assert any(what == "main: glpr guard" for what, _ in glpr.diagnostics.fallbacks)
-    assert not any("uniform limit" in what for what, _ in glpr.diagnostics.fallbacks)
+    guarded = compute(method, view, light, scene, WarpOptions(shadow_map_size=1024))
+    raw = compute(method, view, light, scene, WarpOptions(shadow_map_size=1024, lambda_guard="off"))
+
+    def lam(setup):
+        d = setup.diagnostics
+        value = d.extra["lambda"] if method == "lispsm" else d.lam
+        return math.inf if value is None else value
+    assert lam(raw) < 1.5
+    assert lam(guarded) > 10.0 and guarded.diagnostics.extra["warp_strength_mu"] < 0.1
+    assert any(what == "main: λ guard" for what, _ in guarded.diagnostics.fallbacks)
+    assert not any("uniform limit" in what for what, _ in guarded.diagnostics.fallbacks)
+
+
+def test_the_guard_can_be_kept_to_glpr():
+    """lambda_guard="glpr": GMNPR's and LiSPSM's λ are their papers' (Eq. 8, Eq. 1) again."""
+    from addon.warp import aliasing as al
+    view = camera([0.0, -3.0, 1.5], [0.0, 1.0, -0.05], near=0.1, far=30.0)
+    scene = SceneBounds.from_boxes([GROUND, [[-20.0, 4.0, 0.0], [20.0, 4.5, 12.0]]])
+    light = sun([0.2, 0.6, -0.7])
+    options = WarpOptions(shadow_map_size=1024, lambda_guard="glpr")
+    g = compute("gmnpr", view, light, scene, options).diagnostics
+    z_n, z_f = g.extra["z_n"], g.extra["z_n"] + g.extra["delta_z"]
+    assert g.lam == pytest.approx(al.lambda_gmnpr(g.theta, z_n, z_f, g.extra["phi"]))
+    assert not any("λ guard" in what for what, _ in g.fallbacks)
+    glpr = compute("glpr", view, light, scene, options).diagnostics
+    assert any(what == "main: λ guard" for what, _ in glpr.fallbacks)

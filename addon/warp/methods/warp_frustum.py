@@ -83,7 +83,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable, Optional
 
 import numpy as np
@@ -112,9 +112,10 @@ class WarpContext:
     z_f: float
     visible: Optional[tuple[np.ndarray, np.ndarray]] = None
     """The visible surface as weighted world points (``VisibleRegion.samples``), when B was focused."""
-    notes: dict = field(default_factory=dict)
-    """What a λ rule did besides its formula (what -> reason), e.g. GLPR's guard acting; moved to
-    the frame's notes after each rule call."""
+    phi: float = 0.0
+    """GMNPR's φ (half the field of view towards the light), for the λ guard's model."""
+    guard: bool = False
+    """Whether the rule's λ is guarded (``guard_lambda``, as ``WarpOptions.lambda_guard`` says)."""
 
     @property
     def delta_z(self) -> float:
@@ -403,35 +404,39 @@ def rule_gmnpr(g: FrameGeometry, ctx: WarpContext, phi: float, options: WarpOpti
 
 
 def rule_glpr(g: FrameGeometry, ctx: WarpContext, phi: float, options: WarpOptions) -> float:
-    """GLPR, F(z) ~ z (or the forced ``options.lam``), raised by its guard
-    (``options.glpr_guard``, docs/papers.md "GLPR's guard") to the least λ at
-    which the warp is no worse than the uniform map: at its worst over the
-    visible depths (GMNPR Eq. 2, ``lambda_no_worse_than_uniform``) and, when B
-    was focused on the visible region, over the visible pixels in the L2 norm
-    (``lambda_no_worse_on_average`` of their δ along this frame's V_P)."""
+    """GLPR, F(z) ~ z (or the forced ``options.lam``)."""
     forced = _forced(options)
     if forced is not None:
         return forced
     theta = min(g.gamma, math.pi - g.gamma)
-    lam = lambda_glpr(theta, ctx.z_n, ctx.z_f, phi)
-    if not options.glpr_guard:
-        return lam
-    worst = lambda_no_worse_than_uniform(theta, ctx.z_n, ctx.z_f, phi)
+    return lambda_glpr(theta, ctx.z_n, ctx.z_f, phi)
+
+
+def guard_lambda(lam: float, g: FrameGeometry, ctx: WarpContext) -> tuple[float, Optional[str]]:
+    """``lam`` raised to the least λ at which the warp is no worse than the
+    uniform map (``WarpOptions.lambda_guard``; docs/papers.md, "The λ guard"):
+    at its worst over the visible depths (GMNPR Eq. 2 at the ends of
+    [z_n, z_f], ``lambda_no_worse_than_uniform``) and, when B was focused on
+    the visible region, over the visible pixels in the L2 norm of its texels'
+    ratio to the uniform map's (``lambda_no_worse_on_average`` of their δ along
+    this frame's V_P). Returns the λ and, when the guard raised it, why."""
+    theta = min(g.gamma, math.pi - g.gamma)
+    worst = lambda_no_worse_than_uniform(theta, ctx.z_n, ctx.z_f, ctx.phi)
     mean = 0.0
     if ctx.visible is not None and g.to_light is not None and g.extent > 0 and g.body_extent_world > 0:
         points, weights = ctx.visible
         h = points @ g.to_light[:, :3].T + g.to_light[:, 3]
         along = (h[:, 0] * g.a[0] + h[:, 1] * g.a[1]) / h[:, 3]
-        # (λ of this frame's extent, in units of all of B's as the rules give it)
+        # (this frame's λ, in units of all of B's extent as the rules give it)
         mean = lambda_no_worse_on_average((along - g.h_min) / g.extent, weights) * g.extent_world / g.body_extent_world
     guard = max(worst, mean)
-    if guard > lam:
-        why = (f"its worst aliasing over the visible depths [{ctx.z_n:.4g}, {ctx.z_f:.4g}]" if worst >= mean
-               else "its aliasing over the visible pixels (L2 norm of its ratio to the uniform map's)")
-        ctx.notes["glpr guard"] = (f"λ raised from {lam:.4g} to {guard:.4g}: below it {why} would be worse than the "
-                                   f"uniform map's (θ = {math.degrees(theta):.1f}°, φ = {math.degrees(phi):.1f}°)")
-        return guard
-    return lam
+    if not guard > lam:
+        return lam, None
+    why = (f"its worst aliasing over the visible depths [{ctx.z_n:.4g}, {ctx.z_f:.4g}]" if worst >= mean
+           else "its aliasing over the visible pixels (the L2 norm of its texels' ratio to the uniform map's)")
+    return guard, (f"λ raised from {lam:.4g} to {guard:.4g}" + (" (the uniform map)" if guard == math.inf else "")
+                   + f": below it {why} would be worse than the uniform map's (θ = {math.degrees(theta):.1f}°, "
+                   f"φ = {math.degrees(ctx.phi):.1f}°)")
 
 
 def _finite_or_none(x: float) -> Optional[float]:
@@ -497,9 +502,11 @@ def frame_warps(frames: list, view: View, at: Optional[LightAtEye], reason: str,
         geo = frame_geometry(at, w.frame, ax, h_range, world_range, body)
         role = w.frame.role
         lam = rule(geo, ctx, phi, options)
-        guarded = bool(ctx.notes)
-        w.notes.extend((f"{role}: {what}", why) for what, why in ctx.notes.items())
-        ctx.notes.clear()
+        guarded = None
+        if ctx.guard and options.lam is None:
+            lam, guarded = guard_lambda(lam, geo, ctx)
+            if guarded:
+                w.notes.append((f"{role}: λ guard", guarded))
         p_n = lam * geo.body_extent_world if math.isfinite(lam) else math.inf     # P_n in world units
         lam_frame = p_n / geo.extent_world if geo.extent_world > 0 else math.inf  # λ for this frame's part of B
         mu = 0.0 if not math.isfinite(lam_frame) else geo.fade / lam_frame
@@ -539,8 +546,12 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
         at, reason = None, "orthographic camera: no perspective aliasing to redistribute"
     else:
         at, reason = light_at_eye(view, light, options, body, middle.value if options.middle_vector else None)
-    # GMNPR's φ: gmnpr and glpr use and report it, LiSPSM's Eq. 1 has no φ.
-    phi = half_fov_towards(view, at.ell) if at is not None and name != "lispsm" else None
+    # GMNPR's φ: gmnpr and glpr use and report it, LiSPSM's Eq. 1 has no φ (the λ guard's model has).
+    guard_phi = half_fov_towards(view, at.ell) if at is not None else None
+    phi = guard_phi if name != "lispsm" else None
+    if guard_phi is not None:
+        ctx.phi = guard_phi
+    ctx.guard = options.lambda_guard == "all" or options.lambda_guard == name
     warps = frame_warps(frames, view, at, reason, rule, ctx, phi, options, body)
     warped = [w for w in warps if w.geo is not None]
     if len(frames) > 1 and warped:
