@@ -16,13 +16,16 @@ Criteria: coverage everywhere, p95 <= 0.8x the reference on every normal
 configuration and <= 1.0x on every hard one.
 
 **limit.** For each sample scene (``sample_blends``), the ground truth's
-visible points (the report's ray caster) and Lloyd's N_min over the view
-(``addon.measure.lloyd``): every single-map method and cascades of 2, 3 and 4
-splits (per map and shared at equal texels) give their measured maximum
-perspective aliasing over the visible points (``perspective_footprints``) over
-m_min = sqrt(N_min / texels); the cascades also their predicted maximum (Lloyd's
-model over each split). Criterion: a 4-split cascade within 3x of m_min on the
-sun scenes.
+visible points (the report's ray caster) and Lloyd's N_min (``addon.measure.lloyd``)
+twice: over the whole view frustum (the report's m_min) and over its slab
+between the nearest and farthest visible depths (the limit for what is seen:
+a single map's N_min over the whole frustum counts the empty metres before
+the first visible receiver). Every single-map method and cascades of 2, 3
+and 4 splits (per map, and shared at equal texels) give their measured
+maximum perspective aliasing over the visible points (``perspective_footprints``)
+over m_min = sqrt(N_min / texels); the cascades also their predicted maximum
+(Lloyd's model over each split). Criterion: a 4-split cascade within 3x of
+m_min on the sun scenes (the visible-slab limit, the stricter one).
 
 **flicker.** Each sample scene's camera animation (``--frames`` whole frames,
 as the report takes them), every method with the stable option off and on
@@ -200,13 +203,16 @@ def run_limit(scenes, size: int, resolution, log=print) -> list:
     from addon.measure import lloyd
     from addon.measure.footprint import perspective_footprints
     from addon.warp import METHODS, WarpOptions, compute
+    from addon.warp.partition.splits import split_view
     rows = []
     for name in scenes:
         scene = _open(name)
         views, truths = _truth(scene, resolution, [(scene.frame_start, 0.0)])
         (view, light, bounds), truth = views[0], truths[0]
         points = truth.points[truth.valid]
+        depth = view.eye_depth(points)
         n_min = lloyd.n_min(view, light)
+        n_min_seen = lloyd.n_min(split_view(view, float(depth.min()), float(depth.max())), light)
         for label, fields in LIMIT_VARIANTS.items():
             method = "cascade" if label.startswith("cascade") else label
             if method not in METHODS:
@@ -216,22 +222,25 @@ def run_limit(scenes, size: int, resolution, log=print) -> list:
                 options = dataclasses.replace(options, shadow_map_size=int(round(size * math.sqrt(fields["cascade_splits"]))))
             setup = compute(method, view, light, bounds, options)
             texels = float(sum(m.size[0] * m.size[1] for m in setup.maps))
-            m_min = lloyd.m_min(n_min, texels)
+            m_min, m_min_seen = lloyd.m_min(n_min, texels), lloyd.m_min(n_min_seen, texels)
             measured = float(np.nanmax(perspective_footprints(view, light, setup, points)))
             row = {"scene": name, "light": light.type, "variant": label, "maps": len(setup.maps), "texels": texels,
-                   "m_min": m_min, "measured_over_limit": measured / m_min}
+                   "m_min": m_min, "m_min_seen": m_min_seen, "measured_over_limit": measured / m_min,
+                   "measured_over_seen_limit": measured / m_min_seen}
             predicted = setup.diagnostics.extra.get("predicted_max_error")
             if predicted is not None:
-                row["predicted_over_limit"] = predicted / m_min
+                row["predicted_over_seen_limit"] = predicted / m_min_seen
             rows.append(row)
-            log(f"{name:10s} {label:18s} {len(setup.maps)} maps  max/m_min measured {row['measured_over_limit']:7.2f}"
-                + (f"  predicted {row['predicted_over_limit']:6.2f}" if predicted is not None else ""))
+            log(f"{name:10s} {label:18s} {len(setup.maps)} maps  max/m_min: measured {row['measured_over_limit']:6.2f} "
+                f"(frustum)  {row['measured_over_seen_limit']:6.2f} (visible slab)"
+                + (f"  predicted {row['predicted_over_seen_limit']:6.2f}" if predicted is not None else ""))
     return rows
 
 
 def limit_checks(rows: list) -> list:
-    return [(r["measured_over_limit"] <= 3.0, f"near the limit: {r['scene']} {r['variant']}: max/m_min "
-                                               f"{r['measured_over_limit']:.2f} (limit 3)")
+    return [(r["measured_over_seen_limit"] <= 3.0, f"near the limit: {r['scene']} {r['variant']}: max/m_min "
+                                                    f"{r['measured_over_seen_limit']:.2f} over the visible slab, "
+                                                    f"{r['measured_over_limit']:.2f} over the frustum (limit 3)")
             for r in rows if r["variant"] == "cascade 4" and r["scene"] in SUN_SCENES]
 
 

@@ -52,7 +52,7 @@ import numpy as np
 
 from ..body import IntersectionBody, intersection_body
 from ..frame import body_light_angles
-from ..partition.adaptive import max_error, minimax_splits, objective
+from ..partition.adaptive import max_error, minimax_splits
 from ..partition.budget import shared_sizes
 from ..partition.splits import practical_splits, split_region, split_view, tightened_depth_range
 from ..partition.stable import stable_depth_range, stable_sun_map
@@ -207,6 +207,20 @@ def cascade_maps(view: View, light: Light, splits: list, options: WarpOptions) -
     return maps, owner
 
 
+def predicted_errors(splits: list, maps: list, owner: list, options: WarpOptions) -> list:
+    """Each split's predicted error at its maps' final size (None for an empty
+    split): a map's error falls as one over its side, E ∝ 1/sqrt(texels)."""
+    w0, h0 = options.shadow_map_size
+    out = []
+    for i, s in enumerate(splits):
+        if s.setup is None:
+            out.append(None)
+            continue
+        w, h = maps[owner.index(i)].size
+        out.append(s.predicted_error * math.sqrt(w0 * h0 / (w * h)))
+    return out
+
+
 def fitting_splits(view: View, light: Light, scene: SceneBounds, body: IntersectionBody, options: WarpOptions,
                    diag: Diagnostics) -> tuple[np.ndarray, list, str]:
     """``split_depths`` with as many splits as the shading pass can read the
@@ -240,13 +254,13 @@ def cascade(view: View, light: Light, body: IntersectionBody, options: WarpOptio
     for i, s in enumerate(splits):
         for what, why in (s.setup.diagnostics.fallbacks if s.setup is not None else []):
             diag.fallback(f"split {i}: {what}", why)
-    errors = [s.predicted_error for s in splits if s.setup is not None]
+    errors = predicted_errors(splits, maps, owner, options)
     diag.extra.update({
         "splits": [float(d) for d in depths],
         "split_scheme": scheme,
         "split_warps": [s.warp if s.setup is not None else None for s in splits],
-        "split_predicted_error": [s.predicted_error if s.setup is not None else None for s in splits],
-        "predicted_max_error": objective(errors, options.cascade_budget == "shared"),
+        "split_predicted_error": errors,
+        "predicted_max_error": max(e for e in errors if e is not None),
         "map_splits": owner,
         "split_bodies": Deferred(lambda: [s.body.vertices if s.body is not None else None for s in splits]),
         "split_body_faces": Deferred(lambda: [list(s.body.faces) if s.body is not None else None for s in splits]),

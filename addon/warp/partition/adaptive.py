@@ -37,6 +37,8 @@ from ..types import ShadowSetup, View, Light
 
 ROUNDS = 5
 """Fixed-point rounds of :func:`minimax_splits` (each costs one evaluation per split)."""
+MIN_WIDTH = 1e-3
+"""No split is narrower than this fraction of the range's log width."""
 MIN_POWER, MAX_POWER = 0.6, 3.0
 """The range the local power law E_i ∝ w_i^p of a split's error may take
 (from splits whose error barely moves with their width, to steep ones)."""
@@ -77,16 +79,21 @@ def minimax_splits(error_of: Callable[[int, float, float], float], splits: np.nd
     start, start_e = np.asarray(splits, dtype=np.float64), np.asarray(errors, dtype=np.float64)
     c, e = start, start_e
     power = np.ones(len(e))
-    for _ in range(ROUNDS if len(c) > 2 else 0):
-        if not (np.all(np.isfinite(e)) and np.all(e > 0)):
-            break
+    for _ in range(ROUNDS if len(c) > 2 and usable(e) else 0):
         moved = equalising_step(c, e, power, shared_budget)
         moved_e = np.array([error_of(i, a, b) for i, (a, b) in enumerate(zip(moved[:-1], moved[1:]))])
+        if not usable(moved_e):           # a split left with nothing visible: the model has no slope there
+            break
         power = local_power(np.diff(np.log(c)), e, np.diff(np.log(moved)), moved_e, power)
         c, e = moved, moved_e
     if objective(e, shared_budget) < objective(start_e, shared_budget):
         return c, [float(x) for x in e]
     return start, [float(x) for x in start_e]
+
+
+def usable(errors: np.ndarray) -> bool:
+    """Whether every split has a finite, positive predicted error (holds something visible)."""
+    return bool(np.all(np.isfinite(errors)) and np.all(errors > 0))
 
 
 def local_power(w0, e0, w1, e1, fallback) -> np.ndarray:
@@ -109,9 +116,10 @@ def equalising_step(c: np.ndarray, errors: np.ndarray, power: np.ndarray, shared
         width_at = lambda t: (t / (power * k * k)) ** (1.0 / (2.0 * power - 1.0))    # noqa: E731
     else:                      # k w^p = t
         width_at = lambda t: (t / k) ** (1.0 / power)                                # noqa: E731
-    lo, hi = np.log(1e-300), np.log(1e300)
-    for _ in range(200):       # bisection in log t: the widths grow with t
+    guess = np.log(k * widths ** power) if not shared_budget else np.log(power * k * k * widths ** (2 * power - 1))
+    lo, hi = guess.min() - 50.0, guess.max() + 50.0          # (e^50: far beyond any width's reach)
+    for _ in range(60):        # bisection in log t: the widths grow with t
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if width_at(np.exp(mid)).sum() < total else (lo, mid)
-    target = width_at(np.exp(hi))
+    target = np.maximum(width_at(np.exp(hi)), MIN_WIDTH * total)
     return c[0] * np.exp(np.concatenate([[0.0], np.cumsum(target * total / target.sum())]))
