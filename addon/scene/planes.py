@@ -25,7 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..warp.plane_map import PlaneOfInterest, clip_polygon, convex_polygon_on_plane
-from ..warp.polyhedron import ConvexPolytope, Plane
+from ..warp.body import view_frustum
+from ..warp.polyhedron import Plane
 from ..warp.types import View, WarpError
 
 log = logging.getLogger(__name__)
@@ -196,8 +197,7 @@ def image_coverage(plane: PlaneOfInterest, view: View) -> float:
         return 0.0
     origin = view.position
     poly = np.asarray(plane.extent, dtype=np.float64) - origin
-    corners = view.corners() - origin
-    frustum = ConvexPolytope.from_corners(corners, 1e-10 * float(np.linalg.norm(corners[0] - corners[7])))
+    frustum = view_frustum(view, origin)
     for n, o in zip(frustum.normals, frustum.offsets):
         poly = clip_polygon(poly, Plane(n, float(o)), 0.0)
         if len(poly) < 3:

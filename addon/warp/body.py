@@ -36,11 +36,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import brep
-from .brep import Brep, OpenCut
 from .culling import BoxIndex, Selection
 from .light_hull import light_halfspaces, light_hull
-from .polyhedron import ConvexPolytope, Plane, float_rows
+from .polyhedron import BOX_NORMALS, ConvexPolytope, OpenCut, Plane, box_offsets
 from .types import EmptyBodyError, Light, SceneBounds, View
 from .visibility import VisibleRegion
 
@@ -103,8 +101,8 @@ class IntersectionBody:
     """B as a polytope relative to ``origin`` (facet planes, incidence)."""
     origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
     """The point B's ``polytope`` is expressed relative to (the camera position)."""
-    visible_boundary: Brep | None = None
-    """R's boundary relative to ``origin`` (see ``visible_polytope``)."""
+    visible_boundary: ConvexPolytope | None = None
+    """R relative to ``origin`` (see ``visible_polytope``)."""
     visible: VisibleRegion | None = None
     """The visible region R was focused on (None: R spans the view frustum)."""
 
@@ -117,9 +115,7 @@ class IntersectionBody:
     def visible_polytope(self) -> ConvexPolytope | None:
         """R = V ∩ S_r ∩ L as a polytope relative to ``origin``: every receiver
         box that meets V ∩ L lies in S_r, so R ∩ box = V ∩ L ∩ box."""
-        if self.visible_boundary is None:
-            return None
-        return self._memo("_visible_polytope", lambda: ConvexPolytope.from_brep(self.visible_boundary, self.tolerance))
+        return self.visible_boundary
 
     @property
     def caster_mask(self) -> np.ndarray:
@@ -181,39 +177,17 @@ class IntersectionBody:
         return moved[key]
 
 
-_BOX_NORMALS = np.concatenate([-np.eye(3), np.eye(3)])
-"""Outward normals of a box's facets -x, -y, -z, +x, +y, +z (offsets: -lo, hi)."""
-_BOX_NORMALS_LIST = _BOX_NORMALS.tolist()
+def _box_halfspaces(box, pad: float) -> tuple[np.ndarray, np.ndarray]:
+    """The facets (``polyhedron.BOX_NORMALS``) of the box [lo, hi] widened by ``pad``."""
+    lo, hi = np.asarray(box, dtype=np.float64)
+    return BOX_NORMALS, box_offsets(lo, hi) + pad
 
 
-def _box_offsets(box, pad: float) -> list[float]:
-    """The offsets of the facets -x, -y, -z, +x, +y, +z (``_BOX_NORMALS``) of
-    the box [lo, hi] widened by ``pad``."""
-    return [pad - c for c in box[0]] + [c + pad for c in box[1]]
-
-
-def _clip_to_box(b: Brep, box_o: list[float], tol: float) -> Brep | None:
-    """``b`` ∩ the box whose facets -x, -y, -z, +x, +y, +z (``_BOX_NORMALS``)
-    have the offsets ``box_o``, as ``brep.clip`` by its six planes gives it,
-    cutting only by the facets ``b`` reaches beyond: a box facet's greatest
-    distance over ``b``'s vertices is that of their bounding box, exactly the
-    test ``brep.cut`` starts with (-x - o and x - o, the other terms zero), and
-    a facet ``b`` does not reach beyond cuts nothing after the others either
-    (their cuts' new vertices lie on ``b``'s edges)."""
-    axes = list(zip(*b.vertices))
-    reach = [-min(c) for c in axes] + [max(c) for c in axes]
-    cuts = [i for i in range(6) if reach[i] - box_o[i] > tol]
-    return brep.clip(b, [_BOX_NORMALS_LIST[i] for i in cuts], [box_o[i] for i in cuts], tol)
-
-
-def _focused(frustum: Brep, corners: np.ndarray, focus: tuple[list, list], tol: float) -> Brep | None:
-    """V cut by the visible region's half-spaces ``focus`` (camera-relative, like V)."""
-    try:
-        return brep.clip(frustum, *focus, tol)
-    except OpenCut as why:
-        log.debug("focused V by vertex enumeration: %s", why)
-        poly = ConvexPolytope.from_corners(corners, tol).clip(np.array(focus[0]), np.array(focus[1]))
-        return None if poly is None else poly.brep()
+def view_frustum(view: View, origin: np.ndarray, tol: float | None = None) -> ConvexPolytope:
+    """V relative to ``origin``, with the tolerance ``tol`` (default: relative to its size)."""
+    corners = view.corners() - origin
+    return ConvexPolytope.hexahedron(corners, RELATIVE_TOLERANCE * math.dist(corners[0], corners[7]) if tol is None
+                                     else tol)
 
 
 def intersection_body(view: View, light: Light, scene: SceneBounds,
@@ -228,18 +202,13 @@ def intersection_body(view: View, light: Light, scene: SceneBounds,
     if scene.is_empty:
         raise EmptyBodyError("the scene has no shadow casters or receivers")
     origin = view.position
-    corners = view.corners() - origin
+    frustum = view_frustum(view, origin)
+    corners = frustum.vertices
     view_size = math.dist(corners[0], corners[7])
-    try:
-        frustum = brep.hexahedron(corners.tolist())         # (plain floats: float() on numpy scalars is slow)
-    except OpenCut as why:
-        log.debug("view frustum by vertex enumeration: %s", why)
-        frustum = ConvexPolytope.from_corners(corners, RELATIVE_TOLERANCE * view_size).brep()
-    focus: tuple[list, list] = ([], [])
     if visible is not None:
         n, o = visible.halfspaces(view, light)
-        focus = (n.tolist(), (o - n @ origin).tolist())
-        frustum = _focused(frustum, corners, focus, RELATIVE_TOLERANCE * view_size)
+        length = np.sqrt(np.einsum("ij,ij->i", n, n))
+        frustum = frustum.clip(n / length[:, None], (o - n @ origin) / length)
         if frustum is None:
             raise EmptyBodyError(f"the visible region ({visible.source}) does not meet the view frustum")
     ln, lo = light_halfspaces(light, origin)
@@ -258,65 +227,49 @@ def intersection_body(view: View, light: Light, scene: SceneBounds,
     receivers = BoxIndex.of(scene, "receivers").select(vn, vo + vn @ origin)
     if receivers.box is None:
         raise EmptyBodyError("no shadow receiver is inside the view frustum" + cone)
-    s_r = (receivers.box - origin).tolist()
+    s_r = receivers.box - origin
     scale = max(math.dist(*s_r), view_size * 1e-6, 1e-9)
-    tol = RELATIVE_TOLERANCE * max(scale, max(abs(c) for corner in s_r for c in corner))
+    tol = RELATIVE_TOLERANCE * max(scale, float(np.abs(s_r).max()))
 
     # R = V ∩ S_r ∩ L.
-    planes_n = _BOX_NORMALS_LIST + ln.tolist()
-    planes_o = _box_offsets(s_r, max(BOX_PAD * scale, 512 * tol)) + lo.tolist()
-    try:
-        visible_r = brep.clip(frustum, planes_n, planes_o, tol)
-    except OpenCut as why:
-        log.debug("R by vertex enumeration: %s", why)
-        poly = ConvexPolytope.from_corners(corners, tol).clip(np.array(planes_n + focus[0]),
-                                                              np.array(planes_o + focus[1]))
-        visible_r = None if poly is None else poly.brep()
-    if visible_r is None:
+    bn, bo = _box_halfspaces(s_r, max(BOX_PAD * scale, 512 * tol))
+    r = ConvexPolytope(frustum.vertices, frustum.normals, frustum.offsets, frustum.loops, tol).clip(
+        np.concatenate([bn, ln]), np.concatenate([bo, lo]))
+    if r is None:
         raise EmptyBodyError("the view frustum does not meet the receivers" + (" inside the spot cone" if len(ln) else ""))
 
-    # hull(R ∪ light) ∩ L, and the casters meeting it.
-    light_h = light.homogeneous_from(origin)
     # hull(R ∪ light) ⊂ L already (L is a convex cone with its apex at the light and R ⊂ L),
-    # so L's planes would only repeat what the hull says.
-    hull = light_hull(visible_r, light_h, tol)
-    hn, ho = hull.normals, hull.offsets + hull.normals @ origin
-    casters = BoxIndex.of(scene, "casters").select(hull.normals, ho, tol)
-    axes = list(zip(*visible_r.vertices))
-    s_c = [[min(c) for c in axes], [max(c) for c in axes]]
-    if casters.box is not None:
-        lo_c, hi_c = (casters.box - origin).tolist()
-        s_c = [[min(a, b) for a, b in zip(s_c[0], lo_c)], [max(a, b) for a, b in zip(s_c[1], hi_c)]]
+    # so L's planes would only repeat what the hull says; the casters meeting it.
+    light_h = np.array(light.homogeneous_from(origin))
+    hull = light_hull(r, light_h)
+    casters = BoxIndex.of(scene, "casters").select(hull.normals, hull.offsets + hull.normals @ origin, tol)
+    held = r.vertices if casters.box is None else np.concatenate([r.vertices, casters.box - origin])
+    s_c = np.array([held.min(axis=0), held.max(axis=0)])
     scale = max(math.dist(*s_c), scale)
-    box_o = _box_offsets(s_c, max(BOX_PAD * scale, 512 * tol))
+    pad = max(BOX_PAD * scale, 512 * tol)
+    bn, bo = _box_halfspaces(s_c, pad)
 
     # B = hull(R ∪ light) ∩ S_c; a sun's hull is closed on the face of S_c the light leaves it by.
     try:
-        cap = None
-        if light_h[3] == 0:
-            rate = [-light_h[0], -light_h[1], -light_h[2], *light_h[:3]]      # along _BOX_NORMALS
-            exit_face = rate.index(max(rate))
-            cap = (_BOX_NORMALS_LIST[exit_face], box_o[exit_face])
-        body = _clip_to_box(hull.brep(cap), box_o, tol)
-        body = None if body is None else ConvexPolytope.from_brep(body, tol)
+        exit_face = int(np.argmax(bn @ light_h[:3]))
+        body = hull.polytope((bn[exit_face], bo[exit_face]) if light_h[3] == 0 else None).clip(bn, bo)
     except OpenCut as why:
         log.debug("B by vertex enumeration: %s", why)
-        body = ConvexPolytope.box(-np.array(box_o[:3]), np.array(box_o[3:]), tol).clip(hull.normals, hull.offsets)
+        body = ConvexPolytope.box(s_c[0] - pad, s_c[1] + pad, tol).clip(hull.normals, hull.offsets)
     if body is None:
         raise EmptyBodyError("the light-extruded view does not meet the scene")
-    visible_vertices = float_rows(visible_r.vertices)
     return IntersectionBody(
         vertices=body.vertices + origin,
         faces=LazyFaces(body, origin),
-        visible_vertices=visible_vertices + origin,
+        visible_vertices=r.vertices + origin,
         casters=casters,
         receivers=receivers,
         receiver_source=scene.receivers,
-        hull_halfspaces=(hn, ho),
+        hull_halfspaces=(hull.normals, hull.offsets + hull.normals @ origin),
         tolerance=tol,
         scale=scale,
         polytope=body,
         origin=origin,
-        visible_boundary=visible_r,
+        visible_boundary=r,
         visible=visible,
     )

@@ -137,12 +137,6 @@ class BoxIndex:
             return cls(boxes)
         return scene.cached(("BoxIndex", which), build)
 
-    def cull(self, normals, offsets, tol: float = 0.0) -> tuple[np.ndarray, np.ndarray | None]:
-        """(mask over the boxes in their original order, the (2, 3) bounding box
-        of the boxes that meet the region or None)."""
-        sel = self.select(normals, offsets, tol)
-        return sel.mask, sel.box
-
     def select(self, normals, offsets, tol: float = 0.0) -> Selection:
         """The boxes that meet the region ``normals @ x <= offsets``.
 

@@ -13,16 +13,16 @@ vector when light and view are (nearly) parallel, so the frame never jumps.
 """
 from __future__ import annotations
 
-import functools
 import itertools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 
 from .body import IntersectionBody
-from .geometry import across, cross3, dot3, homogeneous, look_along, normalize, perpendicular
+from .polyhedron import SNAP, ConvexPolytope, Edges, section_points
+from .geometry import across, cross, dot3, homogeneous, look_along, normalize, perpendicular
 from .types import Light, View, WarpOptions
 
 PARALLEL_BLEND = math.sin(math.radians(1.0))
@@ -63,7 +63,7 @@ def _image_up_raw(view_direction, view_up, light_direction) -> list:
         return [c / s for c in pv]
     u = np.asarray(view_up, dtype=np.float64).tolist()
     pu = across(u, d)
-    pr = across(cross3(v, u).tolist(), d)
+    pr = across(cross(v, u).tolist(), d)
     nu, nr = math.sqrt(dot3(pu, pu)), math.sqrt(dot3(pr, pr))
     if not nu > 0 or not nr > 0:
         return [c / s for c in pv] if s > 0 else pv
@@ -303,183 +303,53 @@ def cube_basis(axis, up) -> np.ndarray:
 
 _FACE_CORNERS = np.array([[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]])
 """(a, b) of a cube face's 4 corner rays forward + a·others[0] + b·others[1]."""
-_CUBE_SIGNS = np.array([[sx, sy, sz] for sx in (-1.0, 1.0) for sy in (-1.0, 1.0) for sz in (-1.0, 1.0)])
-"""The cube's 8 corner rays (in its basis), each a corner ray of the 3 faces whose signs it shares."""
-_FACE_PLANES = np.array([[s if j == o else (-sign if j == k else 0.0) for j in range(3)]
-                         for _, k, sign in CUBE_FACES for o in range(3) if o != k for s in (1.0, -1.0)])
-"""Coefficients (in the cube's basis) of the 4 side planes of each face's
-pyramid, s·other - forward (not yet unit): face f owns rows 4f .. 4f + 3."""
-_CUBE_PLANES = np.array([[1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, -1.0],
-                         [0.0, 1.0, 1.0], [-1.0, 0.0, 1.0], [1.0, 0.0, 1.0]])
-"""The planes x = ±y, y = ±z, z = ±x (in the cube's basis, not yet unit): the
-24 sides of the faces' pyramids are these 6, each shared by four faces."""
-_CUBE_UNIT_PLANES_AND_RAYS = np.concatenate([_CUBE_PLANES / math.sqrt(2.0), _CUBE_SIGNS])
-"""The 6 planes' unit normals and the 8 corner rays: one product with the basis gives both."""
 
 
-@dataclass(frozen=True, eq=False)
-class Pyramids:
-    """How k four-sided pyramids with their apex at the origin are bounded by
-    m planes and r corner rays that neighbouring pyramids may share: pyramid j
-    is {x : signs[j, i] · n_p . x <= 0 for p = sides[j, i], i = 0..3} (n_p the
-    planes' normals), and ``corners[c, j]`` says whether ray c is one of its
-    corner rays. Made once and shared (read-only arrays)."""
-
-    sides: np.ndarray      # (k, 4) plane numbers
-    signs: np.ndarray      # (k, 4) ±1
-    corners: np.ndarray    # (r, k) bool
-    uses: np.ndarray = field(init=False)
-    """(m, k): whether plane p is one of pyramid j's sides."""
-    separate: bool = field(init=False)
-    """Pyramid j has planes 4j .. 4j + 3 with signs +1 (nothing shared): its
-    sides' distances are a reshape of the planes'."""
-
-    def __post_init__(self):
-        uses = (self.sides[None] == np.arange(self.sides.max() + 1)[:, None, None]).any(axis=2)
-        object.__setattr__(self, "uses", uses)
-        object.__setattr__(self, "separate", bool(np.array_equal(self.sides.ravel(), np.arange(self.sides.size))
-                                                  and (self.signs == 1.0).all()))
-        for a in (self.sides, self.signs, self.corners, uses):
-            a.flags.writeable = False
+def _face_pyramids() -> tuple[np.ndarray, np.ndarray]:
+    """Each cube face's pyramid in the cube's basis, C_f = {|o · x| <= forward ·
+    x for both other axes o}: its 4 sides' unit outward normals (s·o - forward)
+    / √2 and its 4 corner rays forward + a·o_1 + b·o_2, (6, 4, 3) each."""
+    sides, rays = [], []
+    for _, k, sign in CUBE_FACES:
+        forward, (o1, o2) = sign * np.eye(3)[k], np.delete(np.eye(3), k, axis=0)
+        sides.append([(s * o - forward) / math.sqrt(2.0) for o in (o1, o2) for s in (1.0, -1.0)])
+        rays.append([forward + a * o1 + b * o2 for a, b in _FACE_CORNERS])
+    return np.array(sides), np.array(rays)
 
 
-@functools.lru_cache(maxsize=None)
-def separate_pyramids(k: int) -> Pyramids:
-    """k pyramids that share nothing: pyramid j has the planes and corner rays
-    4j .. 4j + 3 (made once per count)."""
-    return Pyramids(np.arange(4 * k).reshape(k, 4), np.ones((k, 4)), np.eye(k, dtype=bool).repeat(4, axis=0))
+_FACE_SIDES, _FACE_RAYS = _face_pyramids()
 
 
-def _cube_pyramids() -> Pyramids:
-    overlap = (_FACE_PLANES @ _CUBE_PLANES.T) / 2.0         # ±1 where a face's side is ± that plane, |.| <= 1/2 else
-    sides = np.abs(overlap).argmax(axis=1)
-    corners = _CUBE_SIGNS[:, [k for _, k, _ in CUBE_FACES]] == [sign for _, _, sign in CUBE_FACES]
-    return Pyramids(sides.reshape(6, 4), overlap[np.arange(24), sides].reshape(6, 4), corners)
+def pyramid_sections(poly: ConvexPolytope, sides: np.ndarray, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points whose convex hull is P ∩ C_j for k pyramids C_j with their apex at
+    the origin (P relative to the apex, e.g. a point light), all at once:
+    ``sides`` (k, 4, 3) their sides' unit outward normals, ``rays`` (k, 4, 3)
+    their corner rays, the pyramids' edges (``polyhedron.section_points``).
+    Returns the points and the pyramid each belongs to."""
+    return section_points(poly, sides, np.zeros(sides.shape[:2]),
+                          Edges(np.zeros_like(rays), rays, np.full(rays.shape[:2], np.inf)))
 
 
-CUBE_PYRAMIDS = _cube_pyramids()
-"""The six faces' pyramids: each face's sides (``_FACE_PLANES``) are ± one of
-``_CUBE_PLANES``, its corner rays the 4 of ``_CUBE_SIGNS`` whose sign on its axis is the face's."""
-
-
-def cube_section_points(poly, edges: np.ndarray, basis: np.ndarray) -> list:
+def cube_sections(poly: ConvexPolytope, edges, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """For each face of the cube with axes ``basis`` (rows) centred on the
-    apex, points whose convex hull is P ∩ C_face (``pyramid_section_points``,
-    all six at once), or None when that part has no volume."""
-    pts, member = cube_sections(poly, edges, basis)
-    return [pts[member[:, f]] if member[:, f].any() else None for f in range(6)]
-
-
-def cube_sections(poly, edges: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``cube_section_points`` as candidate points (n, 3) and which faces each
-    belongs to (n, 6), a face's column all False when its part has no volume.
-    The faces' pyramids share their 6 planes and 8 corner rays
-    (``CUBE_PYRAMIDS``), so each crossing and each ray is found once."""
-    tol = poly.tol
-    planes_rays = _CUBE_UNIT_PLANES_AND_RAYS @ basis
-    pts, member, dist = pyramid_sections(poly, edges, planes_rays[:6], planes_rays[6:], CUBE_PYRAMIDS)
-    # No volume: too few points, or all on one of the face's sides (none of its points off that plane).
-    off = member.T @ (np.abs(dist) > tol)                    # (faces, planes): some point of the face is off the plane
-    flat = (CUBE_PYRAMIDS.uses.T & ~off).any(axis=1)
-    return pts, member & ((member.sum(axis=0) >= 4) & ~flat)
-
-
-def pyramid_sections(poly, edges: np.ndarray, planes: np.ndarray, rays: np.ndarray,
-                     pyramids: Pyramids) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """P ∩ C_j for k four-sided pyramids C_j with their apex at the origin (P
-    relative to the apex, e.g. a point light), all at once, without clipping.
-    ``planes`` (m, 3) are the unit normals of their sides and ``rays`` (r, 3)
-    their corner rays (pointing into the pyramids they bound), shared as
-    ``pyramids`` says. Returns candidate points (n, 3), which pyramids each
-    belongs to (n, k), a column all False when P lies outside one side of C_j,
-    and the candidates' signed distances to the planes (n, m).
-
-    Every vertex of P ∩ C_j is among its points: P's vertices inside C_j, the
-    crossings of P's edges with C_j's sides (kept if inside C_j), where C_j's
-    corner rays enter and leave P, and the apex if P holds it."""
-    tol = poly.tol
-    v = poly.vertices
-    d = v @ planes.T                                         # (vertices, m)
-    # P's edges crossing the planes (one end beyond tol on each side).
-    da, db = d[edges.T]                                      # (e, m) at either end
-    e, p = np.nonzero((np.minimum(da, db) < -tol) & (np.maximum(da, db) > tol))
-    da = da[e, p]
-    t = da / (da - db[e, p])
-    a, b = v[edges[e].T]
-    x = a + t[:, None] * (b - a)
-    # The corner rays through P: t-interval where n . (t r) <= o for every facet.
-    t_lo, t_hi, hit = ray_interval(poly, rays)
-    apex = poly.offsets.min() >= -tol                        # P holds the apex: n . 0 - o <= tol for every facet
-    pts = np.concatenate([v, x, t_lo[:, None] * rays, t_hi[:, None] * rays, _ORIGIN])
-    # Each candidate belongs to the pyramids that hold it among those it was made for: a vertex
-    # to all, a crossing to those with its plane as a side, a ray's ends to those it bounds.
-    dist = pts @ planes.T                                    # (n, m)
-    k = len(pyramids.sides)
-    if pyramids.separate:                                    # (n, k, 4) to each pyramid's sides, outward
-        side = dist.reshape(len(pts), k, 4)
-    else:
-        side = dist[:, pyramids.sides] * pyramids.signs
-    on_ray = pyramids.corners & hit[:, None]
-    made_for = np.concatenate([np.ones((len(v), k), dtype=bool), pyramids.uses[p], on_ray, on_ray, [[apex] * k]])
-    outside = np.logical_and.reduce(side[:len(v)] >= -tol, axis=0).any(axis=1)   # (k,): P wholly outside one side
-    return pts, (np.maximum.reduce(side, axis=2) <= tol) & made_for & ~outside, dist
-
-
-_ORIGIN = np.zeros((1, 3))
-
-
-def ray_interval(poly, rays) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Where rays t·r (t >= 0, from the origin, e.g. a point light) run inside the
-    polytope: (t_lo, t_hi, hit) with n . (t r) <= o for every facet on [t_lo, t_hi]."""
-    denom = rays @ poly.normals.T                            # (R, F): a ray's facets along a row
-    o = poly.offsets
-    ratio = np.divide(o, denom, out=None, where=denom != 0)           # (left unset where denom = 0, never read)
-    t_hi = np.minimum.reduce(ratio, axis=1, where=denom > 0, initial=np.inf)
-    t_lo = np.maximum.reduce(ratio, axis=1, where=denom < 0, initial=0.0)   # (and t >= 0)
-    hit = (t_lo <= t_hi) & np.isfinite(t_hi)
-    if not denom.all():                                      # parallel to a facet and outside it: no hit
-        hit &= ~((denom == 0) & (o < 0)).any(axis=1)
-    return t_lo, t_hi, hit
-
-
-def pyramid_section_points(poly, edges: np.ndarray, forward, others) -> np.ndarray | None:
-    """Points whose convex hull is P ∩ C for a polytope P (coordinates relative
-    to the apex) and the 90° pyramid C = {|o . x| <= forward . x for o in
-    others} (a cube face seen from its centre), or None when P ∩ C has no
-    volume. They are the vertices of P inside C, the crossings of P's edges
-    with C's four planes, where C's four corner rays enter and leave P, and the
-    apex if P holds it: every vertex of P ∩ C is among them, so a map fitted to
-    them holds P ∩ C. (Vectorised; no clipping.)"""
-    tol = poly.tol
-    n4 = np.array([s * o - forward for o in others for s in (1.0, -1.0)]) / math.sqrt(2.0)
-    v = poly.vertices
-    d = v @ n4.T                                             # (n, 4), <= 0 inside C
-    if np.any(np.all(d >= -tol, axis=0)):
-        return None                                          # P lies outside one plane of C
-    pts = [v[d.max(axis=1) <= tol]]
-    # P's edges crossing C's planes.
-    da, db = d[edges[:, 0]], d[edges[:, 1]]                  # (e, 4)
-    cross = ((da < -tol) & (db > tol)) | ((da > tol) & (db < -tol))
-    if cross.any():
-        e, p = np.nonzero(cross)
-        t = da[e, p] / (da[e, p] - db[e, p])
-        a = v[edges[e, 0]]
-        x = a + t[:, None] * (v[edges[e, 1]] - a)
-        pts.append(x[(x @ n4.T).max(axis=1) <= tol])
-    # C's corner rays through P: t-interval where n . (t r) <= o for every facet.
-    rays = np.array([forward + a * others[0] + b * others[1] for a in (-1.0, 1.0) for b in (-1.0, 1.0)])
-    t_lo, t_hi, hit = ray_interval(poly, rays)
-    if hit.any():
-        pts.append(np.concatenate([t_lo[hit, None] * rays[hit], t_hi[hit, None] * rays[hit]]))
-    if poly.contains(np.zeros((1, 3)), tol)[0]:
-        pts.append(np.zeros((1, 3)))
-    pts = np.concatenate(pts)
-    if len(pts) < 4:
-        return None
-    # No volume: every point on one of C's planes.
-    if np.any(np.all(np.abs(pts @ n4.T) <= tol, axis=0)):
-        return None
-    return pts
+    apex, points whose convex hull is P ∩ C_face (``pyramid_sections``), as
+    candidate points (n, 3) and which face each belongs to (n, 6); a face's
+    column is all False when its part has no volume: fewer than four points,
+    or all of them on one of its sides (within SNAP tolerances: the section
+    is taken within the tolerance, so a pyramid touching P at the apex gets
+    points up to about two tolerances from its sides; the points are within
+    the tolerance of the pyramid, so the greatest distance from a side is
+    the deepest point's inwards)."""
+    sides = _FACE_SIDES @ basis
+    pts, face = pyramid_sections(poly, sides, _FACE_RAYS @ basis)
+    count = np.bincount(face, minlength=6)
+    faces = np.flatnonzero(count)
+    # Each face's points' greatest distance inwards from each of its sides.
+    depth = np.minimum.reduceat(pts @ sides.reshape(-1, 3).T, np.cumsum(count)[faces] - count[faces])
+    deep = depth.reshape(len(faces), 6, 4)[np.arange(len(faces)), faces] < -SNAP * poly.tol
+    needed = np.zeros(6, dtype=bool)
+    needed[faces] = (count[faces] >= 4) & deep.all(axis=1)
+    return pts, (face[:, None] == np.arange(6)) & needed
 
 
 def light_frames(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> list[LightFrame]:

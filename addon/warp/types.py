@@ -1,8 +1,9 @@
 """Plain data in and out of the warp core: no bpy, numpy float64 only.
 
-Inputs: :class:`View` (the camera), :class:`Light`, :class:`SceneBounds`.
-Output of every method: :class:`ShadowSetup` = a list of :class:`ShadowMap`
-plus :class:`Diagnostics`.
+Inputs: :class:`View` (the camera), :class:`Light`, :class:`SceneBounds`,
+:class:`WarpOptions`. Output of every method: :class:`ShadowSetup` = a list of
+:class:`ShadowMap` plus :class:`~.diagnostics.Diagnostics` (what the method
+computed on the way, its own module).
 
 A world point is shadow-tested against the *first* map of ``ShadowSetup.maps``
 whose clip volume contains it (w > 0 and x, y, z in [-1, 1]) and, if the map
@@ -14,10 +15,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any, Callable, Optional
+from typing import Any, Optional
 
 import numpy as np
 
+from .diagnostics import Diagnostics
 from .geometry import normalize, perspective_matrix, transform_h, transform_points, UNIT_CUBE_CORNERS
 
 
@@ -342,142 +344,6 @@ class ShadowMap:
             out["depth_row"] = np.asarray(self.depth_row).tolist()
         if self.blend_band > 0:
             out["blend_band"] = float(self.blend_band)
-        return out
-
-
-class Deferred:
-    """A value computed when it is first read, then kept: what a method reports
-    but does not use itself (the warp frustum's corners, its projection centre,
-    the middle vector) costs nothing in the frames nobody looks at it."""
-
-    __slots__ = ("_compute", "_value")
-
-    def __init__(self, compute: Callable[[], Any]):
-        self._compute, self._value = compute, None
-
-    @property
-    def value(self) -> Any:
-        if self._compute is not None:
-            self._value, self._compute = self._compute(), None
-        return self._value
-
-    def __repr__(self) -> str:
-        return "Deferred(not computed yet)" if self._compute is not None else f"Deferred({self._value!r})"
-
-
-class Reported(dict):
-    """``Diagnostics.extra``: a dict whose :class:`Deferred` values are computed
-    on first read. Every way of reading a value goes through ``__getitem__``
-    (``dict(extra)`` and ``{**extra}`` too, since ``__iter__`` is overridden)."""
-
-    def __getitem__(self, key):
-        value = super().__getitem__(key)
-        if isinstance(value, Deferred):
-            value = value.value
-            super().__setitem__(key, value)
-        return value
-
-    def __iter__(self):
-        return super().__iter__()
-
-    def get(self, key, default=None):
-        return self[key] if key in self else default
-
-    def items(self):
-        return [(k, self[k]) for k in list(self.keys())]
-
-    def values(self):
-        return [self[k] for k in list(self.keys())]
-
-    def pop(self, key, *default):
-        if key in self:
-            value = self[key]
-            super().pop(key)
-            return value
-        return super().pop(key, *default)
-
-    def copy(self) -> "Reported":
-        return Reported(self.items())
-
-
-class _Resolved:
-    """A :class:`Diagnostics` field that may be set to a :class:`Deferred`:
-    reading it computes the value once."""
-
-    def __set_name__(self, owner, name):
-        self.slot = "_" + name
-
-    def __get__(self, obj, owner=None):
-        if obj is None:
-            return None                      # the field's default (dataclasses ask the class)
-        value = obj.__dict__.get(self.slot)
-        if isinstance(value, Deferred):
-            value = obj.__dict__[self.slot] = value.value
-        return value
-
-    def __set__(self, obj, value):
-        obj.__dict__[self.slot] = value
-
-
-@dataclass
-class Diagnostics:
-    """What a method computed on the way, for overlays, reports and tests.
-
-    theta: angle between light and view directions (radians, in [0, pi/2] by
-    symmetry, GMNPR convention); gamma: angle between light and view directions
-    in [0, pi] (LiSPSM's γ, Scherzer §4.4); body_vertices: B; warp_frustum_corners:
-    the 8 world corners of the warp frustum P (if any); fallbacks: (what, reason).
-    ``theta``, ``gamma``, ``warp_frustum_corners`` and the values of ``extra``
-    may be given as :class:`Deferred`: they are computed when first read.
-    """
-
-    method: str
-    theta: Optional[float] = _Resolved()
-    gamma: Optional[float] = _Resolved()
-    n_opt: Optional[float] = None
-    lam: Optional[float] = None
-    body_vertices: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
-    warp_frustum_corners: Optional[np.ndarray] = _Resolved()
-    fallbacks: list[tuple[str, str]] = field(default_factory=list)
-    extra: dict[str, Any] = field(default_factory=Reported)
-
-    def __post_init__(self):
-        if type(self.extra) is not Reported:
-            self.extra = Reported(self.extra)
-
-    def report_angles(self, compute: Callable[[], tuple[float, float]]) -> None:
-        """θ and γ as ``compute()`` gives them (e.g. ``frame.light_angles``),
-        computed together when either is first read."""
-        both = Deferred(compute)
-        self.theta = Deferred(lambda: both.value[0])
-        self.gamma = Deferred(lambda: both.value[1])
-
-    def fallback(self, what: str, reason: str) -> None:
-        self.fallbacks.append((what, reason))
-
-    def to_json(self) -> dict:
-        def conv(v):
-            if isinstance(v, np.ndarray):
-                return v.tolist()
-            if isinstance(v, (np.floating, np.integer)):
-                return v.item()
-            if isinstance(v, dict):
-                return {k: conv(x) for k, x in v.items()}
-            if isinstance(v, (list, tuple)):
-                return [conv(x) for x in v]
-            return v
-
-        out = {
-            "method": self.method,
-            "theta_deg": None if self.theta is None else math.degrees(self.theta),
-            "gamma_deg": None if self.gamma is None else math.degrees(self.gamma),
-            "n_opt": self.n_opt,
-            "lambda": self.lam,
-            "body_vertices": conv(self.body_vertices),
-            "warp_frustum_corners": conv(self.warp_frustum_corners),
-            "fallbacks": [{"what": w, "reason": r} for w, r in self.fallbacks],
-        }
-        out.update(conv(self.extra))
         return out
 
 

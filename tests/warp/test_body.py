@@ -10,7 +10,6 @@ import pytest
 from hypothesis import assume, given, settings, strategies as st
 
 from addon.warp import EmptyBodyError, Light, SceneBounds, View, intersection_body
-from addon.warp.culling import BoxIndex, boxes_meeting_arrays, _stack_of
 from addon.warp.polyhedron import COINCIDENT, ConvexPolytope
 
 from hard_cases import EMPTY_CASES, HARD_CASES, NONEMPTY_CASES, camera, point, spot, sun, town
@@ -157,21 +156,23 @@ def test_hard_case_body_contains_what_the_view_needs(name):
 
 @pytest.mark.parametrize("name", ["sun_behind_camera", "spot_over_scene", "point_light_inside_view", "theta_equals_phi"])
 def test_when_the_face_walk_gives_up_vertex_enumeration_builds_the_same_body(name, monkeypatch):
-    """Every face-loop cut refusing (brep.OpenCut, as on a cut too degenerate
-    to order), and the light hull's loops too (B may need no cut after it),
-    sends B through vertex enumeration: the same body, still holding what the
-    view needs."""
-    from addon.warp import brep
+    """Every face-loop cut refusing (OpenCut, as on a cut too degenerate to
+    order), and the light hull's loops too (B may need no cut after it), sends
+    B through vertex enumeration: the same body, still holding what the view
+    needs."""
+    from addon.warp import polyhedron
     from addon.warp.light_hull import LightHull
     view, light, scene = HARD_CASES[name]
     walked = intersection_body(view, light, scene)
+    enumerations = []
 
     def refuse(*args, **kwargs):
-        raise brep.OpenCut("refused for the test")
-    monkeypatch.setattr(brep, "cut", refuse)
-    monkeypatch.setattr(LightHull, "brep", refuse)
+        enumerations.append(1)
+        raise polyhedron.OpenCut("refused for the test")
+    monkeypatch.setattr(polyhedron, "_cut", refuse)
+    monkeypatch.setattr(LightHull, "polytope", refuse)
     enumerated = intersection_body(view, light, scene)
-    assert enumerated.polytope.loops is None         # built by enumeration: no face loops yet
+    assert enumerations                              # built by enumeration
     tol = 10 * walked.tolerance
     assert enumerated.contains(walked.vertices, tol).all() and walked.contains(enumerated.vertices, tol).all()
     recv = visible_receiver_points(view, light, scene)
@@ -264,35 +265,16 @@ def test_body_masks():
 
 # ----------------------------------------------------------------------------- the culling index
 
-def test_box_index_equals_the_plain_test():
-    rng = np.random.default_rng(3)
-    c = rng.uniform(-100, 100, (3000, 3))
-    h = rng.uniform(0.01, 3, (3000, 3))
-    boxes = np.stack([c - h, c + h], axis=1)
-    boxes[7] = [[-500, -500, -1], [500, 500, 0]]                 # one huge box
-    index = BoxIndex(boxes)
-    for _ in range(100):
-        n = rng.normal(size=(rng.integers(1, 20), 3))
-        o = rng.normal(size=len(n)) * 60
-        mask, box = index.cull(n, o, 1e-9)
-        ref = boxes_meeting_arrays(n, o, _stack_of(boxes), 1e-9)
-        assert np.array_equal(mask, ref)
-        if ref.any():
-            assert np.array_equal(box, [boxes[ref, 0].min(axis=0), boxes[ref, 1].max(axis=0)])
-        else:
-            assert box is None
-
-
 def test_polytope_clip_matches_brute_force():
     rng = np.random.default_rng(5)
     for _ in range(50):
         poly = ConvexPolytope.box([-1, -2, -3], [2, 1, 3], 1e-12)
         n = rng.normal(size=(rng.integers(1, 8), 3))
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
         o = rng.uniform(0.1, 2.0, len(n))
         out = poly.clip(n, o)
         pts = rng.uniform([-1, -2, -3], [2, 1, 3], (4000, 3))
-        inside = np.all(pts @ (n / np.linalg.norm(n, axis=1, keepdims=True)).T
-                        <= o / np.linalg.norm(n, axis=1), axis=1)
+        inside = np.all(pts @ n.T <= o, axis=1)
         assert out is not None
         assert np.array_equal(out.contains(pts, 0.0), inside)
         # Vertices lie inside every half-space and on at least three facets.
@@ -379,7 +361,7 @@ def test_polytope_clip_is_exact_on_awkward_cuts():
     the same cases): a clip is never falsely empty, its vertices satisfy every
     half-space to the flatness scale, it holds exactly the sample points that
     satisfy them (away from the boundary), and its faces close (Euler) on at
-    least 99% of the cuts. The face walk (``brep.cut``) closes them by
+    least 99% of the cuts. The face walk (``polyhedron._cut``) closes them by
     construction; a cut it cannot order falls back to vertex enumeration,
     whose faces may not close on thin wedges between planes a few 1e-6 rad
     apart (B's light hull then takes its planes from shared vertices, see
@@ -391,9 +373,9 @@ def test_polytope_clip_is_exact_on_awkward_cuts():
     open_faces = 0
     for _ in range(AWKWARD_SAMPLES):
         n, o = awkward_cuts(rng)
-        out = box.clip(n, o)
         unit = n / np.linalg.norm(n, axis=1, keepdims=True)
         offset = o / np.linalg.norm(n, axis=1)
+        out = box.clip(unit, offset)
         d = (pts @ unit.T - offset).max(axis=1)
         if out is None:
             assert not np.any(d < -1e-9), (n.tolist(), o.tolist())
@@ -419,7 +401,9 @@ def test_two_cuts_nearly_along_a_face_leave_nearly_the_whole_box():
     tolerances): the clip is the box less two thin wedges, never empty."""
     tol = 1e-10 * 6.0
     box = ConvexPolytope.box([-1, -2, -3], [2, 1, 3], tol)
-    out = box.clip(np.array([[0.0, -1.0, -1e-6], [0.0, -1.0, 1e-7]]), np.array([2.0, 2.0]))
+    n = np.array([[0.0, -1.0, -1e-6], [0.0, -1.0, 1e-7]])
+    length = np.linalg.norm(n, axis=1)
+    out = box.clip(n / length[:, None], np.array([2.0, 2.0]) / length)
     assert out is not None
     assert np.allclose(out.vertices.min(axis=0), [-1, -2, -3]) and np.allclose(out.vertices.max(axis=0), [2, 1, 3])
     edges = out.edges()

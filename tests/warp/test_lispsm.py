@@ -13,7 +13,13 @@ from hypothesis import assume, given, settings, strategies as st
 
 from addon.warp import Light, SceneBounds, View, WarpOptions, compute, intersection_body
 from addon.warp.geometry import look_along, transform_h
-from addon.warp.methods.warp_frustum import half_fov_towards
+from addon.warp.fit import window_matrix
+from addon.warp.frame import light_frames
+from addon.warp.methods.warp_frustum import (eye_depth_range, frame_warps, half_fov_towards, light_at_eye, ray_closed,
+                                             rule_lispsm, volume_centroid)
+from addon.warp.types import Diagnostics
+
+from hard_cases import HARD_CASES
 
 WARPS = ("lispsm", "gmnpr", "glpr")
 GROUND = [[-50.0, -50.0, -0.1], [50.0, 50.0, 0.0]]
@@ -565,3 +571,65 @@ def test_the_guard_can_be_kept_to_glpr():
     assert not any("λ guard" in what for what, _ in g.fallbacks)
     glpr = compute("glpr", view, light, scene, options).diagnostics
     assert any(what == "main: λ guard" for what, _ in glpr.fallbacks)
+
+
+def _maps_before_closure(view, light, scene, options):
+    """A point light's warped cube-face maps as ``warped_setup`` hands them to ``ray_closed``."""
+    body = intersection_body(view, light, scene)
+    frames = light_frames(view, light, body, options)
+    if len(frames) < 2:
+        return body, []
+    ctx = eye_depth_range(view, body, options, Diagnostics("lispsm"))
+    at, reason = light_at_eye(view, light, options, body, volume_centroid(body) - view.position)
+    if at is None:
+        return body, []
+    warps = frame_warps(frames, view, at, reason, rule_lispsm, ctx, half_fov_towards(view, at.ell), options, body)
+    return body, [w.matrix for w in warps if w.geo is not None]
+
+
+def _case(name):
+    if name == "bench_point":                                # the bench's point light over a smaller city
+        from bench.warp_speed import LIGHTS, city_scene, street_view
+        return street_view(), LIGHTS["point"], city_scene(2000)
+    return HARD_CASES[name]
+
+
+MULTI_MAP_CASES = ("point_light_offset_1e5", "flat_scene_point", "camera_inside_scene_box_point",
+                   "point_light_in_camera_plane", "point_light_inside_view", "spot_179deg", "bench_point")
+"""The cases whose light gets several warped cube-face maps (the others need no ray closure)."""
+
+
+@pytest.mark.parametrize("name", MULTI_MAP_CASES)
+def test_a_ray_closed_map_holds_b_within_its_window(name):
+    """A warped cube-face map's window reaches past its face: ray closure
+    widens its depth to hold all of B ∩ window (the window's sides as
+    half-spaces through the light, clipped from B here)."""
+    view, light, scene = _case(name)
+    body, matrices = _maps_before_closure(view, light, scene, WarpOptions())
+    assert len(matrices) >= 2, f"{name} no longer gives several warped maps: choose another case"
+    poly = body.polytope_from(light.position)
+    compared = 0
+    for m, (closed, note, held) in zip(matrices, ray_closed(matrices, body, light.position)):
+        # The window |x| <= w, |y| <= w as half-spaces through the light.
+        sides = np.array([m[0] - m[3], -m[0] - m[3], m[1] - m[3], -m[1] - m[3]])[:, :3]
+        part = poly.clip(sides / np.linalg.norm(sides, axis=1)[:, None], np.zeros(4))
+        if part is None:
+            continue
+        h = np.hstack([part.vertices + light.position, np.ones((len(part.vertices), 1))]) @ m.T
+        compared += 1
+        if closed is None:                                   # B ∩ window reaches the light (w = 0)
+            assert h[:, 3].min() <= 1e-6 * np.abs(h[:, 3]).max(), name
+            continue
+        ndc = h[:, :3] / h[:, 3:]
+        lo, hi = ndc.min(axis=0), ndc.max(axis=0)
+        if lo.min() >= -1.0 - 1e-9 and hi.max() <= 1.0 + 1e-9:
+            expected = m
+        else:
+            expected = window_matrix(lo, hi) @ m
+        scale = np.abs(expected).max()
+        assert np.allclose(closed, expected, rtol=1e-6, atol=1e-6 * scale), name
+        # The points it reports hold B ∩ window: the same NDC box.
+        hh = np.hstack([held, np.ones((len(held), 1))]) @ m.T
+        held_ndc = hh[:, :3] / hh[:, 3:]
+        assert np.allclose(held_ndc.min(axis=0), lo, atol=1e-6) and np.allclose(held_ndc.max(axis=0), hi, atol=1e-6)
+    assert compared > 0

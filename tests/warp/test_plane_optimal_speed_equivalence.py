@@ -18,11 +18,12 @@ from addon.warp import EmptyBodyError, Light, SceneBounds, View, WarpOptions, in
 from addon.warp.fit import ndc_bounds, window_matrix
 from addon.warp.frame import light_frames
 from addon.warp.geometry import homogeneous, look_along, ortho_matrix, translation
-from addon.warp.methods.uniform import frame_map
+from addon.warp.methods.common import frame_maps
 from addon.warp.plane_map import (VIEW_CORNER_RAYS, PlaneOfInterest, clip_polygon, clip_to_polygon,
                                   convex_polygon_on_plane, line_plane_points, plane_light_matrix, plane_light_rows,
                                   plane_section, rotation2d)
-from addon.warp.polyhedron import Plane, cross_rows
+from addon.warp.geometry import cross
+from addon.warp.polyhedron import Plane
 from addon.warp.types import Diagnostics, WarpError
 
 plane_optimal = importlib.import_module("addon.warp.methods.plane_optimal")
@@ -129,7 +130,7 @@ def test_clipping_to_an_extent_is_clipping_by_each_of_its_edges(seed):
         return convex_polygon_on_plane(base + xy[:, :1] * u + xy[:, 1:] * v, n, 1e-9)
 
     poly, ext = polygon(int(rng.integers(3, 12)), 3.0), polygon(int(rng.integers(3, 8)), 2.0)
-    out = cross_rows(np.roll(ext, -1, axis=0) - ext, np.broadcast_to(n, ext.shape))
+    out = cross(np.roll(ext, -1, axis=0) - ext, np.broadcast_to(n, ext.shape))
     out /= np.linalg.norm(out, axis=1)[:, None]
     expected = poly
     for o_n, o_o in zip(out, np.einsum("ij,ij->i", out, ext)):
@@ -197,5 +198,5 @@ def test_the_fallback_cube_faces_fitted_at_once_are_the_frame_maps(seed):
     frames = light_frames(view, light, body, options)
     assert len(fallbacks) == len(frames)
     for got, frame in zip(fallbacks, frames):
-        expected = frame_map(frame, dataclasses.replace(options, shadow_map_size=got.size))
+        expected = frame_maps([frame], got.size)[0]
         assert np.allclose(got.matrix, expected.matrix, rtol=1e-12, atol=1e-12 * np.abs(expected.matrix).max())

@@ -385,6 +385,8 @@ def test_virtual_camera_puts_b_in_front_and_fills_the_unit_cube():
     # the shift: B's nearest point is as far from the virtual eye as R's nearest from the real one
     assert cam.near == pytest.approx(view.eye_depth(body.visible_vertices).min(), rel=1e-9)
     assert cam.shift == pytest.approx(cam.near - view.eye_depth(body.vertices).min(), rel=1e-9)
+    # B' is B in PPS
+    assert np.abs(cam.points - p).max() <= 1e-12
 
 
 def test_min_norm_point_matches_brute_force():
@@ -396,6 +398,56 @@ def test_min_norm_point_matches_brute_force():
         assert np.all(pts @ x >= x @ x - 1e-9 * max(1.0, (pts ** 2).sum(axis=1).max()))
         w = rng.dirichlet(np.ones(len(pts)), size=4000)
         assert np.linalg.norm(x) <= np.linalg.norm(w @ pts, axis=1).min() + 1e-9
+
+
+def _cone(rng, n: int, half: float, spanning: int) -> np.ndarray:
+    """n unit directions in a cone of half-angle ``half`` spanned by ``spanning``
+    of them on its rim (two opposite, or three 120° apart), in a random frame."""
+    a = rng.uniform(0, 2 * math.pi) + np.arange(spanning) * 2 * math.pi / spanning
+    rim = np.column_stack([math.sin(half) * np.cos(a), math.sin(half) * np.sin(a), np.full(spanning, math.cos(half))])
+    tilt, turn = rng.uniform(0, half * 0.5, n - spanning), rng.uniform(0, 2 * math.pi, n - spanning)
+    inner = np.column_stack([np.sin(tilt) * np.cos(turn), np.sin(tilt) * np.sin(turn), np.cos(tilt)])
+    frame, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    return np.concatenate([rim, inner]) @ frame.T
+
+
+def test_the_smallest_cone_is_spanned_by_its_rim():
+    """The narrowest cone around the directions has every direction within
+    its half-angle and the spanning ones on its rim (two or three of them),
+    its axis towards the hull's point nearest the origin."""
+    rng = np.random.default_rng(41)
+    for t in range(400):
+        spanning, half = 2 + t % 2, rng.uniform(0.01, 1.5)
+        d = _cone(rng, int(rng.integers(spanning, 30)), half, spanning)
+        k, margin = smallest_cone(d)
+        assert margin == pytest.approx(math.cos(half), abs=1e-9)
+        assert np.all(d @ k >= margin - 1e-12) and np.allclose(d[:spanning] @ k, margin, atol=1e-9)
+        x = min_norm_point(d)
+        assert np.allclose(k, x / np.linalg.norm(x), atol=1e-9)
+    opposite = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+    assert smallest_cone(opposite)[1] == pytest.approx(0.0, abs=1e-12)     # they surround the origin: no cone
+
+
+def test_lowest_in_boxes_is_the_least_vertex_of_each_clipped_region():
+    from addon.warp.polyhedron import ConvexPolytope
+    from addon.warp.post_perspective import lowest_in_boxes
+    rng = np.random.default_rng(0)
+    for _ in range(4):
+        normals = rng.normal(size=(int(rng.integers(5, 14)), 3))
+        normals /= np.linalg.norm(normals, axis=1)[:, None]
+        region = ConvexPolytope.from_halfspaces(normals, rng.uniform(1.0, 3.0, len(normals)), 1e-9)
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        centre, half = rng.uniform(-3, 3, size=(40, 3)), rng.uniform(0.05, 2.5, size=(40, 3))
+        lo, hi = centre - half, centre + half
+        got = lowest_in_boxes(region, lo, hi, axis)
+        eye = np.eye(3)
+        for i in range(len(lo)):
+            part = region.clip(np.concatenate([eye, -eye]), np.concatenate([hi[i], -lo[i]]))
+            if part is None:                     # nothing with volume in common (at most a touch)
+                assert got[i] >= float(np.where(axis > 0, lo[i], hi[i]) @ axis) - 1e-9
+            else:
+                assert got[i] == pytest.approx(float((part.vertices @ axis).min()), abs=1e-9)
 
 
 def test_smallest_cone_is_exact_for_a_symmetric_cone():

@@ -14,7 +14,8 @@ import pytest
 from addon.warp import View, WarpOptions, compute, focused_body, intersection_body
 from addon.warp.frame import (PARALLEL_BLEND, image_up, image_up_singularity, light_angles, light_cone,
                               point_frames)
-from addon.warp.methods.uniform import SNAP_STEPS_PER_OCTAVE, uniform
+from addon.warp.methods.common import SNAP_STEPS_PER_OCTAVE
+from addon.warp.methods.uniform import uniform
 
 from hard_cases import HARD_CASES, camera, point, sun, town
 
@@ -231,23 +232,27 @@ def test_point_cube_frames_move_continuously_with_the_camera():
 
 @pytest.mark.parametrize("name", ["point_light_inside_view", "camera_inside_scene_box_point", "spot_179deg",
                                   "point_light_in_camera_plane"])
-def test_cube_sections_at_once_equal_face_by_face(name):
-    """The six cube faces' section points computed together equal the per-face
-    construction (vertices inside, edge crossings, corner rays, apex)."""
-    from addon.warp.frame import CUBE_FACES, cube_section_points, pyramid_section_points
-    from addon.warp.geometry import cross3, normalize
+def test_each_cube_face_sees_exactly_its_part_of_b(name):
+    """A cube face's section points hold every vertex of B ∩ C_f (C_f the
+    face's 90° pyramid from the light) and nothing outside it; a face whose
+    part of B has no volume gets none."""
+    from addon.warp.frame import CUBE_FACES, cube_basis, cube_sections
     view, light, scene = HARD_CASES[name]
     body = intersection_body(view, light, scene)
     poly = body.polytope_from(light.position)
-    edges = poly.edges()
     axis, _ = light_cone(body.vertices, light.position)
-    up = image_up(view.direction, view.up, axis)
-    basis = np.stack([normalize(cross3(up, -axis)), normalize(up - (up @ axis) * axis), -axis])
-    together = cube_section_points(poly, edges, basis)
-    assert sum(p is not None for p in together) >= 2
-    for (face, k, sign), pts in zip(CUBE_FACES, together):
-        alone = pyramid_section_points(poly, edges, sign * basis[k], [basis[j] for j in range(3) if j != k])
-        assert (alone is None) == (pts is None), face
-        if pts is not None:
-            a, b = np.unique(np.round(alone, 9), axis=0), np.unique(np.round(pts, 9), axis=0)
-            assert a.shape == b.shape and np.allclose(a, b), face
+    basis = cube_basis(axis.tolist(), image_up(view.direction, view.up, axis).tolist())
+    pts, member = cube_sections(poly, None, basis)
+    assert member.any(axis=0).sum() >= 2
+    for f, (face, k, sign) in enumerate(CUBE_FACES):
+        forward, others = sign * basis[k], [basis[j] for j in range(3) if j != k]
+        sides = np.array([s * o - forward for o in others for s in (1.0, -1.0)]) / math.sqrt(2.0)
+        part = poly.clip(sides, np.zeros(4))
+        if part is None or not member[:, f].any():
+            assert part is None or np.ptp(part.vertices @ sides.T, axis=0).min() < 1e-6 * body.scale, face
+            continue
+        # (The section is taken within B's tolerance, 1e-10 of the scale; where a side
+        # meets a facet of B at a grazing angle that moves a corner along the facet.)
+        own = pts[member[:, f]]
+        gap = np.linalg.norm(part.vertices[:, None] - own[None], axis=2).min(axis=1)
+        assert gap.max() <= 1e-8 * body.scale and part.contains(own, 1e-8 * body.scale).all(), face

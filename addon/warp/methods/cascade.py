@@ -56,8 +56,8 @@ from ..partition.adaptive import max_error, minimax_splits
 from ..partition.budget import shared_sizes
 from ..partition.splits import practical_splits, split_region, split_view, tightened_depth_range
 from ..partition.stable import stable_depth_range, stable_sun_map
-from ..types import (Deferred, Diagnostics, EmptyBodyError, Light, SceneBounds, ShadowMap, ShadowSetup, View,
-                     WarpError, WarpOptions)
+from ..diagnostics import Diagnostics, OnRead
+from ..types import EmptyBodyError, Light, SceneBounds, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from ..visibility import VisibleRegion
 from .lispsm import gmnpr, lispsm
 from .psm import psm
@@ -242,8 +242,8 @@ def cascade(view: View, light: Light, body: IntersectionBody, options: WarpOptio
     """The cascade's maps: the module's pipeline, step by step."""
     if scene is None:
         raise WarpError("the cascade builds one intersection body per split from the scene: call it through compute()")
-    diag = Diagnostics("cascade", body_vertices=body.vertices)
-    diag.report_angles(lambda: body_light_angles(view, light, body))
+    theta, gamma = body_light_angles(view, light, body)
+    diag = Diagnostics("cascade", theta, gamma, body_vertices=body.vertices)
     if options.cascade_stable and not light.is_directional:
         diag.fallback("stable", f"light '{light.name}' is a {light.type.lower()} light: its frames look at B from "
                                 "a point and turn with it, so its maps are not texel-snapped")
@@ -262,9 +262,9 @@ def cascade(view: View, light: Light, body: IntersectionBody, options: WarpOptio
         "split_predicted_error": errors,
         "predicted_max_error": max(e for e in errors if e is not None),
         "map_splits": owner,
-        "split_bodies": Deferred(lambda: [s.body.vertices if s.body is not None else None for s in splits]),
-        "split_body_faces": Deferred(lambda: [list(s.body.faces) if s.body is not None else None for s in splits]),
-        "split_frusta": Deferred(lambda: [s.setup.diagnostics.warp_frustum_corners if s.setup is not None else None
+        "split_bodies": OnRead(lambda: [s.body.vertices if s.body is not None else None for s in splits]),
+        "split_body_faces": OnRead(lambda: [list(s.body.faces) if s.body is not None else None for s in splits]),
+        "split_frusta": OnRead(lambda: [s.setup.diagnostics.warp_frustum_corners if s.setup is not None else None
                                           for s in splits]),
         "budget": options.cascade_budget,
         "stable": options.cascade_stable,

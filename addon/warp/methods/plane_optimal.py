@@ -70,8 +70,9 @@ from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_to_polygon, convex_po
                          VIEW_CORNER_RAYS, plane_light_matrix, plane_section, polygon_area,
                          rotation2d)
 from ..polyhedron import ConvexPolytope, Plane, clip_faces, unique_points
-from ..types import Diagnostics, Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
-from .uniform import frame_map
+from ..diagnostics import Diagnostics
+from ..types import Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
+from .common import frame_maps
 
 MAX_SIDE = 16384
 MAX_REGION_VERTICES = 32
@@ -556,8 +557,8 @@ def _fallback_size(texels: float, options: WarpOptions) -> tuple[int, int]:
 
 
 def plane_optimal(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
-    diag = Diagnostics("plane_optimal", body_vertices=body.vertices)
-    diag.report_angles(lambda: body_light_angles(view, light, body))
+    theta, gamma = body_light_angles(view, light, body)
+    diag = Diagnostics("plane_optimal", theta, gamma, body_vertices=body.vertices)
     origin = view.position
     tol = max(REGION_TOLERANCE * body.scale, 100 * body.tolerance)
     planes = _planes_of(options, body, diag)
@@ -582,7 +583,7 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
         fitted = fit_runs(np.array([f.to_light for f in frames]), *point_runs([f.points for f in frames]))
         maps += [ShadowMap(m, size, "LESS", f"fallback:{f.role}") for m, f in zip(fitted, frames)]
     else:
-        fm = frame_map(frames[0], dataclasses.replace(options, shadow_map_size=size), options.texel_snapping)
+        fm = frame_maps(frames, size, options.texel_snapping)[0]
         fm.role = "fallback"
         maps.append(fm)
     for fr in frames:

@@ -64,15 +64,72 @@ import math
 import numpy as np
 
 from ..body import IntersectionBody
+from ..diagnostics import Diagnostics, OnRead
 from ..fit import fit_to_unit_cube
 from ..frame import body_light_angles
-from ..geometry import clip_volume_corners_h, homogeneous, translation
-from ..post_perspective import nearest_visible_depth, pps_light_matrix, virtual_camera
-from ..types import Deferred, Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpOptions
-from .uniform import near_plane_notes, uniform_maps
+from ..geometry import clip_volume_corners_h, translation
+from ..post_perspective import PPSLight, VirtualCamera, nearest_visible_depth, pps_light_matrix, virtual_camera
+from ..types import Light, ShadowMap, ShadowSetup, View, WarpOptions
+from .common import near_plane_notes
+from .uniform import uniform_maps
 
 COVER_TOLERANCE = 1e-6
 """Final check: every B vertex has |NDC| <= 1 + this (the fit pads by 1e-7)."""
+
+
+def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
+    """The paper's pipeline: the virtual camera and its post-perspective space
+    (§4.2, §6), the light in PPS (§3), its frustum around B', the unit-cube fit
+    (§4), composed into world -> light clip."""
+    theta, gamma = body_light_angles(view, light, body)
+    diag = Diagnostics("psm", theta, gamma, body_vertices=body.vertices)
+    if view.orthographic:
+        return _uniform_fallback(view, light, body, options, diag, "orthographic camera",
+                                 "the post-perspective space of an orthographic camera is affine: "
+                                 "PSM equals the uniform map")
+    if not light.is_directional and bool(body.contains(light.position[None])[0]):
+        return _uniform_fallback(view, light, body, options, diag, "light inside B",
+                                 f"light '{light.name}' is inside the region that must be covered: no single "
+                                 "frustum in post-perspective space contains it; using the uniform cube faces")
+    origin = view.position
+    camera = virtual_camera(view, body, nearest_visible_depth(view, light, body, options))
+    # A point or spot light's frustum wider than options.max_frustum_angle is not built: hand over.
+    light_in_pps = pps_light_matrix(camera.to_pps @ light.homogeneous_from(origin), camera.points,
+                                    math.inf if light.is_directional else options.max_frustum_angle / 2)
+    diag.extra.update(_pps_report(camera, light_in_pps))
+    if not light_in_pps.single_frustum:
+        return _uniform_fallback(view, light, body, options, diag, "PPS light frustum",
+                                 f"light '{light.name}' touches B in post-perspective space (cone half-angle "
+                                 f"{math.degrees(light_in_pps.cone_half_angle):.4f} deg): no single frustum")
+    if light_in_pps.matrix is None:
+        return _uniform_fallback(view, light, body, options, diag, "PPS light frustum",
+                                 f"light '{light.name}' needs a {math.degrees(2 * light_in_pps.cone_half_angle):.0f} "
+                                 f"deg frustum in post-perspective space (max "
+                                 f"{math.degrees(options.max_frustum_angle):.0f}); using the uniform map's cube faces")
+    relative = fit_to_unit_cube(light_in_pps.matrix @ camera.to_pps, body.vertices - origin)
+    shadow_map = ShadowMap(relative @ translation(-origin), options.shadow_map_size, "LESS", "main")
+    if not shadow_map.contains(body.vertices, COVER_TOLERANCE).all():
+        return _uniform_fallback(view, light, body, options, diag, "PSM matrix",
+                                 "the composed PSM matrix is not finite or does not cover B (numerically degenerate)")
+    diag.warp_frustum_corners = OnRead(lambda: _clip_corners(relative, origin))
+    diag.extra["psm_applied"] = True
+    diag.extra["frames"] = ["main"]
+    return ShadowSetup([shadow_map], diag)
+
+
+def _pps_report(camera: VirtualCamera, light_in_pps: PPSLight) -> dict:
+    return {
+        "pps_light": light_in_pps.light,
+        "pps_light_position": light_in_pps.position,
+        "pps_light_kind": light_in_pps.kind,
+        "inverted": light_in_pps.kind == "inverted",
+        "directional_in_pps": light_in_pps.kind == "directional",
+        "virtual_shift": camera.shift,
+        "virtual_near": camera.near,
+        "virtual_far": camera.far,
+        "visible_near": camera.visible_near,
+        "pps_cone_half_angle_deg": math.degrees(light_in_pps.cone_half_angle),
+    }
 
 
 def _uniform_fallback(view: View, light: Light, body: IntersectionBody, options: WarpOptions,
@@ -85,7 +142,7 @@ def _uniform_fallback(view: View, light: Light, body: IntersectionBody, options:
     return ShadowSetup(maps, diag)
 
 
-def _clip_corners(matrix: np.ndarray, origin: np.ndarray):
+def _clip_corners(matrix: np.ndarray, origin: np.ndarray) -> np.ndarray | None:
     """World corners of the clip volume of the camera-relative ``matrix``
     (UNIT_CUBE_CORNERS order), or None when the volume reaches infinity (a
     corner's preimage has w <= 0)."""
@@ -97,64 +154,3 @@ def _clip_corners(matrix: np.ndarray, origin: np.ndarray):
     if not np.all(np.isfinite(h)) or np.any(w <= 1e-12 * np.abs(h[:, :3]).max(axis=1)):
         return None
     return h[:, :3] / w[:, None] + origin
-
-
-def covers(matrix: np.ndarray, points: np.ndarray, tol: float = COVER_TOLERANCE) -> bool:
-    h = homogeneous(points) @ matrix.T
-    w = h[:, 3]
-    if not (np.all(np.isfinite(h)) and np.all(w > 0)):
-        return False
-    return bool(np.all(np.abs(h[:, :3] / w[:, None]) <= 1.0 + tol))
-
-
-def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
-    diag = Diagnostics("psm", body_vertices=body.vertices)
-    diag.report_angles(lambda: body_light_angles(view, light, body))
-    if view.orthographic:
-        return _uniform_fallback(view, light, body, options, diag, "orthographic camera",
-                                 "the post-perspective space of an orthographic camera is affine: "
-                                 "PSM equals the uniform map")
-    if not light.is_directional and bool(body.contains(light.position[None])[0]):
-        return _uniform_fallback(view, light, body, options, diag, "light inside B",
-                                 f"light '{light.name}' is inside the region that must be covered: no single "
-                                 "frustum in post-perspective space contains it; using the uniform cube faces")
-
-    origin = view.position
-    rel = body.vertices - origin
-    cam = virtual_camera(view, body, nearest_visible_depth(view, light, body, options))
-    light_h = np.array(light.homogeneous_from(origin))
-    # A point or spot light's frustum wider than options.max_frustum_angle is not built: hand over.
-    pl = pps_light_matrix(cam.to_pps @ light_h, cam.points,
-                          math.inf if light.is_directional else options.max_frustum_angle / 2)
-
-    diag.extra.update({
-        "pps_light": pl.light,
-        "pps_light_position": pl.position,
-        "pps_light_kind": pl.kind,
-        "inverted": pl.kind == "inverted",
-        "directional_in_pps": pl.kind == "directional",
-        "virtual_shift": cam.shift,
-        "virtual_near": cam.near,
-        "virtual_far": cam.far,
-        "visible_near": cam.visible_near,
-        "pps_cone_half_angle_deg": math.degrees(pl.cone_half_angle),
-    })
-    if not pl.single_frustum:
-        return _uniform_fallback(view, light, body, options, diag, "PPS light frustum",
-                                 f"light '{light.name}' touches B in post-perspective space "
-                                 f"(cone half-angle {math.degrees(pl.cone_half_angle):.4f} deg): no single frustum")
-
-    if pl.matrix is None:
-        return _uniform_fallback(view, light, body, options, diag, "PPS light frustum",
-                                 f"light '{light.name}' needs a {math.degrees(2 * pl.cone_half_angle):.0f} deg frustum "
-                                 f"in post-perspective space (max {math.degrees(options.max_frustum_angle):.0f}); "
-                                 "using the uniform map's cube faces")
-    relative = fit_to_unit_cube(pl.matrix @ cam.to_pps, rel)
-    matrix = relative @ translation(-origin)
-    if not (np.all(np.isfinite(matrix)) and covers(relative, rel)):
-        return _uniform_fallback(view, light, body, options, diag, "PSM matrix",
-                                 "the composed PSM matrix is not finite or does not cover B (numerically degenerate)")
-    diag.warp_frustum_corners = Deferred(lambda: _clip_corners(relative, origin))      # reporting only
-    diag.extra["psm_applied"] = True
-    diag.extra["frames"] = ["main"]
-    return ShadowSetup([ShadowMap(matrix, options.shadow_map_size, "LESS", "main")], diag)

@@ -92,11 +92,11 @@ from ..aliasing import (lambda_glpr, lambda_gmnpr, lambda_no_worse_on_average, l
                         lispsm_inverse_n_opt)
 from ..body import IntersectionBody
 from ..fit import fit_runs, ndc_bounds, window_matrices, window_matrix
-from ..frame import (PARALLEL_BLEND, LightFrame, body_light_angles, light_frames, pyramid_sections,
-                     separate_pyramids)
+from ..frame import PARALLEL_BLEND, LightFrame, body_light_angles, light_frames, pyramid_sections
 from ..geometry import across, clip_volume_corners, dot3, homogeneous, point_runs, transform_h_runs
-from ..types import Deferred, Diagnostics, Light, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
-from .uniform import frame_map
+from ..diagnostics import Diagnostics, OnRead
+from ..types import Light, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
+from .common import NEAR_PLANE_NOTE, frame_maps
 
 FADE_START = 2.0
 FADE_END = 4.0
@@ -186,7 +186,7 @@ def volume_centroid(body: IntersectionBody) -> np.ndarray:
     which jumps when a vertex appears or merges): B's faces as fans of
     triangles, each the base of a tetrahedron from the vertices' mean."""
     if body.polytope is not None:           # vertex loops by index into the polytope's vertices
-        v, loops, origin = body.polytope.vertices, body.polytope.facet_loops(), body.origin
+        v, loops, origin = body.polytope.vertices, body.polytope.loops, body.origin
     else:
         faces = list(body.faces)
         v, origin = np.concatenate(faces), 0.0
@@ -479,8 +479,7 @@ def frame_warps(frames: list, view: View, at: Optional[LightAtEye], reason: str,
     for frame, (eye_h, vector_h), box in zip(frames, images, boxes):
         w = FrameWarp(frame, [])
         if frame.near_clamped:
-            w.notes.append((f"{frame.role}: near plane",
-                            "the light is inside B; points nearer than 1e-6 of the scene scale are not covered"))
+            w.notes.append((f"{frame.role}: near plane", NEAR_PLANE_NOTE))
         ax, why = frame_axes(at, frame, eye_h, vector_h, box, options) if at is not None else (None, reason)
         if ax is None:
             w.notes.append((f"{frame.role}: uniform", why))
@@ -540,12 +539,13 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
     diag.extra["delta_z"] = ctx.delta_z
     diag.extra["frames"] = [f.role for f in frames]
     # B's middle vector (Scherzer §4.4): computed only when used or read.
-    middle = Deferred(lambda: volume_centroid(body) - view.position)
-    diag.extra["middle_vector"] = Deferred(lambda: _unit_or_zero(middle.value))
+    middle = volume_centroid(body) - view.position if options.middle_vector else None
+    diag.extra["middle_vector"] = OnRead(lambda: _unit_or_zero(volume_centroid(body) - view.position if middle is None
+                                                               else middle))
     if view.orthographic:
         at, reason = None, "orthographic camera: no perspective aliasing to redistribute"
     else:
-        at, reason = light_at_eye(view, light, options, body, middle.value if options.middle_vector else None)
+        at, reason = light_at_eye(view, light, options, body, middle)
     # GMNPR's φ: gmnpr and glpr use and report it, LiSPSM's Eq. 1 has no φ (the λ guard's model has).
     guard_phi = half_fov_towards(view, at.ell) if at is not None else None
     phi = guard_phi if name != "lispsm" else None
@@ -558,7 +558,7 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
         for w, (matrix, closure, held) in zip(warped, ray_closed([w.matrix for w in warped], body, light.position)):
             w.matrix, w.held = matrix, held
             if matrix is None:
-                w.geo, w.matrix = None, frame_map(w.frame, options).matrix
+                w.geo, w.matrix = None, frame_maps([w.frame], options.shadow_map_size)[0].matrix
                 w.notes.append((f"{w.frame.role}: uniform", closure))
     maps: list[ShadowMap] = []
     reported = False
@@ -584,11 +584,11 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
             diag.extra["n_opt"] = _finite_or_none(w.p_n)
             diag.extra["phi"] = phi
         diag.extra["warp_strength_mu"] = w.mu
-        diag.warp_frustum_corners = Deferred(lambda m=w.matrix: clip_volume_corners(m))
+        diag.warp_frustum_corners = OnRead(lambda m=w.matrix: clip_volume_corners(m))
         diag.extra["v_p"] = geo.v_p_world if geo.v_p_world is not None else np.zeros(3)
-        diag.extra["projection_centre"] = Deferred(lambda f=frame, g=geo, lam=w.lam_frame: projection_centre(f, g, lam))
+        diag.extra["projection_centre"] = OnRead(lambda f=frame, g=geo, lam=w.lam_frame: projection_centre(f, g, lam))
     if not reported:                     # no warped map: the angles to the light's axis, as for a uniform map
-        diag.report_angles(lambda: body_light_angles(view, light, body))
+        diag.theta, diag.gamma = body_light_angles(view, light, body)
     return ShadowSetup(maps, diag)
 
 
@@ -612,11 +612,8 @@ def ray_closed(matrices, body: IntersectionBody, light_position) -> list:
     # Its corner rays: the directions the map sends to (x, y, w) = (±1, ±1, 1), so w > 0 on them.
     rays = (np.linalg.inv(rows[:, _XYW]) @ _WINDOW_CORNERS).transpose(0, 2, 1)
     poly = body.polytope_from(light_position)
-    pts, member, _ = pyramid_sections(poly, poly.edges(), sides.reshape(-1, 3), rays.reshape(-1, 3),
-                                      separate_pyramids(len(m)))
-    # Each map's image of its own candidates, map by map (the layout of ``fit.fit_runs``).
-    run, candidate = np.nonzero(member.T)
-    held = pts[candidate] + light_position                      # B ∩ window of every map, one after another
+    pts, run = pyramid_sections(poly, sides, rays)
+    held = pts + light_position                                 # B ∩ window of every map, one after another
     h = transform_h_runs(m, homogeneous(held), run)
     counts = np.bincount(run, minlength=len(m)).tolist()
     ends = list(itertools.accumulate(counts))

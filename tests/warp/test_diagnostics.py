@@ -1,5 +1,7 @@
 """Reporting-only diagnostics are computed when first read, once, and read the
-same as if they had been computed up front ("model only what a scene needs")."""
+same as if they had been computed up front ("model only what a scene needs"):
+a warped frame pays for its warp frustum's corners, its projection centre and
+B's middle vector only when something looks at them."""
 import json
 import math
 
@@ -9,7 +11,7 @@ import pytest
 import addon.warp.methods.warp_frustum as warp_frustum
 from addon.warp import Light, SceneBounds, View, WarpOptions, compute, intersection_body
 from addon.warp.geometry import clip_volume_corners, look_along
-from addon.warp.types import Deferred, Diagnostics, Reported
+from addon.warp.diagnostics import Diagnostics, Extra, OnRead
 
 SCENE = SceneBounds.from_boxes([[[-50.0, -50.0, -0.1], [50.0, 50.0, 0.0]]]
                                + [[[x, y, 0.0], [x + 1.0, y + 1.0, 3.0]] for x in (-12.0, 0.0, 12.0) for y in (5.0, 20.0)])
@@ -32,11 +34,11 @@ class Counting:
         return self.fn(*args)
 
 
-def test_a_deferred_value_is_computed_on_first_read_and_kept():
+def test_a_value_reported_on_read_is_computed_on_first_read_and_kept():
     calls = []
     d = Diagnostics("x")
-    d.warp_frustum_corners = Deferred(lambda: calls.append("corners") or np.ones((8, 3)))
-    d.extra["centre"] = Deferred(lambda: calls.append("centre") or np.zeros(3))
+    d.warp_frustum_corners = OnRead(lambda: calls.append("corners") or np.ones((8, 3)))
+    d.extra["centre"] = OnRead(lambda: calls.append("centre") or np.zeros(3))
     d.extra["plain"] = 1.5
     assert calls == []
     assert d.extra.get("centre").tolist() == [0.0, 0.0, 0.0]
@@ -49,13 +51,13 @@ def test_a_deferred_value_is_computed_on_first_read_and_kept():
 @pytest.mark.parametrize("read", [dict, lambda e: {**e}, lambda e: dict(e.items()), lambda e: e.copy(),
                                   lambda e: dict(zip(e.keys(), e.values()))])
 def test_every_way_of_reading_extra_sees_values_not_promises(read):
-    extra = Reported(a=Deferred(lambda: 2.0), b="text")
+    extra = Extra(a=OnRead(lambda: 2.0), b="text")
     assert read(extra) == {"a": 2.0, "b": "text"}
 
 
 def test_extra_given_as_a_plain_dict_reads_through_too():
-    d = Diagnostics("x", extra={"later": Deferred(lambda: [1, 2])})
-    assert isinstance(d.extra, Reported) and d.extra["later"] == [1, 2]
+    d = Diagnostics("x", extra={"later": OnRead(lambda: [1, 2])})
+    assert isinstance(d.extra, Extra) and d.extra["later"] == [1, 2]
     assert d.to_json()["later"] == [1, 2]
 
 
@@ -89,18 +91,3 @@ def test_the_middle_vector_option_still_steers_the_warp():
     plain = compute("lispsm", view, light, SCENE, WarpOptions(), body=body)
     middle = compute("lispsm", view, light, SCENE, WarpOptions(middle_vector=True), body=body)
     assert not np.allclose(plain.maps[0].matrix, middle.maps[0].matrix)
-
-
-@pytest.mark.parametrize("light", LIGHTS, ids=["sun", "point"])
-@pytest.mark.parametrize("method", ["uniform", "psm", "plane_optimal"])
-def test_theta_and_gamma_are_measured_when_read_once_for_both(monkeypatch, light, method):
-    import addon.warp.frame as frame
-    view = _view()
-    body = intersection_body(view, light, SCENE)
-    expected = frame.body_light_angles(view, light, body)
-    angles = Counting(frame.light_angles)
-    monkeypatch.setattr(frame, "light_angles", angles)
-    diag = compute(method, view, light, SCENE, WarpOptions(), body=body).diagnostics
-    assert angles.calls == 0
-    assert (diag.theta, diag.gamma) == expected and (diag.theta, diag.gamma) == expected
-    assert angles.calls == 1

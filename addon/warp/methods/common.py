@@ -1,0 +1,54 @@
+"""What the methods share: each light frame's unwarped map, fitted to the
+frame's part of B (Scherzer §4.1's focusing), and the note every method
+records for a frame whose near plane had to be clamped."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..fit import fit_runs, ndc_box, window_matrix
+from ..frame import LightFrame
+from ..geometry import point_runs
+from ..types import ShadowMap
+
+SNAP_STEPS_PER_OCTAVE = 8
+"""Texel snapping: a window's extent is one of this many sizes per doubling."""
+
+NEAR_PLANE_NOTE = "the light is inside B; points nearer than 1e-6 of the scene scale are not covered"
+
+
+def near_plane_notes(frames: list[LightFrame], prefix: str = "") -> list[tuple[str, str]]:
+    """The fallbacks to record for frames whose near plane was clamped (the light inside B)."""
+    return [(f"{prefix}{f.role}: near plane", NEAR_PLANE_NOTE) for f in frames if f.near_clamped]
+
+
+def frame_maps(frames: list[LightFrame], size: tuple[int, int], snap: bool = False) -> list[ShadowMap]:
+    """The unwarped map of each light frame, fitted to the frame's points
+    (``fit``: the unit-cube fit), a point light's cube faces all at once. With
+    ``snap``, an orthographic frame's window is snapped to whole texels
+    (``snapped_window``)."""
+    if len(frames) > 1:
+        fitted = fit_runs(np.array([f.to_light for f in frames]), *point_runs([f.points for f in frames]))
+        return [ShadowMap(m, size, "LESS", f.role) for m, f in zip(fitted, frames)]
+    frame = frames[0]
+    lo, hi = ndc_box(frame.points_h @ frame.to_light.T)
+    if snap and frame.directional:
+        lo, hi = snapped_window(lo, hi, size)
+    return [ShadowMap(window_matrix(lo, hi) @ frame.to_light, size, "LESS", frame.role)]
+
+
+def snapped_window(lo: np.ndarray, hi: np.ndarray, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Grow the x/y window [lo, hi] to a quantised extent whose origin sits on
+    whole texels (orthographic frames only: light-space units are world units)."""
+    lo, hi = lo.copy(), hi.copy()
+    for axis in (0, 1):
+        extent = max(hi[axis] - lo[axis], 1e-300)
+        ladder = 2.0 ** (math.ceil(math.log2(extent) * SNAP_STEPS_PER_OCTAVE) / SNAP_STEPS_PER_OCTAVE)
+        texel = ladder / size[axis]
+        start = math.floor(lo[axis] / texel) * texel
+        end = start + ladder
+        if end < hi[axis]:
+            end += texel * math.ceil((hi[axis] - end) / texel)
+        lo[axis], hi[axis] = start, end
+    return lo, hi
