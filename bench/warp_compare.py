@@ -110,12 +110,16 @@ def main(argv=None) -> int:
     ap.add_argument("--base", default=BASE, help=f"the old version (a git revision; default {BASE})")
     ap.add_argument("--boxes", type=int, default=10_000)
     ap.add_argument("--repeat", type=int, default=31)
+    ap.add_argument("--only", help="comma-separated frames to time (B, a method name), default all")
+    ap.add_argument("--lights", default="sun,point,spot", help="comma-separated lights (default sun,point,spot)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     from bench.warp_speed import city_boxes
     import addon.warp as current
     boxes = city_boxes(args.boxes)
-    res = compare(frames(load_package(args.base), boxes), frames(current, boxes), args.repeat)
+    new = {(l, m): f for (l, m), f in frames(current, boxes).items()
+           if l in args.lights.split(",") and (not args.only or m in args.only.split(","))}
+    res = compare(frames(load_package(args.base), boxes), new, args.repeat)
     if args.json:
         json.dump({f"{l}/{m}": v for (l, m), v in res.items()}, sys.stdout, indent=1)
         print()
