@@ -99,8 +99,8 @@ def run(n_boxes: int = 10_000, repeat: int = 5) -> dict:
 
         best, median = per_call_us(body_only, repeat)
         row = {"B": best, "B_median": median,
-               "B_vertices": int(len(body.vertices)), "casters": int(body.caster_mask.sum()),
-               "receivers": int(body.receiver_mask.sum())}
+               "B_vertices": int(len(body.vertices)), "casters": int(body.culled.casters.selected.sum()),
+               "receivers": int(body.culled.receivers.selected.sum())}
         for mname, method in METHODS.items():
             def frame():
                 v, l = new_frame(view, light)

@@ -15,15 +15,13 @@ silhouette edge the plane through that edge and the light, a positive
 combination of the edge's two facets (``light_hull``). Since L is a convex cone
 with its apex at the light and R ⊂ L, hull(R ∪ light) ⊂ L already.
 
-The polyhedra are face loops in plain Python floats (:mod:`.brep`): R is the
-frustum cut by S_r's and L's planes, the hull is R's silhouette joined to the
-light (for a sun, extruded to a cap beyond S_c), and B is the hull cut by S_c's
-planes; each cut closes its faces by construction. A cut too degenerate for the
-face walk falls back to vertex enumeration (:class:`~.polyhedron.ConvexPolytope`).
-Everything is computed relative to the camera position (so coordinates at 1e5
-keep their precision) with tolerances relative to the scene's scale. Boxes are
-culled through a two-level index (:mod:`.culling`), and L and the light hull
-come from :mod:`.light_hull`.
+R, the hull and B are convex polytopes (:mod:`.polyhedron`): R is the frustum
+clipped by S_r's and L's planes, the hull is R's silhouette joined to the light
+(for a sun, extruded to a cap beyond S_c), and B is the hull clipped by S_c's
+planes. Everything is computed relative to the camera position (so coordinates
+at 1e5 keep their precision) with tolerances relative to the scene's scale.
+Boxes are culled through a two-level index (:mod:`.culling`), and L and the
+light hull come from :mod:`.light_hull`.
 
 Cost on a 10,000-box scene (``make bench``): see docs/performance.md.
 """
@@ -31,8 +29,8 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -51,60 +49,34 @@ tolerances) so a flat scene, or a single point-sized box, still gives a closed
 body at least 1000 tolerances thick."""
 
 
-class LazyFaces(Sequence):
-    """B's faces (world-space vertex loops), computed on first use: methods
-    that only need the vertices never pay for ordering the loops."""
+@dataclass(frozen=True)
+class Culled:
+    """The culling result: the scene's boxes B was built from."""
 
-    def __init__(self, poly: ConvexPolytope, origin: np.ndarray):
-        self._poly, self._origin, self._faces = poly, origin, None
-
-    def _get(self) -> list[np.ndarray]:
-        if self._faces is None:
-            self._faces = [f + self._origin for f in self._poly.faces()]
-        return self._faces
-
-    def __getitem__(self, i):
-        return self._get()[i]
-
-    def __len__(self) -> int:
-        return len(self._poly.normals)
-
-    def __iter__(self):
-        return iter(self._get())
-
-    def __repr__(self) -> str:
-        return f"LazyFaces({len(self)} faces)"
-
-
-@dataclass
-class IntersectionBody:
-    """B and what it was built from. ``vertices``/``faces`` are in world space.
-    The culling results (``caster_mask``, ``receiver_mask``, ``receiver_boxes``,
-    ``hull_planes``) are made on first use."""
-
-    vertices: np.ndarray
-    faces: Sequence[np.ndarray]
-    """B's faces as world-space vertex loops (counter-clockwise seen from outside)."""
-    visible_vertices: np.ndarray
-    """R = V ∩ S_r ∩ L: the part of the view that holds receivers."""
-    casters: Selection
-    """The casters that meet hull(R ∪ light) ∩ L (can shadow what is seen)."""
     receivers: Selection
     """The receivers that meet V ∩ L."""
-    receiver_source: np.ndarray
-    """``scene.receivers``, for ``receiver_boxes``."""
+    casters: Selection
+    """The casters that meet hull(R ∪ light) (⊂ L): they can shadow what is seen."""
+
+
+@dataclass(frozen=True, eq=False)
+class IntersectionBody:
+    """B, relative to ``origin`` (the camera position), with R and the culling
+    it was built from. What is read in world space (vertices, faces, R's
+    vertices, the centroid) is made once, on first use."""
+
+    polytope: ConvexPolytope
+    """B = hull(R ∪ light) ∩ S_c."""
+    visible_polytope: ConvexPolytope
+    """R = V ∩ S_r ∩ L: the part of the view that holds receivers."""
+    origin: np.ndarray
+    scale: float
+    """A length typical of B and the scene (for relative tolerances)."""
     hull_halfspaces: tuple[np.ndarray, np.ndarray]
-    """World-space (normals, offsets) of hull(R ∪ light) (⊂ L): the light-extruded body."""
-    tolerance: float = 0.0
-    scale: float = 1.0
-    polytope: ConvexPolytope | None = None
-    """B as a polytope relative to ``origin`` (facet planes, incidence)."""
-    origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    """The point B's ``polytope`` is expressed relative to (the camera position)."""
-    visible_boundary: ConvexPolytope | None = None
-    """R relative to ``origin`` (see ``visible_polytope``)."""
+    """World-space (normals, offsets) of hull(R ∪ light) (⊂ L): the light-extruded view."""
+    culled: Culled
     visible: VisibleRegion | None = None
-    """The visible region R was focused on (None: R spans the view frustum)."""
+    """The visible region (:mod:`.visibility`) R was focused on; None: R spans the view frustum."""
 
     @property
     def focus(self) -> str:
@@ -112,68 +84,46 @@ class IntersectionBody:
         return "view frustum" if self.visible is None else self.visible.source
 
     @property
-    def visible_polytope(self) -> ConvexPolytope | None:
-        """R = V ∩ S_r ∩ L as a polytope relative to ``origin``: every receiver
-        box that meets V ∩ L lies in S_r, so R ∩ box = V ∩ L ∩ box."""
-        return self.visible_boundary
+    def tolerance(self) -> float:
+        return self.polytope.tol
 
-    @property
-    def caster_mask(self) -> np.ndarray:
-        """Which of ``scene.casters`` meet hull(R ∪ light) ∩ L."""
-        return self._memo("_caster_mask", lambda: self.casters.mask)
+    @cached_property
+    def vertices(self) -> np.ndarray:
+        """B's vertices in world space."""
+        return self.polytope.vertices + self.origin
 
-    @property
-    def receiver_mask(self) -> np.ndarray:
-        """Which of ``scene.receivers`` meet V ∩ L."""
-        return self._memo("_receiver_mask", lambda: self.receivers.mask)
+    @cached_property
+    def faces(self) -> list[np.ndarray]:
+        """B's faces as world-space vertex loops, counter-clockwise seen from outside."""
+        return [f + self.origin for f in self.polytope.faces()]
 
-    @property
-    def receiver_boxes(self) -> np.ndarray:
-        """World-space boxes of the receivers that meet V ∩ L (``scene.receivers[receiver_mask]``),
-        e.g. for plane_optimal's default plane of interest."""
-        # (np.compress copies; 4x faster than a boolean gather)
-        return self._memo("_receiver_boxes", lambda: np.compress(self.receiver_mask, self.receiver_source, axis=0))
+    @cached_property
+    def visible_vertices(self) -> np.ndarray:
+        """R's vertices in world space."""
+        return self.visible_polytope.vertices + self.origin
+
+    @cached_property
+    def centroid(self) -> np.ndarray:
+        """The mean of B's vertices (the axis a point light's angles are measured along)."""
+        return self.polytope.centroid + self.origin
 
     @property
     def hull_planes(self) -> list[Plane]:
         """World-space half-spaces of hull(R ∪ light) (⊂ L)."""
-        n, o = self.hull_halfspaces
-        return [Plane(ni, float(oi)) for ni, oi in zip(n, o)]
-
-    def _memo(self, name: str, make):
-        value = self.__dict__.get(name)
-        if value is None:
-            value = self.__dict__[name] = make()
-        return value
-
-    @property
-    def centroid(self) -> np.ndarray:
-        """The mean of B's vertices (the axis a point light's angles are measured along)."""
-        return self._memo("_centroid", lambda: self.vertices.sum(axis=0) / len(self.vertices))
+        return [Plane(n, float(o)) for n, o in zip(*self.hull_halfspaces)]
 
     def contains(self, points, tol: float | None = None) -> np.ndarray:
         """Which (N, 3) world points lie in B (within ``tol``, default 10x the tolerance)."""
-        t = self.tolerance * 10 if tol is None else tol
-        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        if self.polytope is not None:
-            return self.polytope.contains(p - self.origin, t)
-        from .polyhedron import face_planes
-        ok = np.ones(len(p), dtype=bool)
-        for pl in face_planes(self.faces):
-            ok &= pl.distance(p) <= t
-        return ok
+        return self.polytope.contains(np.asarray(points, dtype=np.float64).reshape(-1, 3) - self.origin, tol)
 
     def polytope_from(self, apex) -> ConvexPolytope:
-        """B relative to ``apex`` (e.g. a point light), for clipping in its
-        frame; made once per apex, sharing B's edges."""
-        if self.polytope is None:
-            raise ValueError("this body has no polytope")
-        apex = np.asarray(apex, dtype=np.float64)
-        moved = self.__dict__.setdefault("_polytope_from", {})
-        key = tuple(apex.tolist())
+        """B relative to ``apex`` (e.g. a point light, or the camera), made once per apex."""
+        key = tuple(np.asarray(apex, dtype=np.float64).tolist())
+        if key == tuple(self.origin.tolist()):
+            return self.polytope
+        moved = self.__dict__.setdefault("_moved", {})
         if key not in moved:
-            self.polytope.edges()
-            moved[key] = self.polytope.translated(self.origin - apex)
+            moved[key] = self.polytope.translated(self.origin - np.array(key))
         return moved[key]
 
 
@@ -258,18 +208,5 @@ def intersection_body(view: View, light: Light, scene: SceneBounds,
         body = ConvexPolytope.box(s_c[0] - pad, s_c[1] + pad, tol).clip(hull.normals, hull.offsets)
     if body is None:
         raise EmptyBodyError("the light-extruded view does not meet the scene")
-    return IntersectionBody(
-        vertices=body.vertices + origin,
-        faces=LazyFaces(body, origin),
-        visible_vertices=r.vertices + origin,
-        casters=casters,
-        receivers=receivers,
-        receiver_source=scene.receivers,
-        hull_halfspaces=(hull.normals, hull.offsets + hull.normals @ origin),
-        tolerance=tol,
-        scale=scale,
-        polytope=body,
-        origin=origin,
-        visible_boundary=r,
-        visible=visible,
-    )
+    return IntersectionBody(body, r, origin, scale, (hull.normals, hull.offsets + hull.normals @ origin),
+                            Culled(receivers, casters), visible)

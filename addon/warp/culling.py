@@ -42,6 +42,11 @@ class Selection(NamedTuple):
         mask[self.index.perm] = self.selected
         return mask
 
+    @property
+    def boxes(self) -> np.ndarray:
+        """The (K, 2, 3) boxes that meet the region, in their original order."""
+        return np.compress(self.mask, self.index.boxes, axis=0)
+
 
 def _stack_of(boxes: np.ndarray) -> np.ndarray:
     """(6, N): rows 0-2 the (N, 2, 3) boxes' lower corners lo, rows 3-5 minus their upper corners -hi."""
@@ -86,7 +91,7 @@ class BoxIndex:
     equals the plain per-box test (``boxes_meeting_arrays``)."""
 
     def __init__(self, boxes: np.ndarray):
-        b = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3)
+        b = self.boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3)
         self.count = len(b)
         k = CLUSTER_SIZE
         n_c = -(-self.count // k)

@@ -690,14 +690,6 @@ def _turn(o, a, b) -> float:
     return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
 
 
-def clip_faces(faces: list[np.ndarray], plane: Plane, tol: float) -> list[np.ndarray]:
-    """A closed convex polyhedron given as face loops, clipped by a half-space
-    (its polytope's clip, faces out)."""
-    poly = ConvexPolytope.from_halfspaces(*_face_halfspaces(faces), tol)
-    part = None if poly is None else poly.clip(plane.normal, plane.offset)
-    return [] if part is None else part.faces()
-
-
 def hexahedron_faces(corners) -> list[np.ndarray]:
     """Faces of a hexahedron given as 8 corners ordered like geometry.UNIT_CUBE_CORNERS
     (near face first, x fastest then y) - e.g. a view frustum."""

@@ -159,7 +159,7 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     depths = view.eye_depth(body.visible_vertices)
     nearest = body.visible_vertices[int(depths.argmin())] - view.position
     coarse = max(float(depths.min()), view.near)
-    boxes = _BoxesByDepth(body.receivers, axis, view.position, coarse)
+    boxes = _BoxesByDepth(body.culled.receivers, axis, view.position, coarse)
     region, best, measured = None, math.inf, 0
     while (batch := boxes.next(NEAREST_BOX_BATCH, below=best)) is not None:
         lo, hi, bounds = batch
@@ -259,8 +259,8 @@ def _visible_region(view: View, light: Light, body: IntersectionBody) -> ConvexP
     R ∩ box for every receiver box (R = V ∩ S_r ∩ L, each box inside S_r), so
     B's R serves when it is relative to the camera too."""
     origin = view.position
-    if body.visible_boundary is not None and body.origin.tolist() == origin.tolist():
-        return body.visible_boundary
+    if body.origin.tolist() == origin.tolist():
+        return body.visible_polytope
     ln, lo = light_halfspaces(light, origin)
     return view_frustum(view, origin, body.tolerance).clip(ln, lo)
 

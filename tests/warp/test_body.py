@@ -200,7 +200,8 @@ def test_deterministic(name):
     b = intersection_body(view, light, SceneBounds(scene.casters.copy(), scene.receivers.copy()))
     assert np.array_equal(a.vertices, b.vertices)
     assert len(a.faces) == len(b.faces) and all(np.array_equal(f, g) for f, g in zip(a.faces, b.faces))
-    assert np.array_equal(a.caster_mask, b.caster_mask) and np.array_equal(a.receiver_mask, b.receiver_mask)
+    assert np.array_equal(a.culled.casters.mask, b.culled.casters.mask)
+    assert np.array_equal(a.culled.receivers.mask, b.culled.receivers.mask)
     assert all(np.array_equal(p.normal, q.normal) and p.offset == q.offset for p, q in zip(a.hull_planes, b.hull_planes))
 
 
@@ -248,18 +249,18 @@ def test_translation_by_1e5_gives_the_same_body():
     assert hausdorff(b.vertices - off, a.vertices) <= 1e-9 * a.scale + 1e5 * 4e-16
 
 
-def test_body_masks():
+def test_the_culling_keeps_the_receivers_in_view_and_the_casters_that_can_shadow_them():
     view, light, scene = HARD_CASES["sun_behind_camera"]
     body = intersection_body(view, light, scene)
-    assert body.receiver_mask.shape == (len(scene.receivers),) and body.receiver_mask.any()
-    assert np.array_equal(body.receiver_boxes, scene.receivers[body.receiver_mask])
+    receivers = body.culled.receivers.mask
+    assert receivers.shape == (len(scene.receivers),) and receivers.any()
     # A caster far outside the light-extruded view is dropped; one between the view and the sun is kept.
     behind = np.array([[[-300.0, -300.0, 0.0], [-299.0, -299.0, 1.0]]])
     above = body.visible_vertices.mean(axis=0) - 10.0 * light.direction
     over = np.array([[above - 0.5, above + 0.5]])
     s2 = SceneBounds(np.concatenate([scene.casters, behind, over]), scene.receivers)
     b2 = intersection_body(view, light, s2)
-    assert not b2.caster_mask[-2] and b2.caster_mask[-1]
+    assert not b2.culled.casters.mask[-2] and b2.culled.casters.mask[-1]
     assert_contains(b2, over[0], "the caster between the view and the sun")
 
 

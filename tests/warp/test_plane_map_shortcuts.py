@@ -38,7 +38,7 @@ def test_default_plane_of_the_index_is_default_plane_of_the_boxes(seed):
             continue
     else:
         raise AssertionError(f"seed {seed}: 100 draws without a receiver in view")
-    expected, got = default_plane(body.receiver_boxes), default_plane_of(body.receivers)
+    expected, got = default_plane(body.culled.receivers.boxes), default_plane_of(body.culled.receivers)
     assert (expected is None) == (got is None)
     if expected is not None:
         assert got.name == expected.name and got.offset == expected.offset

@@ -38,7 +38,7 @@ def _heights(vertices: list, n, off: float) -> list:
 @pytest.mark.parametrize("seed", range(30))
 def test_the_walked_section_is_the_hull_of_the_crossings(seed):
     rng, _, _, body = _frame(seed)
-    r = body.visible_boundary
+    r = body.visible_polytope
     vertices = r.vertices
     walked_count = 0
     for trial in range(12):
@@ -80,7 +80,7 @@ def test_the_walk_declines_a_section_with_a_turn_within_the_tolerance():
 
 def _cone(rng, body, view, light, origin, tol):
     """C over a region from P ∩ R for a random plane through R: (corners, height, l_h), or None."""
-    r = body.visible_boundary
+    r = body.visible_polytope
     vertices = np.array(r.vertices)
     n = rng.normal(size=3)
     n /= np.linalg.norm(n)

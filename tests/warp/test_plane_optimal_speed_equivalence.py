@@ -80,7 +80,7 @@ def _same_loop(a: np.ndarray, b: np.ndarray, tol: float) -> bool:
 @pytest.mark.parametrize("seed", range(30))
 def test_section_walked_over_the_facet_loops_is_the_section_of_the_vertices(seed):
     rng, view, _, body = _frame(seed)
-    r = body.visible_boundary
+    r = body.visible_polytope
     vertices = np.array(r.vertices)
     for _ in range(10):
         n = rng.normal(size=3)

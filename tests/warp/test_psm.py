@@ -551,7 +551,7 @@ def test_nearest_visible_depth_is_the_least_over_every_receiver_box():
         except EmptyBodyError:
             continue
         origin, axis = view.position, -view.world_to_camera[2, :3]
-        boxes = body.receiver_boxes
+        boxes = body.culled.receivers.boxes
         least = float(lowest_in_boxes(body.visible_polytope, boxes[:, 0] - origin, boxes[:, 1] - origin, axis).min())
         coarse = max(float(view.eye_depth(body.visible_vertices).min()), view.near)
         expected = max(least, coarse) if math.isfinite(least) else coarse

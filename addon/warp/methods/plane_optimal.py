@@ -65,11 +65,11 @@ from ..body import IntersectionBody
 from ..fit import fit_runs, window_matrix
 from ..frame import body_light_angles, light_frames
 from ..geometry import point_runs, translation
-from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_to_polygon, convex_polygon_on_plane, default_plane,
+from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_to_polygon, convex_polygon_on_plane,
                          default_plane_of, enclosing_polygon, flattest_box, is_convex_polygon, min_area_twist, offset_steps,
                          VIEW_CORNER_RAYS, plane_light_matrix, plane_section, polygon_area,
                          rotation2d)
-from ..polyhedron import ConvexPolytope, Plane, clip_faces, unique_points
+from ..polyhedron import ConvexPolytope
 from ..diagnostics import Diagnostics
 from ..types import Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .common import frame_maps
@@ -137,13 +137,9 @@ def _view_w(view: View, x: float, y: float, z: float) -> float:
 def _planes_of(options: WarpOptions, body: IntersectionBody, diag: Diagnostics) -> list[PlaneOfInterest]:
     if options.planes:
         return [PlaneOfInterest.from_option(p, i) for i, p in enumerate(options.planes)]
-    receivers = getattr(body, "receivers", None)
-    if receivers is not None:
-        plane = default_plane_of(receivers)
-    else:
-        plane = default_plane(getattr(body, "receiver_boxes", np.zeros((0, 2, 3))))
+    plane = default_plane_of(body.culled.receivers)
     if plane is None:
-        diag.fallback("planes", _no_default_plane(getattr(body, "receiver_boxes", np.zeros((0, 2, 3)))))
+        diag.fallback("planes", _no_default_plane(body.culled.receivers.boxes))
         return []
     diag.extra["default_plane"] = plane.name
     return [plane]
@@ -197,15 +193,12 @@ def _prepare(k: int, plane: PlaneOfInterest, view: View, light: Light, body: Int
         diag.fallback(role, f"{plane.name} passes through the camera (seen edge-on): it covers no pixel")
         return None
     # Less of the plane: P ∩ R (R = V ∩ S_r ∩ L), within the plane's extent.
-    region = getattr(body, "visible_boundary", None)
-    if region is None:
-        poly = plane_section(body.visible_vertices - origin, n, off, body.tolerance)
-    else:
-        shift = (body.origin - origin).tolist()                     # (B's frame to ours: none when both are the camera's)
-        poly = plane_section(region.vertices, n, off - sum(a * b for a, b in zip(n.tolist(), shift)), body.tolerance,
-                             region.loops)
-        if poly is not None and any(shift):
-            poly += shift
+    region = body.visible_polytope
+    shift = (body.origin - origin).tolist()                         # (B's frame to ours: none when both are the camera's)
+    poly = plane_section(region.vertices, n, off - sum(a * b for a, b in zip(n.tolist(), shift)), body.tolerance,
+                         region.loops)
+    if poly is not None and any(shift):
+        poly += shift
     if poly is not None and plane.extent is not None:
         ext = [(x - ox, y - oy, z - oz) for x, y, z in np.asarray(plane.extent, dtype=np.float64).tolist()]
         if not is_convex_polygon(ext, n, body.tolerance):       # (a box's top, a hull: already their own hull)
@@ -406,26 +399,16 @@ def _cone_section(poly: ConvexPolytope, normals: list, offsets: list, starts: li
     return np.concatenate([start + t_lo[hit, None] * step, start + t_hi[hit, None] * step])
 
 
-def _polytope(body: IntersectionBody, origin: np.ndarray) -> ConvexPolytope | None:
-    """B's polytope relative to ``origin`` (B's own when the origins agree), or None if B has none."""
-    if getattr(body, "polytope", None) is None:
-        return None
-    return body.polytope if body.origin.tolist() == origin.tolist() else body.polytope_from(origin)
+def _polytope(body: IntersectionBody, origin: np.ndarray) -> ConvexPolytope:
+    """B's polytope relative to ``origin``."""
+    return body.polytope_from(origin)
 
 
 def _clip_body(body: IntersectionBody, origin: np.ndarray, normals: np.ndarray,
                offsets: np.ndarray) -> np.ndarray | None:
     """Points (relative to ``origin``) whose convex hull is B ∩ {normals @ x <= offsets}
     (its vertices among them), or None if empty."""
-    poly = _polytope(body, origin)
-    if poly is not None:
-        return poly.section(normals, offsets)
-    faces = [f - origin for f in body.faces]
-    for n, o in zip(normals, offsets):
-        faces = clip_faces(faces, Plane(n, float(o)), body.tolerance)
-        if not faces:
-            return None
-    return unique_points(np.concatenate(faces), body.tolerance * 10)
+    return body.polytope_from(origin).section(normals, offsets)
 
 
 def _area2d(p: list) -> float:

@@ -185,13 +185,7 @@ def volume_centroid(body: IntersectionBody) -> np.ndarray:
     """The centre of B's volume (continuous in B, unlike the mean of its vertices,
     which jumps when a vertex appears or merges): B's faces as fans of
     triangles, each the base of a tetrahedron from the vertices' mean."""
-    if body.polytope is not None:           # vertex loops by index into the polytope's vertices
-        v, loops, origin = body.polytope.vertices, body.polytope.loops, body.origin
-    else:
-        faces = list(body.faces)
-        v, origin = np.concatenate(faces), 0.0
-        starts = list(itertools.accumulate([0] + [len(f) for f in faces]))
-        loops = [range(s, s + len(f)) for s, f in zip(starts, faces)]
+    v, loops, origin = body.polytope.vertices, body.polytope.loops, body.origin
     ref = v.sum(axis=0) / len(v)                                     # their mean
     first, second, third = [], [], []                                # loop (p0, p1, ..) -> (p0, pj, pj+1)
     for loop in loops:
