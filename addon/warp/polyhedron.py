@@ -187,6 +187,12 @@ class ConvexPolytope:
             inc[list(loop), f] = True
         return inc
 
+    @cached_property
+    def segments(self) -> "Edges":
+        """The edges as segments from their lower vertex (t in [0, 1])."""
+        a, b = self.vertices[self.edges().T]
+        return Edges(a, b - a, np.ones(len(a)))
+
     def faces(self) -> list[np.ndarray]:
         """The facets as (K, 3) vertex loops, counter-clockwise seen from outside."""
         return [self.vertices[list(loop)] for loop in self.loops]
@@ -408,9 +414,8 @@ class Edges(NamedTuple):
 
 
 def polytope_edges(poly: ConvexPolytope) -> Edges:
-    """A polytope's edges as segments from their lower vertex (t in [0, 1])."""
-    a, b = poly.vertices[poly.edges().T]
-    return Edges(a, b - a, np.ones(len(a)))
+    """A polytope's edges as segments from their lower vertex (t in [0, 1]), made once."""
+    return poly.segments
 
 
 def clip_segments(edges: Edges, normals: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -241,8 +241,7 @@ def lowest_in_boxes(region: ConvexPolytope, lo: np.ndarray, hi: np.ndarray, axis
     (exactly: no tolerance, which would move the nearest point along a surface
     seen at a grazing angle by the tolerance over the angle's sine). On a
     clipped edge k·x is least at the end it rises from."""
-    boxes = np.broadcast_to(BOX_NORMALS, (len(lo), 6, 3))
-    return np.minimum(_lowest_on_edges(polytope_edges(region), boxes, box_offsets(lo, hi), axis),
+    return np.minimum(_lowest_on_edges(polytope_edges(region), BOX_NORMALS, box_offsets(lo, hi), axis),
                       _lowest_on_edges(box_edges(lo, hi), region.normals, region.offsets, axis))
 
 
@@ -308,15 +307,20 @@ def min_norm_point(points, start=None, max_iter: int = 200) -> np.ndarray:
 
 def _affine_min_norm(q: np.ndarray) -> np.ndarray:
     """The weights α (Σ α_i = 1) of the point of the affine hull of the rows of
-    ``q`` nearest the origin: the bordered system [Q Qᵀ 1; 1ᵀ 0] (α, μ) = (0, 1),
-    solved by least squares so an affinely dependent support still gets one."""
+    ``q`` nearest the origin: the bordered system [Q Qᵀ 1; 1ᵀ 0] (α, μ) = (0, 1)
+    (the stationary point of |Σ α_i q_i|² under the constraint), by least
+    squares when the support is affinely dependent (the system singular)."""
     n = len(q)
     bordered = np.ones((n + 1, n + 1))
     bordered[:n, :n] = q @ q.T
     bordered[n, n] = 0.0
     rhs = np.zeros(n + 1)
     rhs[n] = 1.0
-    return np.linalg.lstsq(bordered, rhs, rcond=None)[0][:n]
+    try:
+        solution = np.linalg.solve(bordered, rhs)
+    except np.linalg.LinAlgError:
+        solution = np.linalg.lstsq(bordered, rhs, rcond=None)[0]
+    return solution[:n]
 
 
 def smallest_cone(directions) -> tuple[np.ndarray, float]:
