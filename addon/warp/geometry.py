@@ -105,9 +105,8 @@ def translation(offset) -> np.ndarray:
 def perpendicular(v) -> np.ndarray:
     """A unit vector perpendicular to ``v``, chosen continuously away from the
     axis most aligned with ``v`` (deterministic)."""
-    v = normalize(v)
-    axis = np.eye(3)[int(np.argmin(np.abs(v)))]
-    return normalize(cross(v, axis))
+    v = np.asarray(v, dtype=np.float64)
+    return normalize(cross(v, np.eye(3)[int(np.argmin(np.abs(v)))]))
 
 
 def look_along(eye, forward, up_hint) -> np.ndarray:

@@ -14,7 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .geometry import cross, perpendicular
+from .geometry import cross, normalize, perpendicular
 from .polyhedron import ConvexPolytope, OpenCut
 from .types import Light
 
@@ -25,6 +25,8 @@ SUN_FACING = 1e-12
 """A facet faces a sun when cos(angle to the direction towards it) exceeds this."""
 
 _CONE_ANGLES = 2 * math.pi * np.arange(CONE_SIDES) / CONE_SIDES
+_CONE_ROWS = np.stack([np.cos(_CONE_ANGLES), np.sin(_CONE_ANGLES), np.ones(CONE_SIDES)], axis=1)
+"""(cos θ_i, sin θ_i, 1) per side of the pyramid."""
 
 
 def cone_halfspaces(apex, axis, full_angle) -> tuple[np.ndarray, np.ndarray]:
@@ -33,13 +35,11 @@ def cone_halfspaces(apex, axis, full_angle) -> tuple[np.ndarray, np.ndarray]:
     half-angle widened by the secant of π/k so the cone fits inside the
     polygon. Side i's unit normal is cos ω (cos θ_i u + sin θ_i v) - sin ω a,
     with a the unit axis, u ⊥ a, v = a × u and ω the widened half-angle."""
-    a = np.asarray(axis, dtype=np.float64)
-    a = a / math.sqrt(a @ a)
+    a = normalize(axis)
     u = perpendicular(a)
-    v = cross(a, u)
     widened = math.atan(math.tan(full_angle / 2) / math.cos(math.pi / CONE_SIDES))
-    normals = (math.cos(widened) * (np.outer(np.cos(_CONE_ANGLES), u) + np.outer(np.sin(_CONE_ANGLES), v))
-               - math.sin(widened) * a)
+    c, s = math.cos(widened), math.sin(widened)
+    normals = _CONE_ROWS @ np.array([c * u, c * cross(a, u), -s * a])
     return normals, normals @ np.asarray(apex, dtype=np.float64)
 
 

@@ -149,7 +149,7 @@ class ConvexPolytope:
             raise ValueError("degenerate hexahedron: a face has no area")
         n /= length[:, None]
         o = np.einsum("ij,ij->i", n, quads[:, 0])
-        if n[0] @ c.mean(axis=0) > o[0]:                               # inward: the corners reverse orientation
+        if n[0] @ c[7] > o[0]:                  # the near face's normal points at the far corner: inward
             n, o = -n, -o
             return cls(c, n, o, _HEX_REVERSED, tol)
         return cls(c, n, o, HEXAHEDRON_LOOPS, tol)
@@ -224,13 +224,11 @@ class ConvexPolytope:
         """This polytope ∩ {normals @ x <= offsets} (unit normals), or None
         when nothing with volume is left. A half-space that holds every vertex
         is skipped (it holds every later clip too: each lies inside this
-        polytope)."""
+        polytope); when none cuts, this polytope is the clip."""
         n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
         o = np.asarray(offsets, dtype=np.float64).reshape(-1)
-        d = self.vertices @ n.T - o
-        if d.min(axis=0).max() >= -self.tol:
-            return None
-        cutting = [j for j, reach in enumerate(d.max(axis=0).tolist()) if reach > self.tol]
+        reach = ((self.vertices @ n.T).max(axis=0) - o).tolist()          # the farthest vertex beyond each plane
+        cutting = [j for j, r in enumerate(reach) if r > self.tol]
         if not cutting:
             return self
         if len(cutting) < len(n):
@@ -246,7 +244,7 @@ class ConvexPolytope:
                 facets = [facets[f] for f in kept] + [plane] if kept is not None else facets
         except OpenCut:
             return self._clip_by_enumeration(n, o)
-        return ConvexPolytope(_rows(vertices) + 0.0, np.concatenate([self.normals, n])[facets],
+        return ConvexPolytope(_rows(vertices), np.concatenate([self.normals, n])[facets],
                               np.concatenate([self.offsets, o])[facets], tuple(loops), self.tol)
 
     def _clip_by_enumeration(self, n2: np.ndarray, o2: np.ndarray) -> "ConvexPolytope | None":
