@@ -61,12 +61,11 @@ HEXAHEDRON_LOOPS = ((0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 
 ``geometry.UNIT_CUBE_CORNERS`` (near face first, x fastest, then y): near, far,
 bottom, top, left, right, counter-clockwise seen from outside for a box."""
 
-BOX_NORMALS = np.array([[0.0, 0.0, -1.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0],
-                        [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
-"""The outward normals of a box's ``HEXAHEDRON_LOOPS`` (-z, +z, -y, +y, -x, +x)."""
+BOX_NORMALS = np.concatenate([-np.eye(3), np.eye(3)])
+"""The outward normals of a box's facets -x, -y, -z, +x, +y, +z (offsets -lo, hi: ``box_offsets``)."""
 
-BOX_SIDES = np.array([[2, 0], [2, 1], [1, 0], [1, 1], [0, 0], [0, 1]])
-"""Per facet of a box: (axis, 1 for its upper side, 0 for its lower)."""
+BOX_LOOPS = tuple(HEXAHEDRON_LOOPS[i] for i in (4, 2, 0, 5, 3, 1))
+"""The ``HEXAHEDRON_LOOPS`` of a box's facets in ``BOX_NORMALS`` order."""
 
 
 def box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -76,9 +75,8 @@ def box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
 
 
 def box_offsets(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """The offsets (..., 6) of the facets ``BOX_NORMALS`` of boxes [lo, hi]."""
-    axis, upper = BOX_SIDES.T
-    return np.where(upper == 1, hi[..., axis], -lo[..., axis])
+    """The offsets (..., 6) of the facets ``BOX_NORMALS`` of boxes [lo, hi]: -lo, hi."""
+    return np.concatenate([-lo, hi], axis=-1)
 
 
 def box_edges(lo: np.ndarray, hi: np.ndarray) -> "Edges":
@@ -130,7 +128,7 @@ class ConvexPolytope:
         """The box [lo, hi] (corners ordered like ``geometry.UNIT_CUBE_CORNERS``)."""
         lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
         if np.all(hi - lo > 8.0 * tol):
-            return cls(box_corners(lo, hi), BOX_NORMALS.copy(), box_offsets(lo, hi), HEXAHEDRON_LOOPS, tol)
+            return cls(box_corners(lo, hi), BOX_NORMALS.copy(), box_offsets(lo, hi), BOX_LOOPS, tol)
         return cls.from_halfspaces(BOX_NORMALS, box_offsets(lo, hi), tol)
 
     @classmethod
@@ -140,15 +138,14 @@ class ConvexPolytope:
         face's normal is the cross product of its quad's diagonals (exact for
         a planar quad); corners that reverse orientation (a camera's
         projection does) give inward normals, turned outwards with their loops."""
-        c = np.asarray(corners, dtype=np.float64).reshape(8, 3) + 0.0
-        quads = c[_HEX_QUADS]                                          # (6, 4, 3)
-        diagonals = quads[:, [2, 3]] - quads[:, [0, 1]]
+        c = np.asarray(corners, dtype=np.float64)
+        diagonals = c[_HEX_DIAGONAL_ENDS] - c[_HEX_DIAGONAL_STARTS]      # (6, 2, 3): each quad's two diagonals
         n = cross(diagonals[:, 0], diagonals[:, 1])
         length = np.sqrt(np.einsum("ij,ij->i", n, n))
         if not length.all():
             raise ValueError("degenerate hexahedron: a face has no area")
         n /= length[:, None]
-        o = np.einsum("ij,ij->i", n, quads[:, 0])
+        o = np.einsum("ij,ij->i", n, c[_HEX_QUADS[:, 0]])
         if n[0] @ c[7] > o[0]:                  # the near face's normal points at the far corner: inward
             n, o = -n, -o
             return cls(c, n, o, _HEX_REVERSED, tol)
@@ -736,6 +733,7 @@ def _rows(rows: list) -> np.ndarray:
 
 
 _HEX_QUADS = np.array(HEXAHEDRON_LOOPS)
+_HEX_DIAGONAL_STARTS, _HEX_DIAGONAL_ENDS = _HEX_QUADS[:, :2], _HEX_QUADS[:, 2:]
 _HEX_REVERSED = tuple(loop[::-1] for loop in HEXAHEDRON_LOOPS)
 _HEX_EDGES = np.array([(loop[i - 1], loop[i]) for loop in HEXAHEDRON_LOOPS[:2] for i in range(4)]
                       + [(i, i + 4) for i in range(4)])
