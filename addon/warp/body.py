@@ -36,7 +36,7 @@ import numpy as np
 
 from .culling import BoxIndex, Selection
 from .light_hull import light_halfspaces, light_hull
-from .polyhedron import BOX_NORMALS, ConvexPolytope, OpenCut, Plane, box_offsets
+from .polyhedron import BOX_NORMALS, ConvexPolytope, OpenCut, box_offsets
 from .types import EmptyBodyError, Light, SceneBounds, View
 from .visibility import VisibleRegion
 
@@ -106,11 +106,6 @@ class IntersectionBody:
     def centroid(self) -> np.ndarray:
         """The mean of B's vertices (the axis a point light's angles are measured along)."""
         return self.polytope.centroid + self.origin
-
-    @property
-    def hull_planes(self) -> list[Plane]:
-        """World-space half-spaces of hull(R ∪ light) (⊂ L)."""
-        return [Plane(n, float(o)) for n, o in zip(*self.hull_halfspaces)]
 
     def contains(self, points, tol: float | None = None) -> np.ndarray:
         """Which (N, 3) world points lie in B (within ``tol``, default 10x the tolerance)."""

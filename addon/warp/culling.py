@@ -6,7 +6,8 @@ every frame. ``BoxIndex`` (built once per scene) groups the boxes in clusters
 of ``CLUSTER_SIZE`` with their bounds: a cluster wholly outside a half-space
 is rejected, one wholly inside all of them is accepted, and only the boxes of
 the rest are tested, each against the planes that cross its cluster. The
-result equals the plain per-box test (``boxes_meeting_arrays``).
+result equals the plain per-box test: a box meets the region unless it lies
+wholly outside one of the half-spaces.
 """
 from __future__ import annotations
 
@@ -14,7 +15,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .polyhedron import Plane
 from .types import SceneBounds
 
 
@@ -48,11 +48,6 @@ class Selection(NamedTuple):
         return np.compress(self.mask, self.index.boxes, axis=0)
 
 
-def _stack_of(boxes: np.ndarray) -> np.ndarray:
-    """(6, N): rows 0-2 the (N, 2, 3) boxes' lower corners lo, rows 3-5 minus their upper corners -hi."""
-    return np.ascontiguousarray(np.concatenate([boxes[:, 0].T, -boxes[:, 1].T]))
-
-
 def _least_weights(normals: np.ndarray) -> np.ndarray:
     """(planes, 6): (n⁺, n⁻) per plane (n⁺ = max(n, 0), n⁻ = n⁺ - n), so that
     a plane's least value over a box [lo, hi], n⁺ . lo + n⁻ . (-hi), is one
@@ -61,21 +56,6 @@ def _least_weights(normals: np.ndarray) -> np.ndarray:
     the sum)."""
     pos = np.maximum(normals, 0.0)
     return np.concatenate([pos, pos - normals], axis=1)
-
-
-def boxes_meeting_arrays(normals, offsets, bounds: np.ndarray, tol: float = 0.0) -> np.ndarray:
-    """Boolean mask of boxes, given as (6, N) lo and -hi rows (``_stack_of``),
-    not entirely outside any half-space ``normals @ x <= offsets`` (a
-    conservative test)."""
-    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
-    count = bounds.shape[1]
-    if count == 0:
-        return np.zeros(0, dtype=bool)
-    if len(n) == 0:
-        return np.ones(count, dtype=bool)
-    # (A non-contiguous operand makes matmul fall off BLAS and take 100x longer.)
-    least = _least_weights(n) @ np.ascontiguousarray(bounds)
-    return ~(least > np.asarray(offsets, dtype=np.float64)[:, None] + tol).any(axis=0)
 
 
 CLUSTER_SIZE = 32
@@ -87,8 +67,7 @@ class BoxIndex:
     regions: boxes grouped in clusters of ``CLUSTER_SIZE`` (the leaves of a
     median-split k-d tree) with their bounding boxes. A cluster wholly
     outside a half-space is rejected, one wholly inside all is accepted, and
-    only the boxes of the remaining clusters are tested one by one. The result
-    equals the plain per-box test (``boxes_meeting_arrays``)."""
+    only the boxes of the remaining clusters are tested one by one."""
 
     def __init__(self, boxes: np.ndarray):
         b = self.boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3)
@@ -183,14 +162,3 @@ class BoxIndex:
         if not flat.any():
             return Selection(self, flat, None, selected)
         return Selection(self, flat, np.array([least[:3], -least[3:]]), selected)
-
-
-def boxes_meeting(planes: list[Plane], boxes: np.ndarray, tol: float = 0.0) -> np.ndarray:
-    """Boolean mask of (N, 2, 3) boxes not entirely outside any half-space (a
-    conservative box/convex-body overlap test)."""
-    b = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3)
-    if not planes:
-        return np.ones(len(b), dtype=bool)
-    n = np.array([p.normal for p in planes])
-    o = np.array([p.offset for p in planes])
-    return boxes_meeting_arrays(n, o, _stack_of(b), tol)

@@ -90,12 +90,6 @@ def transform_points(matrix, points) -> np.ndarray:
     return h[:, :3] / h[:, 3:4]
 
 
-def transform_directions(matrix, directions) -> np.ndarray:
-    """Apply the linear 3x3 part of an affine 4x4 matrix to (N, 3) directions."""
-    d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
-    return d @ np.asarray(matrix, dtype=np.float64)[:3, :3].T
-
-
 def translation(offset) -> np.ndarray:
     m = np.eye(4)
     m[:3, 3] = offset

@@ -202,7 +202,7 @@ def test_deterministic(name):
     assert len(a.faces) == len(b.faces) and all(np.array_equal(f, g) for f, g in zip(a.faces, b.faces))
     assert np.array_equal(a.culled.casters.mask, b.culled.casters.mask)
     assert np.array_equal(a.culled.receivers.mask, b.culled.receivers.mask)
-    assert all(np.array_equal(p.normal, q.normal) and p.offset == q.offset for p, q in zip(a.hull_planes, b.hull_planes))
+    assert all(np.array_equal(p, q) for p, q in zip(a.hull_halfspaces, b.hull_halfspaces))
 
 
 def test_a_point_sized_receiver_gives_a_closed_body():
