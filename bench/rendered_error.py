@@ -39,6 +39,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 SIZES = (512, 1024, 2048, 4096)
 POINT_SCENES = ("point_behind_camera", "point_low_in_view")
+LEVEL = 1e-5
+"""'Stays level': an error rate within this of the smaller map's (a couple of pixels of 640x360;
+the counted pixels differ slightly between renders of the same view)."""
 LIT_FACING = 0.1
 """The analytic footprint is summarised over lit points facing the light with n·l at least
 this (about 84° from the normal): a surface edge-on to the light has an unbounded footprint
@@ -165,7 +168,7 @@ def check(ms: list[Measurement]) -> list[tuple[bool, str]]:
     for m in ms:
         nxt = by.get((m.scene, m.method, m.size * 2))
         if m.size >= 1024 and nxt is not None:
-            lines.append((nxt.error <= m.error, f"more texels never hurt: {m.scene} {m.method} {m.size}->{nxt.size}: "
+            lines.append((nxt.error <= m.error + LEVEL, f"more texels never hurt: {m.scene} {m.method} {m.size}->{nxt.size}: "
                                                 f"{100 * m.error:.2f}% -> {100 * nxt.error:.2f}%"))
         if m.scene in POINT_SCENES and m.size == 2048:
             lines.append((m.error < 0.01, f"point lights are right: {m.scene} {m.method} 2048: {100 * m.error:.2f}%"))
