@@ -158,7 +158,7 @@ class Floor:
             fb.clear(depth=1.0)
             gpu.state.depth_test_set("LESS_EQUAL")
             gpu.state.depth_mask_set(True)
-            sh = shaders.prepass_shader()
+            sh = shaders.camera_depth_shader()
             sh.bind()
             sh.uniform_float("u_view_proj", f._view_proj)
             f.scene.draw(sh, f.receivers)

@@ -1,10 +1,12 @@
-/* Shading pass: per fragment, world position -> light clip of the first map
- * that serves it (regions first, fallback last: ShadowSetup.map_index), a
- * PCF k x k shadow test (a plane map: its one lixel, which samples the pixel's
- * own point) with texelFetch on an n-depth map (Pagot et al. §4.2:
- * the n-shadow test counts the stored keys nearer the light than the fragment,
- * giving n + 1 outcomes per sample and n*k*k + 1 per PCF(k*k, n)), and Lambert
- * lighting in the light's colour.
+/* Shading pass: one full-screen pass over the surface the camera pre-pass saw
+ * (prepass_frag.glsl: position and normal per pixel), so each pixel is shaded
+ * once whatever the depth complexity, and the receivers are drawn once. Per
+ * pixel: the world position -> light clip of the first map that serves it
+ * (regions first, fallback last: ShadowSetup.map_index), a PCF k x k shadow
+ * test on an n-depth map (Pagot et al. §4.2: the n-shadow test counts the
+ * stored keys nearer the light than the fragment, giving n + 1 outcomes per
+ * sample and n*k*k + 1 per PCF(k*k, n)), and Lambert lighting in the light's
+ * colour.
  *
  * Biasing (Scherzer §4.2) is applied to the fragment's depth before the test,
  * in NDC depth units: z -= c + s * r * (|dz/du| + |dz/dv|) towards the light,
@@ -199,16 +201,54 @@ bool lixel_serves(int i, vec3 P, float eye_depth, out vec4 h)
   return true;
 }
 
+vec3 lixel_unoctahedral(vec2 p)
+{
+  vec3 n = vec3(p, 1.0 - abs(p.x) - abs(p.y));
+  float t = max(-n.z, 0.0);
+  n.xy += vec2(n.x >= 0.0 ? -t : t, n.y >= 0.0 ? -t : t);
+  return normalize(n);
+}
+
+#if defined(LIXEL_FOOTPRINT) || defined(LIXEL_DATA)
+/* The point of the plane through P with normal N that the camera sees at
+ * window position w (pixel units): where the camera ray through w crosses the
+ * plane. */
+vec3 lixel_on_plane(vec2 w, vec3 P, vec3 N)
+{
+  vec2 ndc = w * lixel.screen.xy - 1.0;
+  vec4 a = lixel.inv_view_proj * vec4(ndc, -1.0, 1.0);
+  vec4 b = lixel.inv_view_proj * vec4(ndc, 1.0, 1.0);
+  vec3 o = a.xyz / a.w;
+  vec3 d = b.xyz / b.w - o;
+  return o + d * (dot(N, P - o) / dot(N, d));
+}
+
+vec2 lixel_texel_of(int m, vec3 P, vec2 size)
+{
+  vec4 h = lixel.maps[m].matrix * vec4(P, 1.0);
+  return (h.xy / h.w * 0.5 + 0.5) * size;
+}
+
+/* Shadow-map texels per pixel: sqrt |det| of the texel position's change to
+ * the next pixel right and up, on the pixel's own plane (what a geometry
+ * pass's screen derivatives give: its helper invocations interpolate the same
+ * triangle). */
+float lixel_texels_per_pixel(int m, vec3 P, vec3 N, vec2 tc, vec2 size)
+{
+  vec2 dx = lixel_texel_of(m, lixel_on_plane(gl_FragCoord.xy + vec2(1.0, 0.0), P, N), size) - tc;
+  vec2 dy = lixel_texel_of(m, lixel_on_plane(gl_FragCoord.xy + vec2(0.0, 1.0), P, N), size) - tc;
+  return sqrt(abs(determinant(mat2(dx, dy))));
+}
+#endif
+
 void main()
 {
-  vec3 P = v_world;
-  /* Geometric normal from screen derivatives (exact per triangle: helper
-   * invocations interpolate the same triangle), turned towards the viewer. */
-  vec3 N = normalize(cross(dFdx(P), dFdy(P)));
-  vec3 V = lixel.camera.w > 0.5 ? -lixel.view_dir.xyz : lixel.camera.xyz - P;
-  if (dot(N, V) < 0.0) {
-    N = -N;
-  }
+  /* The surface the pre-pass saw here (prepass_frag.glsl); this pass runs only
+   * where it saw one (a full-screen triangle on the far plane, GREATER). */
+  ivec2 px = ivec2(gl_FragCoord.xy);
+  vec4 surface = texelFetch(u_surface, px, 0);
+  vec3 P = surface.xyz;
+  vec3 N = lixel_unoctahedral(vec2(surface.w, texelFetch(u_normal, px, 0).r));
   float eye_depth = -dot(lixel.eye_row, vec4(P, 1.0));
 
   /* The first map that serves P. */
@@ -234,8 +274,11 @@ void main()
   vec4 info = lixel.maps[m].info;
   ivec2 size = ivec2(info.xy);
   vec2 tc = (ndc.xy * 0.5 + 0.5) * vec2(size);
-  float footprint = sqrt(abs(determinant(mat2(dFdx(tc), dFdy(tc)))));  /* in uniform control flow */
-  float texels_per_pixel = index >= 0 ? footprint : 0.0;
+#if defined(LIXEL_FOOTPRINT) || defined(LIXEL_DATA)
+  float texels_per_pixel = index >= 0 ? lixel_texels_per_pixel(m, P, N, tc, vec2(size)) : 0.0;
+#else
+  float texels_per_pixel = 0.0;
+#endif
 
   float shadow = 0.0;
   if (index >= 0) {

@@ -183,19 +183,28 @@ class GPUScene:
         self.matrices = _texture("RGBA32F", 4 * per_row, rows, data.ravel())
         self.matrix_uploads += 1
 
-    def draw_list(self, pass_name: str, mask: np.ndarray) -> DrawList:
-        """The instances selected by ``mask`` (bool (N,)), for the pass ``pass_name``."""
+    def draw_list(self, pass_name: str, mask: np.ndarray, eye=None) -> DrawList:
+        """The instances selected by ``mask`` (bool (N,)), for the pass
+        ``pass_name``. ``eye``: a point the pass looks from; each group is then
+        drawn nearest first (by box centre), so the depth test rejects what is
+        hidden before it is shaded. A list is made again only when the
+        selection changes (an order made from an earlier eye is as correct)."""
         hit = self._lists.get(pass_name)
         if hit is not None and np.array_equal(hit[0], mask):
             return hit[1]
         g = self._grouping
         chosen = mask[g.order]
-        ids = g.order[chosen].astype(np.int32)
+        ids = g.order[chosen]
         n = len(ids)
         groups = []
         if n:
             counts = np.add.reduceat(chosen, g.starts, dtype=np.int64)
             offsets = np.cumsum(counts) - counts
+            if eye is not None:
+                boxes = self.instances.world_boxes()[ids]
+                near = ((boxes[:, 0] + boxes[:, 1]) / 2 - np.asarray(eye, dtype=np.float64)) ** 2
+                group_of = np.repeat(np.arange(len(counts)), counts)
+                ids = ids[np.lexsort((near.sum(axis=1), group_of))]
             for (key, mirrored, tris), c, o in zip(g.groups, counts.tolist(), offsets.tolist()):
                 if c:
                     groups.append(DrawGroup(key, o, c, mirrored, tris))

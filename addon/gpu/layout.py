@@ -146,5 +146,7 @@ LIXEL_SHADE = Struct("LixelShade", (
     Member("spot", "vec4", "(Blender's spot blend 0..1, 0, 0, 0)"),
     Member("ambient", "vec4", "(world colour, 0): ambient light, times the albedo"),
     Member("bias", "vec4", "(constant c, slope factor s, PCF reach r, largest slope term), NDC depth units"),
+    Member("inv_view_proj", "mat4", "camera clip -> world (relative to the frame's origin): the camera rays"),
+    Member("screen", "vec4", "(2 / width, 2 / height, 0, 0): window position -> NDC"),
     Member("maps", LIXEL_MAP, "the setup's maps", MAX_MAPS),
 ), doc="The shading pass's uniform block (addon/gpu/layout.py); positions relative to the frame's origin.")

@@ -5,10 +5,10 @@ for is read back. See docs/architecture.md.
 A frame is a :class:`ShadowFrame`, run in the order its steps depend on::
 
     frame = ShadowFrame(geometry, view, resolution)   # the scene on the GPU (uploads what changed)
-    frame.camera_prepass()                            # receivers in the view; the camera's depth
+    frame.camera_prepass()                            # receivers in the view: depth, surface seen
     ...                                               # (the warp may read the pre-pass here)
     frame.draw_maps(setup, shadow, body)              # casters that can shadow what is seen; MDSM keys
-    frame.shade(light, setup, shadow, ambient=...)    # shading on the pre-pass depth (LESS_EQUAL)
+    frame.shade(light, setup, shadow, ambient=...)    # one full-screen pass over the pre-pass surface
     result = frame.finish(read=...)                   # blur/preview on the GPU, read back once
 
 :func:`render_shadows` runs all of it in one call (report, UI, tests). Each
@@ -184,10 +184,12 @@ def mdsm_pass(maps: list, setup: ShadowSetup, shadow: ShadowSettings, targets: O
 
 def shade_block(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSettings,
                 albedo: float = DEFAULT_ALBEDO, origin=(0.0, 0.0, 0.0), spot_blend: float = 0.0,
-                ambient=DEFAULT_AMBIENT) -> np.ndarray:
+                ambient=DEFAULT_AMBIENT, resolution=None) -> np.ndarray:
     """The shading pass's uniform block (``layout.LIXEL_SHADE``) as float32
-    rows, positions relative to ``origin``."""
+    rows, positions relative to ``origin``; ``resolution``: the frame's (w, h)
+    (default ``view.resolution``)."""
     o = np.asarray(origin, dtype=np.float64)
+    resolution = view.resolution if resolution is None else resolution
     b = LIXEL_SHADE.block()
     b.camera[:] = (*(view.position - o), 1.0 if view.orthographic else 0.0)
     b.view_dir[:3] = view.direction
@@ -200,6 +202,8 @@ def shade_block(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSett
     b.spot[0] = min(max(float(spot_blend), 0.0), 1.0)
     b.ambient[:3] = ambient
     b.bias[:] = bias_vector(shadow)
+    b.inv_view_proj[:] = np.linalg.inv(relative(view.world_to_clip, o)).T   # columns
+    b.screen[:2] = 2.0 / np.asarray(resolution, dtype=np.float64)
     for i, m in enumerate(setup.maps):
         bm = b.maps[i]
         bm.matrix[:] = relative(m.matrix, o).T  # columns
@@ -250,15 +254,18 @@ def _view_planes(view: View) -> tuple[np.ndarray, np.ndarray]:
 class ShadowFrame:
     """One frame of the pipeline (see the module docstring for the order of
     the steps). ``geometry``: an ``addon.scene.geometry.SceneGeometry``;
-    ``resolution``: (w, h), default ``view.resolution``; ``scene``: the
-    :class:`GPUScene` (default the process-wide one); ``targets``: the render
-    targets (default the process-wide pool).
+    ``resolution``: (w, h), default ``view.resolution``; ``read``: the
+    :class:`RenderResult` images the frame is for (what :meth:`shade` draws and
+    :meth:`finish` reads back by default); ``scene``: the :class:`GPUScene`
+    (default the process-wide one); ``targets``: the render targets (default
+    the process-wide pool).
     """
 
-    def __init__(self, geometry, view: View, resolution: Optional[tuple[int, int]] = None, *,
+    def __init__(self, geometry, view: View, resolution: Optional[tuple[int, int]] = None, *, read=ANALYSIS,
                  scene: Optional[GPUScene] = None, targets: Optional[TargetPool] = None, timed: bool = True):
         self.geometry = geometry
         self.view = view
+        self.read = check_read(read)
         w, h = resolution or view.resolution
         self.size = (int(w), int(h))
         self.scene = scene if scene is not None else shared_scene()
@@ -279,6 +286,7 @@ class ShadowFrame:
         self.keys: list = []
         self.setup: Optional[ShadowSetup] = None
         self._depth = None
+        self._surface = None
         self._shaded = None
 
     # ------------------------------------------------------------ steps
@@ -297,9 +305,10 @@ class ShadowFrame:
         return mask
 
     def camera_prepass(self):
-        """Cull the receivers to the view frustum and draw their depth from the
-        camera (``prepass_shader``). Returns the camera depth texture (window
-        depth, row 0 at the bottom), which the shading pass tests against."""
+        """Cull the receivers to the view frustum and draw them from the camera
+        (``prepass_shader``): the depth and the surface seen (position, normal),
+        which the shading pass shades. Returns the camera depth texture (window
+        depth, row 0 at the bottom; the visible region is read from it)."""
         import gpu
         if self._depth is not None:
             return self._depth
@@ -307,7 +316,7 @@ class ShadowFrame:
         view = self.view
         n, o = _view_planes(view)
         mask = self._select("receivers", n, o, 1e-9 * max(view.far, 1.0))
-        self.receivers = self.scene.draw_list("receivers", mask)
+        self.receivers = self.scene.draw_list("receivers", mask, eye=view.position)
         self.counts.receivers_drawn = self.receivers.instance_count
         self.counts.receiver_triangles_drawn = self.receivers.triangle_count
         self._view_proj = _gl_matrix(relative(view.world_to_clip, self.origin))
@@ -315,18 +324,23 @@ class ShadowFrame:
         t = time.perf_counter()
         w, h = self.size
         depth = self.targets.texture("camera_depth", self.size, "DEPTH_COMPONENT32F")
-        fb = self.targets.framebuffer(depth=depth)
+        surface = self.targets.texture("surface", self.size, "RGBA32F")
+        normal = self.targets.texture("surface_normal", self.size, "R32F")
+        fb = self.targets.framebuffer(depth=depth, colors=(surface, normal))
+        pre = shaders.prepass_shader()
         with fb.bind():
             gpu.state.viewport_set(0, 0, w, h)
-            fb.clear(depth=1.0)
-            pre = shaders.prepass_shader()
+            fb.clear(depth=1.0)              # the colour targets are read only where depth was drawn
             gpu.state.depth_test_set("LESS_EQUAL")
             gpu.state.depth_mask_set(True)
             pre.bind()
             pre.uniform_float("u_view_proj", self._view_proj)
+            pre.uniform_float("u_camera", (*(view.position - self.origin), 1.0 if view.orthographic else 0.0))
+            pre.uniform_float("u_view_dir", (*view.direction, 0.0))
             self.scene.draw(pre, self.receivers)
             gpu.state.depth_mask_set(False)
             gpu.state.depth_test_set("NONE")
+        self._surface = (surface, normal)
         self._depth = depth
         self._stage("camera_prepass", t, fb)
         return depth
@@ -368,9 +382,10 @@ class ShadowFrame:
         return self.maps
 
     def shade(self, light: Light, setup: ShadowSetup, shadow: ShadowSettings, albedo: float = DEFAULT_ALBEDO,
-              spot_blend: float = 0.0, ambient=DEFAULT_AMBIENT, read=ANALYSIS) -> None:
-        """The shading pass over the pre-pass depth (LESS_EQUAL, no depth
-        writes), writing only the targets the images in ``read`` come from
+              spot_blend: float = 0.0, ambient=DEFAULT_AMBIENT, read=None) -> None:
+        """The shading pass: one full-screen pass over the surface the pre-pass
+        saw (each pixel shaded once; no second draw of the receivers), writing
+        only the targets the images in ``read`` come from
         (the :meth:`finish` that follows takes the same ``read``): the
         combined image (the unshadowed light when the eye-space blur follows),
         the shadow, the footprint heatmap, (shadow, map index, texels per
@@ -381,7 +396,7 @@ class ShadowFrame:
         if setup is not self.setup:
             raise WarpError("shade() takes the setup whose maps draw_maps() drew")
         t = time.perf_counter()
-        read = check_read(read)
+        read = self.read if read is None else check_read(read)
         blurred = shadow.eye_blur > 0
         world = "world_position" in read
         variant = shaders.ShadeVariant(
@@ -398,27 +413,31 @@ class ShadowFrame:
         spec += [("world", "RGBA32F")] if world else []
         textures = {name: self.targets.texture(name, self.size, fmt) for name, fmt in spec}
         fb = self.targets.framebuffer(depth=self._depth, colors=tuple(textures.values()))
-        block = shade_block(self.view, light, setup, shadow, albedo, self.origin, spot_blend, ambient)
+        block = shade_block(self.view, light, setup, shadow, albedo, self.origin, spot_blend, ambient, self.size)
         ubo = gpu.types.GPUUniformBuf(block.tobytes())
         w, h = self.size
         with fb.bind():
+            # Two full-screen triangles on the far plane, tested against the pre-pass
+            # depth: the background where nothing was drawn (no target is cleared),
+            # the shading everywhere else, once per pixel.
             gpu.state.viewport_set(0, 0, w, h)
-            gpu.state.depth_test_set("LESS_EQUAL")
             gpu.state.depth_mask_set(False)
-            # The background first: what no receiver covers (no target is cleared).
+            gpu.state.depth_test_set("LESS_EQUAL")
             bg = shaders.background_shader(variant)
             bg.bind()
             bg.uniform_float("u_background", (0.0, 0.0, 0.0, 0.0) if blurred else (*ambient, 1.0))
             compose.fullscreen_batch().draw(bg)
             sh = shaders.shade_shader(variant)
             sh.bind()
-            sh.uniform_float("u_view_proj", self._view_proj)
             sh.uniform_block("lixel", ubo)
             maps = self.keys or self.maps
             dummy = _dummy("RGBA32F" if self.keys else "DEPTH_COMPONENT32F")
             for i in range(shaders.MAX_MAPS):
                 sh.uniform_sampler(f"u_map{i}", maps[i][0] if i < len(maps) else dummy)
-            self.scene.draw(sh, self.receivers)
+            gpu.state.depth_test_set("GREATER")
+            sh.uniform_sampler("u_surface", self._surface[0])
+            sh.uniform_sampler("u_normal", self._surface[1])
+            compose.fullscreen_batch().draw(sh)
             gpu.state.depth_test_set("NONE")
         self._shaded = dict(textures=textures, variant=variant, ambient=ambient, albedo=float(albedo),
                             eye_blur=float(shadow.eye_blur))
@@ -428,11 +447,11 @@ class ShadowFrame:
         tex = self._shaded["textures"][name]
         return compose.read_color(self.targets.framebuffer(colors=(tex,)), 0, self.size, channels)
 
-    def finish(self, read=ANALYSIS) -> RenderResult:
+    def finish(self, read=None) -> RenderResult:
         """Finish on the GPU (the eye-space blur and compose when the blur is on,
         the map preview when asked for) and read back the images named in
         ``read`` (see :class:`RenderResult`), each once."""
-        read = check_read(read)
+        read = self.read if read is None else check_read(read)
         if self._shaded is None:
             raise WarpError("finish() needs shade() first")
         sh = self._shaded
@@ -550,7 +569,7 @@ def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, setti
         raise WarpError("the shadow setup has no maps")
     if len(setup.maps) > shaders.MAX_MAPS:
         raise WarpError(f"the shadow setup has {len(setup.maps)} maps; Lixel's shader takes at most {shaders.MAX_MAPS}")
-    frame = ShadowFrame(geometry, view, resolution, scene=scene, targets=targets)
+    frame = ShadowFrame(geometry, view, resolution, read=read, scene=scene, targets=targets)
     if body is None:
         try:
             body = intersection_body(view, light, geometry.instances.bounds)
@@ -559,5 +578,5 @@ def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, setti
             body = None
     frame.camera_prepass()
     frame.draw_maps(setup, shadow, body)
-    frame.shade(light, setup, shadow, albedo, spot_blend, ambient, read)
-    return frame.finish(read)
+    frame.shade(light, setup, shadow, albedo, spot_blend, ambient)
+    return frame.finish()

@@ -103,6 +103,7 @@ class ShadeVariant:
     """Write the footprint heatmap (the Footprint pass)."""
     data: bool = False
     """Also write (shadow, map index, texels per pixel, eye depth)."""
+
     world: bool = False
     """Also write the world position."""
 
@@ -127,20 +128,47 @@ class ShadeVariant:
 LIGHT_CODES = {"SUN": 0, "POINT": 1, "SPOT": 2}
 
 
-def _shade_info(prepass: bool, variant: ShadeVariant = ShadeVariant()):
+def _camera_info(name: str, fragment: str):
+    """A draw of the receivers from the camera (``shade_vert.glsl``) with ``fragment``."""
     import gpu
     info = gpu.types.GPUShaderCreateInfo()
     _common_defines(info)
-    iface = gpu.types.GPUStageInterfaceInfo("lixel_shade_iface")
+    iface = gpu.types.GPUStageInterfaceInfo(f"lixel_{name}_iface")
     iface.smooth("VEC3", "v_world")
     info.vertex_out(iface)
     _instanced_vertex_input(info)
     info.push_constant("MAT4", "u_view_proj")
     info.vertex_source(source("instance_lib.glsl") + source("shade_vert.glsl"))
-    if prepass:
-        info.fragment_source(source("bare_frag.glsl"))
-        return info
+    info.fragment_source(source(fragment))
+    return info
+
+
+@functools.lru_cache(maxsize=None)
+def prepass_shader():
+    """The camera's pre-pass: depth, and the surface seen (position, normal) for
+    the shading pass (``prepass_frag.glsl``)."""
+    info = _camera_info("prepass", "prepass_frag.glsl")
+    info.push_constant("VEC4", "u_camera")
+    info.push_constant("VEC4", "u_view_dir")
+    info.fragment_out(0, "VEC4", "out_surface")
+    info.fragment_out(1, "VEC4", "out_normal")
+    return _create(info, "camera pre-pass")
+
+
+@functools.lru_cache(maxsize=None)
+def camera_depth_shader():
+    """A bare depth draw from the camera (empty fragment stage): the floor the
+    benchmark measures the pre-pass against."""
+    return _create(_camera_info("camera_depth", "bare_frag.glsl"), "camera depth")
+
+
+SURFACE_SLOT = MAX_MAPS
+"""Sampler slots of the pre-pass surface (position, then normal) in the shading pass."""
+
+
+def _shade_info(variant: ShadeVariant):
     v = variant
+    info = _fullscreen_info("shade_frag.glsl", at_far=True)
     info.define("LIXEL_MAP_COUNT", str(v.map_count))
     info.define("LIXEL_LIGHT", str(LIGHT_CODES[v.light]))
     info.define("LIXEL_PCF", str(int(v.pcf)))
@@ -155,22 +183,19 @@ def _shade_info(prepass: bool, variant: ShadeVariant = ShadeVariant()):
     info.uniform_buf(0, LIXEL_SHADE.name, "lixel")
     for i in range(MAX_MAPS):
         info.sampler(i, "FLOAT_2D" if v.mdsm > 1 else "DEPTH_2D", f"u_map{i}")
+    info.sampler(SURFACE_SLOT, "FLOAT_2D", "u_surface")
+    info.sampler(SURFACE_SLOT + 1, "FLOAT_2D", "u_normal")
+
     for slot, name in enumerate(v.outputs):
         info.fragment_out(slot, "VEC4", name)
-    info.fragment_source(source("shade_frag.glsl"))
     return info
 
 
 @functools.lru_cache(maxsize=None)
 def shade_shader(variant: ShadeVariant):
-    """The shading pass from the camera, compiled for ``variant`` (once per process)."""
-    return _create(_shade_info(False, variant), "shading pass")
-
-
-@functools.lru_cache(maxsize=None)
-def prepass_shader():
-    """Camera depth pre-pass (same vertex stage as the shading pass)."""
-    return _create(_shade_info(True, False), "camera depth pre-pass")
+    """The shading pass, compiled for ``variant`` (once per process): one
+    full-screen pass over the pre-pass surface (``shade_frag.glsl``)."""
+    return _create(_shade_info(variant), "shading pass")
 
 
 def _fullscreen_info(name: str, at_far: bool = False):

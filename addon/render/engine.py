@@ -170,7 +170,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     t = time.perf_counter()
     view, light, bounds = describe_scene(scene, depsgraph, instances=geometry.instances)
     timings["describe"] = time.perf_counter() - t
-    frame = ShadowFrame(geometry, view, resolution or view.resolution, targets=targets, timed=timed)
+    frame = ShadowFrame(geometry, view, resolution or view.resolution, read=read, targets=targets, timed=timed)
     frame.camera_prepass()
     visible = None
     if settings.warp.focus == "visible":         # the warp is fitted to what the pre-pass saw
@@ -198,8 +198,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     blend = float(getattr(light_obj.data, "spot_blend", 0.0)) if light_obj is not None and \
         light_obj.type == "LIGHT" and light_obj.data.type == "SPOT" else 0.0
     frame.draw_maps(setup, settings.shadow, body)
-    frame.shade(light, setup, settings.shadow, spot_blend=blend, ambient=_world_colour(scene), read=read)
-    result = frame.finish(read)
+    frame.shade(light, setup, settings.shadow, spot_blend=blend, ambient=_world_colour(scene))
+    result = frame.finish()
     result.timings = {**timings, **result.timings}
     return {"setup": setup, "settings": settings, "result": result, "scene": scene.name, "method": method}
 

@@ -43,7 +43,7 @@ def test_every_row_of_the_block_reads_back_through_its_glsl_name(gpu_mods):
     layout, shaders, compose = gpu_mods
     block = layout.LIXEL_SHADE
     rows = block.rows
-    assert rows == 9 + layout.MAX_MAPS * (4 + 5 + layout.MAX_POLYGON)
+    assert rows == 14 + layout.MAX_MAPS * (4 + 5 + layout.MAX_POLYGON)
     values = np.arange(rows * 4, dtype=np.float32).reshape(rows, 4) + 0.25
 
     info = gpu.types.GPUShaderCreateInfo()
@@ -77,7 +77,7 @@ def test_block_view_names_the_rows_the_shader_reads(gpu_mods):
     b.maps[7].polygon[31] = (9, 9, 9, 9)
     per_map = layout.LIXEL_MAP.rows
     assert tuple(b.rows[8]) == (1, 2, 3, 4)           # the ninth vec4 of LixelShade
-    np.testing.assert_array_equal(b.rows[9 + 2 * per_map:9 + 2 * per_map + 4], np.arange(16).reshape(4, 4))
+    np.testing.assert_array_equal(b.rows[14 + 2 * per_map:14 + 2 * per_map + 4], np.arange(16).reshape(4, 4))
     assert tuple(b.rows[-1]) == (9, 9, 9, 9)
     with pytest.raises(AttributeError):
         b.camera = (0, 0, 0, 0)

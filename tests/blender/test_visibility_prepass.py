@@ -103,7 +103,8 @@ def test_the_prepass_region_holds_every_shaded_point(mods, fresh_scene):
     mods.context.ensure_gpu_context()
     geometry = mods.geometry.GeometryCache().update(dg)
     view, light, bounds = mods.describe.describe_scene(fresh_scene, dg, instances=geometry.instances)
-    frame = mods.pipeline.ShadowFrame(geometry, view)
+    read = {"world_position", "covered", "map_index"}
+    frame = mods.pipeline.ShadowFrame(geometry, view, read=read)
     frame.camera_prepass()
     region, seconds = mods.visibility.region_from_frame(frame)
     assert seconds >= 0 and region.source == "depth pre-pass"
@@ -111,9 +112,8 @@ def test_the_prepass_region_holds_every_shaded_point(mods, fresh_scene):
     setup = mods.warp.compute("uniform", view, light, bounds, mods.warp.WarpOptions(shadow_map_size=256), body=body)
     shadow = mods.settings.ShadowSettings()
     frame.draw_maps(setup, shadow, body)
-    read = {"world_position", "covered", "map_index"}
-    frame.shade(light, setup, shadow, read=read)
-    out = frame.finish(read)
+    frame.shade(light, setup, shadow)
+    out = frame.finish()
     points = out.world_position[out.covered]
     assert len(points) > 1000
     assert region.contains(view, points, tol=1e-5).all()
