@@ -113,24 +113,40 @@ def split_setup(warp: str, view: View, light: Light, body: IntersectionBody, opt
     return SPLIT_WARPS[warp](view, light, body, options)
 
 
-def build_split(view: View, light: Light, scene: SceneBounds, near: float, far: float, band: float,
-                options: WarpOptions, warps: Optional[list] = None, visible: Optional[VisibleRegion] = None) -> Split:
-    """Split [near, far] (holding ``band`` more): its B, focused on its part of
-    the ``visible`` region when there is one, and the warp that predicts the
-    lowest error among ``warps`` (default: those ``options`` allows)."""
-    start, end = near * (1.0 - OVERLAP), (far + band) * (1.0 + OVERLAP)
+def split_body(view: View, light: Light, scene: SceneBounds, near: float, far: float,
+               visible: Optional[VisibleRegion]) -> tuple[View, Optional[IntersectionBody]]:
+    """The camera clipped to eye depths [near, far] (a split and its band) and
+    its B, focused on its part of the ``visible`` region when there is one
+    (None: nothing visible there)."""
+    start, end = near * (1.0 - OVERLAP), far * (1.0 + OVERLAP)
     clipped = split_view(view, max(start, view.near * (1.0 - OVERLAP)), end)
     seen = None if visible is None else split_region(visible, start, end)
+    if seen is not None and seen.is_empty:
+        return clipped, None
     try:
-        if seen is not None and seen.is_empty:
-            raise EmptyBodyError("nothing visible in the split")
-        body = intersection_body(clipped, light, scene, seen)
+        return clipped, intersection_body(clipped, light, scene, seen)
     except EmptyBodyError:
-        return Split(near, far, band, clipped, None)
+        return clipped, None
+
+
+def build_split(view: View, light: Light, scene: SceneBounds, near: float, far: float, band: float,
+                options: WarpOptions, warps: Optional[list] = None, visible: Optional[VisibleRegion] = None,
+                bodies: Optional[dict] = None) -> Split:
+    """Split [near, far] (holding ``band`` more): its B (kept in ``bodies`` by
+    depths, if given) and the warp that predicts the lowest error among
+    ``warps`` (default: those ``options`` allows)."""
+    key = (near, far + band)
+    if bodies is None or key not in bodies:
+        made = split_body(view, light, scene, near, far + band, visible)
+        if bodies is None:
+            bodies = {}
+        bodies[key] = made
+    clipped, body = bodies[key]
     split = Split(near, far, band, clipped, body)
-    warps = warps or allowed_warps(options)
+    if body is None:
+        return split
     sub = split_options(options, options.shadow_map_size)
-    for name in warps:
+    for name in warps or allowed_warps(options):
         setup = split_setup(name, clipped, light, body, sub)
         error = max_error(clipped, light, setup, body.visible_vertices)
         if split.setup is None or error < split.predicted_error * (1.0 - TIE):
@@ -148,11 +164,12 @@ def split_depths(view: View, light: Light, scene: SceneBounds, body: Intersectio
     if options.cascade_stable:
         z_n, z_f = stable_depth_range(z_n, z_f, view)
     depths = practical_splits(z_n, z_f, options.cascade_splits, options.cascade_lambda)
+    bodies: dict = {}                     # each split's view and B, by its depths: the search revisits them
 
-    def splits_at(c: np.ndarray, warps=None) -> list:
+    def splits_at(c: np.ndarray) -> list:
         last = len(c) - 2
         return [build_split(view, light, scene, a, b, 0.0 if i == last else options.cascade_blend * (b - a),
-                            options, warps and [warps[i]], body.visible) for i, (a, b) in enumerate(zip(c[:-1], c[1:]))]
+                            options, None, body.visible, bodies) for i, (a, b) in enumerate(zip(c[:-1], c[1:]))]
 
     splits = splits_at(depths)
     if not options.cascade_adaptive or options.cascade_splits == 1 or options.cascade_stable:
@@ -161,7 +178,7 @@ def split_depths(view: View, light: Light, scene: SceneBounds, body: Intersectio
 
     def error_of(i: int, a: float, b: float) -> float:
         band = 0.0 if i == len(kept) - 1 else options.cascade_blend * (b - a)
-        return build_split(view, light, scene, a, b, band, options, [kept[i]], body.visible).predicted_error
+        return build_split(view, light, scene, a, b, band, options, [kept[i]], body.visible, bodies).predicted_error
 
     moved, _ = minimax_splits(error_of, depths, [s.predicted_error for s in splits],
                               options.cascade_budget == "shared")
