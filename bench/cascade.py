@@ -41,10 +41,11 @@ measures:
   not, and counts. This measures the error along edges as much as shimmer.
 * *shimmer*: pixels whose shadow changes when only the maps change, the camera
   held still: frame k + 1 rendered once with its own maps and once with frame
-  k's (``render_shadows``, same view, geometry and settings). A map that keeps
-  every world point on its texel changes nothing; one whose texel grid moves
-  with the camera changes its jagged edges. This is what the stable option is
-  for ("a static scene under a moving camera does not shimmer").
+  k's (``render_shadows``, same view, geometry and settings), over the pixels a
+  map of both holds (frame k's maps are fitted to what frame k saw). A map that
+  keeps every world point on its texel changes nothing; one whose texel grid
+  moves with the camera changes its jagged edges. This is what the stable
+  option is for ("a static scene under a moving camera does not shimmer").
 
 Criterion: the stable cascade shimmers on at most half the pixels of the
 unstable one (and its pixel flicker is reported beside it).
@@ -245,11 +246,14 @@ def limit_checks(rows: list) -> list:
 
 
 def _shadows(view, light, setup, geometry, settings, resolution) -> tuple[np.ndarray, np.ndarray]:
-    """(shadowed, covered) images of ``setup`` seen from ``view``."""
+    """(shadowed, served) images of ``setup`` seen from ``view``: served where a
+    surface is drawn and one of the setup's maps holds it."""
     from addon.gpu.pipeline import render_shadows
     from bench.report.lixel import SHADOW_THRESHOLD
-    res = render_shadows(view, light, setup, geometry, settings, resolution, read={"shadow_raw", "covered"})
-    return np.asarray(res.shadow_raw) >= SHADOW_THRESHOLD, np.asarray(res.covered, dtype=bool)
+    res = render_shadows(view, light, setup, geometry, settings, resolution,
+                         read={"shadow_raw", "covered", "map_index"})
+    served = np.asarray(res.covered, dtype=bool) & (np.asarray(res.map_index) >= 0)
+    return np.asarray(res.shadow_raw) >= SHADOW_THRESHOLD, served
 
 
 def run_flicker(scenes, size: int, resolution, frames: int, log=print) -> list:

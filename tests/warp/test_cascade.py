@@ -32,7 +32,7 @@ from addon.warp.partition.budget import shared_sizes
 from addon.warp.partition.splits import practical_splits, split_view
 from addon.warp.partition.stable import slab_sphere, stable_depth_range
 from bench.reference_pssm import reference_pssm
-from hard_cases import HARD_CASES, camera, point, sun, town
+from hard_cases import HARD_CASES, camera, point, spot, sun, town
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = {p.stem: p for p in sorted((ROOT / "examples").glob("*.json"))}
@@ -213,6 +213,20 @@ def test_stable_cascades_keep_their_splits_and_texel_grids_while_the_camera_move
     if turned.diagnostics.extra["splits"] == setups[0].diagnostics.extra["splits"]:
         for a, b in zip(setups[0].maps, turned.maps):
             assert np.allclose(a.matrix[:2, :3], b.matrix[:2, :3], rtol=1e-12), "turning keeps the texel size"
+
+
+def test_a_stable_spot_cascade_keeps_each_world_point_on_its_texel():
+    """A spot's stable splits are its own perspective, fixed in the world: a small camera
+    move leaves every map's image-plane rows (x, y, w) as they were, or shifts them by texels."""
+    scene, light = town(), spot([-10.0, -10.0, 25.0], [0.4, 0.6, -1.0], math.radians(70.0))
+    options = dataclasses.replace(OPTIONS, cascade_stable=True)
+    a, b = (compute("cascade", camera([0.0, -20.0 + dy, 5.0], [0.0, 10.0 + dy, 0.0]), light, scene, options)
+            for dy in (0.0, 0.013))
+    assert a.diagnostics.extra["splits"] == b.diagnostics.extra["splits"] and not a.diagnostics.fallbacks
+    for ma, mb in zip(a.maps, b.maps):
+        assert np.allclose(ma.matrix[[0, 1, 3], :3], mb.matrix[[0, 1, 3], :3], rtol=1e-12)
+        shift = (mb.matrix[:2, 3] - ma.matrix[:2, 3]) * np.asarray(ma.size) / 2
+        assert np.allclose(shift, np.round(shift), atol=1e-6)
 
 
 def test_a_shared_budget_keeps_the_texels_and_gives_them_where_the_error_is():

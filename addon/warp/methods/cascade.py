@@ -55,7 +55,7 @@ from ..frame import body_light_angles
 from ..partition.adaptive import max_error, minimax_splits
 from ..partition.budget import shared_sizes
 from ..partition.splits import practical_splits, split_region, split_view, tightened_depth_range
-from ..partition.stable import stable_depth_range, stable_sun_map
+from ..partition.stable import stable_depth_range, stable_spot_map, stable_sun_map
 from ..diagnostics import Diagnostics, OnRead
 from ..types import EmptyBodyError, Light, SceneBounds, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from ..visibility import VisibleRegion
@@ -106,11 +106,20 @@ def split_options(options: WarpOptions, size: tuple[int, int]) -> WarpOptions:
 
 
 def split_setup(warp: str, view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
-    """A split's maps by ``warp``; a stable cascade's sun split on its world-fixed texel grid."""
+    """A split's maps by ``warp``; a stable cascade's sun or spot split on its
+    world-fixed texel grid (``partition.stable``)."""
+    stable = None
     if options.cascade_stable and light.is_directional:
         stable = stable_sun_map(view, light, body, options.shadow_map_size, linear_z=options.linear_z)
+    elif options.cascade_stable and light.type == "SPOT":
+        stable = stable_spot_map(light, body, options.shadow_map_size, options.max_frustum_angle)
+    if stable is not None:
         return ShadowSetup([stable], Diagnostics("uniform", body_vertices=body.vertices))
-    return SPLIT_WARPS[warp](view, light, body, options)
+    setup = SPLIT_WARPS[warp](view, light, body, options)
+    if options.cascade_stable and light.type == "SPOT":
+        setup.diagnostics.fallback("stable", f"this split reaches beyond {math.degrees(options.max_frustum_angle):.0f}° "
+                                             f"around spot '{light.name}''s axis: its maps are not texel-snapped")
+    return setup
 
 
 def split_body(view: View, light: Light, scene: SceneBounds, near: float, far: float,
@@ -261,9 +270,9 @@ def cascade(view: View, light: Light, body: IntersectionBody, options: WarpOptio
         raise WarpError("the cascade builds one intersection body per split from the scene: call it through compute()")
     theta, gamma = body_light_angles(view, light, body)
     diag = Diagnostics("cascade", theta, gamma, body_vertices=body.vertices)
-    if options.cascade_stable and not light.is_directional:
-        diag.fallback("stable", f"light '{light.name}' is a {light.type.lower()} light: its frames look at B from "
-                                "a point and turn with it, so its maps are not texel-snapped")
+    if options.cascade_stable and light.type == "POINT":
+        diag.fallback("stable", f"point light '{light.name}': its cube faces turn with B, so its maps are not "
+                                "texel-snapped")
     depths, splits, scheme = fitting_splits(view, light, scene, body, options, diag)
     if all(s.setup is None for s in splits):
         raise EmptyBodyError("no split of the view holds a visible receiver")

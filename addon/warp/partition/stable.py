@@ -15,8 +15,15 @@ Then a moving camera shifts each map by whole texels and nothing else. The
 splits themselves must stand still too: ``stable_depth_range`` rounds the
 depth range's ends outwards to whole octaves (the PSSM splits of that range
 change only when the visible range crosses one), and the split warps are all
-uniform (a perspective warp moves with the eye). Point and spot lights look at
-B from a point, so their frames turn with it and are not stabilised.
+uniform (a perspective warp moves with the eye).
+
+A spot light's map (``stable_spot_map``) is the spot's own perspective (its
+apex, axis and an up fixed in the world): a world point keeps its place on the
+image plane while the camera moves. The window around B_i's image grows to a
+ladder of sizes (``LADDER_STEPS`` per octave) and its corner snaps to whole
+texels of that plane, so it changes scale only when B_i's image crosses a
+step. A point light's faces turn with B (``frame.point_frames``) and are not
+stabilised.
 """
 from __future__ import annotations
 
@@ -26,8 +33,12 @@ import numpy as np
 
 from ..body import IntersectionBody
 from ..fit import window_matrix
-from ..frame import world_sun_frame
+from ..frame import WORLD_NORTH, WORLD_UP, image_up, near_far, perspective_of, world_sun_frame
+from ..geometry import look_along, transform_h
 from ..types import Light, ShadowMap, View
+
+LADDER_STEPS = 8
+"""A stable spot map's window sides are 2^(k/8): about 9 % apart."""
 
 
 def stable_depth_range(z_n: float, z_f: float, view: View) -> tuple[float, float]:
@@ -67,3 +78,27 @@ def stable_sun_map(split_view: View, light: Light, body: IntersectionBody, size:
     depth = body.vertices @ frame.to_light[2, :3] + frame.to_light[2, 3]
     matrix = window_matrix([*lo, depth.min()], [*hi, depth.max()]) @ frame.to_light
     return ShadowMap(matrix, tuple(size), "LESS", role, depth_row=matrix[2].copy() if linear_z else None)
+
+
+def stable_spot_map(light: Light, body: IntersectionBody, size: tuple[int, int], max_angle: float,
+                    role: str = "main", linear_z: bool = False) -> ShadowMap | None:
+    """A split's spot map on an image plane fixed in the world (module docs), or
+    None when B_i leaves the spot's frustum of ``max_angle`` around its axis."""
+    eye = look_along(light.position, light.direction, image_up(WORLD_UP, WORLD_NORTH, light.direction))
+    rel = body.vertices @ eye[:3, :3].T + eye[:3, 3]
+    depth = -rel[:, 2]                                   # along the spot's axis
+    floor = 1e-6 * body.scale
+    ahead = depth > floor
+    image = rel[ahead, :2] / depth[ahead, None]          # on the plane one unit ahead of the light
+    if not ahead.any() or np.abs(image).max() > math.tan(max_angle / 2):
+        return None
+    near, far, _ = near_far(float(depth[ahead].min()), float(depth.max()), floor)
+    to_light = perspective_of(eye, near, far)
+    lo, hi = image.min(axis=0), image.max(axis=0)
+    side = 2.0 ** (np.ceil(np.log2(np.maximum(hi - lo, 1e-300)) * LADDER_STEPS) / LADDER_STEPS)
+    texel = side / (np.asarray(size, dtype=np.float64) - 1.0)
+    corner = np.floor(lo / texel) * texel
+    h = transform_h(to_light, body.vertices[ahead])
+    z = h[:, 2] / h[:, 3]
+    matrix = window_matrix([*corner, z.min()], [*(corner + texel * np.asarray(size, dtype=np.float64)), z.max()]) @ to_light
+    return ShadowMap(matrix, tuple(size), "LESS", role, depth_row=None)
