@@ -41,8 +41,10 @@ measures:
   not, and counts. This measures the error along edges as much as shimmer.
 * *shimmer*: pixels whose shadow changes when only the maps change, the camera
   held still: frame k + 1 rendered once with its own maps and once with frame
-  k's (``render_shadows``, same view, geometry and settings), over the pixels a
-  map of both holds (frame k's maps are fitted to what frame k saw). A map that
+  k's (``render_shadows``, same view, geometry and settings), over the pixels
+  that maps of both frames hold, with the option on and off alike (frame k's
+  maps are fitted to what frame k saw, and the two options' maps hold
+  different parts of the next frame). A map that
   keeps every world point on its texel changes nothing; one whose texel grid
   moves with the camera changes its jagged edges. This is what the stable
   option is for ("a static scene under a moving camera does not shimmer").
@@ -256,14 +258,54 @@ def _shadows(view, light, setup, geometry, settings, resolution) -> tuple[np.nda
     return np.asarray(res.shadow_raw) >= SHADOW_THRESHOLD, served
 
 
+def _stable_settings(method: str, size: int, stable: bool):
+    """The report's settings for ``method`` with the stable option on or off
+    (``cascade_stable`` for the cascade, ``texel_snapping`` for the others)."""
+    from bench.report.lixel import report_settings
+    settings = report_settings(method, size)
+    field = "cascade_stable" if method == "cascade" else "texel_snapping"
+    return dataclasses.replace(settings, warp=dataclasses.replace(settings.warp, **{field: stable}))
+
+
+def _pixel_flicker(scene, shown, truths, settings, resolution):
+    """The report's flicker of one method over the animation, through the engine."""
+    import bpy
+    from addon.measure import flicker
+    from bench.report.lixel import frame
+    from bench.report.run import comparable_mask
+    states, valid = [], []
+    for k, (f, _) in enumerate(shown):
+        scene.frame_set(f)
+        fr = frame(bpy.context.evaluated_depsgraph_get(), settings, resolution)
+        states.append(fr.shadow)
+        valid.append(comparable_mask(truths[k], fr))
+    return flicker(np.stack(states), np.stack([t.shadow for t in truths]), np.stack(valid))
+
+
+def _shimmer(method, views, geometry, variants, resolution) -> list:
+    """Per variant (settings), the pixels whose shadow changes between frame k + 1
+    rendered with its own maps and with frame k's, counted over the pixels that
+    every variant's maps of both frames hold (one set for all: the variants'
+    maps hold different parts of the next frame); and that pixel count."""
+    from addon.warp import compute
+    setups = [[compute(method, v, l, b, s.warp) for v, l, b in views] for s in variants]
+    counts, seen = [0] * len(variants), 0
+    for k in range(1, len(views)):
+        view, light, _ = views[k]
+        pairs = [(_shadows(view, light, su[k], geometry, s, resolution),
+                  _shadows(view, light, su[k - 1], geometry, s, resolution)) for s, su in zip(variants, setups)]
+        common = np.logical_and.reduce([a[1] & b[1] for a, b in pairs])
+        seen += int(common.sum())
+        for i, (a, b) in enumerate(pairs):
+            counts[i] += int((common & (a[0] != b[0])).sum())
+    return [(c, seen) for c in counts]
+
+
 def run_flicker(scenes, size: int, resolution, frames: int, log=print) -> list:
     import bpy
     from addon.gpu.context import ensure_gpu_context
-    from addon.measure import flicker
     from addon.scene.geometry import GeometryCache
-    from addon.warp import METHODS, compute
-    from bench.report.lixel import frame, report_settings
-    from bench.report.run import comparable_mask
+    from addon.warp import METHODS
     ensure_gpu_context()
     rows = []
     for name in scenes:
@@ -272,26 +314,10 @@ def run_flicker(scenes, size: int, resolution, frames: int, log=print) -> list:
         views, truths = _truth(scene, resolution, shown)
         geometry = GeometryCache().update(bpy.context.evaluated_depsgraph_get())
         for method in METHODS:
-            for stable in (False, True):
-                settings = report_settings(method, size)
-                field = "cascade_stable" if method == "cascade" else "texel_snapping"
-                settings = dataclasses.replace(settings, warp=dataclasses.replace(settings.warp, **{field: stable}))
-                states, valid = [], []
-                for k, (f, _) in enumerate(shown):
-                    scene.frame_set(f)
-                    fr = frame(bpy.context.evaluated_depsgraph_get(), settings, resolution)
-                    states.append(fr.shadow)
-                    valid.append(comparable_mask(truths[k], fr))
-                fl = flicker(np.stack(states), np.stack([t.shadow for t in truths]), np.stack(valid))
-                setups = [compute(method, v, l, b, settings.warp) for v, l, b in views]
-                shimmer, seen = 0, 0
-                for k in range(1, len(views)):
-                    view, light, _ = views[k]
-                    new, covered = _shadows(view, light, setups[k], geometry, settings, resolution)
-                    old, covered_old = _shadows(view, light, setups[k - 1], geometry, settings, resolution)
-                    both = covered & covered_old
-                    shimmer += int((both & (new != old)).sum())
-                    seen += int(both.sum())
+            variants = [_stable_settings(method, size, stable) for stable in (False, True)]
+            shimmers = _shimmer(method, views, geometry, variants, resolution)
+            for stable, settings, (shimmer, seen) in zip((False, True), variants, shimmers):
+                fl = _pixel_flicker(scene, shown, truths, settings, resolution)
                 rows.append({"scene": name, "method": method, "stable": stable, **fl.to_json(),
                              "shimmer": shimmer, "shimmer_pixels": seen})
                 log(f"{name:10s} {method:14s} stable {'on ' if stable else 'off'}  shimmer {shimmer:6d} of {seen} "
