@@ -35,7 +35,12 @@ FLIP_Z = np.diag([1.0, 1.0, -1.0, 1.0])
 class LightFrame:
     """``to_light``: world -> light space (projective for point lights);
     ``points``: world-space vertices of the part of B this frame serves;
-    ``role``: "main" or "cube+X" etc.; ``directional``: orthographic frame."""
+    ``role``: "main" or "cube+X" etc.; ``directional``: orthographic frame;
+    ``near_clamped``: the near plane cuts off part of a box that matters
+    (``cube_near_floor``): what lies nearer is not covered (methods report it
+    as a "near plane" fallback); the part of B nearer than the near plane that
+    holds no box is left out without a word, since nothing there casts or
+    receives a shadow."""
 
     to_light: np.ndarray
     points: np.ndarray
@@ -198,6 +203,50 @@ def perspective_frame(apex, axis, up_hint, points, role, scale) -> LightFrame:
     return LightFrame(perspective_of(view, near, far), points, role, False, clamped)
 
 
+CUBE_FACE_COS = 1.0 / math.sqrt(3.0)
+"""cos of the widest angle between a cube face's axis and a ray of its pyramid (its corner rays)."""
+
+
+def nearest_box_distance(body: IntersectionBody, apex) -> float:
+    """The distance from ``apex`` (a point light) to the nearest box that
+    matters: the casters that can shadow what is seen and the receivers in
+    view (B's culling). Nothing nearer to the light than this can cast or
+    receive a shadow; inf when there is no such box."""
+    apex = np.asarray(apex, dtype=np.float64)
+    nearest = math.inf
+    for selection in (body.culled.casters, body.culled.receivers):
+        if selection.box is None:
+            continue
+        bounds = selection.index.c_box_bounds.reshape(6, -1).compress(selection.by_cluster.ravel(), axis=1)
+        lo, hi = bounds[:3].T, -bounds[3:].T                   # (n, 3) each
+        gap = np.maximum(np.maximum(lo - apex, apex - hi), 0.0)
+        nearest = min(nearest, float(np.sqrt(np.einsum("ij,ij->i", gap, gap)).min()))
+    return nearest
+
+
+def cube_near_floor(body: IntersectionBody, apex, hyperbolic: bool) -> tuple[float, bool]:
+    """The near distance of a point light's cube faces when the light is inside
+    B, and whether it cuts into a box that matters (then what lies nearer is
+    not covered: the "near plane" fallback).
+
+    With linear depth (the default, Scherzer §4.2) the near plane does not
+    touch the depth's precision, so it stays at the least distance a
+    perspective map can have, 1e-6 of the scene scale, and B is covered up to
+    there. With hyperbolic depth (``linear_z=False``) a near plane that close
+    leaves float32 no precision at the receivers (1e-6 of a 340 m scene: depth
+    steps of decimetres at 30 m), so it goes to the nearest box that matters:
+    every such box is at least ``nearest_box_distance`` from the light, so
+    along a face's axis at least that times CUBE_FACE_COS, and only the
+    empty part of B nearer than that is left out. (Boxes are bounding boxes: a
+    light inside a room's box gains nothing.)"""
+    least = 1e-6 * body.scale
+    bound = 0.999 * CUBE_FACE_COS * nearest_box_distance(body, apex)
+    cuts_a_box = bound < least
+    if hyperbolic and math.isfinite(bound):
+        return max(bound, least), cuts_a_box
+    return least, cuts_a_box
+
+
 def near_far(nearest: float, farthest: float, floor: float) -> tuple[float, float, bool]:
     """A perspective frame's (near, far, clamped) from its points' depth range:
     near is the nearest depth, clamped to ``floor`` (the light inside B), and
@@ -254,7 +303,7 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
         return [perspective_frame(apex, axis, up, body.vertices, "main", body.scale)]
     basis = cube_basis(axis.tolist(), up.tolist())
     poly = body.polytope_from(apex)
-    near_floor = 1e-6 * body.scale
+    near_floor, cuts_a_box = cube_near_floor(body, apex, not options.linear_z)
     pts, member = cube_sections(poly, poly.edges(), basis)
     # The faces B reaches, each with its run of candidates (face by face) and its depths along the face's axis.
     counts = member.sum(axis=0).tolist()
@@ -272,7 +321,7 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
     for f, s, e, n, fa in zip(faces, starts, ends, nearest, farthest):
         points, clamped = world[s:e], n < near_floor
         if clamped:
-            # B reaches the light inside this face: the whole face from the near floor on.
+            # B reaches nearer than the near floor in this face: the whole face from the near floor on.
             forward = -turns[f, 2]
             others = np.delete(basis, CUBE_FACES[f][1], axis=0)
             corners = near_floor * (forward + _FACE_CORNERS @ others)
@@ -284,7 +333,7 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
         a, b = depth_coefficients(near, far)
         (x, y, (z0, z1, z2)), (tx, ty, tz) = rows[f], shifts[f]
         entries += x + [tx] + y + [ty] + [a * z0, a * z1, a * z2, a * tz + b, -z0, -z1, -z2, -tz]
-        frames.append((f, points, clamped))
+        frames.append((f, points, clamped and cuts_a_box))
     to_light = np.array(entries).reshape(-1, 4, 4)
     return [LightFrame(m, p, "cube" + CUBE_FACES[f][0], False, c) for m, (f, p, c) in zip(to_light, frames)]
 

@@ -392,7 +392,8 @@ class WarpOptions:
     delta_z: Scherzer Eq. 1's Δz - "body" (extent of B) or "visible" (the
         ``visible_depth_range``); used for n_opt only, never for B.
     middle_vector: use B's middle vector as V_P (Scherzer §4.4) instead of Eq. 3.
-    linear_z: linear depth distribution (Scherzer §4.2) - sets ShadowMap.depth_row.
+    linear_z: linear depth distribution (Scherzer §4.2, the default) - every map gets a
+        ShadowMap.depth_row (:mod:`.linear_depth`); False keeps the matrices' hyperbolic z / w.
     lam: force GMNPR's or GLPR's λ (None = Eq. 8 / GLPR's rule).
     lambda_guard: which warps' λ is raised, where needed, to the least λ at
         which the warp is no worse than the uniform map, at its worst and over
@@ -432,7 +433,7 @@ class WarpOptions:
     delta_z: str = "body"
     visible_depth_range: Optional[tuple[float, float]] = None
     middle_vector: bool = False
-    linear_z: bool = False
+    linear_z: bool = True
     lam: Optional[float] = None
     lambda_guard: str = "all"
     max_frustum_angle: float = math.radians(120.0)

@@ -30,11 +30,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 GOLDEN = Path(__file__).with_name("golden.json.gz")
 
-OPTIONS: dict = {"focus": "view", "lambda_guard": "off"}
+OPTIONS: dict = {"focus": "view", "lambda_guard": "off", "linear_z": False}
 """WarpOptions fields every golden configuration is computed with (besides its own):
 B over the whole view frustum and every λ as its paper gives it, the behaviour
 before issue 12 (the golden passes its own unfocused B, so ``focus`` only
-documents that)."""
+documents that), and the matrices' hyperbolic depth (``linear_z`` became the
+default with the linear depth rows, issue 12; the ``:linear_z`` configurations
+check the rows)."""
 
 RELATIVE = 1e-6
 
@@ -62,7 +64,7 @@ def configurations() -> Iterator[tuple[str, object, object, object, object]]:
         yield f"hard:{name}", view, light, scene, WarpOptions(**{"shadow_map_size": (1024, 1024), **OPTIONS})
         if name in ("sun_behind_camera", "point_light_behind_camera", "spot_over_scene"):
             yield (f"hard:{name}:linear_z", view, light, scene,
-                   WarpOptions(**{"shadow_map_size": (1024, 1024), "linear_z": True, **OPTIONS}))
+                   WarpOptions(**{"shadow_map_size": (1024, 1024), **OPTIONS, "linear_z": True}))
     scene = city_scene(2_000)
     for name, light in LIGHTS.items():
         yield f"bench:{name}", street_view(), light, scene, WarpOptions(**OPTIONS)

@@ -10,32 +10,42 @@ import numpy as np
 from ..fit import fit_runs, ndc_box, window_matrix
 from ..frame import LightFrame
 from ..geometry import point_runs
+from ..linear_depth import frame_depth_row
 from ..types import ShadowMap
 
 SNAP_STEPS_PER_OCTAVE = 8
 """Texel snapping: a window's extent is one of this many sizes per doubling."""
 
-NEAR_PLANE_NOTE = "the light is inside B; points nearer than 1e-6 of the scene scale are not covered"
+NEAR_PLANE_NOTE = ("the light is inside B and a box reaches nearer to it than the near plane "
+                   "(1e-6 of the scene scale); what lies nearer is not covered")
+"""The "near plane" fallback's reason (``frame.LightFrame.near_clamped``)."""
 
 
 def near_plane_notes(frames: list[LightFrame], prefix: str = "") -> list[tuple[str, str]]:
-    """The fallbacks to record for frames whose near plane was clamped (the light inside B)."""
+    """The fallbacks to record for frames whose near plane cuts into a box (the light inside B)."""
     return [(f"{prefix}{f.role}: near plane", NEAR_PLANE_NOTE) for f in frames if f.near_clamped]
 
 
-def frame_maps(frames: list[LightFrame], size: tuple[int, int], snap: bool = False) -> list[ShadowMap]:
+def frame_maps(frames: list[LightFrame], size: tuple[int, int], snap: bool = False,
+               linear_z: bool = False) -> list[ShadowMap]:
     """The unwarped map of each light frame, fitted to the frame's points
     (``fit``: the unit-cube fit), a point light's cube faces all at once. With
     ``snap``, an orthographic frame's window is snapped to whole texels
-    (``snapped_window``)."""
+    (``snapped_window``); with ``linear_z``, each map stores the frame's linear
+    depth (``linear_depth.frame_depth_row``, Scherzer §4.2)."""
     if len(frames) > 1:
         fitted = fit_runs(np.array([f.to_light for f in frames]), *point_runs([f.points for f in frames]))
-        return [ShadowMap(m, size, "LESS", f.role) for m, f in zip(fitted, frames)]
-    frame = frames[0]
-    lo, hi = ndc_box(frame.points_h @ frame.to_light.T)
-    if snap and frame.directional:
-        lo, hi = snapped_window(lo, hi, size)
-    return [ShadowMap(window_matrix(lo, hi) @ frame.to_light, size, "LESS", frame.role)]
+        maps = [ShadowMap(m, size, "LESS", f.role) for m, f in zip(fitted, frames)]
+    else:
+        frame = frames[0]
+        lo, hi = ndc_box(frame.points_h @ frame.to_light.T)
+        if snap and frame.directional:
+            lo, hi = snapped_window(lo, hi, size)
+        maps = [ShadowMap(window_matrix(lo, hi) @ frame.to_light, size, "LESS", frame.role)]
+    if linear_z:
+        for m, f in zip(maps, frames):
+            m.depth_row = frame_depth_row(f)
+    return maps
 
 
 def snapped_window(lo: np.ndarray, hi: np.ndarray, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:

@@ -65,6 +65,7 @@ from ..body import IntersectionBody
 from ..fit import fit_runs, window_matrix
 from ..frame import body_light_angles, light_frames
 from ..geometry import point_runs, translation
+from ..linear_depth import frame_depth_row
 from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_to_polygon, convex_polygon_on_plane,
                          default_plane_of, enclosing_polygon, flattest_box, is_convex_polygon, min_area_twist, offset_steps,
                          VIEW_CORNER_RAYS, plane_light_matrix, plane_section, polygon_area,
@@ -72,7 +73,7 @@ from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_to_polygon, convex_po
 from ..polyhedron import ConvexPolytope
 from ..diagnostics import Diagnostics
 from ..types import Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
-from .common import frame_maps
+from .common import NEAR_PLANE_NOTE, frame_maps
 
 MAX_SIDE = 16384
 MAX_REGION_VERTICES = 32
@@ -569,11 +570,13 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
         fm = frame_maps(frames, size, options.texel_snapping)[0]
         fm.role = "fallback"
         maps.append(fm)
+    if options.linear_z:                   # the fallback maps' linear depth (Scherzer §4.2), as uniform's
+        for m, fr in zip(maps[len(jobs):], frames):
+            m.depth_row = frame_depth_row(fr)
     for fr in frames:
         if fr.near_clamped:
             role = "fallback" if len(frames) == 1 else f"fallback:{fr.role}"
-            diag.fallback(f"{role}: near plane", "the light is inside B; points nearer than 1e-6 of the scene "
-                                                 "scale are not covered")
+            diag.fallback(f"{role}: near plane", NEAR_PLANE_NOTE)
     fb_sizes = [list(size) for _ in frames]
     diag.extra["planes"] = [{
         "role": f"plane:{j.index}", "name": j.plane.name, "normal": j.plane.normal, "offset": j.plane.offset,

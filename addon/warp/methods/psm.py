@@ -68,6 +68,7 @@ from ..diagnostics import Diagnostics, OnRead
 from ..fit import fit_to_unit_cube
 from ..frame import body_light_angles
 from ..geometry import clip_volume_corners_h, translation
+from ..linear_depth import light_depth_row
 from ..post_perspective import PPSLight, VirtualCamera, nearest_visible_depth, pps_light_matrix, virtual_camera
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpOptions
 from .common import near_plane_notes
@@ -114,6 +115,10 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
     diag.warp_frustum_corners = OnRead(lambda: _clip_corners(relative, origin))
     diag.extra["psm_applied"] = True
     diag.extra["frames"] = ["main"]
+    if options.linear_z:
+        shadow_map.depth_row = light_depth_row(light, body)
+        if shadow_map.depth_row is None:
+            diag.fallback("linear z", "B surrounds the light too widely for one depth axis (89°); hyperbolic depth")
     return ShadowSetup([shadow_map], diag)
 
 

@@ -29,7 +29,7 @@ def uniform_maps(view: View, light: Light, body: IntersectionBody,
         frames = [world_sun_frame(light, body)]      # a texel grid fixed in the world
     else:
         frames = light_frames(view, light, body, options)
-    return frame_maps(frames, options.shadow_map_size, options.texel_snapping), frames
+    return frame_maps(frames, options.shadow_map_size, options.texel_snapping, options.linear_z), frames
 
 
 def uniform(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:

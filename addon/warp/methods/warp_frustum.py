@@ -91,9 +91,10 @@ import numpy as np
 from ..aliasing import (lambda_glpr, lambda_gmnpr, lambda_no_worse_on_average, lambda_no_worse_than_uniform,
                         lispsm_inverse_n_opt)
 from ..body import IntersectionBody
-from ..fit import fit_runs, ndc_bounds, window_matrices, window_matrix
+from ..fit import fit_runs, window_matrices
 from ..frame import PARALLEL_BLEND, LightFrame, body_light_angles, light_frames, pyramid_sections
 from ..geometry import across, clip_volume_corners, dot3, homogeneous, point_runs, transform_h_runs
+from ..linear_depth import frame_depth_row
 from ..diagnostics import Diagnostics, OnRead
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .common import NEAR_PLANE_NOTE, frame_maps
@@ -354,19 +355,6 @@ def _warp_entries(g: FrameGeometry, mu: float) -> list:
             mu * dx, mu * dy, 0.0, mu * dw + 1.0]
 
 
-def linear_depth_row(frame: LightFrame, points=None) -> np.ndarray:
-    """Scherzer §4.2 linear z: a row r with r @ [x, y, z, 1] in [-1, 1] over the
-    frame's points (or ``points``), increasing away from the light (light-space
-    z for a sun, the distance along the light's axis, W, for a point light)."""
-    t = frame.to_light
-    lin = t.copy()
-    if not frame.directional:
-        lin[2] = t[3]
-        lin[3] = np.array([0.0, 0.0, 0.0, 1.0])
-    lo, hi = ndc_bounds(lin, frame.points if points is None else points)
-    return (window_matrix(lo, hi) @ lin)[2]
-
-
 LambdaRule = Callable[[FrameGeometry, WarpContext, float, WarpOptions], float]
 """(geometry, eye-depth range, φ, options) -> λ (math.inf = uniform); φ is None for lispsm."""
 
@@ -562,7 +550,7 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
             diag.fallback(*note)
         depth_row = None
         if options.linear_z:
-            depth_row = linear_depth_row(frame, None if w.held is None else np.concatenate([frame.points, w.held]))
+            depth_row = frame_depth_row(frame, None if w.held is None else np.concatenate([frame.points, w.held]))
         maps.append(ShadowMap(w.matrix, options.shadow_map_size, "LESS", frame.role, depth_row=depth_row))
         if w.geo is None or reported:
             continue

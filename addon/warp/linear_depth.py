@@ -1,0 +1,83 @@
+"""Linear depth rows (Scherzer §4.2, "linear z-distribution").
+
+A map's stored depth is, by default, not its matrix's hyperbolic z / w but a
+*depth row* r: z = r . [x, y, z, 1] (``ShadowMap.depth_row``), an affine
+function of the world position that grows along every light ray and spans
+[-1, 1] over the points the map holds. Being affine it is linear along each
+ray, so a given distance along a ray is the same depth step anywhere in the
+map (Scherzer: "the results with linear z biasing are better"), whatever the
+warp does to x and y, and its float32 precision is even over the whole depth
+range instead of piling up at the near plane (a point light's cube face had
+1.6e-5 m near planes, which left no precision at the receivers).
+
+* A sun: the distance along the light direction (a light frame's z).
+* A point or spot light: the distance from the light along an axis ``a`` that
+  every light ray the map holds makes an acute angle with, ``a . (P - l)``: a
+  frame's own axis (its W, the perspective's w), or for a map not built in a
+  frame (PSM's post-perspective map) the most acute of the light's cone axis
+  around B and the inward normals of B's facets that face the light.
+
+The matrix's own z row still defines the clip volume; the GPU writes the depth
+row per fragment (gpu_shaders/depth_frag.glsl) or, for an affine matrix, in
+place of its z row (``addon.gpu.pipeline.depth_draw``).
+"""
+from __future__ import annotations
+
+import math
+from typing import Optional
+
+import numpy as np
+
+from .fit import window_matrix
+from .frame import LightFrame, light_cone
+from .geometry import homogeneous
+from .types import Light
+
+AXIS_MARGIN = math.cos(math.radians(89.0))
+"""A point light's depth axis must be within 89° of every ray it measures:
+nearer to 90° the depth hardly grows along the ray and its float32 steps are
+long (``light_depth_row`` gives None then)."""
+
+
+def fitted_row(along: np.ndarray, points) -> np.ndarray:
+    """The depth row ``along`` (an affine function, 4 entries) scaled and offset
+    so that ``points`` span [-1, 1] (padded like the unit-cube fit)."""
+    along = np.asarray(along, dtype=np.float64)
+    d = homogeneous(np.asarray(points, dtype=np.float64).reshape(-1, 3)) @ along
+    lo, hi = float(d.min()), float(d.max())
+    window = window_matrix([lo] * 3, [hi] * 3)
+    return window[2, 2] * along + np.array([0.0, 0.0, 0.0, window[2, 3]])
+
+
+def frame_depth_row(frame: LightFrame, points=None) -> np.ndarray:
+    """The linear depth of a light frame over its points (or ``points``):
+    light-space z for a sun's frame, the perspective's w (the distance along
+    the frame's axis) for a point light's."""
+    along = frame.to_light[2] if frame.directional else frame.to_light[3]
+    return fitted_row(along, frame.points if points is None else points)
+
+
+def light_depth_row(light: Light, body) -> Optional[np.ndarray]:
+    """The linear depth of ``light`` over the intersection body B without a
+    frame: along a sun's direction; for a point or spot light outside B,
+    along the axis from the light that is nearest to B's every ray (the most
+    acute of the axis of the light's cone around B and the inward normals of
+    B's facets that face the light, each of which has all of B ahead of it).
+    None when even the best axis is 89° or more from some ray of B."""
+    points = body.vertices
+    if light.is_directional:
+        return fitted_row(np.append(light.direction, 0.0), points)
+    rays = points - light.position
+    rays = rays / np.sqrt(np.einsum("ij,ij->i", rays, rays))[:, None]
+    axes = [light_cone(points, light.position)[0]]
+    if body.polytope is not None:
+        poly = body.polytope
+        facing = poly.normals @ (light.position - body.origin) > poly.offsets
+        axes += list(-poly.normals[facing])
+    axes = np.array(axes)
+    acute = (rays @ axes.T).min(axis=0)
+    best = int(np.argmax(acute))
+    if not acute[best] > AXIS_MARGIN:
+        return None
+    axis = axes[best]
+    return fitted_row(np.append(axis, -float(axis @ light.position)), points)
