@@ -17,17 +17,30 @@ MAX_MAP_SIZE = 16384
 notes §8.8); below 16 texels a map cannot resolve a shadow, so a smaller value is
 a typing slip that Lixel refuses rather than renders."""
 
-BIAS_MODES = ("NONE", "CONSTANT", "SLOPE", "CONSTANT_SLOPE")
+BIAS_MODES = ("NONE", "CONSTANT", "SLOPE", "CONSTANT_SLOPE", "RECEIVER_PLANE", "NORMAL_OFFSET")
 MDSM_SELECTIONS = ("MINMAX", "SORT")
 
 
 @dataclass(frozen=True)
 class ShadowSettings:
-    """Filtering and biasing (Scherzer §4.2-4.3, Pagot et al. §4)."""
+    """Filtering and biasing (Scherzer §4.2-4.3, Pagot et al. §4).
 
-    bias_mode: str = "CONSTANT_SLOPE"
-    constant_bias: float = 0.0005      # in NDC depth units
-    slope_bias: float = 1.5            # multiples of the depth slope per texel
+    Biases are in texels of the receiver itself: one unit is the world width,
+    across the light ray, of the map texel that holds the receiving point, so
+    the same numbers fit every method, light, map size and scene scale (see
+    gpu_shaders/shade_frag.glsl). ``bias_mode``: RECEIVER_PLANE compares every
+    PCF tap with the receiver's own plane there, or its own depth where that
+    plane recedes from the light (no acne on any plane, no shadow moved), less
+    ``constant_bias``; NORMAL_OFFSET looks up the point moved ``normal_offset``
+    texels along its normal, less ``constant_bias``; CONSTANT / SLOPE /
+    CONSTANT_SLOPE are the classic offsets (``slope_bias`` multiplies the
+    receiver's depth change over the PCF reach). The defaults were chosen on
+    the rendered-error scenes (bench/rendered_error.py; docs/papers.md)."""
+
+    bias_mode: str = "RECEIVER_PLANE"
+    constant_bias: float = 0.5         # texels of the receiver, along the light ray
+    slope_bias: float = 1.0            # SLOPE modes: multiples of the depth change over the PCF reach
+    normal_offset: float = 1.0         # NORMAL_OFFSET: texels of the receiver, along its normal
     back_faces: bool = False           # render back faces into the map (Scherzer §4.2)
     pcf_kernel: int = 3                # k in k x k PCF, 1..5
     mdsm_depths: int = 1               # n of n-SM, 1..4 (MDSM §4.2)
@@ -44,6 +57,8 @@ class ShadowSettings:
             raise WarpError(f"MDSM depth count must be 1..4 (got {self.mdsm_depths})")
         if self.mdsm_selection not in MDSM_SELECTIONS:
             raise WarpError(f"MDSM selection must be one of {', '.join(MDSM_SELECTIONS)}")
+        if min(self.constant_bias, self.slope_bias, self.normal_offset) < 0:
+            raise WarpError("biases must be >= 0")
         if self.eye_blur < 0:
             raise WarpError("eye-space blur must be >= 0")
 

@@ -8,15 +8,31 @@
  * sample and n*k*k + 1 per PCF(k*k, n)), and Lambert lighting in the light's
  * colour.
  *
- * Biasing (Scherzer §4.2) is applied to the fragment's depth before the test,
- * in NDC depth units: z -= c + s * r * (|dz/du| + |dz/dv|) towards the light,
- * with dz/du, dz/dv the depth slope of the fragment's own triangle per map
- * texel (the polygon-offset slope, which the gpu module cannot set on the depth
- * pass). It is computed exactly from the triangle's normal and the map's
- * Jacobian at the fragment (see lixel_depth_slope), so the depth pass stays a
- * bare draw. r = max(1, k / 2) is the PCF reach: the farthest tap centre lies
- * k/2 texels away along each axis, where the surface's own depth differs by up
- * to r * (|dz/du| + |dz/dv|).
+ * Biasing (Scherzer §4.2) happens here, where depths are compared, so the depth
+ * pass stays a bare draw. Its unit is the receiver's own texel: w_t, the world
+ * width at P of the map texel that holds P, measured across the light ray
+ * (from the map's Jacobian at P; the geometric mean of the texel's sides),
+ * turned into stored depth along the light ray at P (u = w_t |dz/ds|). One
+ * setting then means the same for every method, light type, map size and
+ * scene scale. lixel.bias = (c, s, r, mode); the mode is compiled in
+ * (LIXEL_BIAS):
+ *
+ *   RECEIVER_PLANE (the default): each PCF tap is compared with the depth of
+ *     the receiver's own plane where the light ray through that tap's texel
+ *     centre meets it (exactly, for any projective map and either depth:
+ *     lixel_receiver), or with P's own depth where that plane recedes from
+ *     the light, less c texels (receiver-plane depth bias, Isidoro, GDC 2006,
+ *     made one-sided). A planar receiver then never shadows itself however
+ *     steep it is or wide the kernel, a concave crease (a wall's foot) does
+ *     not darken the ground beside it through the kernel's far taps, and no
+ *     shadow moves: c only absorbs rounding and faceting.
+ *   NORMAL_OFFSET: the point looked up is P moved s texels along its normal
+ *     (towards the light), less c texels.
+ *   CONSTANT, SLOPE, CONSTANT_SLOPE: the classic offsets, c texels plus
+ *     s times the receiver's depth change over the PCF reach r = max(1, k / 2)
+ *     (the polygon-offset slope, exact from the triangle's normal;
+ *     lixel_receiver), the slope term clamped at LIXEL_SLOPE_LIMIT texels.
+ *   NONE: the raw comparison.
  *
  * One variant per configuration (addon/gpu/shaders.py ShadeVariant): a
  * software rasterizer runs every branch that a SIMD group of fragments
@@ -27,7 +43,7 @@
  *   LIXEL_REGIONS / LIXEL_RANGES  some map has a region / a view depth range
  *   LIXEL_LIGHT      0 sun, 1 point, 2 spot
  *   LIXEL_PCF        the PCF kernel k;  LIXEL_MDSM  n > 1 depths per texel
- *   LIXEL_SLOPE_BIAS the slope-scale term is on
+ *   LIXEL_BIAS       the bias mode (LIXEL_BIAS_*, addon.gpu.shaders.BIAS_CODES)
  *   LIXEL_BLURRED    the eye-space blur follows: out_color is the unshadowed
  *                    light (compose_frag.glsl shadows it after the blur)
  *   LIXEL_SHADOW_TARGET / LIXEL_FOOTPRINT / LIXEL_DATA / LIXEL_WORLD
@@ -132,28 +148,118 @@ vec3 lixel_row(mat4 m, int r)
   return vec3(m[0][r], m[1][r], m[2][r]);
 }
 
-/* |dz/du| + |dz/dv|: how much the stored depth (NDC units, hyperbolic or
- * linear) of the plane through P with normal N changes per map texel, from
- * two tangents of the plane pushed through the map's Jacobian at P. */
-float lixel_depth_slope(int i, vec3 P, vec3 N, vec4 h, vec3 ndc, vec2 size)
+/* Bias modes (the LIXEL_BIAS define), as addon.gpu.shaders.BIAS_CODES. */
+#define LIXEL_BIAS_NONE 0
+#define LIXEL_BIAS_CONSTANT 1
+#define LIXEL_BIAS_SLOPE 2
+#define LIXEL_BIAS_CONSTANT_SLOPE 3
+#define LIXEL_BIAS_RECEIVER_PLANE 4
+#define LIXEL_BIAS_NORMAL_OFFSET 5
+/* The slope term's ceiling in texels (a depth-bias clamp: a surface nearly
+ * edge-on to the light has an unbounded slope). */
+#define LIXEL_SLOPE_LIMIT 16.0
+
+/* The stored depth (NDC units, linear or hyperbolic) of world point P in map i,
+ * whose clip position is h. */
+float lixel_stored_depth(int i, vec3 P, vec4 h)
 {
+  return lixel.maps[i].info.w > 0.5 ? dot(lixel.maps[i].depth_row, vec4(P, 1.0)) : h.z / h.w;
+}
+
+/* The receiver's depth at P in map i over its neighbourhood, and the unit of
+ * every bias: what lixel_tap_depth needs per tap. */
+struct LixelReceiver {
+  float z;      /* stored depth of P (NDC units) */
+  float width;  /* w_t: a texel's world width at P across the light ray */
+  float texel;  /* u: one texel width along the light ray at P, in stored depth units */
+  float slope;  /* |dz/du| + |dz/dv|: the plane's depth change per texel (SLOPE modes) */
+  vec3 rho;     /* RECEIVER_PLANE: tap depth = dot(rho, p) / dot(sigma, p), p = (x_ndc, y_ndc, 1) */
+  vec3 sigma;
+  float det;    /* sign of dot(sigma, p) on the receiver's side of its horizon; 0: no plane */
+};
+
+/* The receiver plane through P with normal N in map i (clip position h, NDC
+ * ndc): how its stored depth varies over the map's image. Parametrise the
+ * plane as P + a t1 + b t2; the map sends it to the image by the 3 x 3
+ * projective map A = [M t1 | M t2 | M P] (rows x, y, w), and the stored depth
+ * is D . (a, b, 1) / W . (a, b, 1) with D, W from the depth row (linear: W =
+ * (0, 0, 1)) or the matrix's z and w rows (hyperbolic). For an image point p
+ * = (x, y, 1), (a, b, 1) ~ adj(A) p, so the depth where the light ray through
+ * p meets the plane is (D adj(A) p) / (W adj(A) p): exact for every
+ * projective map (perspective warps, point lights, plane maps), with adj(A)'s
+ * rows the cross products of A's columns. Also the slope per texel (first
+ * order at P, for the SLOPE modes) and the texel unit u. */
+LixelReceiver lixel_receiver(int i, vec3 P, vec3 N, vec3 L, vec4 h, vec2 size, bool plane, bool slope)
+{
+  LixelReceiver r;
   mat4 M = lixel.maps[i].matrix;
-  vec3 w_row = lixel_row(M, 3);
-  vec3 gx = (lixel_row(M, 0) - ndc.x * w_row) / h.w;
-  vec3 gy = (lixel_row(M, 1) - ndc.y * w_row) / h.w;
-  vec3 gz = lixel.maps[i].info.w > 0.5 ? lixel.maps[i].depth_row.xyz : (lixel_row(M, 2) - ndc.z * w_row) / h.w;
-  vec3 t1 = normalize(abs(N.x) < 0.9 ? cross(N, vec3(1.0, 0.0, 0.0)) : cross(N, vec3(0.0, 1.0, 0.0)));
-  vec3 t2 = cross(N, t1);
-  float x1 = dot(gx, t1), y1 = dot(gy, t1), z1 = dot(gz, t1);
-  float x2 = dot(gx, t2), y2 = dot(gy, t2), z2 = dot(gz, t2);
-  float det = x1 * y2 - x2 * y1;
-  float limit = lixel.bias.w;
-  if (abs(det) < 1e-30) {
-    return limit; /* the plane contains the light ray: unbounded slope */
+  bool linear = lixel.maps[i].info.w > 0.5;
+  vec3 rx = lixel_row(M, 0), ry = lixel_row(M, 1), rz = lixel_row(M, 2), rw = lixel_row(M, 3);
+  vec3 ndc = h.xyz / h.w;
+  /* The map's Jacobian at P: NDC x, y and stored depth per metre. */
+  vec3 gx = (rx - ndc.x * rw) / h.w;
+  vec3 gy = (ry - ndc.y * rw) / h.w;
+  vec3 gz = linear ? lixel.maps[i].depth_row.xyz : (rz - ndc.z * rw) / h.w;
+  /* A texel's world width at P across the light ray (x, y are constant along
+   * it, so |gx|, |gy| are the across-ray rates; the geometric mean of its two
+   * sides, so a long thin texel of a warped or plane map does not lift the
+   * bias to its long side), and that width as stored depth along the ray. */
+  r.width = 2.0 * inversesqrt(sqrt(size.x * size.x * dot(gx, gx) * size.y * size.y * dot(gy, gy)));
+  r.texel = r.width * abs(dot(gz, L));
+  r.z = linear ? dot(lixel.maps[i].depth_row, vec4(P, 1.0)) : ndc.z;
+  r.det = 0.0;
+  r.slope = 0.0;
+  if (!plane && !slope) {
+    return r;
   }
-  float a = (z1 * y2 - z2 * y1) / det; /* dz / dx_ndc */
-  float b = (x1 * z2 - x2 * z1) / det; /* dz / dy_ndc */
-  return min(abs(a) * 2.0 / size.x + abs(b) * 2.0 / size.y, limit);
+  /* Two tangents of the plane (any two independent ones: their scale cancels). */
+  vec3 t1 = abs(N.x) < 0.9 ? vec3(0.0, N.z, -N.y) : vec3(-N.z, 0.0, N.x); /* N x e_x, N x e_y */
+  vec3 t2 = cross(N, t1);
+  vec3 c0 = vec3(dot(rx, t1), dot(ry, t1), dot(rw, t1));
+  vec3 c1 = vec3(dot(rx, t2), dot(ry, t2), dot(rw, t2));
+  vec3 c2 = h.xyw;
+  vec3 a0 = cross(c1, c2), a1 = cross(c2, c0), a2 = cross(c0, c1);  /* rows of adj(A) */
+  r.det = dot(c0, a0);
+  vec3 D = linear ? vec3(dot(gz, t1), dot(gz, t2), r.z) : vec3(dot(rz, t1), dot(rz, t2), h.z);
+  r.rho = D.x * a0 + D.y * a1 + D.z * a2;
+  r.sigma = linear ? a2 : c0.z * a0 + c1.z * a1 + h.w * a2;
+  if (slope) {
+    /* First-order slope at P: dz / dx_ndc, dz / dy_ndc = (rho.xy - z sigma.xy) / sigma(p). */
+    float s0 = dot(r.sigma, vec3(ndc.xy, 1.0));
+    float limit = LIXEL_SLOPE_LIMIT * r.texel;
+    if (abs(s0) > 0.0 && abs(r.det) > 0.0) {
+      vec2 g = (r.rho.xy - r.z * r.sigma.xy) / s0;
+      r.slope = min(abs(g.x) * 2.0 / size.x + abs(g.y) * 2.0 / size.y, limit);
+    }
+    else {
+      r.slope = limit; /* the plane contains the light ray: unbounded slope */
+    }
+  }
+  return r;
+}
+
+/* The reference depths (window units, keys: smaller = nearer the light) of
+ * four taps at NDC (px, py): the receiver's depth there (its plane where it
+ * comes nearer the light than P, else P's own depth; see the header) moved
+ * by the bias towards the light. */
+vec4 lixel_refs(LixelReceiver rcv, bool plane, vec4 px, vec4 py, float bias, bool greater)
+{
+  vec4 z = vec4(rcv.z);
+  if (plane) {
+    /* The receiver plane's depth on the light ray through each texel's
+     * centre where the plane comes nearer the light than P; where it recedes
+     * (or the ray passes its horizon and never meets it on the light's
+     * side), P's own depth: nothing farther from the light than P can shadow
+     * it, so a concave crease's other face, seen by the kernel's far taps,
+     * is not taken for an occluder. */
+    vec4 den = rcv.sigma.x * px + rcv.sigma.y * py + rcv.sigma.z;
+    vec4 plane_z = (rcv.rho.x * px + rcv.rho.y * py + rcv.rho.z) / den;
+    vec4 nearer = greater ? max(plane_z, z) : min(plane_z, z);
+    z = mix(z, nearer, greaterThan(den * rcv.det, vec4(0.0)));  /* a select: no arithmetic on the others */
+  }
+  z += greater ? bias : -bias; /* towards the light */
+  vec4 d = z * 0.5 + 0.5;
+  return greater ? 1.0 - d : d;
 }
 
 vec4 lixel_footprint_colour(float texels_per_pixel)
@@ -280,53 +386,6 @@ void main()
   float texels_per_pixel = 0.0;
 #endif
 
-  float shadow = 0.0;
-  if (index >= 0) {
-    bool greater = info.z > 0.5;
-    float z = info.w > 0.5 ? dot(lixel.maps[m].depth_row, vec4(P, 1.0)) : ndc.z;
-    float bias = lixel.bias.x;
-#ifdef LIXEL_SLOPE_BIAS
-    bias += lixel.bias.y * lixel.bias.z * lixel_depth_slope(m, P, N, hsel, ndc, vec2(size));
-#endif
-    z += greater ? bias : -bias; /* towards the light */
-    float d = z * 0.5 + 0.5;
-    float ref = greater ? 1.0 - d : d;
-    const int k = LIXEL_PCF;
-    ivec2 base = (k % 2 == 1) ? ivec2(floor(tc)) - (k - 1) / 2 : ivec2(floor(tc - 0.5)) - (k / 2 - 1);
-    float hits = 0.0;
-#if defined(LIXEL_MDSM) || LIXEL_PCF == 1
-    for (int dy = 0; dy < k; dy++) {
-      for (int dx = 0; dx < k; dx++) {
-        hits += lixel_test(m, clamp(base + ivec2(dx, dy), ivec2(0), size - 1), ref, greater);
-      }
-    }
-#else
-    /* The k x k taps as 2 x 2 gathers (a gather costs about one texelFetch on
-     * a software rasterizer): the gather at the corner between texels c and
-     * c + 1 returns (c, c+1) x (c, c+1), clamped to the edge like the taps,
-     * as x = (c, c+1), y = (c+1, c+1), z = (c+1, c), w = (c, c). Taps beyond
-     * k - 1 are not counted. */
-    for (int gy = 0; gy < k; gy += 2) {
-      for (int gx = 0; gx < k; gx += 2) {
-        vec4 t = lixel_gather(m, (vec2(base + ivec2(gx, gy)) + 1.0) / vec2(size));
-        vec4 key = greater ? 1.0 - t : t;
-        vec4 counted = vec4(gy + 1 < k ? 1.0 : 0.0, (gx + 1 < k && gy + 1 < k) ? 1.0 : 0.0,
-                            gx + 1 < k ? 1.0 : 0.0, 1.0);
-        hits += dot(counted, vec4(lessThan(key, vec4(ref))));
-      }
-    }
-#endif
-    shadow = hits / float(k * k);
-#ifdef LIXEL_REGIONS
-    /* A plane map (a map with a region) samples each pixel's own point of its
-     * plane (Chong-Gortler §2): the test of that one lixel is the exact shadow
-     * there, and the k x k taps would only blur it over k pixels. */
-    if (lixel.maps[m].range.w > 0.5) {
-      shadow = lixel_test(m, ivec2(floor(tc)), ref, greater);
-    }
-#endif
-  }
-
   vec3 L;
   float irradiance = 1.0;
 #if LIXEL_LIGHT == 0
@@ -344,6 +403,75 @@ void main()
   irradiance *= blend > 0.0 ? smoothstep(0.0, 1.0, x / blend) : step(0.0, x);
 #  endif
 #endif
+  float shadow = 0.0;
+  if (index >= 0) {
+    bool greater = info.z > 0.5;
+    const bool plane_bias = LIXEL_BIAS == LIXEL_BIAS_RECEIVER_PLANE;
+    const bool slope_bias = LIXEL_BIAS == LIXEL_BIAS_SLOPE || LIXEL_BIAS == LIXEL_BIAS_CONSTANT_SLOPE;
+    vec3 NL = dot(N, L) < 0.0 ? -N : N; /* the receiver's side that faces the light */
+    LixelReceiver rcv = lixel_receiver(m, P, NL, L, hsel, vec2(size), plane_bias, slope_bias);
+    vec2 look = tc;
+#if LIXEL_BIAS == LIXEL_BIAS_NORMAL_OFFSET
+    /* Look up P moved s texel widths along its normal, towards the light. */
+    vec3 Q = P + NL * (lixel.bias.y * rcv.width);
+    vec4 hq = lixel.maps[m].matrix * vec4(Q, 1.0);
+    look = (hq.xy / hq.w * 0.5 + 0.5) * vec2(size);
+    rcv.z = lixel_stored_depth(m, Q, hq);
+#endif
+    float bias = 0.0;
+#if LIXEL_BIAS != LIXEL_BIAS_NONE && LIXEL_BIAS != LIXEL_BIAS_SLOPE
+    bias += lixel.bias.x * rcv.texel;
+#endif
+    if (slope_bias) {
+      bias += lixel.bias.y * lixel.bias.z * rcv.slope;
+    }
+    bool plane = plane_bias && rcv.det != 0.0;
+    const int k = LIXEL_PCF;
+    ivec2 base = (k % 2 == 1) ? ivec2(floor(look)) - (k - 1) / 2 : ivec2(floor(look - 0.5)) - (k / 2 - 1);
+    vec2 to_ndc = 2.0 / vec2(size);
+    float hits = 0.0;
+#if defined(LIXEL_MDSM) || LIXEL_PCF == 1
+    for (int dy = 0; dy < k; dy++) {
+      for (int dx = 0; dx < k; dx++) {
+        ivec2 s = clamp(base + ivec2(dx, dy), ivec2(0), size - 1);
+        vec2 p = (vec2(s) + 0.5) * to_ndc - 1.0;
+        hits += lixel_test(m, s, lixel_refs(rcv, plane, vec4(p.x), vec4(p.y), bias, greater).x, greater);
+      }
+    }
+#else
+    /* The k x k taps as 2 x 2 gathers (a gather costs about one texelFetch on
+     * a software rasterizer): the gather at the corner between texels c and
+     * c + 1 returns (c, c+1) x (c, c+1), clamped to the edge like the taps,
+     * as x = (c, c+1), y = (c+1, c+1), z = (c+1, c), w = (c, c). Taps beyond
+     * k - 1 are not counted. Each of the four is compared with its own
+     * reference (lixel_refs), in one vec4. */
+    for (int gy = 0; gy < k; gy += 2) {
+      for (int gx = 0; gx < k; gx += 2) {
+        ivec2 c = base + ivec2(gx, gy);
+        vec4 t = lixel_gather(m, (vec2(c) + 1.0) / vec2(size));
+        vec4 key = greater ? 1.0 - t : t;
+        vec4 sx = clamp(vec4(c.x, c.x + 1, c.x + 1, c.x), 0.0, float(size.x - 1));
+        vec4 sy = clamp(vec4(c.y + 1, c.y + 1, c.y, c.y), 0.0, float(size.y - 1));
+        vec4 ref = lixel_refs(rcv, plane, (sx + 0.5) * to_ndc.x - 1.0, (sy + 0.5) * to_ndc.y - 1.0, bias, greater);
+        vec4 counted = vec4(gy + 1 < k ? 1.0 : 0.0, (gx + 1 < k && gy + 1 < k) ? 1.0 : 0.0,
+                            gx + 1 < k ? 1.0 : 0.0, 1.0);
+        hits += dot(counted, vec4(lessThan(key, ref)));
+      }
+    }
+#endif
+    shadow = hits / float(k * k);
+#ifdef LIXEL_REGIONS
+    /* A plane map (a map with a region) samples each pixel's own point of its
+     * plane (Chong-Gortler §2): the test of that one lixel is the exact shadow
+     * there, and the k x k taps would only blur it over k pixels. */
+    if (lixel.maps[m].range.w > 0.5) {
+      ivec2 own = ivec2(floor(tc));
+      vec2 p = (vec2(own) + 0.5) * to_ndc - 1.0;
+      shadow = lixel_test(m, own, lixel_refs(rcv, plane, vec4(p.x), vec4(p.y), bias, greater).x, greater);
+    }
+#endif
+  }
+
   float ndl = max(dot(N, L), 0.0);
   vec3 direct = lixel.light_color.rgb * (irradiance * ndl * lixel.light_color.w / LIXEL_PI);
 

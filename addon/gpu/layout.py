@@ -145,7 +145,7 @@ LIXEL_SHADE = Struct("LixelShade", (
     Member("light_color", "vec4", "(colour * energy, albedo)"),
     Member("spot", "vec4", "(Blender's spot blend 0..1, 0, 0, 0)"),
     Member("ambient", "vec4", "(world colour, 0): ambient light, times the albedo"),
-    Member("bias", "vec4", "(constant c, slope factor s, PCF reach r, largest slope term), NDC depth units"),
+    Member("bias", "vec4", "(constant c, slope factor s or normal offset, PCF reach r, mode), receiver texels"),
     Member("inv_view_proj", "mat4", "camera clip -> world (relative to the frame's origin): the camera rays"),
     Member("screen", "vec4", "(2 / width, 2 / height, 0, 0): window position -> NDC"),
     Member("maps", LIXEL_MAP, "the setup's maps", MAX_MAPS),

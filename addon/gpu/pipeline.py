@@ -46,22 +46,14 @@ DEFAULT_AMBIENT = (0.05, 0.05, 0.05)
 """World colour when none is given (Blender's default world)."""
 
 
-SLOPE_LIMIT = 0.02
-"""Largest slope term per texel (NDC depth units, 1% of the depth range), like
-a depth-bias clamp: a surface nearly edge-on to the light has an unbounded
-polygon-offset slope, and without a clamp its bias reaches past its own
-occluders (light leaks behind casters on grazing receivers). A plane tilted 80°
-from the light needs about 0.006 at 2048²."""
-
-
 def bias_vector(shadow: ShadowSettings) -> tuple[float, float, float, float]:
-    """The shading pass's bias uniform (Scherzer §4.2), NDC depth units:
-    (constant c, slope factor s, PCF reach r = max(1, k/2), slope limit);
-    see gpu_shaders/shade_frag.glsl."""
+    """The shading pass's bias uniform (Scherzer §4.2), in texels of the
+    receiver: (constant c, slope factor s or normal offset, PCF reach
+    r = max(1, k/2), mode code); see gpu_shaders/shade_frag.glsl."""
     mode = shadow.bias_mode
-    c = shadow.constant_bias if mode in ("CONSTANT", "CONSTANT_SLOPE") else 0.0
-    s = shadow.slope_bias if mode in ("SLOPE", "CONSTANT_SLOPE") else 0.0
-    return float(c), float(s), max(1.0, shadow.pcf_kernel / 2.0), SLOPE_LIMIT
+    second = shadow.normal_offset if mode == "NORMAL_OFFSET" else shadow.slope_bias
+    return (float(shadow.constant_bias), float(second), max(1.0, shadow.pcf_kernel / 2.0),
+            float(shaders.BIAS_CODES[mode]))
 
 
 def relative(matrix: np.ndarray, origin) -> np.ndarray:
@@ -114,17 +106,50 @@ def light_facing_winds_clockwise(shadow_map) -> bool:
     return bool(area < 0)
 
 
+def is_affine(matrix) -> bool:
+    """Whether a light matrix has a constant w (an orthographic map: a sun's
+    unwarped map), so that everything affine in the world position is also
+    affine in its window coordinates."""
+    w = np.asarray(matrix, dtype=np.float64)[3]
+    return bool(np.all(np.abs(w[:3]) <= 1e-12 * abs(w[3])) and w[3] != 0.0)
+
+
+def depth_draw(shadow_map, origin=(0.0, 0.0, 0.0)) -> tuple[np.ndarray, Optional[np.ndarray]]:
+    """How the depth pass draws one map, relative to ``origin``: (the matrix
+    for ``gl_Position``, the window depth row for ``gl_FragDepth`` or None).
+
+    * No depth row (hyperbolic z): the map's matrix, nothing written per fragment.
+    * A depth row and an affine matrix: the linear depth is affine in the
+      window coordinates, so the matrix's z row is replaced by the depth row
+      (times the constant w) and the rasterizer interpolates it exactly: a bare
+      draw with early depth testing.
+    * A depth row and a projective matrix (warped maps, point and spot lights):
+      the matrix, and the window depth row 0.5 r + (0, 0, 0, 0.5) written per
+      fragment (Scherzer §4.2's linear z).
+    """
+    matrix = relative(shadow_map.matrix, origin)
+    if shadow_map.depth_row is None:
+        return matrix, None
+    row = relative_row(shadow_map.depth_row, origin)
+    if is_affine(matrix):
+        matrix = matrix.copy()
+        matrix[2] = matrix[3, 3] * row
+        return matrix, None
+    return matrix, 0.5 * row + np.array([0.0, 0.0, 0.0, 0.5])
+
+
 def depth_pass(setup: ShadowSetup, scene: GPUScene, casters: DrawList, shadow: ShadowSettings,
                targets: Optional[TargetPool] = None, bare: bool = False) -> list:
     """Draw every map of ``setup``: returns [(depth texture, framebuffer)].
 
     Per map: clear to 1 (LESS) or 0 (GREATER, reversed test), depth test
     LESS_EQUAL / GREATER_EQUAL with the depth mask on; back-face rendering
-    culls the faces that face the light (Scherzer §4.2); linear z writes
-    ``depth_row . [P, 1]`` per fragment. Constant and slope-scale bias are
-    applied where depths are compared (shading pass), so otherwise this is a
-    bare draw. ``bare`` (the benchmark's reference) also drops culling and
-    linear z. Matrices are made relative to ``scene.origin`` (see :func:`relative`).
+    culls the faces that face the light (Scherzer §4.2); the depth stored is
+    the map's linear depth row where it has one (:func:`depth_draw`). Biasing
+    is applied where depths are compared (shading pass), so otherwise this is
+    a bare draw. ``bare`` (the benchmark's reference) draws every map with its
+    own matrix, no culling and an empty fragment stage. Matrices are made
+    relative to ``scene.origin`` (see :func:`relative`).
     """
     import gpu
     targets = targets if targets is not None else shared_targets()
@@ -135,17 +160,17 @@ def depth_pass(setup: ShadowSetup, scene: GPUScene, casters: DrawList, shadow: S
         tex = targets.texture(f"map{i}", (w, h), "DEPTH_COMPONENT32F")
         fb = targets.framebuffer(depth=tex)
         greater = m.depth_test == "GREATER"
-        linear = m.depth_row is not None and not bare
-        shader = shaders.depth_shader(linear)
+        matrix, window_row = (relative(m.matrix, origin), None) if bare else depth_draw(m, origin)
+        shader = shaders.depth_shader(window_row is not None)
         with fb.bind():
             gpu.state.viewport_set(0, 0, w, h)
             fb.clear(depth=0.0 if greater else 1.0)
             gpu.state.depth_test_set("GREATER_EQUAL" if greater else "LESS_EQUAL")
             gpu.state.depth_mask_set(True)
             shader.bind()
-            shader.uniform_float("u_light", _gl_matrix(relative(m.matrix, origin)))
-            if linear:
-                shader.uniform_float("u_depth_row", tuple(float(v) for v in relative_row(m.depth_row, origin)))
+            shader.uniform_float("u_light", _gl_matrix(matrix))
+            if window_row is not None:
+                shader.uniform_float("u_depth_row", tuple(float(v) for v in window_row))
             cull = "FRONT" if (shadow.back_faces and not bare) else "NONE"
             scene.draw(shader, casters, cull=cull, flip=light_facing_winds_clockwise(m))
             gpu.state.depth_mask_set(False)
@@ -401,7 +426,7 @@ class ShadowFrame:
         world = "world_position" in read
         variant = shaders.ShadeVariant(
             map_count=len(setup.maps), light=light.type, pcf=shadow.pcf_kernel, mdsm=shadow.mdsm_depths,
-            slope_bias=bias_vector(shadow)[1] > 0, regions=any(m.region is not None for m in setup.maps),
+            bias=shadow.bias_mode, regions=any(m.region is not None for m in setup.maps),
             ranges=any(m.view_depth_range is not None for m in setup.maps), blurred=blurred,
             shadow_target=not blurred and bool(read & {"shadow_mask", "shadow_raw"}),
             footprint="footprint_heatmap" in read, data=needs_data(read) or blurred, world=world)

@@ -61,15 +61,16 @@ def _instanced_vertex_input(info) -> None:
 
 @functools.lru_cache(maxsize=None)
 def depth_shader(linear_z: bool):
-    """Depth pass. ``linear_z`` writes ``gl_FragDepth`` from the map's depth row
-    (Scherzer §4.2); otherwise the fragment stage is empty (a bare draw)."""
+    """Depth pass. ``linear_z`` writes ``gl_FragDepth`` from the map's window
+    depth row (Scherzer §4.2), carried in one perspective-correct varying;
+    otherwise the fragment stage is empty (a bare draw)."""
     import gpu
     info = gpu.types.GPUShaderCreateInfo()
     _common_defines(info)
     if linear_z:
         info.define("LIXEL_LINEAR_Z")
         iface = gpu.types.GPUStageInterfaceInfo("lixel_depth_iface")
-        iface.smooth("VEC3", "v_world")
+        iface.smooth("FLOAT", "v_depth")
         info.vertex_out(iface)
         info.push_constant("VEC4", "u_depth_row")
         if hasattr(info, "depth_write"):
@@ -92,7 +93,8 @@ class ShadeVariant:
     pcf: int = 3
     mdsm: int = 1
     """Depths per texel (n); > 1 samples RGBA32F key maps."""
-    slope_bias: bool = True
+    bias: str = "RECEIVER_PLANE"
+    """``ShadowSettings.bias_mode`` (LIXEL_BIAS)."""
     regions: bool = False
     ranges: bool = False
     blurred: bool = False
@@ -126,6 +128,8 @@ class ShadeVariant:
 
 
 LIGHT_CODES = {"SUN": 0, "POINT": 1, "SPOT": 2}
+BIAS_CODES = {"NONE": 0, "CONSTANT": 1, "SLOPE": 2, "CONSTANT_SLOPE": 3, "RECEIVER_PLANE": 4, "NORMAL_OFFSET": 5}
+"""``ShadowSettings.bias_mode`` as the shading pass's LIXEL_BIAS_* codes."""
 
 
 def _camera_info(name: str, fragment: str):
@@ -174,7 +178,8 @@ def _shade_info(variant: ShadeVariant):
     info.define("LIXEL_PCF", str(int(v.pcf)))
     if v.mdsm > 1:
         info.define("LIXEL_MDSM", str(int(v.mdsm)))
-    flags = {"LIXEL_SLOPE_BIAS": v.slope_bias, "LIXEL_REGIONS": v.regions, "LIXEL_RANGES": v.ranges,
+    info.define("LIXEL_BIAS", str(BIAS_CODES[v.bias]))
+    flags = {"LIXEL_REGIONS": v.regions, "LIXEL_RANGES": v.ranges,
              "LIXEL_BLURRED": v.blurred, **v.flags}
     for name, on in flags.items():
         if on:

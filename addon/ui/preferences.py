@@ -31,6 +31,7 @@ class LIXEL_AP_preferences(bpy.types.AddonPreferences):
     bias_mode: _scene_prop("bias_mode")
     constant_bias: _scene_prop("constant_bias")
     slope_bias: _scene_prop("slope_bias")
+    normal_offset: _scene_prop("normal_offset")
     pcf_kernel: _scene_prop("pcf_kernel")
     mdsm_depths: _scene_prop("mdsm_depths")
     middle_vector: _scene_prop("middle_vector")
@@ -43,7 +44,7 @@ class LIXEL_AP_preferences(bpy.types.AddonPreferences):
         layout = self.layout
         layout.use_property_split = True
         col = layout.column(heading="New Scenes")
-        for name in ("method", "map_size", "bias_mode", "constant_bias", "slope_bias", "pcf_kernel",
+        for name in ("method", "map_size", "bias_mode", "constant_bias", "slope_bias", "normal_offset", "pcf_kernel",
                      "mdsm_depths", "middle_vector", "linear_z", "live_update", "body_alpha"):
             col.prop(self, name)
 
@@ -54,7 +55,8 @@ class LIXEL_AP_preferences(bpy.types.AddonPreferences):
             warp=WarpOptions(shadow_map_size=(self.map_size, self.map_size), middle_vector=self.middle_vector,
                              linear_z=self.linear_z),
             shadow=ShadowSettings(bias_mode=self.bias_mode, constant_bias=self.constant_bias,
-                                  slope_bias=self.slope_bias, pcf_kernel=self.pcf_kernel,
+                                  slope_bias=self.slope_bias, normal_offset=self.normal_offset,
+                                  pcf_kernel=self.pcf_kernel,
                                   mdsm_depths=self.mdsm_depths))
 
 

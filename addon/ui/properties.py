@@ -135,7 +135,7 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
     middle_vector: BoolProperty(
         name="Middle Vector", default=False,
         description="Use B's middle vector as V_P instead of Eq. 3 (Scherzer §4.4)")
-    linear_z: BoolProperty(name="Linear Z", default=False,
+    linear_z: BoolProperty(name="Linear Z", default=WarpOptions().linear_z,
                            description="Linear depth distribution in the map (Scherzer §4.2)")
     use_lambda: BoolProperty(name="Override λ", default=False,
                              description="Force GMNPR's λ instead of computing it (Zhang et al. Eq. 8/9)")
@@ -180,15 +180,21 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
 
     # ShadowSettings
     bias_mode: EnumProperty(
-        name="Bias", default="CONSTANT_SLOPE",
+        name="Bias", default=ShadowSettings().bias_mode,
         items=(("NONE", "None", "No depth bias"),
-               ("CONSTANT", "Constant", "A constant depth offset (Scherzer §4.2)"),
-               ("SLOPE", "Slope", "An offset proportional to the depth slope (Scherzer §4.2)"),
-               ("CONSTANT_SLOPE", "Constant + Slope", "Both offsets (Scherzer §4.2)")))
-    constant_bias: FloatProperty(name="Constant Bias", default=0.0005, min=0.0, soft_max=0.01, precision=5,
-                                 description="Depth offset in NDC depth units")
-    slope_bias: FloatProperty(name="Slope Bias", default=1.5, min=0.0, soft_max=10.0,
-                              description="Multiples of the depth slope per texel")
+               ("CONSTANT", "Constant", "A constant depth offset along the light ray (Scherzer §4.2)"),
+               ("SLOPE", "Slope", "An offset proportional to the receiver's depth slope (Scherzer §4.2)"),
+               ("CONSTANT_SLOPE", "Constant + Slope", "Both offsets (Scherzer §4.2)"),
+               ("RECEIVER_PLANE", "Receiver Plane", "Each PCF tap is compared with the receiver's own plane there, "
+                                                    "less the constant: no acne on any plane, no shadow moved"),
+               ("NORMAL_OFFSET", "Normal Offset", "Look the point up moved along its normal, less the constant")))
+    constant_bias: FloatProperty(name="Constant Bias", default=ShadowSettings().constant_bias, min=0.0, soft_max=4.0,
+                                 description="Depth offset along the light ray, in texels of the receiver (the world "
+                                             "width of the map texel at that point)")
+    slope_bias: FloatProperty(name="Slope Bias", default=ShadowSettings().slope_bias, min=0.0, soft_max=10.0,
+                              description="Multiples of the receiver's depth change over the PCF reach")
+    normal_offset: FloatProperty(name="Normal Offset", default=ShadowSettings().normal_offset, min=0.0, soft_max=4.0,
+                                 description="How far the point is moved along its normal, in texels of the receiver")
     back_faces: BoolProperty(name="Back Faces", default=False,
                              description="Render back faces into the map (Scherzer §4.2)")
     pcf_kernel: IntProperty(name="PCF k", default=3, min=1, max=5,
@@ -253,6 +259,7 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
     def shadow_settings(self) -> ShadowSettings:
         return ShadowSettings(
             bias_mode=self.bias_mode, constant_bias=float(self.constant_bias), slope_bias=float(self.slope_bias),
+            normal_offset=float(self.normal_offset),
             back_faces=self.back_faces, pcf_kernel=int(self.pcf_kernel), mdsm_depths=int(self.mdsm_depths),
             mdsm_selection=self.mdsm_selection, mdsm_neighbourhood=int(self.mdsm_neighbourhood),
             eye_blur=float(self.eye_blur))
@@ -299,8 +306,8 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
             for point, normal in wo.planes:
                 p = self.planes.add()
                 p.point, p.normal = point, normal
-        for name in ("bias_mode", "constant_bias", "slope_bias", "back_faces", "pcf_kernel", "mdsm_depths",
-                     "mdsm_selection", "mdsm_neighbourhood", "eye_blur"):
+        for name in ("bias_mode", "constant_bias", "slope_bias", "normal_offset", "back_faces", "pcf_kernel",
+                     "mdsm_depths", "mdsm_selection", "mdsm_neighbourhood", "eye_blur"):
             setattr(self, name, getattr(sh, name))
 
     def any_overlay(self) -> bool:
@@ -357,8 +364,9 @@ def _touched(name: str):
 
 SETTING_NAMES = ("light", "method", "shadow_map_size", "focus", "lambda_guard", "texel_snapping", "delta_z", "use_visible_depth_range",
                  "visible_depth_range", "middle_vector", "linear_z", "use_lambda", "lam", "max_frustum_angle",
-                 "plane_budget", "plane_twist", "bias_mode", "constant_bias", "slope_bias", "back_faces", "pcf_kernel",
-                 "mdsm_depths", "mdsm_selection", "mdsm_neighbourhood", "eye_blur") + CASCADE_SETTINGS
+                 "plane_budget", "plane_twist", "bias_mode", "constant_bias", "slope_bias", "normal_offset",
+                 "back_faces", "pcf_kernel", "mdsm_depths", "mdsm_selection", "mdsm_neighbourhood",
+                 "eye_blur") + CASCADE_SETTINGS
 for _name in SETTING_NAMES:  # one update callback for every setting (before registration)
     LixelSceneSettings.__annotations__[_name].keywords["update"] = _touched(_name)
 

@@ -28,13 +28,13 @@ def custom_settings(mods):
     """Every field away from its default."""
     warp = mods.types.WarpOptions(
         shadow_map_size=(1024, 512), focus="view", lambda_guard="off", texel_snapping=True, delta_z="visible", visible_depth_range=(0.5, 40.0),
-        middle_vector=True, linear_z=True, lam=0.25, max_frustum_angle=math.radians(95.0),
+        middle_vector=True, linear_z=False, lam=0.25, max_frustum_angle=math.radians(95.0),
         planes=(((0.0, 0.0, 0.5), (0.0, 0.0, 1.0)), ((1.0, 0.0, 0.0), (1.0, 0.0, 0.0))), plane_budget=0.5,
         plane_twist="off", cascade_splits=3, cascade_warp="lispsm", cascade_lambda=0.75, cascade_adaptive=False,
         cascade_stable=True, cascade_budget="shared", cascade_blend=0.2)
     shadow = mods.settings.ShadowSettings(
-        bias_mode="SLOPE", constant_bias=0.002, slope_bias=2.5, back_faces=True, pcf_kernel=5, mdsm_depths=3,
-        mdsm_selection="SORT", mdsm_neighbourhood=5, eye_blur=2.0)
+        bias_mode="SLOPE", constant_bias=0.002, slope_bias=2.5, normal_offset=2.0, back_faces=True, pcf_kernel=5,
+        mdsm_depths=3, mdsm_selection="SORT", mdsm_neighbourhood=5, eye_blur=2.0)
     return mods.settings.LixelSettings(method="gmnpr", warp=warp, shadow=shadow)
 
 
