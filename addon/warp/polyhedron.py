@@ -446,21 +446,16 @@ def section_points(poly: ConvexPolytope, normals: np.ndarray, offsets: np.ndarra
     poly has none."""
     tol = poly.tol if tol is None else tol
     own = polytope_edges(poly)
-    body, ends, start, step = [], [], [], []
-    for segments, (lo, hi) in ((own, clip_segments(own, normals, offsets + tol)),
-                               (edges, clip_segments(edges, poly.normals, poly.offsets + tol))):
-        hit = lo <= hi
-        b, i = np.nonzero(hit)
-        body.append(b)
-        ends.append(np.stack([lo[hit], hi[hit]], axis=1))                     # (hits, 2)
-        start.append(segments.start[i] if segments.start.ndim == 2 else segments.start[b, i])
-        step.append(segments.step[i] if segments.step.ndim == 2 else segments.step[b, i])
-    body, order = np.concatenate(body), None
-    if len(body) and np.any(body[1:] < body[:-1]):
-        order = np.argsort(body, kind="stable")
-    ends, start, step = (np.concatenate(a) if order is None else np.concatenate(a)[order] for a in (ends, start, step))
-    points = start[:, None] + ends[..., None] * step[:, None]                  # (hits, 2, 3)
-    return points.reshape(-1, 3), np.repeat(body if order is None else body[order], 2)
+    k = len(normals)
+    # Per body: poly's edges, then its own, each with the stretch of it inside the other.
+    ends = [np.concatenate(pair, axis=1) for pair in zip(clip_segments(own, normals, offsets + tol),
+                                                         clip_segments(edges, poly.normals, poly.offsets + tol))]
+    start, step = (np.concatenate([mine[None].repeat(k, axis=0), theirs], axis=1)
+                   for mine, theirs in ((own.start, edges.start), (own.step, edges.step)))
+    hit = ends[0] <= ends[1]                                                   # (k, segments)
+    ends = np.stack([ends[0][hit], ends[1][hit]], axis=1)                     # (hits, 2), body by body
+    points = start[hit][:, None] + ends[..., None] * step[hit][:, None]        # (hits, 2, 3)
+    return points.reshape(-1, 3), np.repeat(np.nonzero(hit)[0], 2)
 
 
 # ---------------------------------------------------------------------------

@@ -281,8 +281,9 @@ def min_norm_point(points, start=None, max_iter: int = 200) -> np.ndarray:
     affine nearest point has positive weights (two points of equal length:
     their midpoint)."""
     p = np.asarray(points, dtype=np.float64)
-    scale = max(float(np.einsum("ij,ij->i", p, p).max()), 1e-300)
-    support = list(start) if start is not None else [int(np.argmin(np.einsum("ij,ij->i", p, p)))]
+    square = np.einsum("ij,ij->i", p, p)
+    scale = max(float(square.max()), 1e-300)
+    support = list(start) if start is not None else [int(np.argmin(square))]
     weights = np.full(len(support), 1.0 / len(support))
     x = weights @ p[support]
     for _ in range(max_iter):
@@ -390,7 +391,7 @@ def pps_light_matrix(light_h, points, max_half_angle: float = math.inf) -> PPSLi
     # projection already reverses orientation, so the composed world -> light NDC map reverses it
     # once, like frame.FLIP_Z @ look_along (a uniform map): triangles facing the light keep their
     # winding (back-face biasing).
-    centre = b_in_pps.mean(axis=0)
+    centre = b_in_pps.sum(axis=0) / len(b_in_pps)
     b = image_up(PPS_VIEW_DIRECTION, PPS_UP, k)
     a = normalize(cross(b, k))
     axes = np.array([a, cross(k, a), k])
