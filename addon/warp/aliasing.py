@@ -177,6 +177,12 @@ def map_coordinate(lam, theta, z, n, f, phi):
 
 # ---------------------------------------------------------------- λ selections
 
+def folded(gamma: float) -> float:
+    """θ, GMNPR's angle between the light and view directions: γ ∈ [0, π]
+    folded by symmetry into [0, π/2]."""
+    return min(gamma, math.pi - gamma)
+
+
 def lispsm_inverse_n_opt(z_n, delta_z, gamma) -> float:
     """1 / n_opt of Scherzer §4.4 Eq. 1, n_opt = (z_n + √(z_n(z_n + Δz))) / sin γ.
 
@@ -186,7 +192,7 @@ def lispsm_inverse_n_opt(z_n, delta_z, gamma) -> float:
     root = z_n + math.sqrt(z_n * (z_n + max(float(delta_z), 0.0)))
     if root <= 0.0:
         return math.inf
-    return abs(math.sin(min(gamma, math.pi - gamma))) / root    # folded: exactly 0 at γ = π too
+    return abs(math.sin(folded(gamma))) / root    # (folded: exactly 0 at γ = π too)
 
 
 def lambda_lispsm(theta, n, f, phi) -> float:

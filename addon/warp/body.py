@@ -107,6 +107,11 @@ class IntersectionBody:
         """The mean of B's vertices (the axis a point light's angles are measured along)."""
         return self.polytope.centroid + self.origin
 
+    @cached_property
+    def volume_centroid(self) -> np.ndarray:
+        """The centre of B's volume (B's middle, Scherzer §4.4), world space."""
+        return self.polytope.volume_centroid + self.origin
+
     def contains(self, points, tol: float | None = None) -> np.ndarray:
         """Which (N, 3) world points lie in B (within ``tol``, default 10x the tolerance)."""
         return self.polytope.contains(np.asarray(points, dtype=np.float64).reshape(-1, 3) - self.origin, tol)

@@ -20,6 +20,7 @@ from functools import cached_property
 
 import numpy as np
 
+from .aliasing import folded
 from .body import IntersectionBody
 from .polyhedron import SNAP, ConvexPolytope, Edges, section_points
 from .geometry import across, cross, dot3, homogeneous, look_along, normalize, perpendicular
@@ -115,7 +116,7 @@ def light_angles(view: View, light_direction) -> tuple[float, float]:
     (LiSPSM's γ, Scherzer §4.4); θ in [0, π/2] folded by symmetry (GMNPR)."""
     c = min(max(dot3(view.direction.tolist(), normalize(light_direction).tolist()), -1.0), 1.0)
     gamma = math.acos(c)
-    return min(gamma, math.pi - gamma), gamma
+    return folded(gamma), gamma
 
 
 def body_light_angles(view: View, light: Light, body: IntersectionBody) -> tuple[float, float]:

@@ -203,6 +203,20 @@ class ConvexPolytope:
         """The mean of the vertices (strictly inside a polytope with volume)."""
         return self.vertices.sum(axis=0) / len(self.vertices)
 
+    @cached_property
+    def volume_centroid(self) -> np.ndarray:
+        """The centre of the volume (continuous in the polytope, unlike the mean
+        of its vertices, which jumps when a vertex appears or merges): the
+        facets as fans of triangles, each the base of a tetrahedron from the
+        vertices' mean m; the tetrahedra's centres (m + a + b + c) / 4
+        weighted by their volumes |a · (b × c)| / 6 (a, b, c from m)."""
+        m = self.centroid
+        fans = np.array([(loop[0], b, c) for loop in self.loops for b, c in zip(loop[1:-1], loop[2:])]).reshape(-1, 3)
+        a, b, c = (self.vertices - m)[fans.T]
+        volume = np.abs(np.einsum("ij,ij->i", a, cross(b, c)))
+        total = float(volume.sum())
+        return m + (volume @ (a + b + c)) / (4.0 * total) if total > 0 else m
+
     def contains(self, points, tol: float | None = None) -> np.ndarray:
         """Which (N, 3) points lie inside (within ``tol``, default 10 tolerances)."""
         t = 10.0 * self.tol if tol is None else tol

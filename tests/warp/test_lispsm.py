@@ -16,7 +16,7 @@ from addon.warp.geometry import look_along, transform_h
 from addon.warp.fit import window_matrix
 from addon.warp.frame import light_frames
 from addon.warp.methods.warp_frustum import (eye_depth_range, frame_warps, half_fov_towards, light_at_eye, ray_closed,
-                                             rule_lispsm, volume_centroid)
+                                             rule_lispsm)
 from addon.warp.types import Diagnostics
 
 from hard_cases import HARD_CASES
@@ -259,8 +259,7 @@ def test_middle_vector_option_sets_V_P_towards_the_middle_of_B(method):
     view = camera(**HORIZONTAL)
     light = sun([0.4, 0.3, -0.6])
     s, body = run(method, view, light, options=WarpOptions(middle_vector=True))
-    from addon.warp.methods.warp_frustum import volume_centroid
-    mv = volume_centroid(body) - view.position
+    mv = body.volume_centroid - view.position
     ell = light.direction
     expected = mv - (mv @ ell) * ell
     expected /= np.linalg.norm(expected)
@@ -362,13 +361,12 @@ def test_generated_sun_configurations(yaw, pitch, lat, lon, method, mid):
     view = camera([1.0, -3.0, 2.0], fwd)
     d = [math.cos(lat) * math.cos(lon), math.cos(lat) * math.sin(lon), math.sin(lat)]
     s, body = run(method, view, sun(d), options=WarpOptions(middle_vector=mid))
-    from addon.warp.methods.warp_frustum import volume_centroid
-    c0 = volume_centroid(body)
+    c0 = body.volume_centroid
     for eps in (1e-7, 1e-9):
         b1 = intersection_body(view, sun(rotation([0.2, 0.9, 0.1], eps) @ np.array(d)), SCENE)
         # B itself jumps when a caster box starts to touch hull(R ∪ light) (S_c grows by a whole
         # box): the warp cannot be continuous across that and it is not the warp's doing
-        assume(np.linalg.norm(volume_centroid(b1) - c0) < 1e-4 * body.scale)
+        assume(np.linalg.norm(b1.volume_centroid - c0) < 1e-4 * body.scale)
 
     def turned(p):
         light = sun(d if p is None else rotation(p[0], p[1]) @ np.array(d))
@@ -580,7 +578,7 @@ def _maps_before_closure(view, light, scene, options):
     if len(frames) < 2:
         return body, []
     ctx = eye_depth_range(view, body, options, Diagnostics("lispsm"))
-    at, reason = light_at_eye(view, light, options, body, volume_centroid(body) - view.position)
+    at, reason = light_at_eye(view, light, options, body, body.volume_centroid - view.position)
     if at is None:
         return body, []
     warps = frame_warps(frames, view, at, reason, rule_lispsm, ctx, half_fov_towards(view, at.ell), options, body)

@@ -81,21 +81,20 @@ the light's axis for a point light), fitted so B spans [-1, 1]. ``lam`` forces
 """
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass
 from typing import Callable, Optional
 
 import numpy as np
 
-from ..aliasing import (lambda_glpr, lambda_gmnpr, lambda_no_worse_on_average, lambda_no_worse_than_uniform,
+from ..aliasing import (folded, lambda_glpr, lambda_gmnpr, lambda_no_worse_on_average, lambda_no_worse_than_uniform,
                         lispsm_inverse_n_opt)
 from ..body import IntersectionBody
+from ..diagnostics import Diagnostics, OnRead
 from ..fit import fit_runs, window_matrices
 from ..frame import PARALLEL_BLEND, LightFrame, body_light_angles, light_frames, pyramid_sections
-from ..geometry import across, clip_volume_corners, dot3, homogeneous, point_runs, transform_h_runs
+from ..geometry import clip_volume_corners, homogeneous, point_runs, transform_h_runs
 from ..linear_depth import frame_depth_row
-from ..diagnostics import Diagnostics, OnRead
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .common import NEAR_PLANE_NOTE, frame_maps
 
@@ -125,14 +124,13 @@ class WarpContext:
 
 @dataclass
 class LightAtEye:
-    """The light as the eye sees it, in world space: what every frame of one
-    setup shares (computed once per setup)."""
+    """The light as the eye sees it, in world space: what every frame of one setup shares."""
 
     ell: np.ndarray        # the light ray at the eye (unit): a sun's direction, or from the light through the eye
     dist: float            # point lights: the eye's distance from the light (0 for a sun)
     gamma: float           # angle between the view direction and ell
     vector: np.ndarray     # the world vector whose image is V_P: the view direction or the middle vector
-    s: float               # sin of the angle between ``vector`` and ell (the blend weight of ``_blend``)
+    s: float               # sin of the angle between ``vector`` and ell (the weight of the blend into +y)
     v_p: Optional[np.ndarray] = None  # point lights: the view direction perpendicular to ell (None if parallel)
     body_extent: float = 0.0          # point lights: all of B's extent along v_p
 
@@ -141,79 +139,66 @@ class LightAtEye:
 class FrameGeometry:
     """One frame's warp geometry, in that frame's (divided) light space."""
 
-    a: tuple               # V_P in the image plane (unit 2-vector, floats)
-    b: tuple               # P's lateral axis (unit 2-vector, floats)
-    eye: tuple             # the eye in light space (3 floats)
+    a: tuple               # V_P in the image plane (unit 2-vector)
+    eye: tuple             # the eye in light space
     h_min: float
-    extent: float          # D, B's extent along V_P in light space
-    extent_world: float    # this frame's part of B: extent along the world V_P
-    body_extent_world: float  # all of B: extent along the world V_P (the paper's P_f - P_n)
+    extent: float          # D, the frame's part of B along V_P in light space
+    extent_world: float    # the frame's part of B along the world V_P
+    body_extent_world: float  # all of B along the world V_P (the paper's P_f - P_n)
     gamma: float
     v_p_world: Optional[np.ndarray]
-    light_dir: np.ndarray  # the light ray at the eye (world, unit)
-    fade: float = 1.0
-    to_light: Optional[np.ndarray] = None   # the frame's world -> light space
+    fade: float
+    to_light: np.ndarray   # the frame's world -> light space
+
+    @property
+    def b(self) -> tuple:
+        """P's lateral axis: V_P turned by -90° in the image plane."""
+        return self.a[1], -self.a[0]
 
 
-def _blend(v, s: float) -> tuple[float, float]:
-    """A unit image-plane direction along ``v`` (weight s = sin of its angle to
-    the light), blended continuously with the frame's +y when s < PARALLEL_BLEND."""
-    vx, vy = v
-    nv = math.hypot(vx, vy)
-    if nv > 0 and math.isfinite(nv):
-        vx, vy = vx / nv, vy / nv
+def light_at_eye(view: View, light: Light, options: WarpOptions, body: IntersectionBody,
+                 middle: Optional[np.ndarray]) -> tuple[Optional[LightAtEye], str]:
+    """The world-space quantities every frame shares (``middle``: the middle
+    vector, given and used when ``options.middle_vector``), or (None, reason)
+    when the light ray through the eye is undefined."""
+    d = view.direction
+    if light.is_directional:
+        ell, dist = light.direction, 0.0
     else:
-        vx, vy = 0.0, 1.0
-    ox, oy = s * vx, s * vy + max(0.0, PARALLEL_BLEND - s)
-    n = math.hypot(ox, oy)
-    return (ox / n, oy / n) if n > 1e-12 else (0.0, 1.0)
+        to_eye = view.position - light.position
+        dist = math.sqrt(to_eye @ to_eye)
+        if dist <= 1e-9 * body.scale:
+            return None, "the eye is at the light: the light ray through the eye is undefined"
+        ell = to_eye / dist
+    vector = middle if options.middle_vector else d
+    s = _sin_between(vector, ell) if (options.middle_vector or not light.is_directional) else 1.0
+    cos_gamma = min(max(float(d @ ell), -1.0), 1.0)
+    at = LightAtEye(ell, dist, math.acos(cos_gamma), vector, s)
+    if not light.is_directional:
+        across = d - cos_gamma * ell
+        length = math.sqrt(across @ across)
+        if length > 0:
+            at.v_p = across / length
+            along = body.vertices @ at.v_p
+            at.body_extent = float(along.max() - along.min())
+    return at, ""
 
 
-def _sin_to(v, ell) -> float:
-    """sin of the angle between ``v`` and the unit ``ell`` (float 3-sequences)."""
-    nv = math.sqrt(dot3(v, v))
-    if nv == 0.0:
-        return 0.0
-    p = across([c / nv for c in v], ell)
-    return math.sqrt(dot3(p, p))
-
-
-_YZX, _ZXY = np.array([1, 2, 0]), np.array([2, 0, 1])
-"""Index orders for row-wise cross products: b × c = b_yzx c_zxy - b_zxy c_yzx."""
-
-
-def volume_centroid(body: IntersectionBody) -> np.ndarray:
-    """The centre of B's volume (continuous in B, unlike the mean of its vertices,
-    which jumps when a vertex appears or merges): B's faces as fans of
-    triangles, each the base of a tetrahedron from the vertices' mean."""
-    v, loops, origin = body.polytope.vertices, body.polytope.loops, body.origin
-    ref = v.sum(axis=0) / len(v)                                     # their mean
-    first, second, third = [], [], []                                # loop (p0, p1, ..) -> (p0, pj, pj+1)
-    for loop in loops:
-        first += [loop[0]] * (len(loop) - 2)
-        second += loop[1:-1]
-        third += loop[2:]
-    if not first:
-        return ref + origin
-    a, b, c = (v - ref)[np.array([first, second, third])]            # the fans' corners, (T, 3) each
-    cr = b[:, _YZX] * c[:, _ZXY] - b[:, _ZXY] * c[:, _YZX]           # b × c
-    vol = np.abs(np.einsum("ij,ij->i", a, cr))                       # 6 x the tetrahedra (ref, a, b, c)
-    total = float(vol.sum())
-    if not total > 0:
-        return ref + origin
-    return ref + origin + (vol @ (a + b + c)) / (4.0 * total)        # their centres (ref + a + b + c) / 4
-
-
-def _unit_or_zero(v: np.ndarray) -> np.ndarray:
+def _sin_between(v: np.ndarray, ell: np.ndarray) -> float:
+    """sin of the angle between ``v`` and the unit ``ell`` (0 for a zero ``v``)."""
     length = math.sqrt(v @ v)
-    return v / length if length > 0 else np.zeros(3)
+    if length == 0.0:
+        return 0.0
+    u = v / length
+    across = u - (u @ ell) * ell
+    return math.sqrt(across @ across)
 
 
 def eye_depth_range(view: View, body: IntersectionBody, options: WarpOptions, diag: Diagnostics) -> WarpContext:
     """z_n and z_n + Δz for Eq. 1 / GMNPR's (n, f): eye depths (see module docs)."""
-    d = view.eye_depth(body.visible_vertices).tolist()                  # (a few dozen: plain floats)
-    z_n = max(view.near, min(d))
-    z_f = max(min(view.far, max(d)), z_n)
+    depths = view.eye_depth(body.visible_vertices)
+    z_n = max(view.near, float(depths.min()))
+    z_f = max(min(view.far, float(depths.max())), z_n)
     if options.delta_z == "visible":
         if options.visible_depth_range is None:
             diag.fallback("delta_z", "'visible' was asked for but no visible_depth_range was given; Δz from B")
@@ -226,133 +211,122 @@ def eye_depth_range(view: View, body: IntersectionBody, options: WarpOptions, di
 
 def half_fov_towards(view: View, light_dir) -> float:
     """GMNPR's φ: the angle from the view axis to the side of the view frustum
-    in the direction of the (folded) light direction's projection."""
-    ell = np.asarray(light_dir, dtype=np.float64).tolist()
-    cx, cy, cz = (dot3(ell, axis) / math.sqrt(dot3(axis, axis)) for axis in view.camera_to_world[:3, :3].T.tolist())
+    in the direction of the (folded) light direction's projection onto the
+    image: φ = atan(t) for the image-plane point t·u (z = -1 in camera space,
+    u the unit direction) on the frustum's side, lens shift included."""
+    axes = view.camera_to_world[:3, :3]
+    cx, cy, cz = ((np.asarray(light_dir, dtype=np.float64) @ axes) / np.sqrt(np.einsum("ij,ij->j", axes, axes))).tolist()
     if cz > 0:                           # fold: the light line's half that points along the view (-Z)
         cx, cy = -cx, -cy
     (p00, _, p02, _), (_, p11, p12, _) = view.projection[:2].tolist()
-    bounds_x = ((-1.0 + p02) / p00, (1.0 + p02) / p00)
-    bounds_y = ((-1.0 + p12) / p11, (1.0 + p12) / p11)
-    nu = math.hypot(cx, cy)
-    if nu < 1e-300:
-        return math.atan(max(min(abs(v) for v in bounds_x + bounds_y), 1e-9))
-    u = (cx / nu, cy / nu)
-    dist = math.inf
-    for k, (lo, hi) in enumerate((bounds_x, bounds_y)):
-        if u[k] > 0:
-            dist = min(dist, hi / u[k])
-        elif u[k] < 0:
-            dist = min(dist, lo / u[k])
-    return math.atan(max(dist, 1e-9))
+    sides = [(-1.0 + p02) / p00, (1.0 + p02) / p00, (-1.0 + p12) / p11, (1.0 + p12) / p11]
+    length = math.hypot(cx, cy)
+    if length < 1e-300:
+        return math.atan(max(min(map(abs, sides)), 1e-9))
+    u = (cx / length, cy / length)
+    reach = [side / u[axis] for axis, side in zip((0, 0, 1, 1), sides) if side * u[axis] > 0]
+    return math.atan(max(min(reach, default=math.inf), 1e-9))
 
 
-def light_at_eye(view: View, light: Light, options: WarpOptions, body: IntersectionBody,
-                 middle: Optional[np.ndarray]) -> tuple[Optional[LightAtEye], str]:
-    """The world-space quantities every frame shares (``middle``: the middle
-    vector, given and used when ``options.middle_vector``), or (None, reason)
-    when the light ray through the eye is undefined."""
-    d = view.direction.tolist()                                   # (plain floats: 3-vectors)
-    if light.is_directional:
-        ell, dist = light.direction, 0.0
-    else:
-        to_eye = [a - b for a, b in zip(view.position.tolist(), light.position.tolist())]
-        dist = math.sqrt(dot3(to_eye, to_eye))
-        if dist <= 1e-9 * body.scale:
-            return None, "the eye is at the light: the light ray through the eye is undefined"
-        ell = np.array([c / dist for c in to_eye])
-    e = ell.tolist()
-    vector = middle if options.middle_vector else view.direction
-    s = _sin_to(vector.tolist(), e) if (options.middle_vector or not light.is_directional) else 1.0
-    c = min(max(dot3(d, e), -1.0), 1.0)
-    at = LightAtEye(ell, dist, math.acos(c), vector, s)
-    if not light.is_directional:
-        perp = [a - c * b for a, b in zip(d, e)]
-        n = math.sqrt(dot3(perp, perp))
-        if n > 0:
-            at.v_p = np.array([a / n for a in perp])
-            along = (body.vertices @ at.v_p).tolist()
-            at.body_extent = max(along) - min(along)
-    return at, ""
+# ---------------------------------------------------------------------------
+# Each frame's warp: V_P in its image, B's extent along it, λ, and P.
+# ---------------------------------------------------------------------------
+
+def frame_geometries(at: LightAtEye, frames: list, to_light: np.ndarray, b_in_light: np.ndarray, starts: list,
+                     run: np.ndarray, view: View, options: WarpOptions, body: IntersectionBody) -> list:
+    """Each frame's warp geometry, or the reason its map stays uniform:
+    V_P, the eye and the fade per frame (``frame_axes``), then B's extent
+    along V_P in light space and in the world, over every frame's points at
+    once. ``to_light``: the frames' matrices (k, 4, 4); ``b_in_light``: each
+    frame's points in its light space (divided), one run after another
+    (``geometry.point_runs``)."""
+    images = (to_light @ np.array([view.position.tolist() + [1.0], at.vector.tolist() + [0.0]]).T).transpose(0, 2, 1).tolist()
+    boxes = [None] * len(frames)                       # (a point light frame's points, (lo, hi) in light space)
+    if not frames[0].directional:
+        boxes = zip(np.minimum.reduceat(b_in_light, starts).tolist(), np.maximum.reduceat(b_in_light, starts).tolist())
+    axes = [frame_axes(at, f, eye_h, vector_h, box, options) for f, (eye_h, vector_h), box in zip(frames, images, boxes)]
+    a = np.array([ax[0] if not isinstance(ax, str) else (0.0, 1.0) for ax in axes])
+    h = np.einsum("ij,ij->i", b_in_light[:, :2], a[run])                # along each frame's V_P
+    h_min = np.minimum.reduceat(h, starts).tolist()
+    extent = (np.maximum.reduceat(h, starts) - h_min).tolist()
+    if frames[0].directional:                                         # V_P in the world, the frame's own
+        v_p = a[:, :1] * to_light[:, 0, :3] + a[:, 1:] * to_light[:, 1, :3]
+        along = body.vertices @ v_p.T
+        extent_world, body_extent = extent, (along.max(axis=0) - along.min(axis=0)).tolist()
+    else:                                                             # perpendicular to the light ray at the eye
+        v_p, body_extent, extent_world = [at.v_p] * len(frames), [at.body_extent] * len(frames), [0.0] * len(frames)
+        if at.v_p is not None:
+            along = np.concatenate([f.points for f in frames]) @ at.v_p
+            extent_world = (np.maximum.reduceat(along, starts) - np.minimum.reduceat(along, starts)).tolist()
+    return [ax if isinstance(ax, str) else
+            FrameGeometry(ax[0], ax[1], h_min[k], extent[k], extent_world[k], body_extent[k], at.gamma, v_p[k],
+                          ax[2], frames[k].to_light)
+            for k, ax in enumerate(axes)]
 
 
-def frame_axes(at: LightAtEye, frame: LightFrame, eye_h, vector_h, box, options: WarpOptions):
-    """A frame's warp axes in its light space, in plain floats: (V_P as a unit
-    2-vector, the eye in light space, the fade), or (None, reason) when the warp
-    is undefined. ``eye_h``: the eye's homogeneous image under the frame;
-    ``vector_h``: the frame's linear part applied to ``at.vector`` (4 floats);
-    ``box``: the (min, max) corners of a point light frame's points in its light space."""
-    ex, ey, ez, ew = eye_h
-    if not frame.directional and not ew > 1e-12 * at.dist:
-        return None, "the eye is behind this frame's light plane: no warp in its post-perspective space"
-    fade = 1.0
-    if frame.directional:
-        eye_ls = (ex / ew, ey / ew, ez / ew)
-        if options.middle_vector:
-            a = _blend(vector_h[:2], at.s)
-        else:
-            a = (0.0, 1.0)                   # the frame's +y is Eq. 3's V_P (blended near parallel)
-    else:
-        vx, vy, _, vw = vector_h
-        v = ((vx * ew - ex * vw) / ew ** 2, (vy * ew - ey * vw) / ew ** 2)   # image of the vector at the eye
-        (xlo, ylo, zlo), (xhi, yhi, zhi) = box
-        cx, cy = (xlo + xhi) / 2, (ylo + yhi) / 2
-        half = max(math.hypot(xhi - xlo, yhi - ylo) / 2, 1e-300)
-        ex, ey, ez = ex / ew, ey / ew, ez / ew
-        rho = math.hypot(ex - cx, ey - cy) / half
-        fade = min(max((FADE_END - rho) / (FADE_END - FADE_START), 0.0), 1.0)
-        # Keep the eye's image finite for the construction: clamping it to a box that contains
-        # the whole fade region changes nothing where the warp acts (fade > 0), and where
-        # fade = 0 (μ = 0) its lateral offset is absorbed by the fit - no cancellation
-        # against an image at 1e9 when the eye nears the light plane.
-        box, dz = FADE_END * half, FADE_END * (zhi - zlo)
-        eye_ls = (min(max(ex, cx - box), cx + box), min(max(ey, cy - box), cy + box),
-                  min(max(ez, zlo - dz), zhi + dz))
-        a = _blend(v, at.s)
-    if fade < 1.0:
-        # a fading warp also turns its axes back to the frame's, so that at fade = 0 the map is
-        # exactly the frame's uniform map (the fallback used behind the light plane)
-        alpha = fade * math.atan2(a[0], a[1])
-        a = (math.sin(alpha), math.cos(alpha))
-    return (a, eye_ls, fade), ""
+def frame_axes(at: LightAtEye, frame: LightFrame, eye_h: list, vector_h: list, box, options: WarpOptions):
+    """A frame's warp axes in its light space: (V_P as a unit 2-vector, the
+    eye, the fade), or the reason the warp is undefined. ``eye_h``, ``vector_h``:
+    the frame applied to the eye (w = 1) and to ``at.vector`` (w = 0); ``box``:
+    a point light frame's points' (lo, hi) in its light space."""
+    x, y, z, w = eye_h
+    if frame.directional:             # a sun frame's +y is Eq. 3's V_P (blended near parallel, frame.image_up)
+        v_p = _image_direction(vector_h[:2], at.s) if options.middle_vector else (0.0, 1.0)
+        return v_p, (x / w, y / w, z / w), 1.0
+    if not w > 1e-12 * at.dist:
+        return "the eye is behind this frame's light plane: no warp in its post-perspective space"
+    vx, vy, _, vw = vector_h
+    image = ((vx * w - x * vw) / (w * w), (vy * w - y * vw) / (w * w))     # d(x/w, y/w) along the vector, at the eye
+    eye, fade = _eye_and_fade((x / w, y / w, z / w), box)
+    return _turned(_image_direction(image, at.s), fade), eye, fade
 
 
-def frame_geometry(at: LightAtEye, frame: LightFrame, axes, h_range, world_range,
-                   body: IntersectionBody) -> FrameGeometry:
-    """One frame's warp geometry from its ``axes`` (``frame_axes``), the range
-    of its points along its V_P in light space (``h_range``) and, for a point
-    light, along the world V_P (``world_range``; a sun's frame has its own)."""
-    a, eye_ls, fade = axes
-    h_min, h_max = h_range
-    extent = h_max - h_min
-    if frame.directional:
-        t = frame.to_light
-        v_p = a[0] * t[0, :3] + a[1] * t[1, :3]
-        extent_world = extent
-        along = body.vertices @ v_p
-        body_extent = float(along.max() - along.min())
-    else:
-        v_p, body_extent = at.v_p, at.body_extent
-        extent_world = world_range[1] - world_range[0] if v_p is not None else 0.0
-    return FrameGeometry(a, (a[1], -a[0]), eye_ls, h_min, extent, extent_world,
-                         body_extent, at.gamma, v_p, at.ell, fade, frame.to_light)
+def _eye_and_fade(eye: tuple, box) -> tuple[tuple, float]:
+    """A point light frame's fade (``FADE_START``..``FADE_END`` half-diagonals
+    of B's image from its centre) and the eye kept within a box holding the
+    whole fade region: that changes nothing where the warp acts (fade > 0),
+    and where fade = 0 its lateral offset is absorbed by the fit (no
+    cancellation against an image at 1e9 when the eye nears the light plane)."""
+    (xlo, ylo, zlo), (xhi, yhi, zhi) = box
+    cx, cy = (xlo + xhi) / 2, (ylo + yhi) / 2
+    half = max(math.hypot(xhi - xlo, yhi - ylo) / 2, 1e-300)
+    ex, ey, ez = eye
+    fade = min(max((FADE_END - math.hypot(ex - cx, ey - cy) / half) / (FADE_END - FADE_START), 0.0), 1.0)
+    reach, depth = FADE_END * half, FADE_END * (zhi - zlo)
+    return (min(max(ex, cx - reach), cx + reach), min(max(ey, cy - reach), cy + reach),
+            min(max(ez, zlo - depth), zhi + depth)), fade
+
+
+def _image_direction(v, s: float) -> tuple[float, float]:
+    """The unit image-plane direction along ``v`` (whose sine to the light is
+    ``s``), blended continuously into the frame's +y as s falls below
+    PARALLEL_BLEND (+y for a zero or infinite ``v``)."""
+    vx, vy = v
+    length = math.hypot(vx, vy)
+    vx, vy = (vx / length, vy / length) if length > 0 and math.isfinite(length) else (0.0, 1.0)
+    bx, by = s * vx, s * vy + max(0.0, PARALLEL_BLEND - s)
+    length = math.hypot(bx, by)
+    return (bx / length, by / length) if length > 1e-12 else (0.0, 1.0)
+
+
+def _turned(a: tuple, fade: float) -> tuple[float, float]:
+    """A fading warp turns its axes back towards the frame's +y with it, so
+    that at fade = 0 the map is exactly the frame's uniform map."""
+    if fade >= 1.0:
+        return a
+    turn = fade * math.atan2(a[0], a[1])
+    return math.sin(turn), math.cos(turn)
 
 
 def warp_matrix(g: FrameGeometry, mu: float) -> np.ndarray:
-    """P acting on the frame's homogeneous output [X, Y, Z, W] (module docs)."""
-    return np.array(_warp_entries(g, mu)).reshape(4, 4)
-
-
-def _warp_entries(g: FrameGeometry, mu: float) -> list:
-    """``warp_matrix``'s 16 entries, row by row (floats)."""
+    """P acting on the frame's homogeneous light space [X, Y, Z, W] (module docs)."""
     (a0, a1), (b0, b1), (ex, ey, ez) = g.a, g.b, g.eye
-    inv_d = 1.0 / g.extent if g.extent > 0 else 0.0
-    q_e = ex * b0 + ey * b1
-    dx, dy, dw = a0 * inv_d, a1 * inv_d, -g.h_min * inv_d          # δ = (h - h_min) / D
-    return [b0, b1, 0.0, -q_e,
-            dx, dy, 0.0, dw,
-            0.0, 0.0, 1.0, -ez,
-            mu * dx, mu * dy, 0.0, mu * dw + 1.0]
+    to_delta = 1.0 / g.extent if g.extent > 0 else 0.0
+    delta = [a0 * to_delta, a1 * to_delta, 0.0, -g.h_min * to_delta]           # δ = (h - h_min) / D
+    return np.array([[b0, b1, 0.0, -(ex * b0 + ey * b1)],                      # x' = q - q_eye·W
+                     delta,                                                    # y' = δ·W
+                     [0.0, 0.0, 1.0, -ez],                                     # z' = Z - z_eye·W
+                     [mu * c for c in delta[:3]] + [mu * delta[3] + 1.0]])     # w' = (1 + μ·δ)·W
 
 
 LambdaRule = Callable[[FrameGeometry, WarpContext, float, WarpOptions], float]
@@ -381,7 +355,7 @@ def rule_gmnpr(g: FrameGeometry, ctx: WarpContext, phi: float, options: WarpOpti
     forced = _forced(options)
     if forced is not None:
         return forced
-    theta = min(g.gamma, math.pi - g.gamma)
+    theta = folded(g.gamma)
     return lambda_gmnpr(theta, ctx.z_n, ctx.z_f, phi)
 
 
@@ -390,7 +364,7 @@ def rule_glpr(g: FrameGeometry, ctx: WarpContext, phi: float, options: WarpOptio
     forced = _forced(options)
     if forced is not None:
         return forced
-    theta = min(g.gamma, math.pi - g.gamma)
+    theta = folded(g.gamma)
     return lambda_glpr(theta, ctx.z_n, ctx.z_f, phi)
 
 
@@ -402,7 +376,7 @@ def guard_lambda(lam: float, g: FrameGeometry, ctx: WarpContext) -> tuple[float,
     the visible region, over the visible pixels in the L2 norm of its texels'
     ratio to the uniform map's (``lambda_no_worse_on_average`` of their δ along
     this frame's V_P). Returns the λ and, when the guard raised it, why."""
-    theta = min(g.gamma, math.pi - g.gamma)
+    theta = folded(g.gamma)
     worst = lambda_no_worse_than_uniform(theta, ctx.z_n, ctx.z_f, ctx.phi)
     mean = 0.0
     if ctx.visible is not None and g.to_light is not None and g.extent > 0 and g.body_extent_world > 0:
@@ -421,13 +395,18 @@ def guard_lambda(lam: float, g: FrameGeometry, ctx: WarpContext) -> tuple[float,
                    f"φ = {math.degrees(ctx.phi):.1f}°)")
 
 
+def _unit_or_zero(v: np.ndarray) -> np.ndarray:
+    length = math.sqrt(v @ v)
+    return v / length if length > 0 else np.zeros(3)
+
+
 def _finite_or_none(x: float) -> Optional[float]:
     return float(x) if math.isfinite(x) else None
 
 
 @dataclass
 class FrameWarp:
-    """One frame's warped map before ray closure, or the reason it is uniform."""
+    """One frame's warped map, or the reason it is uniform."""
 
     frame: LightFrame
     notes: list                            # fallbacks (what, reason), in order
@@ -442,72 +421,49 @@ class FrameWarp:
 
 def frame_warps(frames: list, view: View, at: Optional[LightAtEye], reason: str, rule: LambdaRule,
                 ctx: WarpContext, phi: Optional[float], options: WarpOptions, body: IntersectionBody) -> list:
-    """Every frame's warp (``at`` None: all uniform for ``reason``), in one pass
-    over all the frames' points (``geometry.point_runs``): each frame's points
-    in its light space, then per frame in plain floats its axes, extents, λ
-    and warp, and finally every map - warped, or the frame's uniform map where
-    the warp is undefined - fitted to the unit cube at once."""
-    to_light = np.array([f.to_light for f in frames])                     # (k, 4, 4)
+    """Every frame's warp (``at`` None: all uniform for ``reason``): its
+    geometry (``frame_geometries``), λ by the rule (P_n = λ·(all of B along
+    V_P) in world units, then λ for this frame's part of B), P, and the
+    unit-cube fit of every map at once."""
     points_h, starts, run = point_runs([f.points for f in frames])
-    ph = transform_h_runs(to_light, points_h, run)                       # in each frame's light space
-    pts = ph[:, :3] / ph[:, 3:]
-    boxes = itertools.repeat(None)                      # a sun's frame does not look at its box
-    if not frames[0].directional:
-        boxes = zip(np.minimum.reduceat(pts, starts).tolist(), np.maximum.reduceat(pts, starts).tolist())
-    # The eye's homogeneous image under every frame, and the image of the vector V_P is made from.
-    probes = np.array([view.position.tolist() + [1.0], (at.vector if at is not None else view.direction).tolist() + [0.0]])
-    images = (to_light @ probes.T).transpose(0, 2, 1).tolist()            # (k, 2, 4)
-    warps, axes = [], []
-    for frame, (eye_h, vector_h), box in zip(frames, images, boxes):
-        w = FrameWarp(frame, [])
-        if frame.near_clamped:
-            w.notes.append((f"{frame.role}: near plane", NEAR_PLANE_NOTE))
-        ax, why = frame_axes(at, frame, eye_h, vector_h, box, options) if at is not None else (None, reason)
-        if ax is None:
-            w.notes.append((f"{frame.role}: uniform", why))
+    to_light = np.array([f.to_light for f in frames])
+    b_in_light_h = transform_h_runs(to_light, points_h, run)
+    b_in_light = b_in_light_h[:, :3] / b_in_light_h[:, 3:]
+    geometries = frame_geometries(at, frames, to_light, b_in_light, starts, run, view, options, body) if at is not None \
+        else [reason] * len(frames)
+    warps, warp = [], np.tile(np.eye(4), (len(frames), 1, 1))      # uniform where the warp is undefined
+    for k, (frame, geo) in enumerate(zip(frames, geometries)):
+        w = FrameWarp(frame, [(f"{frame.role}: near plane", NEAR_PLANE_NOTE)] if frame.near_clamped else [])
         warps.append(w)
-        axes.append(ax)
-    # Each frame's range along its V_P (light space) and, for a point light, along the world V_P.
-    a = np.array([ax[0] if ax is not None else (0.0, 0.0) for ax in axes])[run]
-    h = (pts[:, :2] * a).sum(axis=1)
-    h_ranges = zip(np.minimum.reduceat(h, starts).tolist(), np.maximum.reduceat(h, starts).tolist())
-    world_ranges = itertools.repeat(None)
-    if at is not None and at.v_p is not None and not frames[0].directional:
-        along = points_h[:, :3] @ at.v_p
-        world_ranges = zip(np.minimum.reduceat(along, starts).tolist(), np.maximum.reduceat(along, starts).tolist())
-    warp_entries = []
-    for w, ax, h_range, world_range in zip(warps, axes, h_ranges, world_ranges):
-        if ax is None:
-            warp_entries += _IDENTITY_ENTRIES                       # the frame's uniform map
+        if isinstance(geo, str):
+            w.notes.append((f"{frame.role}: uniform", geo))
             continue
-        geo = frame_geometry(at, w.frame, ax, h_range, world_range, body)
-        role = w.frame.role
-        lam = rule(geo, ctx, phi, options)
-        guarded = None
+        lam, guarded = rule(geo, ctx, phi, options), None
         if ctx.guard and options.lam is None:
             lam, guarded = guard_lambda(lam, geo, ctx)
-            if guarded:
-                w.notes.append((f"{role}: λ guard", guarded))
-        p_n = lam * geo.body_extent_world if math.isfinite(lam) else math.inf     # P_n in world units
-        lam_frame = p_n / geo.extent_world if geo.extent_world > 0 else math.inf  # λ for this frame's part of B
-        mu = 0.0 if not math.isfinite(lam_frame) else geo.fade / lam_frame
-        if geo.fade < 1.0:
-            w.notes.append((f"{role}: warp faded", f"the eye's image is far outside B's image in this frame; "
-                                                  f"warp strength x{geo.fade:.3g}" + (" (uniform)" if geo.fade == 0 else "")))
-        if mu == 0.0 and geo.fade > 0.0 and not guarded:     # (a guard that made it uniform says why itself)
-            w.notes.append((f"{role}: uniform limit", "light parallel to the view direction (γ = 0): "
-                                                     "n_opt = ∞, the warp is the uniform map"))
-        w.geo, w.lam, w.p_n, w.lam_frame, w.mu = geo, lam, p_n, lam_frame, mu
-        warp_entries += _warp_entries(geo, mu)
-    # The unit-cube fit of every map on its frame's light-space points.
-    fitted = fit_runs(np.array(warp_entries).reshape(-1, 4, 4), ph, starts, run) @ to_light
-    for w, m in zip(warps, fitted):
-        w.matrix = m
+        _warp_strength(w, geo, lam, guarded)
+        warp[k] = warp_matrix(geo, w.mu)
+    for w, matrix in zip(warps, fit_runs(warp, b_in_light_h, starts, run) @ to_light):
+        w.matrix = matrix
     return warps
 
 
-_IDENTITY_ENTRIES = np.eye(4).ravel().tolist()
-"""The identity's 16 entries (a frame whose map stays uniform)."""
+def _warp_strength(w: FrameWarp, geo: FrameGeometry, lam: float, guarded: Optional[str]) -> None:
+    """The frame's λ, P_n (world units), its own λ and μ, and their notes
+    (``guarded``: why the λ guard raised λ, if it did)."""
+    role = w.frame.role
+    if guarded:
+        w.notes.append((f"{role}: λ guard", guarded))
+    p_n = lam * geo.body_extent_world if math.isfinite(lam) else math.inf       # P_n in world units
+    lam_frame = p_n / geo.extent_world if geo.extent_world > 0 else math.inf    # λ for this frame's part of B
+    mu = 0.0 if not math.isfinite(lam_frame) else geo.fade / lam_frame
+    if geo.fade < 1.0:
+        w.notes.append((f"{role}: warp faded", f"the eye's image is far outside B's image in this frame; warp "
+                                               f"strength x{geo.fade:.3g}" + (" (uniform)" if geo.fade == 0 else "")))
+    if mu == 0.0 and geo.fade > 0.0 and not guarded:     # (a guard that made it uniform says why itself)
+        w.notes.append((f"{role}: uniform limit", "light parallel to the view direction (γ = 0): "
+                                                 "n_opt = ∞, the warp is the uniform map"))
+    w.geo, w.lam, w.p_n, w.lam_frame, w.mu = geo, lam, p_n, lam_frame, mu
 
 
 def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: IntersectionBody,
@@ -521,9 +477,8 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
     diag.extra["delta_z"] = ctx.delta_z
     diag.extra["frames"] = [f.role for f in frames]
     # B's middle vector (Scherzer §4.4): computed only when used or read.
-    middle = volume_centroid(body) - view.position if options.middle_vector else None
-    diag.extra["middle_vector"] = OnRead(lambda: _unit_or_zero(volume_centroid(body) - view.position if middle is None
-                                                               else middle))
+    middle = body.volume_centroid - view.position if options.middle_vector else None
+    diag.extra["middle_vector"] = OnRead(lambda: _unit_or_zero(body.volume_centroid - view.position))
     if view.orthographic:
         at, reason = None, "orthographic camera: no perspective aliasing to redistribute"
     else:
@@ -556,8 +511,7 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
             continue
         reported = True
         geo = w.geo
-        theta = min(geo.gamma, math.pi - geo.gamma)
-        diag.theta, diag.gamma = theta, geo.gamma
+        diag.theta, diag.gamma = folded(geo.gamma), geo.gamma
         if name == "lispsm":
             diag.n_opt = _finite_or_none(w.p_n)
             diag.extra["lambda"] = _finite_or_none(w.lam)
@@ -593,36 +547,30 @@ def ray_closed(matrices, body: IntersectionBody, light_position) -> list:
     sides /= np.sqrt((sides * sides).sum(axis=2))[..., None]
     # Its corner rays: the directions the map sends to (x, y, w) = (±1, ±1, 1), so w > 0 on them.
     rays = (np.linalg.inv(rows[:, _XYW]) @ _WINDOW_CORNERS).transpose(0, 2, 1)
-    poly = body.polytope_from(light_position)
-    pts, run = pyramid_sections(poly, sides, rays)
-    held = pts + light_position                                 # B ∩ window of every map, one after another
+    held, run = pyramid_sections(body.polytope_from(light_position), sides, rays)
+    held += light_position                                       # B ∩ window of every map, one after another
+    closed = [(matrix, "", None) for matrix in m]
+    if not len(run):
+        return closed
     h = transform_h_runs(m, homogeneous(held), run)
-    counts = np.bincount(run, minlength=len(m)).tolist()
-    ends = list(itertools.accumulate(counts))
-    starts = [e - c for e, c in zip(ends, counts) if c]         # the runs of the maps whose window meets B
-    if not starts:
-        return [(matrix, "", None) for matrix in m]
-    # Each map's NDC box over its run, and the least and greatest w (in the last column: w = 0 reaches the light).
-    ndc = h / np.where(h[:, 3] > 0, h[:, 3], 1.0)[:, None]      # (w > 0 throughout where it does not reach)
-    ndc[:, 3] = h[:, 3]
-    lo, hi = np.minimum.reduceat(ndc, starts).tolist(), np.maximum.reduceat(ndc, starts).tolist()
-    reaches = [a[3] <= 1e-9 * max(b[3], -a[3]) for a, b in zip(lo, hi)]
-    lo, hi = [a[:3] for a in lo], [b[:3] for b in hi]
-    refitted = window_matrices(lo, hi) @ m[[i for i, c in enumerate(counts) if c]]   # (used where the depth widens)
-    fits = zip(reaches, lo, hi, refitted)
-    out = []
-    for i, (count, end) in enumerate(zip(counts, ends)):
-        if not count:
-            out.append((m[i], "", None))
-            continue
-        reach, lo, hi, matrix = next(fits)
-        if reach:
-            out.append((None, "the warped map's window reaches the light itself; a uniform face map is ray-closed", None))
-        elif min(lo) >= -1.0 - 1e-9 and max(hi) <= 1.0 + 1e-9:     # the map already holds B ∩ window
-            out.append((m[i], "", held[end - count:end]))
+    count = np.bincount(run, minlength=len(m))
+    meets = np.flatnonzero(count)                                # the maps whose window meets B
+    starts = np.cumsum(count)[meets] - count[meets]
+    w = h[:, 3]
+    ndc = h[:, :3] / np.where(w > 0, w, 1.0)[:, None]            # (w > 0 throughout where it does not reach)
+    lo, hi = np.minimum.reduceat(ndc, starts), np.maximum.reduceat(ndc, starts)
+    w_lo, w_hi = np.minimum.reduceat(w, starts), np.maximum.reduceat(w, starts)
+    refitted = window_matrices(lo.tolist(), hi.tolist()) @ m[meets]
+    for k, (i, start) in enumerate(zip(meets, starts)):
+        mine = held[start:start + count[i]]
+        if w_lo[k] <= 1e-9 * max(w_hi[k], -w_lo[k]):             # w = 0: the window's part of B reaches the light
+            closed[i] = (None, "the warped map's window reaches the light itself; a uniform face map is ray-closed",
+                         None)
+        elif lo[k].min() >= -1.0 - 1e-9 and hi[k].max() <= 1.0 + 1e-9:     # the map already holds B ∩ window
+            closed[i] = (m[i], "", mine)
         else:
-            out.append((matrix, "depth widened to B within the map's window", held[end - count:end]))
-    return out
+            closed[i] = (refitted[k], "depth widened to B within the map's window", mine)
+    return closed
 
 
 _WINDOW_SIDES = np.array([[1.0, 0.0, 0.0, -1.0], [-1.0, 0.0, 0.0, -1.0], [0.0, 1.0, 0.0, -1.0], [0.0, -1.0, 0.0, -1.0]])
