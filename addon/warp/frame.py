@@ -17,6 +17,7 @@ import itertools
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 
@@ -303,38 +304,25 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
     if 2 * half <= options.max_frustum_angle and not body.contains(apex[None])[0]:     # (not inside B)
         return [perspective_frame(apex, axis, up, body.vertices, "main", body.scale)]
     basis = cube_basis(axis.tolist(), up.tolist())
-    poly = body.polytope_from(apex)
     near_floor, cuts_a_box = cube_near_floor(body, apex, not options.linear_z)
-    pts, member = cube_sections(poly, poly.edges(), basis)
-    # The faces B reaches, each with its run of candidates (face by face) and its depths along the face's axis.
-    counts = member.sum(axis=0).tolist()
-    faces = [f for f in range(6) if counts[f]]
-    ends = list(itertools.accumulate(counts[f] for f in faces))
-    starts = [e - counts[f] for f, e in zip(faces, ends)]
-    _, candidate = np.nonzero(member.T)
-    rel = pts[candidate]                                     # relative to the apex
-    turns = _FACE_TURNS @ basis                              # (6, 3, 3): rows x, y, -forward
-    depth = -(pts @ turns[:, 2].T).T[member.T]               # along each face's forward
-    nearest, farthest = np.minimum.reduceat(depth, starts).tolist(), np.maximum.reduceat(depth, starts).tolist()
-    world = rel + apex
+    turns = _FACE_TURNS @ basis                              # (6, 3, 3): each face's eye rows x, y, -forward
     rows, shifts = turns.tolist(), (-(turns @ apex)).tolist()   # each face's view: rotation rows, translation
     frames, entries = [], []
-    for f, s, e, n, fa in zip(faces, starts, ends, nearest, farthest):
-        points, clamped = world[s:e], n < near_floor
+    for f, part, nearest, farthest in cube_sections(body.polytope_from(apex), basis):
+        clamped = nearest < near_floor
         if clamped:
             # B reaches nearer than the near floor in this face: the whole face from the near floor on.
             forward = -turns[f, 2]
             others = np.delete(basis, CUBE_FACES[f][1], axis=0)
             corners = near_floor * (forward + _FACE_CORNERS @ others)
-            face_pts = np.concatenate([rel[s:e][depth[s:e] >= near_floor], corners])
-            fa = float((face_pts @ forward).max())
-            points = face_pts + apex
+            part = np.concatenate([part[part @ forward >= near_floor], corners])
+            farthest = float((part @ forward).max())
         # The face's view (rows x, y, -forward through the apex) and perspective, entry by entry.
-        near, far, _ = near_far(n, fa, near_floor)
+        near, far, _ = near_far(nearest, farthest, near_floor)
         a, b = depth_coefficients(near, far)
         (x, y, (z0, z1, z2)), (tx, ty, tz) = rows[f], shifts[f]
         entries += x + [tx] + y + [ty] + [a * z0, a * z1, a * z2, a * tz + b, -z0, -z1, -z2, -tz]
-        frames.append((f, points, clamped and cuts_a_box))
+        frames.append((f, part + apex, clamped and cuts_a_box))
     to_light = np.array(entries).reshape(-1, 4, 4)
     return [LightFrame(m, p, "cube" + CUBE_FACES[f][0], False, c) for m, (f, p, c) in zip(to_light, frames)]
 
@@ -368,6 +356,8 @@ def _face_pyramids() -> tuple[np.ndarray, np.ndarray]:
 
 
 _FACE_SIDES, _FACE_RAYS = _face_pyramids()
+_FACE_SIDES_AND_AXES = np.concatenate([_FACE_SIDES.reshape(24, 3), -_FACE_TURNS[:, 2]])
+"""The faces' sides, then their axes (forward), in the cube's basis."""
 
 
 def pyramid_sections(poly: ConvexPolytope, sides: np.ndarray, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -380,26 +370,39 @@ def pyramid_sections(poly: ConvexPolytope, sides: np.ndarray, rays: np.ndarray) 
                           Edges(np.zeros_like(rays), rays, np.full(rays.shape[:2], np.inf)))
 
 
-def cube_sections(poly: ConvexPolytope, edges, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """For each face of the cube with axes ``basis`` (rows) centred on the
-    apex, points whose convex hull is P ∩ C_face (``pyramid_sections``), as
-    candidate points (n, 3) and which face each belongs to (n, 6); a face's
-    column is all False when its part has no volume: fewer than four points,
-    or all of them on one of its sides (within SNAP tolerances: the section
-    is taken within the tolerance, so a pyramid touching P at the apex gets
-    points up to about two tolerances from its sides; the points are within
-    the tolerance of the pyramid, so the greatest distance from a side is
-    the deepest point's inwards)."""
-    sides = _FACE_SIDES @ basis
-    pts, face = pyramid_sections(poly, sides, _FACE_RAYS @ basis)
-    count = np.bincount(face, minlength=6)
-    faces = np.flatnonzero(count)
-    # Each face's points' greatest distance inwards from each of its sides.
-    depth = np.minimum.reduceat(pts @ sides.reshape(-1, 3).T, np.cumsum(count)[faces] - count[faces])
-    deep = depth.reshape(len(faces), 6, 4)[np.arange(len(faces)), faces] < -SNAP * poly.tol
-    needed = np.zeros(6, dtype=bool)
-    needed[faces] = (count[faces] >= 4) & deep.all(axis=1)
-    return pts, (face[:, None] == np.arange(6)) & needed
+class FacePart(NamedTuple):
+    """A cube face's part of P (``cube_sections``)."""
+    face: int
+    """Its number in CUBE_FACES."""
+    points: np.ndarray
+    """Points whose convex hull is P ∩ C_face (relative to the apex)."""
+    nearest: float
+    farthest: float
+    """The least and greatest of their depths along the face's axis."""
+
+
+def cube_sections(poly: ConvexPolytope, basis: np.ndarray) -> list[FacePart]:
+    """The parts of P (relative to the apex) in the faces of the cube with
+    axes ``basis`` (rows) centred on the apex (``pyramid_sections``), for the
+    faces whose part has volume: four points or more, and some of them off
+    each of the face's sides (within SNAP tolerances: the section is taken
+    within the tolerance, so a pyramid touching P at the apex gets points up
+    to about two tolerances from its sides; the points are within the
+    tolerance of the pyramid, so the greatest distance from a side is the
+    deepest point's inwards)."""
+    planes = _FACE_SIDES_AND_AXES @ basis                    # (30, 3): the 6 x 4 sides, then the 6 axes
+    pts, face = pyramid_sections(poly, planes[:24].reshape(6, 4, 3), _FACE_RAYS @ basis)
+    counts = np.bincount(face, minlength=6).tolist()
+    faces = [f for f in range(6) if counts[f]]
+    if not faces:
+        return []
+    ends = list(itertools.accumulate(counts[f] for f in faces))
+    starts = [e - counts[f] for f, e in zip(faces, ends)]
+    distance = pts @ planes.T                                # to each side (outwards) and along each axis
+    least = np.minimum.reduceat(distance, starts).tolist()
+    most = np.maximum.reduceat(distance[:, 24:], starts).tolist()
+    return [FacePart(f, pts[s:e], lo[24 + f], hi[f]) for f, s, e, lo, hi in zip(faces, starts, ends, least, most)
+            if e - s >= 4 and max(lo[4 * f: 4 * f + 4]) < -SNAP * poly.tol]
 
 
 def light_frames(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> list[LightFrame]:
