@@ -12,7 +12,7 @@ median over the rounds of the mean CPU time of the thread per call, and the
 ratio is new / old.
 Run it with one BLAS thread, as ``make bench`` does:
 
-    OPENBLAS_NUM_THREADS=1 python -m bench.warp_compare --base 2d85e99
+    OPENBLAS_NUM_THREADS=1 python -m bench.warp_compare
 """
 from __future__ import annotations
 
@@ -31,9 +31,10 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-BASE = "77dd852"
-"""main just before issue 16's warp-core changes landed (with the other helpers' work up to then): the
-"before" of its speed criterion."""
+BASE = "86afed0"
+"""The "before" of issue 16's speed criterion: main just before the warp-core changes (77dd852) with
+the linear depth rows that landed while they were made (the depth helper's commits as first written
+on 77dd852, linear_z on by default), so both sides compute the same maps."""
 
 
 def load_package(rev: str, name: str = "lixel_base_warp"):
