@@ -16,7 +16,12 @@ EPS = np.finfo(np.float64).eps
 
 def cross(a, b) -> np.ndarray:
     """Cross products of 3-vectors along the last axis, (a × b)_i = ε_ijk a_j b_k
-    (np.cross costs several times more in axis handling)."""
+    (np.cross costs several times more in axis handling; two single vectors
+    are crossed component by component, a third of the einsum's cost)."""
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    if a.ndim == 1 and b.ndim == 1:
+        (ax, ay, az), (bx, by, bz) = a.tolist(), b.tolist()
+        return np.array([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx])
     return np.einsum("ijk,...j,...k->...i", LEVI_CIVITA, a, b)
 
 

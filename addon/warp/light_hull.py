@@ -175,7 +175,7 @@ def light_hull(p: ConvexPolytope, light_h) -> LightHull:
     close (a near-degenerate clip), facets sharing two vertices count as
     neighbours and the hull has half-spaces but no boundary (``sides`` None)."""
     light = np.asarray(light_h, dtype=np.float64)
-    planes = np.column_stack([p.normals, -p.offsets])                 # F(X) = plane · X for X = (x, 1)
+    planes = np.concatenate([p.normals, -p.offsets[:, None]], axis=1)  # F(X) = plane · X for X = (x, 1)
     s = planes @ light                                                # F(light) of every facet
     threshold = p.tol if light[3] != 0 else SUN_FACING
     facing = (s > threshold).tolist()
@@ -190,7 +190,7 @@ def light_hull(p: ConvexPolytope, light_h) -> LightHull:
                  for f in range(len(p.loops)) if facing[f] and len(loops[f] & loops[g]) >= 2]
     f, g = np.array(pairs, dtype=np.int64).reshape(-1, 2).T
     sigma = s[f, None] * planes[g] - s[g, None] * planes[f]
-    length = np.sqrt((sigma[:, :3] * sigma[:, :3]).sum(axis=1))
+    length = np.sqrt(np.einsum("ij,ij->i", sigma[:, :3], sigma[:, :3]))
     if not length.all():                      # f and g opposite: P is flat there, and g alone bounds it
         flat = length == 0.0
         sigma[flat], length[flat] = planes[g[flat]], 1.0

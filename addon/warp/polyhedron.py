@@ -244,19 +244,19 @@ class ConvexPolytope:
             return self
         if len(cutting) < len(n):
             n, o = n[cutting], o[cutting]
-        m = len(self.normals)
-        vertices, loops, facets = self.vertices.tolist(), list(self.loops), list(range(m))
+        vertices, facets = self.vertices.tolist(), list(enumerate(self.loops))
         try:
-            for plane, (normal, offset) in enumerate(zip(n.tolist(), o.tolist()), start=m):
-                cut = _cut(vertices, loops, normal, offset, self.tol)
+            for plane, (normal, offset) in enumerate(zip(n.tolist(), o.tolist()), start=len(self.normals)):
+                cut = _cut(vertices, facets, normal, offset, self.tol, plane)
                 if cut is None:
                     return None
-                vertices, loops, kept = cut
-                facets = [facets[f] for f in kept] + [plane] if kept is not None else facets
+                vertices, facets = cut
         except OpenCut:
             return self._clip_by_enumeration(n, o)
-        return ConvexPolytope(_rows(vertices), np.concatenate([self.normals, n])[facets],
-                              np.concatenate([self.offsets, o])[facets], tuple(loops), self.tol)
+        planes, loops = zip(*facets)
+        planes = list(planes)
+        return ConvexPolytope(_rows(vertices), np.concatenate([self.normals, n])[planes],
+                              np.concatenate([self.offsets, o])[planes], loops, self.tol)
 
     def _clip_by_enumeration(self, n2: np.ndarray, o2: np.ndarray) -> "ConvexPolytope | None":
         """``clip`` by vertex enumeration, for half-spaces that all cut."""
@@ -280,11 +280,11 @@ class ConvexPolytope:
 # arithmetic on so few vertices.
 # ---------------------------------------------------------------------------
 
-def _cut(vertices: list, loops: list, normal: list, offset: float, tol: float):
-    """The polytope with these vertices and facet loops ∩ {normal · x <= offset}:
-    (vertices, loops, the facets kept, by number) with the new facet last, or
-    (vertices, loops, None) when the half-space holds every vertex, or None
-    when nothing with volume is left.
+def _cut(vertices: list, facets: list, normal: list, offset: float, tol: float, plane: int):
+    """The polytope with these vertices and ``facets`` (pairs (plane number,
+    vertex loop)) ∩ {normal · x <= offset}: (vertices, facets) with the new
+    facet (``plane``, its loop) last; the same two when the half-space holds
+    every vertex; None when nothing with volume is left.
 
     A vertex within ``tol`` of the plane lies on it; the others are inside or
     beyond. A facet with no vertex beyond is kept whole (its loop shared); one
@@ -299,90 +299,77 @@ def _cut(vertices: list, loops: list, normal: list, offset: float, tol: float):
     edge runs from where it leaves to where it comes back; the new facet runs
     each such edge the other way (and each edge of a kept facet lying on the
     plane), and those edges chain into its loop. A facet crossed more than
-    twice (only through rounding) raises OpenCut."""
+    twice (only through rounding) raises OpenCut. (The walk is written out in
+    the loop over the facets: a call per facet and per crossing cost a tenth
+    of B's clips.)"""
     nx, ny, nz = normal
     d = [nx * x + ny * y + nz * z - offset for x, y, z in vertices]
     if max(d) <= tol:
-        return vertices, loops, None
+        return vertices, facets
     if min(d) >= -tol:
         return None
-    beyond, on = set(), set()
-    for i, e in enumerate(d):
-        if e > tol:
-            beyond.add(i)
-        elif e >= -tol:
-            on.add(i)
+    beyond = {i for i, e in enumerate(d) if e > tol}
+    on = {i for i, e in enumerate(d) if -tol <= e <= tol} if min(map(abs, d)) <= tol else set()
     not_inside = beyond | on
     verts = list(vertices)
     free = sorted(beyond, reverse=True)    # ids of the vertices cut away, for the crossings (lowest first)
     crossing: dict = {}                    # (inside, beyond) vertex pair -> the crossing's id
-
-    def crossing_of(inner: int, outer: int) -> int:
-        """The id of the point where the edge from ``inner`` to ``outer`` passes the plane, made once per edge."""
-        x = crossing.get((inner, outer))
-        if x is None:
-            t = d[inner] / (d[inner] - d[outer])
-            (ax, ay, az), (bx, by, bz) = vertices[inner], vertices[outer]
-            point = (ax + t * (bx - ax), ay + t * (by - ay), az + t * (bz - az))
-            x = crossing[(inner, outer)] = free.pop() if free else len(verts)
-            if x < len(verts):
-                verts[x] = point
-            else:
-                verts.append(point)
-        return x
-
     cap_next: dict = {}                    # the new facet's edges: vertex -> next vertex
-    kept, kept_loops = [], []
-    for f, loop in enumerate(loops):
+    kept = []
+    for facet in facets:
+        loop = facet[1]
         if beyond.isdisjoint(loop):                            # kept whole
-            new = loop
             if on and len(on.intersection(loop)) > 1:
                 for a, c in zip(loop[-1:] + loop[:-1], loop):
                     if a in on and c in on:                    # an edge on the plane: the new facet's, reversed
                         _add_edge(cap_next, c, a)
-        elif not_inside.issuperset(loop):                      # cut away
+            kept.append(facet)
             continue
-        else:
-            new, back, leave = _walk(loop, beyond, on, crossing_of)
-            _add_edge(cap_next, back, leave)
-        kept.append(f)
-        kept_loops.append(new)
-    kept_loops.append(_chain(cap_next))
-    if free:                               # fewer crossings than vertices cut away: close the gaps
-        gone = set(free)
-        live = [v for v in range(len(verts)) if v not in gone]
-        index = dict(zip(live, range(len(live))))
-        verts = [verts[v] for v in live]
-        kept_loops = [[index[v] for v in loop] for loop in kept_loops]
-    return verts, kept_loops, kept
+        if not_inside.issuperset(loop):                        # cut away
+            continue
+        new, turns = [], 0                                     # walked
+        p = loop[-1]
+        p_out = p in beyond
+        for q in loop:
+            q_out = q in beyond
+            if p_out != q_out:                                 # the edge p -> q passes the plane
+                turns += 1
+                inner, outer = (q, p) if p_out else (p, q)
+                if inner in on:
+                    x = inner
+                else:
+                    x = crossing.get((inner, outer))
+                    if x is None:                              # the crossing, made once per edge
+                        t = d[inner] / (d[inner] - d[outer])
+                        (ax, ay, az), (bx, by, bz) = vertices[inner], vertices[outer]
+                        point = (ax + t * (bx - ax), ay + t * (by - ay), az + t * (bz - az))
+                        x = crossing[(inner, outer)] = free.pop() if free else len(verts)
+                        if x < len(verts):
+                            verts[x] = point
+                        else:
+                            verts.append(point)
+                    new.append(x)
+                if p_out:
+                    back = x
+                else:
+                    leave = x
+            if not q_out:
+                new.append(q)
+            p, p_out = q, q_out
+        if turns != 2:
+            raise OpenCut("a facet crosses the plane more than twice")
+        _add_edge(cap_next, back, leave)
+        kept.append((facet[0], new))
+    kept.append((plane, _chain(cap_next)))
+    return _close_gaps(verts, kept, free) if free else (verts, kept)
 
 
-def _walk(loop, beyond: set, on: set, crossing_of) -> tuple[list, int, int]:
-    """A facet's loop with its one run of vertices beyond the plane replaced by
-    the points where the loop leaves the half-space and comes back (a vertex
-    on the plane, or ``crossing_of`` the edge): (the new loop, where it comes
-    back, where it leaves)."""
-    new, turns = [], 0
-    p = loop[-1]
-    p_out = p in beyond
-    for q in loop:
-        q_out = q in beyond
-        if p_out != q_out:                                     # the edge p -> q passes the plane
-            turns += 1
-            inner, outer = (q, p) if p_out else (p, q)
-            x = inner if inner in on else crossing_of(inner, outer)
-            if p_out:
-                back = x
-            else:
-                leave = x
-            if x != inner:
-                new.append(x)
-        if not q_out:
-            new.append(q)
-        p, p_out = q, q_out
-    if turns != 2:
-        raise OpenCut("a facet crosses the plane more than twice")
-    return new, back, leave
+def _close_gaps(verts: list, facets: list, gone) -> tuple[list, list]:
+    """Vertices and facets renumbered without the ids ``gone``."""
+    gone = set(gone)
+    live = [v for v in range(len(verts)) if v not in gone]
+    index = dict(zip(live, range(len(live))))
+    return [verts[v] for v in live], [(f, [index[v] for v in loop]) for f, loop in facets]
 
 
 def _add_edge(next_vertex: dict, a: int, b: int) -> None:
