@@ -115,8 +115,9 @@ def _pct(x: float) -> str:
 
 
 SIGNIFICANCE = 3.0
-"""Error counts differ significantly when the difference exceeds this many
-standard deviations of counting noise (sqrt of the summed counts)."""
+"""How many standard deviations of counting noise (Poisson: the square root of
+the count) separate a rendered error from the one the footprint predicts before
+they are said to disagree."""
 
 
 def _trend(ratio: float, factor: float) -> str:
@@ -125,15 +126,17 @@ def _trend(ratio: float, factor: float) -> str:
 
 def explain(rec: dict, ref: dict, ref_label: str) -> Optional[str]:
     """A sentence when the analytic footprint and the rendered error rank ``rec``
-    against ``ref`` differently (None when they agree or cannot be compared).
+    against ``ref`` differently (None when they agree or cannot be told apart).
 
     Both are records of the report (``footprint_lit``, ``errors``, ``anatomy``,
-    ``fallbacks``). The footprint predicts a smaller error when its p95 is below
-    the reference's by more than AGREE_FOOTPRINT, a larger one when above, about
-    the same otherwise. The rendered error is smaller or larger when it differs
-    by more than AGREE_ERROR and the difference in wrong pixels exceeds the
-    counting noise (SIGNIFICANCE); about the same otherwise. They disagree when
-    the two differ; the sentence then names what the error's anatomy shows."""
+    ``fallbacks``). To first order a shadow edge is misclassified over a band as
+    wide as a texel's footprint, so the footprint ratio fa predicts
+    ``nb · fa`` wrong pixels where the reference has nb. The two disagree when
+    the footprint and the rendered error point different ways (smaller, about
+    the same, larger: ratios beyond AGREE_FOOTPRINT / AGREE_ERROR) and the
+    method's wrong pixels na lie more than SIGNIFICANCE standard deviations of
+    counting noise from that prediction; the sentence then names what the
+    error's anatomy shows."""
     fa = _ratio(rec["footprint_lit"]["p95"], ref["footprint_lit"]["p95"])
     ea, eb = rec["errors"]["error_rate"], ref["errors"]["error_rate"]
     if fa is None or ea is None or eb is None:
@@ -141,18 +144,17 @@ def explain(rec: dict, ref: dict, ref_label: str) -> Optional[str]:
     na = rec["errors"].get("false_light", 0) + rec["errors"].get("false_shadow", 0)
     nb = ref["errors"].get("false_light", 0) + ref["errors"].get("false_shadow", 0)
     er = ea / eb if eb > 0 else (1.0 if ea == 0 else math.inf)
-    significant = abs(na - nb) > SIGNIFICANCE * math.sqrt(na + nb + 1)
-    predicts = _trend(fa, AGREE_FOOTPRINT)
-    got = _trend(er, AGREE_ERROR) if significant else "about the same"
-    if predicts == got:
+    predicts, got = _trend(fa, AGREE_FOOTPRINT), _trend(er, AGREE_ERROR)
+    expected = nb * fa
+    if predicts == got or abs(na - expected) <= SIGNIFICANCE * math.sqrt(expected + 1.0):
         return None
     a = rec["anatomy"]
-    head = (f"footprint p95 {fa:.2f}× {ref_label}'s predicts {'an' if predicts == 'about the same' else 'a'} "
-            f"{predicts} error; rendered {'∞' if math.isinf(er) else f'{er:.2f}'}× {ref_label}'s "
-            f"({na} against {nb} wrong pixels).")
+    head = (f"footprint p95 {fa:.2f}× {ref_label}'s predicts {'a ' if predicts != 'about the same' else ''}"
+            f"{predicts} error (about {expected:.0f} wrong pixels against {ref_label}'s {nb}); rendered "
+            f"{'∞' if math.isinf(er) else f'{er:.2f}'}× ({na}).")
     why = []
     for what, reason in rec.get("fallbacks", []):
-        why.append(f"it fell back ({what}: {reason})")
+        why.append(f"the method notes a fallback ({what}: {reason})")
     if a["unserved"] is not None and a["unserved"] > 0.25:
         why.append(f"{_pct(a['unserved'])} of its wrong pixels are served by no map (a coverage gap)")
     if a["interior_false_light"] is not None and a["interior_false_light"] > 0.5:
@@ -168,9 +170,13 @@ def explain(rec: dict, ref: dict, ref_label: str) -> Optional[str]:
     fe = _ratio(a["edge_footprint_p95"], ref["anatomy"]["edge_footprint_p95"])
     if a["at_edges"] is not None and a["at_edges"] > 0.5 and fe is not None:
         edges = f"{_pct(a['at_edges'])} of its wrong pixels are at shadow edges"
-        if _trend(fe, AGREE_FOOTPRINT) == got:
+        edge_trend = _trend(fe, AGREE_FOOTPRINT)
+        if edge_trend == got == "about the same":
+            why.append(f"{edges}, and there its footprint p95 is {fe:.2f}× {ref_label}'s, about the same: the pixels "
+                       f"that carry the shadow edges do not get the smaller texels the lit surfaces get on average")
+        elif edge_trend == got:
             why.append(f"{edges}, and there its footprint p95 is {fe:.2f}× {ref_label}'s: the edges fall where its "
-                       f"texels are {'smaller' if fe < 1 else 'larger'} than over the lit surfaces as a whole")
+                       f"texels are {edge_trend} than over the lit surfaces as a whole")
         elif a["edge_false_light"] is not None and max(a["edge_false_light"], 1 - a["edge_false_light"]) >= 0.7:
             kind = ("false light (shadows shrunk, light leaking past casters)" if a["edge_false_light"] >= 0.7
                     else "false shadow (shadows grown)")

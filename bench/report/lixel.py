@@ -25,7 +25,6 @@ def report_settings(method: str, size: int):
     scene, with the method, one ``size``² texel budget and hard 1x1 PCF (the
     report compares hard shadows with exact ray-cast ones)."""
     from addon.settings import LixelSettings
-    from addon.warp.types import WarpOptions
     base = LixelSettings()
     return replace(base, method=method, warp=replace(base.warp, shadow_map_size=(int(size), int(size))),
                    shadow=replace(base.shadow, pcf_kernel=1))

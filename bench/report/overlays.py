@@ -16,8 +16,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import numpy as np
-
 TEXEL_GRID_SIZE = 48
 """Map size of the texel-grid snapshots: coarse, so that one texel spans several pixels."""
 HEATMAP_SIZE = 2048
@@ -46,7 +44,7 @@ def _methods(opts) -> tuple[str, list]:
     return warped, pair
 
 
-def snapshots(scene, out: dict, opts, _workdir=None) -> list:
+def snapshots(scene, opts) -> list:
     """Draw the scene's snapshots (a list of :class:`Snapshot`)."""
     import bpy
     from addon.gpu.context import ensure_gpu_context

@@ -235,7 +235,7 @@ def run_scene(name: str, opts: Options, progress: Progress, workdir: Path) -> di
         _peer(run, peer)
     if opts.overlays:
         with progress.step("overlays", f"{label}: overlay snapshots", label):
-            _overlays(run, workdir)
+            _overlays(run)
     return out
 
 
@@ -489,11 +489,11 @@ def _peer(run: SceneRun, peer: str) -> None:
         run.progress.drop(run.name, peer)
 
 
-def _overlays(run: SceneRun, workdir: Path) -> None:
+def _overlays(run: SceneRun) -> None:
     from . import overlays
     try:
         with quiet_blender():
-            run.out["overlays"] = overlays.snapshots(run.scene, run.out, run.opts)
+            run.out["overlays"] = overlays.snapshots(run.scene, run.opts)
     except Exception as exc:  # noqa: BLE001 - reported in the document
         run.out["overlays_error"] = f"{type(exc).__name__}: {exc}"
         run.progress.log(f"{run.name}: overlay snapshots FAILED: {exc}")
