@@ -17,6 +17,7 @@ import os
 import shutil
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -163,7 +164,8 @@ def main(argv=None) -> int:
             for path in document.readme_pictures(result, out, args.readme_pictures):
                 progress.log(f"wrote {path}")
         failed = [s["name"] for s in result["scenes"] if s.get("status") != "ok"]
-        progress.log(f"wrote {out / paths['html'].name} and {out / paths['md'].name} in {progress.elapsed():.0f} s"
+        progress.log(f"wrote {out / paths['html'].name} and {out / paths['md'].name} in {progress.elapsed():.0f} s "
+                     f"({time.process_time():.0f} s of CPU time)"
                      + (f"; FAILED scenes: {', '.join(failed)}" if failed else ""))
         return 0
     except KeyboardInterrupt:

@@ -181,7 +181,8 @@ def explain(rec: dict, ref: dict, ref_label: str) -> Optional[str]:
             kind = ("false light (shadows shrunk, light leaking past casters)" if a["edge_false_light"] >= 0.7
                     else "false shadow (shadows grown)")
             why.append(f"{edges}, {_pct(max(a['edge_false_light'], 1 - a['edge_false_light']))} of them {kind}, "
-                       f"where its footprint p95 is {fe:.2f}× {ref_label}'s: one-sided edge errors come from the depth "
+                       f"where its footprint p95 is {fe:.2f}× {ref_label}'s: one-sided edge errors come from the "
+                       f"depth "
                        f"comparison at the edges (a bias in each map's own depth units means a different offset in "
                        f"the world), not from the texel size")
         else:

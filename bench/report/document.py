@@ -178,8 +178,10 @@ def _facts(scene: dict) -> list[str]:
     v = scene.get("view", {})
     gt = scene.get("ground_truth", {})
     facts = [f"{scene.get('triangles', 0):,} triangles in {scene.get('instances', 0):,} instances",
-             f"{scene['resolution'][0]}×{scene['resolution'][1]} pixels, frames {scene['frames'][0]}–{scene['frames'][-1]}",
-             f"{scene.get('light', '?')} light '{scene.get('light_name', '')}'; camera '{scene.get('camera_name', '')}' "
+             f"{scene['resolution'][0]}×{scene['resolution'][1]} pixels, frames "
+             f"{scene['frames'][0]}–{scene['frames'][-1]}",
+             f"{scene.get('light', '?')} light '{scene.get('light_name', '')}'; "
+             f"camera '{scene.get('camera_name', '')}' "
              f"fov {v.get('fov_x_deg', 0):.1f}°×{v.get('fov_y_deg', 0):.1f}°, near {v.get('near', 0):g}, "
              f"far {v.get('far', 0):g}",
              f"ground truth: {gt.get('valid_pixels', 0):,} counted pixels ({scene.get('lit_facing_pixels', 0):,} "

@@ -267,7 +267,8 @@ def footprints(scene: dict, path: Path) -> Path:
                     ax.imshow(np.ma.masked_where(~grazing, np.ones_like(fp)), origin="lower",
                               cmap=mcolors.ListedColormap(["0.55"]), vmin=0, vmax=1, interpolation="nearest")
                 f = rec["footprint_lit"]
-                ax.set_title(f"{name}{_fell(rec)} {size}²\np95 {f['p95']:.2f} px, {100 * f['frac_above_1']:.0f} % above 1",
+                ax.set_title(f"{name}{_fell(rec)} {size}²\n"
+                             f"p95 {f['p95']:.2f} px, {100 * f['frac_above_1']:.0f} % above 1",
                              fontsize=8)
             else:
                 _failed(ax, rec)
@@ -470,10 +471,12 @@ def _line_key(fig, shot):
         handles += [Patch(facecolor=(*COLOURS["body_face"], 0.35), edgecolor=COLOURS["body_edge"][:3],
                           label="intersection body B (Scherzer §4.1)")]
     if "warp" in shot.flags:
-        handles += [Line2D([], [], color=COLOURS["warp"][:3], lw=2, label="warp frustum P (drawn over its light frustum)"),
+        handles += [Line2D([], [], color=COLOURS["warp"][:3], lw=2,
+                           label="warp frustum P (drawn over its light frustum)"),
                     Line2D([], [], color=COLOURS["v_p"][:3], lw=2, label="V_P"),
                     Line2D([], [], color=COLOURS["middle_vector"][:3], lw=2, label="B's middle vector"),
-                    Line2D([], [], color="white", marker="s", mec="0.3", ls="", label="P's projection centre, B's centroid")]
+                    Line2D([], [], color="white", marker="s", mec="0.3", ls="",
+                           label="P's projection centre, B's centroid")]
     return handles
 
 

@@ -8,10 +8,11 @@ when the ratio is below 0.5.
 
 Timing, like Lixel's (process CPU time and wall clock, ``timing``): a timed
 render is ``bpy.ops.render.render`` from its call to the pixels in Blender's
-Render Result (memory); nothing is written to a file inside the time (the result is saved as EXR afterwards, only to read
-it into numpy). Before the timed renders, one render with shadows absorbs
-EEVEE's shader compilation (it is reported as the first render's time). A
-point is the median of ``repeats`` renders.
+Render Result (memory); nothing is written to a file inside the time (the
+result is saved as EXR afterwards, only to read it into numpy). Before the
+timed renders, one render with shadows absorbs EEVEE's shader compilation (it
+is reported as the first render's time). A point is the median of
+``repeats`` renders.
 
 Settings, stated in the report (:func:`stated_settings`):
 
