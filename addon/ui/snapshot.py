@@ -20,7 +20,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..warp.geometry import look_along, normalize, perspective_matrix
+from ..warp.geometry import frustum_matrix, look_along, normalize
 
 BACKDROP_DEPTH_OFFSET = 2e-4
 """NDC depth added to the backdrop (the stand-in for the viewport's scene depth)."""
@@ -107,7 +107,23 @@ def observer_view_projection(geometry: dict, view, aspect: float, fov_y: float =
     world_to_eye = look_along(eye, centre - eye, up)
     near = max(distance - radius * 1.05, distance * 1e-3)
     far = distance + radius * 40.0  # lines that run out of the fitted sphere are still drawn
-    return perspective_matrix(fov_y, aspect, near, far) @ world_to_eye, notes
+    return tight_frustum(pts, world_to_eye, aspect, near, far) @ world_to_eye, notes
+
+
+def tight_frustum(points, world_to_eye: np.ndarray, aspect: float, near: float, far: float,
+                  margin: float = 0.04) -> np.ndarray:
+    """An off-centre perspective projection (glFrustum) whose window just holds
+    ``points`` (all in front of the eye) plus ``margin`` on each side, widened
+    along one axis to the picture's ``aspect`` (width / height)."""
+    p = np.c_[np.asarray(points, dtype=np.float64), np.ones(len(points))] @ world_to_eye.T
+    depth = np.maximum(-p[:, 2], 1e-9 * max(near, 1e-300))
+    x, y = p[:, 0] / depth, p[:, 1] / depth            # tangents, the window at distance 1
+    (x0, x1), (y0, y1) = (x.min(), x.max()), (y.min(), y.max())
+    w, h = (x1 - x0) * (1 + 2 * margin), (y1 - y0) * (1 + 2 * margin)
+    w, h = max(w, h * aspect, 1e-9), max(h, w / aspect, 1e-9)
+    cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+    return frustum_matrix((cx - w / 2) * near, (cx + w / 2) * near, (cy - h / 2) * near, (cy + h / 2) * near,
+                          near, far)
 
 
 def camera_view_projection(view) -> np.ndarray:

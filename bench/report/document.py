@@ -442,30 +442,39 @@ def write_figures(result: dict, out: Path, progress=None) -> dict:
 
 README_SIZE = 2048
 """The map size of the README's comparison picture (the run's size nearest to it)."""
+README_TEXELS_SCENE = "terrain"
+"""The scene whose texel-grid snapshot the README shows: its open ground shows single texels best."""
+
+
+def _with_results(scene: dict) -> bool:
+    return scene.get("status") == "ok" and any(m.get("status") == "ok" for m in scene.get("methods", []))
 
 
 def readme_pictures(result: dict, out: Path, folder: Path) -> list:
-    """The README's pictures from the first scene with results: the comparison
+    """The README's pictures: the comparison of the first scene with results
     (its error images at the size nearest README_SIZE that EEVEE also ran at)
-    and copies of its observer and texel-grid overlay snapshots. Returns the paths."""
+    and a copy of its observer snapshot, and the texel-grid snapshot of
+    README_TEXELS_SCENE (else of the first scene). Returns the paths written."""
     import shutil
-    for scene in result["scenes"]:
-        ok = [m for m in scene.get("methods", []) if m.get("status") == "ok"]
-        if scene.get("status") != "ok" or not ok:
-            continue
-        sizes = sorted({m["size"] for m in ok})
-        eevee = [p["size"] for p in scene["peers"] if p["method"] == "eevee" and p.get("size") in sizes]
-        size = min(eevee or sizes, key=lambda s: abs(s - README_SIZE))
-        methods = list(dict.fromkeys(m["method"] for m in ok))
-        preferred = [m for m in README_METHODS if m in methods] or methods[:3]
-        folder.mkdir(parents=True, exist_ok=True)
-        written = [figures.comparison(scene, preferred, size, folder / "comparison.png")]
+    scenes = [s for s in result["scenes"] if _with_results(s)]
+    if not scenes:
+        return []
+    first = scenes[0]
+    ok = [m for m in first["methods"] if m.get("status") == "ok"]
+    sizes = sorted({m["size"] for m in ok})
+    eevee = [p["size"] for p in first["peers"] if p["method"] == "eevee" and p.get("size") in sizes]
+    size = min(eevee or sizes, key=lambda s: abs(s - README_SIZE))
+    methods = list(dict.fromkeys(m["method"] for m in ok))
+    preferred = [m for m in README_METHODS if m in methods] or methods[:3]
+    folder.mkdir(parents=True, exist_ok=True)
+    written = [figures.comparison(first, preferred, size, folder / "comparison.png")]
+    texels = next((s for s in scenes if s["name"] == README_TEXELS_SCENE), first)
+    for scene, kind in ((first, "observer"), (texels, "texels")):
         for f in scene.get("overlay_files", []):
-            if "observer" in f or "texels" in f:
+            if kind in f:
                 shutil.copyfile(out / f, folder / Path(f).name)
                 written.append(folder / Path(f).name)
-        return written
-    return []
+    return written
 
 
 def write(result: dict, out: Path, progress=None) -> dict:

@@ -26,13 +26,23 @@ DPI = 100
 PEER_NAMES = ("eevee", "cycles")
 SIZE_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
 
+NOT_COUNTED = (246, 236, 206)
+"""The error images' colour for pixels no count includes: cream, so that it is not taken for the light grey of
+correct lit pixels (``addon.measure.errors`` draws them white)."""
 ERROR_KEY = [
     ("false shadow: dark where the truth is lit", ERROR_COLOURS["false_shadow"]),
     ("false light: lit where the truth is dark", ERROR_COLOURS["false_light"]),
     ("correct, lit", ERROR_COLOURS["lit"]),
     ("correct, in shadow", ERROR_COLOURS["shadow"]),
-    ("not counted (see 'Counted pixels')", ERROR_COLOURS["background"]),
+    ("not counted (sky, turned from the light, silhouettes: see 'Counted pixels')", NOT_COUNTED),
 ]
+
+
+def error_rgb(shadow, truth, counted) -> np.ndarray:
+    """``addon.measure.errors.error_image`` with the pixels not counted in :data:`NOT_COUNTED`."""
+    img = error_image(shadow, truth, counted)
+    img[~np.asarray(counted, dtype=bool)] = NOT_COUNTED
+    return img
 
 
 def _figure(rows: int, cols: int, aspect: float, extra_h: float = 0.0):
@@ -200,12 +210,12 @@ def errors(scene: dict, path: Path) -> Path:
     cols = max(len(names) + int(eevee_col), 1)
     fig, axes = _figure(len(sizes) + 1, cols, h / w, extra_h=0.6)
     cy = _cycles(scene)
-    axes[0, 0].imshow(error_image(truth, truth, img["valid"]), origin="lower", interpolation="nearest")
+    axes[0, 0].imshow(error_rgb(truth, truth, img["valid"]), origin="lower", interpolation="nearest")
     axes[0, 0].set_title("ground truth's shadows", fontsize=8)
     if cy is not None and cols > 1:
         ax = axes[0, 1]
         if cy.get("status") == "ok":
-            ax.imshow(error_image(cy["_images"]["shadow"], truth, cy["_images"]["comparable"]), origin="lower",
+            ax.imshow(error_rgb(cy["_images"]["shadow"], truth, cy["_images"]["comparable"]), origin="lower",
                       interpolation="nearest")
             ax.set_title(_error_title("Cycles", cy), fontsize=8)
         else:
@@ -218,7 +228,7 @@ def errors(scene: dict, path: Path) -> Path:
             ax = axes[i, j]
             rec = _lookup(scene["methods"], name, size)
             if rec and rec.get("status") == "ok":
-                ax.imshow(error_image(rec["_images"]["shadow"], truth, rec["_images"]["comparable"]),
+                ax.imshow(error_rgb(rec["_images"]["shadow"], truth, rec["_images"]["comparable"]),
                           origin="lower", interpolation="nearest")
                 ax.set_title(_error_title(f"{name}{_fell(rec)} {size}²", rec), fontsize=8)
             else:
@@ -230,7 +240,7 @@ def errors(scene: dict, path: Path) -> Path:
             if ev is None:
                 _blank(ax)
             elif ev.get("status") == "ok":
-                ax.imshow(error_image(ev["_images"]["shadow"], truth, ev["_images"]["comparable"]),
+                ax.imshow(error_rgb(ev["_images"]["shadow"], truth, ev["_images"]["comparable"]),
                           origin="lower", interpolation="nearest")
                 ax.set_title(_error_title(f"EEVEE {size}²", ev), fontsize=8)
             else:
@@ -418,7 +428,7 @@ def comparison(scene: dict, methods: list, size: int, path: Path) -> Path:
     truth = img["truth_shadow"]
     for k, (label, r) in enumerate(recs):
         ax = axes.ravel()[k]
-        ax.imshow(error_image(r["_images"]["shadow"], truth, r["_images"]["comparable"]), origin="lower",
+        ax.imshow(error_rgb(r["_images"]["shadow"], truth, r["_images"]["comparable"]), origin="lower",
                   interpolation="nearest")
         e = r["errors"]
         sz = f" {r['size']}²" if r.get("size") else ""
