@@ -97,7 +97,20 @@ def _label(r: dict) -> tuple[str, str]:
     if r["method"] in figures.PEER_NAMES:
         name = {"eevee": "EEVEE", "cycles": "Cycles"}[r["method"]]
         return name, (f"{r['size']}²" if r.get("size") else f"{r.get('samples', '')} spp")
-    return r["method"] + warn, f"{r['size']}²" + (f" ×{len(r['maps'])}" if r.get("maps") else "")
+    if not r.get("maps"):
+        return r["method"] + warn, f"{r['size']}²"
+    n, budget = len(r["maps"]), budget_factor(r)
+    over = f", {budget:.3g}× the budget" if budget > BUDGET_TOLERANCE else ""
+    return r["method"] + warn, f"{r['size']}²: {n} map{'s' if n > 1 else ''}, {r['texels'] / 1e6:.3g} M texels{over}"
+
+
+BUDGET_TOLERANCE = 1.01
+"""A method whose maps hold more than this times size² texels is flagged (it does not keep the texel budget)."""
+
+
+def budget_factor(r: dict) -> float:
+    """Texels of a record's maps over its size² budget."""
+    return float(r.get("texels", 0.0)) / float(r["size"]) ** 2 if r.get("size") else 0.0
 
 
 def _records(scene: dict) -> list:
@@ -213,6 +226,13 @@ def _warnings(scene: dict) -> list[str]:
         for what, why in r.get("fallbacks", []):
             out.append(f"⚠ {r['method']} @ {r['size']}²: fell back ({what}): {why}; it made "
                        f"{len(r.get('maps', []))} map(s): {', '.join(m['role'] for m in r.get('maps', []))}")
+    over = {}
+    for r in scene["methods"]:
+        if r.get("status") == "ok" and budget_factor(r) > BUDGET_TOLERANCE:
+            over.setdefault(r["method"], []).append(f"{r['size']}²: {budget_factor(r):.3g}×")
+    for method, where in over.items():
+        out.append(f"⚠ {method} does not keep the texel budget: its maps hold more than size² texels "
+                   f"({', '.join(where)}); compare it with the other methods at the size of equal texels")
     return out
 
 
@@ -237,8 +257,10 @@ def summary_rows(result: dict) -> list[list[str]]:
             cands = [m for m in scene["methods"] if m.get("status") == "ok" and m["size"] == size]
             if cands:
                 b = min(cands, key=lambda m: m["errors"]["error_rate"])
+                over = budget_factor(b)
                 row.append(f"{b['method']}{' ⚠' if b.get('fallbacks') else ''} "
-                           f"{100 * b['errors']['error_rate']:.2f} % ({figures._ms(b)})")
+                           f"{100 * b['errors']['error_rate']:.2f} % ({figures._ms(b)})"
+                           + (f" with {over:.3g}× the texels" if over > BUDGET_TOLERANCE else ""))
             else:
                 row.append("")
         for peer in ("eevee", "cycles"):

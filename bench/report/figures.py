@@ -98,8 +98,14 @@ def _blank(ax):
 
 
 def _fell(rec) -> str:
-    """A mark for a method that fell back (the reason is in the report's Diagnostics)."""
-    return " ⚠fallback" if rec and rec.get("fallbacks") else ""
+    """Marks for a method that fell back (the reason is in the report's Diagnostics) or holds more
+    texels than its size² budget."""
+    mark = " ⚠fallback" if rec and rec.get("fallbacks") else ""
+    if rec and rec.get("texels") and rec.get("size"):
+        over = rec["texels"] / rec["size"] ** 2
+        if over > 1.01:
+            mark += f" ({over:.3g}× texels)"
+    return mark
 
 
 def _ms(rec) -> str:
@@ -388,7 +394,9 @@ def speed_error(scene: dict, path: Path) -> Path:
                edgecolors="k", zorder=4)
     ax.set_xscale("log")
     ax.set_yscale("log")
-    handles = [Line2D([], [], color=colour[n], marker="o", ls="", label=n) for n in names]
+    over = {r["method"] for r in _ok(scene["methods"]) if _fell(r).endswith("texels)")}
+    handles = [Line2D([], [], color=colour[n], marker="o", ls="",
+                      label=n + (" (more texels than size²)" if n in over else "")) for n in names]
     handles += [Line2D([], [], color="0.3", marker=marker[s], ls="", label=f"{s}² map") for s in sizes]
     if any(p[5] is None for p in pts):
         handles.append(Line2D([], [], color="0.3", marker="*", ms=11, ls="", label="no map size (Cycles)"))
