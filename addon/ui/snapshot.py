@@ -65,21 +65,25 @@ def observer_view_projection(geometry: dict, view, aspect: float, fov_y: float =
     """World -> clip of an observer outside the setup, and notes on what the
     picture leaves out.
 
-    The picture is fitted to the view frustum and B, and to the corners of the
-    light frusta, the warp frustum and the points (the projection centre, B's
-    centroid) that lie within ``reach`` times that core's radius of its centre:
-    a warp frustum or a spot's post-perspective light frustum can reach
-    hundreds of metres past the scene, and fitting it would shrink the scene to
-    a dot. What is left out is named in the notes (its lines still run out of
-    the picture). The observer looks at the centre from the camera's right, a
-    little behind it and above it (world Z up).
+    The picture is fitted to B (the view frustum when there is no B), and to
+    the corners of the view frustum, the light frusta, the warp frustum and the
+    points (the projection centre, B's centroid) that lie within ``reach``
+    times B's radius of its centre: a camera's far plane, a warp frustum or a
+    spot's post-perspective light frustum can reach hundreds of metres past
+    the scene, and fitting them would shrink the scene to a dot. What is left
+    out is named in the notes (its lines still run out of the picture). The
+    observer looks at the centre from the camera's right, a little behind it
+    and above it (world Z up).
     """
     notes = []
-    core = np.concatenate([_points(geometry["view_corners"]), _points(geometry.get("body_edges", np.zeros((0, 3))))])
+    view_corners = _points(geometry["view_corners"])
+    body = _points(geometry.get("body_edges", np.zeros((0, 3))))
+    core = body if len(body) else view_corners
     centre = 0.5 * (core.min(axis=0) + core.max(axis=0))
     radius = float(np.max(np.linalg.norm(core - centre, axis=1))) or 1.0
     parts = [core]
-    others = [("light frusta", geometry.get("light_lines", np.zeros((0, 3)))),
+    others = [("camera's view frustum", view_corners if len(body) else np.zeros((0, 3))),
+              ("light frusta", geometry.get("light_lines", np.zeros((0, 3)))),
               ("warp frustum", geometry.get("warp_lines", np.zeros((0, 3))))]
     others += [(name.replace("_", " "), p) for name, p in geometry.get("points", {}).items()]
     for name, pts in others:

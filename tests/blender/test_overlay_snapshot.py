@@ -54,13 +54,16 @@ def test_observer_frames_the_core_and_names_what_lies_beyond(lixel):
     class View:
         direction = np.array([0.0, 1.0, 0.0])
     box = np.array([[x, y, z] for x in (-1, 1) for y in (0, 10) for z in (0, 2)], dtype=float)
-    geometry = {"view_corners": box, "body_edges": box[:2][None], "light_lines": np.array([[[0, 0, 0], [0, 0, 500.0]]]),
-                "warp_lines": np.zeros((0, 2, 3)), "points": {"projection_centre": np.array([0, -1.0, 1])}}
+    far_view = np.concatenate([box[:4], box[4:] * [20, 20, 1]])          # a far plane 200 m away
+    geometry = {"view_corners": far_view, "body_edges": np.stack([box[::2], box[1::2]], axis=1),
+                "light_lines": np.array([[[0, 0, 0], [0, 0, 500.0]]]), "warp_lines": np.zeros((0, 2, 3)),
+                "points": {"projection_centre": np.array([0, -1.0, 1])}}
     vp, notes = snapshot.observer_view_projection(geometry, View(), 1.6)
     clip = np.c_[box, np.ones(len(box))] @ vp.T
     ndc = clip[:, :3] / clip[:, 3:]
-    assert (clip[:, 3] > 0).all() and (np.abs(ndc) <= 1).all()        # the view frustum is in the picture
-    assert len(notes) == 1 and notes[0].startswith("light frusta")     # the 500 m line runs out, and is named
+    assert (clip[:, 3] > 0).all() and (np.abs(ndc) <= 1).all()        # B is in the picture
+    assert np.ptp(ndc[:, :2], axis=0).max() > 1.5                      # and fills it
+    assert [n.split(" reach")[0] for n in notes] == ["camera's view frustum", "light frusta"]
 
 
 def test_operator_saves_camera_and_observer_snapshots(lixel, tmp_path):
