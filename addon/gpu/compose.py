@@ -15,6 +15,8 @@
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from . import shaders
@@ -150,15 +152,33 @@ def reduce_range(targets, source, size, channel: int, above: float = -BIG, below
     return (lo if lo < BIG / 2 else np.inf), (hi if hi > -BIG / 2 else -np.inf)
 
 
-def map_preview_pass(targets, name: str, size, depth_map, stretch: bool, depth_range=(0.0, 1.0)):
-    """``depth_map`` resampled to ``size`` (nearest texel per pixel centre): its
-    window depth (an R32F texture) or, ``stretch``, a grey picture (RGBA32F)
-    stretched over ``depth_range``. Returns (texture, framebuffer)."""
+def map_picture(targets, name: str, depth_map, map_size, longest: int):
+    """The shadow map ``depth_map`` as a grey picture (an RGBA32F texture) at most
+    ``longest`` pixels on its longer side, every ``step``-th texel (step =
+    ceil(longer side / longest)), stretched over the depths written (near the
+    light bright, cleared texels dark blue): ``addon.ui.renders.depth_to_rgba``
+    on the GPU."""
+    w, h = int(map_size[0]), int(map_size[1])
+    step = max(1, math.ceil(max(w, h) / longest))
+    size = (-(-w // step), -(-h // step))
+    raw, _ = map_preview_pass(targets, name + "_depth", size, depth_map, stretch=False, step=step)
+    lo, hi = reduce_range(targets, raw, size, channel=0, below=1.0)
+    tex, _ = map_preview_pass(targets, name, size, depth_map, stretch=True,
+                              depth_range=(lo, hi) if hi >= lo else (0.0, 1.0), step=step)
+    return tex
+
+
+def map_preview_pass(targets, name: str, size, depth_map, stretch: bool, depth_range=(0.0, 1.0), step: int = 0):
+    """``depth_map`` resampled to ``size`` (nearest texel per pixel centre; or,
+    ``step`` > 0, every ``step``-th texel from texel 0): its window depth (an
+    R32F texture) or, ``stretch``, a grey picture (RGBA32F) stretched over
+    ``depth_range``. Returns (texture, framebuffer)."""
     tex = targets.texture(name, size, "RGBA32F" if stretch else "R32F")
     fb = targets.framebuffer(colors=(tex,))
     sh = shaders.map_preview_shader(stretch)
     sh.bind()
     sh.uniform_sampler("u_map", depth_map)
     sh.uniform_float("u_range", (float(depth_range[0]), float(depth_range[1]), float(size[0]), float(size[1])))
+    sh.uniform_float("u_step", float(step))
     _draw_fullscreen(fb, size, sh)
     return tex, fb

@@ -468,6 +468,28 @@ class ShadowFrame:
                             eye_blur=float(shadow.eye_blur))
         self._stage("shading", t, fb, color=True)
 
+    def _blurred(self):
+        """(blurred shadow, combined image) textures after the eye-space blur (made once)."""
+        sh = self._shaded
+        if "blurred" not in sh:
+            size, targets, tex = self.size, self.targets, sh["textures"]
+            d_near, _ = compose.reduce_range(targets, tex["data"], size, channel=3, above=0.0)
+            mask = compose.eye_blur_pass(targets, size, tex["data"], sh["eye_blur"],
+                                         d_near if math.isfinite(d_near) else 1.0)
+            compose.compose_pass(targets, size, tex["color"], mask, sh["ambient"], sh["albedo"])
+            sh["blurred"] = (mask, targets.texture("combined", size, "RGBA32F"))
+        return sh["blurred"]
+
+    def combined_texture(self):
+        """The combined image as a GPU texture (RGBA32F, the frame's size), not read
+        back: for drawing it (the viewport's picture-in-picture). Valid until the
+        targets are used by another frame."""
+        if self._shaded is None:
+            raise WarpError("combined_texture() needs shade() first")
+        if self._shaded["variant"].blurred:
+            return self._blurred()[1]
+        return self._shaded["textures"]["color"]
+
     def _read_target(self, name: str, channels: int = 4) -> np.ndarray:
         tex = self._shaded["textures"][name]
         return compose.read_color(self.targets.framebuffer(colors=(tex,)), 0, self.size, channels)
@@ -492,11 +514,9 @@ class ShadowFrame:
         size, targets, tex = self.size, self.targets, sh["textures"]
         combined_fb = mask_fb = None
         if variant.blurred and read & {"combined", "shadow_mask"}:
-            d_near, _ = compose.reduce_range(targets, tex["data"], size, channel=3, above=0.0)
-            mask = compose.eye_blur_pass(targets, size, tex["data"], sh["eye_blur"], d_near if math.isfinite(d_near)
-                                         else 1.0)
+            mask, combined = self._blurred()
             mask_fb = targets.framebuffer(colors=(mask,))
-            combined_fb = compose.compose_pass(targets, size, tex["color"], mask, sh["ambient"], sh["albedo"])
+            combined_fb = targets.framebuffer(colors=(combined,))
         preview = None
         if "shadow_map_preview" in read:
             _, preview = compose.map_preview_pass(targets, "map_preview", size, self.maps[0][0], stretch=False)

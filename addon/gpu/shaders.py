@@ -263,6 +263,7 @@ def map_preview_shader(stretch: bool):
         info.define("LIXEL_STRETCH")
     info.sampler(0, "DEPTH_2D", "u_map")
     info.push_constant("VEC4", "u_range")
+    info.push_constant("FLOAT", "u_step")
     info.fragment_out(0, "VEC4", "out_preview")
     return _create(info, "shadow-map preview")
 

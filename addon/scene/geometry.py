@@ -215,13 +215,16 @@ class GeometryCache:
         self._last_depsgraph = None
         self._generation = 0
         self._last_used: dict = {}
-        self._last: Optional[SceneGeometry] = None
+        self._last: dict = {}
+        """(scene, view layer, depsgraph mode, exclude) -> the last SceneGeometry handed out for it:
+        the render engine's depsgraph and the viewport's may differ (objects hidden in one), and
+        alternating between them must not rebuild either's instance set."""
 
     def clear(self) -> None:
         self.meshes.clear()
         self._last_used.clear()
         self._last_depsgraph = None
-        self._last = None
+        self._last.clear()
 
     def update(self, depsgraph, exclude=None, trust_updates: bool = False) -> SceneGeometry:
         """Read ``depsgraph`` and return its geometry; ``exclude(ob_eval)`` -> True
@@ -252,7 +255,9 @@ class GeometryCache:
             used[key] = MeshData(key, pos, tris, fp, version=(old.version + 1) if old is not None else 1)
             return True
 
-        last = self._last
+        scene = depsgraph.scene
+        slot = (getattr(scene, "name", ""), getattr(depsgraph.view_layer, "name", ""), depsgraph.mode, exclude)
+        last = self._last.get(slot)
         instances = scene_instances(depsgraph, on_geometry, last.instances if last is not None else None)
         # Keep entries of objects not drawn this time (hidden, another scene) for a
         # while, then forget them (deleted objects must not pin memory).
@@ -271,8 +276,10 @@ class GeometryCache:
             instances = last.instances
         else:
             self.instance_sets += 1
-        self._last = SceneGeometry(instances, used)
-        return self._last
+        if len(self._last) >= 8 and slot not in self._last:
+            self._last.pop(next(iter(self._last)))
+        self._last[slot] = out = SceneGeometry(instances, used)
+        return out
 
 
 _shared_cache: Optional[GeometryCache] = None

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..guard import user_message
 from ..scene.describe import describe_bounds, describe_light, describe_view, light_notes, pick_light
-from ..scene.instances import walk_instances
+from ..scene.geometry import shared_cache
 from ..scene.owned import is_debug_object
 from ..settings import LixelSettings
 from ..warp import METHODS, compute, focused_body
@@ -33,8 +33,10 @@ log = logging.getLogger(__name__)
 INPUTS = ("view", "light", "bounds", "settings")
 
 def scene_bounds(depsgraph):
-    """SceneBounds of the evaluated scene without Lixel's debug objects."""
-    return describe_bounds(depsgraph, walk_instances(depsgraph, on_geometry=lambda key, ob: not is_debug_object(ob)))
+    """SceneBounds of the evaluated scene without Lixel's debug objects, from the
+    scene cache the render engine uses too (``addon.scene.geometry.shared_cache``):
+    the same object, with its culling index, while the scene's instances are unchanged."""
+    return describe_bounds(depsgraph, shared_cache().update(depsgraph, exclude=is_debug_object).instances)
 
 
 @dataclass
@@ -90,8 +92,10 @@ def scene_settings(scene) -> LixelSettings:
 
 def _same(a, b) -> bool:
     """Equality of plain warp inputs (dataclasses holding numpy arrays)."""
+    if a is b:
+        return True
     if a is None or b is None:
-        return a is b
+        return False
     if type(a) is not type(b):
         return False
     for k, va in vars(a).items():

@@ -442,26 +442,20 @@ def _draw_scene_overlays(scene, st, props, view_projection) -> None:
 
 def receiver_triangles(depsgraph) -> np.ndarray:
     """(T, 3, 3) world-space triangles of every drawable instance except Lixel's
-    debug objects (for the receiver overlays), read by ``addon.scene.geometry``."""
-    from ..scene.geometry import read_object
-    from ..scene.instances import walk_instances
-    local: dict = {}
-
-    def on_geometry(key, ob):
-        if is_debug_object(ob):
-            return False
-        got = read_object(ob)
-        if got is None:
-            return False
-        pos, tris, _fingerprint = got
-        local[key] = np.asarray(pos, dtype=np.float64)[np.asarray(tris)]
-        return True
-
-    inst = walk_instances(depsgraph, on_geometry=on_geometry)
+    debug objects (for the receiver overlays), from the scene cache the render
+    engine and the live state use (``addon.scene.geometry.shared_cache``)."""
+    from ..scene.geometry import shared_cache
+    geometry = shared_cache().update(depsgraph, exclude=is_debug_object)
+    inst = geometry.instances
     out = []
-    for key, m in zip(inst.keys, inst.matrices):
-        t = local[key].reshape(-1, 3)
-        out.append((t @ m[:3, :3].T + m[:3, 3]).reshape(-1, 3, 3))
+    for k, key in enumerate(inst.key_list):
+        mats = inst.matrices[inst.key_ids == k]
+        if not len(mats):
+            continue
+        mesh = geometry.meshes[key]
+        local = np.asarray(mesh.positions, dtype=np.float64)[mesh.triangles].reshape(-1, 3)
+        world = np.einsum("nij,vj->nvi", mats[:, :3, :3], local) + mats[:, None, :3, 3]
+        out.append(world.reshape(-1, 3, 3))
     return np.concatenate(out) if out else np.zeros((0, 3, 3))
 
 
@@ -540,26 +534,22 @@ def gpu_pipeline():
 
 
 _pip: dict = {}
-"""scene name -> (key, {"map"|"scene": GPUTexture}) for the picture-in-picture overlays."""
+"""scene name -> (key, {"map"|"scene": GPUTexture}, its TargetPool) for the picture-in-picture overlays."""
 
 
 def _pip_textures(scene, st, props) -> dict:
     """GPU textures of the PiP images, re-rendered only when the setup (generation)
     or what is shown changed."""
-    import gpu
+    from ..gpu.targets import TargetPool
     from . import renders
     key = (st.generation, props.map_pip_size, props.show_map, props.show_shadowed)
     hit = _pip.get(scene.name)
     if hit is not None and hit[0] == key:
         return hit[1]
-    images = renders.pip_images(st, bpy.context.evaluated_depsgraph_get(), props.map_pip_size,
-                                props.show_map, props.show_shadowed)
-    textures = {}
-    for name, rgba in images.items():
-        h, w = rgba.shape[:2]
-        buf = gpu.types.Buffer("FLOAT", w * h * 4, np.ascontiguousarray(rgba, dtype=np.float32).ravel())
-        textures[name] = gpu.types.GPUTexture((w, h), format="RGBA32F", data=buf)
-    _pip[scene.name] = (key, textures)
+    pool = hit[2] if hit is not None else TargetPool()   # the scene's own targets: no other frame draws over them
+    textures = renders.pip_textures(st, bpy.context.evaluated_depsgraph_get(), props.map_pip_size,
+                                    props.show_map, props.show_shadowed, pool)
+    _pip[scene.name] = (key, textures, pool)
     return textures
 
 

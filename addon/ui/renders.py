@@ -134,23 +134,38 @@ def mosaic(images: list, columns: int, gap: int = 4, background=(0.0, 0.0, 0.0, 
     return out
 
 
-def pip_images(st: LiveState, depsgraph, longest: int, want_map: bool, want_scene: bool) -> dict:
-    """The picture-in-picture images: ``"map"`` (the first shadow map's depth) and
-    ``"scene"`` (the camera view shaded with Lixel's shadows), each fitted to
-    ``longest`` pixels."""
+def pip_textures(st: LiveState, depsgraph, longest: int, want_map: bool, want_scene: bool, targets=None) -> dict:
+    """The picture-in-picture images as GPU textures, drawn without a read-back:
+    ``"scene"`` (the camera view shaded with Lixel's shadows) and ``"map"`` (the
+    first shadow map as a grey picture, ``compose.map_picture``), each fitted
+    to ``longest`` pixels. They live in ``targets`` (the viewport passes its
+    own pool, so no other frame draws over them) until the next call."""
+    from ..gpu import compose
+    from ..gpu.context import ensure_gpu_context
+    from ..gpu.pipeline import ShadowFrame
     out = {}
     if not (want_map or want_scene):
         return out
-    res = render_state(st, depsgraph, fit_resolution(st.view.resolution, longest),
-                       read={"combined"} | ({"shadow_maps"} if want_map else set()))
+    ensure_gpu_context()
+    frame = ShadowFrame(scene_geometry(depsgraph), st.view, fit_resolution(st.view.resolution, longest),
+                        read={"combined"}, targets=targets)
+    frame.camera_prepass()
+    frame.draw_maps(st.setup, st.settings.shadow, st.body)
     if want_scene:
-        out["scene"] = np.ascontiguousarray(res.combined, dtype=np.float32)
-    if want_map and res.shadow_maps:
-        depth = res.shadow_maps[0]
-        h, w = depth.shape
-        step = max(1, math.ceil(max(w, h) / longest))
-        out["map"] = depth_to_rgba(depth[::step, ::step])
+        frame.shade(st.light, st.setup, st.settings.shadow)
+        out["scene"] = frame.combined_texture()
+    if want_map:
+        out["map"] = compose.map_picture(frame.targets, "map_picture", frame.maps[0][0], st.setup.maps[0].size, longest)
     return out
+
+
+def pip_images(st: LiveState, depsgraph, longest: int, want_map: bool, want_scene: bool) -> dict:
+    """:func:`pip_textures` read back as float32 (H, W, 4) images."""
+    from ..gpu import compose
+    from ..gpu.targets import TargetPool
+    pool = TargetPool()
+    return {name: compose.read_color(pool.framebuffer(colors=(tex,)), 0, (tex.width, tex.height))
+            for name, tex in pip_textures(st, depsgraph, longest, want_map, want_scene, pool).items()}
 
 
 def compare_renders(st: LiveState, depsgraph, rows: list, longest: int = 320) -> tuple[np.ndarray, list]:

@@ -767,3 +767,26 @@ def test_far_from_the_origin_shadows_keep_their_precision(lx, scene):
     frac, n, truth = agreement(out, lt, dg)
     assert n > 5000 and truth[out.covered].mean() > 0.02
     assert frac >= 0.99
+
+
+def test_the_map_picture_on_the_gpu_is_depth_to_rgba(lx, scene, lixel):
+    """The viewport's shadow-map picture (compose.map_picture, no read-back) is
+    the picture renders.depth_to_rgba makes of the read-back map's every step-th texel."""
+    renders = importlib.import_module(f"{lixel.__name__}.addon.ui.renders")
+    shadow_scene(scene, "SUN")
+    dg = scene.view_layers[0].depsgraph
+    dg.update()
+    geometry = lx.geometry.GeometryCache().update(dg)
+    view, lt, bounds = lx.describe.describe_scene(scene, dg, instances=geometry.instances)
+    setup = lx.warp.compute("lispsm", view, lt, bounds, lx.warp.WarpOptions(shadow_map_size=(300, 200)))
+    pool = lx.targets.TargetPool()
+    frame = lx.pipeline.ShadowFrame(geometry, view, read={"combined"}, scene=lx.batches.GPUScene(), targets=pool)
+    frame.camera_prepass()
+    frame.draw_maps(setup, lx.settings.ShadowSettings(), lx.warp.intersection_body(view, lt, bounds))
+    depth = lx.compose.read_depth(frame.maps[0][1], (300, 200))
+    assert 0.1 < (depth < 1.0).mean() < 1.0 and np.ptp(depth[depth < 1.0]) > 0.01   # a map to picture
+    for longest in (64, 300, 1000):
+        tex = lx.compose.map_picture(pool, "picture", frame.maps[0][0], (300, 200), longest)
+        got = lx.compose.read_color(pool.framebuffer(colors=(tex,)), 0, (tex.width, tex.height))
+        step = max(1, -(-300 // longest))
+        np.testing.assert_allclose(got, renders.depth_to_rgba(depth[::step, ::step]), atol=2e-6)

@@ -260,3 +260,21 @@ def test_a_spot_lighting_nothing_visible_renders_ambient_only(engine, scene, cap
                                atol=1e-6)
     captured = capfd.readouterr()
     assert "no shadows in this view" in captured.err + captured.out
+
+
+def test_the_viewport_and_the_engine_share_one_scene_cache(engine, scene, lixel):
+    """The live state (panel, overlays) reads the scene through the cache the
+    engine renders from: the same bounds object, so one culling index."""
+    live = importlib.import_module(lixel.__name__ + ".addon.ui.live")
+    geometry_mod = importlib.import_module(lixel.__name__ + ".addon.scene.geometry")
+    build(scene)
+    dg = scene.view_layers[0].depsgraph
+    dg.update()
+    st = live.update(scene, dg)
+    assert st.setup is not None, st.error
+    again = live.update(scene, dg, changed={"bounds"})
+    geometry = geometry_mod.shared_cache().update(dg, exclude=engine.is_debug_object)
+    assert again.bounds is st.bounds is geometry.instances.bounds
+    importlib.import_module(lixel.__name__ + ".addon.gpu.context").ensure_gpu_context()
+    engine.render_depsgraph(dg)
+    assert geometry_mod.shared_cache().update(dg, exclude=engine.is_debug_object).instances.bounds is st.bounds
