@@ -194,15 +194,25 @@ def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]
     return axis, half
 
 
-def perspective_frame(apex, axis, up_hint, points, role, scale) -> LightFrame:
+def perspective_frame(apex, axis, up_hint, points, role, scale, floor: float | None = None,
+                      cuts_a_box: bool = True) -> LightFrame:
     """A point light's perspective looking along ``axis`` from ``apex``:
     eye space -> (x, y, z_gl, -z) so rays from the apex become parallel to z.
     The near plane is the nearest point's depth, clamped to a scale-relative
-    minimum when the light sits inside the body."""
+    minimum when the light sits on or in the body. Then the points nearer than
+    that minimum (the light itself, a vertex of hull(R ∪ light)) give way to
+    where the segments from the light to the others cross the near plane:
+    every map fitted to the frame's points holds the body from there on.
+    ``floor``: that minimum (default 1e-6 of ``scale``; ``near_floor``);
+    ``cuts_a_box``: whether what lies nearer matters (the "near plane" note)."""
     view = look_along(apex, axis, up_hint)
     depth = (points - apex) @ -view[2, :3]                   # along the axis (the eye looks down -z)
-    near, far, clamped = near_far(float(depth.min()), float(depth.max()), 1e-6 * scale)
-    return LightFrame(perspective_of(view, near, far), points, role, False, clamped)
+    floor = 1e-6 * scale if floor is None else floor
+    near, far, clamped = near_far(float(depth.min()), float(depth.max()), floor)
+    ahead = depth >= floor
+    if clamped and ahead.any():
+        points = np.concatenate([points[ahead], apex + (points[ahead] - apex) * (floor / depth[ahead])[:, None]])
+    return LightFrame(perspective_of(view, near, far), points, role, False, clamped and cuts_a_box)
 
 
 CUBE_FACE_COS = 1.0 / math.sqrt(3.0)
@@ -226,10 +236,12 @@ def nearest_box_distance(body: IntersectionBody, apex) -> float:
     return nearest
 
 
-def cube_near_floor(body: IntersectionBody, apex, hyperbolic: bool) -> tuple[float, bool]:
+def cube_near_floor(body: IntersectionBody, apex, hyperbolic: bool,
+                    widest_cos: float = CUBE_FACE_COS) -> tuple[float, bool]:
     """The near distance of a point light's cube faces when the light is inside
-    B, and whether it cuts into a box that matters (then what lies nearer is
-    not covered: the "near plane" fallback).
+    (or on) B, and whether it cuts into a box that matters (then what lies
+    nearer is not covered: the "near plane" fallback). ``widest_cos``: cos of
+    the widest angle between a face's axis and its rays (one frame's: its cone's).
 
     With linear depth (the default, Scherzer §4.2) the near plane does not
     touch the depth's precision, so it stays at the least distance a
@@ -238,11 +250,11 @@ def cube_near_floor(body: IntersectionBody, apex, hyperbolic: bool) -> tuple[flo
     leaves float32 no precision at the receivers (1e-6 of a 340 m scene: depth
     steps of decimetres at 30 m), so it goes to the nearest box that matters:
     every such box is at least ``nearest_box_distance`` from the light, so
-    along a face's axis at least that times CUBE_FACE_COS, and only the
+    along a face's axis at least that times ``widest_cos``, and only the
     empty part of B nearer than that is left out. (Boxes are bounding boxes: a
     light inside a room's box gains nothing.)"""
     least = 1e-6 * body.scale
-    bound = 0.999 * CUBE_FACE_COS * nearest_box_distance(body, apex)
+    bound = 0.999 * widest_cos * nearest_box_distance(body, apex)
     cuts_a_box = bound < least
     if hyperbolic and math.isfinite(bound):
         return max(bound, least), cuts_a_box
@@ -294,6 +306,11 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
     ``max_frustum_angle``, else one per cube face that B reaches (cube aligned
     with the cone axis to B, so as few faces as possible are needed).
 
+    A light on B's boundary takes the one frame too: B = hull(R ∪ light) ∩ S_c
+    has the light as a vertex whenever S_c holds it (a lamp among the boxes, a
+    headlamp, each split of a cascade), and then lies in the cone of its other
+    points' directions; only a light strictly inside B needs whole cube faces.
+
     The switch between the two is a known discontinuity (the number of maps
     changes), at ``2 * light_cone(B)[1] == max_frustum_angle``."""
     apex = light.position
@@ -301,8 +318,12 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
     up = image_up(view.direction, view.up, axis)
     if not up.any():
         up = perpendicular(axis)
-    if 2 * half <= options.max_frustum_angle and not body.contains(apex[None])[0]:     # (not inside B)
-        return [perspective_frame(apex, axis, up, body.vertices, "main", body.scale)]
+    inside = body.contains(apex[None], -10.0 * body.tolerance)[0]                  # (strictly inside B)
+    if 2 * half <= options.max_frustum_angle and not inside:
+        floor, cuts_a_box = None, True
+        if body.contains(apex[None])[0]:                                              # (on B)
+            floor, cuts_a_box = cube_near_floor(body, apex, not options.linear_z, math.cos(half))
+        return [perspective_frame(apex, axis, up, body.vertices, "main", body.scale, floor, cuts_a_box)]
     basis = cube_basis(axis.tolist(), up.tolist())
     near_floor, cuts_a_box = cube_near_floor(body, apex, not options.linear_z)
     turns = _FACE_TURNS @ basis                              # (6, 3, 3): each face's eye rows x, y, -forward
@@ -311,11 +332,17 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
     for f, part, nearest, farthest in cube_sections(body.polytope_from(apex), basis):
         clamped = nearest < near_floor
         if clamped:
-            # B reaches nearer than the near floor in this face: the whole face from the near floor on.
+            # B reaches nearer than the near floor in this face: from the floor on, the whole face when B
+            # surrounds the light, else where the segments from the light to B's other points cross it.
             forward = -turns[f, 2]
-            others = np.delete(basis, CUBE_FACES[f][1], axis=0)
-            corners = near_floor * (forward + _FACE_CORNERS @ others)
-            part = np.concatenate([part[part @ forward >= near_floor], corners])
+            depth = part @ forward
+            ahead = depth >= near_floor
+            if inside or not ahead.any():
+                others = np.delete(basis, CUBE_FACES[f][1], axis=0)
+                nearest_part = near_floor * (forward + _FACE_CORNERS @ others)
+            else:
+                nearest_part = part[ahead] * (near_floor / depth[ahead])[:, None]
+            part = np.concatenate([part[ahead], nearest_part])
             farthest = float((part @ forward).max())
         # The face's view (rows x, y, -forward through the apex) and perspective, entry by entry.
         near, far, _ = near_far(nearest, farthest, near_floor)

@@ -267,8 +267,8 @@ def test_the_cli_options_reach_the_cascade():
 # ----------------------------------------------------------------------------- against the classic PSSM
 
 LIGHT_AT_A_VERTEX = pytest.mark.xfail(strict=False, reason=(
-    "0.81-0.99x: the lamp lies on a split's B (a vertex of hull(R_i ∪ light) inside S_c), and frame.point_frames "
-    "then takes whole cube faces for it; the warped point-light faces (after issue 16's frame.py) fix it"))
+    "0.85x: the lamp 20 m over the terrain sees the middle and far splits' B over more than max_frustum_angle "
+    "(120°), so they take cube faces; 3 splits then need 10 maps, the shading pass reads 8, and 2 splits remain"))
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=LIGHT_AT_A_VERTEX) if n == "terrain_point" else n
