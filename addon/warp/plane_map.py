@@ -13,25 +13,24 @@ Notation (paper §2): M_v is the viewer's world -> clip matrix, l the light
 * :func:`plane_light_matrix` builds those five points: the rays through the
   four view corners meet P in p^1..p^4 (homogeneous, so corners whose rays miss
   P or meet it behind the camera, i.e. a quad straddling infinity (Fig. 5), are
-  fine; :func:`line_plane_points` of the view frustum's near and far corners,
-  or :func:`plane_light_rows` from the viewer matrix); p^4 is raised along its
-  light ray to p̂^4 (Fig. 2); l is the centre of projection (Eq. 1). The x, y,
-  w rows of the result equal the viewer's on P: every point of P has the same
-  image in both (the plane homography fixes four generic points, so it is the
-  identity).
+  fine; :func:`ray_plane_points`); p^4 is raised along its light ray to p̂^4
+  (Fig. 2); l is the centre of projection (Eq. 1). The x, y, w rows of the
+  result equal the viewer's on P: every point of P has the same image in both
+  (the plane homography fixes four generic points, so it is the identity).
 
   Closed form, used only as an independent check in the tests: those rows are
   M_v·S with S = (π·l) I - l π^T, the projection from l onto P; the light image
   of any point is the viewer image of its shadow on P.
-* :func:`plane_section`, :func:`offset_polygon`, :func:`clip_polygon`,
-  :func:`clip_to_polygon`: the needed part of the plane ("less of the plane",
-  §2) as a convex polygon.
+* The needed part of the plane ("less of the plane", §2) is a convex polygon:
+  ``polyhedron.plane_section`` of R, then :func:`clip_to_polygon` by the
+  plane's extent and :func:`enclosing_polygon` for the shader's vertex limit.
 * :func:`min_area_twist`: the 2D rotation (twist, §2) giving the tightest
   axis-aligned rectangle around the plane's image.
 * :func:`default_plane`: the top face of the widest, thinnest receiver box.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Optional
@@ -39,7 +38,7 @@ from typing import Optional
 import numpy as np
 
 from .geometry import length
-from .polyhedron import Plane, _polygon_on_plane
+from .polyhedron import Plane, convex_polygon_on_plane, plane_section  # noqa: F401  (part of this module's API)
 from .types import WarpError
 
 RANK_TOL = 1e-10
@@ -53,12 +52,10 @@ VIEW_CORNERS = ((-1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (1.0, -1.0))
 """The four viewer-image points of Eq. 2 (the image corners, in NDC, in the
 paper's order (0,0), (0,h-1), (g-1,h-1), (g-1,0))."""
 
-_FIVE_POINT_TARGETS = np.array([[*VIEW_CORNERS[0], 1.0, 1.0], [*VIEW_CORNERS[1], 1.0, 1.0], [*VIEW_CORNERS[2], 1.0, 1.0],
-                                [*VIEW_CORNERS[3], -1.0, 1.0], [0.0, 0.0, 1.0, 0.0]])
-"""The light-image targets of p^1..p^3, p̂^4 and l (see :func:`plane_light_rows`)."""
-
-_OTHER_AXES = tuple(tuple(j for j in range(4) if j != m) for m in range(4))
-"""For each homogeneous axis m, the other three."""
+LIGHT_TARGETS = np.array([[-1.0, -1.0, 1.0, 1.0], [-1.0, 1.0, 1.0, 1.0], [1.0, 1.0, 1.0, 1.0],
+                          [1.0, -1.0, -1.0, 1.0], [0.0, 0.0, 1.0, 0.0]])
+"""The light-image targets of p^1..p^3, p̂^4 (the view corners, light z +1, and
+-1 for p̂^4) and of l (the centre of projection, sent to infinity along z)."""
 
 FLAT_RATIO = 0.1
 """A receiver box is flat (a floor, a table top, terrain) when its height is at
@@ -118,18 +115,6 @@ class PlaneOfInterest:
         return np.append(self.normal, -(self.offset - o))
 
 
-def _unit_list(v: list) -> list:
-    """``v`` scaled to unit length (unchanged if zero)."""
-    n = length(v)
-    return [c / n for c in v] if n > 0 else v
-
-
-def next_vertices(poly: np.ndarray) -> np.ndarray:
-    """Each vertex's successor around the polygon (``np.roll(poly, -1, axis=0)``
-    without its fixed cost)."""
-    return np.concatenate([poly[1:], poly[:1]])
-
-
 def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
     """The 4x4 projective M with M·src_i ∝ dst_i for five homogeneous
     correspondences (no four of ``src`` coplanar; Chong-Gortler §2 after
@@ -137,75 +122,47 @@ def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
 
     Each correspondence gives three independent equations
     Y_m (M X)_j - Y_j (M X)_m = 0 (m = the largest component of Y); the 15x16
-    system must have rank 15 (its singular values, in float64), and its null
-    vector, M up to scale, is then M = F_dst·F_src⁻¹ (:func:`projective_frame`;
-    no four of ``dst`` coplanar either). Raises WarpError when the rank is
-    below 15 (relative singular value under RANK_TOL) or when a correspondence
-    is not met to RESIDUAL_TOL. Returns (M, {"condition", "residual"})."""
-    dst = np.asarray(dst, dtype=np.float64).reshape(5, 4)
-    return _solve_five_points(src, dst, _dlt_coefficients(dst))
-
-
-def projective_frame(points) -> np.ndarray:
-    """The 4x4 F taking the canonical projective basis e_1..e_4, (1, 1, 1, 1)
-    to the five homogeneous ``points`` (rows; no four coplanar): F e_i ∝ p_i
-    and F (1, 1, 1, 1) = p_5, i.e. the columns p_1..p_4 scaled by λ =
-    [p_1 .. p_4]⁻¹ p_5 (Faugeras 1993). Raises WarpError when four of the
-    points are coplanar (a λ_i is 0 or the matrix singular)."""
-    p = np.asarray(points, dtype=np.float64).reshape(5, 4)
-    inverse = _frame_inverse(p)
-    return np.linalg.inv(inverse)
-
-
-def _frame_inverse(p: np.ndarray) -> np.ndarray:
-    """``projective_frame(p)``⁻¹ = diag(1/λ)·[p_1 .. p_4]⁻¹."""
-    try:
-        columns_inverse = np.linalg.inv(p[:4].T)
-    except np.linalg.LinAlgError:
-        raise WarpError("the five point constraints are degenerate (four of the points are coplanar)") from None
-    lam = columns_inverse @ p[4]
-    if not (np.isfinite(lam).all() and np.abs(lam).min() > 0):
-        raise WarpError("the five point constraints are degenerate (four of the points are coplanar)")
-    return columns_inverse / lam[:, None]
-
-
-def _dlt_coefficients(dst: np.ndarray) -> np.ndarray:
-    """(15, 4): for the equations of ``five_point_matrix`` (three per target Y,
-    j != m), the coefficient of each row of M in y_m (M x)_j - y_j (M x)_m:
-    y_m for row j, -y_j for row m, else 0."""
-    coefficients = []
-    for y in dst.tolist():
-        size = [abs(c) for c in y]
-        big = size.index(max(size))                             # (the first largest, as np.argmax)
-        for j in _OTHER_AXES[big]:
-            row = [0.0] * 4
-            row[j], row[big] = y[big], -y[j]
-            coefficients.append(row)
-    return np.array(coefficients)
-
-
-def _solve_five_points(src, dst: np.ndarray, coefficients: np.ndarray,
-                       dst_frame: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
-    """``five_point_matrix`` with the targets' equation coefficients given,
-    and perhaps their projective frame (``_dlt_coefficients(dst)``,
-    ``projective_frame(dst)``; those of the plane map's fixed targets are made once).
-
-    M = F_dst·F_src⁻¹ maps each src_i to a multiple of dst_i, so it solves
-    the 15 equations; with rank 15 their solutions are the multiples of one
-    matrix (the SVD's last right singular vector), so this is it up to scale,
-    found with one 4x4 inverse instead of the SVD's vectors."""
+    system must have rank 15 (its singular values, in float64). M =
+    F_dst·F_src⁻¹ (:func:`projective_frame`; no four of ``dst`` coplanar
+    either) maps each src_i to a multiple of dst_i, so it solves the
+    equations, and with rank 15 their solutions are the multiples of one
+    matrix: M is the null vector, found with one 4x4 inverse instead of the
+    SVD's vectors. Raises WarpError when the rank is below 15 (relative
+    singular value under RANK_TOL) or when a correspondence is not met to
+    RESIDUAL_TOL. Returns (M, {"condition", "residual"})."""
     src = np.asarray(src, dtype=np.float64).reshape(5, 4)
-    # Equation e over M's 16 entries row by row: the coefficient of M's row r times x_i (i = e // 3).
-    a = (coefficients[:, :, None] * src[_EQUATION_POINT][:, None, :]).reshape(15, 16)
+    dst = np.asarray(dst, dtype=np.float64).reshape(5, 4)
+    coefficients, dst_frame = _targets(dst.tobytes())
+    a = (coefficients[:, :, None] * src.repeat(3, axis=0)[:, None, :]).reshape(15, 16)   # M's entries row by row
     if not np.isfinite(a).all():
         raise WarpError("the five point constraints are not finite")
     sv = np.linalg.svd(a, compute_uv=False)
     condition = float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0
     if not condition > RANK_TOL:
         raise WarpError(f"the five point constraints are degenerate (rank < 15, relative singular value {condition:.3g})")
-    m = (projective_frame(dst) if dst_frame is None else dst_frame) @ _frame_inverse(src)
+    m = dst_frame @ _frame_inverse(src)
+    return m, {"condition": condition, "residual": _residual(m, src, dst)}
+
+
+@functools.lru_cache(maxsize=8)
+def _targets(dst_bytes: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """For targets Y (five rows): each equation's coefficient of each row of M
+    in Y_m (M X)_j - Y_j (M X)_m (Y_m for row j, -Y_j for row m; (15, 4)) and
+    their projective frame; made once for the plane map's fixed targets."""
+    dst = np.frombuffer(dst_bytes).reshape(5, 4)
+    coefficients = np.zeros((15, 4))
+    for i, y in enumerate(dst):
+        m = int(np.argmax(np.abs(y)))
+        for e, j in enumerate(k for k in range(4) if k != m):
+            coefficients[3 * i + e, j], coefficients[3 * i + e, m] = y[m], -y[j]
+    return coefficients, projective_frame(dst)
+
+
+def _residual(m: np.ndarray, src: np.ndarray, dst: np.ndarray) -> float:
+    """The largest distance between M·X and Y as unit vectors (of either sign);
+    WarpError when M sends a constrained point to nothing."""
     m_norm = length(m.ravel().tolist())
-    residual = 0.0                          # the largest distance between M·X and Y as unit vectors (either sign)
+    residual = 0.0
     for x, mx, y in zip(src.tolist(), (src @ m.T).tolist(), dst.tolist()):
         mx_norm, y_norm = length(mx), length(y)
         if mx_norm <= 1e-12 * m_norm * length(x):
@@ -219,17 +176,28 @@ def _solve_five_points(src, dst: np.ndarray, coefficients: np.ndarray,
         residual = max(residual, math.sqrt(min(minus, plus)))
     if not residual <= RESIDUAL_TOL:
         raise WarpError(f"the five point solve missed its constraints (residual {residual:.3g})")
-    return m, {"condition": condition, "residual": residual}
+    return residual
 
 
-_EQUATION_POINT = np.repeat(np.arange(5), 3)
-"""The correspondence each of the 15 equations comes from."""
+def projective_frame(points) -> np.ndarray:
+    """The 4x4 F taking the canonical projective basis e_1..e_4, (1, 1, 1, 1)
+    to the five homogeneous ``points`` (rows; no four coplanar): F e_i ∝ p_i
+    and F (1, 1, 1, 1) = p_5, i.e. the columns p_1..p_4 scaled by λ =
+    [p_1 .. p_4]⁻¹ p_5 (Faugeras 1993). Raises WarpError when four of the
+    points are coplanar (a λ_i is 0 or the matrix singular)."""
+    return np.linalg.inv(_frame_inverse(np.asarray(points, dtype=np.float64).reshape(5, 4)))
 
-_FIVE_POINT_COEFFICIENTS = _dlt_coefficients(_FIVE_POINT_TARGETS)
-"""``_dlt_coefficients`` of the plane map's targets (they never change)."""
 
-_FIVE_POINT_FRAME = projective_frame(_FIVE_POINT_TARGETS)
-"""``projective_frame`` of the plane map's targets."""
+def _frame_inverse(p: np.ndarray) -> np.ndarray:
+    """``projective_frame(p)``⁻¹ = diag(1/λ)·[p_1 .. p_4]⁻¹."""
+    try:
+        columns_inverse = np.linalg.inv(p[:4].T)
+    except np.linalg.LinAlgError:
+        raise WarpError("the five point constraints are degenerate (four of the points are coplanar)") from None
+    lam = columns_inverse @ p[4]
+    if not (np.isfinite(lam).all() and np.abs(lam).min() > 0):
+        raise WarpError("the five point constraints are degenerate (four of the points are coplanar)")
+    return columns_inverse / lam[:, None]
 
 
 def ray_plane_points(view_clip, plane_vec, ndc_xy) -> np.ndarray:
@@ -260,13 +228,21 @@ VIEW_CORNER_RAYS = ((0, 2, 3, 1), (4, 6, 7, 5))
 like ``geometry.UNIT_CUBE_CORNERS``) on the rays through ``VIEW_CORNERS``."""
 
 
+def corner_ray_points(corners: np.ndarray, plane_vec) -> np.ndarray:
+    """p^1..p^4: the homogeneous points where the rays through the view's
+    corners meet π (:func:`line_plane_points` of the view frustum's near and
+    far ``corners`` on those rays, ``VIEW_CORNER_RAYS``)."""
+    near, far = (np.append(corners[list(ends)], np.ones((4, 1)), axis=1) for ends in VIEW_CORNER_RAYS)
+    return line_plane_points(near, far, np.asarray(plane_vec, dtype=np.float64))
+
+
 def plane_light_rows(view_clip, plane_vec, light_h, length_scale: float) -> tuple[np.ndarray, dict]:
     """The light matrix of Eq. 1 and 7-10 for the plane π and the viewer's
     world -> clip matrix ``view_clip``: :func:`plane_light_matrix` of the points
     where the rays through the view corners meet π. Raises WarpError naming the
     reason."""
     pi = np.asarray(plane_vec, dtype=np.float64)
-    return plane_light_matrix(ray_plane_points(view_clip, pi, _FIVE_POINT_TARGETS[:4, :2]), light_h, length_scale)
+    return plane_light_matrix(ray_plane_points(view_clip, pi, LIGHT_TARGETS[:4, :2]), light_h, length_scale)
 
 
 def plane_light_matrix(corner_points, light_h, length_scale: float) -> tuple[np.ndarray, dict]:
@@ -275,25 +251,28 @@ def plane_light_matrix(corner_points, light_h, length_scale: float) -> tuple[np.
     homogeneous points where the rays through ``VIEW_CORNERS`` meet P (any
     positive scale each; :func:`ray_plane_points`).
 
-    Light-image targets are the viewer's NDC corners (x_i, y_i) with light z
-    = +1 for p^1..p^3, -1 for p̂^4 and l -> (0, 0, 1, 0). World points are
-    scaled by the spread of the p^i (``length_scale`` if none is finite) and
-    each homogeneous point normalised, so the DLT is well conditioned even for
-    a camera 1 cm above a 100 m floor. Raises WarpError naming the reason."""
+    Light-image targets are ``LIGHT_TARGETS``. World points are scaled by the
+    spread of the p^i (``length_scale`` if none is finite) and each
+    homogeneous point normalised, so the DLT is well conditioned even for a
+    camera 1 cm above a 100 m floor. Raises WarpError naming the reason."""
     points = np.asarray(corner_points, dtype=np.float64).reshape(4, 4).tolist()
     if not all(math.isfinite(c) for q in points for c in q) or min(map(length, points)) <= 1e-300:
         raise WarpError("a corner ray of the view lies in the plane (the plane is seen edge-on)")
     # The spread of the finite p^i: their root mean square distance from the camera.
-    dist = [math.sqrt(x * x + y * y + z * z) / abs(w) for x, y, z, w in points
-            if abs(w) > 1e-12 * math.sqrt(x * x + y * y + z * z)]
+    dist = [length((x, y, z)) / abs(w) for x, y, z, w in points if abs(w) > 1e-12 * length((x, y, z))]
     sigma = math.sqrt(sum(d * d for d in dist) / len(dist)) if dist else 0.0
     sigma = min(sigma, 1e6 * length_scale) if sigma > 0 else length_scale
     k = 1.0 / sigma                 # the normalising scale diag(k, k, k, 1), then each point of unit length
     src = [_unit_list([x * k, y * k, z * k, w]) for x, y, z, w in points + [list(map(float, light_h))]]
-    # p̂^4: another point of the line through p^4 and l (Fig. 2).
-    src[3] = _unit_list([a + b for a, b in zip(src[3], src[4])])
-    m, info = _solve_five_points(src, _FIVE_POINT_TARGETS, _FIVE_POINT_COEFFICIENTS, _FIVE_POINT_FRAME)
+    src[3] = _unit_list([a + b for a, b in zip(src[3], src[4])])     # p̂^4: on the line through p^4 and l (Fig. 2)
+    m, info = five_point_matrix(src, LIGHT_TARGETS)
     return m * np.array([k, k, k, 1.0]), info
+
+
+def _unit_list(v: list) -> list:
+    """``v`` scaled to unit length (unchanged if zero)."""
+    n = length(v)
+    return [c / n for c in v] if n > 0 else v
 
 
 def clip_polygon(poly: np.ndarray, plane: Plane, tol: float = 0.0) -> np.ndarray:
@@ -335,138 +314,6 @@ def clip_to_polygon(poly: np.ndarray, bound, normal, tol: float) -> Optional[np.
     return poly if pts is whole else np.array(pts, dtype=np.float64)      # (poly itself when no edge cut it)
 
 
-def plane_section(vertices, normal, offset: float, tol: float, loops=None) -> Optional[np.ndarray]:
-    """hull(vertices) ∩ P as a convex polygon (CCW about ``normal``), or None
-    when it has no area: the section of a convex hull by a plane is the hull of
-    its vertices on the plane and of the crossings of every segment between
-    vertices on opposite sides. ``loops``, the facet loops (vertex indices)
-    when the vertices are a convex polyhedron's (``brep.Brep``): then its edges
-    (consecutive vertices of a loop) are the only segments needed, since a
-    vertex of the section lies on an edge, and the few vertices are walked in
-    plain floats."""
-    if loops is not None:
-        return _boundary_section(vertices, loops, normal, offset, tol)
-    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
-    h = v @ normal - offset
-    on = np.abs(h) <= tol
-    pts = [v[on] - np.outer(h[on], normal)]
-    pos, neg = np.where(h > tol)[0], np.where(h < -tol)[0]
-    if len(pos) and len(neg):
-        hp, hn = h[pos][:, None], h[neg][None, :]
-        t = hp / (hp - hn)
-        cross = v[pos][:, None, :] + t[..., None] * (v[neg][None, :, :] - v[pos][:, None, :])
-        pts.append(cross.reshape(-1, 3))
-    pts = np.concatenate(pts)
-    if len(pts) < 3:
-        return None
-    return _polygon_on_plane(pts, normal, tol)
-
-
-def _boundary_section(vertices, loops, normal, offset: float, tol: float) -> Optional[np.ndarray]:
-    """``plane_section`` of a convex polyhedron given by its vertices and facet
-    loops: its vertices on P and where its edges (lower vertex index first)
-    cross P, in order around the section when the walk below can give it, else
-    their hull (:func:`_section_hull`).
-
-    When no vertex lies within ``tol`` of P, a facet P crosses has two edges
-    crossing it: its loop (counter-clockwise seen from outside) goes up through
-    P on one and down on the other, and the section runs inside the facet from
-    the downward crossing to the upward one (counter-clockwise about
-    ``normal``); the upward edge is the next facet's downward edge. Following
-    the edges so lists the section's vertices in order. The hull of those
-    points (:func:`_section_hull`) keeps every one of them when each turn of
-    the walked polygon exceeds 2·tol·D, D at least its diameter: the smallest
-    triangle on a convex polygon's vertices is one of three consecutive
-    vertices, so the monotone chain then finds no three points within its
-    collinearity tolerance (at most tol x the polygon's extent) and no two
-    within ``tol`` (those would make a triangle of at most tol·D / 2 with any
-    third). Anything else (a vertex on P, a facet crossed other than twice, a
-    walk that does not close, a turn within the tolerance) takes the hull."""
-    nx, ny, nz = (float(c) for c in normal)
-    v = vertices.tolist() if isinstance(vertices, np.ndarray) else vertices
-    h = [nx * x + ny * y + nz * z - offset for x, y, z in v]
-    if min(map(abs, h)) > tol:
-        walked = _walk_section(v, h, loops, nx, ny, nz, tol)
-        if walked is not None:
-            return walked
-    return _section_hull(v, h, loops, normal, tol)
-
-
-def _walk_section(v: list, h: list, loops, nx: float, ny: float, nz: float, tol: float) -> Optional[np.ndarray]:
-    """The walk of ``_boundary_section`` (no vertex within tol of P): the
-    section's vertices in order, or None when the walk cannot vouch for them."""
-    after = {}                          # a facet's downward edge (above -> below) -> its upward edge, reversed
-    for loop in loops:
-        a = loop[-1]
-        down = up = None
-        crossings = 0
-        for b in loop:
-            if (h[a] > 0) != (h[b] > 0):
-                crossings += 1
-                if h[a] > 0:
-                    down = (a, b)
-                else:
-                    up = (b, a)
-            a = b
-        if crossings == 2 and down is not None and up is not None:
-            after[down] = up
-        elif crossings:
-            return None
-    if len(after) < 3:
-        return None
-    edge = start = next(iter(after))
-    pts = []
-    for _ in range(len(after)):
-        a, b = edge if edge[0] < edge[1] else edge[::-1]
-        (ax, ay, az), (bx, by, bz), ha = v[a], v[b], h[a]
-        t = ha / (ha - h[b])
-        pts.append((ax + t * (bx - ax), ay + t * (by - ay), az + t * (bz - az)))
-        edge = after.get(edge)
-        if edge is None or edge == start:
-            break
-    if edge != start or len(pts) != len(after):
-        return None
-    # Every turn above 2·tol·D (D: twice the greatest L1 distance from the first vertex, at least the diameter).
-    x0, y0, z0 = pts[0]
-    limit = 2.0 * tol * max(2.0 * max(abs(x - x0) + abs(y - y0) + abs(z - z0) for x, y, z in pts), tol)
-    (px, py, pz), (qx, qy, qz) = pts[-2], pts[-1]
-    for rx, ry, rz in pts:
-        ax, ay, az, bx, by, bz = qx - px, qy - py, qz - pz, rx - qx, ry - qy, rz - qz
-        if (ay * bz - az * by) * nx + (az * bx - ax * bz) * ny + (ax * by - ay * bx) * nz <= limit:
-            return None
-        px, py, pz, qx, qy, qz = qx, qy, qz, rx, ry, rz
-    return np.array(pts)
-
-
-def _section_hull(v: list, h: list, loops, normal, tol: float) -> Optional[np.ndarray]:
-    """``_boundary_section`` as the hull of its candidates: the vertices
-    within ``tol`` of P and the crossings of the edges (lower vertex index
-    first, in sorted order) whose ends lie beyond ``tol`` on either side."""
-    nx, ny, nz = (float(c) for c in normal)
-    pts = [(x - e * nx, y - e * ny, z - e * nz) for (x, y, z), e in zip(v, h) if abs(e) <= tol]
-    below = [e < -tol for e in h]
-    above = [e > tol for e in h]
-    crossing = set()
-    for loop in loops:
-        a = loop[-1]
-        for b in loop:
-            if (above[a] and below[b]) or (below[a] and above[b]):
-                crossing.add((a, b) if a < b else (b, a))
-            a = b
-    for a, b in sorted(crossing):
-        (ax, ay, az), (bx, by, bz), ha = v[a], v[b], h[a]
-        t = ha / (ha - h[b])
-        pts.append((ax + t * (bx - ax), ay + t * (by - ay), az + t * (bz - az)))
-    if len(pts) < 3:
-        return None
-    return _polygon_on_plane(np.array(pts), normal, tol)
-
-
-def convex_polygon_on_plane(points, normal, tol: float) -> Optional[np.ndarray]:
-    """The convex hull (CCW about ``normal``) of points lying on one plane, or None if it has no area."""
-    return _polygon_on_plane(np.asarray(points, dtype=np.float64).reshape(-1, 3), np.asarray(normal, dtype=np.float64), tol)
-
-
 def is_convex_polygon(points, normal, tol: float) -> bool:
     """Whether the points, in their order, already are a convex polygon CCW
     about ``normal`` that ``convex_polygon_on_plane`` would keep whole (it would
@@ -498,15 +345,10 @@ def polygon_area(poly, normal) -> float:
     return 0.5 * abs(sx * nx + sy * ny + sz * nz)
 
 
-def offset_polygon(poly: np.ndarray, normal: np.ndarray, dist: float) -> np.ndarray:
-    """The convex polygon (CCW about ``normal``) with every edge moved out by
-    ``dist``: exactly the set ``Region.contains`` accepts with tolerance ``dist``."""
-    return poly + dist * offset_directions(poly, normal)
-
-
-def offset_directions(poly: np.ndarray, normal: np.ndarray) -> np.ndarray:
+def offset_directions(poly, normal) -> np.ndarray:
     """Per vertex of the convex polygon (CCW about ``normal``), how it moves when
-    every edge moves out by 1: ``offset_polygon(poly, normal, d) = poly + d * offset_directions(poly, normal)``."""
+    every edge moves out by 1 (so the polygon grown by d is ``poly + d *
+    offset_directions``, exactly the set ``Region.contains`` accepts with tolerance d)."""
     return np.array(offset_steps(np.asarray(poly, dtype=np.float64).tolist(), normal)).reshape(-1, 3)
 
 

@@ -414,10 +414,14 @@ def polytope_edges(poly: ConvexPolytope) -> Edges:
     return poly.segments
 
 
-def clip_segments(edges: Edges, normals: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def clip_segments(edges: Edges, normals: np.ndarray, offsets: np.ndarray,
+                  own: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Cyrus-Beck: the stretch [t_lo, t_hi] of each segment inside every
     half-space ``normals · x <= offsets`` (normals (..., m, 3), offsets
     (..., m), the segments' arrays (..., s, ...)); empty where t_lo > t_hi.
+    ``own`` = (m', s'): the first m' half-spaces and the first s' segments
+    are one body's, the rest another's, and a body's half-spaces leave its own
+    edges whole (they lie in it; rounding could say otherwise).
 
     Segment i stays in half-space j while t·rate <= room (rate = n_j · step_i,
     room = o_j - n_j · start_i): a facet it rises towards (rate > 0) bounds t
@@ -425,9 +429,12 @@ def clip_segments(edges: Edges, normals: np.ndarray, offsets: np.ndarray) -> tup
     facet (rate = 0) is made +0, so it counts as rising, and room / +0 is +inf
     inside (no bound), -inf outside (nothing left) and NaN on the plane
     (skipped by fmin: the segment lies in the facet's plane and is kept); a
-    nearly parallel one overflows to the same limits."""
+    nearly parallel one overflows to the same limits. No bound at all is room =
+    +inf."""
     rate = normals @ np.swapaxes(edges.step, -1, -2) + 0.0                   # (..., m, s)
     room = offsets[..., None] - normals @ np.swapaxes(edges.start, -1, -2)
+    if own is not None:
+        room[..., :own[0], :own[1]] = room[..., own[0]:, own[1]:] = np.inf
     with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
         ratio = room / rate
     rising = rate >= 0
@@ -442,20 +449,22 @@ def section_points(poly: ConvexPolytope, normals: np.ndarray, offsets: np.ndarra
     once, each given by its facets (``normals`` (k, m, 3), ``offsets`` (k, m))
     and its edges (``edges``, arrays (k, s, ...)): the ends of poly's edges
     clipped to Q_k and of Q_k's edges clipped to poly (module docs), within
-    ``tol`` (default: poly's tolerance). Returns the points (N, 3) and the
-    body each belongs to (N,), in order of the body; a body that does not meet
-    poly has none."""
+    ``tol`` (default: poly's tolerance), both in one clip of all the edges by
+    all the facets. Returns the points (N, 3) and the body each belongs to
+    (N,), in order of the body; a body that does not meet poly has none."""
     tol = poly.tol if tol is None else tol
-    own = polytope_edges(poly)
-    k = len(normals)
-    # Per body: poly's edges, then its own, each with the stretch of it inside the other.
-    ends = [np.concatenate(pair, axis=1) for pair in zip(clip_segments(own, normals, offsets + tol),
-                                                         clip_segments(edges, poly.normals, poly.offsets + tol))]
-    start, step = (np.concatenate([mine[None].repeat(k, axis=0), theirs], axis=1)
-                   for mine, theirs in ((own.start, edges.start), (own.step, edges.step)))
-    hit = ends[0] <= ends[1]                                                   # (k, segments)
-    ends = np.stack([ends[0][hit], ends[1][hit]], axis=1)                     # (hits, 2), body by body
-    points = start[hit][:, None] + ends[..., None] * step[hit][:, None]        # (hits, 2, 3)
+    mine, k = polytope_edges(poly), len(normals)
+
+    def per_body(a: np.ndarray, b: np.ndarray) -> np.ndarray:        # poly's (shared by every body), then the body's
+        return np.concatenate([a[None].repeat(k, axis=0), b], axis=1)
+
+    # Per body: poly's facets and edges, then the body's.
+    both = Edges(per_body(mine.start, edges.start), per_body(mine.step, edges.step), per_body(mine.end, edges.end))
+    t_lo, t_hi = clip_segments(both, per_body(poly.normals, normals), per_body(poly.offsets, offsets) + tol,
+                               own=(len(poly.normals), len(mine.end)))
+    hit = t_lo <= t_hi                                                          # (k, segments)
+    ends = np.stack([t_lo[hit], t_hi[hit]], axis=1)                            # (hits, 2), body by body
+    points = both.start[hit][:, None] + ends[..., None] * both.step[hit][:, None]     # (hits, 2, 3)
     return points.reshape(-1, 3), np.repeat(np.nonzero(hit)[0], 2)
 
 
@@ -681,6 +690,79 @@ def convex_polygon_on_plane(points, normal, tol: float) -> np.ndarray | None:
     return pts[order[hull]] if len(hull) >= 3 else None
 
 
+def plane_section(poly: ConvexPolytope, normal, offset: float) -> np.ndarray | None:
+    """P ∩ {normal · x = offset} as a convex polygon counter-clockwise about
+    ``normal``, or None when it has no area.
+
+    The section is the new facet of P cut by normal · x <= offset (the face
+    walk, ``_cut``), so its vertices come in order: where P's edges cross the
+    plane, starting at the first of P's facets the plane crosses, where its
+    loop comes back below the plane. They are kept as they are when every turn
+    exceeds 2·tol·D (D at least the polygon's diameter): then the hull keeps
+    all of them (the smallest triangle on a convex polygon's vertices is one of
+    three consecutive vertices, so the monotone chain finds no three within
+    its collinearity tolerance and no two within tol). A vertex of P within
+    the tolerance of the plane, a plane that does not cross P (a facet of P
+    may lie on it), a cut the walk cannot order or a smaller turn take the
+    hull of the candidates instead (``convex_polygon_on_plane``): P's vertices
+    on the plane, moved onto it, and the crossings."""
+    n = np.asarray(normal, dtype=np.float64)
+    height = poly.vertices @ n - offset
+    on = np.abs(height) <= poly.tol
+    crossings = [_crossings(poly, height)] if on.any() else []
+    if not on.any():
+        try:
+            cut = _cut(poly.vertices.tolist(), list(enumerate(poly.loops)), n.tolist(), offset, poly.tol, -1)
+        except OpenCut:
+            cut = None
+        if cut is not None and cut[1][-1][0] == -1:                  # (P crossed: its new facet comes last)
+            vertices, (*facets, (_, cap)) = cut
+            section = [vertices[v] for v in _from_first_crossing(facets, cap)]
+            if _turns_exceed(section, n.tolist(), poly.tol):
+                return np.array(section)
+            crossings = [np.array(section)]
+        elif cut is None:
+            crossings = [_crossings(poly, height)]
+    return convex_polygon_on_plane(np.concatenate([poly.vertices[on] - np.outer(height[on], n)] + crossings), n,
+                                   poly.tol)
+
+
+def _from_first_crossing(facets: list, cap: list) -> list:
+    """The new facet's loop from where the first facet it crosses comes back
+    below the plane (in a cut facet's loop the plane's two crossings follow
+    each other: where it leaves the half-space, then where it comes back)."""
+    on_cap = set(cap)
+    back = next(b for _, loop in facets for a, b in zip(loop[-1:] + loop[:-1], loop) if a in on_cap and b in on_cap)
+    at = cap.index(back)
+    return cap[at:] + cap[:at]
+
+
+def _turns_exceed(polygon: list, normal: list, tol: float) -> bool:
+    """Whether the polygon (a list of (x, y, z)) turns left about ``normal`` at
+    every vertex by more than 2·tol·D (the cross product of the edges into and
+    out of it; D: twice the greatest L1 distance from the first vertex, at least
+    the diameter)."""
+    nx, ny, nz = normal
+    x0, y0, z0 = polygon[0]
+    limit = 2.0 * tol * max(2.0 * max(abs(x - x0) + abs(y - y0) + abs(z - z0) for x, y, z in polygon), tol)
+    (px, py, pz), (qx, qy, qz) = polygon[-2], polygon[-1]
+    for rx, ry, rz in polygon:
+        ax, ay, az, bx, by, bz = qx - px, qy - py, qz - pz, rx - qx, ry - qy, rz - qz
+        if (ay * bz - az * by) * nx + (az * bx - ax * bz) * ny + (ax * by - ay * bx) * nz <= limit:
+            return False
+        px, py, pz, qx, qy, qz = qx, qy, qz, rx, ry, rz
+    return True
+
+
+def _crossings(poly: ConvexPolytope, height: np.ndarray) -> np.ndarray:
+    """Where P's edges whose ends lie beyond the tolerance on either side of a plane cross it (``height``: the vertices')."""
+    a, b = poly.edges().T
+    crossed = ((height[a] > poly.tol) & (height[b] < -poly.tol)) | ((height[a] < -poly.tol) & (height[b] > poly.tol))
+    a, b = a[crossed], b[crossed]
+    t = height[a] / (height[a] - height[b])
+    return poly.vertices[a] + t[:, None] * (poly.vertices[b] - poly.vertices[a])
+
+
 def _turn(o, a, b) -> float:
     """(a - o) x (b - o) for 2D points: positive for a left turn."""
     return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
@@ -717,9 +799,6 @@ def _face_halfspaces(faces: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         normals.append(n)
         offsets.append(o)
     return np.array(normals).reshape(-1, 3), np.array(offsets)
-
-
-_polygon_on_plane = convex_polygon_on_plane      # (plane_map's name for it, until plane_map's turn)
 
 
 def _rows(rows: list) -> np.ndarray:

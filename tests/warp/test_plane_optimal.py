@@ -18,7 +18,8 @@ from hypothesis import strategies as st
 
 from addon.warp import WarpError, WarpOptions
 from addon.warp.plane_map import (PlaneOfInterest, default_plane, five_point_matrix, min_area_twist, plane_light_rows,
-                                  plane_section, rotation2d)
+                                  plane_section, polygon_area, rotation2d)
+from addon.warp.polyhedron import ConvexPolytope
 from plane_optimal_helpers import (FLOOR_PLANE, assert_pixel_centres_are_lixel_centres, check_coverage, camera, camera_yaw_pitch, homography_jacobian, ndc,
                                    pixel_to_texel_homography, plane_maps, plane_scale, point, region_pixels, run, scene,
                                    sun, sun_at, try_run)
@@ -178,10 +179,13 @@ def test_five_point_solve_meets_its_constraints_and_rejects_coplanar_points():
 
 
 def test_plane_section_of_a_cube():
-    cube = np.array([[x, y, z] for x in (0, 1.0) for y in (0, 1.0) for z in (0, 1.0)])
-    poly = plane_section(cube, np.array([0, 0, 1.0]), 0.5, 1e-12)
+    cube = ConvexPolytope.box([0.0, 0.0, 0.0], [1.0, 1.0, 1.0], 1e-12)
+    poly = plane_section(cube, np.array([0, 0, 1.0]), 0.5)
     assert len(poly) == 4 and np.allclose(poly[:, 2], 0.5)
-    assert plane_section(cube, np.array([0, 0, 1.0]), 2.0, 1e-12) is None
+    assert polygon_area(poly, [0, 0, 1.0]) == pytest.approx(1.0)
+    assert plane_section(cube, np.array([0, 0, 1.0]), 2.0) is None
+    top = plane_section(cube, np.array([0, 0, 1.0]), 1.0)        # a facet lying on the plane is the section
+    assert len(top) == 4 and np.allclose(top[:, 2], 1.0)
 
 
 # ---------------------------------------------------------------- sign, depth, coverage

@@ -226,6 +226,32 @@ def test_a_section_by_pyramids_from_an_apex_has_every_corner_of_each_clip():
             assert_section(points[owner == k], p.clip(sides[k], np.zeros(4)))
 
 
+def test_a_plane_section_is_the_polygon_of_the_edge_crossings_counter_clockwise():
+    """P's section by a plane lists, in order about the plane's normal, exactly
+    the points where P's edges cross it (on planes through vertices too)."""
+    rng = np.random.default_rng(3)
+    for trial in range(200):
+        p = random_polytope(rng)
+        n = rng.normal(size=3)
+        n /= np.linalg.norm(n)
+        offset = float(p.vertices[trial % len(p.vertices)] @ n) if trial % 4 == 0 else float(rng.uniform(-1, 1))
+        section = polyhedron.plane_section(p, n, offset)
+        half = p.clip([n], [offset])
+        if section is None:
+            assert half is None or half is p or np.ptp(half.vertices @ n) <= 1e-9
+            continue
+        height = p.vertices @ n - offset
+        a, b = p.edges().T
+        crossed = height[a] * height[b] < 0
+        t = height[a][crossed] / (height[a][crossed] - height[b][crossed])
+        crossings = p.vertices[a[crossed]] + t[:, None] * (p.vertices[b[crossed]] - p.vertices[a[crossed]])
+        hull = polyhedron.convex_polygon_on_plane(np.concatenate([crossings, p.vertices[np.abs(height) <= p.tol]]),
+                                                  n, p.tol)
+        assert np.abs(section @ n - offset).max() <= 1e-9 and newell(section) @ n > 0
+        assert len(section) == len(hull)
+        assert np.linalg.norm(section[:, None] - hull[None], axis=2).min(axis=1).max() <= 1e-9
+
+
 def test_cyrus_beck_keeps_a_segment_in_a_facet_plane_and_drops_a_parallel_one_outside():
     normals, offsets = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]), np.array([1.0, 2.0])
     segments = Edges(np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.5], [0.0, 0.0, 0.0]]),

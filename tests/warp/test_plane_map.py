@@ -1,6 +1,7 @@
-"""plane_map's shortcuts give what the plain computations give: the default
-plane from the culling index equals the one from the copied receiver boxes,
-and an extent accepted as already convex is its own hull."""
+"""plane_map's searches: the default plane found through the culling index
+(opening only the clusters wide enough to hold the widest flat top) is the one
+of all the selected receiver boxes; a polygon accepted as already convex is
+its own hull."""
 from __future__ import annotations
 
 import math
