@@ -41,6 +41,7 @@
  *   LIXEL_MAP_COUNT  maps (1..8; with one map and neither regions nor depth
  *                    ranges the map is chosen without a loop)
  *   LIXEL_REGIONS / LIXEL_RANGES  some map has a region / a view depth range
+ *   LIXEL_BLENDS     some map has a blend band (a cascade's seams)
  *   LIXEL_LIGHT      0 sun, 1 point, 2 spot
  *   LIXEL_PCF        the PCF kernel k;  LIXEL_MDSM  n > 1 depths per texel
  *   LIXEL_BIAS       the bias mode (LIXEL_BIAS_*, addon.gpu.shaders.BIAS_CODES)
@@ -347,6 +348,81 @@ float lixel_texels_per_pixel(int m, vec3 P, vec3 N, vec2 tc, vec2 size)
 }
 #endif
 
+/* The shadow of P (normal N, light direction L) in map m, whose clip position
+ * of P is h: the k x k PCF test with the bias above. */
+float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
+{
+  vec4 info = lixel.maps[m].info;
+  ivec2 size = ivec2(info.xy);
+  vec2 tc = (h.xy / h.w * 0.5 + 0.5) * vec2(size);
+  bool greater = info.z > 0.5;
+  const bool plane_bias = LIXEL_BIAS == LIXEL_BIAS_RECEIVER_PLANE;
+  const bool slope_bias = LIXEL_BIAS == LIXEL_BIAS_SLOPE || LIXEL_BIAS == LIXEL_BIAS_CONSTANT_SLOPE;
+  vec3 NL = dot(N, L) < 0.0 ? -N : N; /* the receiver's side that faces the light */
+  LixelReceiver rcv = lixel_receiver(m, P, NL, L, h, vec2(size), plane_bias, slope_bias);
+  vec2 look = tc;
+#if LIXEL_BIAS == LIXEL_BIAS_NORMAL_OFFSET
+  /* Look up P moved s texel widths along its normal, towards the light. */
+  vec3 Q = P + NL * (lixel.bias.y * rcv.width);
+  vec4 hq = lixel.maps[m].matrix * vec4(Q, 1.0);
+  look = (hq.xy / hq.w * 0.5 + 0.5) * vec2(size);
+  rcv.z = lixel_stored_depth(m, Q, hq);
+#endif
+  float bias = 0.0;
+#if LIXEL_BIAS != LIXEL_BIAS_NONE && LIXEL_BIAS != LIXEL_BIAS_SLOPE
+  bias += lixel.bias.x * rcv.texel;
+#endif
+  if (slope_bias) {
+    bias += lixel.bias.y * lixel.bias.z * rcv.slope;
+  }
+  bool plane = plane_bias && rcv.det != 0.0;
+  const int k = LIXEL_PCF;
+  ivec2 base = (k % 2 == 1) ? ivec2(floor(look)) - (k - 1) / 2 : ivec2(floor(look - 0.5)) - (k / 2 - 1);
+  vec2 to_ndc = 2.0 / vec2(size);
+  float hits = 0.0;
+#if defined(LIXEL_MDSM) || LIXEL_PCF == 1
+  for (int dy = 0; dy < k; dy++) {
+    for (int dx = 0; dx < k; dx++) {
+      ivec2 s = clamp(base + ivec2(dx, dy), ivec2(0), size - 1);
+      vec2 p = (vec2(s) + 0.5) * to_ndc - 1.0;
+      hits += lixel_test(m, s, lixel_refs(rcv, plane, vec4(p.x), vec4(p.y), bias, greater).x, greater);
+    }
+  }
+#else
+  /* The k x k taps as 2 x 2 gathers (a gather costs about one texelFetch on
+   * a software rasterizer): the gather at the corner between texels c and
+   * c + 1 returns (c, c+1) x (c, c+1), clamped to the edge like the taps,
+   * as x = (c, c+1), y = (c+1, c+1), z = (c+1, c), w = (c, c). Taps beyond
+   * k - 1 are not counted. Each of the four is compared with its own
+   * reference (lixel_refs), in one vec4. */
+  for (int gy = 0; gy < k; gy += 2) {
+    for (int gx = 0; gx < k; gx += 2) {
+      ivec2 c = base + ivec2(gx, gy);
+      vec4 t = lixel_gather(m, (vec2(c) + 1.0) / vec2(size));
+      vec4 key = greater ? 1.0 - t : t;
+      vec4 sx = clamp(vec4(c.x, c.x + 1, c.x + 1, c.x), 0.0, float(size.x - 1));
+      vec4 sy = clamp(vec4(c.y + 1, c.y + 1, c.y, c.y), 0.0, float(size.y - 1));
+      vec4 ref = lixel_refs(rcv, plane, (sx + 0.5) * to_ndc.x - 1.0, (sy + 0.5) * to_ndc.y - 1.0, bias, greater);
+      vec4 counted = vec4(gy + 1 < k ? 1.0 : 0.0, (gx + 1 < k && gy + 1 < k) ? 1.0 : 0.0,
+                          gx + 1 < k ? 1.0 : 0.0, 1.0);
+      hits += dot(counted, vec4(lessThan(key, ref)));
+    }
+  }
+#endif
+  float shadow = hits / float(k * k);
+#ifdef LIXEL_REGIONS
+  /* A plane map (a map with a region) samples each pixel's own point of its
+   * plane (Chong-Gortler §2): the test of that one lixel is the exact shadow
+   * there, and the k x k taps would only blur it over k pixels. */
+  if (lixel.maps[m].range.w > 0.5) {
+    ivec2 own = ivec2(floor(tc));
+    vec2 p = (vec2(own) + 0.5) * to_ndc - 1.0;
+    shadow = lixel_test(m, own, lixel_refs(rcv, plane, vec4(p.x), vec4(p.y), bias, greater).x, greater);
+  }
+#endif
+  return shadow;
+}
+
 void main()
 {
   /* The surface the pre-pass saw here (prepass_frag.glsl); this pass runs only
@@ -405,69 +481,19 @@ void main()
 #endif
   float shadow = 0.0;
   if (index >= 0) {
-    bool greater = info.z > 0.5;
-    const bool plane_bias = LIXEL_BIAS == LIXEL_BIAS_RECEIVER_PLANE;
-    const bool slope_bias = LIXEL_BIAS == LIXEL_BIAS_SLOPE || LIXEL_BIAS == LIXEL_BIAS_CONSTANT_SLOPE;
-    vec3 NL = dot(N, L) < 0.0 ? -N : N; /* the receiver's side that faces the light */
-    LixelReceiver rcv = lixel_receiver(m, P, NL, L, hsel, vec2(size), plane_bias, slope_bias);
-    vec2 look = tc;
-#if LIXEL_BIAS == LIXEL_BIAS_NORMAL_OFFSET
-    /* Look up P moved s texel widths along its normal, towards the light. */
-    vec3 Q = P + NL * (lixel.bias.y * rcv.width);
-    vec4 hq = lixel.maps[m].matrix * vec4(Q, 1.0);
-    look = (hq.xy / hq.w * 0.5 + 0.5) * vec2(size);
-    rcv.z = lixel_stored_depth(m, Q, hq);
-#endif
-    float bias = 0.0;
-#if LIXEL_BIAS != LIXEL_BIAS_NONE && LIXEL_BIAS != LIXEL_BIAS_SLOPE
-    bias += lixel.bias.x * rcv.texel;
-#endif
-    if (slope_bias) {
-      bias += lixel.bias.y * lixel.bias.z * rcv.slope;
-    }
-    bool plane = plane_bias && rcv.det != 0.0;
-    const int k = LIXEL_PCF;
-    ivec2 base = (k % 2 == 1) ? ivec2(floor(look)) - (k - 1) / 2 : ivec2(floor(look - 0.5)) - (k / 2 - 1);
-    vec2 to_ndc = 2.0 / vec2(size);
-    float hits = 0.0;
-#if defined(LIXEL_MDSM) || LIXEL_PCF == 1
-    for (int dy = 0; dy < k; dy++) {
-      for (int dx = 0; dx < k; dx++) {
-        ivec2 s = clamp(base + ivec2(dx, dy), ivec2(0), size - 1);
-        vec2 p = (vec2(s) + 0.5) * to_ndc - 1.0;
-        hits += lixel_test(m, s, lixel_refs(rcv, plane, vec4(p.x), vec4(p.y), bias, greater).x, greater);
-      }
-    }
-#else
-    /* The k x k taps as 2 x 2 gathers (a gather costs about one texelFetch on
-     * a software rasterizer): the gather at the corner between texels c and
-     * c + 1 returns (c, c+1) x (c, c+1), clamped to the edge like the taps,
-     * as x = (c, c+1), y = (c+1, c+1), z = (c+1, c), w = (c, c). Taps beyond
-     * k - 1 are not counted. Each of the four is compared with its own
-     * reference (lixel_refs), in one vec4. */
-    for (int gy = 0; gy < k; gy += 2) {
-      for (int gx = 0; gx < k; gx += 2) {
-        ivec2 c = base + ivec2(gx, gy);
-        vec4 t = lixel_gather(m, (vec2(c) + 1.0) / vec2(size));
-        vec4 key = greater ? 1.0 - t : t;
-        vec4 sx = clamp(vec4(c.x, c.x + 1, c.x + 1, c.x), 0.0, float(size.x - 1));
-        vec4 sy = clamp(vec4(c.y + 1, c.y + 1, c.y, c.y), 0.0, float(size.y - 1));
-        vec4 ref = lixel_refs(rcv, plane, (sx + 0.5) * to_ndc.x - 1.0, (sy + 0.5) * to_ndc.y - 1.0, bias, greater);
-        vec4 counted = vec4(gy + 1 < k ? 1.0 : 0.0, (gx + 1 < k && gy + 1 < k) ? 1.0 : 0.0,
-                            gx + 1 < k ? 1.0 : 0.0, 1.0);
-        hits += dot(counted, vec4(lessThan(key, ref)));
-      }
-    }
-#endif
-    shadow = hits / float(k * k);
-#ifdef LIXEL_REGIONS
-    /* A plane map (a map with a region) samples each pixel's own point of its
-     * plane (Chong-Gortler §2): the test of that one lixel is the exact shadow
-     * there, and the k x k taps would only blur it over k pixels. */
-    if (lixel.maps[m].range.w > 0.5) {
-      ivec2 own = ivec2(floor(tc));
-      vec2 p = (vec2(own) + 0.5) * to_ndc - 1.0;
-      shadow = lixel_test(m, own, lixel_refs(rcv, plane, vec4(p.x), vec4(p.y), bias, greater).x, greater);
+    shadow = lixel_shadow(m, P, N, L, hsel);
+#ifdef LIXEL_BLENDS
+    /* A cascade's seam (addon/warp/methods/cascade.py): a map whose blend band
+     * (extra.y) reaches past the end of its depth range still holds P there,
+     * and across that band the shadow fades from it into P's own map. */
+    for (int j = 0; j < index; j++) {
+      float past = eye_depth - lixel.maps[j].range.y;
+      float band = lixel.maps[j].extra.y;
+      if (band <= 0.0 || past <= 0.0 || past >= band) continue;
+      vec4 hj = lixel.maps[j].matrix * vec4(P, 1.0);
+      if (hj.w <= 0.0 || any(greaterThan(abs(hj.xyz / hj.w), vec3(1.0)))) continue;
+      shadow = mix(lixel_shadow(j, P, N, L, hj), shadow, past / band);
+      break;
     }
 #endif
   }

@@ -238,6 +238,7 @@ def shade_block(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSett
                       1.0 if m.depth_row is not None else 0.0)
         if m.view_depth_range is not None:
             bm.range[:3] = (m.view_depth_range[0], m.view_depth_range[1], 1.0)
+            bm.extra[1] = m.blend_band                   # a cascade's seam: fades into the next map
         if m.region is not None:
             poly = np.asarray(m.region.polygon, dtype=np.float64).reshape(-1, 3)
             if len(poly) > shaders.MAX_POLYGON:
@@ -427,7 +428,8 @@ class ShadowFrame:
         variant = shaders.ShadeVariant(
             map_count=len(setup.maps), light=light.type, pcf=shadow.pcf_kernel, mdsm=shadow.mdsm_depths,
             bias=shadow.bias_mode, regions=any(m.region is not None for m in setup.maps),
-            ranges=any(m.view_depth_range is not None for m in setup.maps), blurred=blurred,
+            ranges=any(m.view_depth_range is not None for m in setup.maps),
+            blends=any(m.blend_band > 0 and m.view_depth_range is not None for m in setup.maps), blurred=blurred,
             shadow_target=not blurred and bool(read & {"shadow_mask", "shadow_raw"}),
             footprint="footprint_heatmap" in read, data=needs_data(read) or blurred, world=world)
         ambient = tuple(float(c) for c in ambient)

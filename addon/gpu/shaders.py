@@ -97,6 +97,8 @@ class ShadeVariant:
     """``ShadowSettings.bias_mode`` (LIXEL_BIAS)."""
     regions: bool = False
     ranges: bool = False
+    blends: bool = False
+    """Some map has a blend band (a cascade's seams)."""
     blurred: bool = False
     """The eye-space blur follows: the colour target gets the unshadowed light."""
     shadow_target: bool = True
@@ -179,7 +181,7 @@ def _shade_info(variant: ShadeVariant):
     if v.mdsm > 1:
         info.define("LIXEL_MDSM", str(int(v.mdsm)))
     info.define("LIXEL_BIAS", str(BIAS_CODES[v.bias]))
-    flags = {"LIXEL_REGIONS": v.regions, "LIXEL_RANGES": v.ranges,
+    flags = {"LIXEL_REGIONS": v.regions, "LIXEL_RANGES": v.ranges, "LIXEL_BLENDS": v.blends,
              "LIXEL_BLURRED": v.blurred, **v.flags}
     for name, on in flags.items():
         if on:
