@@ -9,7 +9,7 @@ directions; the view frustum has near ``n``, far ``f`` and half field of view
 ``phi`` in that plane; ``theta`` in [0, π/2] is the angle between the light and
 view directions (folded by symmetry). The warp frustum P looks along V_P (the
 view direction projected perpendicular to the light, LiSPSM's Eq. 3) and covers
-the view frustum's extent along V_P, ``P_f - P_n`` (:func:`model_extent`).
+the view frustum's extent along V_P, ``P_f - P_n``.
 λ = P_n / (P_f - P_n) is P's near distance in units of that extent. A point on
 the central view ray at eye depth z sits at z·sin θ along V_P; the map
 coordinate is P's hyperbolic depth s ∈ [0, 1], and
@@ -17,14 +17,17 @@ coordinate is P's hyperbolic depth s ∈ [0, 1], and
     F(λ, θ, z) = (1 / tan φ) · dz / (z · ds) = ψ(λ, θ) · (z + φ(λ, θ))² / z          (Eq. 2)
 
 is the perspective aliasing (screen pixels per texel along z, up to the
-resolutions). λ → ∞ is the uniform map (:func:`uniform_F`).
+resolutions). λ → ∞ is the uniform map. The model itself (F, ψ, φ, the map
+coordinate, the extent) is what the tests check the λ rules against, so it
+lives with them: ``tests/warp/aliasing_model.py``.
 
 The λ selections, each a function of (θ, n, f, φ):
 
 * :func:`lambda_gmnpr` - GMNPR Eq. 8 (Eq. 4's λ1 for θ ≥ φ, Eq. 7's λ2* below;
   continuous at θ = φ where both are √(fn)/(2f); README corrections applied).
-* :func:`lambda_lispsm` - GMNPR Eq. 9, i.e. Scherzer Eq. 1's n_opt with
-  z_n = n, Δz = f - n, divided by the extent: λ = n_opt / (P_f - P_n).
+* LiSPSM's λ, GMNPR Eq. 9 (Scherzer Eq. 1's n_opt with z_n = n, Δz = f - n,
+  divided by the extent, ``aliasing_model.lambda_lispsm`` in the tests; the
+  method itself uses :func:`lispsm_inverse_n_opt`).
 * :func:`lambda_glpr` - GLPR: F(z) ~ z, i.e. φ(λ, θ) = 0 in Eq. 2 (the warp's
   projection centre at the eye's position along V_P, PSM's choice). That λ is
   n(1 - t)/(f - n + (f + n)t), t = tan φ / tan θ, which is 0 at θ = φ and has no
@@ -103,78 +106,6 @@ def _t(theta, phi):
         return np.tan(phi) * np.cos(theta) / np.sin(theta)
 
 
-def model_extent(theta, n, f, phi):
-    """P_f - P_n: the view frustum's extent along V_P (GMNPR Eq. 9's denominator).
-
-    θ ≥ φ: sin θ·(f - n) + cos θ·tan φ·(f + n);  θ ≤ φ: 2 f cos θ tan φ.
-    Continuous at θ = φ (both 2 f sin φ)."""
-    theta = np.asarray(theta, dtype=np.float64)
-    tp = math.tan(phi)
-    case1 = np.sin(theta) * (f - n) + np.cos(theta) * tp * (f + n)
-    case2 = 2.0 * f * np.cos(theta) * tp
-    return np.where(theta >= phi, case1, case2)
-
-
-def model_near_side(theta, n, f, phi):
-    """Where the view frustum starts along V_P, measured from the eye:
-    n(sin θ - cos θ tan φ) for θ ≥ φ, f(sin θ - cos θ tan φ) below."""
-    theta = np.asarray(theta, dtype=np.float64)
-    s = np.sin(theta) - np.cos(theta) * math.tan(phi)
-    return np.where(theta >= phi, n * s, f * s)
-
-
-def psi(lam, theta, n, f, phi):
-    """ψ(λ, θ) of GMNPR Eq. 2.
-
-    θ < φ: 1 / (tan φ · 2fλ(λ + 1) · tan φ/tan θ). The extracted text prints the
-    last factor as tan θ/tan φ; that contradicts the paper's own Case 2 values of
-    F(λ, θ, n) and F(λ, θ, f) (§3) and the geometry of Fig. 4, which both give
-    tan φ/tan θ (tests/warp/test_aliasing.py checks all three agree)."""
-    theta = np.asarray(theta, dtype=np.float64)
-    t = _t(theta, phi)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        case1 = 1.0 / (math.tan(phi) * (f - n + (f + n) * t) * lam * (lam + 1.0))
-        case2 = 1.0 / (math.tan(phi) * 2.0 * f * lam * (lam + 1.0) * t)
-    return np.where(theta >= phi, case1, case2)
-
-
-def varphi(lam, theta, n, f, phi):
-    """φ(λ, θ) of GMNPR Eq. 2 (the offset of the hyperbola's pole in eye depth)."""
-    theta = np.asarray(theta, dtype=np.float64)
-    t = _t(theta, phi)
-    with np.errstate(invalid="ignore"):
-        case1 = (f - n + (f + n) * t) * lam + n * t - n
-        case2 = f * (2.0 * lam + 1.0) * t - f
-    return np.where(theta >= phi, case1, case2)
-
-
-def uniform_F(theta, z, n, f, phi):
-    """F of the uniform map (the λ → ∞ limit of Eq. 2): (P_f - P_n)/(z sin θ tan φ)."""
-    theta = np.asarray(theta, dtype=np.float64)
-    with np.errstate(divide="ignore"):
-        return model_extent(theta, n, f, phi) / (np.asarray(z, dtype=np.float64) * np.sin(theta) * math.tan(phi))
-
-
-def aliasing_F(lam, theta, z, n, f, phi):
-    """GMNPR Eq. 2: F(λ, θ, z) = ψ(λ, θ)·(z + φ(λ, θ))²/z; λ = inf gives :func:`uniform_F`."""
-    lam = np.asarray(lam, dtype=np.float64)
-    z = np.asarray(z, dtype=np.float64)
-    finite = np.isfinite(lam)
-    lam_f = np.where(finite, lam, 1.0)
-    with np.errstate(invalid="ignore", over="ignore"):
-        warped = psi(lam_f, theta, n, f, phi) * (z + varphi(lam_f, theta, n, f, phi)) ** 2 / z
-    return np.where(finite, warped, uniform_F(theta, z, n, f, phi))
-
-
-def map_coordinate(lam, theta, z, n, f, phi):
-    """s(z) ∈ [0, 1]: P's hyperbolic depth of the central-ray point at eye depth z
-    (s = (1 + λ)(1 - λ/d), d = its distance from P's centre in units of the
-    extent). The geometric definition Eq. 2 is derived from: F = dz/(z ds)/tan φ."""
-    theta = np.asarray(theta, dtype=np.float64)
-    d = (np.asarray(z) * np.sin(theta) - model_near_side(theta, n, f, phi)) / model_extent(theta, n, f, phi) + lam
-    return (1.0 + lam) * (1.0 - lam / d)
-
-
 # ---------------------------------------------------------------- λ selections
 
 def folded(gamma: float) -> float:
@@ -193,13 +124,6 @@ def lispsm_inverse_n_opt(z_n, delta_z, gamma) -> float:
     if root <= 0.0:
         return math.inf
     return abs(math.sin(folded(gamma))) / root    # (folded: exactly 0 at γ = π too)
-
-
-def lambda_lispsm(theta, n, f, phi) -> float:
-    """GMNPR Eq. 9: λ_LiSPSM = n_opt / (P_f - P_n) with Eq. 1's z_n = n, Δz = f - n."""
-    k = lispsm_inverse_n_opt(n, f - n, theta)
-    ext = float(model_extent(theta, n, f, phi))
-    return math.inf if k == 0.0 else 1.0 / (k * ext)
 
 
 def lambda_gmnpr(theta, n, f, phi) -> float:
@@ -301,9 +225,6 @@ def lambda_no_worse_on_average(delta, weights=None) -> float:
     roots = np.roots([4.0 * m1 - 2.0, 6.0 * m2 - 1.0, 4.0 * m3, m4])
     real = roots.real[(np.abs(roots.imag) <= 1e-9 * np.maximum(1.0, np.abs(roots.real))) & (roots.real > 0)]
     return float(real.max()) if len(real) else 0.0
-
-
-LAMBDA_RULES = {"lispsm": lambda_lispsm, "gmnpr": lambda_gmnpr, "glpr": lambda_glpr}
 
 
 # ---------------------------------------------------------------- texel footprint

@@ -35,11 +35,6 @@ def dot3(a, b) -> float:
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-def length(v) -> float:
-    """The Euclidean length of a short sequence of floats."""
-    return math.hypot(*v)
-
-
 def across(v, d) -> list:
     """The float 3-vector ``v`` made perpendicular to the unit ``d``."""
     k = dot3(v, d)

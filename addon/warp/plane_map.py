@@ -37,8 +37,7 @@ from typing import Optional
 
 import numpy as np
 
-from .geometry import length
-from .polyhedron import Plane, convex_polygon_on_plane, plane_section  # noqa: F401  (part of this module's API)
+from .polyhedron import Plane, convex_polygon_on_plane  # noqa: F401  (scene/planes.py reads it here)
 from .types import WarpError
 
 RANK_TOL = 1e-10
@@ -161,11 +160,11 @@ def _targets(dst_bytes: bytes) -> tuple[np.ndarray, np.ndarray]:
 def _residual(m: np.ndarray, src: np.ndarray, dst: np.ndarray) -> float:
     """The largest distance between M·X and Y as unit vectors (of either sign);
     WarpError when M sends a constrained point to nothing."""
-    m_norm = length(m.ravel().tolist())
+    m_norm = math.hypot(*m.ravel().tolist())
     residual = 0.0
     for x, mx, y in zip(src.tolist(), (src @ m.T).tolist(), dst.tolist()):
-        mx_norm, y_norm = length(mx), length(y)
-        if mx_norm <= 1e-12 * m_norm * length(x):
+        mx_norm, y_norm = math.hypot(*mx), math.hypot(*y)
+        if mx_norm <= 1e-12 * m_norm * math.hypot(*x):
             raise WarpError("the five point constraints are degenerate (the solution maps a constrained point to "
                             "nothing: four of the points are coplanar)")
         minus = plus = 0.0
@@ -256,10 +255,10 @@ def plane_light_matrix(corner_points, light_h, length_scale: float) -> tuple[np.
     homogeneous point normalised, so the DLT is well conditioned even for a
     camera 1 cm above a 100 m floor. Raises WarpError naming the reason."""
     points = np.asarray(corner_points, dtype=np.float64).reshape(4, 4).tolist()
-    if not all(math.isfinite(c) for q in points for c in q) or min(map(length, points)) <= 1e-300:
+    if not all(math.isfinite(c) for q in points for c in q) or min(math.hypot(*q) for q in points) <= 1e-300:
         raise WarpError("a corner ray of the view lies in the plane (the plane is seen edge-on)")
     # The spread of the finite p^i: their root mean square distance from the camera.
-    dist = [length((x, y, z)) / abs(w) for x, y, z, w in points if abs(w) > 1e-12 * length((x, y, z))]
+    dist = [math.hypot(x, y, z) / abs(w) for x, y, z, w in points if abs(w) > 1e-12 * math.hypot(x, y, z)]
     sigma = math.sqrt(sum(d * d for d in dist) / len(dist)) if dist else 0.0
     sigma = min(sigma, 1e6 * length_scale) if sigma > 0 else length_scale
     k = 1.0 / sigma                 # the normalising scale diag(k, k, k, 1), then each point of unit length
@@ -271,7 +270,7 @@ def plane_light_matrix(corner_points, light_h, length_scale: float) -> tuple[np.
 
 def _unit_list(v: list) -> list:
     """``v`` scaled to unit length (unchanged if zero)."""
-    n = length(v)
+    n = math.hypot(*v)
     return [c / n for c in v] if n > 0 else v
 
 
@@ -325,7 +324,7 @@ def is_convex_polygon(points, normal, tol: float) -> bool:
         return False
     nx, ny, nz = (float(c) for c in normal)
     edges = [(bx - ax, by - ay, bz - az) for (ax, ay, az), (bx, by, bz) in zip(pts, pts[1:] + pts[:1])]
-    perimeter = sum(map(length, edges))
+    perimeter = sum(math.hypot(*e) for e in edges)
     turned = 0.0
     for (ax, ay, az), (bx, by, bz) in zip(edges, edges[1:] + edges[:1]):
         left = (ay * bz - az * by) * nx + (az * bx - ax * bz) * ny + (ax * by - ay * bx) * nz

@@ -13,7 +13,7 @@ carry a ``region`` as well; see :meth:`ShadowMap.serves`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 from typing import Any, Optional
 

@@ -5,16 +5,17 @@ import numpy as np
 import pytest
 
 from addon.warp import aliasing as al
+import aliasing_model as model
 from addon.warp.geometry import look_along, ortho_matrix
 from addon.warp.types import ShadowMap, View
 
 N, F, PHI = 1.0, 100.0, math.pi / 6          # GMNPR Fig. 6's configuration
-RULES = (al.lambda_lispsm, al.lambda_gmnpr, al.lambda_glpr)
+RULES = (model.lambda_lispsm, al.lambda_gmnpr, al.lambda_glpr)
 
 
 def _near_far_ratio(rule, theta, n=N, f=F, phi=PHI):
     lam = rule(theta, n, f, phi)
-    return float(al.aliasing_F(lam, theta, n, n, f, phi) / al.aliasing_F(lam, theta, f, n, f, phi))
+    return float(model.aliasing_F(lam, theta, n, n, f, phi) / model.aliasing_F(lam, theta, f, n, f, phi))
 
 
 @pytest.mark.parametrize("theta_deg", [35.0, 40.0, 60.0, 75.0, 90.0])
@@ -26,9 +27,9 @@ def test_eq2_matches_the_geometric_definition_F_is_dz_over_z_ds(theta_deg, case)
     for lam in (0.01, 0.3, 2.0):
         z = np.linspace(N, F, 7)
         h = 1e-6 * z
-        ds = (al.map_coordinate(lam, theta, z + h, N, F, PHI) - al.map_coordinate(lam, theta, z - h, N, F, PHI)) / (2 * h)
+        ds = (model.map_coordinate(lam, theta, z + h, N, F, PHI) - model.map_coordinate(lam, theta, z - h, N, F, PHI)) / (2 * h)
         geometric = 1.0 / (math.tan(PHI) * z * ds)
-        assert np.allclose(al.aliasing_F(lam, theta, z, N, F, PHI), geometric, rtol=1e-6)
+        assert np.allclose(model.aliasing_F(lam, theta, z, N, F, PHI), geometric, rtol=1e-6)
 
 
 def test_eq2_matches_the_geometric_definition_below_the_critical_angle():
@@ -36,14 +37,14 @@ def test_eq2_matches_the_geometric_definition_below_the_critical_angle():
     for lam in (0.05, 1.0):
         z = np.linspace(N, F, 7)
         h = 1e-6 * z
-        ds = (al.map_coordinate(lam, theta, z + h, N, F, PHI) - al.map_coordinate(lam, theta, z - h, N, F, PHI)) / (2 * h)
-        assert np.allclose(al.aliasing_F(lam, theta, z, N, F, PHI), 1.0 / (math.tan(PHI) * z * ds), rtol=1e-6)
+        ds = (model.map_coordinate(lam, theta, z + h, N, F, PHI) - model.map_coordinate(lam, theta, z - h, N, F, PHI)) / (2 * h)
+        assert np.allclose(model.aliasing_F(lam, theta, z, N, F, PHI), 1.0 / (math.tan(PHI) * z * ds), rtol=1e-6)
 
 
 def test_map_coordinate_spans_the_warp_frustum():
     for theta in (math.radians(20), math.radians(60), math.pi / 2):
-        ext = al.model_extent(theta, N, F, PHI)
-        near = al.model_near_side(theta, N, F, PHI)
+        ext = model.model_extent(theta, N, F, PHI)
+        near = model.model_near_side(theta, N, F, PHI)
         lam = 0.2
         # s = 0 at the frustum's near side, 1 at its far side
         d0 = (near - near) / ext + lam
@@ -52,10 +53,10 @@ def test_map_coordinate_spans_the_warp_frustum():
 
 
 def test_model_extent_and_near_side_are_continuous_at_the_critical_angle():
-    for fn in (al.model_extent, al.model_near_side):
+    for fn in (model.model_extent, model.model_near_side):
         lo, hi = fn(PHI - 1e-12, N, F, PHI), fn(PHI + 1e-12, N, F, PHI)
         assert float(lo) == pytest.approx(float(hi), rel=1e-9, abs=1e-9)
-    assert float(al.model_extent(PHI, N, F, PHI)) == pytest.approx(2 * F * math.sin(PHI))
+    assert float(model.model_extent(PHI, N, F, PHI)) == pytest.approx(2 * F * math.sin(PHI))
 
 
 @pytest.mark.parametrize("theta_deg", np.linspace(30.5, 90.0, 12))
@@ -70,27 +71,27 @@ def test_gmnpr_equalises_for_other_frusta_too(n, f, phi):
 
 
 def test_lispsm_equalises_only_at_90_degrees():
-    assert _near_far_ratio(al.lambda_lispsm, math.pi / 2) == pytest.approx(1.0, rel=1e-9)
+    assert _near_far_ratio(model.lambda_lispsm, math.pi / 2) == pytest.approx(1.0, rel=1e-9)
     for theta_deg in (35.0, 45.0, 60.0, 75.0, 85.0):
-        r = _near_far_ratio(al.lambda_lispsm, math.radians(theta_deg))
+        r = _near_far_ratio(model.lambda_lispsm, math.radians(theta_deg))
         assert abs(r - 1.0) > 0.02, theta_deg
     # and the disagreement grows as θ leaves the ideal case (GMNPR §3, Fig. 6)
-    devs = [abs(_near_far_ratio(al.lambda_lispsm, math.radians(t)) - 1) for t in (85.0, 70.0, 50.0)]
+    devs = [abs(_near_far_ratio(model.lambda_lispsm, math.radians(t)) - 1) for t in (85.0, 70.0, 50.0)]
     assert devs[0] < devs[1] < devs[2]
 
 
 def test_lispsm_lambda_is_eq1_over_the_extent():
     for theta in (math.radians(20), math.radians(50), math.pi / 2):
         n_opt = (N + math.sqrt(N * F)) / math.sin(theta)
-        assert al.lambda_lispsm(theta, N, F, PHI) == pytest.approx(n_opt / float(al.model_extent(theta, N, F, PHI)))
+        assert model.lambda_lispsm(theta, N, F, PHI) == pytest.approx(n_opt / float(model.model_extent(theta, N, F, PHI)))
     # GMNPR Eq. 9 printed form, case θ ≥ φ
     theta = math.radians(60)
     t = math.tan(PHI) / math.tan(theta)
     eq9 = (N + math.sqrt(F * N)) / math.sin(theta) / ((N * t + F - N + F * t) * math.sin(theta))
-    assert al.lambda_lispsm(theta, N, F, PHI) == pytest.approx(eq9)
+    assert model.lambda_lispsm(theta, N, F, PHI) == pytest.approx(eq9)
     theta = math.radians(20)
     eq9 = (N + math.sqrt(F * N)) / math.sin(theta) / (2 * F * math.tan(PHI) * math.cos(theta))
-    assert al.lambda_lispsm(theta, N, F, PHI) == pytest.approx(eq9)
+    assert model.lambda_lispsm(theta, N, F, PHI) == pytest.approx(eq9)
 
 
 def test_glpr_makes_F_linear_in_z():
@@ -98,7 +99,7 @@ def test_glpr_makes_F_linear_in_z():
         theta = math.radians(theta_deg)
         lam = al.lambda_glpr(theta, N, F, PHI)
         z = np.linspace(N, F, 9)
-        f_over_z = al.aliasing_F(lam, theta, z, N, F, PHI) / z
+        f_over_z = model.aliasing_F(lam, theta, z, N, F, PHI) / z
         assert np.allclose(f_over_z, f_over_z[0], rtol=1e-9)
     assert al.lambda_glpr(math.pi / 2, N, F, PHI) == pytest.approx(N / (F - N))
 
@@ -109,12 +110,12 @@ def test_every_warp_converges_to_uniform_as_theta_goes_to_zero(rule):
     previous = math.inf
     for theta in (1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6):
         lam = rule(theta, N, F, PHI)
-        dev = float(np.max(np.abs(al.aliasing_F(lam, theta, z, N, F, PHI) / al.uniform_F(theta, z, N, F, PHI) - 1)))
+        dev = float(np.max(np.abs(model.aliasing_F(lam, theta, z, N, F, PHI) / model.uniform_F(theta, z, N, F, PHI) - 1)))
         assert dev < previous
         previous = dev
     assert previous < 1e-3
     assert rule(0.0, N, F, PHI) == math.inf
-    assert np.all(al.aliasing_F(math.inf, 0.3, z, N, F, PHI) == al.uniform_F(0.3, z, N, F, PHI))
+    assert np.all(model.aliasing_F(math.inf, 0.3, z, N, F, PHI) == model.uniform_F(0.3, z, N, F, PHI))
 
 
 @pytest.mark.parametrize("rule", RULES, ids=lambda r: r.__name__)
@@ -209,8 +210,8 @@ def test_eq2_at_near_and_far_matches_the_papers_case_values(theta_deg):
             nu = 0.5
             fn = 2 * F / (N * tt) * (lam + mu) ** 2 / (lam * (lam + 1))
             ff = 2 / tt * (lam + nu) ** 2 / (lam * (lam + 1))
-        assert float(al.aliasing_F(lam, theta, N, N, F, PHI)) == pytest.approx(fn, rel=1e-9)
-        assert float(al.aliasing_F(lam, theta, F, N, F, PHI)) == pytest.approx(ff, rel=1e-9)
+        assert float(model.aliasing_F(lam, theta, N, N, F, PHI)) == pytest.approx(fn, rel=1e-9)
+        assert float(model.aliasing_F(lam, theta, F, N, F, PHI)) == pytest.approx(ff, rel=1e-9)
 
 
 # ----------------------------------------------------------------------------- GLPR's guard
@@ -223,9 +224,9 @@ def test_at_the_guard_the_warps_worst_aliasing_is_the_uniform_maps_worst(n, f, p
     z = np.geomspace(n, f, 2001)
     for theta in np.radians([2.0, 12.0, 25.0, 40.0, 65.0, 90.0]):
         lam = al.lambda_no_worse_than_uniform(theta, n, f, phi)
-        worst_uniform = float(al.uniform_F(theta, n, n, f, phi))
-        assert al.aliasing_F(lam, theta, z, n, f, phi).max() == pytest.approx(worst_uniform, rel=1e-9)
-        assert al.aliasing_F(0.97 * lam, theta, z, n, f, phi).max() > worst_uniform * (1 + 1e-6)
+        worst_uniform = float(model.uniform_F(theta, n, n, f, phi))
+        assert model.aliasing_F(lam, theta, z, n, f, phi).max() == pytest.approx(worst_uniform, rel=1e-9)
+        assert model.aliasing_F(0.97 * lam, theta, z, n, f, phi).max() > worst_uniform * (1 + 1e-6)
 
 
 def test_in_the_ideal_case_the_guard_is_glprs_own_lambda_and_below_it_glpr_over_warps():

@@ -183,7 +183,8 @@ def test_lispsm_n_opt_is_scherzer_eq1_with_eye_depths_and_lambda_is_gmnpr_eq9():
     """z_n, Δz are eye depths of R = B ∩ V; with the receivers' box around the whole
     frustum they are the camera's near and far - the paper's ideal configuration -
     and λ = n_opt / (B's extent along V_P) is exactly GMNPR Eq. 9."""
-    from addon.warp.aliasing import lambda_gmnpr, lambda_lispsm
+    from addon.warp.aliasing import lambda_gmnpr
+    from aliasing_model import lambda_lispsm
     big = SceneBounds.from_boxes([[[-300.0, -300.0, -300.0], [300.0, 300.0, 300.0]]])
     view = camera([0.0, 0.0, 0.0], [0.0, 1.0, 0.0], near=0.1, far=70.0)
     n, f, phi = 0.1, 70.0, math.radians(30.0)

@@ -18,8 +18,8 @@ from hypothesis import strategies as st
 
 from addon.warp import WarpError, WarpOptions
 from addon.warp.plane_map import (PlaneOfInterest, default_plane, five_point_matrix, min_area_twist, plane_light_rows,
-                                  plane_section, polygon_area, rotation2d)
-from addon.warp.polyhedron import ConvexPolytope
+                                  polygon_area, rotation2d)
+from addon.warp.polyhedron import ConvexPolytope, plane_section
 from plane_optimal_helpers import (FLOOR_PLANE, assert_pixel_centres_are_lixel_centres, check_coverage, camera, camera_yaw_pitch, homography_jacobian, ndc,
                                    pixel_to_texel_homography, plane_maps, plane_scale, point, region_pixels, run, scene,
                                    sun, sun_at, try_run)

@@ -17,7 +17,7 @@ from addon.warp.frame import (PARALLEL_BLEND, image_up, image_up_singularity, li
 from addon.warp.methods.common import SNAP_STEPS_PER_OCTAVE
 from addon.warp.methods.uniform import uniform
 
-from hard_cases import HARD_CASES, camera, point, sun, town
+from hard_cases import HARD_CASES
 
 OPTIONS = WarpOptions(shadow_map_size=(1024, 1024))
 

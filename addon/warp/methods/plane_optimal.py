@@ -66,11 +66,11 @@ from ..body import IntersectionBody
 from ..diagnostics import Diagnostics
 from ..fit import window_matrix
 from ..frame import body_light_angles, light_frames
-from ..geometry import cross, homogeneous, translation
-from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_to_polygon, convex_polygon_on_plane, corner_ray_points,
-                         default_plane_of, enclosing_polygon, flattest_box, is_convex_polygon, min_area_twist,
-                         offset_directions, plane_light_matrix, plane_section, polygon_area, rotation2d)
-from ..polyhedron import Edges, section_points
+from ..geometry import homogeneous, translation
+from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_to_polygon, corner_ray_points, default_plane_of,
+                         enclosing_polygon, flattest_box, is_convex_polygon, min_area_twist, offset_directions,
+                         plane_light_matrix, polygon_area, rotation2d)
+from ..polyhedron import Edges, convex_polygon_on_plane, plane_section, section_points
 from ..types import Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .common import NEAR_PLANE_NOTE, frame_maps
 
