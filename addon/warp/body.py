@@ -183,8 +183,9 @@ def intersection_body(view: View, light: Light, scene: SceneBounds,
 
     # R = V ∩ S_r ∩ L.
     bn, bo = _box_halfspaces(s_r, max(BOX_PAD * scale, 512 * tol))
-    r = ConvexPolytope(frustum.vertices, frustum.normals, frustum.offsets, frustum.loops, tol).clip(
-        np.concatenate([bn, ln]), np.concatenate([bo, lo]))
+    if len(ln):
+        bn, bo = np.concatenate([bn, ln]), np.concatenate([bo, lo])
+    r = ConvexPolytope(frustum.vertices, frustum.normals, frustum.offsets, frustum.loops, tol).clip(bn, bo)
     if r is None:
         raise EmptyBodyError("the view frustum does not meet the receivers" + (" inside the spot cone" if len(ln) else ""))
 

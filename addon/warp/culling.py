@@ -130,9 +130,9 @@ class BoxIndex:
         and (hi, -lo) (``c_extremes``). A cluster wholly outside a half-space is
         rejected, one wholly inside every half-space taken whole (with its
         bounds), and the boxes of the rest (the edge clusters) are tested
-        against the planes that cross their cluster: every plane in one product
-        over the edge clusters' boxes, a plane that does not cross a cluster
-        given an infinite offset there. The same boxes give the bounding box of
+        against the planes that cross their cluster: every plane that crosses
+        one in one product over the edge clusters' boxes, a plane that does not
+        cross a cluster given an infinite offset there. The same boxes give the bounding box of
         those that pass."""
         n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
         o = np.asarray(offsets, dtype=np.float64).reshape(-1)
@@ -153,8 +153,10 @@ class BoxIndex:
         edge = np.flatnonzero(c_edge)
         if len(edge):
             boxes = np.take(self.c_box_bounds, edge, axis=1).reshape(6, -1)          # (6, edge boxes)
-            box_limit = np.where(crossing[:, edge], limit, np.inf)                  # (planes, edge clusters)
-            hit = ~((lowest @ boxes).reshape(len(n), -1, k) > box_limit[:, :, None]).any(axis=0)
+            crossing = crossing[:, edge]
+            planes = np.flatnonzero(crossing.any(axis=1))                           # (those crossing none: no test)
+            box_limit = np.where(crossing[planes], limit[planes], np.inf)           # (planes, edge clusters)
+            hit = ~((lowest[planes] @ boxes).reshape(len(planes), -1, k) > box_limit[:, :, None]).any(axis=0)
             selected[edge] = hit
             least = np.minimum(least, boxes.compress(hit.ravel(), axis=1).min(axis=1, initial=np.inf))
         selected[-1, self.count - (len(selected) - 1) * k:] = False          # the last cluster's padding
