@@ -288,3 +288,33 @@ def test_a_point_light_cascade_with_too_many_faces_makes_fewer_splits():
     setup = compute("cascade", view, light, scene, dataclasses.replace(OPTIONS, cascade_splits=4))
     assert len(setup.maps) <= 8
     assert any(what == "splits" for what, _ in setup.diagnostics.fallbacks)
+
+
+# ----------------------------------------------------------------------------- point and spot lights
+
+@pytest.mark.parametrize("name", ["flat_scene_point", "spot_179deg", "point_light_behind_camera"])
+def test_warped_point_light_faces_give_a_smaller_footprint_than_unwarped_faces(name):
+    """PSM §3.2 / Scherzer §4.4 for point and spot lights: the warp methods' frames
+    (one, or the cube faces B needs) differ from the uniform ones and their judged
+    p95 footprint is smaller, with every visible point and its casters covered."""
+    view, light, scene = HARD_CASES[name]
+    judged = {}
+    for method in ("uniform", "lispsm", "gmnpr"):
+        j = judge(view, light, scene, compute(method, view, light, scene, OPTIONS), samples=(96, 54))
+        assert (j.uncovered, j.casters_uncovered, j.depth_order_wrong) == (0, 0, 0), method
+        judged[method] = j.footprint_p95
+    assert min(judged["lispsm"], judged["gmnpr"]) < 0.9 * judged["uniform"]
+
+
+@pytest.mark.parametrize("name", ["spot_at_eye_aimed_aside", "point_light_at_camera"])
+def test_a_light_on_its_body_takes_one_frame_around_it_not_whole_cube_faces(name):
+    """B = hull(R ∪ light) ∩ S_c holds a headlamp as a vertex: one perspective
+    frame around B's directions (frame.point_frames), about a texel per pixel
+    like the view itself, no worse than the classic PSSM's, everything covered."""
+    view, light, scene = HARD_CASES[name]
+    setup = compute("uniform", view, light, scene, OPTIONS)
+    assert [m.role for m in setup.maps] == ["main"]
+    ours = judge(view, light, scene, setup, samples=(96, 54))
+    reference = judge(view, light, scene, reference_pssm(view, light, scene, 1024, 3), samples=(96, 54))
+    assert (ours.uncovered, ours.casters_uncovered, ours.depth_order_wrong) == (0, 0, 0)
+    assert ours.footprint_p95 <= reference.footprint_p95
