@@ -1,6 +1,7 @@
 """What the methods share: each light frame's unwarped map, fitted to the
-frame's part of B (Scherzer §4.1's focusing), and the note every method
-records for a frame whose near plane had to be clamped."""
+frame's part of B (Scherzer §4.1's focusing), the uniform method's maps (the
+fallback of the others), and the note every method records for a frame whose
+near plane had to be clamped."""
 from __future__ import annotations
 
 import math
@@ -8,10 +9,11 @@ import math
 import numpy as np
 
 from ..fit import fit_runs, ndc_box, window_matrix
-from ..frame import LightFrame
+from ..body import IntersectionBody
+from ..frame import LightFrame, light_frames, world_sun_frame
 from ..geometry import point_runs
 from ..linear_depth import frame_depth_row
-from ..types import ShadowMap
+from ..types import Light, ShadowMap, View, WarpOptions
 
 SNAP_STEPS_PER_OCTAVE = 8
 """Texel snapping: a window's extent is one of this many sizes per doubling."""
@@ -62,3 +64,14 @@ def snapped_window(lo: np.ndarray, hi: np.ndarray, size: tuple[int, int]) -> tup
             end += texel * math.ceil((hi[axis] - end) / texel)
         lo[axis], hi[axis] = start, end
     return lo, hi
+
+
+def uniform_maps(view: View, light: Light, body: IntersectionBody,
+                 options: WarpOptions) -> tuple[list[ShadowMap], list[LightFrame]]:
+    """The uniform method's maps and the light frames they are fitted in (PSM
+    hands over to them where its own map cannot be made, and reports on its own)."""
+    if options.texel_snapping and light.is_directional:
+        frames = [world_sun_frame(light, body)]      # a texel grid fixed in the world
+    else:
+        frames = light_frames(view, light, body, options)
+    return frame_maps(frames, options.shadow_map_size, options.texel_snapping, options.linear_z), frames

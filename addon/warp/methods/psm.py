@@ -71,8 +71,7 @@ from ..geometry import clip_volume_corners_h, translation
 from ..linear_depth import light_depth_row
 from ..post_perspective import PPSLight, VirtualCamera, nearest_visible_depth, pps_light_matrix, virtual_camera
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpOptions
-from .common import near_plane_notes
-from .uniform import uniform_maps
+from .common import near_plane_notes, uniform_maps
 
 COVER_TOLERANCE = 1e-6
 """Final check: every B vertex has |NDC| <= 1 + this (the fit pads by 1e-7)."""

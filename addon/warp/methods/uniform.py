@@ -16,20 +16,9 @@ from __future__ import annotations
 
 from ..body import IntersectionBody
 from ..diagnostics import Diagnostics
-from ..frame import LightFrame, body_light_angles, light_frames, world_sun_frame
-from ..types import Light, ShadowMap, ShadowSetup, View, WarpOptions
-from .common import frame_maps, near_plane_notes
-
-
-def uniform_maps(view: View, light: Light, body: IntersectionBody,
-                 options: WarpOptions) -> tuple[list[ShadowMap], list[LightFrame]]:
-    """The uniform maps and the light frames they are fitted in (PSM hands
-    over to these maps and reports on its own)."""
-    if options.texel_snapping and light.is_directional:
-        frames = [world_sun_frame(light, body)]      # a texel grid fixed in the world
-    else:
-        frames = light_frames(view, light, body, options)
-    return frame_maps(frames, options.shadow_map_size, options.texel_snapping, options.linear_z), frames
+from ..frame import body_light_angles
+from ..types import Light, ShadowSetup, View, WarpOptions
+from .common import near_plane_notes, uniform_maps
 
 
 def uniform(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
