@@ -114,9 +114,10 @@ def _quads_and_tris(positions: np.ndarray, starts: np.ndarray, sizes: np.ndarray
         a, b, c, d = corners[s], corners[s + 1], corners[s + 2], corners[s + 3]
         pa = positions[a]
         ac = positions[c] - pa
-        n1 = np.cross(positions[b] - pa, ac)
-        n2 = np.cross(ac, positions[d] - pa)
-        flip = np.einsum("ij,ij->i", n1, n2) < 0  # float32 is plenty for a sign
+        with np.errstate(over="ignore", invalid="ignore"):  # a NaN/inf vertex: refused later, by name
+            n1 = np.cross(positions[b] - pa, ac)
+            n2 = np.cross(ac, positions[d] - pa)
+            flip = np.einsum("ij,ij->i", n1, n2) < 0  # float32 is plenty for a sign
         t1 = np.stack([a, b, c], axis=1)
         t2 = np.stack([a, c, d], axis=1)
         if flip.any():

@@ -20,7 +20,8 @@ from typing import Optional
 import numpy as np
 
 from ..guard import user_message
-from ..scene.describe import describe_bounds, describe_light, describe_view, light_notes, pick_light
+from ..scene.describe import (check_finite_geometry, describe_bounds, describe_light, describe_view, light_notes,
+                              pick_light)
 from ..scene.geometry import shared_cache
 from ..scene.owned import is_debug_object
 from ..settings import LixelSettings
@@ -32,11 +33,21 @@ log = logging.getLogger(__name__)
 
 INPUTS = ("view", "light", "bounds", "settings")
 
+def scene_geometry(depsgraph):
+    """The evaluated scene's triangles without Lixel's debug objects, from the
+    scene cache the render engine uses too (``addon.scene.geometry.shared_cache``).
+    A mesh with a NaN or infinite vertex raises WarpError naming its object, as a
+    render does: Blender 5.0's object bounds skip such a vertex, so only the
+    triangles show it (each version of a mesh is checked once, when the cache reads it)."""
+    geometry = shared_cache().update(depsgraph, exclude=is_debug_object)
+    check_finite_geometry(geometry)
+    return geometry
+
+
 def scene_bounds(depsgraph):
-    """SceneBounds of the evaluated scene without Lixel's debug objects, from the
-    scene cache the render engine uses too (``addon.scene.geometry.shared_cache``):
-    the same object, with its culling index, while the scene's instances are unchanged."""
-    return describe_bounds(depsgraph, shared_cache().update(depsgraph, exclude=is_debug_object).instances)
+    """SceneBounds of the evaluated scene's geometry (:func:`scene_geometry`): the
+    same object, with its culling index, while the scene's instances are unchanged."""
+    return describe_bounds(depsgraph, scene_geometry(depsgraph).instances)
 
 
 @dataclass

@@ -24,7 +24,6 @@ import numpy as np
 from bpy.app.handlers import persistent
 
 from ..guard import guarded_callback, user_message
-from ..scene.owned import is_debug_object
 from . import live
 
 _handles: dict[str, object] = {}
@@ -443,9 +442,8 @@ def _draw_scene_overlays(scene, st, props, view_projection) -> None:
 def receiver_triangles(depsgraph) -> np.ndarray:
     """(T, 3, 3) world-space triangles of every drawable instance except Lixel's
     debug objects (for the receiver overlays), from the scene cache the render
-    engine and the live state use (``addon.scene.geometry.shared_cache``)."""
-    from ..scene.geometry import shared_cache
-    geometry = shared_cache().update(depsgraph, exclude=is_debug_object)
+    engine and the live state use (:func:`live.scene_geometry`)."""
+    geometry = live.scene_geometry(depsgraph)
     inst = geometry.instances
     out = []
     for k, key in enumerate(inst.key_list):

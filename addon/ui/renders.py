@@ -11,18 +11,8 @@ from typing import Optional
 
 import numpy as np
 
-from ..scene.owned import find_made, is_debug_object, mark_made
-from .live import LiveState
-
-
-def scene_geometry(depsgraph):
-    """The evaluated scene's triangles without Lixel's debug objects (shared cache);
-    WarpError naming an object with non-finite vertices."""
-    from ..scene.describe import check_finite_geometry
-    from ..scene.geometry import shared_cache
-    geometry = shared_cache().update(depsgraph, exclude=is_debug_object)
-    check_finite_geometry(geometry)
-    return geometry
+from ..scene.owned import find_made, mark_made
+from .live import LiveState, scene_geometry
 
 
 def render_state(st: LiveState, depsgraph, resolution, setup=None, settings=None, geometry=None,

@@ -36,9 +36,9 @@ from ui_scenes import active_scene, cube_mesh, digest
 SCENE = "catalogue"
 W, H = 64, 36
 ENTRY_POINTS = ("render", "refresh", "toggle_overlay", "bake_debug", "export_json", "compare", "sync_matrices",
-                "frustum_add", "texel_grid_add", "planes_from_selection", "reset_settings")
+                "frustum_add", "texel_grid_add", "overlay_snapshot", "planes_from_selection", "reset_settings")
 NEEDS_SETUP = ("render", "refresh", "toggle_overlay", "bake_debug", "export_json", "compare", "sync_matrices",
-               "frustum_add", "texel_grid_add")
+               "frustum_add", "texel_grid_add", "overlay_snapshot")
 """Entry points that describe the scene and compute (the others only edit settings)."""
 LIXEL_NAMES = ("Lixel B", "Lixel View Frustum", "Lixel Light Frustum 0 (main)", "Lixel Light Matrices",
                "Lixel Frustum (map 0)", "Lixel Debug", "Lixel Texel Grid", "Lixel Frustum From Matrix",
@@ -114,9 +114,6 @@ class Case:
     """What every entry point that needs a setup must say (regex); None: Lixel renders it."""
     engine_refused: Optional[str] = None
     """What the engine says, when it differs (Blender's own check comes first)."""
-    operators_may_work: bool = False
-    """Operators work from the scene's bounds and may compute a setup (e.g. Blender's bounds skip a NaN vertex on
-    5.0); the render, which reads the triangles, must refuse."""
     check: Optional[str] = None
     """Name of the check of the engine's image (below)."""
 
@@ -137,8 +134,9 @@ CASES = {
     "zero_scale_light": Case(lambda sc: setattr(_light(sc), "scale", (0, 0, 0)),
                              r"Light 'catalogue light' has zero scale on its Z axis.*set its scale to 1"),
     "nan_vertex": Case(lambda sc: sc.objects[f"{SCENE} cube"].data.vertices[0].co.__setitem__(0, float("nan")),
-                       r"Object 'catalogue cube' has vertices with non-finite coordinates \(NaN or infinity\): fix",
-                       operators_may_work=True),
+                       r"Object 'catalogue cube' has vertices with non-finite coordinates \(NaN or infinity\): fix"),
+    "infinite_vertex": Case(lambda sc: sc.objects[f"{SCENE} ground"].data.vertices[2].co.__setitem__(2, float("inf")),
+                            r"Object 'catalogue ground' has vertices with non-finite coordinates \(NaN or infinity\)"),
     "empty_scene": Case(lambda sc: [bpy.data.objects.remove(ob) for ob in list(sc.objects)],
                         r"Scene 'catalogue' has no camera", engine_refused=r"Cannot render, no camera"),
     "mesh_with_no_faces": Case(_no_faces, r"Scene 'catalogue' has no visible mesh, curve or text objects: add"),
@@ -199,7 +197,8 @@ def run(mods, entry, scene, tmp_path):
     if entry == "render":
         return render(mods, scene)
     kw = {"export_json": {"filepath": str(tmp_path / "setup.json")}, "compare": {"longest_side": 24},
-          "toggle_overlay": {"overlay": "show_body"}}.get(entry, {})
+          "toggle_overlay": {"overlay": "show_body"},
+          "overlay_snapshot": {"directory": str(tmp_path / "snapshots"), "width": 64}}.get(entry, {})
     try:
         return getattr(bpy.ops.lixel, entry)(**kw) == {"FINISHED"}, "", None
     except RuntimeError as exc:
@@ -260,10 +259,8 @@ def test_the_audit_catalogue(mods, catalogue_scene, tmp_path, name, entry):
     refused = case.engine_refused if entry == "render" and case.engine_refused else case.refused
     if refused and entry == "texel_grid_add":
         refused = f"{refused}|no mesh selected"  # it checks the selection first
-    if refused and entry in NEEDS_SETUP and not (case.operators_may_work and entry != "render"):
+    if refused and entry in NEEDS_SETUP:
         assert not finished and re.search(refused, message), (message, printed[-1500:])
-    elif refused and entry in NEEDS_SETUP:
-        assert finished or re.search(refused, message), message
     elif entry in NEEDS_SETUP:
         assert finished, message
     else:  # settings only: done, or a clear word on what is missing (e.g. no mesh selected)
@@ -273,7 +270,7 @@ def test_the_audit_catalogue(mods, catalogue_scene, tmp_path, name, entry):
         CHECKS[case.check](mods, scene, result, message, tmp_path)
 
 
-LIVE_CASES = [n for n, c in CASES.items() if c.refused and not c.operators_may_work and n not in ("empty_scene",)]
+LIVE_CASES = [n for n, c in CASES.items() if c.refused and n not in ("empty_scene",)]
 
 
 @pytest.mark.parametrize("name", LIVE_CASES)
