@@ -1,6 +1,6 @@
 """The one guard at every Lixel entry point: operators, the render engine, draw
 callbacks, app handlers and timers, the background scripts (and, in its own
-plain-Python way, the CLI in ``addon/warp/__main__.py``).
+plain-Python way, the CLI in ``addon/cli``).
 
 A :class:`WarpError` already carries a message for the user (it names the
 object and says what to do). Anything else that escapes is a bug in Lixel: the

@@ -113,7 +113,7 @@ def judge_configurations(generated: int) -> list:
     "normal", the named hard cases "hard"."""
     sys.path.insert(0, str(ROOT / "tests" / "warp"))
     from hard_cases import EMPTY_CASES, HARD_CASES
-    from addon.warp.config import parse_config
+    from addon.cli.config import parse_config
     out = []
     for path in sorted((ROOT / "examples").glob("*.json")):
         view, light, scene, _ = parse_config(json.loads(path.read_text()))

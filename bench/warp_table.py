@@ -19,7 +19,7 @@ from pathlib import Path
 
 from addon.measure.box_scene import judge
 from addon.warp import METHODS, EmptyBodyError, WarpError, WarpOptions, compute, intersection_body
-from addon.warp.config import parse_config
+from addon.cli.config import parse_config
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -400,7 +400,7 @@ def _shift_config(config, dx):
 def test_the_audit_catalogue_through_the_cli(name, tmp_path, capsys):
     import json
     from pathlib import Path
-    from addon.warp.__main__ import main
+    from addon.cli import main
     change, code, message = CLI_CASES[name]
     config = json.loads((Path(__file__).resolve().parents[2] / "examples" / "outdoor_sun.json").read_text())
     change(config)

@@ -51,7 +51,7 @@ def configurations() -> Iterator[tuple[str, object, object, object, object]]:
         sys.path.insert(0, str(ROOT))
     sys.path.insert(0, str(Path(__file__).parent))
     from addon.warp import WarpOptions
-    from addon.warp.config import parse_config
+    from addon.cli.config import parse_config
     from bench.warp_speed import LIGHTS, city_scene, street_view
     from hard_cases import EMPTY_CASES, HARD_CASES
 

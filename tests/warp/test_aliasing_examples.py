@@ -11,7 +11,7 @@ import pytest
 
 from addon.warp import compute, intersection_body
 from addon.warp.aliasing import setup_texel_footprint
-from addon.warp.config import parse_config
+from addon.cli.config import parse_config
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 

@@ -25,7 +25,7 @@ import pytest
 from addon.measure.box_scene import judge
 from addon.warp import WarpError, WarpOptions, compute, intersection_body
 from addon.warp.aliasing import perspective_aliasing
-from addon.warp.config import ConfigError, parse_config
+from addon.cli.config import ConfigError, parse_config
 from addon.warp.methods.cascade import SPLIT_WARPS, build_split, split_options
 from addon.warp.partition.adaptive import max_error
 from addon.warp.partition.budget import shared_sizes

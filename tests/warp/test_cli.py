@@ -65,7 +65,7 @@ def check_setup_json(obj):
 
 # ----------------------------------------------------------------------------- the happy path
 
-@pytest.mark.parametrize("module", ["addon", "addon.warp", "addon.warp.__main__", "addon.warp.config"])
+@pytest.mark.parametrize("module", ["addon", "addon.warp", "addon.warp.__main__", "addon.cli", "addon.cli.config"])
 def test_importing_the_core_does_not_import_bpy(module):
     r = subprocess.run([PLAIN_PYTHON, "-c", f"import {module}, sys; assert 'bpy' not in sys.modules, 'bpy imported'"],
                        capture_output=True, text=True, cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)})
@@ -87,7 +87,7 @@ def test_all_methods_on_every_example(example):
 
 def test_single_method_matches_compute():
     from addon.warp import compute
-    from addon.warp.config import parse_config
+    from addon.cli.config import parse_config
     config = base_config()
     r = run_cli("--method", "uniform", "-", stdin=json.dumps(config))
     assert r.returncode == 0, r.stderr
@@ -265,7 +265,7 @@ def check_one_line(code, stdout, stderr, field):
 def test_malformed_config_gets_one_line_naming_the_field(name, tmp_path, capsys):
     """In-process (fast) for every malformed config: ``main`` returns 2 and
     prints one line; an exception escaping ``main`` would fail the test."""
-    from addon.warp.__main__ import main
+    from addon.cli import main
     text, field = malformed(name)
     path = tmp_path / "config.json"
     path.write_text(text)

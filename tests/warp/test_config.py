@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from addon.warp.config import ConfigError, parse_config
+from addon.cli.config import ConfigError, parse_config
 from addon.warp.geometry import ortho_matrix, perspective_matrix
 
 ROOT = Path(__file__).resolve().parents[2]

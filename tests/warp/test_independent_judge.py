@@ -15,7 +15,7 @@ import pytest
 
 from addon.measure.box_scene import caster_points, judge, visible_points
 from addon.warp import METHODS, WarpOptions, compute
-from addon.warp.config import parse_config
+from addon.cli.config import parse_config
 from hard_cases import EMPTY_CASES, HARD_CASES, sun, camera, town
 
 ROOT = Path(__file__).resolve().parents[2]

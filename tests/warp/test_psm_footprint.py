@@ -10,7 +10,7 @@ import pytest
 
 from addon.warp import compute, intersection_body
 from addon.warp.aliasing import setup_texel_footprint
-from addon.warp.config import parse_config
+from addon.cli.config import parse_config
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 NAMES = ["outdoor_sun", "sun_behind_camera", "sun_overhead", "chess_spot", "terrain_point"]

@@ -18,7 +18,7 @@ import pytest
 from addon.measure.box_scene import visible_points
 from addon.warp import (METHODS, SceneBounds, WarpOptions, compute, focused_body, intersection_body,
                         region_from_boxes)
-from addon.warp.config import parse_config
+from addon.cli.config import parse_config
 from addon.warp.culling import BoxIndex
 from addon.warp.geometry import ortho_matrix
 from addon.warp.rays import ray_boxes, ray_index

@@ -1,4 +1,4 @@
-"""The JSON config of ``python -m addon.warp`` -> plain inputs.
+"""The JSON config of ``python -m addon.warp`` -> the warp core's plain inputs.
 
     {"camera": {"matrix_world": 4x4 row-major, "fov_y_deg": 60, "aspect": 1.7778,
                 "near": 0.1, "far": 70, "resolution": [1280, 720]},
@@ -22,9 +22,9 @@ from typing import Any
 
 import numpy as np
 
-from . import MAX_COORDINATE
-from .geometry import ortho_matrix
-from .types import Light, SceneBounds, View, WarpError, WarpOptions
+from ..warp import MAX_COORDINATE
+from ..warp.geometry import ortho_matrix
+from ..warp.types import Light, SceneBounds, View, WarpError, WarpOptions
 
 
 class ConfigError(WarpError):

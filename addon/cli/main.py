@@ -1,0 +1,105 @@
+"""Command line: ``python -m addon.warp --method NAME|all CONFIG.json`` -> JSON on stdout.
+
+Plain Python and numpy, no bpy. A malformed config prints one line naming the
+field and exits with status 2. An empty intersection body is reported in the
+output (no maps, ``diagnostics.empty_body`` says why, plus a note on stderr),
+not crashed on. An unexpected exception (a bug) is one line on stderr too
+(``LIXEL_DEBUG=1`` prints the traceback); with ``--method all`` the other
+methods' results are still printed.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import traceback
+
+import numpy as np
+
+from ..warp import METHODS, compute, focused_body
+from ..warp.types import EmptyBodyError, WarpError
+from .config import parse_config
+
+
+def _internal(exc: BaseException) -> str:
+    """One line for an unexpected exception (a bug): LIXEL_DEBUG=1 shows the traceback."""
+    if os.environ.get("LIXEL_DEBUG"):
+        traceback.print_exception(exc, file=sys.stderr)
+    return f"internal error ({type(exc).__name__}: {exc}); set LIXEL_DEBUG=1 for the traceback"
+
+
+def run_method(name, view, light, scene, options, body):
+    if isinstance(body, EmptyBodyError):
+        return {"maps": [], "diagnostics": {"method": name, "empty_body": str(body), "fallbacks": []}}
+    try:
+        return compute(name, view, light, scene, options, body=body).to_json()
+    except WarpError as exc:
+        return {"maps": [], "diagnostics": {"method": name, "error": str(exc), "fallbacks": []}}
+    except Exception as exc:  # a bug in one method must not hide the others' results
+        return {"maps": [], "diagnostics": {"method": name, "error": _internal(exc), "fallbacks": []}}
+
+
+def main(argv=None) -> int:
+    with np.errstate(all="ignore"):  # numpy's RuntimeWarnings are no message for a user: errors are lines of their own
+        return _main(argv)
+
+
+def _main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m addon.warp", description="Lixel light matrices for a config.")
+    parser.add_argument("--method", required=True, help=f"one of {', '.join(METHODS)}, or 'all'")
+    parser.add_argument("config", help="JSON config file ('-' for standard input)")
+    parser.add_argument("--indent", type=int, default=None, help="pretty-print the JSON")
+    args = parser.parse_args(argv)
+    if args.method != "all" and args.method not in METHODS:
+        print(f"lixel: error: --method: unknown method {args.method!r}; choose one of {', '.join(METHODS)} or all",
+              file=sys.stderr)
+        return 2
+    try:
+        text = sys.stdin.read() if args.config == "-" else open(args.config, encoding="utf-8").read()
+    except OSError as exc:
+        print(f"lixel: error: config: cannot read {args.config}: {exc.strerror}", file=sys.stderr)
+        return 2
+    except UnicodeDecodeError:
+        print(f"lixel: error: config: {args.config} is not UTF-8 text", file=sys.stderr)
+        return 2
+    try:
+        config = json.loads(text)
+    except (json.JSONDecodeError, RecursionError) as exc:
+        if isinstance(exc, RecursionError):
+            print("lixel: error: config: nested too deeply", file=sys.stderr)
+            return 2
+        print(f"lixel: error: config: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})", file=sys.stderr)
+        return 2
+    try:
+        view, light, scene, options = parse_config(config)
+    except WarpError as exc:
+        print(f"lixel: error: {exc}", file=sys.stderr)
+        return 2
+    except Exception as exc:
+        print(f"lixel: error: config: {_internal(exc)}", file=sys.stderr)
+        return 2
+    try:
+        body = focused_body(view, light, scene, options)     # (as options.focus says: the visible region by default)
+    except EmptyBodyError as exc:
+        body = exc
+        print(f"lixel: note: the intersection body is empty: {exc}", file=sys.stderr)
+    except WarpError as exc:
+        print(f"lixel: error: {exc}", file=sys.stderr)
+        return 1
+    except Exception as exc:
+        print(f"lixel: error: intersection body: {_internal(exc)}", file=sys.stderr)
+        return 1
+    names = list(METHODS) if args.method == "all" else [args.method]
+    results = {n: run_method(n, view, light, scene, options, body) for n in names}
+    if args.method == "all":
+        out = {"methods": results}
+    else:
+        out = results[args.method]
+        if "error" in out["diagnostics"]:
+            print(f"lixel: error: {args.method}: {out['diagnostics']['error']}", file=sys.stderr)
+            return 1
+    json.dump(out, sys.stdout, indent=args.indent)
+    sys.stdout.write("\n")
+    return 0
+
