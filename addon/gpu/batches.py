@@ -13,7 +13,9 @@ What is uploaded when:
 
 * a batch when its mesh's content changed (``BatchCache``: version and fingerprint);
 * the matrices when the scene's instances changed (a new ``InstanceSet``:
-  a transform, visibility, an instance added or removed);
+  a transform, visibility, an instance added or removed); the last
+  ``GPUScene.KEEP_SETS`` sets stay uploaded with their draw lists, so F12's
+  render depsgraph and the viewport's, used in turn, upload nothing;
 * a draw list when the instances a pass draws differ from its last list
   (the camera or the light moved enough to change the culling).
 
@@ -135,42 +137,18 @@ class _Grouping:
         self.groups = [(instances.key_list[c // 2], bool(c % 2), int(key_triangles[c // 2])) for c in first]
 
 
-class GPUScene:
-    """The GPU side of a :class:`~addon.scene.geometry.SceneGeometry`.
+class _UploadedSet:
+    """The GPU side of one InstanceSet: its matrices, its grouping, its passes' draw lists."""
 
-    ``sync(geometry)`` uploads the instance matrices when the instance set is
-    a new one, relative to ``origin`` (the centre of the scene's boxes: the
-    GPU works in float32, so scenes far from the world origin keep their
-    precision; every matrix a pass uses is made relative to the same point).
-    ``draw_list(pass_name, mask)`` gives the ids of the instances selected by
-    ``mask``, uploaded only when they differ from that pass's last list.
-    """
-
-    def __init__(self, batches: BatchCache | None = None):
-        self.batches = batches if batches is not None else BatchCache()
-        self.geometry = None
-        self.instances = None
-        self.origin = np.zeros(3)
-        self.matrices = None
-        self.matrix_uploads = 0
-        self.list_uploads = 0
-        self._grouping = None
-        self._lists: dict = {}
-
-    def sync(self, geometry) -> None:
-        """Make ``geometry`` the scene drawn; uploads its instance matrices if they changed."""
-        if geometry is self.geometry:
-            return
+    def __init__(self, geometry):
+        inst = self.instances = geometry.instances
         self.geometry = geometry
-        self._lists.clear()
-        inst = geometry.instances
-        self._grouping = _Grouping(inst, geometry.key_triangles)
-        if inst is self.instances:
-            return
-        self.instances = inst
+        self.grouping = _Grouping(inst, geometry.key_triangles)
+        self.lists: dict = {}
+        self.matrices = None
+        self.origin = np.zeros(3)
         n = len(inst)
         if n == 0:
-            self.matrices = None
             return
         boxes = inst.world_boxes()
         self.origin = (boxes[:, 0].min(axis=0) + boxes[:, 1].max(axis=0)) / 2
@@ -181,7 +159,66 @@ class GPUScene:
         data = np.zeros((rows * per_row, 4, 4), dtype=np.float32)
         data[:n] = mats.transpose(0, 2, 1)                 # texel c of an instance = column c
         self.matrices = _texture("RGBA32F", 4 * per_row, rows, data.ravel())
-        self.matrix_uploads += 1
+
+    def regroup(self, geometry) -> None:
+        """The same instances with other meshes (a mesh changed): new triangle counts."""
+        self.geometry = geometry
+        self.grouping = _Grouping(self.instances, geometry.key_triangles)
+        self.lists.clear()
+
+
+class GPUScene:
+    """The GPU side of a :class:`~addon.scene.geometry.SceneGeometry`.
+
+    ``sync(geometry)`` uploads the instance matrices when the instance set is
+    a new one, relative to ``origin`` (the centre of the scene's boxes: the
+    GPU works in float32, so scenes far from the world origin keep their
+    precision; every matrix a pass uses is made relative to the same point).
+    The last few instance sets stay uploaded, so the render engine's and the
+    viewport's (their depsgraphs may differ) do not push each other out.
+    ``draw_list(pass_name, mask)`` gives the ids of the instances selected by
+    ``mask``, uploaded only when they differ from that pass's last list.
+    """
+
+    KEEP_SETS = 4
+    """Instance sets kept uploaded."""
+
+    def __init__(self, batches: BatchCache | None = None):
+        self.batches = batches if batches is not None else BatchCache()
+        self.geometry = None
+        self.matrix_uploads = 0
+        self.list_uploads = 0
+        self._sets: dict = {}          # id(InstanceSet) -> _UploadedSet, oldest first
+        self._current: _UploadedSet | None = None
+
+    @property
+    def instances(self):
+        return self._current.instances if self._current is not None else None
+
+    @property
+    def origin(self) -> np.ndarray:
+        return self._current.origin if self._current is not None else np.zeros(3)
+
+    @property
+    def matrices(self):
+        return self._current.matrices if self._current is not None else None
+
+    def sync(self, geometry) -> None:
+        """Make ``geometry`` the scene drawn; uploads its instance matrices if they changed."""
+        if geometry is self.geometry:
+            return
+        self.geometry = geometry
+        inst = geometry.instances
+        entry = self._sets.pop(id(inst), None)
+        if entry is None or entry.instances is not inst:
+            entry = _UploadedSet(geometry)
+            self.matrix_uploads += entry.matrices is not None
+            while len(self._sets) >= self.KEEP_SETS:
+                self._sets.pop(next(iter(self._sets)))
+        elif entry.geometry is not geometry:
+            entry.regroup(geometry)
+        self._sets[id(inst)] = entry            # the most recent last
+        self._current = entry
 
     def draw_list(self, pass_name: str, mask: np.ndarray, eye=None) -> DrawList:
         """The instances selected by ``mask`` (bool (N,)), for the pass
@@ -189,10 +226,11 @@ class GPUScene:
         drawn nearest first (by box centre), so the depth test rejects what is
         hidden before it is shaded. A list is made again only when the
         selection changes (an order made from an earlier eye is as correct)."""
-        hit = self._lists.get(pass_name)
+        lists = self._current.lists
+        hit = lists.get(pass_name)
         if hit is not None and np.array_equal(hit[0], mask):
             return hit[1]
-        g = self._grouping
+        g = self._current.grouping
         chosen = mask[g.order]
         ids = g.order[chosen]
         n = len(ids)
@@ -217,7 +255,7 @@ class GPUScene:
             texture = _texture("R32F", per_row, rows, flat)
             self.list_uploads += 1
         out = DrawList(texture, groups, n)
-        self._lists[pass_name] = (mask.copy(), out)
+        lists[pass_name] = (mask.copy(), out)
         return out
 
     def batch(self, key):

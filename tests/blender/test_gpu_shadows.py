@@ -656,6 +656,25 @@ def test_second_render_uploads_nothing(lx, scene):
     assert fourth.counts.uploads == 1 and gc.extractions == 3
 
 
+def test_two_scenes_drawn_in_turn_upload_each_once(lx):
+    """F12's render depsgraph and the viewport's give two instance sets; drawn
+    in turn, each keeps its matrices and draw lists on the GPU."""
+    tri = (np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], float), np.array([[0, 1, 2]]))
+    one = lx.geometry.SceneGeometry.from_arrays([("a", *tri, np.eye(4)[None])])
+    two = lx.geometry.SceneGeometry.from_arrays([("a", *tri, np.stack([np.eye(4)] * 2))])
+    gs = lx.batches.GPUScene()
+    for _ in range(3):
+        for g in (one, two):
+            gs.sync(g)
+            assert gs.instances is g.instances
+            gs.draw_list("casters", np.ones(len(g.instances), dtype=bool))
+    assert (gs.matrix_uploads, gs.list_uploads) == (2, 2)
+    for n in range(gs.KEEP_SETS):          # older sets give way to newer ones
+        gs.sync(lx.geometry.SceneGeometry.from_arrays([("a", *tri, np.stack([np.eye(4)] * (3 + n)))]))
+    gs.sync(one)
+    assert gs.matrix_uploads == 2 + gs.KEEP_SETS + 1
+
+
 def test_moving_the_camera_or_the_light_rebuilds_no_index(lx, scene):
     """The camera and the light are not part of the scene's geometry: moving
     them re-culls (new draw lists) but reads no mesh, uploads no geometry or
