@@ -2,12 +2,11 @@
  * (one full-screen pass over this surface, not a second draw of the
  * receivers), the surface itself: its position relative to the frame's
  * origin and its geometric normal, exact per triangle from screen
- * derivatives (helper invocations interpolate the same triangle), turned
- * towards the viewer and stored octahedrally (Cigolle et al., JCGT 2014):
+ * derivatives (helper invocations interpolate the same triangle), stored
+ * octahedrally (Cigolle et al., JCGT 2014):
  *   out_surface = (position, octahedral x); out_normal = (octahedral y, ...).
  * The colour targets are not cleared: where the depth says nothing was drawn
- * they hold stale values, which no pass reads. u_camera = (camera position,
- * orthographic 0/1), u_view_dir = (camera forward, 0). */
+ * they hold stale values, which no pass reads. */
 vec2 lixel_octahedral(vec3 n)
 {
   n /= abs(n.x) + abs(n.y) + abs(n.z);
@@ -20,13 +19,10 @@ vec2 lixel_octahedral(vec3 n)
 
 void main()
 {
-  vec3 P = v_world;
-  vec3 N = normalize(cross(dFdx(P), dFdy(P)));
-  vec3 V = u_camera.w > 0.5 ? -u_view_dir.xyz : u_camera.xyz - P;
-  if (dot(N, V) < 0.0) {
-    N = -N;
-  }
-  vec2 o = lixel_octahedral(N);
-  out_surface = vec4(P, o.x);
+  /* The normal's direction (its length and side are the shading pass's: the
+   * octahedral map divides by the L1 norm, and the shading turns the normal
+   * towards the viewer). */
+  vec2 o = lixel_octahedral(cross(dFdx(v_world), dFdy(v_world)));
+  out_surface = vec4(v_world, o.x);
   out_normal = vec4(o.y, 0.0, 0.0, 1.0);
 }

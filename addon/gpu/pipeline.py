@@ -361,8 +361,6 @@ class ShadowFrame:
             gpu.state.depth_mask_set(True)
             pre.bind()
             pre.uniform_float("u_view_proj", self._view_proj)
-            pre.uniform_float("u_camera", (*(view.position - self.origin), 1.0 if view.orthographic else 0.0))
-            pre.uniform_float("u_view_dir", (*view.direction, 0.0))
             self.scene.draw(pre, self.receivers)
             gpu.state.depth_mask_set(False)
             gpu.state.depth_test_set("NONE")

@@ -154,8 +154,6 @@ def prepass_shader():
     """The camera's pre-pass: depth, and the surface seen (position, normal) for
     the shading pass (``prepass_frag.glsl``)."""
     info = _camera_info("prepass", "prepass_frag.glsl")
-    info.push_constant("VEC4", "u_camera")
-    info.push_constant("VEC4", "u_view_dir")
     info.fragment_out(0, "VEC4", "out_surface")
     info.fragment_out(1, "VEC4", "out_normal")
     return _create(info, "camera pre-pass")
