@@ -3,7 +3,7 @@
     python -m bench.warp_speed [--boxes N] [--repeat R] [--json]
 
 Times, for a sun, a point light and a spot light, the intersection body B
-(``intersection_body``) and a whole frame of every method in ``METHODS``:
+(``intersection_body``) and a whole frame of every method in ``METHODS`` (``compute``):
 B + method, the per-frame cost a renderer pays (the target is < 1 ms in
 Python). A method's own cost is the frame's minus B's. Every call gets a new
 View and Light, as a moving camera gives, so nothing derived from them (or from
@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-from addon.warp import METHODS, Light, SceneBounds, View, WarpOptions, intersection_body
+from addon.warp import METHODS, Light, SceneBounds, View, WarpOptions, compute, intersection_body
 from addon.warp.geometry import look_along
 
 
@@ -101,10 +101,10 @@ def run(n_boxes: int = 10_000, repeat: int = 5) -> dict:
         row = {"B": best, "B_median": median,
                "B_vertices": int(len(body.vertices)), "casters": int(body.culled.casters.selected.sum()),
                "receivers": int(body.culled.receivers.selected.sum())}
-        for mname, method in METHODS.items():
+        for mname in METHODS:
             def frame():
                 v, l = new_frame(view, light)
-                return method(v, l, intersection_body(v, l, scene), options)
+                return compute(mname, v, l, scene, options, body=intersection_body(v, l, scene))
             try:
                 frame()
             except Exception as exc:  # a method under construction must not stop the bench
