@@ -42,12 +42,15 @@ def across(v, d) -> list:
 
 
 def normalize(v) -> np.ndarray:
-    """Unit vector along ``v``; raises ValueError for a zero or non-finite vector."""
+    """Unit vector along ``v``; raises ValueError for a zero or non-finite vector.
+    Scaled first where |v|² would overflow or underflow."""
     v = np.asarray(v, dtype=np.float64)
-    n = math.sqrt(v @ v) if v.ndim == 1 else float(np.linalg.norm(v))
-    if not math.isfinite(n) or n == 0.0:
+    big = float(np.abs(v).max(initial=0.0))
+    if not math.isfinite(big) or big == 0.0:
         raise ValueError(f"cannot normalize vector {v.tolist()}")
-    return v / n
+    if not 1e-150 < big < 1e150:
+        v = v / big
+    return v / (math.sqrt(v @ v) if v.ndim == 1 else float(np.linalg.norm(v)))
 
 
 def homogeneous(points) -> np.ndarray:
