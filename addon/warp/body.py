@@ -1,30 +1,13 @@
-"""The intersection body B (Scherzer §4.1, Fig. 5; Stamminger-Drettakis §4.1, H = M ∩ S ∩ L).
+"""The intersection body B (Scherzer §4.1, Fig. 5; Stamminger-Drettakis §4.1, H = M ∩ S ∩ L):
 
-    B = hull(R ∪ light) ∩ S_c ∩ L,   R = V ∩ S_r ∩ L
+    B = hull(R ∪ light) ∩ S_c,   R = V ∩ S_r ∩ L
 
-V is the view frustum, L the light's frustum (the spot cone; all space for suns
-and point lights), S_r the box around the receivers that meet V, and S_c the box
-around R and the casters that meet hull(R ∪ light). This is the papers' B with
-the scene box S tightened to what the view needs: a caster outside
-hull(R ∪ light) cannot shadow a visible receiver, and a receiver outside V is not
-seen. "Model only what a scene needs."
-
-hull(R ∪ light) is built exactly, with the light in homogeneous coordinates
-(w = 0 for a sun): R's facets that do not face the light, plus through every
-silhouette edge the plane through that edge and the light, a positive
-combination of the edge's two facets (``light_hull``). Since L is a convex cone
-with its apex at the light and R ⊂ L, hull(R ∪ light) ⊂ L already.
-
-R, the hull and B are convex polytopes (:mod:`.polyhedron`): R is the frustum
-clipped by S_r's and L's planes, the hull is R's silhouette joined to the light
-(for a sun, extruded to a cap beyond S_c), and B is the hull clipped by S_c's
-planes. Everything is computed relative to the camera position (so coordinates
-at 1e5 keep their precision) with tolerances relative to the scene's scale.
-Boxes are culled through a two-level index (:mod:`.culling`), and L and the
-light hull come from :mod:`.light_hull`.
-
-Cost on a 10,000-box scene (``make bench``): see docs/performance.md.
-"""
+V the view frustum, L the spot's cone (all space otherwise), S_r the box
+around the receivers that meet V ∩ L, S_c the box around R and the casters
+that meet hull(R ∪ light): the papers' scene box S tightened to what the view
+needs. hull(R ∪ light) ⊂ L since R ⊂ L (``light_hull``). All are convex
+polytopes (:mod:`.polyhedron`), relative to the camera position, with
+tolerances relative to the scene's scale; boxes are culled by :mod:`.culling`."""
 from __future__ import annotations
 
 import logging
@@ -61,9 +44,8 @@ class Culled:
 
 @dataclass(frozen=True, eq=False)
 class IntersectionBody:
-    """B, relative to ``origin`` (the camera position), with R and the culling
-    it was built from. What is read in world space (vertices, faces, R's
-    vertices, the centroid) is made once, on first use."""
+    """B relative to ``origin`` (the camera position), with R and the culling it was
+    built from; world-space views of it are made on first use."""
 
     polytope: ConvexPolytope
     """B = hull(R ∪ light) ∩ S_c."""
@@ -142,13 +124,9 @@ def view_frustum(view: View, origin: np.ndarray, tol: float | None = None) -> Co
 
 def intersection_body(view: View, light: Light, scene: SceneBounds,
                       visible: VisibleRegion | None = None) -> IntersectionBody:
-    """B for this view, light and scene (Scherzer §4.1). Raises EmptyBodyError
-    (with the reason) when nothing visible can receive a shadow.
-
-    ``visible`` focuses B on what the camera sees (:mod:`.visibility`): V is
-    cut by the region's half-spaces first, so R holds the visible points only
-    while B = hull(R ∪ light) ∩ S_c still holds every caster that can shadow
-    one of them."""
+    """B for this view, light and scene (Scherzer §4.1); ``visible`` cuts R down to
+    what the camera sees (:mod:`.visibility`). EmptyBodyError, with the reason,
+    when nothing visible can receive a shadow."""
     if scene.is_empty:
         raise EmptyBodyError("the scene has no shadow casters or receivers")
     origin = view.position

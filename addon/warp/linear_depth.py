@@ -1,26 +1,14 @@
 """Linear depth rows (Scherzer §4.2, "linear z-distribution").
 
-A map's stored depth is, by default, not its matrix's hyperbolic z / w but a
-*depth row* r: z = r . [x, y, z, 1] (``ShadowMap.depth_row``), an affine
-function of the world position that grows along every light ray and spans
-[-1, 1] over the points the map holds. Being affine it is linear along each
-ray, so a given distance along a ray is the same depth step anywhere in the
-map (Scherzer: "the results with linear z biasing are better"), whatever the
-warp does to x and y, and its float32 precision is even over the whole depth
-range instead of piling up at the near plane (a point light's cube face had
-1.6e-5 m near planes, which left no precision at the receivers).
-
-* A sun: the distance along the light direction (a light frame's z).
-* A point or spot light: the distance from the light along an axis ``a`` that
-  every light ray the map holds makes an acute angle with, ``a . (P - l)``: a
-  frame's own axis (its W, the perspective's w), or for a map not built in a
-  frame (PSM's post-perspective map) the most acute of the light's cone axis
-  around B and the inward normals of B's facets that face the light.
-
-The matrix's own z row still defines the clip volume; the GPU writes the depth
-row per fragment (gpu_shaders/depth_frag.glsl) or, for an affine matrix, in
-place of its z row (``addon.gpu.pipeline.depth_draw``).
-"""
+A map's stored depth is, by default, a *depth row* r (``ShadowMap.depth_row``):
+z = r · [x, y, z, 1], affine in the world position, growing along every light
+ray and spanning [-1, 1] over the points the map holds, so its precision is
+even along every ray whatever the warp does to x and y. For a sun it is the
+distance along the light direction; for a point or spot light the distance
+a · (P - l) along an axis a acute to every ray the map holds (a frame's own
+axis, or for PSM's map the most acute of the cone's axis around B and the
+inward normals of B's facets facing the light). The matrix's z row still
+defines the clip volume."""
 from __future__ import annotations
 
 import math

@@ -1,33 +1,15 @@
 """The plane-optimal light matrix and its pieces (Chong & Gortler, "A Lixel for
-every Pixel", EGSR 2004, §2). Numpy only.
+every Pixel", EGSR 2004, §2), in the paper's notation: M_v the viewer's world
+-> clip matrix, l the light (homogeneous, w = 0 for a sun), P the plane of
+interest as the 4-vector π (π·X = 0 on P).
 
-Notation (paper §2): M_v is the viewer's world -> clip matrix, l the light
-(homogeneous, w = 0 for a sun), P the plane of interest, written as the
-4-vector π with π·X = 0 on P. The light matrix M_l maps world -> light clip.
-
-* :func:`five_point_matrix` solves Eq. 1 and 7-10: five point correspondences
-  (the light and four points on P raised so no four are coplanar) fix a
-  projective 4x4 matrix up to scale (Faugeras 1993): the null vector of a
-  15x16 DLT system, whose rank is checked by SVD in float64, found as the map
-  between the two sides' projective frames, with a residual check.
-* :func:`plane_light_matrix` builds those five points: the rays through the
-  four view corners meet P in p^1..p^4 (homogeneous, so corners whose rays miss
-  P or meet it behind the camera, i.e. a quad straddling infinity (Fig. 5), are
-  fine; :func:`ray_plane_points`); p^4 is raised along its light ray to p̂^4
-  (Fig. 2); l is the centre of projection (Eq. 1). The x, y, w rows of the
-  result equal the viewer's on P: every point of P has the same image in both
-  (the plane homography fixes four generic points, so it is the identity).
-
-  Closed form, used only as an independent check in the tests: those rows are
-  M_v·S with S = (π·l) I - l π^T, the projection from l onto P; the light image
-  of any point is the viewer image of its shadow on P.
-* The needed part of the plane ("less of the plane", §2) is a convex polygon:
-  ``polyhedron.plane_section`` of R, then :func:`clip_to_polygon` by the
-  plane's extent and :func:`enclosing_polygon` for the shader's vertex limit.
-* :func:`min_area_twist`: the 2D rotation (twist, §2) giving the tightest
-  axis-aligned rectangle around the plane's image.
-* :func:`default_plane`: the top face of the widest, thinnest receiver box.
-"""
+:func:`plane_light_matrix` solves Eq. 1 and 7-10 (:func:`five_point_matrix`):
+p^1..p^4 where the view's corner rays meet P (homogeneous, so a quad
+straddling infinity, Fig. 5, is fine), p^4 raised along its light ray to p̂^4
+(Fig. 2), l the centre of projection. On P its x, y, w rows equal the
+viewer's. The needed part of P is a convex polygon (:func:`clip_to_polygon`,
+:func:`enclosing_polygon`); :func:`min_area_twist` is §2's twist;
+:func:`default_plane_of` picks the top of the widest flat receiver box."""
 from __future__ import annotations
 
 import functools
@@ -47,10 +29,6 @@ its first must exceed this, else the five points are (nearly) degenerate."""
 RESIDUAL_TOL = 1e-9
 """Largest accepted sine of the angle between M·X and its wanted image Y."""
 
-VIEW_CORNERS = ((-1.0, -1.0), (-1.0, 1.0), (1.0, 1.0), (1.0, -1.0))
-"""The four viewer-image points of Eq. 2 (the image corners, in NDC, in the
-paper's order (0,0), (0,h-1), (g-1,h-1), (g-1,0))."""
-
 LIGHT_TARGETS = np.array([[-1.0, -1.0, 1.0, 1.0], [-1.0, 1.0, 1.0, 1.0], [1.0, 1.0, 1.0, 1.0],
                           [1.0, -1.0, -1.0, 1.0], [0.0, 0.0, 1.0, 0.0]])
 """The light-image targets of p^1..p^3, p̂^4 (the view corners, light z +1, and
@@ -63,9 +41,8 @@ most this fraction of its smaller horizontal side."""
 
 @dataclass(frozen=True)
 class PlaneOfInterest:
-    """A plane ``normal · x = offset`` (unit normal), optionally limited to the
-    convex ``extent`` polygon ((K, 3) world points on the plane), e.g. a table
-    top. ``name`` says where it came from (for messages)."""
+    """The plane ``normal · x = offset`` (unit normal), optionally limited to the convex
+    ``extent`` polygon ((K, 3) on the plane); ``name`` for messages."""
 
     normal: np.ndarray
     offset: float
@@ -116,18 +93,9 @@ class PlaneOfInterest:
 
 def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
     """The 4x4 projective M with M·src_i ∝ dst_i for five homogeneous
-    correspondences (no four of ``src`` coplanar; Chong-Gortler §2 after
-    Faugeras 1993).
-
-    Each correspondence gives three independent equations
-    Y_m (M X)_j - Y_j (M X)_m = 0 (m = the largest component of Y); the 15x16
-    system must have rank 15 (its singular values, in float64). M =
-    F_dst·F_src⁻¹ (:func:`projective_frame`; no four of ``dst`` coplanar
-    either) maps each src_i to a multiple of dst_i, so it solves the
-    equations, and with rank 15 their solutions are the multiples of one
-    matrix: M is the null vector, found with one 4x4 inverse instead of the
-    SVD's vectors. Raises WarpError when the rank is below 15 (relative
-    singular value under RANK_TOL) or when a correspondence is not met to
+    correspondences, no four coplanar (§2 after Faugeras 1993): the null vector of
+    the 15x16 DLT system, whose rank 15 is checked by SVD, is F_dst·F_src⁻¹
+    (:func:`projective_frame`). WarpError below rank 15 (RANK_TOL) or past
     RESIDUAL_TOL. Returns (M, {"condition", "residual"})."""
     src = np.asarray(src, dtype=np.float64).reshape(5, 4)
     dst = np.asarray(dst, dtype=np.float64).reshape(5, 4)
@@ -145,9 +113,8 @@ def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
 
 @functools.lru_cache(maxsize=8)
 def _targets(dst_bytes: bytes) -> tuple[np.ndarray, np.ndarray]:
-    """For targets Y (five rows): each equation's coefficient of each row of M
-    in Y_m (M X)_j - Y_j (M X)_m (Y_m for row j, -Y_j for row m; (15, 4)) and
-    their projective frame; made once for the plane map's fixed targets."""
+    """The DLT coefficients (15, 4) of the targets Y (Y_m for row j, -Y_j for row m of
+    Y_m (M X)_j - Y_j (M X)_m) and their projective frame; made once per targets."""
     dst = np.frombuffer(dst_bytes).reshape(5, 4)
     coefficients = np.zeros((15, 4))
     for i, y in enumerate(dst):
@@ -158,8 +125,7 @@ def _targets(dst_bytes: bytes) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _residual(m: np.ndarray, src: np.ndarray, dst: np.ndarray) -> float:
-    """The largest distance between M·X and Y as unit vectors (of either sign);
-    WarpError when M sends a constrained point to nothing."""
+    """The largest distance between M·X and Y as unit vectors (of either sign)."""
     m_norm = math.hypot(*m.ravel().tolist())
     residual = 0.0
     for x, mx, y in zip(src.tolist(), (src @ m.T).tolist(), dst.tolist()):
@@ -179,11 +145,8 @@ def _residual(m: np.ndarray, src: np.ndarray, dst: np.ndarray) -> float:
 
 
 def projective_frame(points) -> np.ndarray:
-    """The 4x4 F taking the canonical projective basis e_1..e_4, (1, 1, 1, 1)
-    to the five homogeneous ``points`` (rows; no four coplanar): F e_i ∝ p_i
-    and F (1, 1, 1, 1) = p_5, i.e. the columns p_1..p_4 scaled by λ =
-    [p_1 .. p_4]⁻¹ p_5 (Faugeras 1993). Raises WarpError when four of the
-    points are coplanar (a λ_i is 0 or the matrix singular)."""
+    """The 4x4 F with F e_i ∝ p_i and F (1, 1, 1, 1) = p_5: the columns p_1..p_4 scaled
+    by λ = [p_1 .. p_4]⁻¹ p_5 (Faugeras 1993). WarpError when four are coplanar."""
     return np.linalg.inv(_frame_inverse(np.asarray(points, dtype=np.float64).reshape(5, 4)))
 
 
@@ -199,61 +162,29 @@ def _frame_inverse(p: np.ndarray) -> np.ndarray:
     return columns_inverse / lam[:, None]
 
 
-def ray_plane_points(view_clip, plane_vec, ndc_xy) -> np.ndarray:
-    """Homogeneous (N, 4) points where the viewer rays through NDC ``ndc_xy``
-    (N, 2) meet the plane π (:func:`line_plane_points` of each ray's near and
-    far points). Works for perspective and orthographic views and for rays that
-    meet P behind the camera or at infinity (w <= 0); a ray lying in P gives the
-    zero vector."""
-    inv = np.linalg.inv(np.asarray(view_clip, dtype=np.float64))
-    xy = np.asarray(ndc_xy, dtype=np.float64).reshape(-1, 2)
-    k = len(xy)
-    ends = np.ones((2 * k, 4))                      # the near points (z = -1), then the far ones (z = 1)
-    ends[:k, :2] = ends[k:, :2] = xy
-    ends[:k, 2] = -1.0
-    ends = ends @ inv.T
-    return line_plane_points(ends[:k], ends[k:], plane_vec)
-
-
 def line_plane_points(a, b, plane_vec) -> np.ndarray:
-    """Homogeneous (N, 4) points where the lines through the homogeneous points
-    a_i and b_i ((N, 4) each) meet the plane π: (π·b) a - (π·a) b (the zero
-    vector for a line lying in P)."""
+    """Homogeneous (N, 4) points where the lines through a_i and b_i meet π:
+    (π·b) a - (π·a) b (zero for a line in P)."""
     return (b @ plane_vec)[:, None] * a - (a @ plane_vec)[:, None] * b
 
 
 VIEW_CORNER_RAYS = ((0, 2, 3, 1), (4, 6, 7, 5))
-"""The near and far corners of the view frustum (``View.corners()``, ordered
-like ``geometry.UNIT_CUBE_CORNERS``) on the rays through ``VIEW_CORNERS``."""
+"""The view frustum's near and far corners (``View.corners()``) on the rays through
+the image corners (-1, -1), (-1, 1), (1, 1), (1, -1) (Eq. 2's order)."""
 
 
 def corner_ray_points(corners: np.ndarray, plane_vec) -> np.ndarray:
-    """p^1..p^4: the homogeneous points where the rays through the view's
-    corners meet π (:func:`line_plane_points` of the view frustum's near and
-    far ``corners`` on those rays, ``VIEW_CORNER_RAYS``)."""
+    """p^1..p^4: where the rays through the view's corners (the near and far
+    ``corners``, ``VIEW_CORNER_RAYS``) meet π, homogeneous."""
     near, far = (np.append(corners[list(ends)], np.ones((4, 1)), axis=1) for ends in VIEW_CORNER_RAYS)
     return line_plane_points(near, far, np.asarray(plane_vec, dtype=np.float64))
 
 
-def plane_light_rows(view_clip, plane_vec, light_h, length_scale: float) -> tuple[np.ndarray, dict]:
-    """The light matrix of Eq. 1 and 7-10 for the plane π and the viewer's
-    world -> clip matrix ``view_clip``: :func:`plane_light_matrix` of the points
-    where the rays through the view corners meet π. Raises WarpError naming the
-    reason."""
-    pi = np.asarray(plane_vec, dtype=np.float64)
-    return plane_light_matrix(ray_plane_points(view_clip, pi, LIGHT_TARGETS[:4, :2]), light_h, length_scale)
-
-
 def plane_light_matrix(corner_points, light_h, length_scale: float) -> tuple[np.ndarray, dict]:
-    """The light matrix of Eq. 1 and 7-10 (coordinates relative to the camera,
-    see :func:`plane_optimal`): (4x4 M, info). ``corner_points``: p^1..p^4, the
-    homogeneous points where the rays through ``VIEW_CORNERS`` meet P (any
-    positive scale each; :func:`ray_plane_points`).
-
-    Light-image targets are ``LIGHT_TARGETS``. World points are scaled by the
-    spread of the p^i (``length_scale`` if none is finite) and each
-    homogeneous point normalised, so the DLT is well conditioned even for a
-    camera 1 cm above a 100 m floor. Raises WarpError naming the reason."""
+    """The light matrix of Eq. 1 and 7-10 from p^1..p^4 (``corner_points``) and l
+    (``light_h``), relative to the camera: (4x4 M, info). The points are scaled by
+    their spread and normalised, so the solve stays well conditioned (a camera
+    1 cm above a 100 m floor). WarpError naming the reason."""
     points = np.asarray(corner_points, dtype=np.float64).reshape(4, 4).tolist()
     if not all(math.isfinite(c) for q in points for c in q) or min(math.hypot(*q) for q in points) <= 1e-300:
         raise WarpError("a corner ray of the view lies in the plane (the plane is seen edge-on)")
@@ -300,10 +231,8 @@ def _clip_loop(pts: list, normal, offset: float, tol: float) -> list:
 
 
 def clip_to_polygon(poly: np.ndarray, bound, normal, tol: float) -> Optional[np.ndarray]:
-    """The part of the convex polygon ``poly`` inside the convex polygon
-    ``bound`` ((K, 3) on the same plane, CCW about ``normal``): ``poly`` clipped
-    by each edge's line on the plane (outward normal edge x normal). None when
-    less than a triangle is left."""
+    """The part of the convex ``poly`` inside the convex ``bound`` on the same plane
+    (CCW about ``normal``), or None when less than a triangle is left."""
     b = bound.tolist() if isinstance(bound, np.ndarray) else list(bound)
     pts = whole = poly.tolist()
     for (ax, ay, az), (ox, oy, oz) in zip(b, edge_normals(b, normal)):
@@ -314,11 +243,9 @@ def clip_to_polygon(poly: np.ndarray, bound, normal, tol: float) -> Optional[np.
 
 
 def is_convex_polygon(points, normal, tol: float) -> bool:
-    """Whether the points, in their order, already are a convex polygon CCW
-    about ``normal`` that ``convex_polygon_on_plane`` would keep whole (it would
-    list the same vertices, perhaps from another start): every turn strictly
-    to the left, by more than the tolerance times the perimeter (so no vertex
-    is merged or dropped as collinear), and one turn around in all."""
+    """Whether the points, in order, are a convex polygon CCW about ``normal`` that
+    ``convex_polygon_on_plane`` keeps whole: every turn left by more than tol times
+    the perimeter, one turn around in all."""
     pts = np.asarray(points, dtype=np.float64).tolist()
     if len(pts) < 3:
         return False
@@ -345,16 +272,14 @@ def polygon_area(poly, normal) -> float:
 
 
 def offset_directions(poly, normal) -> np.ndarray:
-    """Per vertex of the convex polygon (CCW about ``normal``), how it moves when
-    every edge moves out by 1 (so the polygon grown by d is ``poly + d *
-    offset_directions``, exactly the set ``Region.contains`` accepts with tolerance d)."""
+    """Per vertex of the convex polygon, how it moves when every edge moves out by 1
+    (the polygon grown by d, as ``Region.contains`` accepts it with tolerance d)."""
     return np.array(offset_steps(np.asarray(poly, dtype=np.float64).tolist(), normal)).reshape(-1, 3)
 
 
 def edge_normals(pts: list, normal) -> list:
-    """Per edge i (vertex i to i + 1) of a convex polygon given as a list of
-    (x, y, z), CCW about the unit ``normal``: its outward unit normal on the
-    plane, edge x normal (zero for an edge of no length)."""
+    """Per edge of a convex polygon (a list, CCW about ``normal``): its outward unit
+    normal on the plane, edge x normal (zero for an edge of no length)."""
     nx, ny, nz = (float(c) for c in normal)
     out = []
     for (ax, ay, az), (bx, by, bz) in zip(pts, pts[1:] + pts[:1]):
@@ -381,9 +306,8 @@ def offset_steps(pts: list, normal) -> list:
 
 
 def enclosing_polygon(poly: np.ndarray, normal: np.ndarray, max_vertices: int) -> np.ndarray:
-    """A convex polygon of at most ``max_vertices`` vertices containing the convex
-    ``poly`` (CCW about ``normal``): edges are removed one at a time by extending
-    their neighbours to meet, always the one that adds the least area."""
+    """A convex polygon of at most ``max_vertices`` containing the convex ``poly``:
+    edges removed one at a time by extending their neighbours, the least added area first."""
     p = np.asarray(poly, dtype=np.float64)
     while len(p) > max(max_vertices, 3):
         k = len(p)
@@ -410,9 +334,8 @@ def enclosing_polygon(poly: np.ndarray, normal: np.ndarray, max_vertices: int) -
 
 
 def min_area_twist(points2d: np.ndarray) -> float:
-    """The rotation θ in (-π/4, π/4] whose rotated points R(θ)·p have the
-    smallest axis-aligned bounding rectangle (rotating calipers: the best
-    rectangle has a side along a hull edge)."""
+    """The rotation θ in (-π/4, π/4] giving the points' smallest axis-aligned
+    rectangle (rotating calipers: a side lies along a hull edge)."""
     p = np.asarray(points2d, dtype=np.float64).reshape(-1, 2)
     best, best_area = 0.0, math.inf
     k = len(p)
@@ -436,8 +359,8 @@ def rotation2d(theta: float) -> np.ndarray:
 
 
 def _flat_tops(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per box, given its corners as (3, ...) arrays: the area of its top if the
-    box is flat (height <= FLAT_RATIO x its smaller side), else -1; and its height."""
+    """Per box ((3, ...) corner arrays): its top's area if flat (height <= FLAT_RATIO x
+    its smaller side), else -1; and its height."""
     ext = hi - lo
     side = np.minimum(ext[0], ext[1])
     flat = (side > 0) & (ext[2] <= FLAT_RATIO * side)
@@ -451,27 +374,8 @@ def _top_face(lo, hi, i: int) -> PlaneOfInterest:
     return PlaneOfInterest(np.array([0.0, 0.0, 1.0]), float(top), face, f"top of receiver box {i}")
 
 
-def default_plane(receiver_boxes) -> Optional[PlaneOfInterest]:
-    """The largest upward-facing flat receiver surface: the top face of the
-    widest flat box (height <= FLAT_RATIO x its smaller side; Z up), limited to
-    that face. None when no receiver box is flat."""
-    b = np.asarray(receiver_boxes, dtype=np.float64).reshape(-1, 2, 3)
-    if len(b) == 0:
-        return None
-    area, height = _flat_tops(b[:, 0].T, b[:, 1].T)
-    if area.max() < 0:
-        return None
-    # widest first, then thinnest, then lowest index (deterministic)
-    widest = np.flatnonzero(area == area.max())
-    i = int(widest[np.argmin(height[widest])])
-    return _top_face(b[i, 0].tolist(), b[i, 1].tolist(), i)
-
-
 def flattest_box(receiver_boxes) -> Optional[tuple[int, float, float]]:
-    """(index, height, smaller horizontal side) of the receiver box whose
-    height is the least fraction of its smaller side: the one nearest to a
-    plane of interest (``default_plane`` takes it if that fraction is at most
-    FLAT_RATIO). None without boxes with a horizontal extent."""
+    """(index, height, smaller side) of the receiver box nearest to flat, or None."""
     b = np.asarray(receiver_boxes, dtype=np.float64).reshape(-1, 2, 3)
     ext = b[:, 1] - b[:, 0]
     side = np.minimum(ext[:, 0], ext[:, 1])
@@ -483,16 +387,9 @@ def flattest_box(receiver_boxes) -> Optional[tuple[int, float, float]]:
 
 
 def default_plane_of(receivers) -> Optional[PlaneOfInterest]:
-    """``default_plane(receiver boxes)`` for the receivers a culling index
-    selected (``culling.Selection``), without gathering every selected box: no
-    box is wider than its cluster's bounds, so only the clusters whose bounds
-    are as wide as the widest flat top found are opened. The widest cluster
-    is opened first; when it holds a selected flat box (a ground slab, a
-    floor) that box's area bounds the others (usually no other cluster is as
-    wide), else clusters are opened widest bounds first in batches of
-    doubling size until none left can hold a box as wide as the widest flat
-    one found. Box i is named by its position among the selected boxes in the
-    scene's order, as in ``body.receiver_boxes``."""
+    """The default plane of interest: the top face of the widest flat receiver box
+    (then the thinnest, then the first) that a culling ``Selection`` holds, opening
+    only the clusters whose bounds are as wide as the widest flat top found."""
     index, selected, picked = receivers.index, receivers.selected, receivers.by_cluster
     clusters, size = index.c_box_bounds.shape[1:]
     c_lo, c_hi = index.c_bounds[:3], -index.c_bounds[3:]           # (c_bounds: lo, -hi)
@@ -528,9 +425,8 @@ def default_plane_of(receivers) -> Optional[PlaneOfInterest]:
 
 
 def _widest_flat_tops(index, picked: np.ndarray, batch: np.ndarray) -> tuple[float, tuple]:
-    """Among the picked boxes of the clusters ``batch`` of a culling index: the
-    area of the widest flat top (-inf if none is picked, -1 if none is flat)
-    and the (positions in the index, heights) of the boxes that have it."""
+    """Among the picked boxes of the clusters ``batch``: the widest flat top's area
+    (-inf: none picked, -1: none flat) and (positions, heights) of the boxes that have it."""
     bounds = index.c_box_bounds[:, batch]                        # (6, batch, size): lo, -hi
     area, height = _flat_tops(bounds[:3], -bounds[3:])
     area = np.where(picked[batch], area, -np.inf)

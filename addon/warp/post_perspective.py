@@ -1,62 +1,22 @@
-"""Post-perspective space (PPS) of a virtual camera and light frusta inside it
-(Stamminger & Drettakis, *Perspective Shadow Maps*, §2-§4). Numpy only.
+"""Post-perspective space (PPS) of a virtual camera and the light's frustum in
+it (Stamminger & Drettakis, *Perspective Shadow Maps*, §3-§4, §6).
 
-**The virtual camera (§4.2, §6).** PSM renders the shadow map in the camera's
-post-perspective space. The paper moves the camera back along its view
-direction ("virtual camera shift") until the body H (our B) lies entirely in
-front of its near plane, keeping the near distance unchanged (§4.2), and wants
-that near plane as far away as possible: it reads back the depth buffer to put
-it at the nearest visible depth (§6). Lixel combines the two. ``d_R`` is the
-nearest visible depth (:func:`nearest_visible_depth`): the caller's depth
-readback ``WarpOptions.visible_depth_range`` when given, else the nearest point
-of V ∩ L ∩ (a receiver box), which is never nearer than the camera's near
-distance and never farther than what is really visible. B's nearest eye depth
-is ``d_B <= d_R`` (casters between the camera and R, or behind the camera).
-The virtual eye moves back by
+The virtual camera (§4.2, §6) moves back by s = d_R - d_B >= 0 (d_R the nearest
+visible eye depth, d_B B's nearest), so B's nearest point is as far from the
+virtual eye as the nearest visible point is from the real one; its projection
+is fitted so that B's image B' fills [-1, 1]^3.
 
-    s = d_R - d_B  >= 0,
+The light in PPS (§3) is L' = (l, w'): a point light (w' > 0), an inverted one
+(w' < 0, behind the camera plane) or a directional one (w' = 0). One formula
+serves all three (:func:`pps_light_matrix`): with u(p) = w'p - l, k the axis
+of the smallest cone around u(B'), c the mean of B' and q = p - c,
 
-so B's nearest point is as far from the virtual eye as the nearest visible
-point is from the real one. s is 0 when nothing in B is nearer than R, and
-continuous in the configuration. Only the eye position and the view direction
-(the camera plane) shape PPS; the field of view, lens shift and near/far only
-apply an affine map to PPS. So the virtual projection is the plain perspective
-(x, y, -n_v, depth_v) with n_v = d_R, then fitted (``fit.fit_to_unit_cube``)
-so that B's PPS image B' fills the unit cube [-1, 1]^3: the virtual near plane
-is at B's nearest point, the far plane at B's farthest point. That keeps PPS
-well conditioned whatever the camera's own clip range (1e-3 .. 1e4).
+    x = (a·q + γx k·q) / (1 + ρ k·q),  y = (b·q + γy k·q) / (1 + ρ k·q),  z = k·q / (1 + ρ k·q),
 
-**The light in PPS (§3).** The light in homogeneous coordinates (w = 0 for a
-sun) is mapped by the virtual camera: L' = (l, w'). w' > 0: a point light in
-PPS; w' < 0 (the light behind the camera plane): an *inverted* point light whose
-rays converge (§3.1-§3.2; the order of points along a ray reverses); w' = 0 (a
-sun perpendicular to the view, a point light in the camera plane): a
-directional light in PPS.
-
-**One formula for all three (:func:`pps_light_matrix`).** For a PPS point p,
-the oriented ray direction u(p) = w' p - l is finite and continuous in w'; it
-points from L' to p when w' > 0, from p to L' when w' < 0 and along -l (the
-light's travel direction) when w' = 0. In every case the real light lies on the
--u side (moving from p towards the real light changes p by +t·(l - w' p)). The
-map's depth axis k is the axis of the smallest cone containing all u(B'), and
-
-    x = (a·q + γx k·q) / (1 + ρ k·q),  y = (b·q + γy k·q) / (1 + ρ k·q),
-    z = k·q / (1 + ρ k·q),             q = p - c,
-
-with c the mean of B' (inside B'), a, b ⊥ k, and γ, ρ chosen so the x, y and w
-rows vanish at L' (rays through L' collapse to one texel). That is the
-central projection from L' onto the plane through c perpendicular to k,
-measured along a, b, for any w'; ρ ∝ w' and at w' = 0 it is the orthographic
-projection along l. Depth increases along k, i.e. away from the real light
-for normal, inverted and directional PPS lights alike, so the depth test is
-always LESS: the paper's inverted light with a reversed depth *test* (§3.1) is
-here an inverted depth *axis*, the same map up to z -> -z, and the map stays
-continuous when the light crosses the camera plane (PPS light through
-infinity). w = 1 + ρ k·q > 0 on B' exactly when the cone is narrower than
-180°, i.e. when a plane through L' has B' strictly on one side: always for a
-sun (B' lies strictly before the PPS image of infinity), and for a point light
-outside B.
-"""
+γ, ρ making the x, y, w rows vanish at L'. Depth grows away from the real
+light in every case, so the test is always LESS: the paper's inverted light
+with a reversed depth test is here a reversed depth axis (docs/papers.md),
+continuous as the light crosses the camera plane."""
 from __future__ import annotations
 
 import bisect
@@ -103,11 +63,8 @@ NEAREST_BOX_BATCH = 8
 
 @dataclass(frozen=True)
 class VirtualCamera:
-    """``to_pps``: camera-relative world (p - eye) -> PPS clip, with B' filling
-    [-1, 1]^3 and w = virtual eye depth > 0 on B. ``shift``: how far the virtual
-    eye sits behind the real one; ``near``/``far``: B's nearest/farthest virtual
-    eye depth; ``visible_near``: d_R, the nearest visible eye depth; ``points``:
-    B' (B's vertices in PPS, divided)."""
+    """``to_pps``: camera-relative world -> PPS clip, B' filling [-1, 1]^3; ``shift``: s;
+    ``near``/``far``: B's virtual eye depths; ``visible_near``: d_R; ``points``: B'."""
 
     to_pps: np.ndarray
     shift: float
@@ -118,8 +75,7 @@ class VirtualCamera:
 
 
 def virtual_camera(view: View, body: IntersectionBody, visible_near: float | None = None) -> VirtualCamera:
-    """The shifted camera whose PPS PSM works in (module docstring; §4.2, §6).
-    ``visible_near``: d_R (default: R's nearest depth, a safe lower bound)."""
+    """The shifted camera of §4.2 and §6; ``visible_near``: d_R (default: R's nearest depth)."""
     origin = view.position
     to_camera = view.world_to_camera[:3, :3]                # camera-relative world -> camera axes
     b_rel = body.vertices - origin
@@ -140,19 +96,11 @@ def virtual_camera(view: View, body: IntersectionBody, visible_near: float | Non
 
 def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
                           options: WarpOptions | None = None) -> float:
-    """The nearest eye depth at which a receiver can be seen (PSM §6's near
-    plane "as far as possible"). A depth readback given as
-    ``options.visible_depth_range`` wins; otherwise the least eye depth over
-    the receiver boxes meeting V ∩ L of V ∩ L ∩ box (``lowest_in_boxes``),
-    taking the boxes nearest bound first (``_BoxesByDepth``) and stopping
-    when none left can be nearer. Always in [view.near, true nearest visible
-    depth].
-
-    No point of R = V ∩ S_r ∩ L is nearer than its nearest vertex (hence the
-    lower bound ``coarse``, with the near plane), so when a receiver box about
-    to be measured holds that vertex, the answer is ``coarse`` and the search
-    stops without measuring: when the light's cone bounds R nearest the camera
-    inside a building, or the near plane does inside a room's box."""
+    """d_R, the nearest eye depth at which a receiver can be seen (§6's near plane "as
+    far as possible"): ``options.visible_depth_range`` when given, else the least
+    eye depth of V ∩ L ∩ box over the receiver boxes, nearest bound first, in
+    [view.near, the true nearest visible depth]. When a box holds R's nearest
+    vertex, that vertex's depth is the answer without measuring."""
     if options is not None and options.visible_depth_range is not None:
         return max(float(options.visible_depth_range[0]), view.near)
     axis = -view.world_to_camera[2, :3]                     # camera-relative world -> eye depth
@@ -179,12 +127,9 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
 
 
 class _BoxesByDepth:
-    """The receiver boxes a culling ``Selection`` holds, camera-relative, in
-    order of a lower bound of their eye depth (the depth of the nearest
-    corner, floored at ``floor``), drawn a batch at a time. Boxes come from
-    the culling index's clusters, which have the same kind of bound: a
-    cluster is opened (its boxes added to a pool kept in order) only when one
-    of its boxes may be in the next batch."""
+    """The receiver boxes of a culling ``Selection``, camera-relative, drawn a batch at
+    a time in order of a lower bound of their eye depth (the nearest corner's,
+    floored at ``floor``); a cluster is opened only when it may hold a box of the next batch."""
 
     def __init__(self, receivers, axis: np.ndarray, origin: np.ndarray, floor: float):
         self.index, self.picked = receivers.index, receivers.by_cluster
@@ -215,11 +160,8 @@ class _BoxesByDepth:
         self.pool, self.pool_lower, self.opened = pool[:, order], lower[order], stop
 
     def next(self, count: int, below: float):
-        """The nearest ``count`` boxes not drawn yet as (lo (K, 3), hi (K, 3),
-        bounds), or None when no box left has a bound below ``below``. Every
-        cluster that may hold one of them is opened first: enough for a full
-        batch (each holds a box), then all whose bound is below the batch's
-        farthest box."""
+        """The nearest ``count`` boxes not drawn yet as (lo, hi, bounds), or None when
+        none left has a bound below ``below``."""
         reach = bisect.bisect_left(self.c_lower, below, self.opened)
         if len(self.pool_lower) < count and self.opened < reach:
             self._open(min(self.opened + count - len(self.pool_lower), reach))
@@ -233,14 +175,9 @@ class _BoxesByDepth:
 
 
 def lowest_in_boxes(region: ConvexPolytope, lo: np.ndarray, hi: np.ndarray, axis: np.ndarray) -> np.ndarray:
-    """min k·x over ``region`` ∩ [lo_i, hi_i] for each box i ((K, 3) corners,
-    k = ``axis``), inf where they do not meet. A linear function is least at a
-    vertex of region ∩ box, and every vertex ends an edge of one body clipped
-    to the other (``polyhedron.section_points``): the region's edges clipped
-    to each box and each box's edges clipped to the region, by Cyrus-Beck
-    (exactly: no tolerance, which would move the nearest point along a surface
-    seen at a grazing angle by the tolerance over the angle's sine). On a
-    clipped edge k·x is least at the end it rises from."""
+    """min k·x over ``region`` ∩ [lo_i, hi_i] for each box i (inf where they do not
+    meet): a linear function is least at a vertex of the section, and every
+    vertex ends an edge of one body clipped exactly to the other (``section_points``)."""
     return np.minimum(_lowest_on_edges(polytope_edges(region), BOX_NORMALS, box_offsets(lo, hi), axis),
                       _lowest_on_edges(box_edges(lo, hi), region.normals, region.offsets, axis))
 
@@ -254,9 +191,7 @@ def _lowest_on_edges(edges: Edges, normals: np.ndarray, offsets: np.ndarray, axi
 
 
 def _visible_region(view: View, light: Light, body: IntersectionBody) -> ConvexPolytope | None:
-    """V ∩ L relative to the camera, or None when it is empty. V ∩ L ∩ box =
-    R ∩ box for every receiver box (R = V ∩ S_r ∩ L, each box inside S_r), so
-    B's R serves when it is relative to the camera too."""
+    """V ∩ L relative to the camera (B's R when B is camera-relative), or None."""
     origin = view.position
     if body.origin.tolist() == origin.tolist():
         return body.visible_polytope
@@ -269,17 +204,8 @@ def _visible_region(view: View, light: Light, body: IntersectionBody) -> ConvexP
 # ---------------------------------------------------------------------------
 
 def min_norm_point(points, start=None, max_iter: int = 200) -> np.ndarray:
-    """The point of the convex hull of ``points`` (M, d) nearest the origin,
-    by Wolfe's algorithm (1976; exact up to rounding, finitely many steps).
-
-    Wolfe keeps a support whose affine hull's nearest point x lies inside its
-    convex hull. x is optimal when no point p has p·x < x·x (then every hull
-    point y has |y|² >= |x|²); otherwise the point least along x joins the
-    support and the support's affine nearest point is found (a minor cycle
-    dropping any point whose weight would turn negative). It starts from the
-    point nearest the origin, or from ``start``, indices of points whose
-    affine nearest point has positive weights (two points of equal length:
-    their midpoint)."""
+    """The point of the convex hull of ``points`` (M, d) nearest the origin, by
+    Wolfe's algorithm (1976), from the support ``start`` (default: the nearest point)."""
     p = np.asarray(points, dtype=np.float64)
     square = np.einsum("ij,ij->i", p, p)
     scale = max(float(square.max()), 1e-300)
@@ -307,10 +233,8 @@ def min_norm_point(points, start=None, max_iter: int = 200) -> np.ndarray:
 
 
 def _affine_min_norm(q: np.ndarray) -> np.ndarray:
-    """The weights α (Σ α_i = 1) of the point of the affine hull of the rows of
-    ``q`` nearest the origin: the bordered system [Q Qᵀ 1; 1ᵀ 0] (α, μ) = (0, 1)
-    (the stationary point of |Σ α_i q_i|² under the constraint), by least
-    squares when the support is affinely dependent (the system singular)."""
+    """The weights α (Σ α_i = 1) of the affine hull's point nearest the origin:
+    [Q Qᵀ 1; 1ᵀ 0] (α, μ) = (0, 1), by least squares when singular."""
     n = len(q)
     bordered = np.ones((n + 1, n + 1))
     bordered[:n, :n] = q @ q.T
@@ -326,12 +250,8 @@ def _affine_min_norm(q: np.ndarray) -> np.ndarray:
 
 def smallest_cone(directions) -> tuple[np.ndarray, float]:
     """Axis k and margin min_i k·d_i of the narrowest cone around the unit
-    ``directions``: k maximises min_i k·d_i, which by minimax duality is the
-    direction of the hull's point nearest the origin (``min_norm_point``),
-    and the margin is that point's norm (0 when the directions surround the
-    origin). Wolfe starts from the most distant pair of directions (the least
-    entry of their Gram matrix): most cones are spanned by two directions, and
-    then the pair's midpoint is the answer at once."""
+    ``directions``: by minimax duality k is the direction of their hull's point
+    nearest the origin, the margin its norm; Wolfe starts from the most distant pair."""
     d = np.asarray(directions, dtype=np.float64)
     i, j = divmod(int((d @ d.T).argmin()), len(d))
     x = min_norm_point(d, start=(i,) if i == j else (i, j))
@@ -344,12 +264,10 @@ def smallest_cone(directions) -> tuple[np.ndarray, float]:
 
 @dataclass(frozen=True)
 class PPSLight:
-    """The light's frustum in PPS. ``matrix``: PPS -> light clip before the
-    unit-cube fit (None if no single frustum covers B', or if the cone is wider
-    than the caller allowed); ``light``: L' = (l, w') normalised to unit length;
-    ``kind``: "point", "inverted" or "directional"; ``cone_half_angle``:
-    radians; ``axis``: k; ``single_frustum``: whether a frustum from L' can hold
-    B' (its cone is narrower than 180°)."""
+    """The light's frustum in PPS: ``matrix`` (PPS -> light clip before the unit-cube
+    fit; None when no frustum narrower than allowed holds B'), ``light`` L' (unit),
+    ``kind`` ("point", "inverted", "directional"), ``cone_half_angle``, ``axis`` k,
+    ``single_frustum`` (the cone is narrower than 180°)."""
 
     matrix: np.ndarray | None
     light: np.ndarray
@@ -367,10 +285,8 @@ class PPSLight:
 
 
 def pps_light_matrix(light_h, points, max_half_angle: float = math.inf) -> PPSLight:
-    """The light frustum from the homogeneous PPS light ``light_h`` over the
-    PPS points ``points`` (B'), see the module docstring; its matrix is not
-    built when the cone's half-angle exceeds ``max_half_angle`` (the caller
-    hands over to another map)."""
+    """The light frustum from the homogeneous PPS light ``light_h`` over B' (module
+    docstring); no matrix when the cone's half-angle exceeds ``max_half_angle``."""
     light = np.asarray(light_h, dtype=np.float64)
     light = light / math.sqrt(light @ light)
     l, w = light[:3], float(light[3])

@@ -1,15 +1,7 @@
-"""Plain data in and out of the warp core: no bpy, numpy float64 only.
-
-Inputs: :class:`View` (the camera), :class:`Light`, :class:`SceneBounds`,
-:class:`WarpOptions`. Output of every method: :class:`ShadowSetup` = a list of
-:class:`ShadowMap` plus :class:`~.diagnostics.Diagnostics` (what the method
-computed on the way, its own module).
-
-A world point is shadow-tested against the *first* map of ``ShadowSetup.maps``
-whose clip volume contains it (w > 0 and x, y, z in [-1, 1]) and, if the map
-carries ``view_depth_range``, whose eye depth lies in that range. Plane maps
-carry a ``region`` as well; see :meth:`ShadowMap.serves`.
-"""
+"""Plain data in and out of the warp core (numpy float64, no bpy): :class:`View`,
+:class:`Light`, :class:`SceneBounds`, :class:`WarpOptions` in; :class:`ShadowSetup`
+(its :class:`ShadowMap` list and :class:`~.diagnostics.Diagnostics`) out. A point
+is tested against the first map that serves it (:meth:`ShadowMap.serves`)."""
 from __future__ import annotations
 
 import math
@@ -45,13 +37,8 @@ def _frozen(a: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class View:
-    """The camera.
-
-    ``camera_to_world``: 4x4, columns are the camera's local X, Y, Z axes and its
-    position; it looks down local -Z with +Y up (Blender's ``matrix_world``).
-    ``projection``: camera -> clip, OpenGL-style (near -> z_ndc -1), e.g. from
-    ``Object.calc_matrix_camera`` so sensor fit and lens shift are right.
-    """
+    """The camera: ``camera_to_world`` (Blender's ``matrix_world``; it looks down
+    local -Z, +Y up) and ``projection`` (camera -> OpenGL clip, with sensor fit and lens shift)."""
 
     camera_to_world: np.ndarray
     projection: np.ndarray
@@ -132,13 +119,9 @@ LIGHT_TYPES = ("SUN", "POINT", "SPOT")
 
 @dataclass(frozen=True)
 class Light:
-    """A light. ``direction`` is the direction the light *travels* (SUN, SPOT).
-    ``spot_angle`` is the full cone angle in radians (SPOT).
-
-    Blender AREA lights are modelled as SPOT lights at their centre facing
-    their -Z, with cone angle = min(spread, 179°): hard shadows from the centre
-    (see docs/design.md); that conversion lives in the scene glue, not here.
-    """
+    """A light: ``direction`` the light travels (SUN, SPOT), ``position`` (POINT,
+    SPOT), ``spot_angle`` the full cone angle in radians. An AREA light arrives as
+    a SPOT (the scene glue's conversion)."""
 
     type: str
     direction: Optional[np.ndarray] = None
@@ -200,10 +183,7 @@ class Light:
 
 @dataclass(frozen=True)
 class SceneBounds:
-    """World-space axis-aligned boxes, each ``[[min x, y, z], [max x, y, z]]``.
-
-    ``casters`` cast shadows, ``receivers`` receive them (often the same boxes).
-    """
+    """World boxes ``[[min x, y, z], [max x, y, z]]``: ``casters`` and ``receivers``."""
 
     casters: np.ndarray
     receivers: np.ndarray
@@ -284,18 +264,11 @@ class Region:
 
 @dataclass
 class ShadowMap:
-    """One shadow map: world -> light clip (OpenGL NDC) ``matrix``, texel ``size``,
-    the depth test that keeps the occluder nearest the light, and its ``role``
-    ("main", "cube+X", "plane:0", "fallback", ...).
-
-    ``depth_row`` (optional, linear-z, Scherzer §4.2): a 4-vector r with
-    z_ndc = r @ [x, y, z, 1] used instead of the matrix's z row after the
-    divide; the matrix's own z row still defines the clip volume.
-
-    ``blend_band`` (cascades): the map also holds every point (and its
-    casters) up to this much eye depth past the end of ``view_depth_range``;
-    the shading pass fades from it into the map that serves those points.
-    """
+    """One shadow map: world -> light clip ``matrix``, texel ``size``, ``depth_test``,
+    ``role`` ("main", "cube+X", "plane:0", "fallback", ...); optionally the
+    ``view_depth_range`` and ``region`` it serves, its linear ``depth_row`` r
+    (z_ndc = r · [x, y, z, 1], Scherzer §4.2) and a cascade's ``blend_band`` (the
+    eye depth past its range it also holds, faded into the next map)."""
 
     matrix: np.ndarray
     size: tuple[int, int]
@@ -383,49 +356,24 @@ LAMBDA_GUARDS = ("all", "glpr", "off")
 class WarpOptions:
     """Every method's knobs, with the defaults a fresh scene gets.
 
-    shadow_map_size: texels (w, h) of the map (split among maps for multi-map setups).
-    focus: what B is fitted to - "visible" (what the camera sees: the visible
-        region given to ``compute``, a depth pre-pass in the render engine, or a
-        coarse ray cast against the scene's boxes; see ``visibility``) or "view"
-        (the whole view frustum, Scherzer §4.1 as printed; Lixel before 0.2).
-    texel_snapping: snap the uniform map's window to whole texels (no crawling).
-    delta_z: Scherzer Eq. 1's Δz - "body" (extent of B) or "visible" (the
-        ``visible_depth_range``); used for n_opt only, never for B.
-    middle_vector: use B's middle vector as V_P (Scherzer §4.4) instead of Eq. 3.
-    linear_z: linear depth distribution (Scherzer §4.2, the default) - every map gets a
-        ShadowMap.depth_row (:mod:`.linear_depth`); False keeps the matrices' hyperbolic z / w.
-    lam: force GMNPR's or GLPR's λ (None = Eq. 8 / GLPR's rule).
-    lambda_guard: which warps' λ is raised, where needed, to the least λ at
-        which the warp is no worse than the uniform map, at its worst and over
-        the visible pixels (``warp_frustum.guard_lambda``; docs/papers.md, "The
-        λ guard"): "all" (lispsm, gmnpr, glpr), "glpr" (the over-warper GMNPR
-        §3 names) or "off". A forced ``lam`` is never guarded.
-    max_frustum_angle: widest single perspective map for a point light (radians);
-        wider needs take cube faces.
-    planes: planes of interest for plane_optimal, [(point, normal), ...].
-    plane_budget: the most of the texel budget (shadow_map_size area) plane maps
-        may take; they take only what one lixel per pixel needs, the fallback
-        gets the rest (plane_optimal).
-    plane_twist: "auto" (rotate a plane map's image when the budget forces fewer
-        lixels than pixels and the rotated rectangle is tighter), "on", "off"
-        (Chong-Gortler §2, "twist").
-    cascade_splits: how many z-splits of the view's depth range the cascade
-        makes (1 to 8; ``methods/cascade.py``).
-    cascade_warp: each split's warp - "uniform", "psm", "lispsm", "gmnpr", or
-        "auto" (per split, the one with the lowest predicted error).
-    cascade_lambda: the practical split scheme's λ (PSSM: 1 logarithmic, 0
-        uniform), where the adaptive split starts.
-    cascade_adaptive: move the splits to minimise the largest predicted error
-        (Lloyd's model) instead of keeping the λ splits.
-    cascade_stable: splits that stand still (the depth range widened to whole
-        octaves, the λ splits) and sun maps on a texel grid fixed in the world,
-        so a moving camera does not make shadows shimmer.
-    cascade_budget: "per_map" (every split a map of ``shadow_map_size``, as
-        PSSM) or "shared" (``shadow_map_size`` is the whole budget, shared by
-        predicted error).
-    cascade_blend: the blend band between splits, as a fraction of the
-        nearer split's depth extent (0: hard seams).
-    """
+    shadow_map_size: texels (w, h) of each map.
+    focus: B fitted to what the camera sees ("visible": ``visibility``) or to the
+        whole view frustum ("view", Scherzer §4.1 as printed).
+    texel_snapping: snap the uniform map's window to whole texels.
+    delta_z: Scherzer Eq. 1's Δz, "body" (B's extent) or "visible"
+        (``visible_depth_range``); n_opt only, never B.
+    middle_vector: B's middle vector as V_P (Scherzer §4.4) instead of Eq. 3.
+    linear_z: every map gets a linear ``depth_row`` (Scherzer §4.2).
+    lam: a forced λ for GMNPR and GLPR (None: their rules).
+    lambda_guard: whose λ is kept no worse than the uniform map: "all", "glpr",
+        "off" (docs/papers.md, "The λ guard"); a forced ``lam`` never is.
+    max_frustum_angle: a point light's widest single perspective map (radians).
+    planes, plane_budget, plane_twist: plane_optimal's planes of interest, its
+        largest share of the texel budget, its twist ("auto", "on", "off").
+    cascade_splits, cascade_warp, cascade_lambda, cascade_adaptive, cascade_stable,
+    cascade_budget, cascade_blend: the cascade's split count (1-8), each split's
+        warp (or "auto"), PSSM's λ, Lloyd-model splits, stable splits and sun
+        maps, "per_map" or "shared" texels, and the blend band (``methods/cascade.py``)."""
 
     shadow_map_size: tuple[int, int] = (2048, 2048)
     focus: str = "visible"

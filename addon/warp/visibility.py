@@ -1,45 +1,16 @@
 """What the camera sees: the visible region that focuses B.
 
-Scherzer §4.4 takes the near distance and Δz of n_opt "from a visibility
-algorithm"; Lauritzen et al. (*Sample Distribution Shadow Maps*, I3D 2011)
-fit the maps to the samples the camera actually shades. Lixel does both: a
-:class:`VisibleRegion` holds, per screen tile, the nearest and farthest eye
-depth of what is visible there, and B is built from the part of the view
-frustum that holds those tiles instead of the whole frustum
-(``body.intersection_body(..., visible=region)``). Every method benefits: the
-uniform map covers less, z_n is the nearest *visible* depth (on a terrain seen
-from afar, 128 m rather than the near plane's 1 m), and Δz the visible range.
-
-**Why B stays right.** Scherzer warns that a far plane from visibility must
-not be used for B itself: an object hidden from the camera can still shadow a
-visible point. Lixel does not cut B; it cuts R (the visible part of the view,
-``body.py``) and keeps B = hull(R ∪ light) ∩ S_c: every caster that shadows a
-visible point lies on the segment from that point towards the light, which
-hull(R ∪ light) contains. So the caster selection and the map's depth range
-stay complete, only the receivers nobody sees are dropped.
-
-**Conservative by construction.** A map fitted to sampled visibility must
-hold every visible point, not only the samples:
-
-* tiles take the min / max over their samples, never a point sample, and
-  depth is padded by its precision (a float32 depth buffer: a few ulps,
-  through the hyperbolic depth);
-* the depth pre-pass (``addon/gpu/visibility.py``) samples exactly the pixel
-  centres the shading pass shades, so its tiles are exact up to precision;
-* a coarse ray cast against the scene's boxes (:func:`region_from_boxes`,
-  without Blender) samples less finely, so each sample's reach is widened to
-  its neighbours on the same box (the depth it may take within one sample
-  spacing) and bounded by its box's own depth range, each tile takes its
-  neighbours' samples as well (one sample spacing of padding), and boxes small
-  enough to slip between samples add their whole depth range to the tiles
-  they overlap.
-
-:meth:`VisibleRegion.halfspaces` turns the tiles into a convex region for B:
-the visible eye-depth range, the screen rectangle of the seen tiles, and a
-k-DOP of the tiles' corners in the directions that bound a light's map (the
-light's depth direction and 8 directions across it, through the light for a
-point or spot light, so a perspective map's window is tight too).
-"""
+Scherzer §4.4 takes n_opt's z_n and Δz "from a visibility algorithm";
+Lauritzen et al. (*Sample Distribution Shadow Maps*, I3D 2011) fit the maps to
+the samples the camera shades. A :class:`VisibleRegion` holds, per screen
+tile, the eye-depth interval of what is visible there; B is built from R cut
+by it (``intersection_body(..., visible=region)``), never B itself, so every
+caster of a visible point stays in B (docs/papers.md). The region is
+conservative: tiles take min / max padded by the depth precision; a depth
+pre-pass (``addon/gpu/visibility.py``) samples the shaded pixel centres, a ray
+cast against the boxes (:func:`region_from_boxes`) widens each sample to what
+its face and box can show within one sample spacing and adds boxes small
+enough to slip between the rays."""
 from __future__ import annotations
 
 import math
@@ -48,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .culling import BoxIndex
+from .polyhedron import box_corners
 from .rays import ray_index, slab_intervals
 from .types import EmptyBodyError, Light, SceneBounds, View, WarpOptions
 
@@ -73,10 +45,9 @@ region's boundary stay inside the maps after float32 rounding on the GPU."""
 
 @dataclass(frozen=True)
 class TileDepths:
-    """Per screen tile, the eye-depth interval [near, far] that holds every
-    visible point seen through it (near > far: nothing is seen there).
-    ``x_edges`` (nx + 1) and ``y_edges`` (ny + 1) are the tiles' NDC edges,
-    ``near`` and ``far`` (ny, nx) arrays with row 0 at the bottom (y = -1)."""
+    """Per screen tile, the eye-depth interval [near, far] holding every visible point
+    seen through it (near > far: nothing seen); ``x_edges``, ``y_edges``: the tiles'
+    NDC edges; ``near``, ``far``: (ny, nx), row 0 at the bottom."""
 
     x_edges: np.ndarray
     y_edges: np.ndarray
@@ -94,11 +65,8 @@ class TileDepths:
 
 @dataclass(frozen=True)
 class VisibleRegion:
-    """What the camera sees, conservatively: per screen tile the eye-depth
-    interval of its visible points (:class:`TileDepths`), and where that came
-    from (``source``, one of ``SOURCES``). Plain data; made by
-    :func:`region_from_eye_depths`, :func:`region_from_boxes` or
-    ``addon.gpu.visibility.region_from_frame``."""
+    """What the camera sees, conservatively: per tile the eye-depth interval of its
+    visible points, and its ``source`` (one of ``SOURCES``)."""
 
     tiles: TileDepths
     source: str
@@ -122,10 +90,8 @@ class VisibleRegion:
                 float(t.y_edges[rows.min()]), float(t.y_edges[rows.max() + 1]))
 
     def samples(self, view: View) -> tuple[np.ndarray, np.ndarray]:
-        """The visible surface as weighted world points: each seen tile's centre
-        at its near and at its far depth, each weighing half the tile's samples
-        (equal weights when the counts are unknown). How the visible pixels
-        are distributed in the world (GLPR's guard averages over them)."""
+        """The visible surface as weighted world points: each seen tile's centre at its
+        near and far depth, each weighing half its samples (GLPR's guard averages over them)."""
         t = self.tiles
         rows, cols = np.nonzero(t.seen)
         x = (t.x_edges[cols] + t.x_edges[cols + 1]) / 2
@@ -136,8 +102,7 @@ class VisibleRegion:
         return points, np.concatenate([w, w]) / 2.0
 
     def tile_corners(self, view: View) -> np.ndarray:
-        """(8 T, 3) world-space corners of the T seen tiles' depth slabs: their
-        convex hull holds every visible point."""
+        """(8 T, 3) world corners of the T seen tiles' depth slabs (their hull holds every visible point)."""
         t = self.tiles
         rows, cols = np.nonzero(t.seen)
         x = np.stack([t.x_edges[cols], t.x_edges[cols + 1]], axis=1)[:, [0, 1, 0, 1]]       # (T, 4)
@@ -149,8 +114,7 @@ class VisibleRegion:
         return unproject(view, xs, ys, ds)
 
     def contains(self, view: View, points, tol: float = 1e-9) -> np.ndarray:
-        """Which (N, 3) world points lie in a seen tile's depth slab (what a
-        region must hold: every visible point), depths within ``tol`` relative."""
+        """Which (N, 3) world points lie in a seen tile's depth slab (depths within ``tol`` relative)."""
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         h = p @ view.world_to_clip[:, :3].T + view.world_to_clip[:, 3]
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -168,10 +132,8 @@ class VisibleRegion:
         return ok & (d >= near - tol * np.abs(near)) & (d <= far + tol * np.abs(far))
 
     def halfspaces(self, view: View, light: Light) -> tuple[np.ndarray, np.ndarray]:
-        """World-space half-spaces ``normals @ x <= offsets`` whose intersection
-        holds every seen tile's depth slab (hence every visible point): the
-        eye-depth range, the screen rectangle and a k-DOP of the tile corners
-        around the light (module docs). B's R is the view frustum cut by them."""
+        """World half-spaces holding every seen tile's depth slab: the eye-depth range,
+        the screen rectangle of the seen tiles and a k-DOP of their corners around the light."""
         corners = self.tile_corners(view)
         pad = KDOP_PAD * (float(np.ptp(corners, axis=0).max()) or 1.0)
         z_lo, z_hi = self.depth_range
@@ -194,8 +156,7 @@ class VisibleRegion:
 
 
 def unproject(view: View, x, y, depth) -> np.ndarray:
-    """World points at NDC (x, y) and eye depth ``depth`` (arrays of one shape):
-    camera-space (X, Y) solve the projection's x and y rows at z = -depth."""
+    """World points at NDC (x, y) and eye depth ``depth``."""
     x, y, d = (np.asarray(a, dtype=np.float64).ravel() for a in (x, y, depth))
     p = view.projection
     z = -d
@@ -211,19 +172,16 @@ def unproject(view: View, x, y, depth) -> np.ndarray:
 
 
 def eye_depth_from_ndc(view: View, z_ndc) -> np.ndarray:
-    """Eye depth of NDC depths ``z_ndc`` on the view axis (the projection's z
-    and w rows at X = Y = 0: z_ndc = (p22 z + p23) / (p32 z + p33), depth = -z)."""
+    """Eye depth of NDC depths ``z_ndc`` on the view axis."""
     p = view.projection
     z = np.asarray(z_ndc, dtype=np.float64)
     return -(p[2, 3] - z * p[3, 3]) / (z * p[3, 2] - p[2, 2])
 
 
 def kdop_halfspaces(corners: np.ndarray, view: View, light: Light) -> tuple[np.ndarray, np.ndarray]:
-    """A k-DOP of ``corners`` around the light: the planes across the light's
-    depth direction ℓ nearest and farthest from the light and, in
-    ``KDOP_DIRECTIONS`` directions m across ℓ, the tightest planes parallel to
-    ℓ (a sun) or through the light (a point or spot light that sees every
-    corner well in front of it); each moved out by ``KDOP_PAD``."""
+    """A k-DOP of ``corners`` around the light: the nearest and farthest planes across
+    its depth direction ℓ and, in ``KDOP_DIRECTIONS`` directions across ℓ, the
+    tightest planes parallel to ℓ (a sun) or through the light; moved out by ``KDOP_PAD``."""
     base = np.zeros(3) if light.is_directional else np.asarray(light.position, dtype=np.float64)
     rel = corners - base
     if light.is_directional:
@@ -255,9 +213,8 @@ def kdop_halfspaces(corners: np.ndarray, view: View, light: Light) -> tuple[np.n
 
 
 def _across(ell: np.ndarray, view: View) -> np.ndarray:
-    """(K, 3) unit directions across ℓ, every 180°/K from the view direction
-    projected across ℓ (the map's V_P, Scherzer Eq. 3; the camera's up when
-    they are parallel), so the k-DOP bounds a map's own axes exactly."""
+    """(K, 3) unit directions across ℓ, every 180°/K from V_P (Scherzer Eq. 3), so
+    the k-DOP bounds a map's own axes exactly."""
     for v in (view.direction, view.up, np.eye(3)[int(np.argmin(np.abs(ell)))]):
         u = v - (v @ ell) * ell
         n = math.sqrt(u @ u)
@@ -272,9 +229,8 @@ def _across(ell: np.ndarray, view: View) -> np.ndarray:
 # ---------------------------------------------------------------- sources
 
 def tile_reduce(near_samples: np.ndarray, far_samples: np.ndarray, tile: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per ``tile`` x ``tile`` block of (H, W) samples, the least of
-    ``near_samples`` and the greatest of ``far_samples`` (+inf / -inf mark
-    samples where nothing is seen; partial blocks at the top and right)."""
+    """Per ``tile`` x ``tile`` block of (H, W) samples, the least near and greatest far
+    (+inf / -inf: nothing seen; partial blocks at the top and right)."""
     h, w = near_samples.shape
     ny, nx = -(-h // tile), -(-w // tile)
     pad = ((0, ny * tile - h), (0, nx * tile - w))
@@ -299,10 +255,8 @@ def tile_edges(samples: int, tile: int) -> np.ndarray:
 
 def region_from_eye_depths(view: View, near_samples: np.ndarray, far_samples: np.ndarray, tile: int,
                            source: str) -> VisibleRegion:
-    """A region from per-sample eye-depth intervals on a grid of (H, W) cells
-    spanning the image (row 0 at the bottom; +inf / -inf where nothing is
-    seen), reduced per ``tile`` x ``tile`` cells. Depths are clamped to the
-    view's clip range."""
+    """A region from per-sample eye-depth intervals on an (H, W) grid over the image
+    (row 0 at the bottom; +inf / -inf where nothing is seen), per ``tile`` x ``tile`` cells."""
     near_samples, far_samples = np.asarray(near_samples, np.float64), np.asarray(far_samples, np.float64)
     near, far = tile_reduce(near_samples, far_samples, tile)
     h, w = near_samples.shape
@@ -310,8 +264,7 @@ def region_from_eye_depths(view: View, near_samples: np.ndarray, far_samples: np
 
 
 def _region(view: View, near, far, samples: tuple[int, int], tile: int, source: str, counts=None) -> VisibleRegion:
-    """A region from tile intervals (near > far: nothing seen) over a grid of
-    ``samples`` = (columns, rows) cells, clamped to the view's clip range."""
+    """A region from tile intervals over ``samples`` = (columns, rows) cells, clamped to the clip range."""
     seen = near <= far
     near = np.where(seen, np.clip(near, view.near, view.far), np.inf)
     far = np.where(seen, np.clip(far, view.near, view.far), -np.inf)
@@ -321,9 +274,8 @@ def _region(view: View, near, far, samples: tuple[int, int], tile: int, source: 
 
 def region_from_window_depth(view: View, window_depth: np.ndarray, tile: int = PIXEL_TILE,
                              source: str = "depth pre-pass") -> VisibleRegion:
-    """A region from a camera depth buffer read back as (H, W) window depths in
-    [0, 1] (row 0 at the bottom; 1 where nothing was drawn), reduced per tile
-    in numpy (the reference for the GPU's reduction, ``addon.gpu.visibility``)."""
+    """A region from a camera depth buffer read back as (H, W) window depths (1: nothing
+    drawn), reduced in numpy (the reference for ``addon.gpu.visibility``)."""
     d = np.asarray(window_depth)
     drawn = d < 1.0
     near, far = tile_reduce(d, np.where(drawn, d, -np.inf), tile)
@@ -333,11 +285,8 @@ def region_from_window_depth(view: View, window_depth: np.ndarray, tile: int = P
 
 def region_from_window_tiles(view: View, near, far, counts, size: tuple[int, int], tile: int = PIXEL_TILE,
                              source: str = "depth pre-pass") -> VisibleRegion:
-    """A region from the per-tile least and greatest window depth of what a
-    camera depth buffer of ``size`` = (W, H) pixels drew, and how many pixels
-    it drew per tile (none: not seen). Reduced in window depth (monotonic in
-    eye depth), each tile is padded by ``DEPTH_ULPS`` and only then converted,
-    so the conversion runs once per tile."""
+    """A region from each tile's least and greatest window depth and drawn pixel count
+    of a (W, H) depth buffer; each padded by ``DEPTH_ULPS`` before conversion to eye depth."""
     near, far = np.asarray(near, np.float64), np.asarray(far, np.float64)
     counts = np.asarray(counts)
     seen = counts > 0
@@ -354,9 +303,8 @@ def region_from_window_tiles(view: View, near, far, counts, size: tuple[int, int
 
 
 def sample_rays(view: View, samples: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Origins on the near plane, unit directions and lengths to the far plane
-    of rays through the centres of a ``samples`` = (columns, rows) grid over
-    the image, row 0 at the bottom."""
+    """Near-plane origins, unit directions and lengths to the far plane of rays through
+    the centres of a (columns, rows) grid over the image, row 0 at the bottom."""
     nx, ny = samples
     x = (np.arange(nx) + 0.5) / nx * 2 - 1
     y = (np.arange(ny) + 0.5) / ny * 2 - 1
@@ -370,12 +318,9 @@ def sample_rays(view: View, samples: tuple[int, int]) -> tuple[np.ndarray, np.nd
 
 def region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int] = BOX_SAMPLES,
                       tile: int = BOX_TILE) -> VisibleRegion:
-    """The visible region of a box scene without a GPU: a ray through every
-    cell of a ``samples`` grid finds the nearest receiver box (``rays.ray_index``
-    over the receivers the view frustum meets), then each sample's reach and
-    the tiles are widened as the module docs say so the region holds every
-    visible point, not only the sampled ones. The last region of each scene is
-    kept for its view (methods computed one after another share it)."""
+    """The visible region of a box scene without a GPU: one ray per cell of a
+    ``samples`` grid against the receivers, widened to hold every visible point
+    (module docstring). The last region per scene is kept for its view."""
     key = (view.camera_to_world.tobytes(), view.projection.tobytes(), view.near, view.far, samples, tile)
     last = scene.cached("visible region", dict)
     if last.get("key") != key:
@@ -406,10 +351,8 @@ def _region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int],
 
 
 def _face_reach(view: View, boxes, origins, dirs, t, box, samples, lo_box, hi_box):
-    """Per ray sample (row-major over ``samples``), the eye-depth interval the
-    face it hit takes over the square from its left-below to its right-above
-    neighbouring sample (+inf / -inf where it hit nothing), clamped to the
-    hit box's own depth range and the view's clip range."""
+    """Per ray sample, the eye-depth interval of the face it hit over the square out
+    to its neighbouring samples, within the hit box's depth range."""
     nx, ny = samples
     hit = np.flatnonzero(box >= 0)
     near = np.full(nx * ny, np.inf)
@@ -459,17 +402,14 @@ def _face_reach(view: View, boxes, origins, dirs, t, box, samples, lo_box, hi_bo
 
 
 def _box_depths_in_squares(view: View, boxes, low, high, lo, hi) -> tuple[np.ndarray, np.ndarray]:
-    """The least and greatest eye depth over box_i ∩ the pyramid of the NDC
-    square [low_i, high_i] (S boxes and squares at once): the extremes of a
-    linear function over a convex polytope are at its vertices, which are box
-    corners inside the pyramid, where the pyramid's 4 edges (corner rays)
-    enter and leave the box, and where the box's 12 edges cross the pyramid's
-    4 sides. ``lo``/``hi`` (the boxes' own ranges) where they do not meet."""
+    """The least and greatest eye depth over box_i ∩ the pyramid of the NDC square
+    [low_i, high_i], from the vertices of that section (box corners inside, corner
+    rays through the box, box edges through the sides); ``lo``/``hi`` where they do not meet."""
     m = view.world_to_clip
     # The pyramid's sides as world half-spaces side . [x, 1] <= 0 (x <= x1: clip_x - x1 w <= 0, ...).
     sides = np.stack([m[0] - high[:, 0, None] * m[3], low[:, 0, None] * m[3] - m[0],
                       m[1] - high[:, 1, None] * m[3], low[:, 1, None] * m[3] - m[1]], axis=1)        # (S, 4, 4)
-    corners = boxes[:, _CORNER_PICK, [0, 1, 2]]                                                # (S, 8, 3)
+    corners = box_corners(boxes[:, 0], boxes[:, 1])                                              # (S, 8, 3)
     value = corners @ sides[:, :, :3].transpose(0, 2, 1) + sides[:, None, :, 3]                 # (S, 8, 4)
     tol = 1e-9 * np.abs(value).max(axis=(1, 2), keepdims=True)
     points, keep = [corners], [(value <= tol).all(axis=2)]
@@ -506,7 +446,7 @@ def _box_depths_in_squares(view: View, boxes, low, high, lo, hi) -> tuple[np.nda
 
 
 _EDGES = np.array([[a, b] for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1])
-"""The 12 edges of a box as pairs of its corners (``_CORNER_PICK`` order): corners differing in one axis."""
+"""The 12 edges of a box as pairs of its corners (``box_corners`` order): corners differing in one axis."""
 
 
 def _frustum_halfspaces(view: View) -> tuple[np.ndarray, np.ndarray]:
@@ -545,15 +485,13 @@ def _dilate(a: np.ndarray, pick, fill) -> np.ndarray:
 
 
 def _add_small_boxes(view: View, boxes, missed, lo_box, hi_box, samples, tile, near, far) -> None:
-    """Receivers that no ray hit and whose image is narrower than two sample
-    spacings may have fallen between the rays: each adds its whole eye-depth
-    range to the tiles its image's bounding rectangle meets (in place). A box
-    crossing the near plane is never small (its image is unbounded)."""
+    """Receivers no ray hit whose image is narrower than two sample spacings add their
+    eye-depth range to the tiles their image's rectangle meets (in place)."""
     ids = np.flatnonzero(missed)
     if not len(ids):
         return
     b = boxes[ids]
-    corners = b[:, _CORNER_PICK, [0, 1, 2]]                                       # (M, 8, 3)
+    corners = box_corners(b[:, 0], b[:, 1])                                     # (M, 8, 3)
     h = corners @ view.world_to_clip[:, :3].T + view.world_to_clip[:, 3]
     front = (h[..., 3] > 0).all(axis=1)
     w = np.where(h[..., 3] > 0, h[..., 3], 1.0)
@@ -578,16 +516,11 @@ def _add_small_boxes(view: View, boxes, missed, lo_box, hi_box, samples, tile, n
     np.maximum.at(far.reshape(-1), cells, hi[which])
 
 
-_CORNER_PICK = np.array([[(i >> a) & 1 for a in range(3)] for i in range(8)])
-"""Which of a box's [lo, hi] each of its 8 corners takes per axis."""
-
-
 def focused_body(view: View, light: Light, scene: SceneBounds, options: WarpOptions | None = None,
                  visible: VisibleRegion | None = None):
-    """B as ``options.focus`` asks: on the visible region (``visible``, or the
-    scene's boxes ray-cast when none is given) or on the whole view frustum
-    (``focus="view"``: Scherzer §4.1 as printed). Raises EmptyBodyError when
-    nothing is visible."""
+    """B as ``options.focus`` asks: on the visible region (``visible``, or the scene's
+    boxes ray-cast) or on the whole view (``focus="view"``, Scherzer §4.1 as printed).
+    EmptyBodyError when nothing is visible."""
     from .body import intersection_body
     options = options or WarpOptions()
     if options.focus == "view":

@@ -14,6 +14,7 @@ import numpy as np
 
 from addon.warp import EmptyBodyError, Light, SceneBounds, View, WarpOptions, compute, intersection_body
 from addon.warp.geometry import look_along
+from addon.warp.plane_map import FLAT_RATIO, PlaneOfInterest, line_plane_points
 
 FLOOR = np.array([[-50.0, -50.0, -0.1], [50.0, 50.0, 0.0]])
 BLOCKS = np.array([
@@ -185,3 +186,34 @@ def check_coverage(view, light, sc, setup, body, samples=(160, 90)):
         if sel.any():
             assert np.all(m.contains(ray_pts[sel], 1e-9)), f"{m.role}: points of B on shadow rays outside the map"
     return verdict
+
+
+def ray_plane_points(view_clip, plane_vec, ndc_xy) -> np.ndarray:
+    """Homogeneous (N, 4) points where the viewer rays through NDC ``ndc_xy``
+    (N, 2) meet the plane π (``line_plane_points`` of each ray's near and far
+    points): also where they meet P behind the camera or at infinity (w <= 0)."""
+    inv = np.linalg.inv(np.asarray(view_clip, dtype=np.float64))
+    xy = np.asarray(ndc_xy, dtype=np.float64).reshape(-1, 2)
+    k = len(xy)
+    ends = np.ones((2 * k, 4))                      # the near points (z = -1), then the far ones (z = 1)
+    ends[:k, :2] = ends[k:, :2] = xy
+    ends[:k, 2] = -1.0
+    ends = ends @ inv.T
+    return line_plane_points(ends[:k], ends[k:], plane_vec)
+
+
+def default_plane(receiver_boxes):
+    """The reference for ``plane_map.default_plane_of``, over every box: the top
+    face of the widest flat box (height <= FLAT_RATIO x its smaller side), then
+    the thinnest, then the first; None when no box is flat."""
+    b = np.asarray(receiver_boxes, dtype=np.float64).reshape(-1, 2, 3)
+    ext = b[:, 1] - b[:, 0]
+    side = np.minimum(ext[:, 0], ext[:, 1])
+    area = np.where((side > 0) & (ext[:, 2] <= FLAT_RATIO * side), ext[:, 0] * ext[:, 1], -1.0)
+    if not len(b) or area.max() < 0:
+        return None
+    widest = np.flatnonzero(area == area.max())
+    i = int(widest[np.argmin(ext[widest, 2])])
+    (x0, y0, _), (x1, y1, top) = b[i]
+    face = np.array([[x0, y0, top], [x1, y0, top], [x1, y1, top], [x0, y1, top]])
+    return PlaneOfInterest(np.array([0.0, 0.0, 1.0]), float(top), face, f"top of receiver box {i}")

@@ -11,7 +11,8 @@ import pytest
 
 from addon.warp import EmptyBodyError, Light, SceneBounds, View, intersection_body
 from addon.warp.geometry import look_along
-from addon.warp.plane_map import convex_polygon_on_plane, default_plane, default_plane_of, is_convex_polygon
+from addon.warp.plane_map import convex_polygon_on_plane, default_plane_of, is_convex_polygon
+from plane_optimal_helpers import default_plane
 
 
 def _city(rng, n: int, flat: bool) -> SceneBounds:

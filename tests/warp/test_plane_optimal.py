@@ -17,10 +17,10 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from addon.warp import WarpError, WarpOptions
-from addon.warp.plane_map import (PlaneOfInterest, default_plane, five_point_matrix, min_area_twist, plane_light_rows,
+from addon.warp.plane_map import (PlaneOfInterest, five_point_matrix, min_area_twist, plane_light_matrix,
                                   polygon_area, rotation2d)
 from addon.warp.polyhedron import ConvexPolytope, plane_section
-from plane_optimal_helpers import (FLOOR_PLANE, assert_pixel_centres_are_lixel_centres, check_coverage, camera, camera_yaw_pitch, homography_jacobian, ndc,
+from plane_optimal_helpers import (FLOOR_PLANE, default_plane, ray_plane_points, assert_pixel_centres_are_lixel_centres, check_coverage, camera, camera_yaw_pitch, homography_jacobian, ndc,
                                    pixel_to_texel_homography, plane_maps, plane_scale, point, region_pixels, run, scene,
                                    sun, sun_at, try_run)
 
@@ -156,7 +156,7 @@ def test_matrix_equals_the_closed_form_shadow_projection_on_every_point():
         l_h = light.homogeneous_position
         s = (pi @ l_h) * np.eye(4) - np.outer(l_h, pi)
         closed = (view.world_to_clip @ s)[[0, 1, 3]]
-        m, info = plane_light_rows(view.world_to_clip, pi, l_h, 10.0)
+        m, info = plane_light_matrix(ray_plane_points(view.world_to_clip, pi, [(-1, -1), (-1, 1), (1, 1), (1, -1)]), l_h, 10.0)
         solved = m[[0, 1, 3]]
         k = np.sum(closed * solved) / np.sum(solved * solved)
         assert np.allclose(k * solved, closed, atol=1e-10 * np.abs(closed).max())

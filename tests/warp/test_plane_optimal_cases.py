@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 
 from addon.warp import WarpOptions, compute
-from addon.warp.plane_map import ray_plane_points
-from plane_optimal_helpers import (FLOOR_PLANE, assert_pixel_centres_are_lixel_centres, body_samples, check_coverage, camera, camera_yaw_pitch, homography_jacobian, ndc,
+from plane_optimal_helpers import (FLOOR_PLANE, ray_plane_points, assert_pixel_centres_are_lixel_centres, body_samples, check_coverage, camera, camera_yaw_pitch, homography_jacobian, ndc,
                                    pixel_to_texel_homography, plane_maps, point, region_pixels, run, scene, sun,
                                    sun_at)
 

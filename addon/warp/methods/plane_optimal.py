@@ -1,60 +1,17 @@
 """Plane-optimal shadow maps: Chong & Gortler, "A Lixel for every Pixel" (EGSR 2004).
 
-One map per plane of interest, exact on that plane, plus a conventional
-fallback map (§3):
-
-* **The matrix** (§2, Eq. 1, 7-10; :func:`addon.warp.plane_map.plane_light_matrix`
-  of ``corner_ray_points``):
-  five point constraints, solved by SVD with rank and residual checks. On the
-  plane, a point's light-image x, y equal its viewer-image x, y.
-* **Sign** (Fig. 5): the matrix is scaled (and its sign chosen) so that w > 0
-  and w equals the viewer's clip w on the plane's needed part; every caster
-  between the light and that part then has w > 0 too.
-* **Depth**: the z row is free (§2 footnote). Lixel uses
-  z_clip = a·w - b·h(x), h = the height above the plane on the light's side,
-  so depth grows away from the light along every light ray, the plane itself
-  has one constant depth, and a, b fit the needed points into [-1, 1] (the
-  unit-cube fit's padding). With ``WarpOptions.linear_z`` the stored depth is
-  the linear height (``ShadowMap.depth_row``, Scherzer §4.2).
-* **Less of the plane** (§2, Fig. 6): the needed rays C are those through
-  P ∩ R, with R = V ∩ S_r ∩ L the body's visible part (between near and far,
-  in front of the camera, inside the spot cone and the receivers' bounds),
-  limited to the plane's extent polygon if it has one (``needed_polygon``). Their light image is
-  bounded by a rectangle of whole lixels; its lower-left lixel is renumbered
-  (0, 0). The point of the plane under pixel coordinates p (pixel (i, j)'s
-  centre at (i + ½, j + ½)) lands on lixel s·R(θ)·(p - ½) - (i0, j0), whose
-  centre is sampled at texel coordinate + ½. At one lixel per pixel (s = 1,
-  no twist) the map is the identity up to the renumbering: every pixel centre
-  is a lixel centre, so the lixel samples exactly the pixel's point, and the
-  shading pass reads that one lixel unfiltered (``gpu_shaders/shade_frag.glsl``:
-  the shadow on the plane is then the ray-cast one; a PCF kernel would only
-  blur it over k pixels). When the budget holds fewer lixels than pixels, a
-  uniform 2D scale s < 1 is included, the same for every plane, and
-  optionally a twist (a 2D rotation, ``WarpOptions.plane_twist``) that shrinks
-  the rectangle.
-* **Regions and order** (§3): map k serves ``Region`` (the plane, the needed
-  polygon, a tolerance): points within the tolerance of the plane whose
-  projection falls in the polygon. Plane maps come first in plane order, the
-  fallback last, so ``ShadowSetup.map_index`` uses the plane map on the plane
-  and the fallback everywhere else. A plane map's clip volume holds its whole
-  region and every point of B between the light and the region (its casters).
-* **Fallback**: the uniform method's frame maps (``common.frame_maps``) over the hull
-  of B minus the plane regions. The regions are slabs of width 2·tolerance, so
-  that hull is B itself: the fallback covers every point of B.
-* **Budget** (§3: each map gets a fixed number of lixels): T =
-  shadow_map_size texels. Plane maps together take at most ``plane_budget``·T
-  and only what one lixel per pixel needs (more would sample the same points
-  again); every fallback map gets the rest (T minus the plane maps' texels,
-  each map its own T as for every method), so a larger T refines the
-  fallback. Reported in ``diagnostics.extra["budget"]``.
-* **Planes**: ``WarpOptions.planes`` ((point, normal) or (point, normal,
-  extent polygon)); without any, the top face of the widest flat receiver box
-  (``plane_map.default_plane``).
-
-A plane that cannot have a map (seen edge-on, not in view, the light in its
-plane, a failed solve) is left out with a recorded fallback; the fallback map
-then serves it.
-"""
+One map per plane of interest, exact on that plane, then the uniform fallback
+maps (§3), as §2's steps: the five point constraints (Eq. 1, 7-10,
+``plane_map.plane_light_matrix``); sign and scale so that w is the viewer's
+clip w on the plane (Fig. 5, ``scaled_to_view_w``); less of the plane, P ∩ R
+(Fig. 6, ``needed_polygon``) and its casters B ∩ C (``casters_of``); the
+pixel -> lixel -> texel chain, one lixel per pixel when the budget allows,
+else a common scale s < 1 and optionally a twist (``share_budget``,
+``light_map``). The free z row (§2 footnote) is z = a·w - b·h, h the height
+above P towards the light, or the linear height (Scherzer §4.2). Map k serves
+its ``Region`` (the plane's slab over the needed polygon); the fallback maps
+take the texels the plane maps leave. A plane that cannot have a map is left
+out with a recorded fallback. Lixel's readings of §2: docs/papers.md."""
 from __future__ import annotations
 
 import dataclasses
@@ -94,7 +51,7 @@ of the unrotated one and the budget forces fewer lixels than pixels."""
 
 @dataclasses.dataclass
 class PlaneMap:
-    """One plane's map while the budget is shared out (coordinates relative to the camera)."""
+    """One plane's map while the budget is shared out (relative to the camera)."""
 
     index: int
     plane: PlaneOfInterest
@@ -157,7 +114,7 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
 # ---------------------------------------------------------------------------
 
 def planes_of_interest(options: WarpOptions, body: IntersectionBody, diag: Diagnostics) -> list[PlaneOfInterest]:
-    """``WarpOptions.planes``, else the top of the widest flat receiver box in view (``plane_map.default_plane``)."""
+    """``WarpOptions.planes``, else the top of the widest flat receiver box in view (``plane_map.default_plane_of``)."""
     if options.planes:
         return [PlaneOfInterest.from_option(p, i) for i, p in enumerate(options.planes)]
     plane = default_plane_of(body.culled.receivers)
@@ -169,7 +126,7 @@ def planes_of_interest(options: WarpOptions, body: IntersectionBody, diag: Diagn
 
 
 def _no_default_plane(receiver_boxes) -> str:
-    """Why no receiver gives a default plane, and what plane_optimal does then."""
+    """Why no receiver gives a default plane (a fallback note)."""
     flattest = flattest_box(receiver_boxes)
     if flattest is None:
         found = "no receiver box is in view"
@@ -190,8 +147,8 @@ def _no_default_plane(receiver_boxes) -> str:
 
 def plane_map_of(k: int, plane: PlaneOfInterest, view: View, light: Light, body: IntersectionBody,
                  origin: np.ndarray, tol: float, diag: Diagnostics) -> PlaneMap | None:
-    """Everything about plane k's map except its rectangle, §2's steps in
-    order; None (with a recorded fallback) when the plane cannot have one."""
+    """Plane k's map but its rectangle, §2's steps in order; None (with a recorded
+    fallback) when the plane cannot have one."""
     role = f"plane:{k}"
     pi = plane.vector(origin)                                 # π, relative to the camera
     l_h = np.array(light.homogeneous_from(origin))
@@ -240,8 +197,8 @@ def plane_map_of(k: int, plane: PlaneOfInterest, view: View, light: Light, body:
 
 def height_above(plane: PlaneOfInterest, pi: np.ndarray, l_h: np.ndarray, tol: float,
                  scale: float) -> tuple[np.ndarray, str | None]:
-    """h, the height above P towards the light (h(x) = h · (x, 1)), or why the
-    plane can have no map: the light in its plane (a sun along it)."""
+    """h, the height above P towards the light (h(x) = h · (x, 1)), or why the plane
+    can have no map (the light in its plane)."""
     light_side = float(pi @ l_h)
     if abs(light_side) <= (1e-9 if l_h[3] == 0 else max(tol, 1e-9 * scale)):
         what = "the sun shines along" if l_h[3] == 0 else "the light lies in"
@@ -259,9 +216,8 @@ def seen_edge_on(view: View, pi: np.ndarray, origin: np.ndarray, tol: float, sca
 
 def needed_polygon(plane: PlaneOfInterest, pi: np.ndarray, body: IntersectionBody,
                    origin: np.ndarray) -> np.ndarray | None:
-    """Less of the plane (§2, Fig. 6): P ∩ R within the plane's extent, as a
-    convex polygon of at most MAX_REGION_VERTICES (an enclosing one when
-    larger), relative to ``origin``; None when nothing is left."""
+    """Less of the plane (§2, Fig. 6): P ∩ R within the plane's extent, at most
+    MAX_REGION_VERTICES (else an enclosing polygon), relative to ``origin``; None: nothing left."""
     n, shift = plane.normal, body.origin - origin          # (R's frame to ours: none when both are the camera's)
     region = body.visible_polytope if not shift.any() else body.visible_polytope.translated(shift)
     polygon = plane_section(region, n, -float(pi[3]))
@@ -276,9 +232,8 @@ def needed_polygon(plane: PlaneOfInterest, pi: np.ndarray, body: IntersectionBod
 
 
 def scaled_to_view_w(m: np.ndarray, view: View, centre: np.ndarray, origin: np.ndarray) -> np.ndarray | None:
-    """Sign and scale (Fig. 5): M's x, y, w rows scaled so that w equals the
-    viewer's clip w on the plane (at the needed polygon's ``centre``); None
-    when that part is not in front of the camera."""
+    """Sign and scale (Fig. 5): M's x, y, w rows scaled so that w is the viewer's clip
+    w on the plane (at ``centre``); None when that part is not in front of the camera."""
     w_view = float(view.world_to_clip[3, :3] @ (centre + origin) + view.world_to_clip[3, 3])
     w_light = float(m[3, :3] @ centre + m[3, 3])
     if not (w_view > 0 and abs(w_light) > 0):
@@ -292,16 +247,10 @@ def scaled_to_view_w(m: np.ndarray, view: View, centre: np.ndarray, origin: np.n
 
 def casters_of(polygon: np.ndarray, outwards: np.ndarray, grown: np.ndarray, height: np.ndarray, l_h: np.ndarray,
                tol: float, body: IntersectionBody, origin: np.ndarray) -> tuple[np.ndarray, bool]:
-    """Vertices of B ∩ C: B's points on the needed rays C (the light rays through
-    the region, §2 Fig. 5-6) from the light down to just beyond the plane
-    (``polyhedron.section_points`` of B by C's facets and edges).
-
-    C is the cone (a prism for a sun) from the light over the region polygon
-    ``grown`` (``polygon`` moved out by tol along ``outwards``), grown by
-    tol·(1 + tan α) so that the slab points of the region (whose light rays
-    meet P up to tol·tan α away, α = the light's incidence) are on it, and cut
-    at h = -tol. For a point light inside B the part within NEAR_FRACTION of
-    the scene scale below the light's height is cut off (returned flag)."""
+    """B ∩ C, the points of B on the needed rays (§2, Fig. 5-6): C is the cone (a
+    prism for a sun) from the light over the region grown by tol·(1 + tan α) and
+    cut at h = -tol. The flag: a point light inside B, casters within
+    NEAR_FRACTION of its height left out."""
     corners = polygon + tol * (2 + min(steepest_incidence(grown, height, l_h), 1e12)) * outwards
     normals, offsets = cone_facets(corners.tolist(), height.tolist(), l_h.tolist(), tol)
     b_poly = body.polytope_from(origin)
@@ -320,8 +269,7 @@ def casters_of(polygon: np.ndarray, outwards: np.ndarray, grown: np.ndarray, hei
 
 
 def steepest_incidence(points: np.ndarray, height: np.ndarray, l_h: np.ndarray) -> float:
-    """tan α of the steepest light ray reaching ``points`` (α its angle to the
-    normal of P, whose unit normal is ``height``'s first three entries)."""
+    """tan α of the steepest light ray reaching ``points`` (α from P's normal)."""
     nx, ny, nz = height[:3].tolist()
     lx, ly, lz, lw = l_h.tolist()
     tan = 0.0
@@ -334,11 +282,8 @@ def steepest_incidence(points: np.ndarray, height: np.ndarray, l_h: np.ndarray) 
 
 
 def cone_facets(corners: list, height: list, l_h: list, tol: float) -> tuple[np.ndarray, np.ndarray]:
-    """C's facets (see ``casters_of``) as unit normals and offsets (normal . x
-    <= offset inside): h(x) >= -tol, then the side planes through each edge
-    (a, b) of ``corners`` and the light, facing away from the corners' centre
-    (an edge pointing at the light spans no plane and has none). (A few
-    corners: in plain floats.)"""
+    """C's facets as unit normals and offsets: h(x) >= -tol and a side plane through
+    each edge of ``corners`` and the light (none for an edge pointing at it)."""
     hx, hy, hz, h0 = height
     lx, ly, lz, lw = l_h
     cx, cy, cz = (sum(c) / len(corners) for c in zip(*corners))
@@ -360,10 +305,8 @@ def cone_facets(corners: list, height: list, l_h: list, tol: float) -> tuple[np.
 
 
 def cone_edges(corners: np.ndarray, height: np.ndarray, l_h: np.ndarray, tol: float) -> Edges:
-    """The edges of C (see ``casters_of``), as one body's ``Edges``: C's base
-    corners q_i are where the light's rays through ``corners`` (on P: h = 0)
-    reach h = -tol; from each, one edge runs up to the light (t <= 1; a sun's
-    has no end) and one to the next base corner."""
+    """C's edges as one body's ``Edges``: from each base corner (h = -tol) one up to
+    the light (unbounded for a sun) and one to the next base corner."""
     rise = float(height[:3] @ l_h[:3])            # height . l_h = rise + h0·lw: the light's (homogeneous) height
     k = len(corners)
     if l_h[3] == 0:                               # towards the sun along l: h rises by ``rise`` per unit
@@ -382,11 +325,8 @@ def cone_edges(corners: np.ndarray, height: np.ndarray, l_h: np.ndarray, tol: fl
 # ---------------------------------------------------------------------------
 
 def share_budget(jobs: list[PlaneMap], budget: float, twist_mode: str) -> float:
-    """The common lixels-per-pixel scale s of the plane maps, and each map's
-    twist and rectangle, within ``budget`` texels: one lixel per pixel (the
-    paper's exact sampling, §2) when it fits, else the largest s < 1 that does
-    (the lixels then appear as squares of 1/s pixels, §2), with the twist when
-    it makes the rectangles smaller (``plane_twist``)."""
+    """The common lixels per pixel s (1 when it fits ``budget`` texels, else the
+    largest s < 1 that does, §2) and each map's twist and rectangle."""
     if not jobs:
         return 1.0
     for j in jobs:
@@ -401,20 +341,14 @@ def share_budget(jobs: list[PlaneMap], budget: float, twist_mode: str) -> float:
 
 
 def lixel_of_pixel(s: float, theta: float) -> np.ndarray:
-    """The pixel -> lixel lattice map ℓ = s·R(θ)·(p - ½) (3x3). Pixel (i, j)
-    covers [i, i + 1] x [j, j + 1] (its centre at p = (i + ½, j + ½), as the
-    viewer's pixel map puts it), so at s = 1 and no twist every pixel centre
-    lands on the lattice point (i, j): the centre of a lixel, which then
-    samples exactly the pixel's point of the plane (§2: "exactly one lixel ...
-    samples the exact same geometric point")."""
+    """ℓ = s·R(θ)·(p - ½) (3x3): at s = 1 and no twist every pixel centre lands on a
+    lixel centre (§2: "exactly one lixel ... samples the exact same geometric point")."""
     c, sn = s * math.cos(theta), s * math.sin(theta)
     return np.array([[c, -sn, -0.5 * (c - sn)], [sn, c, -0.5 * (sn + c)], [0.0, 0.0, 1.0]])
 
 
 def _rect(pixels: list, s: float, theta: float) -> tuple[int, int, int, int]:
-    """The lixels (i0, j0, i1, j1), i1 and j1 excluded, whose cells cover the
-    pixels (x, y) mapped onto the lixel lattice by ``lixel_of_pixel``: lixel
-    (i, j) has its centre at lattice point (i, j) and its cell within ½ of it."""
+    """The lixels (i0, j0, i1, j1), i1 and j1 excluded, whose cells cover the pixels."""
     (a, b, e), (c, d, f), _ = lixel_of_pixel(s, theta).tolist()
     xs = [a * x + b * y + e for x, y in pixels]
     ys = [c * x + d * y + f for x, y in pixels]
@@ -437,8 +371,8 @@ def _fits(rects: list, budget: float) -> bool:
 
 
 def _choose_twists(jobs: list[PlaneMap], always: bool) -> None:
-    """Each map's twist (§2): the rotation giving the tightest rectangle around
-    its pixels, kept when ``always`` or when it saves at least 1 - TWIST_GAIN."""
+    """Each map's twist (§2): the tightest rectangle's rotation, kept when ``always``
+    or when it saves at least 1 - TWIST_GAIN."""
     for j in jobs:
         p = np.array(j.pixels)
         t = min_area_twist(p)
@@ -461,9 +395,8 @@ def _fraction_of_a_lixel(jobs: list[PlaneMap], budget: float) -> float:
 
 
 def light_map(job: PlaneMap, s: float, origin: np.ndarray, tol: float, options: WarpOptions) -> ShadowMap:
-    """Plane k's light matrix: on P the viewer's pixels, then its lixel, then
-    the lixel's texel in the rectangle, in NDC; depth z = a·w - b·h fitted to
-    the clip volume's points (module docs); world coordinates."""
+    """Plane k's matrix in world coordinates: viewer pixel -> lixel -> texel -> NDC,
+    depth z = a·w - b·h fitted to the clip volume's points."""
     i0, j0, i1, j1 = job.rect
     wm, hm = i1 - i0, j1 - j0
     to_texel = np.array([[1.0, 0.0, 0.5 - i0], [0.0, 1.0, 0.5 - j0], [0.0, 0.0, 1.0]])   # lixel (i0, j0) -> (½, ½)
