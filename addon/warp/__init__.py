@@ -2,8 +2,7 @@
 
     setup = compute("lispsm", view, light, scene, WarpOptions())
 
-See docs/architecture.md for the contract and the papers in ../shared/papers.
-"""
+The contract: docs/architecture.md; the papers' equations: docs/papers.md."""
 from __future__ import annotations
 
 import math
@@ -26,11 +25,8 @@ __all__ = ["compute", "METHODS", "intersection_body", "focused_body", "Intersect
 
 @contextmanager
 def _warp_errors(what: str):
-    """The core's error contract: whatever the input, a caller sees a result or a
-    ``WarpError`` with a message. A plain ``ValueError`` (``numpy.linalg.LinAlgError``
-    included) or an arithmetic error raised deep inside the geometry means the
-    input is degenerate in a way the plain description did not catch; it is
-    turned into a ``WarpError`` here, at the public entry."""
+    """The core's error contract at a public entry: a ``ValueError`` or arithmetic
+    error from deep in the geometry (degenerate input) becomes a ``WarpError``."""
     try:
         yield
     except WarpError:
@@ -54,8 +50,8 @@ keeps fewer than about 1e7 steps across the frustum and the fits lose coverage."
 
 
 def _check_range(view: View, light: Light, scene: SceneBounds) -> None:
-    """WarpError for coordinates beyond :data:`MAX_COORDINATE`, or a view frustum
-    too small to resolve where it is (:data:`MIN_RESOLVED`), naming the input."""
+    """WarpError naming the input for coordinates beyond :data:`MAX_COORDINATE` or a
+    view frustum below :data:`MIN_RESOLVED` where it is."""
     reach = scene.cached("max_coordinate", lambda: max(
         (float(np.abs(b).max()) for b in (scene.receivers, scene.casters) if b.size), default=0.0))
     checks = [("The scene's boxes", reach), ("The camera's position", max(map(abs, view.position.tolist())))]
@@ -75,10 +71,8 @@ def _check_range(view: View, light: Light, scene: SceneBounds) -> None:
 
 def intersection_body(view: View, light: Light, scene: SceneBounds,
                       visible: VisibleRegion | None = None) -> IntersectionBody:
-    """B, the intersection body (Scherzer §4.1), on the whole view frustum or
-    focused on ``visible``. Raises ``EmptyBodyError`` when nothing the camera
-    sees can be shadowed, ``WarpError`` for degenerate input (coordinates
-    beyond :data:`MAX_COORDINATE` included)."""
+    """B (Scherzer §4.1) on the view frustum or focused on ``visible``. EmptyBodyError
+    when nothing seen can be shadowed, WarpError for degenerate input."""
     _check_range(view, light, scene)
     with _warp_errors("The intersection body B"):
         return _body.intersection_body(view, light, scene, visible)
@@ -86,10 +80,7 @@ def intersection_body(view: View, light: Light, scene: SceneBounds,
 
 def focused_body(view: View, light: Light, scene: SceneBounds, options: WarpOptions | None = None,
                  visible: VisibleRegion | None = None) -> IntersectionBody:
-    """B as ``options.focus`` says (``visibility.focused_body``): fitted to
-    ``visible`` (e.g. a depth pre-pass), else to a ray cast against the
-    scene's boxes, or to the whole view frustum (``focus="view"``). Errors as
-    :func:`intersection_body`."""
+    """B as ``options.focus`` says (``visibility.focused_body``). Errors as :func:`intersection_body`."""
     _check_range(view, light, scene)
     with _warp_errors("The intersection body B"):
         return _visibility.focused_body(view, light, scene, options, visible)
@@ -97,11 +88,8 @@ def focused_body(view: View, light: Light, scene: SceneBounds, options: WarpOpti
 
 def compute(method: str, view: View, light: Light, scene: SceneBounds, options: WarpOptions | None = None,
             body: IntersectionBody | None = None, visible: VisibleRegion | None = None) -> ShadowSetup:
-    """Light matrices for ``method``. B is computed unless given (share it
-    across methods): focused as ``options.focus`` says, on ``visible`` when
-    given (e.g. a depth pre-pass), else on a ray cast against the scene's
-    boxes (:func:`focused_body`). ``diagnostics.extra["focus"]`` says what B
-    was fitted to. Errors are ``WarpError`` (see :func:`intersection_body`)."""
+    """Light matrices for ``method``; B is :func:`focused_body` unless given (share it
+    across methods). ``diagnostics.extra["focus"]`` says what B was fitted to."""
     if method not in METHODS:
         raise WarpError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     options = options or WarpOptions()

@@ -1,14 +1,7 @@
-"""Which of a scene's boxes meet a convex region, and the box around them.
-
-B is cut down to what the view needs (body.py): the receivers that meet V ∩ L
-and the casters that meet hull(R ∪ light), on scenes of thousands of boxes,
-every frame. ``BoxIndex`` (built once per scene) groups the boxes in clusters
-of ``CLUSTER_SIZE`` with their bounds: a cluster wholly outside a half-space
-is rejected, one wholly inside all of them is accepted, and only the boxes of
-the rest are tested, each against the planes that cross its cluster. The
-result equals the plain per-box test: a box meets the region unless it lies
-wholly outside one of the half-spaces.
-"""
+"""Which of a scene's boxes meet a convex region, and the box around them (the
+receivers meeting V ∩ L, the casters meeting hull(R ∪ light), every frame):
+exactly the plain per-box test, a box meets the region unless it lies wholly
+outside one half-space, through a two-level index (:class:`BoxIndex`)."""
 from __future__ import annotations
 
 from typing import NamedTuple
@@ -19,8 +12,7 @@ from .types import SceneBounds
 
 
 class Selection(NamedTuple):
-    """The boxes of a ``BoxIndex`` that meet a convex region, kept in the
-    index's own order; the mask over the scene's boxes is made on demand."""
+    """The boxes of a ``BoxIndex`` that meet a convex region, in the index's order."""
 
     index: "BoxIndex"
     selected: np.ndarray
@@ -49,11 +41,8 @@ class Selection(NamedTuple):
 
 
 def _least_weights(normals: np.ndarray) -> np.ndarray:
-    """(planes, 6): (n⁺, n⁻) per plane (n⁺ = max(n, 0), n⁻ = n⁺ - n), so that
-    a plane's least value over a box [lo, hi], n⁺ . lo + n⁻ . (-hi), is one
-    product with the box's (lo, -hi). Each term grows with the box, so a box's
-    least value is not below that of a box around it (up to the rounding of
-    the sum)."""
+    """(planes, 6): (n⁺, n⁻), n⁺ = max(n, 0), n⁻ = n⁺ - n, so a plane's least value
+    over a box [lo, hi] is one product with the box's (lo, -hi)."""
     pos = np.maximum(normals, 0.0)
     return np.concatenate([pos, pos - normals], axis=1)
 
@@ -63,11 +52,9 @@ CLUSTER_SIZE = 32
 
 
 class BoxIndex:
-    """A two-level index over a scene's boxes for culling against convex
-    regions: boxes grouped in clusters of ``CLUSTER_SIZE`` (the leaves of a
-    median-split k-d tree) with their bounding boxes. A cluster wholly
-    outside a half-space is rejected, one wholly inside all is accepted, and
-    only the boxes of the remaining clusters are tested one by one."""
+    """Boxes in clusters of ``CLUSTER_SIZE`` (the leaves of a median-split k-d tree)
+    with their bounds: a cluster wholly outside a half-space is rejected, one
+    wholly inside all accepted, the boxes of the rest tested one by one."""
 
     def __init__(self, boxes: np.ndarray):
         b = self.boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3)
@@ -90,9 +77,8 @@ class BoxIndex:
 
     @staticmethod
     def _clusters(b: np.ndarray, k: int) -> np.ndarray:
-        """The boxes' order by cluster: leaves of a median-split k-d tree over
-        the box centres (split along the widest axis of the boxes' extent), so
-        each cluster is compact. Every leaf but the last is full."""
+        """The boxes' order by cluster: leaves of a median-split k-d tree over their
+        centres (every leaf but the last full)."""
         centre = (b[:, 0] + b[:, 1]) / 2
         leaves: list[np.ndarray] = []
         todo = [np.arange(len(b))]
@@ -122,18 +108,9 @@ class BoxIndex:
         return scene.cached(("BoxIndex", which), build)
 
     def select(self, normals, offsets, tol: float = 0.0) -> Selection:
-        """The boxes that meet the region ``normals @ x <= offsets``.
-
-        A plane's least and greatest values over a cluster's bounds [lo, hi],
-        n⁺ . lo + n⁻ . (-hi) and n⁺ . hi + n⁻ . (-lo) (``_least_weights``), bound
-        those over its boxes, both from one product with the cluster's (lo, -hi)
-        and (hi, -lo) (``c_extremes``). A cluster wholly outside a half-space is
-        rejected, one wholly inside every half-space taken whole (with its
-        bounds), and the boxes of the rest (the edge clusters) are tested
-        against the planes that cross their cluster: every plane that crosses
-        one in one product over the edge clusters' boxes, a plane that does not
-        cross a cluster given an infinite offset there. The same boxes give the bounding box of
-        those that pass."""
+        """The boxes meeting ``normals @ x <= offsets`` (within ``tol``): the clusters'
+        least and greatest plane values bound their boxes'; the boxes of the edge
+        clusters are tested against the planes crossing their cluster only."""
         n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
         o = np.asarray(offsets, dtype=np.float64).reshape(-1)
         if self.count == 0:

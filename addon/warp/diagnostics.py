@@ -1,12 +1,7 @@
-"""What a method computed on the way, for overlays, reports and tests.
-
-A method reports some values it does not use itself: the warp frustum's
-corners, its projection centre, B's middle vector. Computing them costs a
-warped frame about 50 µs of its 500-900 (``bench.warp_compare``), so a method
-may give them as :class:`OnRead`: computed the first time anything reads them,
-then kept. Every way of reading gives the value: the attribute, ``extra[k]``,
-``extra.get``, ``items()``, ``dict(extra)`` and ``to_json()``.
-"""
+"""What a method computed on the way, for overlays, reports and tests. A value the
+method does not use itself (the warp frustum's corners, its projection centre)
+may be given as :class:`OnRead`: computed when first read, however it is read
+(the attribute, ``extra[k]``, ``get``, ``items()``, ``dict(extra)``, ``to_json()``)."""
 from __future__ import annotations
 
 import math
@@ -26,9 +21,8 @@ class OnRead:
 
 
 class Extra(dict):
-    """``Diagnostics.extra``: a dict whose :class:`OnRead` values are computed
-    on first read. (A dict subclass with its own ``__iter__`` is read through
-    ``__getitem__`` by ``dict(extra)`` and ``{**extra}`` too.)"""
+    """``Diagnostics.extra``: a dict whose :class:`OnRead` values are computed on first
+    read (its own ``__iter__`` makes ``dict(extra)`` read through ``__getitem__``)."""
 
     def __getitem__(self, key):
         value = super().__getitem__(key)
@@ -73,12 +67,10 @@ class _ComputedOnRead:
 
 @dataclass
 class Diagnostics:
-    """theta: angle between light and view directions (radians, in [0, π/2] by
-    symmetry, GMNPR's convention); gamma: the same in [0, π] (LiSPSM's γ,
-    Scherzer §4.4); n_opt, lam: the warp's strength (Scherzer Eq. 1, GMNPR
-    Eq. 8); body_vertices: B; warp_frustum_corners: the 8 world corners of the
-    warp frustum P (if any); fallbacks: (what, reason) for every case a method
-    handled otherwise than its paper; extra: the rest, by name."""
+    """theta, gamma: the light-view angle folded into [0, π/2] (GMNPR) and in [0, π]
+    (Scherzer §4.4's γ); n_opt, lam: the warp's strength (Scherzer Eq. 1, GMNPR
+    Eq. 8); body_vertices: B; warp_frustum_corners: P's 8 world corners; fallbacks:
+    (what, reason) wherever a method departed from its paper; extra: the rest."""
 
     method: str
     theta: Optional[float] = None

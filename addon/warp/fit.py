@@ -1,10 +1,5 @@
-"""The unit-cube fit (Stamminger-Drettakis §4: "fit to the unit cube").
-
-Given a projective transform T whose output has w > 0 on the points that matter,
-fit_to_unit_cube returns A @ T, with A affine on NDC, so that those points land
-in [-1, 1]^3 and fill it: x and y bound the map image, z bounds depth (nearest
-the light at -1). The same fit serves every method.
-"""
+"""The unit-cube fit (Stamminger-Drettakis §4): A @ T, A affine on NDC, so that the
+points that matter (w > 0 under T) fill [-1, 1]^3, depth nearest the light at -1."""
 from __future__ import annotations
 
 import numpy as np
@@ -16,17 +11,17 @@ NDC_PAD = 1e-7
 """Relative margin so points exactly on B's boundary stay inside after rounding."""
 
 
-def ndc_bounds(transform, points) -> tuple[np.ndarray, np.ndarray]:
-    """Min and max of the divided coordinates of ``points`` under ``transform``."""
-    return ndc_box(transform_h(transform, points))
+def divided(h) -> np.ndarray:
+    """The divided coordinates (N, 3) of homogeneous points ``h`` (N, 4), all with w > 0."""
+    w = h[:, 3:]
+    if not (w > 0).all():
+        raise WarpError("internal: a point of B is behind the projection (w <= 0)")
+    return h[:, :3] / w
 
 
 def ndc_box(h) -> tuple[np.ndarray, np.ndarray]:
     """Min and max of the divided coordinates of homogeneous points ``h`` (N, 4)."""
-    w = h[:, 3:]
-    if not (w > 0).all():
-        raise WarpError("internal: a point of B is behind the projection (w <= 0)")
-    ndc = h[:, :3] / w
+    ndc = divided(h)
     return ndc.min(axis=0), ndc.max(axis=0)
 
 
@@ -45,10 +40,8 @@ def window_matrices(lo: list, hi: list) -> np.ndarray:
 
 
 def _window_entries(lo: list, hi: list) -> list:
-    """``window_matrix`` for a box given as float lists: its 16 entries, row by row
-    (a scale on the diagonal and an offset in the last column for each axis).
-    Each axis is padded by ``NDC_PAD`` of its extent, or of a millionth of the
-    box's largest extent if that is more (a flat box still gets a window)."""
+    """``window_matrix``'s 16 entries, row by row; each axis padded by ``NDC_PAD`` of
+    its extent, or of a millionth of the box's largest extent if more (a flat box)."""
     (x0, y0, z0), (x1, y1, z1) = lo, hi
     least = max(x1 - x0, y1 - y0, z1 - z0, 0.0) * 1e-6
     sx, ox = _axis_window(x0, x1, least)
@@ -66,7 +59,7 @@ def _axis_window(a: float, b: float, least: float) -> tuple[float, float]:
 
 def fit_to_unit_cube(transform, points) -> np.ndarray:
     """A @ transform with ``points`` filling NDC [-1, 1]^3."""
-    lo, hi = ndc_bounds(transform, points)
+    lo, hi = ndc_box(transform_h(transform, points))
     return window_matrix(lo, hi) @ np.asarray(transform, dtype=np.float64)
 
 
@@ -74,24 +67,14 @@ def fit_keeping_points(transform, points) -> tuple[np.ndarray, np.ndarray]:
     """``fit_to_unit_cube`` and the ``points`` as the fitted map divides them
     (the window is a scale and an offset per axis of the divided coordinates)."""
     transform = np.asarray(transform, dtype=np.float64)
-    h = np.asarray(points, dtype=np.float64) @ transform[:, :3].T + transform[:, 3]
-    w = h[:, 3:]
-    if not (w > 0).all():
-        raise WarpError("internal: a point of B is behind the projection (w <= 0)")
-    ndc = h[:, :3] / w
+    ndc = divided(np.asarray(points, dtype=np.float64) @ transform[:, :3].T + transform[:, 3])
     window = window_matrix(ndc.min(axis=0), ndc.max(axis=0))
     return window @ transform, ndc * window.diagonal()[:3] + window[:3, 3]
 
 
 def fit_runs(matrices, points_h, starts, run) -> np.ndarray:
-    """``fit_to_unit_cube`` for several maps at once: map k (``matrices``,
-    (k, 4, 4)) is fitted to its own run of the homogeneous points (N, 4), the
-    rows from ``starts[k]`` to the next start (``geometry.point_runs``; ``run``
-    names each row's map). Returns the fitted maps (k, 4, 4)."""
-    h = transform_h_runs(matrices, points_h, run)
-    w = h[:, 3:]
-    if not (w > 0).all():
-        raise WarpError("internal: a point of B is behind the projection (w <= 0)")
-    ndc = h[:, :3] / w
+    """``fit_to_unit_cube`` of maps (k, 4, 4), each to its own run of the homogeneous
+    points (N, 4) (``geometry.point_runs``: ``starts``, ``run``)."""
+    ndc = divided(transform_h_runs(matrices, points_h, run))
     lo, hi = np.minimum.reduceat(ndc, starts).tolist(), np.maximum.reduceat(ndc, starts).tolist()
     return window_matrices(lo, hi) @ matrices

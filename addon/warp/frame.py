@@ -1,16 +1,9 @@
-"""Light frames: the transform after which a light's rays are parallel.
-
-Every method works in a *light space* in which light rays run parallel to +z
-(z grows away from the light) and x, y span the shadow-map image. For a sun the
-frame is a rotation (orthographic light); for a point or spot light it is the
-light's perspective (Stamminger-Drettakis §3: after it the light is
-directional). A point light whose needs do not fit one frustum narrower than
-``WarpOptions.max_frustum_angle`` gets one frame per cube face that B needs.
-
-The image's +y axis is the view direction projected onto the image plane (the
-LiSPSM V_P of Scherzer §4.4, Eq. 3), blended continuously with the camera's up
-vector when light and view are (nearly) parallel, so the frame never jumps.
-"""
+"""Light frames: the transform after which a light's rays run parallel to +z (z
+growing away from the light), x, y spanning the map. A sun's is a rotation; a
+point or spot light's is its perspective (Stamminger-Drettakis §3), or one per
+cube face B needs when no frustum narrower than ``max_frustum_angle`` holds B.
+The image's +y is V_P (Scherzer §4.4, Eq. 3), blended continuously into the
+camera's up near parallel light and view (:func:`image_up`)."""
 from __future__ import annotations
 
 import itertools
@@ -35,14 +28,10 @@ FLIP_Z = np.diag([1.0, 1.0, -1.0, 1.0])
 
 @dataclass(frozen=True)
 class LightFrame:
-    """``to_light``: world -> light space (projective for point lights);
-    ``points``: world-space vertices of the part of B this frame serves;
-    ``role``: "main" or "cube+X" etc.; ``directional``: orthographic frame;
-    ``near_clamped``: the near plane cuts off part of a box that matters
-    (``cube_near_floor``): what lies nearer is not covered (methods report it
-    as a "near plane" fallback); the part of B nearer than the near plane that
-    holds no box is left out without a word, since nothing there casts or
-    receives a shadow."""
+    """``to_light``: world -> light space (projective for point lights); ``points``:
+    world vertices of the part of B it serves; ``role``: "main", "cube+X", ...;
+    ``directional``: orthographic; ``near_clamped``: the near plane cuts a box that
+    matters (``cube_near_floor``), reported as a "near plane" fallback."""
 
     to_light: np.ndarray
     points: np.ndarray
@@ -52,7 +41,7 @@ class LightFrame:
 
     @cached_property
     def points_h(self) -> np.ndarray:
-        """``points`` with w = 1 (N, 4), made once for the several fits of one setup."""
+        """``points`` with w = 1 (N, 4), made once."""
         return homogeneous(self.points)
 
 
@@ -81,21 +70,11 @@ def _image_up_raw(view_direction, view_up, light_direction) -> list:
 
 
 def image_up(view_direction, view_up, light_direction) -> np.ndarray:
-    """The map's +y: the view direction projected perpendicular to the light
-    (Scherzer Eq. 3, V_P = (V_light x V_eye) x V_light up to sign), blended
-    into the projected camera up when light and view are within
-    PARALLEL_BLEND (sin 1°) of parallel:
-
-        up = t V_P + (1 - t) up_cam + 2 t (1 - t) right_cam,   t = |V_P| / sin 1°
-
-    (all projected across the light). At exact parallel it is the camera's up
-    (a top-down camera under a zenith sun gets a map aligned with its image);
-    at t = 1 it is V_P. Around the light direction V_P turns once, so any
-    continuous choice must turn the map by 180° somewhere inside the blend and
-    has a singular point: the right-vector term puts it at t ≈ 0.61 in a
-    diagonal direction (about 140° from the camera's up), off the paths of a
-    plain pitch or pan through the light direction, which turn the map smoothly
-    instead (``image_up_singularity`` measures the distance to it)."""
+    """The map's +y: V_P = (V_light x V_eye) x V_light (Scherzer Eq. 3) across the
+    light, blended within PARALLEL_BLEND (sin 1°) of parallel as
+    t V_P + (1 - t) up_cam + 2 t (1 - t) right_cam, t = |V_P| / sin 1°: the camera's
+    up at exact parallel. Any continuous choice has a singular point in the blend;
+    the right-vector term puts it off plain pitch and pan paths (``image_up_singularity``)."""
     up = _image_up_raw(view_direction, view_up, light_direction)
     length = math.sqrt(dot3(up, up))
     if length < 1e-300:
@@ -104,26 +83,21 @@ def image_up(view_direction, view_up, light_direction) -> np.ndarray:
 
 
 def image_up_singularity(view_direction, view_up, light_direction) -> float:
-    """How far ``image_up`` is from its singular point: the length of the
-    unnormalised blend (about 0.5 or more on plain pitch or pan paths and 1
-    outside the blend, 0 at the point). Within a distance ε of it a rotation by
-    δ turns the map by about δ / (ε sin 1°)."""
+    """The length of ``image_up``'s unnormalised blend: 0 at its singular point, 1
+    outside the blend; within ε of it a turn δ turns the map by about δ / (ε sin 1°)."""
     up = _image_up_raw(view_direction, view_up, light_direction)
     return math.sqrt(dot3(up, up))
 
 
 def light_angles(view: View, light_direction) -> tuple[float, float]:
-    """(θ, γ): γ = angle between view and light directions in [0, π]
-    (LiSPSM's γ, Scherzer §4.4); θ in [0, π/2] folded by symmetry (GMNPR)."""
+    """(θ, γ): γ the angle between view and light directions (Scherzer §4.4), θ folded (GMNPR)."""
     c = min(max(dot3(view.direction.tolist(), normalize(light_direction).tolist()), -1.0), 1.0)
     gamma = math.acos(c)
     return folded(gamma), gamma
 
 
 def body_light_angles(view: View, light: Light, body: IntersectionBody) -> tuple[float, float]:
-    """``light_angles`` to the light's axis towards B: a sun's direction, or
-    from a point or spot light to B's centroid (what a map's θ and γ report
-    when no warp has its own)."""
+    """``light_angles`` to a sun's direction, or from a point or spot light to B's centroid."""
     return light_angles(view, light.direction if light.is_directional else body.centroid - light.position)
 
 
@@ -146,29 +120,18 @@ WORLD_NORTH = np.array([0.0, 1.0, 0.0])
 
 
 def world_sun_frame(light: Light, body: IntersectionBody) -> LightFrame:
-    """An orthographic sun frame fixed in the world: origin at the world origin
-    and the image's +y along world up projected across the light (world +Y when
-    the sun is at the zenith, blended as in ``image_up``). It does not move with
-    the camera, so a window snapped to whole texels in it stays on the same
-    texel grid while the camera moves (texel snapping; a camera-anchored frame
-    would drag the grid along and the edges would crawl)."""
+    """An orthographic sun frame fixed in the world (+y: world up across the light,
+    blended as in ``image_up``), so a texel-snapped window keeps its grid as the camera moves."""
     up = image_up(WORLD_UP, WORLD_NORTH, light.direction)
     m = FLIP_Z @ look_along(np.zeros(3), light.direction, up)
     return LightFrame(m, body.vertices, "main", True)
 
 
 def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]:
-    """Axis and half-angle of a cone from ``apex`` containing ``points``.
-
-    The axis points at the centre c of the bounding box of the unit directions
-    to the points: unlike a mean over vertices it does not jump when a vertex
-    of B splits in two, so the light frame moves continuously with the view.
-    When B nearly surrounds the light, c is short and its direction
-    meaningless, so the axis blends continuously into world down:
-    axis = c + max(0, SURROUND_BLEND - |c|) * down (singular only where c points
-    up with length SURROUND_BLEND / 2). A half-angle near π means no single
-    cone holds the points. Points within 1e-7 of the farthest distance from
-    the apex are ignored (a perspective map cannot hold its own centre)."""
+    """Axis and half-angle of a cone from ``apex`` holding ``points``: the axis points
+    at the centre c of the bounding box of the unit directions (continuous as B's
+    vertices split), blended into world down when B nearly surrounds the light.
+    Points at the apex are ignored; a half-angle near π: no single cone."""
     dirs = np.asarray(points, dtype=np.float64) - apex
     norms = np.sqrt(np.einsum("ij,ij->i", dirs, dirs))
     lengths = norms.tolist()
@@ -196,15 +159,10 @@ def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]
 
 def perspective_frame(apex, axis, up_hint, points, role, scale, floor: float | None = None,
                       cuts_a_box: bool = True) -> LightFrame:
-    """A point light's perspective looking along ``axis`` from ``apex``:
-    eye space -> (x, y, z_gl, -z) so rays from the apex become parallel to z.
-    The near plane is the nearest point's depth, clamped to a scale-relative
-    minimum when the light sits on or in the body. Then the points nearer than
-    that minimum (the light itself, a vertex of hull(R ∪ light)) give way to
-    where the segments from the light to the others cross the near plane:
-    every map fitted to the frame's points holds the body from there on.
-    ``floor``: that minimum (default 1e-6 of ``scale``; ``near_floor``);
-    ``cuts_a_box``: whether what lies nearer matters (the "near plane" note)."""
+    """A point light's perspective along ``axis`` from ``apex`` (rays become parallel
+    to z). Near is the nearest point's depth, clamped to ``floor`` (default 1e-6
+    of ``scale``) when the light is on B; points nearer give way to where their
+    rays cross the near plane. ``cuts_a_box``: whether that matters (the note)."""
     view = look_along(apex, axis, up_hint)
     depth = (points - apex) @ -view[2, :3]                   # along the axis (the eye looks down -z)
     floor = 1e-6 * scale if floor is None else floor
@@ -220,10 +178,8 @@ CUBE_FACE_COS = 1.0 / math.sqrt(3.0)
 
 
 def nearest_box_distance(body: IntersectionBody, apex) -> float:
-    """The distance from ``apex`` (a point light) to the nearest box that
-    matters: the casters that can shadow what is seen and the receivers in
-    view (B's culling). Nothing nearer to the light than this can cast or
-    receive a shadow; inf when there is no such box."""
+    """The distance from ``apex`` to the nearest caster or receiver box B was built
+    from (inf: none): nothing nearer can cast or receive a shadow."""
     apex = np.asarray(apex, dtype=np.float64)
     nearest = math.inf
     for selection in (body.culled.casters, body.culled.receivers):
@@ -238,21 +194,10 @@ def nearest_box_distance(body: IntersectionBody, apex) -> float:
 
 def cube_near_floor(body: IntersectionBody, apex, hyperbolic: bool,
                     widest_cos: float = CUBE_FACE_COS) -> tuple[float, bool]:
-    """The near distance of a point light's cube faces when the light is inside
-    (or on) B, and whether it cuts into a box that matters (then what lies
-    nearer is not covered: the "near plane" fallback). ``widest_cos``: cos of
-    the widest angle between a face's axis and its rays (one frame's: its cone's).
-
-    With linear depth (the default, Scherzer §4.2) the near plane does not
-    touch the depth's precision, so it stays at the least distance a
-    perspective map can have, 1e-6 of the scene scale, and B is covered up to
-    there. With hyperbolic depth (``linear_z=False``) a near plane that close
-    leaves float32 no precision at the receivers (1e-6 of a 340 m scene: depth
-    steps of decimetres at 30 m), so it goes to the nearest box that matters:
-    every such box is at least ``nearest_box_distance`` from the light, so
-    along a face's axis at least that times ``widest_cos``, and only the
-    empty part of B nearer than that is left out. (Boxes are bounding boxes: a
-    light inside a room's box gains nothing.)"""
+    """The near distance of a point light's cube faces with the light on or in B, and
+    whether it cuts a box that matters. Linear depth (Scherzer §4.2): 1e-6 of the
+    scene scale. Hyperbolic depth: the nearest box's distance times ``widest_cos``
+    (cos of a face's widest ray angle), so float32 keeps precision at the receivers."""
     least = 1e-6 * body.scale
     bound = 0.999 * widest_cos * nearest_box_distance(body, apex)
     cuts_a_box = bound < least
@@ -262,23 +207,18 @@ def cube_near_floor(body: IntersectionBody, apex, hyperbolic: bool,
 
 
 def near_far(nearest: float, farthest: float, floor: float) -> tuple[float, float, bool]:
-    """A perspective frame's (near, far, clamped) from its points' depth range:
-    near is the nearest depth, clamped to ``floor`` (the light inside B), and
-    far stays a little beyond near so the depth range never collapses."""
+    """(near, far, clamped) of a perspective frame: near clamped to ``floor``, far a little beyond near."""
     near = max(nearest, floor)
     return near, max(farthest, near * (1 + 1e-9) + floor), nearest < floor
 
 
 def depth_coefficients(near: float, far: float) -> tuple[float, float]:
-    """(A, B) of the OpenGL perspective's depth: z_gl = A z + B and w = -z, with
-    A = -(f + n)/(f - n), B = -2fn/(f - n) (unit image plane)."""
+    """(A, B) of the OpenGL perspective: z_gl = A z + B, w = -z, A = -(f + n)/(f - n), B = -2fn/(f - n)."""
     return -(far + near) / (far - near), -2 * far * near / (far - near)
 
 
 def perspective_of(view: np.ndarray, near: float, far: float) -> np.ndarray:
-    """``proj @ view`` for the OpenGL perspective with the given near and far
-    (unit image plane), written out row by row: x, y pass through, z_gl =
-    A z + B and w = -z (``depth_coefficients``)."""
+    """``proj @ view`` for the unit-image-plane OpenGL perspective, row by row."""
     a, b = depth_coefficients(near, far)
     m = view.copy()
     m[2] = a * view[2]
@@ -292,10 +232,7 @@ CUBE_FACES = (("+X", 0, 1.0), ("-X", 0, -1.0), ("+Y", 1, 1.0), ("-Y", 1, -1.0), 
 _FACE_ROWS = np.array([[2, 1, 0], [2, 1, 0], [0, 2, 1], [0, 2, 1], [0, 1, 2], [0, 1, 2]])
 _FACE_ROW_SIGNS = np.array([[1.0, 1.0, -1.0], [-1.0, 1.0, 1.0], [1.0, 1.0, -1.0],
                             [-1.0, 1.0, 1.0], [-1.0, 1.0, -1.0], [1.0, 1.0, 1.0]])
-"""Each cube face's eye rotation as signed rows of the cube's (right-handed,
-orthonormal) basis: ``look_along(apex, forward, face_up)`` with forward =
-sign·basis[k] and face_up = basis[1] (basis[2] for the ±Y faces) has rows
-x = forward × face_up, y = x × forward and -forward; e.g. +X: (b2, b1, -b0)."""
+"""Each cube face's eye rotation (``look_along`` rows x, y, -forward) as signed rows of the cube's basis."""
 _FACE_TURNS = np.array([[[sign if j == row else 0.0 for j in range(3)] for row, sign in zip(rows, signs)]
                         for rows, signs in zip(_FACE_ROWS, _FACE_ROW_SIGNS)])
 """The same as signed permutations (6, 3, 3): face f's eye rotation is ``_FACE_TURNS[f] @ basis``."""
@@ -303,16 +240,9 @@ _FACE_TURNS = np.array([[[sign if j == row else 0.0 for j in range(3)] for row, 
 
 def point_frames(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> list[LightFrame]:
     """One perspective frame when B fits a frustum narrower than
-    ``max_frustum_angle``, else one per cube face that B reaches (cube aligned
-    with the cone axis to B, so as few faces as possible are needed).
-
-    A light on B's boundary takes the one frame too: B = hull(R ∪ light) ∩ S_c
-    has the light as a vertex whenever S_c holds it (a lamp among the boxes, a
-    headlamp, each split of a cascade), and then lies in the cone of its other
-    points' directions; only a light strictly inside B needs whole cube faces.
-
-    The switch between the two is a known discontinuity (the number of maps
-    changes), at ``2 * light_cone(B)[1] == max_frustum_angle``."""
+    ``max_frustum_angle`` (a light on B's boundary too: B then lies in the cone
+    of its other points), else one per cube face B reaches, the cube aligned with
+    the cone axis. The switch changes the number of maps (a known discontinuity)."""
     apex = light.position
     axis, half = light_cone(body.vertices, apex)
     up = image_up(view.direction, view.up, axis)
@@ -355,9 +285,8 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
 
 
 def cube_basis(axis, up) -> np.ndarray:
-    """The cube's axes (rows) for a unit cone ``axis`` and an image ``up``
-    across it (floats): x = up × -axis, y = up made perpendicular to the axis,
-    z = -axis (so the -Z face looks along the axis)."""
+    """The cube's axes (rows) for a unit cone ``axis`` and image ``up``: x = up × -axis,
+    y = up across the axis, z = -axis (the -Z face looks along the axis)."""
     (ax, ay, az), (ux, uy, uz) = axis, up
     x = (ay * uz - az * uy, az * ux - ax * uz, ax * uy - ay * ux)
     k = ux * ax + uy * ay + uz * az
@@ -371,9 +300,8 @@ _FACE_CORNERS = np.array([[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]])
 
 
 def _face_pyramids() -> tuple[np.ndarray, np.ndarray]:
-    """Each cube face's pyramid in the cube's basis, C_f = {|o · x| <= forward ·
-    x for both other axes o}: its 4 sides' unit outward normals (s·o - forward)
-    / √2 and its 4 corner rays forward + a·o_1 + b·o_2, (6, 4, 3) each."""
+    """Each cube face's pyramid in the cube's basis: its 4 sides' unit outward normals
+    (s·o - forward)/√2 and its 4 corner rays, (6, 4, 3) each."""
     sides, rays = [], []
     for _, k, sign in CUBE_FACES:
         forward, (o1, o2) = sign * np.eye(3)[k], np.delete(np.eye(3), k, axis=0)
@@ -388,11 +316,8 @@ _FACE_SIDES_AND_AXES = np.concatenate([_FACE_SIDES.reshape(24, 3), -_FACE_TURNS[
 
 
 def pyramid_sections(poly: ConvexPolytope, sides: np.ndarray, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Points whose convex hull is P ∩ C_j for k pyramids C_j with their apex at
-    the origin (P relative to the apex, e.g. a point light), all at once:
-    ``sides`` (k, 4, 3) their sides' unit outward normals, ``rays`` (k, 4, 3)
-    their corner rays, the pyramids' edges (``polyhedron.section_points``).
-    Returns the points and the pyramid each belongs to."""
+    """Points whose hull is P ∩ C_j for k pyramids with apex at the origin (``sides``,
+    ``rays`` (k, 4, 3)), by ``polyhedron.section_points``: the points and their pyramid."""
     return section_points(poly, sides, np.zeros(sides.shape[:2]),
                           Edges(np.zeros_like(rays), rays, np.full(rays.shape[:2], np.inf)))
 
@@ -409,14 +334,9 @@ class FacePart(NamedTuple):
 
 
 def cube_sections(poly: ConvexPolytope, basis: np.ndarray) -> list[FacePart]:
-    """The parts of P (relative to the apex) in the faces of the cube with
-    axes ``basis`` (rows) centred on the apex (``pyramid_sections``), for the
-    faces whose part has volume: four points or more, and some of them off
-    each of the face's sides (within SNAP tolerances: the section is taken
-    within the tolerance, so a pyramid touching P at the apex gets points up
-    to about two tolerances from its sides; the points are within the
-    tolerance of the pyramid, so the greatest distance from a side is the
-    deepest point's inwards)."""
+    """The parts of P (relative to the apex) in the faces of the cube with axes
+    ``basis``, for the faces whose part has volume (four points or more, some off
+    each side by more than SNAP tolerances)."""
     planes = _FACE_SIDES_AND_AXES @ basis                    # (30, 3): the 6 x 4 sides, then the 6 axes
     pts, face = pyramid_sections(poly, planes[:24].reshape(6, 4, 3), _FACE_RAYS @ basis)
     counts = np.bincount(face, minlength=6).tolist()

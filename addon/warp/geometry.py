@@ -1,9 +1,5 @@
-"""Small float64 geometry helpers shared by every warp method.
-
-Conventions (DEVELOPERS.md): 4x4 row-major matrices applied to column vectors,
-``clip = M @ [x, y, z, 1]``; light clip space is OpenGL NDC [-1, 1]^3; a camera
-or light "eye" space looks down its local -Z with +Y up.
-"""
+"""Small float64 geometry helpers: 4x4 row-major matrices on column vectors
+(``clip = M @ [x, y, z, 1]``), OpenGL NDC, eye spaces looking down local -Z, +Y up."""
 from __future__ import annotations
 
 import itertools
@@ -15,9 +11,7 @@ EPS = np.finfo(np.float64).eps
 
 
 def cross(a, b) -> np.ndarray:
-    """Cross products of 3-vectors along the last axis, (a × b)_i = ε_ijk a_j b_k
-    (np.cross costs several times more in axis handling; two single vectors
-    are crossed component by component, a third of the einsum's cost)."""
+    """Cross products of 3-vectors along the last axis, (a × b)_i = ε_ijk a_j b_k."""
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     if a.ndim == 1 and b.ndim == 1:
         (ax, ay, az), (bx, by, bz) = a.tolist(), b.tolist()
@@ -30,8 +24,7 @@ LEVI_CIVITA[[0, 1, 2], [1, 2, 0], [2, 0, 1]], LEVI_CIVITA[[0, 2, 1], [2, 1, 0], 
 
 
 def dot3(a, b) -> float:
-    """Dot product of two 3-vectors given as float sequences (plain floats:
-    a numpy call on a 3-vector costs ~1 µs, this ~0.1)."""
+    """Dot product of two 3-vectors given as float sequences."""
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
@@ -63,10 +56,8 @@ def homogeneous(points) -> np.ndarray:
 
 
 def point_runs(point_sets) -> tuple[np.ndarray, list, np.ndarray]:
-    """Several (n_k, 3) point sets (none empty) as one homogeneous array (N, 4)
-    with w = 1, the row where each set starts, and the set of each row (N,):
-    the layout in which ``transform_h_runs`` and ``fit.fit_runs`` treat all the
-    sets at once."""
+    """Several non-empty (n_k, 3) point sets as one (N, 4) homogeneous array, the row
+    each starts at and each row's set (the layout of ``transform_h_runs`` and ``fit.fit_runs``)."""
     counts = [len(p) for p in point_sets]
     starts = list(itertools.accumulate(counts[:-1], initial=0))
     points = point_sets[0] if len(point_sets) == 1 else np.concatenate(point_sets)
@@ -74,9 +65,7 @@ def point_runs(point_sets) -> tuple[np.ndarray, list, np.ndarray]:
 
 
 def transform_h_runs(matrices, points_h, run) -> np.ndarray:
-    """Homogeneous points (N, 4), row i mapped by ``matrices[run[i]]`` of a
-    stack (k, 4, 4); no divide. (Every point by every matrix, then each row's
-    own: cheaper than a gathered stack of N matrices for a few maps.)"""
+    """Homogeneous points (N, 4), row i mapped by ``matrices[run[i]]`` (k, 4, 4); no divide."""
     if len(matrices) == 1:
         return points_h @ matrices[0].T
     return (points_h @ matrices.transpose(0, 2, 1))[run, np.arange(len(run))]
@@ -100,16 +89,14 @@ def translation(offset) -> np.ndarray:
 
 
 def perpendicular(v) -> np.ndarray:
-    """A unit vector perpendicular to ``v``, chosen continuously away from the
-    axis most aligned with ``v`` (deterministic)."""
+    """A unit vector perpendicular to ``v``, away from the axis most aligned with it."""
     v = np.asarray(v, dtype=np.float64)
     return normalize(cross(v, np.eye(3)[int(np.argmin(np.abs(v)))]))
 
 
 def look_along(eye, forward, up_hint) -> np.ndarray:
-    """World -> eye matrix for an eye at ``eye`` looking along ``forward`` (its -Z),
-    with +Y as close to ``up_hint`` as possible. If ``up_hint`` is parallel to
-    ``forward`` a deterministic perpendicular is used instead."""
+    """World -> eye matrix for an eye at ``eye`` looking along ``forward`` (its -Z), +Y
+    nearest ``up_hint`` (a deterministic perpendicular when they are parallel)."""
     f = normalize(forward)
     up = np.asarray(up_hint, dtype=np.float64)
     side = cross(f, up)

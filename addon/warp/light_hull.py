@@ -1,12 +1,7 @@
-"""What a light adds to a body: its frustum L and hull(P ∪ light).
-
-L is the spot cone, bounded by a circumscribed pyramid (all space for suns and
-point lights). hull(P ∪ light) is the convex polytope P swept towards the
-light: for B (body.py) P is R, the part of the view that holds receivers, and
-everything that can shadow R lies in hull(R ∪ light) (Scherzer §4.1, Fig. 5).
-It is built exactly, with the light in homogeneous coordinates (w = 0 for a
-sun), as half-spaces (for culling) and as a polytope (for clipping).
-"""
+"""What a light adds to a body: its frustum L (the spot cone, bounded by a
+circumscribed pyramid; all space for suns and point lights) and hull(P ∪ light),
+which holds everything that can shadow P (Scherzer §4.1, Fig. 5), built
+exactly with the light homogeneous (w = 0 for a sun), as half-spaces and as a polytope."""
 from __future__ import annotations
 
 import math
@@ -30,11 +25,9 @@ _CONE_ROWS = np.stack([np.cos(_CONE_ANGLES), np.sin(_CONE_ANGLES), np.ones(CONE_
 
 
 def cone_halfspaces(apex, axis, full_angle) -> tuple[np.ndarray, np.ndarray]:
-    """(normals (k, 3), offsets (k,)) of the regular pyramid with k =
-    CONE_SIDES sides circumscribing the cone (apex, axis, full angle): its
-    half-angle widened by the secant of π/k so the cone fits inside the
-    polygon. Side i's unit normal is cos ω (cos θ_i u + sin θ_i v) - sin ω a,
-    with a the unit axis, u ⊥ a, v = a × u and ω the widened half-angle."""
+    """(normals (k, 3), offsets (k,)) of the regular pyramid of k = CONE_SIDES sides
+    circumscribing the cone (apex, axis, full angle): side i's unit normal is
+    cos ω (cos θ_i u + sin θ_i v) - sin ω a, ω the half-angle widened by sec(π/k)."""
     a = normalize(axis)
     u = perpendicular(a)
     widened = math.atan(math.tan(full_angle / 2) / math.cos(math.pi / CONE_SIDES))
@@ -51,8 +44,8 @@ def light_halfspaces(light: Light, origin: np.ndarray) -> tuple[np.ndarray, np.n
 
 
 class Side(NamedTuple):
-    """A silhouette edge a -> c of P, in the loop of facet ``kept`` (which does
-    not face the light) across from facet ``facing`` (which does)."""
+    """A silhouette edge a -> c of P, in the loop of facet ``kept`` (not facing the
+    light) across from facet ``facing`` (facing it)."""
 
     a: int
     c: int
@@ -80,16 +73,10 @@ class LightHull(NamedTuple):
     """The light in homogeneous coordinates."""
 
     def polytope(self, cap: tuple | None = None) -> ConvexPolytope:
-        """hull(P ∪ light) as a polytope: P's facets that do not face the
-        light and the sides, each side a triangle to a point light or, for a
-        sun (u the direction towards it), a strip along u up to the plane
-        ``cap`` = (m, h), m · x = h, which closes the body (m · u > 0, P
-        strictly on the side m · x < h: B uses the face of S_c the light
-        leaves it by, so S_c's own clip has one plane less to cut). A facet
-        holding the light takes its sides into its own loop (its run of
-        silhouette edges a1 ... ak becomes a1, light, ak, or a1, a1', ak', ak
-        for a sun), so no two facets share a plane. P itself when no facet
-        faces the light (a point light inside or on P)."""
+        """hull(P ∪ light) as a polytope: P's facets that do not face the light and the
+        sides, each a triangle to a point light or, for a sun (u towards it), a strip
+        along u up to the plane ``cap`` = (m, h) that closes the body. A facet holding
+        the light takes its sides into its own loop. P itself when no facet faces the light."""
         p = self.body
         if self.sides is None:
             raise OpenCut("P's loops do not close: the hull has no boundary")
@@ -123,9 +110,8 @@ class LightHull(NamedTuple):
 
 
 def _grow_over_sides(loop, silhouette: set, n: int, sun: bool, ring: dict) -> list:
-    """A facet's loop holding the light, its one run of silhouette edges
-    a1 -> ... -> ak replaced by a1, light, ak (ids as in ``polytope``; for a
-    sun a1, a1', ak', ak, whose cap edge ak' -> a1' goes into ``ring``)."""
+    """A facet's loop holding the light, its one run of silhouette edges a1 .. ak
+    replaced by a1, light, ak (a sun: a1, a1', ak', ak, the cap edge into ``ring``)."""
     k = len(loop)
     on = [(loop[i - 1], loop[i]) in silhouette for i in range(k)]       # the edge into loop[i]
     starts = [i for i in range(k) if on[i] and not on[i - 1]]
@@ -157,23 +143,12 @@ def _ring(next_vertex: dict) -> list:
 
 
 def light_hull(p: ConvexPolytope, light_h) -> LightHull:
-    """hull(P ∪ light) for a convex polytope P, the light in homogeneous
-    coordinates (x, y, z, w), w = 0 for a light at infinity (then (x, y, z) is
-    the unit direction towards it).
-
-    Its half-spaces are P's facets that do not face the light plus, through
-    each silhouette edge (a facet g that does not face the light next to one,
-    f, that does), the plane through that edge and the light. With
-    F(x) = n_f · x - o_f and G likewise, that plane is the positive combination
-
-        σ = -G(light) · F + F(light) · G,     σ(light) = 0,
-
-    of two half-spaces that hold P, so it holds P exactly, however short the
-    edge (no cross product of its endpoints); any such σ holds hull(P ∪ light).
-    A facet within the tolerance of the light counts as not facing it, and
-    holds it: its σ is its own plane, so it adds none. When P's loops do not
-    close (a near-degenerate clip), facets sharing two vertices count as
-    neighbours and the hull has half-spaces but no boundary (``sides`` None)."""
+    """hull(P ∪ light), the light homogeneous (w = 0: (x, y, z) the unit direction
+    towards it): P's facets that do not face the light and, through each
+    silhouette edge between g (not facing) and f (facing), the plane
+    σ = -G(light)·F + F(light)·G, a positive combination of two half-spaces that
+    hold P, so exact however short the edge. A facet holding the light adds
+    none. Open loops (a near-degenerate clip): half-spaces but no sides."""
     light = np.asarray(light_h, dtype=np.float64)
     planes = np.concatenate([p.normals, -p.offsets[:, None]], axis=1)  # F(X) = plane · X for X = (x, 1)
     s = planes @ light                                                # F(light) of every facet
@@ -199,8 +174,8 @@ def light_hull(p: ConvexPolytope, light_h) -> LightHull:
 
 
 def _silhouette(loops, kept: list, facing: list) -> list | None:
-    """The silhouette edges: each edge of a kept facet whose facet across
-    faces the light; None when some edge has no facet across (open loops)."""
+    """The edges of kept facets whose facet across faces the light; None when an edge
+    has no facet across (open loops)."""
     across = {}                                      # edge (a, c) -> the facet whose loop runs c -> a
     for f, loop in enumerate(loops):
         a = loop[-1]

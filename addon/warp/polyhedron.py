@@ -1,32 +1,19 @@
-"""Convex polytopes: the one representation of every convex body in the warp
-core (the view frustum V, R, the light hull, B) and the two operations they
-are built and measured with. float64, tolerances passed in (relative to the
-scene's scale), every construction deterministic.
+"""Convex polytopes: the one representation of every convex body in the warp core
+(V, R, the light hull, B) and its two operations. float64, tolerances passed
+in (relative to the scene's scale), every construction deterministic.
 
-A :class:`ConvexPolytope` has both descriptions: its ``vertices``, and its
-facets as unit outward ``normals`` and ``offsets`` (``normal · x <= offset``
-inside), with each facet's vertex ``loops``, counter-clockwise seen from
-outside.
+A :class:`ConvexPolytope` has its ``vertices`` and its facets: unit outward
+``normals``, ``offsets`` (normal · x <= offset inside) and vertex ``loops``,
+counter-clockwise seen from outside.
 
-* **Clip** (:meth:`ConvexPolytope.clip`): P ∩ {normals · x <= offsets}, one
-  half-space at a time, by walking the faces (:func:`_cut`): a facet is kept,
-  dropped, or has its run of vertices beyond the plane replaced by one new
-  edge, and the new edges chain into the new facet, so the faces close by
-  construction. Facet planes are carried over, never recomputed from the
-  (possibly tiny) clipped polygons. A cut too degenerate to walk
-  (:class:`OpenCut`) falls back to vertex enumeration
-  (:meth:`ConvexPolytope.from_halfspaces`: every triple of planes solved at
-  once, infeasible and duplicate solutions dropped).
-* **Section** (:func:`section_points`): points whose convex hull is P ∩ Q for
-  a convex Q given by its facets and its edges (bounded or not: a pyramid from
-  a point light has rays for edges), without building faces. Every vertex of
-  P ∩ Q lies on three facets of P or Q, so on an edge of P (two of P's) or an
-  edge of Q (two of Q's), and ends that edge's stretch inside the other body
-  (a vertex is inside no segment of P ∩ Q). So the ends of P's edges clipped
-  to Q and of Q's edges clipped to P are the points, each clip one Cyrus-Beck
-  (:func:`clip_segments`). Many bodies Q (the six faces of a cube, a batch of
-  boxes) are sectioned at once.
-"""
+* Clip (:meth:`ConvexPolytope.clip`): one half-space at a time by a face walk
+  (:func:`_cut`), facet planes carried over; a cut too degenerate to walk
+  (:class:`OpenCut`) falls back to vertex enumeration (:meth:`ConvexPolytope.from_halfspaces`).
+* Section (:func:`section_points`): points whose hull is P ∩ Q for convex
+  bodies Q given by facets and edges. Every vertex of P ∩ Q lies on an edge of
+  P or of Q and ends that edge's stretch inside the other body, so the ends of
+  each body's edges clipped to the other (Cyrus-Beck, :func:`clip_segments`)
+  are the points; many bodies Q at once."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -47,10 +34,7 @@ corners (a plane passing a vertex at a few tolerances) give consistent faces."""
 
 COINCIDENT = 1000.0
 """Facet planes whose signed distances differ by less than this many tolerances
-at every vertex are one facet. It is the scale below which a solid counts as
-flat (B is padded to at least this thickness); measured on 3000 random awkward
-cuts of a box, it leaves no falsely empty clip and no vertex outside a cut, where
-an angle test alone (1.4e-6 rad) emptied nearly whole boxes."""
+at every vertex are one facet (B is padded to at least this thickness)."""
 
 DET_MIN = 1e-13
 """Triples of planes whose normals' triple product is below this are treated as
@@ -69,8 +53,7 @@ BOX_LOOPS = tuple(HEXAHEDRON_LOOPS[i] for i in (4, 2, 0, 5, 3, 1))
 
 
 def box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """The corners (..., 8, 3) of boxes [lo, hi] ((..., 3) each), ordered like
-    ``geometry.UNIT_CUBE_CORNERS``."""
+    """The corners (..., 8, 3) of boxes [lo, hi] (``geometry.UNIT_CUBE_CORNERS`` order)."""
     return np.where(_CORNER_BITS, hi[..., None, :], lo[..., None, :]) + 0.0
 
 
@@ -87,9 +70,7 @@ def box_edges(lo: np.ndarray, hi: np.ndarray) -> "Edges":
 
 
 class OpenCut(ValueError):
-    """A cut whose new boundary does not close into one loop: the half-space
-    passes through the polytope within the tolerance in a way the face walk
-    cannot order (the clip then falls back to vertex enumeration)."""
+    """A cut whose new boundary does not close into one loop (the clip falls back to vertex enumeration)."""
 
 
 @dataclass(frozen=True)
@@ -111,9 +92,8 @@ class Plane:
 
 @dataclass(frozen=True, eq=False)
 class ConvexPolytope:
-    """A closed convex polytope: ``vertices`` (n, 3); per facet its unit
-    outward normal (``normals``, (m, 3)), its ``offsets`` (m,) and its vertex
-    loop (``loops``, counter-clockwise seen from outside); ``tol``, the length
+    """A closed convex polytope: ``vertices`` (n, 3); per facet its unit outward
+    normal, offset and vertex loop (CCW seen from outside); ``tol``, the length
     below which points and planes meet."""
 
     vertices: np.ndarray
@@ -133,11 +113,9 @@ class ConvexPolytope:
 
     @classmethod
     def hexahedron(cls, corners, tol: float) -> "ConvexPolytope":
-        """A hexahedron (a view frustum) from its 8 corners ordered like
-        ``geometry.UNIT_CUBE_CORNERS``, its faces the ``HEXAHEDRON_LOOPS``. A
-        face's normal is the cross product of its quad's diagonals (exact for
-        a planar quad); corners that reverse orientation (a camera's
-        projection does) give inward normals, turned outwards with their loops."""
+        """A hexahedron (a view frustum) from 8 corners in ``UNIT_CUBE_CORNERS`` order:
+        each face's normal is the cross product of its quad's diagonals, turned
+        outwards (with its loop) when the corners reverse orientation."""
         c = np.asarray(corners, dtype=np.float64)
         diagonals = c[_HEX_DIAGONAL_ENDS] - c[_HEX_DIAGONAL_STARTS]      # (6, 2, 3): each quad's two diagonals
         n = cross(diagonals[:, 0], diagonals[:, 1])
@@ -153,8 +131,8 @@ class ConvexPolytope:
 
     @classmethod
     def from_halfspaces(cls, normals, offsets, tol: float) -> "ConvexPolytope | None":
-        """The bounded intersection of half-spaces ``normals @ x <= offsets``,
-        by vertex enumeration, or None when it is empty or has no volume."""
+        """The bounded intersection of ``normals @ x <= offsets`` by vertex enumeration,
+        or None when it is empty or has no volume."""
         n, o = _unit_rows(normals, offsets)
         n, o = _dedupe_planes(n, o, tol)
         if len(n) < 4:
@@ -163,10 +141,8 @@ class ConvexPolytope:
 
     # -- what follows from it -------------------------------------------------
     def edges(self) -> np.ndarray:
-        """(e, 2) vertex index pairs of the edges, lower index first, sorted:
-        consecutive vertices of the facet loops (so a vertex lying on an edge
-        within the tolerance splits it; an edge of a loop left open is there
-        once all the same). Read-only, made once."""
+        """(e, 2) sorted vertex index pairs of the edges (consecutive vertices of the
+        loops), lower index first; read-only, made once."""
         return self._edges
 
     @cached_property
@@ -205,11 +181,9 @@ class ConvexPolytope:
 
     @cached_property
     def volume_centroid(self) -> np.ndarray:
-        """The centre of the volume (continuous in the polytope, unlike the mean
-        of its vertices, which jumps when a vertex appears or merges): the
-        facets as fans of triangles, each the base of a tetrahedron from the
-        vertices' mean m; the tetrahedra's centres (m + a + b + c) / 4
-        weighted by their volumes |a · (b × c)| / 6 (a, b, c from m)."""
+        """The centre of the volume (continuous in the polytope, unlike the vertices'
+        mean): the centres of the tetrahedra from the vertices' mean over the facets'
+        triangle fans, weighted by their volumes."""
         m = self.centroid
         fans = np.array([(loop[0], b, c) for loop in self.loops for b, c in zip(loop[1:-1], loop[2:])]).reshape(-1, 3)
         a, b, c = (self.vertices - m)[fans.T]
@@ -232,10 +206,8 @@ class ConvexPolytope:
 
     # -- clip -----------------------------------------------------------------
     def clip(self, normals, offsets) -> "ConvexPolytope | None":
-        """This polytope ∩ {normals @ x <= offsets} (unit normals), or None
-        when nothing with volume is left. A half-space that holds every vertex
-        is skipped (it holds every later clip too: each lies inside this
-        polytope); when none cuts, this polytope is the clip."""
+        """This polytope ∩ {normals @ x <= offsets} (unit normals), or None when nothing
+        with volume is left; half-spaces that hold every vertex are skipped."""
         n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
         o = np.asarray(offsets, dtype=np.float64).reshape(-1)
         reach = ((self.vertices @ n.T).max(axis=0) - o).tolist()          # the farthest vertex beyond each plane
@@ -275,33 +247,20 @@ class ConvexPolytope:
 
 
 # ---------------------------------------------------------------------------
-# The face walk: the hot kernel of B (a dozen cuts of a 20-vertex body per
-# frame), in plain Python lists: numpy's fixed cost per call outweighs the
-# arithmetic on so few vertices.
+# The face walk: B's hot kernel, in plain lists (numpy's cost per call
+# outweighs the arithmetic on a 20-vertex body).
 # ---------------------------------------------------------------------------
 
 def _cut(vertices: list, facets: list, normal: list, offset: float, tol: float, plane: int):
-    """The polytope with these vertices and ``facets`` (pairs (plane number,
-    vertex loop)) ∩ {normal · x <= offset}: (vertices, facets) with the new
-    facet (``plane``, its loop) last; the same two when the half-space holds
-    every vertex; None when nothing with volume is left.
-
-    A vertex within ``tol`` of the plane lies on it; the others are inside or
-    beyond. A facet with no vertex beyond is kept whole (its loop shared); one
-    with no vertex inside is cut away; any other is walked: its vertices beyond
-    are one run along its loop (the distance is affine on a convex polygon), so
-    its loop leaves the half-space once, where the run starts, and comes back
-    once, where it ends. The run is replaced by the points where it leaves and
-    comes back: the vertex on the plane there, or the crossing of the edge,
-    computed once per edge from its end inside so both facets of the edge share
-    it; crossings take the ids of the vertices cut away, so nothing is
-    renumbered unless fewer crossings than those leave gaps. The facet's new
-    edge runs from where it leaves to where it comes back; the new facet runs
-    each such edge the other way (and each edge of a kept facet lying on the
-    plane), and those edges chain into its loop. A facet crossed more than
-    twice (only through rounding) raises OpenCut. (The walk is written out in
-    the loop over the facets: a call per facet and per crossing cost a tenth
-    of B's clips.)"""
+    """The polytope (``vertices``, ``facets`` as (plane number, loop) pairs) ∩
+    {normal · x <= offset}: (vertices, facets) with the new facet (``plane``, its
+    loop) last; the same two when nothing is cut; None when nothing with volume
+    is left. A facet with no vertex beyond the plane (by more than ``tol``) is
+    kept, one with none inside dropped, any other walked: its vertices beyond are
+    one run of its loop, replaced by the points where the loop leaves and comes
+    back (a vertex on the plane, or the edge's crossing, made once per edge so
+    both facets share it); those new edges, reversed, chain into the new facet.
+    A facet crossed more than twice (rounding) raises OpenCut."""
     nx, ny, nz = normal
     d = [nx * x + ny * y + nz * z - offset for x, y, z in vertices]
     if max(d) <= tol:
@@ -409,28 +368,13 @@ class Edges(NamedTuple):
     end: np.ndarray
 
 
-def polytope_edges(poly: ConvexPolytope) -> Edges:
-    """A polytope's edges as segments from their lower vertex (t in [0, 1]), made once."""
-    return poly.segments
-
-
 def clip_segments(edges: Edges, normals: np.ndarray, offsets: np.ndarray,
                   own: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Cyrus-Beck: the stretch [t_lo, t_hi] of each segment inside every
-    half-space ``normals · x <= offsets`` (normals (..., m, 3), offsets
-    (..., m), the segments' arrays (..., s, ...)); empty where t_lo > t_hi.
-    ``own`` = (m', s'): the first m' half-spaces and the first s' segments
-    are one body's, the rest another's, and a body's half-spaces leave its own
-    edges whole (they lie in it; rounding could say otherwise).
-
-    Segment i stays in half-space j while t·rate <= room (rate = n_j · step_i,
-    room = o_j - n_j · start_i): a facet it rises towards (rate > 0) bounds t
-    from above, one it falls from bounds it from below. A segment parallel to a
-    facet (rate = 0) is made +0, so it counts as rising, and room / +0 is +inf
-    inside (no bound), -inf outside (nothing left) and NaN on the plane
-    (skipped by fmin: the segment lies in the facet's plane and is kept); a
-    nearly parallel one overflows to the same limits. No bound at all is room =
-    +inf."""
+    """Cyrus-Beck: the stretch [t_lo, t_hi] of each segment inside every half-space
+    ``normals · x <= offsets`` (normals (..., m, 3), segments (..., s)); empty where
+    t_lo > t_hi. ``own`` = (m', s'): the first m' half-spaces leave the first s'
+    segments (the same body's edges) whole. A segment parallel to a facet
+    (rate +0) gets +inf inside, -inf outside, NaN on the plane (kept by fmin)."""
     rate = normals @ np.swapaxes(edges.step, -1, -2) + 0.0                   # (..., m, s)
     room = offsets[..., None] - normals @ np.swapaxes(edges.start, -1, -2)
     if own is not None:
@@ -445,15 +389,12 @@ def clip_segments(edges: Edges, normals: np.ndarray, offsets: np.ndarray,
 
 def section_points(poly: ConvexPolytope, normals: np.ndarray, offsets: np.ndarray, edges: Edges,
                    tol: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Points whose convex hull is ``poly`` ∩ Q_k for k convex bodies Q_k at
-    once, each given by its facets (``normals`` (k, m, 3), ``offsets`` (k, m))
-    and its edges (``edges``, arrays (k, s, ...)): the ends of poly's edges
-    clipped to Q_k and of Q_k's edges clipped to poly (module docs), within
-    ``tol`` (default: poly's tolerance), both in one clip of all the edges by
-    all the facets. Returns the points (N, 3) and the body each belongs to
-    (N,), in order of the body; a body that does not meet poly has none."""
+    """Points whose hull is ``poly`` ∩ Q_k for k bodies Q_k (facets ``normals`` (k, m, 3),
+    ``offsets`` (k, m), ``edges`` (k, s)): the ends of both bodies' edges clipped to
+    the other, within ``tol`` (default: poly's), in one clip. Returns the points
+    (N, 3) and the body of each (N,), body by body."""
     tol = poly.tol if tol is None else tol
-    mine, k = polytope_edges(poly), len(normals)
+    mine, k = poly.segments, len(normals)
 
     def per_body(a: np.ndarray, b: np.ndarray) -> np.ndarray:        # poly's (shared by every body), then the body's
         return np.concatenate([a[None].repeat(k, axis=0), b], axis=1)
@@ -476,8 +417,7 @@ _COMBOS: dict[tuple[int, int], np.ndarray] = {}
 
 
 def _combinations3(m: int, first_new: int = 0) -> np.ndarray:
-    """(C(m, 3), 3) index triples i < j < k in lexicographic order with
-    k >= ``first_new`` (triples holding at least one new plane; cached)."""
+    """(C(m, 3), 3) triples i < j < k, k >= ``first_new``, lexicographic (cached)."""
     c = _COMBOS.get((m, first_new))
     if c is None:
         i, j, k = np.meshgrid(np.arange(m), np.arange(m), np.arange(m), indexing="ij")
@@ -498,11 +438,9 @@ def _unit_rows(normals, offsets) -> tuple[np.ndarray, np.ndarray]:
 
 
 def coincident_planes(n: np.ndarray, o: np.ndarray, points: np.ndarray | None, tol: float) -> np.ndarray:
-    """(m, m) which planes are one plane where it matters: nearly the same
-    normal, and signed distances within ``tol`` of each other at every one of
-    ``points`` (the polytope's vertices; without points, equal offsets). An
-    angle alone is no test: planes 1e-6 rad apart through one line are 1e-6 of
-    the extent apart at its far end, a real (shallow) edge, not a duplicate."""
+    """(m, m): which planes are one where it matters: nearly the same normal and
+    signed distances within ``tol`` of each other at every one of ``points``
+    (without points: equal offsets). An angle alone is no test."""
     near = n @ n.T > 1.0 - 1e-12
     if points is None or len(points) == 0:
         return near & (np.abs(o[:, None] - o[None, :]) <= tol)
@@ -522,13 +460,10 @@ def _dedupe_planes(n: np.ndarray, o: np.ndarray, tol: float,
 
 def _enumerate(kept: np.ndarray, n: np.ndarray, o: np.ndarray, tri: np.ndarray, tol: float,
                kept_inc: np.ndarray | None = None) -> ConvexPolytope | None:
-    """The polytope of the planes ``n · x <= o`` whose vertices are the
-    ``kept`` points (on the planes ``kept_inc`` says, columns for the first
-    planes of ``n``) and the feasible solutions of the plane triples ``tri``.
-    A vertex lies on the planes it was solved from, on the planes it lay on
-    before, and on any plane within rounding error of it: the incidence comes
-    from the construction, so planes that pass a vertex at a few tolerances
-    (nearly degenerate corners) do not tangle the faces."""
+    """The polytope of the planes ``n · x <= o`` whose vertices are the ``kept`` points
+    (incidence ``kept_inc``) and the feasible solutions of the triples ``tri``
+    (Cramer's rule). Incidence comes from the construction (and rounding
+    distance), so planes passing a vertex at a few tolerances do not tangle the faces."""
     m = len(n)
     scale_o = float(np.abs(o).max()) + tol
     cand, radius = kept, np.zeros(len(kept))
@@ -565,13 +500,9 @@ def _enumerate(kept: np.ndarray, n: np.ndarray, o: np.ndarray, tri: np.ndarray, 
 
 
 def _tidy(verts: np.ndarray, n: np.ndarray, o: np.ndarray, tol: float, inc: np.ndarray) -> ConvexPolytope | None:
-    """The polytope of these vertices, planes and incidence: facets are the
-    planes with three vertices or more, tidied at the tolerance's scale:
-    nearly coincident planes meeting on the polytope are one facet (the older
-    plane's) with the vertices of both; a facet whose vertices all lie on
-    another is a sliver within the tolerance (two true facets share at most an
-    edge) and goes (of two equal vertex sets, the later plane's); a vertex
-    left on fewer than three facets lies on a face and goes."""
+    """The polytope of these vertices, planes and incidence: nearly coincident planes
+    meeting on it merge (the older wins), a facet whose vertices all lie on
+    another is a sliver and goes, a vertex on fewer than three facets goes."""
     m = len(n)
     near = coincident_planes(n, o, verts, COINCIDENT * tol)
     np.fill_diagonal(near, False)
@@ -622,11 +553,9 @@ def _loops_from_incidence(verts: np.ndarray, normals: np.ndarray, inc: np.ndarra
 
 
 def _merge_groups(p: np.ndarray, tol, radius: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Merge points closer than ``tol`` (plus the larger of their ``radius``
-    entries, e.g. rounding-error bounds). Returns (indices of the points kept,
-    in lexicographic order - deterministic; for every point, the position of
-    its group's kept point in that list). Each point joins the first point (in
-    lexicographic order) within reach, transitively."""
+    """Merge points closer than ``tol`` (plus the larger ``radius``), each joining the
+    first point in lexicographic order within reach, transitively: (indices kept,
+    each point's group's position among them)."""
     if len(p) == 0:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     order = np.lexsort((p[:, 2], p[:, 1], p[:, 0]))
@@ -660,9 +589,8 @@ def unique_points(points, tol: float) -> np.ndarray:
 
 
 def convex_polygon_on_plane(points, normal, tol: float) -> np.ndarray | None:
-    """The convex hull, counter-clockwise about ``normal``, of points lying on
-    one plane (Andrew's monotone chain in the plane, dropping points within
-    ``tol`` of each other or of a hull edge), or None if it has no area."""
+    """The convex hull, CCW about ``normal``, of points on one plane (Andrew's monotone
+    chain, dropping points within ``tol`` of each other or of a hull edge), or None without area."""
     pts = unique_points(points, tol)
     if len(pts) < 3:
         return None
@@ -691,21 +619,11 @@ def convex_polygon_on_plane(points, normal, tol: float) -> np.ndarray | None:
 
 
 def plane_section(poly: ConvexPolytope, normal, offset: float) -> np.ndarray | None:
-    """P ∩ {normal · x = offset} as a convex polygon counter-clockwise about
-    ``normal``, or None when it has no area.
-
-    The section is the new facet of P cut by normal · x <= offset (the face
-    walk, ``_cut``), so its vertices come in order: where P's edges cross the
-    plane, starting at the first of P's facets the plane crosses, where its
-    loop comes back below the plane. They are kept as they are when every turn
-    exceeds 2·tol·D (D at least the polygon's diameter): then the hull keeps
-    all of them (the smallest triangle on a convex polygon's vertices is one of
-    three consecutive vertices, so the monotone chain finds no three within
-    its collinearity tolerance and no two within tol). A vertex of P within
-    the tolerance of the plane, a plane that does not cross P (a facet of P
-    may lie on it), a cut the walk cannot order or a smaller turn take the
-    hull of the candidates instead (``convex_polygon_on_plane``): P's vertices
-    on the plane, moved onto it, and the crossings."""
+    """P ∩ {normal · x = offset} as a convex polygon CCW about ``normal``, or None
+    without area: the new facet of the face walk (:func:`_cut`) in order from the
+    first crossed facet, kept as it is when every turn exceeds 2·tol·D (then the
+    hull would keep every vertex); otherwise (a vertex on the plane, an open cut,
+    a smaller turn) the hull of the crossings and P's vertices on the plane."""
     n = np.asarray(normal, dtype=np.float64)
     height = poly.vertices @ n - offset
     on = np.abs(height) <= poly.tol
@@ -728,9 +646,7 @@ def plane_section(poly: ConvexPolytope, normal, offset: float) -> np.ndarray | N
 
 
 def _from_first_crossing(facets: list, cap: list) -> list:
-    """The new facet's loop from where the first facet it crosses comes back
-    below the plane (in a cut facet's loop the plane's two crossings follow
-    each other: where it leaves the half-space, then where it comes back)."""
+    """The new facet's loop from where the first facet it crosses comes back below the plane."""
     on_cap = set(cap)
     back = next(b for _, loop in facets for a, b in zip(loop[-1:] + loop[:-1], loop) if a in on_cap and b in on_cap)
     at = cap.index(back)
@@ -738,10 +654,8 @@ def _from_first_crossing(facets: list, cap: list) -> list:
 
 
 def _turns_exceed(polygon: list, normal: list, tol: float) -> bool:
-    """Whether the polygon (a list of (x, y, z)) turns left about ``normal`` at
-    every vertex by more than 2·tol·D (the cross product of the edges into and
-    out of it; D: twice the greatest L1 distance from the first vertex, at least
-    the diameter)."""
+    """Whether the polygon turns left about ``normal`` at every vertex by more than
+    2·tol·D (D: at least its diameter)."""
     nx, ny, nz = normal
     x0, y0, z0 = polygon[0]
     limit = 2.0 * tol * max(2.0 * max(abs(x - x0) + abs(y - y0) + abs(z - z0) for x, y, z in polygon), tol)
@@ -755,7 +669,7 @@ def _turns_exceed(polygon: list, normal: list, tol: float) -> bool:
 
 
 def _crossings(poly: ConvexPolytope, height: np.ndarray) -> np.ndarray:
-    """Where P's edges whose ends lie beyond the tolerance on either side of a plane cross it (``height``: the vertices')."""
+    """Where P's edges cross the plane, both ends beyond the tolerance (``height``: the vertices')."""
     a, b = poly.edges().T
     crossed = ((height[a] > poly.tol) & (height[b] < -poly.tol)) | ((height[a] < -poly.tol) & (height[b] > poly.tol))
     a, b = a[crossed], b[crossed]
@@ -769,8 +683,7 @@ def _turn(o, a, b) -> float:
 
 
 def hexahedron_faces(corners) -> list[np.ndarray]:
-    """Faces of a hexahedron given as 8 corners ordered like geometry.UNIT_CUBE_CORNERS
-    (near face first, x fastest then y) - e.g. a view frustum."""
+    """The six quads of 8 corners in ``UNIT_CUBE_CORNERS`` order (e.g. a view frustum)."""
     c = np.asarray(corners, dtype=np.float64)
     return list(c[_HEX_QUADS])
 
@@ -802,8 +715,7 @@ def _face_halfspaces(faces: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _rows(rows: list) -> np.ndarray:
-    """(n, 3) float64 array of n rows of 3 plain floats (np.fromiter over them
-    flat: np.array on a list of tuples costs ~1.6x more)."""
+    """(n, 3) float64 array of n rows of 3 plain floats."""
     return np.fromiter(chain.from_iterable(rows), np.float64, 3 * len(rows)).reshape(-1, 3)
 
 

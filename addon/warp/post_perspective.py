@@ -30,7 +30,7 @@ from .fit import fit_keeping_points
 from .frame import image_up
 from .geometry import cross, normalize
 from .light_hull import light_halfspaces
-from .polyhedron import BOX_NORMALS, ConvexPolytope, Edges, box_edges, box_offsets, clip_segments, polytope_edges
+from .polyhedron import BOX_NORMALS, ConvexPolytope, Edges, box_edges, box_offsets, clip_segments
 from .types import Light, View, WarpOptions
 
 PPS_VIEW_DIRECTION = np.array([0.0, 0.0, 1.0])
@@ -178,7 +178,7 @@ def lowest_in_boxes(region: ConvexPolytope, lo: np.ndarray, hi: np.ndarray, axis
     """min k·x over ``region`` ∩ [lo_i, hi_i] for each box i (inf where they do not
     meet): a linear function is least at a vertex of the section, and every
     vertex ends an edge of one body clipped exactly to the other (``section_points``)."""
-    return np.minimum(_lowest_on_edges(polytope_edges(region), BOX_NORMALS, box_offsets(lo, hi), axis),
+    return np.minimum(_lowest_on_edges(region.segments, BOX_NORMALS, box_offsets(lo, hi), axis),
                       _lowest_on_edges(box_edges(lo, hi), region.normals, region.offsets, axis))
 
 

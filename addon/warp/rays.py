@@ -1,10 +1,6 @@
-"""Rays against axis-aligned boxes: the one slab test the warp core (the
-visible region from the scene's boxes, :mod:`.visibility`) and the
-independent judge (``addon.measure.box_scene``) share.
-
-Boxes are closed shells (meshes are surfaces): a ray starting inside a box
-hits its inner wall.
-"""
+"""Rays against axis-aligned boxes: the one slab test the visible region
+(:mod:`.visibility`) and the independent judge (``addon.measure.box_scene``)
+share. Boxes are closed shells: a ray starting inside hits the inner wall."""
 from __future__ import annotations
 
 import numpy as np
@@ -13,11 +9,9 @@ from .culling import BoxIndex, Selection
 
 
 def slab_intervals(origins, inverse_directions, lo, hi, entering_axis: bool = False):
-    """For rays given by origins and 1 / direction, against boxes [lo, hi]
-    (arrays of 3-vectors that broadcast, e.g. (R, 1, 3) against (1, M, 3)):
-    where each ray enters and leaves each box, and with ``entering_axis`` the
-    axis of the slab it enters by. A ray in a slab's plane (0 · inf = NaN)
-    counts as inside that slab: fmax / fmin skip the NaN."""
+    """Where rays (origins, 1 / directions) enter and leave boxes [lo, hi] (arrays
+    that broadcast), and with ``entering_axis`` the axis they enter by. A ray in a
+    slab's plane (0 · inf = NaN) counts as inside it: fmax / fmin skip the NaN."""
     with np.errstate(invalid="ignore"):
         t1 = (lo - origins) * inverse_directions
         t2 = (hi - origins) * inverse_directions
@@ -44,9 +38,8 @@ def _first_hits(enter, leave, t_max) -> np.ndarray:
 
 
 def ray_boxes(origins, directions, t_max, boxes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Nearest hit of each ray with (M, 2, 3) boxes within [0, t_max]:
-    (t, box index, hit-face normal); t = inf where nothing is hit. Every ray
-    against every box: for a few boxes, or as the reference of :func:`ray_index`."""
+    """Nearest hit of each ray with (M, 2, 3) boxes within [0, t_max]: (t, box, hit
+    face normal), t = inf where nothing is hit; every ray against every box."""
     origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
     directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
     boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3)
@@ -70,9 +63,8 @@ enough for the cache (a 10,000-box scene's every-pair arrays would not)."""
 
 
 def _pair_intervals(o, inv, lo, hi, rays, boxes) -> tuple[np.ndarray, np.ndarray]:
-    """``slab_intervals`` of pairs: ray ``rays[i]`` against box ``boxes[i]``,
-    from (3, R) origins and inverse directions and (3, M) box corners (axis
-    by axis over contiguous rows: numpy is slow across a short last axis)."""
+    """``slab_intervals`` of ray ``rays[i]`` against box ``boxes[i]``, from (3, R) origins
+    and inverse directions and (3, M) corners."""
     enter = leave = None
     for axis in range(3):
         oa, ia = o[axis, rays], inv[axis, rays]
@@ -87,16 +79,10 @@ def _pair_intervals(o, inv, lo, hi, rays, boxes) -> tuple[np.ndarray, np.ndarray
 
 def ray_index(origins, directions, t_max, index: BoxIndex, selection: Selection | None = None,
               ranks_per_round: int = 2) -> tuple[np.ndarray, np.ndarray]:
-    """Nearest hit of each ray with the boxes of a culling index (only those
-    of ``selection``, if given) within [0, t_max]: (t, box index in the
-    index's original order; inf and -1 where nothing is hit). Equals
-    :func:`ray_boxes` on those boxes.
-
-    The rays meet the index's clusters first; each ray then opens the clusters
-    it meets nearest first, ``ranks_per_round`` at a time for all rays at
-    once, and stops once its nearest hit is nearer than the next cluster's
-    entry, so a scene of thousands of boxes costs about what the few clusters
-    in front of each ray hold. Pairs are tested ``CHUNK`` at a time."""
+    """Nearest hit of each ray with the boxes of a culling index (of ``selection``)
+    within [0, t_max]: (t, box in the original order; inf and -1 for none), as
+    :func:`ray_boxes`. Each ray opens the clusters it meets nearest first,
+    ``ranks_per_round`` at a time, until its hit is nearer than the next cluster."""
     o = np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3).T)
     inv = np.ascontiguousarray(_inverse(np.asarray(directions, dtype=np.float64).reshape(-1, 3)).T)
     t_max = np.asarray(t_max, dtype=np.float64).reshape(-1)

@@ -1,16 +1,7 @@
-"""LiSPSM and its generalisations GMNPR and GLPR: one warp frustum, three λ rules.
-
-* ``lispsm`` - Wimmer et al. with Scherzer §4.4: n_opt from Eq. 1, projection
-  centre from Eq. 2, V_P from Eq. 3 (or B's middle vector), Δz from B or from
-  the visible depth range, optional linear z (§4.2).
-* ``gmnpr`` - Zhang et al.: the same frustum with λ from GMNPR Eq. 8,
-  continuous at the critical angle θ = φ.
-* ``glpr`` - the same frustum with F(z) ~ z (GMNPR §3, "GLPR").
-
-The construction, the meaning of z_n, Δz, λ and φ, and the point-light and
-degenerate cases are documented in :mod:`.warp_frustum`; the formulas live in
-:mod:`..aliasing`.
-"""
+"""LiSPSM and its generalisations GMNPR and GLPR: one warp frustum
+(:mod:`.warp_frustum`), three λ rules (:mod:`..aliasing`): ``lispsm`` (Wimmer
+et al. with Scherzer §4.4, Eq. 1-3), ``gmnpr`` (GMNPR Eq. 8) and ``glpr``
+(F(z) ~ z, GMNPR §3)."""
 from __future__ import annotations
 
 from ..body import IntersectionBody

@@ -1,17 +1,7 @@
-"""Uniform (focused standard) shadow maps: the light frustum fitted to B.
-
-Scherzer §4.1 (focusing on the intersection body B); Brabec et al. via
-Scherzer [4]. For a sun the map is orthographic; for point and spot lights it
-is the light's perspective, one map per needed cube face when B does not fit a
-single frustum (see ``frame.point_frames``).
-
-Texel snapping (option, suns): the map is built in a light frame fixed in the
-world (``frame.world_sun_frame``), its window size is quantised to a ladder of
-sizes (8 per octave) and its origin to whole texels, so while the camera moves
-every world point keeps its texel (an integer shift of the whole map) and
-shadow edges do not crawl; the window changes size only when B's extent
-crosses a ladder step.
-"""
+"""Uniform (focused standard) shadow maps: the light frustum fitted to B (Scherzer
+§4.1), orthographic for a sun, the light's perspective (or its cube faces) for
+point and spot lights. Texel snapping (suns) fits in a frame fixed in the world
+with window sizes on a ladder and origins on whole texels, so edges do not crawl."""
 from __future__ import annotations
 
 from ..body import IntersectionBody
