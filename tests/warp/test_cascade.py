@@ -26,7 +26,7 @@ from addon.measure.box_scene import judge
 from addon.warp import WarpError, WarpOptions, compute, intersection_body
 from addon.warp.aliasing import perspective_aliasing
 from addon.cli.config import ConfigError, parse_config
-from addon.warp.methods.cascade import SPLIT_WARPS, build_split, split_options
+from addon.warp.methods.cascade import SPLIT_WARPS, build_split
 from addon.warp.partition.adaptive import max_error
 from addon.warp.partition.budget import shared_sizes
 from addon.warp.partition.splits import practical_splits, split_view
@@ -142,7 +142,7 @@ def test_the_predicted_error_is_lloyds_maximum_over_the_split(name):
     rng = np.random.default_rng(7)
     inside = rng.dirichlet(np.ones(len(region)) * 0.2, size=4000) @ region
     for warp in SPLIT_WARPS:
-        setup = SPLIT_WARPS[warp](split.view, light, split.body, split_options(OPTIONS, (1024, 1024)))
+        setup = SPLIT_WARPS[warp](split.view, light, split.body, OPTIONS)
         m = setup.maps[0]
         at_vertices = max_error(split.view, light, setup, region)
         sampled = np.nanmax(perspective_aliasing(split.view, light, m.matrix, m.size, inside))
