@@ -155,17 +155,8 @@ class Light:
     def is_directional(self) -> bool:
         return self.type == "SUN"
 
-    @property
-    def homogeneous_position(self) -> np.ndarray:
-        """(x, y, z, w): the light's position, w = 0 for a sun (pointing *towards*
-        the light, i.e. against ``direction``)."""
-        if self.is_directional:
-            return np.append(-self.direction, 0.0)
-        return np.append(self.position, 1.0)
-
     def homogeneous_from(self, origin) -> list:
-        """``homogeneous_position`` in coordinates relative to ``origin`` (a
-        sun's is unchanged), as 4 plain floats."""
+        """The light relative to ``origin``, homogeneous, as 4 floats: (x, y, z, 1), or (-direction, 0) for a sun."""
         if self.is_directional:
             x, y, z = self.direction.tolist()
             return [-x, -y, -z, 0.0]

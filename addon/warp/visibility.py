@@ -23,8 +23,6 @@ from .polyhedron import box_corners
 from .rays import ray_index, slab_intervals
 from .types import EmptyBodyError, Light, SceneBounds, View, WarpOptions
 
-SOURCES = ("depth pre-pass", "previous frame", "scene boxes", "given")
-"""Where a visible region came from (``VisibleRegion.source``)."""
 
 BOX_SAMPLES = (48, 27)
 """The ray grid of :func:`region_from_boxes` (columns, rows) over the image."""
@@ -66,7 +64,7 @@ class TileDepths:
 @dataclass(frozen=True)
 class VisibleRegion:
     """What the camera sees, conservatively: per tile the eye-depth interval of its
-    visible points, and its ``source`` (one of ``SOURCES``)."""
+    visible points, and its ``source`` ("depth pre-pass", "scene boxes", ...)."""
 
     tiles: TileDepths
     source: str
@@ -251,16 +249,6 @@ def tile_edges(samples: int, tile: int) -> np.ndarray:
     """NDC edges of the tiles over ``samples`` sample cells spanning [-1, 1]."""
     cells = np.minimum(np.arange(0, samples + tile, tile), samples)
     return np.unique(cells) * (2.0 / samples) - 1.0
-
-
-def region_from_eye_depths(view: View, near_samples: np.ndarray, far_samples: np.ndarray, tile: int,
-                           source: str) -> VisibleRegion:
-    """A region from per-sample eye-depth intervals on an (H, W) grid over the image
-    (row 0 at the bottom; +inf / -inf where nothing is seen), per ``tile`` x ``tile`` cells."""
-    near_samples, far_samples = np.asarray(near_samples, np.float64), np.asarray(far_samples, np.float64)
-    near, far = tile_reduce(near_samples, far_samples, tile)
-    h, w = near_samples.shape
-    return _region(view, near, far, (w, h), tile, source, tile_counts(near_samples <= far_samples, tile))
 
 
 def _region(view: View, near, far, samples: tuple[int, int], tile: int, source: str, counts=None) -> VisibleRegion:

@@ -153,7 +153,7 @@ def test_matrix_equals_the_closed_form_shadow_projection_on_every_point():
     view = camera_yaw_pitch([1, -12, 4], 10, -20)
     for light in (sun_at(40, 120), point([4, 6, 9])):
         pi = np.array([0, 0, 1.0, 0])
-        l_h = light.homogeneous_position
+        l_h = np.array(light.homogeneous_from(np.zeros(3)))
         s = (pi @ l_h) * np.eye(4) - np.outer(l_h, pi)
         closed = (view.world_to_clip @ s)[[0, 1, 3]]
         m, info = plane_light_matrix(ray_plane_points(view.world_to_clip, pi, [(-1, -1), (-1, 1), (1, 1), (1, -1)]), l_h, 10.0)

@@ -23,8 +23,8 @@ from addon.warp.culling import BoxIndex
 from addon.warp.geometry import ortho_matrix
 from addon.warp.rays import ray_boxes, ray_index
 from addon.warp.types import EmptyBodyError, View, WarpError
-from addon.warp.visibility import (eye_depth_from_ndc, region_from_eye_depths, region_from_window_depth,
-                                   unproject)
+from addon.warp.visibility import (TileDepths, VisibleRegion, eye_depth_from_ndc, region_from_window_depth,
+                                   tile_edges, tile_reduce, unproject)
 from hard_cases import EMPTY_CASES, HARD_CASES, camera, point, sun, town
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -205,7 +205,7 @@ def test_tiles_take_the_min_and_max_of_their_samples():
     far = np.full((32, 64), -np.inf)
     near[3, 5], far[3, 5] = 4.0, 6.0
     near[4, 6], far[4, 6] = 2.0, 3.0
-    region = region_from_eye_depths(view, near, far, 8, "given")
+    region = VisibleRegion(TileDepths(tile_edges(64, 8), tile_edges(32, 8), *tile_reduce(near, far, 8)), "given")
     assert region.tiles.seen.sum() == 1
     assert region.depth_range == (2.0, 6.0)
     x0, x1, y0, y1 = region.screen

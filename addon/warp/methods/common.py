@@ -1,7 +1,5 @@
-"""What the methods share: each light frame's unwarped map, fitted to the
-frame's part of B (Scherzer §4.1's focusing), the uniform method's maps (the
-fallback of the others), and the note every method records for a frame whose
-near plane had to be clamped."""
+"""What the methods share: each light frame's unwarped map fitted to its part of
+B (Scherzer §4.1's focusing), the uniform method's maps, the near-plane note."""
 from __future__ import annotations
 
 import math
@@ -30,11 +28,9 @@ def near_plane_notes(frames: list[LightFrame], prefix: str = "") -> list[tuple[s
 
 def frame_maps(frames: list[LightFrame], size: tuple[int, int], snap: bool = False,
                linear_z: bool = False) -> list[ShadowMap]:
-    """The unwarped map of each light frame, fitted to the frame's points
-    (``fit``: the unit-cube fit), a point light's cube faces all at once. With
-    ``snap``, an orthographic frame's window is snapped to whole texels
-    (``snapped_window``); with ``linear_z``, each map stores the frame's linear
-    depth (``linear_depth.frame_depth_row``, Scherzer §4.2)."""
+    """The unwarped map of each light frame, fitted to its points (cube faces at once);
+    ``snap``: an orthographic window on whole texels; ``linear_z``: each map's
+    linear depth row (Scherzer §4.2)."""
     if len(frames) > 1:
         fitted = fit_runs(np.array([f.to_light for f in frames]), *point_runs([f.points for f in frames]))
         maps = [ShadowMap(m, size, "LESS", f.role) for m, f in zip(fitted, frames)]
@@ -68,8 +64,7 @@ def snapped_window(lo: np.ndarray, hi: np.ndarray, size: tuple[int, int]) -> tup
 
 def uniform_maps(view: View, light: Light, body: IntersectionBody,
                  options: WarpOptions) -> tuple[list[ShadowMap], list[LightFrame]]:
-    """The uniform method's maps and the light frames they are fitted in (PSM
-    hands over to them where its own map cannot be made, and reports on its own)."""
+    """The uniform method's maps and their light frames (PSM's fallback too)."""
     if options.texel_snapping and light.is_directional:
         frames = [world_sun_frame(light, body)]      # a texel grid fixed in the world
     else:
