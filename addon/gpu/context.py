@@ -13,7 +13,12 @@ context is already active and this is a no-op.
 """
 from __future__ import annotations
 
+import contextlib
 import logging
+import os
+import re
+import sys
+import tempfile
 
 from ..warp.types import WarpError
 
@@ -34,6 +39,35 @@ def gpu_available() -> bool:
         return True
     except SystemError:
         return False
+
+
+EGL_NOISE = re.compile(r"^EGL Error \(0x3009\): EGL_BAD_MATCH")
+"""Mesa prints this three times when the context starts in background mode; it is harmless (shared notes §1)."""
+
+
+@contextlib.contextmanager
+def _without_egl_noise():
+    """File descriptors 1 and 2 (Blender's and Mesa's C output) into a temporary
+    file for the block, then every line but :data:`EGL_NOISE` on to stderr."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = {fd: os.dup(fd) for fd in (1, 2)}
+    with tempfile.TemporaryFile() as sink:
+        try:
+            for fd in saved:
+                os.dup2(sink.fileno(), fd)
+            yield
+        finally:
+            sys.stdout.flush()
+            sys.stderr.flush()
+            for fd, keep in saved.items():
+                os.dup2(keep, fd)
+                os.close(keep)
+            sink.seek(0)
+            kept = [ln for ln in sink.read().decode("utf-8", "replace").splitlines() if not EGL_NOISE.match(ln)]
+            if kept:
+                sys.stderr.write("\n".join(kept) + "\n")
+                sys.stderr.flush()
 
 
 def ensure_gpu_context() -> None:
@@ -72,7 +106,8 @@ def ensure_gpu_context() -> None:
         scene.render.engine = _BOOT_ENGINE
         scene.render.resolution_x = scene.render.resolution_y = 4
         scene.render.resolution_percentage = 100
-        bpy.ops.render.render(scene=scene.name)
+        with _without_egl_noise():
+            bpy.ops.render.render(scene=scene.name)
     except Exception as exc:  # noqa: BLE001
         raise GPUUnavailableError(f"Lixel could not start the GPU ({exc}): run Blender with a working OpenGL "
                                   f"driver (Mesa llvmpipe works without a graphics card)") from None

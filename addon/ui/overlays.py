@@ -23,6 +23,7 @@ import bpy
 import numpy as np
 from bpy.app.handlers import persistent
 
+from ..gpu.layout import Member, Struct
 from ..guard import guarded_callback, user_message
 from . import live
 
@@ -101,7 +102,7 @@ void main()
   int found = -1;
   vec2 texel = vec2(0.0);
   for (int i = 0; i < u_count; i++) {
-    vec4 c = u_light[i] * vec4(v_world, 1.0);
+    vec4 c = u_maps.light[i] * vec4(v_world, 1.0);
     if (c.w <= 0.0) continue;
     vec3 ndc = c.xyz / c.w;
     if (any(greaterThan(abs(ndc), vec3(1.0)))) continue;
@@ -135,6 +136,9 @@ void main()
 
 MAX_SHADER_MAPS = 6
 """The checker/heatmap shader serves up to this many maps (a point light's cube faces)."""
+OVERLAY_MAPS = Struct("LixelOverlayMaps", (
+    Member("light", "mat4", "world -> light clip of each map, in selection order", MAX_SHADER_MAPS),),
+    doc="The checker/heatmap shader's maps: a uniform block (push constants hold at most 128 bytes).")
 
 HEATMAP_LOG2_RANGE = 2.0
 """The footprint heatmap spans log2(screen pixels per texel) from -this to +this."""
@@ -170,7 +174,8 @@ def texel_shader():
         info.vertex_in(0, "VEC3", "pos")
         info.vertex_out(iface)
         info.push_constant("MAT4", "u_view_projection")
-        info.push_constant("MAT4", "u_light", MAX_SHADER_MAPS)
+        info.typedef_source(OVERLAY_MAPS.glsl())
+        info.uniform_buf(0, OVERLAY_MAPS.name, "u_maps")
         info.push_constant("VEC2", "u_size")
         info.push_constant("INT", "u_count")
         info.push_constant("INT", "u_mode")
@@ -467,10 +472,18 @@ def receiver_triangles_of(scene, st) -> np.ndarray:
     return hit[1]
 
 
+def _maps_block(maps):
+    """The maps' matrices as the shader's uniform block (:data:`OVERLAY_MAPS`)."""
+    import gpu
+    block = OVERLAY_MAPS.block()
+    for i, m in enumerate(maps):
+        block.light[i][:] = np.asarray(m.matrix, dtype=np.float64).T  # a row per column (GLSL is column-major)
+    return gpu.types.GPUUniformBuf(block.float32().tobytes())
+
+
 def _draw_receivers(scene, st, props, view_projection):
     """The texel-parity checker and/or footprint heatmap on every receiver, with
     the receiver shader (per-fragment map selection and divide)."""
-    import gpu
     import mathutils
     from gpu_extras.batch import batch_for_shader
     shader = texel_shader()
@@ -484,11 +497,7 @@ def _draw_receivers(scene, st, props, view_projection):
     maps = st.setup.maps[:MAX_SHADER_MAPS]
     shader.bind()
     shader.uniform_float("u_view_projection", mathutils.Matrix(np.asarray(view_projection, dtype=np.float64).tolist()))
-    flat = np.zeros((MAX_SHADER_MAPS, 16), dtype=np.float32)
-    for i, m in enumerate(maps):
-        flat[i] = np.asarray(m.matrix, dtype=np.float64).T.ravel()  # column-major for GLSL
-    shader.uniform_vector_float(shader.uniform_from_name("u_light"),
-                                gpu.types.Buffer("FLOAT", MAX_SHADER_MAPS * 16, flat.ravel()), 16, MAX_SHADER_MAPS)
+    shader.uniform_block("u_maps", _cached(scene.name, "maps", st.generation, lambda: _maps_block(maps)))
     shader.uniform_float("u_size", tuple(float(v) for v in maps[0].size))
     shader.uniform_int("u_count", len(maps))
     shader.uniform_float("u_alpha", RECEIVER_ALPHA)

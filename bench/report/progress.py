@@ -33,7 +33,6 @@ NOISE = (
     re.compile(r"\|\s*Saved:"),                           # 5.0 image saves (outside any timing)
     re.compile(r"^Saved:"),
     re.compile(r"^\s*Time: \d\d:\d\d"),                   # render summaries
-    re.compile(r"^Push constants have a minimum supported size"),  # the overlay shader's push constants (GL is fine)
     re.compile(r"^\s*$"),
 )
 """Lines Blender prints that say nothing a report user needs (shared notes §1, §8.9)."""
