@@ -33,6 +33,21 @@ log = logging.getLogger(__name__)
 
 INPUTS = ("view", "light", "bounds", "settings")
 
+NOTE_KINDS = ("λ guard",)
+"""Entries of ``Diagnostics.fallbacks`` that are notes, not fallbacks: the method kept its own
+construction and adjusted a parameter (the λ guard raising λ so the warp is no worse than the
+uniform map, docs/papers.md "The λ guard")."""
+
+
+def fallbacks_and_notes(diagnostics) -> tuple[list, list]:
+    """The diagnostics' (what, reason) pairs split into what the method did
+    instead of its own construction, and notes (:data:`NOTE_KINDS`)."""
+    fallbacks, notes = [], []
+    for what, why in diagnostics.fallbacks:
+        (notes if what.split(": ")[-1] in NOTE_KINDS else fallbacks).append((what, why))
+    return fallbacks, notes
+
+
 def scene_geometry(depsgraph):
     """The evaluated scene's triangles without Lixel's debug objects, from the
     scene cache the render engine uses too (``addon.scene.geometry.shared_cache``).
@@ -256,8 +271,9 @@ def readouts(st: Optional[LiveState]) -> list[tuple[str, str]]:
         rows.append(("Texel footprint", f"median {st.footprint['median']:.3g} px, max {st.footprint['max']:.3g} px"))
     else:
         rows.append(("Texel footprint", "—"))
-    for what, why in d.fallbacks:
-        rows.append(("Fallback", f"{what}: {why}"))
+    fallbacks, notes = fallbacks_and_notes(d)
+    rows += [("Fallback", f"{what}: {why}") for what, why in fallbacks]
+    rows += [("Note", f"{what}: {why}") for what, why in notes]
     rows.append(("Last update", f"{st.total_ms():.1f} ms ({', '.join(st.recomputed) or 'nothing changed'})"))
     for k, v in st.timings.items():
         rows.append((f"  {k}", f"{v:.2f} ms"))
@@ -282,8 +298,9 @@ def compare_methods(st: LiveState, methods=None) -> list[dict]:
             continue
         row["warp_ms"] = (time.perf_counter() - t0) * 1000.0
         d = setup.diagnostics
+        fallbacks, notes = fallbacks_and_notes(d)
         row.update(theta=d.theta, gamma=d.gamma, n_opt=d.n_opt, lam=d.lam, maps=len(setup.maps),
-                   fallbacks=[f"{w}: {r}" for w, r in d.fallbacks])
+                   fallbacks=[f"{w}: {r}" for w, r in fallbacks], notes=[f"{w}: {r}" for w, r in notes])
         fp = footprint_estimate(setup, st.view, st.light, _r_sample(st.body))
         row["footprint_median_px"] = None if fp is None else fp["median"]
         row["footprint_max_px"] = None if fp is None else fp["max"]

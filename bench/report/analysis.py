@@ -154,7 +154,9 @@ def explain(rec: dict, ref: dict, ref_label: str) -> Optional[str]:
             f"{'∞' if math.isinf(er) else f'{er:.2f}'}× ({na}).")
     why = []
     for what, reason in rec.get("fallbacks", []):
-        why.append(f"the method notes a fallback ({what}: {reason})")
+        why.append(f"the method fell back ({what}: {reason})")
+    for what, reason in rec.get("notes", []):
+        why.append(f"the method notes {what}: {reason}")
     if a["unserved"] is not None and a["unserved"] > 0.25:
         why.append(f"{_pct(a['unserved'])} of its wrong pixels are served by no map (a coverage gap)")
     if a["interior_false_light"] is not None and a["interior_false_light"] > 0.5:

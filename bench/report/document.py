@@ -52,6 +52,8 @@ DEFINITIONS = [
                        "GMNPR/GLPR parameter. Empty where a method has none."),
     ("Fallbacks", "what a method did instead of its own construction, with its reason (from the method's "
                   "diagnostics); a method that fell back is marked ⚠ wherever it appears."),
+    ("Notes", "what a method adjusted within its own construction, e.g. the λ guard raising λ where the method's "
+              "own λ would alias worse than the uniform map (docs/papers.md, 'The λ guard'); not marked ⚠."),
     ("times", "every timed point is the median of repeated runs, with min and max. What is timed — Lixel: the "
               "LIXEL render engine's whole F12 frame (addon.render.engine.render_depsgraph as the engine calls it): "
               "geometry from the cache, the scene described, the camera pre-pass, B and the warp, depth pass, "
@@ -126,8 +128,15 @@ class Block:
     extra: object = None
 
 
+def _remarks(r: dict) -> str:
+    """The diagnostics table's last cell: the method run instead, its fallbacks, its notes, the render's warnings."""
+    ran = [f"ran as {r['method_used']}"] if r.get("method_used") and r["method_used"] != r["method"] else []
+    return "; ".join(ran + [f"fallback {w}: {why}" for w, why in r.get("fallbacks", [])] +
+                     [f"note {w}: {why}" for w, why in r.get("notes", [])] + list(r.get("warnings", [])))
+
+
 def _tables(scene: dict) -> dict:
-    diag_head = ["method", "map", "maps (roles)", "θ", "γ", "n_opt", "λ", "fallbacks and warnings"]
+    diag_head = ["method", "map", "maps (roles)", "θ", "γ", "n_opt", "λ", "fallbacks, notes and warnings"]
     diag = []
     for r in scene["methods"]:
         m, size = _label(r)
@@ -136,12 +145,9 @@ def _tables(scene: dict) -> dict:
             continue
         d = r["diagnostics"]
         roles = ", ".join(x["role"] for x in r["maps"])
-        notes = [f"{w}: {why}" for w, why in r.get("fallbacks", [])] + list(r.get("warnings", []))
-        if r.get("method_used") and r["method_used"] != r["method"]:
-            notes.insert(0, f"ran as {r['method_used']}")
         diag.append([m, size, f"{len(r['maps'])} ({roles})", _num(d["theta_deg"], "{:.1f}°"),
                      _num(d["gamma_deg"], "{:.1f}°"), _num(d["n_opt"], "{:.4g}"), _num(d["lam"], "{:.4g}"),
-                     "; ".join(notes)])
+                     _remarks(r)])
     fe_head = ["method", "map", "footprint p95 [px]", "edge p95 [px]", "fp > 1 %", "error %", "false light",
                "false shadow", "at edges %", "unserved %", "where footprint and error disagree"]
     fe = []

@@ -308,6 +308,7 @@ def _method(run: SceneRun, method: str, size: int, lit: np.ndarray, gpu_error: O
     import bpy
     from addon.measure import classify, flicker, footprint_stats, lloyd, setup_footprints
     from addon.measure.footprint import perspective_footprints
+    from addon.ui.live import fallbacks_and_notes
     from . import analysis
     from .lixel import frame, report_settings
 
@@ -342,11 +343,12 @@ def _method(run: SceneRun, method: str, size: int, lit: np.ndarray, gpu_error: O
         fp_img[gt.valid] = fp
         texels = float(sum(int(m.size[0]) * int(m.size[1]) for m in setup.maps))
         errs = classify(fr.shadow, gt.shadow, comp, opts.band_radius)
+        fallbacks, notes = fallbacks_and_notes(setup.diagnostics)
         rec.update(
             method_used=fr.method,
             maps=[{"role": m.role, "size": [int(v) for v in m.size]} for m in setup.maps],
             texels=texels, diagnostics=diagnostics(setup),
-            fallbacks=[list(x) for x in setup.diagnostics.fallbacks],
+            fallbacks=[list(x) for x in fallbacks], notes=[list(x) for x in notes],
             warnings=fr.warnings,
             errors=errs.to_json(),
             footprint_lit=analysis.footprint_summary(fp_img, lit),
@@ -381,6 +383,7 @@ def _say_method(progress: Progress, label: str, rec: dict) -> None:
         return
     e, fp = rec["errors"], rec["footprint_lit"]
     fb = f"; FALLBACK: {rec['fallbacks'][0][1]}" if rec["fallbacks"] else ""
+    fb += "".join(f"; note ({what}): {why.split(':')[0]}" for what, why in rec.get("notes", []))
     progress.log(f"{label}: {rec['method']} @ {rec['size']}: {100 * e['error_rate']:.2f} % wrong "
                  f"({e['false_light']} false light, {e['false_shadow']} false shadow), footprint p95 "
                  f"{fp['p95']:.2f} px, {len(rec['maps'])} map(s){fb}")

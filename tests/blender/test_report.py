@@ -101,6 +101,26 @@ def test_no_egl_noise_on_the_terminal(report):
     _, stdout, stderr = report
     assert "EGL Error" not in stdout + stderr
     assert "Read blend" not in stdout + stderr
+    assert "Push constants" not in stdout + stderr   # the overlay shader's maps ride in a uniform block
+
+
+def test_the_lambda_guard_is_a_note_not_a_fallback():
+    """The λ guard raising λ keeps the method's own construction: the report lists
+    it as a note, without the ⚠ that marks a method that fell back."""
+    from addon.ui.live import fallbacks_and_notes
+    from addon.warp.diagnostics import Diagnostics
+    from bench.report.document import _label, _remarks, _warnings
+    d = Diagnostics("lispsm", fallbacks=[("split0:main: λ guard", "λ raised from 0.46 to 0.89: below it ..."),
+                                         ("main: uniform", "B has no extent along the view")])
+    fallbacks, notes = fallbacks_and_notes(d)
+    assert fallbacks == [("main: uniform", "B has no extent along the view")]
+    assert notes == [("split0:main: λ guard", "λ raised from 0.46 to 0.89: below it ...")]
+    rec = {"method": "lispsm", "size": 64, "status": "ok", "maps": [{"role": "main", "size": [64, 64]}],
+           "texels": 4096.0, "fallbacks": [], "notes": [list(n) for n in notes], "warnings": [],
+           "diagnostics": {"theta_deg": 81.0, "gamma_deg": 81.0, "n_opt": 59.9, "lam": None}}
+    assert _label(rec)[0] == "lispsm" and _warnings({"methods": [rec]}) == []
+    assert _label(dict(rec, fallbacks=[list(f) for f in fallbacks]))[0] == "lispsm ⚠"
+    assert _remarks(rec).startswith("note split0:main: λ guard: λ raised from 0.46 to 0.89")
 
 
 @pytest.mark.parametrize("bad", [["--scene", "nosuchscene"], ["--methods", "uniform,nosuchmethod"],
