@@ -11,7 +11,7 @@ caster boxes, and checks what an outside evaluation checks:
   ray lies in that *same* map (else the map cannot shadow it) with a depth that
   wins the map's depth test against the receiver;
 * texel footprint - screen pixels per texel at each visible point
-  (``addon.warp.aliasing.setup_texel_footprint``), summarised at p95 and max.
+  (``footprint.setup_texel_footprint``), summarised at p95 and max.
 """
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..warp.aliasing import setup_texel_footprint
+from .footprint import setup_texel_footprint
 from ..warp.geometry import transform_h, transform_points
 from ..warp.rays import ray_boxes
 from ..warp.types import Light, SceneBounds, ShadowSetup, View

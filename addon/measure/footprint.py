@@ -1,9 +1,8 @@
 """Texel footprint per pixel (screen pixels per texel) for the report: statistics,
 Lloyd's orientation-free perspective factor, and the per-setup wrappers.
 
-The footprint formula itself lives in the warp core, ``addon/warp/aliasing.py``
-(one place per formula): with T an orthonormal tangent basis at a surface point,
-G = D_view·T (pixels per length), H = D_map·T (texels per length), the footprint
+The footprint formula (:func:`texel_footprint`): with T an orthonormal tangent
+basis at a surface point, G = D_view·T (pixels per length), H = D_map·T (texels per length), the footprint
 is σ_max(G·H⁻¹), the screen length in pixels of one texel step in the worst
 direction (Lloyd's per-point aliasing factor; Stamminger & Drettakis §1.1's
 dp = ds·r_s·cosβ/(r_i·cosα) is its 1D form), and |det G|/|det H| its area
@@ -16,7 +15,70 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..warp.aliasing import perspective_aliasing, texel_footprint, texel_footprint_area
+from ..warp.aliasing import perspective_aliasing, raster_jacobian
+
+
+def tangent_basis(normals) -> np.ndarray:
+    """(N, 3, 2): two orthonormal tangent vectors per normal."""
+    nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    nrm = nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
+    helper = np.where(np.abs(nrm[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
+    t1 = np.cross(nrm, helper)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t2 = np.cross(nrm, t1)
+    return np.stack([t1, t2], axis=2)
+
+
+def _surface_jacobians(view, shadow_map, points, normals):
+    t = tangent_basis(normals)
+    g = raster_jacobian(view.world_to_clip, view.resolution, points) @ t     # pixels per length
+    h = raster_jacobian(shadow_map.matrix, shadow_map.size, points) @ t      # texels per length
+    return g, h
+
+
+def texel_footprint(view, shadow_map, points, normals) -> np.ndarray:
+    """Screen pixels per texel, σ_max(G·H⁻¹), at (N, 3) surface ``points`` with ``normals``
+    (+inf edge-on to the map, NaN where w <= 0 for the camera or the map)."""
+    g, h = _surface_jacobians(view, shadow_map, points, normals)
+    out = np.full(len(g), np.nan)
+    valid = np.all(np.isfinite(g), axis=(1, 2)) & np.all(np.isfinite(h), axis=(1, 2))
+    det_h = np.zeros(len(g))
+    det_h[valid] = np.linalg.det(h[valid])
+    scale = np.max(np.abs(h), axis=(1, 2), initial=0.0, where=np.isfinite(h))
+    singular = valid & (np.abs(det_h) <= 1e-14 * scale ** 2)
+    out[singular] = np.inf
+    ok = valid & ~singular
+    if ok.any():
+        hi = h[ok]
+        adj = np.stack([np.stack([hi[:, 1, 1], -hi[:, 0, 1]], axis=1),
+                        np.stack([-hi[:, 1, 0], hi[:, 0, 0]], axis=1)], axis=1)
+        j = g[ok] @ adj / det_h[ok][:, None, None]                            # d pixel / d texel
+        out[ok] = np.linalg.svd(j, compute_uv=False)[:, 0]
+    return out
+
+
+def texel_footprint_area(view, shadow_map, points, normals) -> np.ndarray:
+    """Screen pixels per texel by area, |det G| / |det H| (+inf edge-on, NaN where w <= 0)."""
+    g, h = _surface_jacobians(view, shadow_map, points, normals)
+    out = np.full(len(g), np.nan)
+    valid = np.all(np.isfinite(g), axis=(1, 2)) & np.all(np.isfinite(h), axis=(1, 2))
+    if valid.any():
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out[valid] = np.abs(np.linalg.det(g[valid])) / np.abs(np.linalg.det(h[valid]))
+    return out
+
+
+def setup_texel_footprint(view, setup, points, normals) -> np.ndarray:
+    """:func:`texel_footprint` of a ShadowSetup, each point in the map that serves it (NaN: none)."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    idx = setup.map_index(pts, view)
+    out = np.full(len(pts), np.nan)
+    for i, m in enumerate(setup.maps):
+        sel = idx == i
+        if sel.any():
+            out[sel] = texel_footprint(view, m, pts[sel], nrm[sel])
+    return out
 
 
 def setup_footprints(view, setup, points, normals, map_index=None):

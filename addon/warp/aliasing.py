@@ -8,11 +8,8 @@
    Scherzer §4.4 Eq. 1 as :func:`lispsm_inverse_n_opt`. The model itself (Eq. 2's
    F, ψ, φ) lives with the tests that check the rules: tests/warp/aliasing_model.py.
    Corrections and derivations: docs/papers.md.
-2. The texel footprint of a real map at a surface point: with G = D_view·T and
-   H = D_map·T (raster Jacobians on a tangent basis T), σ_max(G·H⁻¹), screen
-   pixels per texel step in its worst direction (PSM §1.1's dp = ds·r_s·cosβ/(r_i·cosα)
-   in 2D); +inf edge-on to the map, NaN behind the camera or the map.
-3. Lloyd's perspective aliasing factor m(p) = sqrt(K / z² / |det H⊥|), densities
+2. The raster Jacobian of a map (:func:`raster_jacobian`), from which
+   ``addon/measure/footprint.py`` measures the texel footprint, and Lloyd's perspective aliasing factor m(p) = sqrt(K / z² / |det H⊥|), densities
    on the plane across the light ray (:func:`perspective_aliasing`)."""
 from __future__ import annotations
 
@@ -119,18 +116,7 @@ def lambda_no_worse_on_average(delta, weights=None) -> float:
     return float(real.max()) if len(real) else 0.0
 
 
-# ---------------------------------------------------------------- texel footprint
-
-def tangent_basis(normals) -> np.ndarray:
-    """(N, 3, 2): two orthonormal tangent vectors per normal."""
-    nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
-    nrm = nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
-    helper = np.where(np.abs(nrm[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
-    t1 = np.cross(nrm, helper)
-    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
-    t2 = np.cross(nrm, t1)
-    return np.stack([t1, t2], axis=2)
-
+# ---------------------------------------------------------------- raster densities
 
 def raster_jacobian(matrix, size, points) -> np.ndarray:
     """(N, 2, 3) d(raster)/d(world) of the projective ``matrix`` onto a ``size`` raster,
@@ -143,45 +129,6 @@ def raster_jacobian(matrix, size, points) -> np.ndarray:
     d = (m[None, :2, :3] - ndc[:, :, None] * m[None, 3:4, :3]) / w[:, None, None]
     scale = np.array([size[0], size[1]], dtype=np.float64) / 2.0
     return d * scale[None, :, None]
-
-
-def _surface_jacobians(view, shadow_map, points, normals):
-    t = tangent_basis(normals)
-    g = raster_jacobian(view.world_to_clip, view.resolution, points) @ t     # pixels per length
-    h = raster_jacobian(shadow_map.matrix, shadow_map.size, points) @ t      # texels per length
-    return g, h
-
-
-def texel_footprint(view, shadow_map, points, normals) -> np.ndarray:
-    """Screen pixels per texel, σ_max(G·H⁻¹), at (N, 3) surface ``points`` with ``normals``
-    (+inf edge-on to the map, NaN where w <= 0 for the camera or the map)."""
-    g, h = _surface_jacobians(view, shadow_map, points, normals)
-    out = np.full(len(g), np.nan)
-    valid = np.all(np.isfinite(g), axis=(1, 2)) & np.all(np.isfinite(h), axis=(1, 2))
-    det_h = np.zeros(len(g))
-    det_h[valid] = np.linalg.det(h[valid])
-    scale = np.max(np.abs(h), axis=(1, 2), initial=0.0, where=np.isfinite(h))
-    singular = valid & (np.abs(det_h) <= 1e-14 * scale ** 2)
-    out[singular] = np.inf
-    ok = valid & ~singular
-    if ok.any():
-        hi = h[ok]
-        adj = np.stack([np.stack([hi[:, 1, 1], -hi[:, 0, 1]], axis=1),
-                        np.stack([-hi[:, 1, 0], hi[:, 0, 0]], axis=1)], axis=1)
-        j = g[ok] @ adj / det_h[ok][:, None, None]                            # d pixel / d texel
-        out[ok] = np.linalg.svd(j, compute_uv=False)[:, 0]
-    return out
-
-
-def texel_footprint_area(view, shadow_map, points, normals) -> np.ndarray:
-    """Screen pixels per texel by area, |det G| / |det H| (+inf edge-on, NaN where w <= 0)."""
-    g, h = _surface_jacobians(view, shadow_map, points, normals)
-    out = np.full(len(g), np.nan)
-    valid = np.all(np.isfinite(g), axis=(1, 2)) & np.all(np.isfinite(h), axis=(1, 2))
-    if valid.any():
-        with np.errstate(divide="ignore", invalid="ignore"):
-            out[valid] = np.abs(np.linalg.det(g[valid])) / np.abs(np.linalg.det(h[valid]))
-    return out
 
 
 def pixel_density_constant(view) -> float:
@@ -203,16 +150,3 @@ def perspective_aliasing(view, light, matrix, size, points) -> np.ndarray:
     needed = np.full(len(pts), k) if view.orthographic else k / view.eye_depth(pts) ** 2
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.sqrt(needed / given)
-
-
-def setup_texel_footprint(view, setup, points, normals) -> np.ndarray:
-    """:func:`texel_footprint` of a ShadowSetup, each point in the map that serves it (NaN: none)."""
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
-    idx = setup.map_index(pts, view)
-    out = np.full(len(pts), np.nan)
-    for i, m in enumerate(setup.maps):
-        sel = idx == i
-        if sel.any():
-            out[sel] = texel_footprint(view, m, pts[sel], nrm[sel])
-    return out

@@ -4,6 +4,7 @@ import math
 import numpy as np
 import pytest
 
+from addon.measure import footprint
 from addon.warp import aliasing as al
 import aliasing_model as model
 from addon.warp.geometry import look_along, ortho_matrix
@@ -162,8 +163,8 @@ def test_top_down_sun_over_a_plane_with_a_uniform_map_has_a_constant_known_footp
     normals = np.tile([0.0, 0.0, 1.0], (400, 1))
     pixel = 2 * half_h / res[1]                        # world length of a screen pixel on the plane
     texel_x, texel_y = 40.0 / 1024, 40.0 / 512
-    lin = al.texel_footprint(view, sm, pts, normals)
-    area = al.texel_footprint_area(view, sm, pts, normals)
+    lin = footprint.texel_footprint(view, sm, pts, normals)
+    area = footprint.texel_footprint_area(view, sm, pts, normals)
     assert np.allclose(lin, max(texel_x, texel_y) / pixel, rtol=1e-9)
     assert np.allclose(area, texel_x * texel_y / pixel ** 2, rtol=1e-9)
 
@@ -178,8 +179,8 @@ def test_footprint_is_the_worst_direction_for_an_oblique_sun():
     normals = np.tile([0.0, 0.0, 1.0], (2, 1))
     pixel = 2 * 10.0 * math.tan(math.radians(30)) / 800
     texel = 20.0 / 1000
-    assert np.allclose(al.texel_footprint(view, sm, pts, normals), texel / math.cos(math.radians(60)) / pixel, rtol=1e-9)
-    assert np.allclose(al.texel_footprint_area(view, sm, pts, normals),
+    assert np.allclose(footprint.texel_footprint(view, sm, pts, normals), texel / math.cos(math.radians(60)) / pixel, rtol=1e-9)
+    assert np.allclose(footprint.texel_footprint_area(view, sm, pts, normals),
                        texel ** 2 / math.cos(math.radians(60)) / pixel ** 2, rtol=1e-9)
 
 
@@ -188,7 +189,7 @@ def test_footprint_is_inf_edge_on_to_the_map_and_nan_behind_the_camera():
     sm = _sun_map(10.0, (512, 512))
     pts = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 20.0]])            # the second is behind the camera
     normals = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])         # the first is a wall parallel to the light
-    fp = al.texel_footprint(view, sm, pts, normals)
+    fp = footprint.texel_footprint(view, sm, pts, normals)
     assert fp[0] == math.inf
     assert math.isnan(fp[1])
 

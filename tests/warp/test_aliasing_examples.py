@@ -1,6 +1,6 @@
 """The warps beat uniform where the papers say they should: on the bundled example
 configs with the light near perpendicular to the view (θ near 90°), the 95th
-percentile of the texel footprint (aliasing.texel_footprint, screen pixels per
+percentile of the texel footprint (measure.footprint.texel_footprint, screen pixels per
 texel) on the visible surfaces is clearly lower for lispsm and gmnpr."""
 import json
 import math
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from addon.warp import compute, intersection_body
-from addon.warp.aliasing import setup_texel_footprint
+from addon.measure.footprint import setup_texel_footprint
 from addon.cli.config import parse_config
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"

@@ -1,5 +1,5 @@
 """PSM against the uniform map on the example configs: texel footprint (screen
-pixels per texel, ``aliasing.texel_footprint``) at the visible surface points,
+pixels per texel, ``measure.footprint.texel_footprint``) at the visible surface points,
 float32 upload error and orientation (winding) of the map."""
 import json
 import math
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from addon.warp import compute, intersection_body
-from addon.warp.aliasing import setup_texel_footprint
+from addon.measure.footprint import setup_texel_footprint
 from addon.cli.config import parse_config
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
