@@ -11,7 +11,9 @@ point or spot light): the independent judge (``addon.measure.box_scene``)
 measures coverage and the p95 texel footprint of the cascade with
 ``--splits`` splits, each map of the config's size, and of the classic PSSM
 (``bench.reference_pssm``) with as many maps of the same size: equal texels.
-It also runs the cascade with a shared budget of the same total texels.
+It also runs the cascade with a shared budget of the same total texels, and
+reports beside the footprint the p95 of Lloyd's perspective aliasing alone
+(``perspective_p95``), the part a partition and its warps act on.
 Criteria: coverage everywhere, p95 <= 0.8x the reference on every normal
 configuration and <= 1.0x on every hard one (the named hard cases, and any
 configuration with a point or spot light inside the view: ``light_in_view``).
@@ -135,14 +137,34 @@ def judge_configurations(generated: int) -> list:
     return out
 
 
+def perspective_p95(view, light, scene, setup, samples=(96, 54)) -> float:
+    """p95 of Lloyd's perspective aliasing m (``aliasing.perspective_aliasing``, what the
+    cascade's model predicts) over the judge's visible points, each in the map serving it.
+    The judge's footprint adds projection aliasing (the surface's tilt to the light and
+    the view), which no split or warp changes on an edge-on surface."""
+    from addon.measure.box_scene import visible_points
+    from addon.warp.aliasing import perspective_aliasing
+    pts, _ = visible_points(view, scene, samples)
+    if light.type == "SPOT":
+        pts = pts[light.rays_to(pts) @ light.direction >= np.cos(light.spot_angle / 2)]
+    served = setup.map_index(pts, view, 1e-7)
+    m = np.full(len(pts), np.nan)
+    for i, shadow_map in enumerate(setup.maps):
+        mine = served == i
+        m[mine] = perspective_aliasing(view, light, shadow_map.matrix, shadow_map.size, pts[mine])
+    return float(np.nanpercentile(m, 95))
+
+
 def run_judge(splits: int, size: int, generated: int, samples=(96, 54), log=print) -> list:
     from addon.measure.box_scene import judge
     from addon.warp import WarpOptions, compute
     from bench.reference_pssm import reference_pssm
     rows = []
     for name, kind, view, light, scene in judge_configurations(generated):
-        ref = judge(view, light, scene, reference_pssm(view, light, scene, size, splits), samples=samples)
-        row = {"config": name, "kind": kind, "reference_p95": ref.footprint_p95}
+        reference = reference_pssm(view, light, scene, size, splits)
+        ref = judge(view, light, scene, reference, samples=samples)
+        row = {"config": name, "kind": kind, "reference_p95": ref.footprint_p95,
+               "reference_perspective_p95": perspective_p95(view, light, scene, reference, samples)}
         for budget, total in (("per_map", size), ("shared", None)):
             options = WarpOptions(shadow_map_size=size, cascade_splits=splits, cascade_budget=budget)
             t = time.thread_time()
@@ -157,13 +179,15 @@ def run_judge(splits: int, size: int, generated: int, samples=(96, 54), log=prin
                            "uncovered": j.uncovered, "casters_uncovered": j.casters_uncovered,
                            "depth_order_wrong": j.depth_order_wrong, "visible": j.visible,
                            "maps": len(setup.maps), "warps": setup.diagnostics.extra["split_warps"],
-                           "cpu_ms": 1000 * seconds}
+                           "cpu_ms": 1000 * seconds,
+                           "perspective_ratio": perspective_p95(view, light, scene, setup, samples)
+                           / row["reference_perspective_p95"]}
             row["_maps"] = setup.maps if budget == "per_map" else row["_maps"]
         del row["_maps"]
         rows.append(row)
         p, s = row["per_map"], row["shared"]
         log(f"{name:34s} {kind:6s} ref p95 {ref.footprint_p95:9.3f}  cascade {p['ratio']:5.2f}x "
-            f"(shared {s['ratio']:5.2f}x)  cover {p['uncovered']},{p['casters_uncovered']},{p['depth_order_wrong']}  "
+            f"(shared {s['ratio']:5.2f}x; Lloyd's m p95 {p['perspective_ratio']:5.2f}x)  cover {p['uncovered']},{p['casters_uncovered']},{p['depth_order_wrong']}  "
             f"{p['cpu_ms']:5.0f} ms  {p['warps']}")
     return rows
 
