@@ -1,7 +1,7 @@
 """An independent judge of light matrices on box scenes (numpy only).
 
 It trusts nothing the warp core computed on the way (no B, no frames, no
-visible region; only the slab test of ``addon.warp.rays`` is shared): it casts
+visible region; only the slab test of ``addon.warp.rays`` is shared, :func:`ray_boxes`): it casts
 rays through a grid of camera pixels against the scene's boxes to find the
 visible points, walks each point's shadow ray toward the light through the
 caster boxes, and checks what an outside evaluation checks:
@@ -21,8 +21,30 @@ import numpy as np
 
 from .footprint import setup_texel_footprint
 from ..warp.geometry import transform_h, transform_points
-from ..warp.rays import ray_boxes
+from ..warp.rays import first_hits, slab_intervals
 from ..warp.types import Light, SceneBounds, ShadowSetup, View
+
+
+def ray_boxes(origins, directions, t_max, boxes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Nearest hit of each ray with (M, 2, 3) boxes within [0, t_max]: (t, box, hit
+    face normal), t = inf where nothing is hit; every ray against every box."""
+    origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
+    directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3)
+    rows = np.arange(len(origins))
+    with np.errstate(divide="ignore"):
+        inverse = 1.0 / directions
+    enter, leave, axes = slab_intervals(origins[:, None, :], inverse[:, None, :],
+                                        boxes[None, :, 0, :], boxes[None, :, 1, :], entering_axis=True)
+    t = first_hits(enter, leave, np.asarray(t_max, dtype=np.float64)[:, None])
+    if t.shape[1] == 0:
+        return np.full(len(origins), np.inf), np.zeros(len(origins), dtype=np.int64), np.zeros_like(origins)
+    box = np.argmin(t, axis=1)
+    tt = t[rows, box]
+    axis = axes[rows, box]
+    normal = np.zeros_like(origins)
+    normal[rows, axis] = -np.sign(directions[rows, axis])
+    return tt, box, normal
 
 
 def pixel_rays(view: View, samples: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -49,8 +49,8 @@ PARALLEL_TWIST = 2.0
 """Weight of the camera's right vector inside the blend (see ``image_up``)."""
 
 
-def _image_up_raw(view_direction, view_up, light_direction) -> list:
-    """``image_up`` before its normalisation, as 3 floats."""
+def image_up_blend(view_direction, view_up, light_direction) -> list:
+    """``image_up`` before its normalisation, as 3 floats (its length is 0 only at the blend's singular point)."""
     d = normalize(light_direction).tolist()
     v = np.asarray(view_direction, dtype=np.float64).tolist()
     pv = across(v, d)
@@ -74,19 +74,12 @@ def image_up(view_direction, view_up, light_direction) -> np.ndarray:
     light, blended within PARALLEL_BLEND (sin 1°) of parallel as
     t V_P + (1 - t) up_cam + 2 t (1 - t) right_cam, t = |V_P| / sin 1°: the camera's
     up at exact parallel. Any continuous choice has a singular point in the blend;
-    the right-vector term puts it off plain pitch and pan paths (``image_up_singularity``)."""
-    up = _image_up_raw(view_direction, view_up, light_direction)
+    the right-vector term puts it off plain pitch and pan paths (``image_up_blend``)."""
+    up = image_up_blend(view_direction, view_up, light_direction)
     length = math.sqrt(dot3(up, up))
     if length < 1e-300:
         return np.zeros(3)
     return np.array([c / length for c in up])
-
-
-def image_up_singularity(view_direction, view_up, light_direction) -> float:
-    """The length of ``image_up``'s unnormalised blend: 0 at its singular point, 1
-    outside the blend; within ε of it a turn δ turns the map by about δ / (ε sin 1°)."""
-    up = _image_up_raw(view_direction, view_up, light_direction)
-    return math.sqrt(dot3(up, up))
 
 
 def light_angles(view: View, light_direction) -> tuple[float, float]:

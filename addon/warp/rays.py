@@ -25,36 +25,11 @@ def slab_intervals(origins, inverse_directions, lo, hi, entering_axis: bool = Fa
     return enter, leave, np.where(x == enter, 0, np.where(y == enter, 1, 2))
 
 
-def _inverse(directions) -> np.ndarray:
-    with np.errstate(divide="ignore"):
-        return 1.0 / np.asarray(directions, dtype=np.float64)
-
-
-def _first_hits(enter, leave, t_max) -> np.ndarray:
+def first_hits(enter, leave, t_max) -> np.ndarray:
     """The hit distance of each (ray, box) pair, inf where it misses in [0, t_max]."""
     t = np.where(enter >= 0, enter, leave)                  # from inside: the inner wall
     hit = (enter <= leave) & (leave >= 0) & (t <= t_max)
     return np.where(hit, t, np.inf)
-
-
-def ray_boxes(origins, directions, t_max, boxes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Nearest hit of each ray with (M, 2, 3) boxes within [0, t_max]: (t, box, hit
-    face normal), t = inf where nothing is hit; every ray against every box."""
-    origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
-    directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
-    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3)
-    rows = np.arange(len(origins))
-    enter, leave, axes = slab_intervals(origins[:, None, :], _inverse(directions)[:, None, :],
-                                        boxes[None, :, 0, :], boxes[None, :, 1, :], entering_axis=True)
-    t = _first_hits(enter, leave, np.asarray(t_max, dtype=np.float64)[:, None])
-    if t.shape[1] == 0:
-        return np.full(len(origins), np.inf), np.zeros(len(origins), dtype=np.int64), np.zeros_like(origins)
-    box = np.argmin(t, axis=1)
-    tt = t[rows, box]
-    axis = axes[rows, box]
-    normal = np.zeros_like(origins)
-    normal[rows, axis] = -np.sign(directions[rows, axis])
-    return tt, box, normal
 
 
 CHUNK = 1 << 14
@@ -81,10 +56,11 @@ def ray_index(origins, directions, t_max, index: BoxIndex, selection: Selection 
               ranks_per_round: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """Nearest hit of each ray with the boxes of a culling index (of ``selection``)
     within [0, t_max]: (t, box in the original order; inf and -1 for none), as
-    :func:`ray_boxes`. Each ray opens the clusters it meets nearest first,
+    ``addon.measure.box_scene.ray_boxes``. Each ray opens the clusters it meets nearest first,
     ``ranks_per_round`` at a time, until its hit is nearer than the next cluster."""
     o = np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3).T)
-    inv = np.ascontiguousarray(_inverse(np.asarray(directions, dtype=np.float64).reshape(-1, 3)).T)
+    with np.errstate(divide="ignore"):
+        inv = np.ascontiguousarray((1.0 / np.asarray(directions, dtype=np.float64).reshape(-1, 3)).T)
     t_max = np.asarray(t_max, dtype=np.float64).reshape(-1)
     n = o.shape[1]
     best, which = np.full(n, np.inf), np.full(n, -1, dtype=np.int64)
@@ -134,7 +110,7 @@ def ray_index(origins, directions, t_max, index: BoxIndex, selection: Selection 
             pair_ray = np.repeat(r, per)
             box = np.repeat(starts[c] - np.cumsum(per) + per, per) + np.arange(per.sum())
             e, l = _pair_intervals(o, inv, box_lo, box_hi, pair_ray, box)
-            t = _first_hits(e, l, t_max[pair_ray])
+            t = first_hits(e, l, t_max[pair_ray])
             # The pairs come ray by ray (``ray`` is sorted): each ray's nearest over its run.
             run = np.flatnonzero(np.diff(pair_ray, prepend=-1))
             nearest = np.minimum.reduceat(t, run)

@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from addon.warp import Light, SceneBounds, View
+from addon.warp.frame import image_up_blend
 from addon.warp.geometry import look_along, ortho_matrix
 
 FOV_DEG = 60.0
@@ -181,3 +182,10 @@ NONEMPTY_CASES = tuple(n for n in HARD_CASES if n not in EMPTY_CASES)
 
 def case(name: str) -> tuple[View, Light, SceneBounds]:
     return HARD_CASES[name]
+
+
+def image_up_singularity(view_direction, view_up, light_direction) -> float:
+    """How far ``frame.image_up`` is from its singular point: the length of its
+    unnormalised blend (0 at the point, 1 outside the blend); within ε of it a
+    turn δ of the camera turns the map by about δ / (ε sin 1°)."""
+    return math.hypot(*image_up_blend(view_direction, view_up, light_direction))

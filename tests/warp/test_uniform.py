@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 
 from addon.warp import View, WarpOptions, compute, focused_body, intersection_body
-from addon.warp.frame import (PARALLEL_BLEND, image_up, image_up_singularity, light_angles, light_cone,
+from addon.warp.frame import (PARALLEL_BLEND, image_up, light_angles, light_cone,
                               point_frames)
 from addon.warp.methods.common import SNAP_STEPS_PER_OCTAVE
 from addon.warp.methods.uniform import uniform
 
-from hard_cases import HARD_CASES
+from hard_cases import HARD_CASES, image_up_singularity
 
 OPTIONS = WarpOptions(shadow_map_size=(1024, 1024))
 

@@ -21,7 +21,8 @@ from addon.warp import (METHODS, SceneBounds, WarpOptions, compute, focused_body
 from addon.cli.config import parse_config
 from addon.warp.culling import BoxIndex
 from addon.warp.geometry import ortho_matrix
-from addon.warp.rays import ray_boxes, ray_index
+from addon.measure.box_scene import ray_boxes
+from addon.warp.rays import ray_index
 from addon.warp.types import EmptyBodyError, View, WarpError
 from addon.warp.visibility import (TileDepths, VisibleRegion, eye_depth_from_ndc, region_from_window_depth,
                                    tile_edges, tile_reduce, unproject)
