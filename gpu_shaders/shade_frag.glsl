@@ -239,81 +239,28 @@ LixelReceiver lixel_receiver(int i, vec3 P, vec3 N, vec3 L, vec4 h, vec2 size, b
   return r;
 }
 
-/* The receiver's reference for the taps of one fragment, in key units (the
- * stored window depth, or 1 - it for a GREATER map: smaller = nearer the
- * light) and texel indices: a tap at texel s compares with
- *   min(dot(rho, (s, 1)) / dot(sigma, (s, 1)), key) - bias
- * where the plane's ray meets it on the light's side, else key - bias. */
-struct LixelRef {
-  float key;       /* P's own key */
-  float bias;      /* the bias in key units, towards the light */
-  bool plane;      /* per-tap receiver plane (RECEIVER_PLANE) */
-  vec3 rho;        /* the plane's key on the ray through texel s: dot(rho, (s, 1)) / dot(sigma, (s, 1)), */
-  vec3 sigma;      /* the denominator positive where that ray meets the plane on the light's side */
-  vec4 rho_step;   /* rho and sigma's growth over a gather's four texels (lixel_gather_occluded) */
-  vec4 sigma_step;
-};
-
-/* rcv's NDC-space plane (p = (x_ndc, y_ndc, 1)) rewritten for texel indices
- * s (x_ndc = (s + 1/2) 2 / size - 1), keys (k = a z + 1/2 with a = 1/2, or
- * -1/2 for a GREATER map) and a positive denominator on the light's side of
- * the plane's horizon, once per fragment, so that each tap costs two dot
- * products and a comparison. */
-LixelRef lixel_ref(LixelReceiver rcv, bool plane, float bias, bool greater, vec2 size)
+/* The reference depths (window units, keys: smaller = nearer the light) of
+ * four taps at NDC (px, py): the receiver's depth there (its plane where it
+ * comes nearer the light than P, else P's own depth; see the header) moved
+ * by the bias towards the light. */
+vec4 lixel_refs(LixelReceiver rcv, bool plane, vec4 px, vec4 py, float bias, bool greater)
 {
-  LixelRef r;
-  float a = greater ? -0.5 : 0.5;
-  r.key = a * rcv.z + 0.5;
-  r.bias = 0.5 * bias;
-  r.plane = plane;
-  vec2 scale = 2.0 / size, offset = 1.0 / size - 1.0;
-  float side = rcv.det < 0.0 ? -1.0 : 1.0;
-  r.sigma = side * vec3(rcv.sigma.xy * scale, rcv.sigma.z + dot(rcv.sigma.xy, offset));
-  r.rho = a * side * vec3(rcv.rho.xy * scale, rcv.rho.z + dot(rcv.rho.xy, offset)) + 0.5 * r.sigma;
-  /* the gather's texels (c.x, c.y+1), (c.x+1, c.y+1), (c.x+1, c.y), (c.x, c.y) */
-  const vec4 dx = vec4(0.0, 1.0, 1.0, 0.0), dy = vec4(1.0, 1.0, 0.0, 0.0);
-  r.rho_step = r.rho.x * dx + r.rho.y * dy;
-  r.sigma_step = r.sigma.x * dx + r.sigma.y * dy;
-  return r;
-}
-
-/* The references of four taps at texel indices (sx, sy): the receiver's key
- * there (its plane where it comes nearer the light than P, else P's own key;
- * see the header) less the bias. */
-vec4 lixel_refs(LixelRef r, vec4 sx, vec4 sy)
-{
-  vec4 key = vec4(r.key);
-  if (r.plane) {
-    /* The receiver plane's key on the light ray through each texel's centre
-     * where the plane comes nearer the light than P; where it recedes (or the
-     * ray passes its horizon and never meets it on the light's side), P's
-     * own key: nothing farther from the light than P can shadow it, so a
-     * concave crease's other face, seen by the kernel's far taps, is not
-     * taken for an occluder. */
-    vec4 den = r.sigma.x * sx + r.sigma.y * sy + r.sigma.z;
-    vec4 plane_key = (r.rho.x * sx + r.rho.y * sy + r.rho.z) / den;
-    key = mix(key, min(plane_key, key), greaterThan(den, vec4(0.0)));  /* a select */
+  vec4 z = vec4(rcv.z);
+  if (plane) {
+    /* The receiver plane's depth on the light ray through each texel's
+     * centre where the plane comes nearer the light than P; where it recedes
+     * (or the ray passes its horizon and never meets it on the light's
+     * side), P's own depth: nothing farther from the light than P can shadow
+     * it, so a concave crease's other face, seen by the kernel's far taps,
+     * is not taken for an occluder. */
+    vec4 den = rcv.sigma.x * px + rcv.sigma.y * py + rcv.sigma.z;
+    vec4 plane_z = (rcv.rho.x * px + rcv.rho.y * py + rcv.rho.z) / den;
+    vec4 nearer = greater ? max(plane_z, z) : min(plane_z, z);
+    z = mix(z, nearer, greaterThan(den * rcv.det, vec4(0.0)));  /* a select: no arithmetic on the others */
   }
-  return key - r.bias;
-}
-
-/* Which of the four keys ``stored`` of the gather at texel c occlude P (1 or
- * 0): stored + bias below lixel_refs' reference, without its division (the
- * denominator is positive wherever the plane counts). A tap the gather clamps
- * at the map's edge (it reads the edge texel) takes the receiver's plane at
- * its unclamped texel, one texel further out: only the taps of a kernel that
- * overhangs the map's outermost texels differ from a per-tap clamp. */
-vec4 lixel_gather_occluded(LixelRef r, vec2 c, vec4 stored)
-{
-  vec4 s = stored + r.bias;
-  vec4 below_own = vec4(lessThan(s, vec4(r.key)));
-  if (!r.plane) {
-    return below_own;
-  }
-  vec4 den = dot(r.sigma, vec3(c, 1.0)) + r.sigma_step;
-  vec4 num = dot(r.rho, vec3(c, 1.0)) + r.rho_step;
-  vec4 below_plane = mix(vec4(lessThan(s * den, num)), vec4(1.0), lessThanEqual(den, vec4(0.0)));
-  return below_own * below_plane;
+  z += greater ? bias : -bias; /* towards the light */
+  vec4 d = z * 0.5 + 0.5;
+  return greater ? 1.0 - d : d;
 }
 
 vec4 lixel_footprint_colour(float texels_per_pixel)
@@ -428,15 +375,17 @@ float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
   if (slope_bias) {
     bias += lixel.bias.y * lixel.bias.z * rcv.slope;
   }
-  LixelRef ref = lixel_ref(rcv, plane_bias && rcv.det != 0.0, bias, greater, vec2(size));
+  bool plane = plane_bias && rcv.det != 0.0;
   const int k = LIXEL_PCF;
   ivec2 base = (k % 2 == 1) ? ivec2(floor(look)) - (k - 1) / 2 : ivec2(floor(look - 0.5)) - (k / 2 - 1);
+  vec2 to_ndc = 2.0 / vec2(size);
   float hits = 0.0;
 #if defined(LIXEL_MDSM) || LIXEL_PCF == 1
   for (int dy = 0; dy < k; dy++) {
     for (int dx = 0; dx < k; dx++) {
       ivec2 s = clamp(base + ivec2(dx, dy), ivec2(0), size - 1);
-      hits += lixel_test(m, s, lixel_refs(ref, vec4(s.x), vec4(s.y)).x, greater);
+      vec2 p = (vec2(s) + 0.5) * to_ndc - 1.0;
+      hits += lixel_test(m, s, lixel_refs(rcv, plane, vec4(p.x), vec4(p.y), bias, greater).x, greater);
     }
   }
 #else
@@ -445,15 +394,18 @@ float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
    * c + 1 returns (c, c+1) x (c, c+1), clamped to the edge like the taps,
    * as x = (c, c+1), y = (c+1, c+1), z = (c+1, c), w = (c, c). Taps beyond
    * k - 1 are not counted. Each of the four is compared with its own
-   * reference (lixel_gather_occluded), in one vec4. */
+   * reference (lixel_refs), in one vec4. */
   for (int gy = 0; gy < k; gy += 2) {
     for (int gx = 0; gx < k; gx += 2) {
       ivec2 c = base + ivec2(gx, gy);
       vec4 t = lixel_gather(m, (vec2(c) + 1.0) / vec2(size));
       vec4 key = greater ? 1.0 - t : t;
+      vec4 sx = clamp(vec4(c.x, c.x + 1, c.x + 1, c.x), 0.0, float(size.x - 1));
+      vec4 sy = clamp(vec4(c.y + 1, c.y + 1, c.y, c.y), 0.0, float(size.y - 1));
+      vec4 ref = lixel_refs(rcv, plane, (sx + 0.5) * to_ndc.x - 1.0, (sy + 0.5) * to_ndc.y - 1.0, bias, greater);
       vec4 counted = vec4(gy + 1 < k ? 1.0 : 0.0, (gx + 1 < k && gy + 1 < k) ? 1.0 : 0.0,
                           gx + 1 < k ? 1.0 : 0.0, 1.0);
-      hits += dot(counted, lixel_gather_occluded(ref, vec2(c), key));
+      hits += dot(counted, vec4(lessThan(key, ref)));
     }
   }
 #endif
@@ -464,7 +416,8 @@ float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
    * there, and the k x k taps would only blur it over k pixels. */
   if (lixel.maps[m].range.w > 0.5) {
     ivec2 own = ivec2(floor(tc));
-    shadow = lixel_test(m, own, lixel_refs(ref, vec4(own.x), vec4(own.y)).x, greater);
+    vec2 p = (vec2(own) + 0.5) * to_ndc - 1.0;
+    shadow = lixel_test(m, own, lixel_refs(rcv, plane, vec4(p.x), vec4(p.y), bias, greater).x, greater);
   }
 #endif
   return shadow;
@@ -478,10 +431,6 @@ void main()
   vec4 surface = texelFetch(u_surface, px, 0);
   vec3 P = surface.xyz;
   vec3 N = lixel_unoctahedral(vec2(surface.w, texelFetch(u_normal, px, 0).r));
-  vec3 V = lixel.camera.w > 0.5 ? -lixel.view_dir.xyz : lixel.camera.xyz - P;
-  if (dot(N, V) < 0.0) {
-    N = -N;  /* turned towards the viewer */
-  }
   float eye_depth = -dot(lixel.eye_row, vec4(P, 1.0));
 
   /* The first map that serves P. */
