@@ -35,6 +35,7 @@ from ..settings import LixelSettings
 from ..warp import compute, focused_body
 from ..warp.methods import METHODS
 from ..warp.types import Diagnostics, EmptyBodyError, ShadowMap, ShadowSetup, WarpError
+from .warp_cache import shared_warps
 
 log = logging.getLogger(__name__)
 
@@ -146,7 +147,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     The frame, in order: the scene's geometry (cached: only what changed is
     read and uploaded), the view and light, the camera pre-pass (read back per
     tile: what the camera sees, ``addon.gpu.visibility``), B fitted to it and
-    the warp, the depth pass, the shading pass, compose and one read-back of the
+    the warp (kept while their inputs are unchanged: :mod:`.warp_cache`), the depth pass, the shading pass, compose and one read-back of the
     images in ``read`` (default: the combined image and the shadow). ``timed``: wait for the
     GPU after every stage so each stage's time is its own (the engine's F12
     waits once, at the read-back). ``targets``: the render targets (default:
@@ -180,10 +181,14 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         if warnings is not None:
             warnings.append(f"Lixel method '{method}' is not available in this build; rendering with 'uniform'")
         method = "uniform"
+
+    def warp():
+        b = focused_body(view, light, bounds, settings.warp, visible)
+        return b, compute(method, view, light, bounds, settings.warp, body=b)
+
     t = time.perf_counter()
     try:
-        body = focused_body(view, light, bounds, settings.warp, visible)
-        setup = compute(method, view, light, bounds, settings.warp, body=body)
+        body, setup = shared_warps().get(bounds, (method, view, light, settings.warp, visible), warp)
     except EmptyBodyError as exc:
         # Nothing the camera sees can be shadowed (it looks at the sky, or no visible
         # surface is inside the spot cone): render the lighting without shadows.

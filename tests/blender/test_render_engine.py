@@ -118,14 +118,24 @@ def test_settings_come_from_the_scene(engine, scene):
 
 
 def test_second_render_uploads_nothing(engine, scene):
+    """F12 again on an unchanged scene uploads nothing and computes B and the
+    warp no more (the same setup); a moved camera computes them again."""
     build(scene)
+    warps = engine.shared_warps()
     with engine.watch_renders() as got:
         bpy.ops.render.render(scene=scene.name)
+        computed = warps.computes
         bpy.ops.render.render(scene=scene.name)
-    first, second = (g["result"] for g in got)
+        assert warps.computes == computed, "B and the warp were computed again for an unchanged frame"
+        scene.camera.location.x += 0.3
+        bpy.ops.render.render(scene=scene.name)
+        assert warps.computes == computed + 1
+    (first, second, moved), setups = ([g[k] for g in got] for k in ("result", "setup"))
     c = second.counts
     assert (c.uploads, c.matrix_uploads, c.list_uploads, c.target_allocations) == (0, 0, 0, 0)
     np.testing.assert_array_equal(first.shadow_mask, second.shadow_mask)
+    assert setups[1] is setups[0] and setups[2] is not setups[0]
+    assert not np.array_equal(setups[2].maps[0].matrix, setups[0].maps[0].matrix)
 
 
 @pytest.mark.parametrize("missing,message", [
