@@ -20,7 +20,8 @@ process (the machine is shared, so single runs are noisy):
   rendering did before linear z became the default).
 
 Each repeat runs the variants in turn; the table gives the median over the
-repeats of each variant and the median of the per-repeat ratios depth / bare
+repeats of each variant's CPU time (the whole process, every thread; the wall
+clock is in the JSON) and the median of the per-repeat ratios depth / bare
 (the number the linear-z budget is judged by: at most 1.2).
 
 ``--shading-against REV`` also times the shading pass (1280 x 720, the
@@ -28,7 +29,9 @@ engine's Combined and Shadow targets) with REV's gpu_shaders and REV's default
 bias (NDC constant + slope scale, hyperbolic maps) against the working tree's,
 interleaved, on the same scene. REV must share the working tree's frame
 (the deferred shading pass and its uniform block): f213006, the revision
-before the texel-unit biases, does.
+before the texel-unit biases, does. ``--shading-settings same`` gives REV's
+shaders the working tree's maps and bias row instead (a revision that already
+has the texel-unit biases and linear z: the shaders' own cost alone).
 
 Every timing ends with a 1-pixel read (no ``gpu.finish`` in the API).
 Runs Blender as the bpy module headless (Mesa llvmpipe without a GPU).
@@ -71,21 +74,29 @@ def point_light(bpy, scene):
     scene.collection.objects.link(lamp)
 
 
-def _time(fn) -> float:
-    t = time.perf_counter()
+def _time(fn) -> tuple[float, float]:
+    """(CPU seconds of the whole process, every thread: Blender's and llvmpipe's
+    rasterizer threads; wall seconds) of one call."""
+    wall, cpu = time.perf_counter(), time.process_time()
     fn()
-    return time.perf_counter() - t
+    return time.process_time() - cpu, time.perf_counter() - wall
 
 
 def interleaved(variants: dict, repeat: int) -> dict:
-    """{name: [seconds per repeat]}: the variants run in turn, ``repeat`` times
-    (after one warm-up run each: shader compiles, uploads)."""
+    """{name: [CPU seconds per repeat]} and {name + "_wall": [wall seconds]}:
+    the variants run in turn, ``repeat`` times (after one warm-up run each:
+    shader compiles, uploads). CPU time is what the ratios use: the machine is
+    shared, and other processes stretch the wall clock, not a process's CPU
+    time (bench/report/timing.py measured the same)."""
     for fn in variants.values():
         fn()
     times = {k: [] for k in variants}
+    times.update({k + "_wall": [] for k in variants})
     for _ in range(repeat):
         for k, fn in variants.items():
-            times[k].append(_time(fn))
+            cpu, wall = _time(fn)
+            times[k].append(cpu)
+            times[k + "_wall"].append(wall)
     return times
 
 
@@ -166,7 +177,8 @@ def run(args) -> list[dict]:
                            "maps": len(setup.maps), "linear_z_in": ",".join(sorted(set(kinds))),
                            **{f"{k}_ms": statistics.median(v) * 1e3 for k, v in times.items()},
                            "ratio_depth_bare": ratio(times, "depth", "bare"),
-                           "ratio_hyperbolic_bare": ratio(times, "hyperbolic", "bare")}
+                           "ratio_hyperbolic_bare": ratio(times, "hyperbolic", "bare"),
+                           "ratio_depth_bare_wall": ratio(times, "depth_wall", "bare_wall")}
                     if args.shading_against:
                         row.update(shading(args, pipeline, shaders, compose, geometry, view, light, body, setup,
                                            hyperbolic, settings, gpu_scene))
@@ -182,8 +194,9 @@ def shading(args, pipeline, shaders, compose, geometry, view, light, body, setup
     frame (camera pre-pass and maps drawn once; the engine's passes: the
     combined image and the shadow)."""
     from addon.gpu.targets import TargetPool
+    same = args.shading_settings == "same"
     frames = {}
-    for name, st in (("old", hyperbolic), ("new", setup)):
+    for name, st in (("old", setup if same else hyperbolic), ("new", setup)):
         frame = pipeline.ShadowFrame(geometry, view, tuple(args.camera), scene=gpu_scene, targets=TargetPool(),
                                      timed=False)
         frame.camera_prepass()
@@ -194,7 +207,8 @@ def shading(args, pipeline, shaders, compose, geometry, view, light, body, setup
     new_shader = shaders.shade_shader(variant)
     with shaders_of(args.shading_against) as old:
         info = old._shade_info(variant)
-        info.define("LIXEL_SLOPE_BIAS", "1")      # what the old default bias compiled in
+        if not same:
+            info.define("LIXEL_SLOPE_BIAS", "1")  # what the old default bias compiled in
         old_shader = old._create(info, "old shading pass")
     build, vector = shaders.shade_shader, pipeline.bias_vector
 
@@ -208,20 +222,21 @@ def shading(args, pipeline, shaders, compose, geometry, view, light, body, setup
         finally:
             shaders.shade_shader, pipeline.bias_vector = build, vector
 
-    times = interleaved({"shading_old": lambda: shade("old", old_shader, lambda s: OLD_BIAS),
+    times = interleaved({"shading_old": lambda: shade("old", old_shader, vector if same else lambda s: OLD_BIAS),
                          "shading_new": lambda: shade("new", new_shader, vector)}, args.repeat)
     return {**{f"{k}_ms": statistics.median(v) * 1e3 for k, v in times.items()},
-            "ratio_shading_new_old": ratio(times, "shading_new", "shading_old")}
+            "ratio_shading_new_old": ratio(times, "shading_new", "shading_old"),
+            "ratio_shading_new_old_wall": ratio(times, "shading_new_wall", "shading_old_wall")}
 
 
 def _line(r: dict) -> str:
     text = (f"{r['triangles']:>9} tris  {r['light']:>5}  {r['method']:>13}  {r['map']:>5}²  {r['maps']} map(s) "
-            f"[{r['linear_z_in']}]  bare {r['bare_ms']:7.1f} ms  depth {r['depth_ms']:7.1f} ms  "
+            f"[{r['linear_z_in']}]  CPU: bare {r['bare_ms']:7.1f} ms  depth {r['depth_ms']:7.1f} ms  "
             f"hyperbolic {r['hyperbolic_ms']:7.1f} ms  depth/bare {r['ratio_depth_bare']:.3f}  "
-            f"hyperbolic/bare {r['ratio_hyperbolic_bare']:.3f}")
+            f"hyperbolic/bare {r['ratio_hyperbolic_bare']:.3f} (wall {r['ratio_depth_bare_wall']:.3f})")
     if "ratio_shading_new_old" in r:
         text += (f"  shading old {r['shading_old_ms']:7.1f} ms  new {r['shading_new_ms']:7.1f} ms  "
-                 f"new/old {r['ratio_shading_new_old']:.3f}")
+                 f"new/old {r['ratio_shading_new_old']:.3f} (wall {r['ratio_shading_new_old_wall']:.3f})")
     return text
 
 
@@ -236,6 +251,9 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=7)
     ap.add_argument("--shading-against", default=None, metavar="REV",
                     help="also time the shading pass with this git revision's shaders against the working tree's")
+    ap.add_argument("--shading-settings", choices=["before-biases", "same"], default="before-biases",
+                    help="REV's shaders with the bias row and hyperbolic maps of before the texel-unit biases "
+                         "(f213006's), or with the working tree's maps and bias row")
     ap.add_argument("--json", type=Path, default=None, help="write the rows here")
     args = ap.parse_args(argv)
     if str(ROOT) not in sys.path:

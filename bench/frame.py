@@ -6,25 +6,35 @@
 
 For each scene, in one process, every measurement below runs once per round,
 in turn, for ``--repeat`` rounds (interleaved, so the load of a shared machine
-falls on all of them alike); each is reported as the median with its min and max:
+falls on all of them alike); each is reported as the median with its min and
+max, in wall-clock time and in CPU time (``time.process_time``: the whole
+process, every thread, so Mesa llvmpipe's rasterizer threads and Cycles'
+render threads count; other processes on a shared machine stretch the wall
+clock but not this). Ratios are given in both:
 
 * **warm frame**: ``bpy.ops.render.render`` with the LIXEL engine on an
   unchanged scene (F12 as the user runs it: Blender's render depsgraph, the
   frame, the four passes written into the render result);
 * **cold frame**: the same after dropping every Lixel cache (scene geometry,
-  batches, instance matrices, draw lists, render targets; compiled shaders are kept);
+  batches, instance matrices, draw lists, render targets, B and the warp;
+  compiled shaders are kept);
 * **stages**: ``render_depsgraph`` with a wait for the GPU after every stage,
   so each stage's time is its own (the F12 frame waits once, at the read-back);
+* **stages in CPU time**: the same with the library's stage clock reading
+  the process's CPU time (:func:`cpu_clock`); each stage waits for the GPU,
+  so a GPU stage's CPU time is its own rasterisation (llvmpipe's threads);
 * **CPU time outside GPU waits**: the stages that never touch the GPU
   (extraction, describe, warp, cull, upload when nothing changed) plus
-  writing the render passes;
+  writing the render passes, in CPU time (and the same stages' wall clock);
 * **the floor**: a bare depth draw of the frame's casters into its maps (same
   matrices and sizes, empty fragment stage), a bare depth draw of the frame's
   receivers from the camera at the output resolution, and a trivial
   full-screen pass writing an RGBA32F target at the output resolution, each
   ending with a wait for the GPU;
 * **peers**: Workbench (the scene's own anti-aliasing setting, and with it
-  off) and Cycles at 1 sample, F12 of the same view at the same resolution.
+  off) and Cycles at 1 sample, F12 of the same view at the same resolution;
+* **Blender's own F12**: an engine that draws nothing and writes an empty
+  Combined pass (the part of every engine's F12 that is Blender's).
 
 Scenes: ``forest`` and ``chess`` (sample_blends), ``forest_wide`` (the
 forest's 10,000 geometry-node trees seen whole from above its edge: every
@@ -43,6 +53,7 @@ import statistics
 import sys
 import tempfile
 import time
+from contextlib import contextmanager
 
 _scratch = tempfile.mkdtemp(prefix="lixel-bench-frame-")
 os.environ.setdefault("XDG_CACHE_HOME", os.path.join(_scratch, "xdg"))
@@ -112,6 +123,33 @@ def _make_scene(bpy, name: str):
 
 
 # --------------------------------------------------------------------------- measuring
+
+class _CPUClock:
+    """The ``time`` module with ``perf_counter`` reading the process's CPU time."""
+
+    perf_counter = staticmethod(time.process_time)
+
+    def __getattr__(self, name):
+        return getattr(time, name)
+
+
+@contextmanager
+def cpu_clock():
+    """Lixel's stage timings (``RenderResult.timings``) in CPU time of the
+    process (every thread: llvmpipe's rasterizer threads too): waits for the
+    GPU and other processes' time slices are left out."""
+    from addon.gpu import pipeline, visibility
+    from addon.render import engine
+    modules = (engine, pipeline, visibility)
+    saved = [m.time for m in modules]
+    for m in modules:
+        m.time = _CPUClock()
+    try:
+        yield
+    finally:
+        for m, t in zip(modules, saved):
+            m.time = t
+
 
 def stats(values) -> dict:
     v = [float(x) * 1e3 for x in values]
@@ -199,11 +237,43 @@ def _lixel_frame(dg, settings):
 def drop_caches() -> None:
     """Forget every Lixel cache (a cold frame); compiled shaders stay."""
     from addon.gpu import batches, targets
+    from addon.render import warp_cache
     from addon.scene import geometry
     geometry.shared_cache().clear()
+    warp_cache.shared_warps().clear()
     batches.shared_batches().clear()
     batches._shared_scene = None
     targets.shared_targets().clear()
+
+
+_NULL_ENGINE = None
+
+
+def null_engine():
+    """A render engine that draws nothing and writes an empty Combined pass: what
+    F12 costs in Blender itself (render depsgraph, result, the pass's pages)."""
+    global _NULL_ENGINE
+    if _NULL_ENGINE is None:
+        import bpy
+
+        class LixelBenchNullEngine(bpy.types.RenderEngine):
+            bl_idname = "LIXEL_BENCH_NULL"
+            bl_label = "Lixel bench: nothing"
+            bl_use_gpu_context = True
+
+            def render(self, depsgraph):
+                w, h = (int(v) for v in _resolution(depsgraph.scene))
+                result = self.begin_result(0, 0, w, h)
+                result.layers[0].passes["Combined"].rect.foreach_set(np.zeros(w * h * 4, np.float32))
+                self.end_result(result)
+
+        _NULL_ENGINE = LixelBenchNullEngine
+    return _NULL_ENGINE
+
+
+def _resolution(scene):
+    r = scene.render
+    return r.resolution_x * r.resolution_percentage // 100, r.resolution_y * r.resolution_percentage // 100
 
 
 def measure(name: str, args) -> dict:
@@ -241,7 +311,7 @@ def measure(name: str, args) -> dict:
     results: dict = {}
 
     def lixel_warm():
-        with engine.watch_renders() as got:
+        with engine.watch_renders() as got, cpu_clock():   # only the library's stage timings read CPU time
             bpy.ops.render.render(scene=scene.name)
         results["last_f12"] = got[-1]["result"]
 
@@ -254,6 +324,11 @@ def measure(name: str, args) -> dict:
         results.setdefault("stages", []).append(out["result"].timings)
         results["counts"] = out["result"].counts
 
+    def stages_cpu():
+        with cpu_clock():
+            out = render_depsgraph(dg, settings=settings, timed=True)
+        results.setdefault("stages_cpu", []).append(out["result"].timings)
+
     def internal():
         render_depsgraph(dg, settings=settings, timed=False)
 
@@ -261,8 +336,9 @@ def measure(name: str, args) -> dict:
     stages()
     frame, setup = _lixel_frame(dg, settings)
     floor = Floor(frame, setup)
-    runs = {"warm": lixel_warm, "internal": internal, "cold": lixel_cold, "stages": stages,
+    runs = {"warm": lixel_warm, "internal": internal, "cold": lixel_cold, "stages": stages, "stages_cpu": stages_cpu,
             "floor_depth": floor.depth, "floor_camera": floor.camera, "floor_full_screen": floor.full_screen}
+    runs["blender_f12"] = f12(null_engine().bl_idname)
     if "workbench" in args.peers:
         runs["workbench"] = f12("BLENDER_WORKBENCH")
         runs["workbench_aa_off"] = f12("BLENDER_WORKBENCH", "OFF")
@@ -271,24 +347,35 @@ def measure(name: str, args) -> dict:
     for fn in runs.values():
         fn()                          # warm-up (shader compilation, Blender's own caches)
     results.pop("stages", None)
+    results.pop("stages_cpu", None)
     times: dict = {k: [] for k in runs}
+    cpu_times: dict = {k: [] for k in runs}
     passes: list = []
     for _ in range(args.repeat):
         for key, fn in runs.items():
             if key == "cycles_1spp" and len(times[key]) >= args.cycles_repeat:
                 continue
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             fn()
             times[key].append(time.perf_counter() - t0)
+            cpu_times[key].append(time.process_time() - c0)
             if key == "warm":
                 passes.append(results["last_f12"].timings.get("passes", 0.0))
+            if key == "cold":                 # warm again what the cold frame dropped (both depsgraphs), untimed
+                bpy.ops.render.render(scene=scene.name)
+                internal()
     stage_runs = results["stages"]
     stage_names = list(stage_runs[0])
     stage_stats = {s: stats([r.get(s, 0.0) for r in stage_runs]) for s in stage_names}
     stage_stats["passes"] = stats(passes)
-    cpu = [sum(r.get(s, 0.0) for s in CPU_STAGES if s != "passes") + p for r, p in zip(stage_runs, passes)]
+    cpu_runs = results["stages_cpu"]
+    stage_cpu_stats = {s: stats([r.get(s, 0.0) for r in cpu_runs]) for s in stage_names}
+    stage_cpu_stats["passes"] = stats(passes)
+    cpu = [sum(r.get(s, 0.0) for s in CPU_STAGES if s != "passes") + p for r, p in zip(cpu_runs, passes)]
     floor_runs = [a + b + c for a, b, c in zip(times["floor_depth"], times["floor_camera"],
                                               times["floor_full_screen"])]
+    floor_cpu = [a + b + c for a, b, c in zip(cpu_times["floor_depth"], cpu_times["floor_camera"],
+                                             cpu_times["floor_full_screen"])]
     row = {
         "scene": name, "resolution": list(args.resolution), "map": args.size, "method": args.method,
         "build_s": build_s,
@@ -296,15 +383,24 @@ def measure(name: str, args) -> dict:
         "warm": stats(times["warm"]), "internal": stats(times["internal"]), "cold": stats(times["cold"]),
         "floor": stats(floor_runs),
         "floor_parts": {k[6:]: stats(times[k]) for k in ("floor_depth", "floor_camera", "floor_full_screen")},
+        "cpu": {k: stats(v) for k, v in cpu_times.items()},
+        "floor_cpu": stats(floor_cpu),
+        "floor_parts_cpu": {k[6:]: stats(cpu_times[k]) for k in ("floor_depth", "floor_camera", "floor_full_screen")},
         "stages": stage_stats,
+        "stages_cpu": stage_cpu_stats,
         "cpu_outside_gpu": stats(cpu),
+        "cpu_outside_gpu_wall": stats([sum(r.get(s, 0.0) for s in CPU_STAGES if s != "passes") for r in stage_runs]),
     }
     row["ratio_warm_to_floor"] = row["warm"]["median"] / row["floor"]["median"]
     row["ratio_internal_to_floor"] = row["internal"]["median"] / row["floor"]["median"]
+    row["cpu_ratio_warm_to_floor"] = row["cpu"]["warm"]["median"] / row["floor_cpu"]["median"]
+    row["cpu_ratio_internal_to_floor"] = row["cpu"]["internal"]["median"] / row["floor_cpu"]["median"]
+    row["blender_f12"] = stats(times["blender_f12"])
     for peer in ("workbench", "workbench_aa_off", "cycles_1spp"):
         if peer in times:
             row[peer] = stats(times[peer])
             row[f"ratio_warm_to_{peer}"] = row["warm"]["median"] / row[peer]["median"]
+            row[f"cpu_ratio_warm_to_{peer}"] = row["cpu"]["warm"]["median"] / row["cpu"][peer]["median"]
     row["workbench_aa"] = scene.display.render_aa
     return row
 
@@ -320,18 +416,28 @@ def print_row(r: dict) -> None:
     print(f"\n== {r['scene']}: {r['resolution'][0]}x{r['resolution'][1]}, {r['map']}² {r['method']}; "
           f"{c['instances']:,} instances, casters drawn {c['casters_drawn']:,} ({c['caster_triangles_drawn']:,} tris), "
           f"receivers drawn {c['receivers_drawn']:,} ({c['receiver_triangles_drawn']:,} tris)")
-    print(f"  warm frame (F12)      {_ms(r['warm'])} ms")
-    print(f"  frame inside F12      {_ms(r['internal'])} ms   (render_depsgraph, one wait)")
-    print(f"  cold frame (F12)      {_ms(r['cold'])} ms")
-    print(f"  floor                 {_ms(r['floor'])} ms   = " + " + ".join(
-        f"{k} {_ms(v)}" for k, v in r["floor_parts"].items()))
-    print(f"  warm / floor          {r['ratio_warm_to_floor']:.2f}   (inside F12: {r['ratio_internal_to_floor']:.2f})")
-    print(f"  CPU outside GPU waits {_ms(r['cpu_outside_gpu'])} ms")
-    print("  stages (each waits for the GPU): " + ", ".join(f"{k} {_ms(v)}" for k, v in r["stages"].items()))
+    cpu = r["cpu"]
+    print("  wall ms: median (min-max); CPU ms: median")
+    print(f"  warm frame (F12)      {_ms(r['warm'])}   CPU {cpu['warm']['median']:.1f}")
+    print(f"  frame inside F12      {_ms(r['internal'])}   CPU {cpu['internal']['median']:.1f}"
+          "   (render_depsgraph, one wait)")
+    print(f"  cold frame (F12)      {_ms(r['cold'])}   CPU {cpu['cold']['median']:.1f}")
+    print(f"  floor                 {_ms(r['floor'])}   CPU {r['floor_cpu']['median']:.1f}   = " + " + ".join(
+        f"{k} {_ms(v)} (CPU {r['floor_parts_cpu'][k]['median']:.1f})" for k, v in r["floor_parts"].items()))
+    print(f"  warm / floor          {r['ratio_warm_to_floor']:.2f}   (inside F12: {r['ratio_internal_to_floor']:.2f}); "
+          f"CPU {r['cpu_ratio_warm_to_floor']:.2f} (inside F12: {r['cpu_ratio_internal_to_floor']:.2f})")
+    print(f"  Blender's own F12     {_ms(r['blender_f12'])}   CPU {cpu['blender_f12']['median']:.1f}"
+          "   (an engine that writes an empty Combined pass)")
+    print(f"  CPU outside GPU waits {_ms(r['cpu_outside_gpu'])}   (CPU: "
+          + ", ".join(CPU_STAGES) + "; the same stages' wall clock without passes: "
+          f"{_ms(r['cpu_outside_gpu_wall'])})")
+    print("  stages, wall (each waits for the GPU): " + ", ".join(f"{k} {_ms(v)}" for k, v in r["stages"].items()))
+    print("  stages, CPU: " + ", ".join(f"{k} {v['median']:.1f}" for k, v in r["stages_cpu"].items()))
     for peer, label in (("workbench", f"Workbench (AA {r['workbench_aa']})"), ("workbench_aa_off", "Workbench (AA off)"),
                         ("cycles_1spp", "Cycles 1 spp")):
         if peer in r:
-            print(f"  {label:<21} {_ms(r[peer])} ms   Lixel warm / this: {r[f'ratio_warm_to_{peer}']:.2f}")
+            print(f"  {label:<21} {_ms(r[peer])}   CPU {cpu[peer]['median']:.1f}   Lixel warm / this: "
+                  f"{r[f'ratio_warm_to_{peer}']:.2f} (CPU {r[f'cpu_ratio_warm_to_{peer}']:.2f})")
 
 
 def main(argv=None) -> int:
@@ -345,10 +451,11 @@ def main(argv=None) -> int:
     ap.add_argument("--peers", nargs="*", default=["workbench", "cycles"], choices=["workbench", "cycles"])
     ap.add_argument("--json", help="also write the numbers here")
     args = ap.parse_args(argv)
-    import bpy  # noqa: F401
+    import bpy
     from addon.gpu.context import ensure_gpu_context
     from addon.render import engine
     engine.register()
+    bpy.utils.register_class(null_engine())
     rows = []
     try:
         ensure_gpu_context()
@@ -358,6 +465,7 @@ def main(argv=None) -> int:
             print_row(row)
             sys.stdout.flush()
     finally:
+        bpy.utils.unregister_class(null_engine())
         engine.unregister()
     if args.json:
         with open(args.json, "w", encoding="utf-8") as fh:
