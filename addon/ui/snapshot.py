@@ -94,7 +94,7 @@ def observer_view_projection(geometry: dict, view, aspect: float, fov_y: float =
         near = d <= reach * radius
         parts.append(p[near])
         if not near.all():
-            notes.append(f"{name} reach{'es' if len(p) == 1 else ''} {d.max():.4g} m from the setup's centre, "
+            notes.append(f"{name} reach{'' if name.endswith('frusta') else 'es'} {d.max():.4g} m from the setup's centre, "
                          f"beyond the picture")
     pts = np.concatenate(parts)
     centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))

@@ -523,6 +523,6 @@ def overlay(shot, path: Path, scene_name: str) -> Path:
     if shot.kind == "observer":
         handles = _line_key(fig, shot)
         fig.legend(handles=handles, loc="outside lower center", ncol=3, fontsize=8, frameon=False)
-        if shot.notes:
-            fig.supxlabel("; ".join(shot.notes), fontsize=8, color="0.25")
+        if shot.notes:  # under the picture, above the key (a figure-level label would share the key's place)
+            axes[0].set_xlabel("; ".join(shot.notes), fontsize=8, color="0.25")
     return _save(fig, path)

@@ -67,6 +67,7 @@ def test_observer_frames_the_core_and_names_what_lies_beyond(lixel):
     assert (clip[:, 3] > 0).all() and (np.abs(ndc) <= 1).all()        # B is in the picture
     assert np.ptp(ndc[:, :2], axis=0).max() > 1.5                      # and fills it
     assert [n.split(" reach")[0] for n in notes] == ["camera's view frustum", "light frusta"]
+    assert notes[0].startswith("camera's view frustum reaches ") and notes[1].startswith("light frusta reach ")
 
 
 def test_operator_saves_camera_and_observer_snapshots(lixel, tmp_path):
