@@ -80,15 +80,6 @@ class Plane:
     normal: np.ndarray
     offset: float
 
-    def distance(self, points) -> np.ndarray:
-        return np.asarray(points, dtype=np.float64) @ self.normal - self.offset
-
-    @classmethod
-    def through(cls, point, normal) -> "Plane":
-        n = np.asarray(normal, dtype=np.float64)
-        n = n / np.linalg.norm(n)
-        return cls(n, float(n @ np.asarray(point, dtype=np.float64)))
-
 
 @dataclass(frozen=True, eq=False)
 class ConvexPolytope:
@@ -169,10 +160,6 @@ class ConvexPolytope:
     def faces(self) -> list[np.ndarray]:
         """The facets as (K, 3) vertex loops, counter-clockwise seen from outside."""
         return [self.vertices[list(loop)] for loop in self.loops]
-
-    @property
-    def planes(self) -> list[Plane]:
-        return [Plane(n, float(o)) for n, o in zip(self.normals, self.offsets)]
 
     @cached_property
     def centroid(self) -> np.ndarray:
