@@ -147,7 +147,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     The frame, in order: the scene's geometry (cached: only what changed is
     read and uploaded), the view and light, the camera pre-pass (read back per
     tile: what the camera sees, ``addon.gpu.visibility``), B fitted to it and
-    the warp (kept while their inputs are unchanged: :mod:`.warp_cache`), the depth pass, the shading pass, compose and one read-back of the
+    the warp (both kept while the geometry, view, light and settings are
+    unchanged: :mod:`.warp_cache`), the depth pass, the shading pass, compose and one read-back of the
     images in ``read`` (default: the combined image and the shadow). ``timed``: wait for the
     GPU after every stage so each stage's time is its own (the engine's F12
     waits once, at the read-back). ``targets``: the render targets (default:
@@ -173,9 +174,6 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     timings["describe"] = time.perf_counter() - t
     frame = ShadowFrame(geometry, view, resolution or view.resolution, read=read, targets=targets, timed=timed)
     frame.camera_prepass()
-    visible = None
-    if settings.warp.focus == "visible":         # the warp is fitted to what the pre-pass saw
-        visible, timings["visibility"] = region_from_frame(frame)
     method = settings.method
     if method not in METHODS:
         if warnings is not None:
@@ -183,12 +181,16 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         method = "uniform"
 
     def warp():
+        visible = None
+        if settings.warp.focus == "visible":         # the warp is fitted to what the pre-pass saw
+            visible, timings["visibility"] = region_from_frame(frame)
         b = focused_body(view, light, bounds, settings.warp, visible)
         return b, compute(method, view, light, bounds, settings.warp, body=b)
 
     t = time.perf_counter()
     try:
-        body, setup = shared_warps().get(bounds, (method, view, light, settings.warp, visible), warp)
+        # The pre-pass, hence the visible region, is a function of the geometry and the view.
+        body, setup = shared_warps().get((geometry, bounds), (method, view, light, settings.warp, frame.size), warp)
     except EmptyBodyError as exc:
         # Nothing the camera sees can be shadowed (it looks at the sky, or no visible
         # surface is inside the spot cone): render the lighting without shadows.
@@ -196,7 +198,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
             warnings.append(f"Lixel: no shadows in this view ({exc})")
         body = None
         setup = no_shadow_setup(method)
-    timings["warp"] = time.perf_counter() - t
+    timings["warp"] = time.perf_counter() - t - timings.get("visibility", 0.0)
     light_obj = bpy.data.objects.get(light.name)
     if warnings is not None and light_obj is not None:
         warnings.extend(light_notes(light_obj))

@@ -1,17 +1,20 @@
 """B and the warp of recent frames, kept while nothing they depend on changes.
 
-``focused_body`` and ``compute`` (addon.warp) are pure functions of the view, the light,
-the scene's boxes, the visible region the camera pre-pass read back, the
-method and the warp options. A frame whose inputs all equal an earlier
-frame's (F12 again on an unchanged scene, a redraw that moved nothing) takes
-that frame's B and setup instead of computing them again; a moved camera or
-light, an edited object or another setting computes them anew. The scene's
-boxes are compared by identity (``InstanceSet.bounds`` is made once per
-instance set, so an unchanged scene hands out the same object), everything
-else by value.
+The visible region (read back from the camera pre-pass), ``focused_body`` and
+``compute`` (addon.warp) are functions of the scene's geometry, the view,
+the light, the frame's size, the method and the warp options. A frame whose
+inputs all equal an earlier frame's (F12 again on an unchanged scene, a
+redraw that moved nothing) takes that frame's B and setup instead of reading
+the pre-pass's tiles back and computing them again; a moved camera or light,
+an edited object or another setting computes them anew. The geometry and the
+scene's boxes are compared by identity (``GeometryCache`` hands out the same
+``SceneGeometry``, and its ``InstanceSet`` the same ``bounds``, while nothing
+in the scene changed; held by weak reference, so an old scene's meshes are not
+kept alive here), everything else by value.
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import fields, is_dataclass
 
 import numpy as np
@@ -44,21 +47,21 @@ class WarpCache:
     def clear(self) -> None:
         self._entries.clear()
 
-    def get(self, bounds, inputs: tuple, make):
-        """``make()`` -> (B, setup) for the scene boxes ``bounds`` and the other
-        ``inputs`` (method, view, light, options, visible region), or an earlier
-        frame's result for equal ones. Errors (an empty body) are raised every
-        time, never kept."""
-        key = (id(bounds), value_key(inputs))
+    def get(self, held: tuple, inputs: tuple, make):
+        """``make()`` -> (B, setup) for the objects ``held`` (compared by
+        identity: the scene's geometry and boxes) and the other ``inputs``
+        (compared by value), or an earlier frame's result for the same ones.
+        Errors (an empty body) are raised every time, never kept."""
+        key = (tuple(id(o) for o in held), value_key(inputs))
         hit = self._entries.pop(key, None)
-        if hit is not None and hit[0] is bounds:
+        if hit is not None and all(ref() is o for ref, o in zip(hit[0], held)):
             self._entries[key] = hit              # the most recent last
             return hit[1]
         got = make()
         self.computes += 1
         while len(self._entries) >= self.KEEP:
             self._entries.pop(next(iter(self._entries)))
-        self._entries[key] = (bounds, got)
+        self._entries[key] = (tuple(weakref.ref(o) for o in held), got)
         return got
 
 

@@ -119,7 +119,8 @@ def test_settings_come_from_the_scene(engine, scene):
 
 def test_second_render_uploads_nothing(engine, scene):
     """F12 again on an unchanged scene uploads nothing and computes B and the
-    warp no more (the same setup); a moved camera computes them again."""
+    warp no more (the same setup); a moved camera computes them again, and so
+    does an edited mesh whose box is unchanged (what the camera sees changed)."""
     build(scene)
     warps = engine.shared_warps()
     with engine.watch_renders() as got:
@@ -130,7 +131,12 @@ def test_second_render_uploads_nothing(engine, scene):
         scene.camera.location.x += 0.3
         bpy.ops.render.render(scene=scene.name)
         assert warps.computes == computed + 1
-    (first, second, moved), setups = ([g[k] for g in got] for k in ("result", "setup"))
+        box = next(o for o in scene.objects if o.name.startswith("Box"))
+        box.data.vertices[0].co.x += 0.3      # (-h, -h, ·) moves inwards: the box's bounds stay
+        box.data.update()
+        bpy.ops.render.render(scene=scene.name)
+        assert warps.computes == computed + 2
+    (first, second, moved, _), setups = ([g[k] for g in got] for k in ("result", "setup"))
     c = second.counts
     assert (c.uploads, c.matrix_uploads, c.list_uploads, c.target_allocations) == (0, 0, 0, 0)
     np.testing.assert_array_equal(first.shadow_mask, second.shadow_mask)
