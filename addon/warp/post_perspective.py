@@ -1,22 +1,18 @@
-"""Post-perspective space (PPS) of a virtual camera and the light's frustum in
-it (Stamminger & Drettakis, *Perspective Shadow Maps*, §3-§4, §6).
+"""Post-perspective space (PPS) and the light's frustum in it (Stamminger &
+Drettakis, *Perspective Shadow Maps*, §3-§4, §6).
 
 The virtual camera (§4.2, §6) moves back by s = d_R - d_B >= 0 (d_R the nearest
-visible eye depth, d_B B's nearest), so B's nearest point is as far from the
-virtual eye as the nearest visible point is from the real one; its projection
-is fitted so that B's image B' fills [-1, 1]^3.
-
-The light in PPS (§3) is L' = (l, w'): a point light (w' > 0), an inverted one
-(w' < 0, behind the camera plane) or a directional one (w' = 0). One formula
-serves all three (:func:`pps_light_matrix`): with u(p) = w'p - l, k the axis
-of the smallest cone around u(B'), c the mean of B' and q = p - c,
+visible eye depth, d_B B's nearest), and B's image B' fills [-1, 1]^3. The light
+L' = (l, w') is a point light (w' > 0), an inverted one (w' < 0) or a
+directional one (w' = 0) in PPS (§3); one frustum serves all three
+(:func:`pps_light_matrix`): with u(p) = w'p - l, k the axis of the smallest cone
+around u(B'), c the mean of B' and q = p - c,
 
     x = (a·q + γx k·q) / (1 + ρ k·q),  y = (b·q + γy k·q) / (1 + ρ k·q),  z = k·q / (1 + ρ k·q),
 
-γ, ρ making the x, y, w rows vanish at L'. Depth grows away from the real
-light in every case, so the test is always LESS: the paper's inverted light
-with a reversed depth test is here a reversed depth axis (docs/papers.md),
-continuous as the light crosses the camera plane."""
+γ, ρ making the x, y, w rows vanish at L'. Depth grows away from the real light
+in every case (the test is always LESS: a reversed depth axis where the paper
+reverses the test, docs/papers.md), continuous as the light crosses the camera plane."""
 from __future__ import annotations
 
 import bisect
