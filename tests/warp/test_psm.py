@@ -3,15 +3,22 @@ one texel, depth order for normal / inverted / directional PPS lights, the
 awkward configurations (near 1e-3, far 1e4, 1e5 offsets, flat scenes, a camera
 1 cm above the ground), continuity through the camera-plane switch, and the
 fallbacks (light inside B, orthographic camera)."""
+import dataclasses
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from addon.warp import Light, SceneBounds, View, WarpOptions, compute, intersection_body
+from addon.cli.config import parse_config
+from addon.warp import Light, SceneBounds, View, WarpOptions, compute, focused_body, intersection_body
+from addon.warp.diagnostics import Diagnostics
+from addon.warp.frame import light_frames
 from addon.warp.geometry import look_along
-from addon.warp.methods.psm import psm
+from addon.warp.methods.psm import GUARD_TOLERANCE, psm
+from addon.warp.methods.warp_frustum import eye_depth_range, guard_lambda, half_fov_towards, light_at_eye, map_lambda
 from addon.warp.post_perspective import min_norm_point, pps_light_matrix, smallest_cone, virtual_camera
 
 SIZE = 2048
@@ -52,8 +59,9 @@ def spot(position, direction, angle_deg=70.0):
 
 
 def run(view, light, scene, size=SIZE):
+    """The paper's PSM (the λ guard off: test_the_lambda_guard_... checks it)."""
     body = intersection_body(view, light, scene)
-    return psm(view, light, body, WarpOptions(shadow_map_size=(size, size))), body
+    return psm(view, light, body, WarpOptions(shadow_map_size=(size, size), lambda_guard="off")), body
 
 
 # ----------------------------------------------------------------------------- checks
@@ -558,3 +566,30 @@ def test_nearest_visible_depth_is_the_least_over_every_receiver_box():
         assert nearest_visible_depth(view, light, body) == pytest.approx(expected, rel=1e-12, abs=1e-12)
         checked += 1
     assert checked >= 40
+
+
+def test_the_lambda_guard_moves_the_virtual_camera_back_until_psm_is_no_worse_than_uniform():
+    """The λ guard (docs/papers.md) on PSM: on outdoor_sun PSM's own λ, read
+    from its map, is below the guard's, so the virtual camera moves back
+    (§4.2) until it meets it; the map still holds B."""
+    example = Path(__file__).parents[2] / "examples" / "outdoor_sun.json"
+    view, light, scene, options = parse_config(json.loads(example.read_text()))
+    body = focused_body(view, light, scene, options)
+    frame = light_frames(view, light, body, options)[0]
+    at, _ = light_at_eye(view, light, options, body, view.direction)
+    ctx = eye_depth_range(view, body, options, Diagnostics("psm"))
+    ctx.phi = half_fov_towards(view, at.ell)
+
+    def lam_and_guard(setup):
+        axis, lam = map_lambda(setup.maps[0].matrix, frame)
+        return lam, guard_lambda(0.0, at.gamma, axis, ctx)[0]
+
+    raw = psm(view, light, body, dataclasses.replace(options, lambda_guard="off"))
+    guarded = psm(view, light, body, options)
+    lam, guard = lam_and_guard(raw)
+    assert lam < 0.5 * guard and not raw.diagnostics.fallbacks
+    lam, guard = lam_and_guard(guarded)
+    assert guard <= lam <= guard * (1 + GUARD_TOLERANCE)
+    assert [w for w, _ in guarded.diagnostics.fallbacks] == ["main: λ guard"]
+    assert guarded.diagnostics.extra["virtual_near"] > 2 * raw.diagnostics.extra["virtual_near"]
+    assert guarded.maps[0].contains(body.vertices, 1e-6).all()

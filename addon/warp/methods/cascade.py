@@ -57,12 +57,17 @@ class Split:
 
 
 def split_setup(warp: str, view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
-    """A split's maps by ``warp``, or a stable sun or spot split's on its texel grid."""
+    """A split's maps by ``warp``, or a stable sun or spot split's on its texel grid. PSM runs without
+    its λ guard (``psm.guarded_warp``): read along PSM's own axis, the guard's λ can rise steeply
+    with a split's ends (sun_behind_camera), which the adaptive splits cannot equalise; "auto"
+    weighs each split's warps against the uniform map's predicted error anyway."""
     stable, size = options.cascade_stable and light.type != "POINT", options.shadow_map_size
     snapped = None if not stable else stable_sun_map(view, light, body, size, options.linear_z) \
         if light.is_directional else stable_spot_map(light, body, size, options.max_frustum_angle)
     if snapped is not None:
         return ShadowSetup([snapped], Diagnostics("uniform", body_vertices=body.vertices))
+    if warp == "psm":
+        options = dataclasses.replace(options, lambda_guard="off")
     setup = SPLIT_WARPS[warp](view, light, body, options)
     if stable:                  # a spot split wider than max_frustum_angle
         setup.diagnostics.fallback("stable", f"this split reaches beyond {math.degrees(options.max_frustum_angle):.0f}° "

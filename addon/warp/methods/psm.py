@@ -60,27 +60,49 @@ are all handled by the same formula without thresholds.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
 from ..body import IntersectionBody
 from ..diagnostics import Diagnostics, OnRead
 from ..fit import fit_to_unit_cube
-from ..frame import body_light_angles
+from ..frame import body_light_angles, light_frames
 from ..geometry import clip_volume_corners_h, translation
 from ..linear_depth import light_depth_row
 from ..post_perspective import PPSLight, VirtualCamera, nearest_visible_depth, pps_light_matrix, virtual_camera
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpOptions
 from .common import near_plane_notes, uniform_maps
+from .warp_frustum import WarpAxis, eye_depth_range, guard_lambda, half_fov_towards, light_at_eye, map_lambda
 
 COVER_TOLERANCE = 1e-6
 """Final check: every B vertex has |NDC| <= 1 + this (the fit pads by 1e-7)."""
+GUARD_STEPS = 16
+"""At most this many virtual cameras are tried when the λ guard moves PSM's back."""
+GUARD_FAR = 1e6
+"""The guard's search hands over to the uniform map rather than move the virtual camera this many
+depths of B back (λ ≈ 1e6 for a sun across the view: the uniform map to float precision)."""
+GUARD_TOLERANCE = 1e-3
+"""The guard's search aims PSM's λ at most this much (relative) above the guard's λ."""
+
+
+@dataclass(frozen=True)
+class PSMWarp:
+    """PSM's map for one virtual camera: the camera, the light's frustum in its
+    PPS and the fitted camera-relative map (None: no single frustum)."""
+
+    camera: VirtualCamera
+    light_in_pps: PPSLight
+    relative: Optional[np.ndarray]
 
 
 def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
     """The paper's pipeline: the virtual camera and its post-perspective space
     (§4.2, §6), the light in PPS (§3), its frustum around B', the unit-cube fit
-    (§4), composed into world -> light clip."""
+    (§4), composed into world -> light clip; with the λ guard, the virtual
+    camera moved back until the map is no worse than the uniform map
+    (``guarded_warp``)."""
     theta, gamma = body_light_angles(view, light, body)
     diag = Diagnostics("psm", theta, gamma, body_vertices=body.vertices)
     if view.orthographic:
@@ -92,21 +114,27 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
                                  f"light '{light.name}' is inside the region that must be covered: no single "
                                  "frustum in post-perspective space contains it; using the uniform cube faces")
     origin = view.position
-    camera = virtual_camera(view, body, nearest_visible_depth(view, light, body, options))
-    # A point or spot light's frustum wider than options.max_frustum_angle is not built: hand over.
-    light_in_pps = pps_light_matrix(camera.to_pps @ light.homogeneous_from(origin), camera.points,
-                                    math.inf if light.is_directional else options.max_frustum_angle / 2)
-    diag.extra.update(_pps_report(camera, light_in_pps))
+    warp = psm_warp(view, light, body, options, nearest_visible_depth(view, light, body, options))
+    light_in_pps = warp.light_in_pps
     if not light_in_pps.single_frustum:
+        diag.extra.update(_pps_report(warp))
         return _uniform_fallback(view, light, body, options, diag, "PPS light frustum",
                                  f"light '{light.name}' touches B in post-perspective space (cone half-angle "
                                  f"{math.degrees(light_in_pps.cone_half_angle):.4f} deg): no single frustum")
-    if light_in_pps.matrix is None:
+    if warp.relative is None:
+        diag.extra.update(_pps_report(warp))
         return _uniform_fallback(view, light, body, options, diag, "PPS light frustum",
                                  f"light '{light.name}' needs a {math.degrees(2 * light_in_pps.cone_half_angle):.0f} "
                                  f"deg frustum in post-perspective space (max "
                                  f"{math.degrees(options.max_frustum_angle):.0f}); using the uniform map's cube faces")
-    relative = fit_to_unit_cube(light_in_pps.matrix @ camera.to_pps, body.vertices - origin)
+    if options.lambda_guard == "all":
+        warp, note = guarded_warp(view, light, body, options, warp, diag)
+        if warp is None:
+            return _uniform_fallback(view, light, body, options, diag, "main: λ guard", note)
+        if note:
+            diag.fallback("main: λ guard", note)
+    diag.extra.update(_pps_report(warp))
+    relative = warp.relative
     shadow_map = ShadowMap(relative @ translation(-origin), options.shadow_map_size, "LESS", "main")
     if not shadow_map.contains(body.vertices, COVER_TOLERANCE).all():
         return _uniform_fallback(view, light, body, options, diag, "PSM matrix",
@@ -121,7 +149,81 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
     return ShadowSetup([shadow_map], diag)
 
 
-def _pps_report(camera: VirtualCamera, light_in_pps: PPSLight) -> dict:
+def psm_warp(view: View, light: Light, body: IntersectionBody, options: WarpOptions,
+             visible_near: float) -> PSMWarp:
+    """The virtual camera with its near plane at ``visible_near`` (§4.2, §6),
+    the light's frustum around B' in its PPS (§3; a point or spot light's
+    wider than ``options.max_frustum_angle`` is not built) and the fit (§4)."""
+    camera = virtual_camera(view, body, visible_near)
+    light_in_pps = pps_light_matrix(camera.to_pps @ light.homogeneous_from(view.position), camera.points,
+                                    math.inf if light.is_directional else options.max_frustum_angle / 2)
+    relative = None
+    if light_in_pps.matrix is not None:
+        relative = fit_to_unit_cube(light_in_pps.matrix @ camera.to_pps, body.vertices - view.position)
+    return PSMWarp(camera, light_in_pps, relative)
+
+
+def guarded_warp(view: View, light: Light, body: IntersectionBody, options: WarpOptions, warp: PSMWarp,
+                 diag: Diagnostics) -> tuple[Optional[PSMWarp], str]:
+    """The λ guard (docs/papers.md, "The λ guard") for PSM, whose one knob is
+    the virtual camera: moving it back weakens the warp, and at infinity PSM
+    is the uniform map (§4.2). PSM's λ is read from its map in the uniform
+    map's light frame (``warp_frustum.map_lambda``) and guarded along the map's
+    own axis (``warp_frustum.guard_lambda``). The virtual near distance rises
+    until λ meets the guard's λ (within ``GUARD_TOLERANCE``): by secant steps
+    (the first by λ ∝ near, exact for a sun across the view: λ = near/(far -
+    near), far - near fixed) until the root is bracketed, then by regula falsi
+    with Illinois' halving. Returns the warp and why it moved ("": it did
+    not), or None and why the guard asks for the uniform map."""
+    frames = light_frames(view, light, body, options)
+    at, _ = light_at_eye(view, light, options, body, view.direction)
+    if len(frames) != 1 or at is None:
+        return warp, ""
+    ctx = eye_depth_range(view, body, options, diag)
+    ctx.phi = half_fov_towards(view, at.ell)
+
+    def lambdas(tried: PSMWarp) -> tuple[float, Optional[WarpAxis]]:
+        return map_lambda(tried.relative @ translation(-view.position), frames[0])[::-1]
+
+    def ratio(tried: PSMWarp) -> float:                   # PSM's λ over the guard's least λ along its axis
+        lam, axis = lambdas(tried)
+        guard = guard_lambda(0.0, at.gamma, axis, ctx)[0] if axis is not None else 0.0
+        return lam / guard if guard > 0.0 and math.isfinite(lam) else aim
+
+    aim = 1.0 + GUARD_TOLERANCE / 2
+    lam, axis = lambdas(warp)
+    guard, why = guard_lambda(lam, at.gamma, axis, ctx) if axis is not None else (lam, None)
+    if not why:
+        return warp, ""
+    low, q_low, before, high, q_high, side = warp.camera.near, lam / guard, None, None, 0.0, 0
+    for _ in range(GUARD_STEPS):
+        if not q_low > 0.0:                               # the guard's λ is ∞
+            return None, f"PSM's {why}; along its axis no warp is no worse than the uniform map"
+        if high is None:                                  # secant through the last two, or λ ∝ near
+            slope = (q_low - before[1]) / (low - before[0]) if before and q_low > before[1] else q_low / low
+            near = low + (aim - q_low) / slope
+        else:
+            near = low + (high[0] - low) * (aim - q_low) / (q_high - q_low)
+        if not near < GUARD_FAR * (warp.camera.far - warp.camera.near):
+            return None, f"PSM's {why}; only a virtual camera {GUARD_FAR:.0e} depths of B back meets it"
+        tried = psm_warp(view, light, body, options, near)
+        if tried.relative is None:
+            return None, f"PSM's {why}; no single post-perspective frustum on the way back"
+        q = ratio(tried)
+        if abs(q - aim) <= GUARD_TOLERANCE / 2:
+            high = (near, tried)
+            break
+        if q > aim:
+            q_low, high, q_high, side = (aim + q_low) / 2 if side > 0 else q_low, (near, tried), q, 1
+        else:
+            q_high, before, low, q_low, side = (aim + q_high) / 2 if side < 0 else q_high, (low, q_low), near, q, -1
+    if high is None:
+        return None, f"PSM's {why}; the search for its virtual camera did not converge"
+    return high[1], f"virtual camera moved back from near {warp.camera.near:.4g} to {high[0]:.4g} (§4.2): PSM's {why}"
+
+
+def _pps_report(warp: PSMWarp) -> dict:
+    camera, light_in_pps = warp.camera, warp.light_in_pps
     return {
         "pps_light": light_in_pps.light,
         "pps_light_position": light_in_pps.position,

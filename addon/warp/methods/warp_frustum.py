@@ -136,19 +136,27 @@ class LightAtEye:
 
 
 @dataclass
-class FrameGeometry:
+class WarpAxis:
+    """A warp's depth axis in a light frame (``to_light``: world -> light
+    space, rays along z): V_P as the unit 2-vector ``a`` in the image plane and
+    B's part along it, from ``h_min`` over ``extent`` D (module docs)."""
+
+    to_light: np.ndarray
+    a: tuple
+    h_min: float
+    extent: float
+
+
+@dataclass
+class FrameGeometry(WarpAxis):
     """One frame's warp geometry, in that frame's (divided) light space."""
 
-    a: tuple               # V_P in the image plane (unit 2-vector)
     eye: tuple             # the eye in light space
-    h_min: float
-    extent: float          # D, the frame's part of B along V_P in light space
     extent_world: float    # the frame's part of B along the world V_P
     body_extent_world: float  # all of B along the world V_P (the paper's P_f - P_n)
     gamma: float
     v_p_world: Optional[np.ndarray]
     fade: float
-    to_light: np.ndarray   # the frame's world -> light space
 
     @property
     def b(self) -> tuple:
@@ -259,8 +267,8 @@ def frame_geometries(at: LightAtEye, frames: list, to_light: np.ndarray, b_in_li
             along = np.concatenate([f.points for f in frames]) @ at.v_p
             extent_world = (np.maximum.reduceat(along, starts) - np.minimum.reduceat(along, starts)).tolist()
     return [ax if isinstance(ax, str) else
-            FrameGeometry(ax[0], ax[1], h_min[k], extent[k], extent_world[k], body_extent[k], at.gamma, v_p[k],
-                          ax[2], frames[k].to_light)
+            FrameGeometry(frames[k].to_light, ax[0], h_min[k], extent[k], ax[1], extent_world[k], body_extent[k],
+                          at.gamma, v_p[k], ax[2])
             for k, ax in enumerate(axes)]
 
 
@@ -362,23 +370,24 @@ def rule_glpr(g: FrameGeometry, ctx: WarpContext, phi: float, options: WarpOptio
     return forced if forced is not None else lambda_glpr(folded(g.gamma), ctx.z_n, ctx.z_f, phi)
 
 
-def guard_lambda(lam: float, g: FrameGeometry, ctx: WarpContext) -> tuple[float, Optional[str]]:
+def guard_lambda(lam: float, gamma: float, axis: WarpAxis, ctx: WarpContext,
+                 scale: float = 1.0) -> tuple[float, Optional[str]]:
     """``lam`` raised to the least λ at which the warp is no worse than the
     uniform map (``WarpOptions.lambda_guard``; docs/papers.md, "The λ guard"):
     at its worst over the visible depths (GMNPR Eq. 2 at the ends of
     [z_n, z_f], ``lambda_no_worse_than_uniform``) and, when B was focused on
     the visible region, over the visible pixels in the L2 norm of its texels'
     ratio to the uniform map's (``lambda_no_worse_on_average`` of their δ along
-    this frame's V_P). Returns the λ and, when the guard raised it, why."""
-    theta = folded(g.gamma)
+    ``axis``; ``scale`` turns that λ into ``lam``'s units). Returns the λ and,
+    when the guard raised it, why."""
+    theta = folded(gamma)
     worst = lambda_no_worse_than_uniform(theta, ctx.z_n, ctx.z_f, ctx.phi)
     mean = 0.0
-    if ctx.visible is not None and g.to_light is not None and g.extent > 0 and g.body_extent_world > 0:
+    if ctx.visible is not None and axis.extent > 0 and scale > 0:
         points, weights = ctx.visible
-        h = points @ g.to_light[:, :3].T + g.to_light[:, 3]
-        along = (h[:, 0] * g.a[0] + h[:, 1] * g.a[1]) / h[:, 3]
-        # (this frame's λ, in units of all of B's extent as the rules give it)
-        mean = lambda_no_worse_on_average((along - g.h_min) / g.extent, weights) * g.extent_world / g.body_extent_world
+        h = points @ axis.to_light[:, :3].T + axis.to_light[:, 3]
+        along = (h[:, 0] * axis.a[0] + h[:, 1] * axis.a[1]) / h[:, 3]
+        mean = lambda_no_worse_on_average((along - axis.h_min) / axis.extent, weights) * scale
     guard = max(worst, mean)
     if not guard > lam:
         return lam, None
@@ -387,6 +396,28 @@ def guard_lambda(lam: float, g: FrameGeometry, ctx: WarpContext) -> tuple[float,
     return guard, (f"λ raised from {lam:.4g} to {guard:.4g}" + (" (the uniform map)" if guard == math.inf else "")
                    + f": below it {why} would be worse than the uniform map's (θ = {math.degrees(theta):.1f}°, "
                    f"φ = {math.degrees(ctx.phi):.1f}°)")
+
+
+def map_lambda(matrix: np.ndarray, frame: LightFrame) -> tuple[Optional[WarpAxis], float]:
+    """The warp of any light map in ``frame``'s terms (module docs): its axis
+    and λ (no axis and λ = ∞ where the map is affine there, a uniform map).
+    The map sends each light ray to one texel, so its x, y and w rows, in the
+    frame's light space, depend on the image point only: a 2D projective map,
+    an affine one after a warp P whose centre line is where w vanishes. V_P is
+    that line's normal towards B (w > 0) and λ = P_n/(P_f - P_n) = (h_min -
+    h_0)/D, h_0 the line's place along V_P (GMNPR §3's λ, read from the map)."""
+    w_row = (matrix @ np.linalg.inv(frame.to_light))[3].tolist()
+    length = math.hypot(w_row[0], w_row[1])
+    light = frame.points_h @ frame.to_light.T
+    image = light[:, :2] / light[:, 3:]
+    if not length > 1e-12 * (abs(w_row[3]) + length * float(np.abs(image).max())):
+        return None, math.inf
+    a = (w_row[0] / length, w_row[1] / length)
+    h = image @ a
+    h_min, extent = float(h.min()), float(h.max() - h.min())
+    if not extent > 0:
+        return None, math.inf
+    return WarpAxis(frame.to_light, a, h_min, extent), (h_min + w_row[3] / length) / extent
 
 
 def _unit_or_zero(v: np.ndarray) -> np.ndarray:
@@ -434,7 +465,9 @@ def frame_warps(frames: list, view: View, at: Optional[LightAtEye], reason: str,
             continue
         lam, guarded = rule(geo, ctx, phi, options), None
         if ctx.guard and options.lam is None:
-            lam, guarded = guard_lambda(lam, geo, ctx)
+            # (the rules' λ is in units of all of B's extent along V_P, this frame's in its part's)
+            scale = geo.extent_world / geo.body_extent_world if geo.body_extent_world > 0 else 0.0
+            lam, guarded = guard_lambda(lam, geo.gamma, geo, ctx, scale)
         _warp_strength(w, geo, lam, guarded)
         warp[k] = warp_matrix(geo, w.mu)
     for w, matrix in zip(warps, fit_runs(warp, b_in_light_h, starts, run) @ to_light):
