@@ -420,11 +420,12 @@ def _box_depths_in_squares(view: View, boxes, low, high, lo, hi) -> tuple[np.nda
     bb = np.repeat(boxes, 4, axis=0)
     with np.errstate(divide="ignore"):
         enter, leave = slab_intervals(start, 1.0 / ray, bb[:, 0], bb[:, 1])
+    inside = (enter < 0.0).reshape(len(boxes), 4)          # from inside the box: no surface where it starts
     enter, leave = np.clip(enter, 0.0, 1.0), np.clip(leave, 0.0, 1.0)
     met = (enter <= leave).reshape(len(boxes), 4)
-    for a in (enter, leave):
+    for a, m in ((enter, met & ~inside), (leave, met)):
         points.append((start + np.nan_to_num(a)[:, None] * ray).reshape(len(boxes), 4, 3))
-        keep.append(met)
+        keep.append(m)
     p, k = np.concatenate(points, axis=1), np.concatenate(keep, axis=1)
     depth = view.eye_depth(p.reshape(-1, 3)).reshape(k.shape)
     found = k.any(axis=1)

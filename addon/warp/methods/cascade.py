@@ -193,10 +193,9 @@ def cascade(view: View, light: Light, body: IntersectionBody, options: WarpOptio
     if all(s.setup is None for s in splits):
         raise EmptyBodyError("no split of the view holds a visible receiver")
     maps, owner = cascade_maps(view, light, splits, options)
-    w0, h0 = options.shadow_map_size
     filled = [s.setup is not None for s in splits]
-    errors = [s.predicted_error * math.sqrt(w0 * h0 / np.prod(maps[owner.index(i)].size)) if f else None
-              for i, (s, f) in enumerate(zip(splits, filled))]       # E ∝ 1/sqrt(texels) at its final size
+    errors = [s.predicted_error * math.sqrt(np.prod(options.shadow_map_size) / np.prod(maps[owner.index(i)].size))
+              if f else None for i, (s, f) in enumerate(zip(splits, filled))]   # E ∝ 1/sqrt(texels) at its size
     for i, s in enumerate(splits):
         for what, why in (s.setup.diagnostics.fallbacks if filled[i] else []):
             diag.fallback(f"split {i}: {what}", why)
