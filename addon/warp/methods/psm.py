@@ -1,62 +1,17 @@
-"""Perspective shadow maps (Stamminger & Drettakis, SIGGRAPH 2002).
+"""Perspective shadow maps (Stamminger & Drettakis, SIGGRAPH 2002): the map is
+rendered in the post-perspective space (PPS) of a virtual camera, world ->
+virtual camera clip (§4.2, §6) -> the PPS light's frustum (§3) -> the unit-cube
+fit (§4); the pieces live in ``post_perspective.py``. The composed w is the
+product of the virtual eye depth and the PPS frustum's w, both positive on B,
+and lines through the light become lines through L', one texel each.
 
-The shadow map is rendered in the post-perspective space (PPS) of a virtual
-camera: world -> virtual camera clip -> PPS light frustum -> unit-cube fit.
-The pieces live in ``post_perspective.py``:
-
-* the virtual camera shift (§4.2) with the near plane at the nearest visible
-  depth (§6): ``virtual_camera``; B' (B in PPS) fills the unit cube;
-* the light in homogeneous coordinates mapped to PPS (§3): a sun becomes a
-  point light on the PPS infinity plane (§3.1), a light behind the camera plane
-  an *inverted* light, a light in the camera plane a directional one (§3.2);
-* one light frustum formula for the three cases (``pps_light_matrix``),
-  continuous through the camera plane; the final unit-cube fit (§4, "fit to
-  the unit cube", ``fit.fit_to_unit_cube``) over B.
-
-Why the composition is valid: the final matrix is F @ Lpps @ V (camera-relative).
-V gives w = virtual eye depth >= d_R > 0 on B; Lpps gives w = 1 + ρ k·q > 0 on
-B' (cone narrower than 180°); F is affine. For a B point, the composed w is the
-product of the two (positive) w's, so w > 0 on B; every row is finite. Lines
-through the light map to lines through L' (projective maps keep incidence) and
-Lpps sends those to one (x, y): one light ray, one texel. Along a ray the depth
-grows away from the real light in every case, so the depth test is "LESS" even
-for inverted lights: the paper reverses the *test* (§3.1), Lixel reverses the
-*depth axis*, which is the same map up to z -> -z but does not jump when the
-light crosses the camera plane.
-
-Where PSM is still discontinuous:
-
-* a point or spot light entering B (for instance a lamp inside the view and the
-  scene box): no single frustum from L' covers B', and Lixel hands over to the
-  uniform map's cube faces (``frame.point_frames``), recorded as a fallback.
-  The brief allowed PPS cube faces instead; uniform's faces were chosen
-  because PSM's gain is small when the light sits inside the visible region
-  (§3.3: a light near the eye converges to the uniform setting) and the cube
-  faces already exist, tested, in one place;
-* a point or spot light whose PPS frustum would be wider than
-  ``WarpOptions.max_frustum_angle`` (a light close to B, e.g. low over a large
-  terrain): the same hand-over to the uniform map's faces. Suns never need it:
-  their PPS light lies beyond the PPS image of infinity, and even a sun shining
-  straight into the camera (a PPS frustum close to 180°) measured better than
-  the uniform map (tests/warp/test_psm_footprint.py);
-* the near plane pushed to the nearest visible receiver (§6) drops when a
-  nearer receiver box enters the view: the virtual eye, and so the map, jump
-  then (the paper's depth readback does the same). The jump is bounded by how
-  much nearer the new box is; a caller that wants smooth motion can pass a
-  smoothed ``WarpOptions.visible_depth_range``;
-* an orthographic camera has an affine PPS: PSM *is* the uniform map (§1.1,
-  "for an orthogonal view"), so the uniform map is returned (recorded).
-
-``Diagnostics.warp_frustum_corners`` are the 8 world corners of the map's clip
-volume, or None when that volume reaches infinity (a corner's preimage has
-w <= 0; this happens for some point lights, whose clip volume is a frustum cut
-by the camera's plane at infinity).
-
-Light exactly at the camera plane (w' = 0), a sun exactly along or against the
-view direction (the PPS light at the centre of the infinity plane, §3.3's worst
-case, where PSM equals the uniform map) and the light crossing the camera plane
-are all handled by the same formula without thresholds.
-"""
+Where PSM hands over to the uniform map (recorded as a fallback): an
+orthographic camera (its PPS is affine: PSM *is* the uniform map, §1.1), a
+point or spot light inside B or needing a PPS frustum wider than
+``max_frustum_angle`` (the uniform cube faces; §3.3: near the eye PSM gains
+little), and the λ guard's search failing. The near plane at the nearest
+visible receiver (§6) jumps when a nearer receiver enters the view, as the
+paper's depth readback does; a smoothed ``visible_depth_range`` avoids it."""
 from __future__ import annotations
 
 import math
@@ -165,16 +120,12 @@ def psm_warp(view: View, light: Light, body: IntersectionBody, options: WarpOpti
 
 def guarded_warp(view: View, light: Light, body: IntersectionBody, options: WarpOptions, warp: PSMWarp,
                  diag: Diagnostics) -> tuple[Optional[PSMWarp], str]:
-    """The λ guard (docs/papers.md, "The λ guard") for PSM, whose one knob is
-    the virtual camera: moving it back weakens the warp, and at infinity PSM
-    is the uniform map (§4.2). PSM's λ is read from its map in the uniform
-    map's light frame (``warp_frustum.map_lambda``) and guarded along the map's
-    own axis (``warp_frustum.guard_lambda``). The virtual near distance rises
-    until λ meets the guard's λ (within ``GUARD_TOLERANCE``): by secant steps
-    (the first by λ ∝ near, exact for a sun across the view: λ = near/(far -
-    near), far - near fixed) until the root is bracketed, then by regula falsi
-    with Illinois' halving. Returns the warp and why it moved ("": it did
-    not), or None and why the guard asks for the uniform map."""
+    """The λ guard (docs/papers.md) for PSM, whose one knob is the virtual camera:
+    moving it back weakens the warp, and at infinity PSM is the uniform map (§4.2).
+    λ is read from the map in the uniform light frame (``warp_frustum.map_lambda``);
+    the virtual near distance rises until it meets the guard's λ within
+    ``GUARD_TOLERANCE`` (secant steps, then regula falsi with Illinois' halving).
+    Returns the warp and why it moved ("": it did not), or None and why the uniform map serves."""
     frames = light_frames(view, light, body, options)
     at, _ = light_at_eye(view, light, options, body, view.direction)
     if len(frames) != 1 or at is None:
@@ -249,9 +200,7 @@ def _uniform_fallback(view: View, light: Light, body: IntersectionBody, options:
 
 
 def _clip_corners(matrix: np.ndarray, origin: np.ndarray) -> np.ndarray | None:
-    """World corners of the clip volume of the camera-relative ``matrix``
-    (UNIT_CUBE_CORNERS order), or None when the volume reaches infinity (a
-    corner's preimage has w <= 0)."""
+    """World corners of the clip volume of the camera-relative ``matrix``, or None when it reaches infinity."""
     try:
         h = clip_volume_corners_h(matrix)
     except np.linalg.LinAlgError:

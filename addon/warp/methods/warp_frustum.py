@@ -1,84 +1,28 @@
-"""The light-space perspective warp shared by ``lispsm``, ``gmnpr`` and ``glpr``.
+"""The light-space perspective warp shared by ``lispsm``, ``gmnpr`` and ``glpr``:
+Wimmer et al.'s LiSPSM as made robust by Scherzer §4.4, the three differing
+only in their λ rule (:mod:`..aliasing`).
 
-Wimmer et al.'s LiSPSM as made robust by Scherzer §4.4, with the warp strength
-chosen by a λ rule (:mod:`..aliasing`). All three differ only in λ.
+The warp frustum P (Scherzer §4.4, Fig. 9, Eq. 2-3), in a light frame
+(``frame.light_frames``: light rays parallel to +z). In the image plane P looks
+along V_P, the view direction across the light (Eq. 3). With h = V_P·(x, y),
+q = (x, y) × V_P, B's extent [h_min, h_max] along V_P, D = h_max - h_min,
+δ = (h - h_min)/D and μ = 1/λ, P's centre lies λ·D behind B's near side at
+the eye's lateral position and height (Eq. 2, with h_min for z_n, so w >= 1
+on B), and in homogeneous light space [X, Y, Z, W]
 
-**The warp frustum P** (Scherzer §4.4, Fig. 9, Eq. 2-3). Work in a light frame
-from ``frame.light_frames`` (light rays parallel to +z; for a point or spot light
-this is the light's post-perspective space, Stamminger-Drettakis §3). In the
-image plane (x, y) P looks along V_P, the view direction projected
-perpendicular to the light (Eq. 3; for a sun the frame's +y already is V_P), so
-its near and far planes are parallel to the light direction. With
+    x' = q - q_eye·W,  y' = δ·W,  z' = Z - z_eye·W,  w' = (1 + μ·δ)·W,
 
-    h = V_P · (x, y)            (P's depth axis)
-    q = (x, y) × V_P            (P's lateral axis)
-    h_min, h_max = B's extent along V_P,   D = h_max - h_min
-
-P's near plane touches B's near side h_min and its projection centre is
-P_n = λ·D further back along V_P, at the eye's lateral position and height
-(Eq. 2, C_P = C_eye - (n_opt - z_n)·V_P, with the eye's near distance z_n
-replaced by h_min, B's actual near side: the two agree in the ideal case and this
-guarantees w ≥ 1 on all of B, even where B extends behind the eye). In
-homogeneous light space [X, Y, Z, W] (δ = (h - h_min)/D ∈ [0, 1] on B, μ = 1/λ):
-
-    x' = q - q_eye·W,  y' = δ·W,  z' = Z - z_eye·W,  w' = (1 + μ·δ)·W
-
-so u = x'/w' is P's lateral coordinate, v = y'/w' = δ/(1 + μδ) its hyperbolic
-depth along V_P, and the stored depth z'/w' is light-space z divided by P's w,
-monotonic along every light ray (w' is constant on a ray). The shared unit-cube
-fit (``fit.fit_to_unit_cube``) finishes the map. μ = 0 (λ = ∞, n_opt = ∞) is
-exactly the uniform map: the warp converges continuously to uniform as light
-and view become parallel and needs no switch (Scherzer §4.4: "no perspective warp
-should be present and standard shadow mapping should be reached").
-
-**λ and n_opt.** The paper's λ = P_n/(P_f - P_n) (GMNPR §3) is P's near distance
-in units of its depth extent; here P_f - P_n = D, B's extent along V_P, so
-P_n = λ·D. LiSPSM gives n_opt (Eq. 1) in world units and λ = n_opt / D.
-In Eq. 1 and in GMNPR's (n, f):
-
-* z_n (= n) and Δz (with f = z_n + Δz) are **eye depths, measured along the view
-  direction**: z_n is the nearest eye depth of R = B ∩ V (B's visible part,
-  ``body.visible_vertices``; it is the camera's near distance whenever receivers
-  reach the near plane, as in the paper), and z_n + Δz is R's farthest eye depth
-  (``delta_z="body"``) or the far end of ``options.visible_depth_range``
-  (``delta_z="visible"``, Scherzer's "Δz from visibility", whose near end then
-  replaces z_n). This is the reading GMNPR Eq. 9 uses (P_n = (n + √(fn))/sin θ
-  with the view's n and f), so in the paper's ideal configuration the method's
-  λ equals Eq. 9's. B itself is never changed by it.
-* γ is the angle between the view direction and the light (for point and spot
-  lights: the light ray through the eye), θ = min(γ, π - γ).
-* φ (GMNPR) is the view's half field of view in the plane of the view and light
-  directions: the angle from the view axis to the frustum's side along the light
-  direction's projection (the vertical half-fov for a light in the camera's
-  vertical plane; lens shift included).
-
-**Point and spot lights.** Each frame is the light's post-perspective space;
-V_P is the image of the view ray at the eye (blended towards the frame's +y as
-the view becomes parallel to the light ray through the eye, as in
-``frame.image_up``). λ comes from the world-space quantities above, with the
-world V_P perpendicular to the light ray through the eye: P_n = λ·(all of B's
-extent along it) in world units, then λ_frame = P_n / (this frame's part of B
-along it), which is dimensionless and is applied to the frame's extent in its
-own space (one frame: λ_frame = λ; a cube face holding a slice of B gets a
-proportionally weaker warp). When the eye is behind the frame's light plane
-(w <= 0) the construction is undefined and that frame is uniform; when the eye's
-image lies far outside B's image the warp - its strength μ and the rotation of
-its axes away from the frame's - fades to exactly that uniform map
-(``FADE_START``..``FADE_END`` half-diagonals of B's image), so the eye crossing
-the light plane causes no jump. This is a heuristic transfer: the papers' model
-is for directional lights only (GMNPR §5). Orthographic cameras have no
-perspective aliasing: their maps are uniform. Every such case is recorded in
-``diagnostics.fallbacks``.
-
-**Options.** ``middle_vector``: V_P is the direction from the eye to the middle
-of B projected perpendicular to the light. Scherzer sums the vectors from the eye
-to B's vertices (their mean); that jumps whenever a vertex of B appears or
-merges, so Lixel takes the centre of B's volume ("the middle of the volume of
-the body", §4.4), which moves continuously. ``linear_z`` (Scherzer §4.2): ``ShadowMap.depth_row``
-stores light-space depth linearly (the frame's z for a sun, the distance along
-the light's axis for a point light), fitted so B spans [-1, 1]. ``lam`` forces
-λ (gmnpr, glpr).
-"""
+then the unit-cube fit. μ = 0 is exactly the uniform map, so the warp fades
+into it continuously as light and view become parallel. λ = P_n/(P_f - P_n)
+(GMNPR §3); LiSPSM's is n_opt/D (Eq. 1, z_n and Δz as eye depths of R:
+docs/papers.md). A point or spot light's frames are its post-perspective
+space: λ is set by the world quantities across the light ray through the eye
+and shared out by each frame's part of B; the warp fades to uniform as the
+eye's image leaves B's (``FADE_START``..``FADE_END``), and a frame with the eye
+behind its light plane stays uniform (a heuristic transfer: the papers model
+directional lights, GMNPR §5). Orthographic cameras get uniform maps.
+``middle_vector`` takes V_P towards the centre of B's volume (§4.4);
+``linear_z`` stores the frame's linear depth (§4.2); ``lam`` forces λ."""
 from __future__ import annotations
 
 import math
@@ -242,12 +186,9 @@ def half_fov_towards(view: View, light_dir) -> float:
 
 def frame_geometries(at: LightAtEye, frames: list, to_light: np.ndarray, b_in_light: np.ndarray, starts: list,
                      run: np.ndarray, view: View, options: WarpOptions, body: IntersectionBody) -> list:
-    """Each frame's warp geometry, or the reason its map stays uniform:
-    V_P, the eye and the fade per frame (``frame_axes``), then B's extent
-    along V_P in light space and in the world, over every frame's points at
-    once. ``to_light``: the frames' matrices (k, 4, 4); ``b_in_light``: each
-    frame's points in its light space (divided), one run after another
-    (``geometry.point_runs``)."""
+    """Each frame's warp geometry, or why its map stays uniform: V_P, the eye and the
+    fade (``frame_axes``), then B's extent along V_P in light space and in the
+    world, over every frame's points (one run each, ``geometry.point_runs``) at once."""
     images = (to_light @ np.array([view.position.tolist() + [1.0], at.vector.tolist() + [0.0]]).T).transpose(0, 2, 1).tolist()
     boxes = [None] * len(frames)                       # (a point light frame's points, (lo, hi) in light space)
     if not frames[0].directional:
@@ -290,11 +231,9 @@ def frame_axes(at: LightAtEye, frame: LightFrame, eye_h: list, vector_h: list, b
 
 
 def _eye_and_fade(eye: tuple, box) -> tuple[tuple, float]:
-    """A point light frame's fade (``FADE_START``..``FADE_END`` half-diagonals
-    of B's image from its centre) and the eye kept within a box holding the
-    whole fade region: that changes nothing where the warp acts (fade > 0),
-    and where fade = 0 its lateral offset is absorbed by the fit (no
-    cancellation against an image at 1e9 when the eye nears the light plane)."""
+    """A point light frame's fade (``FADE_START``..``FADE_END`` half-diagonals of B's
+    image from its centre) and the eye kept within a box holding the fade region
+    (the fit absorbs its lateral offset where the fade is 0)."""
     (xlo, ylo, zlo), (xhi, yhi, zhi) = box
     cx, cy = (xlo + xhi) / 2, (ylo + yhi) / 2
     half = max(math.hypot(xhi - xlo, yhi - ylo) / 2, 1e-300)
@@ -372,14 +311,11 @@ def rule_glpr(g: FrameGeometry, ctx: WarpContext, phi: float, options: WarpOptio
 
 def guard_lambda(lam: float, gamma: float, axis: WarpAxis, ctx: WarpContext,
                  scale: float = 1.0) -> tuple[float, Optional[str]]:
-    """``lam`` raised to the least λ at which the warp is no worse than the
-    uniform map (``WarpOptions.lambda_guard``; docs/papers.md, "The λ guard"):
-    at its worst over the visible depths (GMNPR Eq. 2 at the ends of
-    [z_n, z_f], ``lambda_no_worse_than_uniform``) and, when B was focused on
-    the visible region, over the visible pixels in the L2 norm of its texels'
-    ratio to the uniform map's (``lambda_no_worse_on_average`` of their δ along
-    ``axis``; ``scale`` turns that λ into ``lam``'s units). Returns the λ and,
-    when the guard raised it, why."""
+    """``lam`` raised to the least λ at which the warp is no worse than the uniform
+    map (docs/papers.md, "The λ guard"): at its worst over [z_n, z_f]
+    (``lambda_no_worse_than_uniform``) and, with a visible region, over the visible
+    pixels (``lambda_no_worse_on_average`` along ``axis``; ``scale`` into ``lam``'s
+    units). Returns the λ and, when raised, why."""
     theta = folded(gamma)
     worst = lambda_no_worse_than_uniform(theta, ctx.z_n, ctx.z_f, ctx.phi)
     mean = 0.0
@@ -399,13 +335,10 @@ def guard_lambda(lam: float, gamma: float, axis: WarpAxis, ctx: WarpContext,
 
 
 def map_lambda(matrix: np.ndarray, frame: LightFrame) -> tuple[Optional[WarpAxis], float]:
-    """The warp of any light map in ``frame``'s terms (module docs): its axis
-    and λ (no axis and λ = ∞ where the map is affine there, a uniform map).
-    The map sends each light ray to one texel, so its x, y and w rows, in the
-    frame's light space, depend on the image point only: a 2D projective map,
-    an affine one after a warp P whose centre line is where w vanishes. V_P is
-    that line's normal towards B (w > 0) and λ = P_n/(P_f - P_n) = (h_min -
-    h_0)/D, h_0 the line's place along V_P (GMNPR §3's λ, read from the map)."""
+    """The warp of any light map in ``frame``'s terms: its axis and λ (None and ∞ for
+    an affine map there). Its x, y, w rows depend on the image point only; V_P is
+    the normal of the line where w vanishes, towards B, and λ = (h_min - h_0)/D
+    (GMNPR §3's λ, read from the map)."""
     w_row = (matrix @ np.linalg.inv(frame.to_light))[3].tolist()
     length = math.hypot(w_row[0], w_row[1])
     light = frame.points_h @ frame.to_light.T
@@ -556,17 +489,12 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
 
 
 def ray_closed(matrices, body: IntersectionBody, light_position) -> list:
-    """Make the maps of a multi-map setup (a point light's cube faces) *ray-closed* over B.
-
-    A point is served by the first map whose clip volume holds it, so a map must
-    hold every point of B on the light rays its image window claims: those are
-    the casters of what it serves. A warped cube-face map's window reaches past
-    its face's pyramid, so its depth range is widened to B ∩ window. The window
-    |x| <= w, |y| <= w is a pyramid with its apex at the light (light rays have
-    constant x, y), so B ∩ window of every map is found at once
-    (``frame.pyramid_sections``). For each map returns the (possibly re-fitted)
-    matrix, a note, and the vertices of B ∩ window it now holds; or None and
-    the reason when that part of B touches the light (w = 0) and cannot be held."""
+    """Make a point light's cube-face maps ray-closed over B: a map must hold every
+    point of B on the light rays its window claims (the casters of what it
+    serves), so its depth range is widened to B ∩ window, a pyramid from the
+    light (``frame.pyramid_sections``, all maps at once). Per map: the (re-fitted)
+    matrix, a note and the vertices of B ∩ window; or None and why (that part
+    of B touches the light)."""
     m = np.asarray(matrices, dtype=np.float64)                   # (k, 4, 4)
     rows = m[:, :, :3]                     # on directions from the light (every row but z vanishes at the light)
     # The window's sides x = ±w, y = ±w, as outward normals x - w, -x - w, y - w, -y - w.
