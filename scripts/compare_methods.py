@@ -48,7 +48,7 @@ def main(argv=None):
         for row in rows:
             entry = {k: v for k, v in row.items() if k not in ("setup", "method")}
             if "setup" in row:
-                entry.update(row["setup"].to_json())
+                entry.update(s.module("addon.cli.output").setup_json(row["setup"]))
             doc["methods"][row["method"]] = entry
         if not args.no_render:
             renders = s.module("addon.ui.renders")

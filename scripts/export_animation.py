@@ -63,7 +63,7 @@ def main(argv=None):
                 failed += 1
                 continue
             doc["method"] = st.method_used
-            doc["frames"].append({"frame": f, **st.setup.to_json()})
+            doc["frames"].append({"frame": f, **s.module("addon.cli.output").setup_json(st.setup)})
         text = json.dumps(doc, indent=1)
         if args.output == "-":
             print(text, file=data)

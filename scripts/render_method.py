@@ -60,7 +60,7 @@ def main(argv=None):
             print(f"lixel: warning: {st.note}", file=sys.stderr)
         if args.json:
             with open(args.json, "w", encoding="utf-8") as fh:
-                json.dump(st.setup.to_json(), fh, indent=2)
+                json.dump(s.module("addon.cli.output").setup_json(st.setup), fh, indent=2)
         if args.output or args.shadow_output or args.map_output:
             renders = s.module("addon.ui.renders")
             res = renders.render_state(st, s.bpy.context.evaluated_depsgraph_get(), resolution or st.view.resolution)

@@ -20,6 +20,7 @@ import numpy as np
 from ..warp import METHODS, compute, focused_body
 from ..warp.types import EmptyBodyError, WarpError
 from .config import parse_config
+from .output import setup_json
 
 
 def _internal(exc: BaseException) -> str:
@@ -33,7 +34,7 @@ def run_method(name, view, light, scene, options, body):
     if isinstance(body, EmptyBodyError):
         return {"maps": [], "diagnostics": {"method": name, "empty_body": str(body), "fallbacks": []}}
     try:
-        return compute(name, view, light, scene, options, body=body).to_json()
+        return setup_json(compute(name, view, light, scene, options, body=body))
     except WarpError as exc:
         return {"maps": [], "diagnostics": {"method": name, "error": str(exc), "fallbacks": []}}
     except Exception as exc:  # a bug in one method must not hide the others' results

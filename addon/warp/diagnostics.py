@@ -1,10 +1,9 @@
 """What a method computed on the way, for overlays, reports and tests. A value the
 method does not use itself (the warp frustum's corners, its projection centre)
 may be given as :class:`OnRead`: computed when first read, however it is read
-(the attribute, ``extra[k]``, ``get``, ``items()``, ``dict(extra)``, ``to_json()``)."""
+(the attribute, ``extra[k]``, ``get``, ``items()``, ``dict(extra)``)."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional
 
@@ -88,30 +87,3 @@ class Diagnostics:
 
     def fallback(self, what: str, reason: str) -> None:
         self.fallbacks.append((what, reason))
-
-    def to_json(self) -> dict:
-        out = {
-            "method": self.method,
-            "theta_deg": None if self.theta is None else math.degrees(self.theta),
-            "gamma_deg": None if self.gamma is None else math.degrees(self.gamma),
-            "n_opt": self.n_opt,
-            "lambda": self.lam,
-            "body_vertices": _plain(self.body_vertices),
-            "warp_frustum_corners": _plain(self.warp_frustum_corners),
-            "fallbacks": [{"what": w, "reason": r} for w, r in self.fallbacks],
-        }
-        out.update(_plain(self.extra))
-        return out
-
-
-def _plain(v):
-    """``v`` as JSON data (arrays and numpy scalars as lists and numbers)."""
-    if isinstance(v, np.ndarray):
-        return v.tolist()
-    if isinstance(v, (np.floating, np.integer)):
-        return v.item()
-    if isinstance(v, dict):
-        return {k: _plain(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_plain(x) for x in v]
-    return v

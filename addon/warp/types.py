@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Any, Optional
+from typing import Optional
 
 import numpy as np
 
@@ -248,10 +248,6 @@ class Region:
             inside &= np.cross(b - a, q - a) @ n >= -self.tolerance * np.linalg.norm(b - a)
         return on_plane & inside
 
-    def to_json(self) -> dict:
-        return {"normal": self.normal.tolist(), "offset": float(self.offset),
-                "polygon": np.asarray(self.polygon).tolist(), "tolerance": float(self.tolerance)}
-
 
 @dataclass
 class ShadowMap:
@@ -293,23 +289,6 @@ class ShadowMap:
             ok &= (d >= self.view_depth_range[0]) & (d <= self.view_depth_range[1])
         return ok
 
-    def to_json(self) -> dict:
-        out: dict[str, Any] = {
-            "matrix": self.matrix.tolist(),
-            "size": [int(self.size[0]), int(self.size[1])],
-            "depth_test": self.depth_test,
-            "role": self.role,
-        }
-        if self.view_depth_range is not None:
-            out["view_depth_range"] = [float(v) for v in self.view_depth_range]
-        if self.region is not None:
-            out["region"] = self.region.to_json()
-        if self.depth_row is not None:
-            out["depth_row"] = np.asarray(self.depth_row).tolist()
-        if self.blend_band > 0:
-            out["blend_band"] = float(self.blend_band)
-        return out
-
 
 @dataclass
 class ShadowSetup:
@@ -317,9 +296,6 @@ class ShadowSetup:
 
     maps: list[ShadowMap]
     diagnostics: Diagnostics
-
-    def to_json(self) -> dict:
-        return {"maps": [m.to_json() for m in self.maps], "diagnostics": self.diagnostics.to_json()}
 
     def map_index(self, points, view: Optional[View] = None, tol: float = 0.0) -> np.ndarray:
         """For (N, 3) points, the index of the first map that serves each, or -1."""

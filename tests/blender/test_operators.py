@@ -20,6 +20,7 @@ def mods(lixel):
         setattr(m, name, importlib.import_module(f"{lixel.__name__}.addon.ui.{name}"))
     m.warp = importlib.import_module(f"{lixel.__name__}.addon.warp")
     m.describe = importlib.import_module(f"{lixel.__name__}.addon.scene.describe")
+    m.cli = importlib.import_module(f"{lixel.__name__}.addon.cli")
     return m
 
 
@@ -90,7 +91,7 @@ def test_export_writes_the_cli_format(scene, mods, tmp_path):
     doc = json.loads(path.read_text())
     st = mods.live.state(scene)
     assert set(doc) == {"maps", "diagnostics"}
-    assert doc == json.loads(json.dumps(st.setup.to_json()))
+    assert doc == json.loads(json.dumps(mods.cli.setup_json(st.setup)))
     path_all = tmp_path / "all.json"
     assert bpy.ops.lixel.export_json(filepath=str(path_all), all_methods=True) == {"FINISHED"}
     doc = json.loads(path_all.read_text())

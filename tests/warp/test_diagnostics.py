@@ -11,6 +11,7 @@ import pytest
 import addon.warp.methods.warp_frustum as warp_frustum
 from addon.warp import Light, SceneBounds, View, WarpOptions, compute, intersection_body
 from addon.warp.geometry import clip_volume_corners, look_along
+from addon.cli.output import diagnostics_json, setup_json
 from addon.warp.diagnostics import Diagnostics, Extra, OnRead
 
 SCENE = SceneBounds.from_boxes([[[-50.0, -50.0, -0.1], [50.0, 50.0, 0.0]]]
@@ -58,7 +59,7 @@ def test_every_way_of_reading_extra_sees_values_not_promises(read):
 def test_extra_given_as_a_plain_dict_reads_through_too():
     d = Diagnostics("x", extra={"later": OnRead(lambda: [1, 2])})
     assert isinstance(d.extra, Extra) and d.extra["later"] == [1, 2]
-    assert d.to_json()["later"] == [1, 2]
+    assert diagnostics_json(d)["later"] == [1, 2]
 
 
 @pytest.mark.parametrize("light", LIGHTS, ids=["sun", "point"])
@@ -79,7 +80,7 @@ def test_a_warped_frame_computes_its_report_only_when_read(monkeypatch, light, m
     middle = body.volume_centroid - view.position
     assert np.allclose(diag.extra["middle_vector"], middle / np.linalg.norm(middle))
     assert diag.extra["projection_centre"] is None or np.all(np.isfinite(diag.extra["projection_centre"]))
-    json.dumps(setup.to_json(), allow_nan=False)
+    json.dumps(setup_json(setup), allow_nan=False)
     assert (corners.calls, centre.calls) == (1, 1)      # once each
 
 

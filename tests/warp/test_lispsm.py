@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import assume, given, settings, strategies as st
 
+from addon.cli.output import setup_json
 from addon.warp import Light, SceneBounds, View, WarpOptions, compute, intersection_body
 from addon.warp.geometry import look_along, transform_h
 from addon.warp.fit import window_matrix
@@ -54,7 +55,7 @@ def check(setup, view, light, body):
         assert m.depth_test == "LESS"
         if m.depth_row is not None:
             assert np.all(np.isfinite(m.depth_row))
-    json.dumps(setup.to_json(), allow_nan=False)
+    json.dumps(setup_json(setup), allow_nan=False)
     pts = body.vertices
     if not light.is_directional:
         # B = hull(R ∪ light) has the light as a vertex when it is inside; the light's own

@@ -6,6 +6,7 @@ import bpy
 from bpy.props import BoolProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
+from ...cli.output import setup_json
 from ...guard import guarded_operator
 from ...scene.owned import lixel_datablock
 from ...warp import METHODS
@@ -21,14 +22,14 @@ def export_document(st, all_methods: bool) -> dict:
     method, or ``{"methods": {name: {...}}}`` for every method (like
     ``python -m addon.warp --method all``)."""
     if not all_methods:
-        return st.setup.to_json()
+        return setup_json(st.setup)
     out = {}
     for row in live.compare_methods(st):
         if "error" in row:
             out[row["method"]] = {"maps": [], "diagnostics": {"method": row["method"], "error": row["error"],
                                                               "fallbacks": []}}
         else:
-            out[row["method"]] = row["setup"].to_json()
+            out[row["method"]] = setup_json(row["setup"])
     return {"methods": out}
 
 
