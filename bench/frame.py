@@ -218,18 +218,20 @@ class Floor:
 
 
 def _lixel_frame(dg, settings):
-    """A frame as render_depsgraph makes it, kept open (the floor draws its lists)."""
+    """A frame as render_depsgraph makes it, kept open (the floor draws its lists):
+    the same B (fitted to what the pre-pass saw, as the engine's), hence the
+    same maps' matrices and the same casters."""
     from addon.gpu.pipeline import ShadowFrame
+    from addon.render.engine import fit_warp
+    from addon.scene.owned import is_debug_object
     from addon.scene.describe import describe_scene
     from addon.scene.geometry import shared_cache
-    from addon.warp import compute, intersection_body
     scene = dg.scene.original if dg.scene.is_evaluated else dg.scene
-    geometry = shared_cache().update(dg)
+    geometry = shared_cache().update(dg, exclude=is_debug_object)
     view, light, bounds = describe_scene(scene, dg, instances=geometry.instances)
     frame = ShadowFrame(geometry, view, view.resolution)
     frame.camera_prepass()
-    body = intersection_body(view, light, bounds)
-    setup = compute(settings.method, view, light, bounds, settings.warp, body=body)
+    body, setup, _ = fit_warp(frame, light, bounds, settings.warp, settings.method)
     frame.draw_maps(setup, settings.shadow, body)
     return frame, setup
 
@@ -335,6 +337,10 @@ def measure(name: str, args) -> dict:
     lixel_warm()                      # compile, upload, allocate
     stages()
     frame, setup = _lixel_frame(dg, settings)
+    drawn = render_depsgraph(dg, settings=settings)["setup"]
+    if len(setup.maps) != len(drawn.maps) or not all(
+            np.array_equal(a.matrix, b.matrix) and a.size == b.size for a, b in zip(setup.maps, drawn.maps)):
+        raise RuntimeError(f"{name}: the floor's maps are not the frame's")
     floor = Floor(frame, setup)
     runs = {"warm": lixel_warm, "internal": internal, "cold": lixel_cold, "stages": stages, "stages_cpu": stages_cpu,
             "floor_depth": floor.depth, "floor_camera": floor.camera, "floor_full_screen": floor.full_screen}

@@ -136,6 +136,19 @@ def _world_colour(scene) -> tuple:
     return tuple(float(c) for c in world.color)
 
 
+def fit_warp(frame, light, bounds, options, method: str):
+    """B and the warp for ``frame`` (a ``ShadowFrame`` whose view is the
+    camera's): B fitted to what the frame's pre-pass saw when ``options.focus``
+    is "visible", to the view frustum otherwise. Returns (body, setup, seconds
+    spent reading the visible region, or None). Raises ``EmptyBodyError``."""
+    from ..gpu.visibility import region_from_frame
+    visible = seconds = None
+    if options.focus == "visible":
+        visible, seconds = region_from_frame(frame)
+    body = focused_body(frame.view, light, bounds, options, visible)
+    return body, compute(method, frame.view, light, bounds, options, body=body), seconds
+
+
 def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, settings: Optional[LixelSettings] = None,
                      warnings: Optional[list] = None, read=None, timed: bool = True, targets=None) -> dict:
     """Describe, compute and render an evaluated scene (what the engine does);
@@ -155,7 +168,6 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     the process-wide pool)."""
     from ..gpu.batches import shared_batches
     from ..gpu.pipeline import ShadowFrame
-    from ..gpu.visibility import region_from_frame
     from ..scene.describe import check_finite_geometry, describe_scene, light_notes
     from ..scene.geometry import shared_cache
 
@@ -181,11 +193,10 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         method = "uniform"
 
     def warp():
-        visible = None
-        if settings.warp.focus == "visible":         # the warp is fitted to what the pre-pass saw
-            visible, timings["visibility"] = region_from_frame(frame)
-        b = focused_body(view, light, bounds, settings.warp, visible)
-        return b, compute(method, view, light, bounds, settings.warp, body=b)
+        b, setup, seconds = fit_warp(frame, light, bounds, settings.warp, method)
+        if seconds is not None:
+            timings["visibility"] = seconds
+        return b, setup
 
     t = time.perf_counter()
     try:
