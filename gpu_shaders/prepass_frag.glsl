@@ -3,10 +3,14 @@
  * receivers), the surface itself: its position relative to the frame's
  * origin and its geometric normal, exact per triangle from screen
  * derivatives (helper invocations interpolate the same triangle), stored
- * octahedrally (Cigolle et al., JCGT 2014):
- *   out_surface = (position, octahedral x); out_normal = (octahedral y, ...).
- * The colour targets are not cleared: where the depth says nothing was drawn
- * they hold stale values, which no pass reads. */
+ * octahedrally (Cigolle et al., JCGT 2014) in one target:
+ *   out_surface = (position, the octahedral normal packed in one float).
+ * The packing: each octahedral coordinate in [-1, 1] quantised to 12 bits,
+ * the two read as one integer below 2^24, which a float holds exactly (no bit
+ * pattern a GPU could flush or canonicalise); a step of 2/4095, so the
+ * normal's direction is within about 5e-4 rad (lixel_unpack_normal in
+ * shade_frag.glsl undoes it). The colour target is not cleared: where the
+ * depth says nothing was drawn it holds stale values, which no pass reads. */
 vec2 lixel_octahedral(vec3 n)
 {
   n /= abs(n.x) + abs(n.y) + abs(n.z);
@@ -23,6 +27,6 @@ void main()
    * octahedral map divides by the L1 norm, and the shading turns the normal
    * towards the viewer). */
   vec2 o = lixel_octahedral(cross(dFdx(v_world), dFdy(v_world)));
-  out_surface = vec4(v_world, o.x);
-  out_normal = vec4(o.y, 0.0, 0.0, 1.0);
+  vec2 q = floor(clamp(o * 0.5 + 0.5, 0.0, 1.0) * 4095.0 + 0.5);
+  out_surface = vec4(v_world, q.x * 4096.0 + q.y);
 }

@@ -308,6 +308,14 @@ bool lixel_serves(int i, vec3 P, float eye_depth, out vec4 h)
   return true;
 }
 
+/* The normal prepass_frag.glsl packed into the surface's fourth channel:
+ * two 12-bit octahedral coordinates in one exactly held integer. */
+vec2 lixel_unpack_normal(float code)
+{
+  int v = int(code);
+  return vec2(float(v >> 12), float(v & 4095)) * (2.0 / 4095.0) - 1.0;
+}
+
 vec3 lixel_unoctahedral(vec2 p)
 {
   vec3 n = vec3(p, 1.0 - abs(p.x) - abs(p.y));
@@ -430,7 +438,7 @@ void main()
   ivec2 px = ivec2(gl_FragCoord.xy);
   vec4 surface = texelFetch(u_surface, px, 0);
   vec3 P = surface.xyz;
-  vec3 N = lixel_unoctahedral(vec2(surface.w, texelFetch(u_normal, px, 0).r));
+  vec3 N = lixel_unoctahedral(lixel_unpack_normal(surface.w));
   float eye_depth = -dot(lixel.eye_row, vec4(P, 1.0));
 
   /* The first map that serves P. */

@@ -351,12 +351,11 @@ class ShadowFrame:
         w, h = self.size
         depth = self.targets.texture("camera_depth", self.size, "DEPTH_COMPONENT32F")
         surface = self.targets.texture("surface", self.size, "RGBA32F")
-        normal = self.targets.texture("surface_normal", self.size, "R32F")
-        fb = self.targets.framebuffer(depth=depth, colors=(surface, normal))
+        fb = self.targets.framebuffer(depth=depth, colors=(surface,))
         pre = shaders.prepass_shader()
         with fb.bind():
             gpu.state.viewport_set(0, 0, w, h)
-            fb.clear(depth=1.0)              # the colour targets are read only where depth was drawn
+            fb.clear(depth=1.0)              # the colour target is read only where depth was drawn
             gpu.state.depth_test_set("LESS_EQUAL")
             gpu.state.depth_mask_set(True)
             pre.bind()
@@ -364,7 +363,7 @@ class ShadowFrame:
             self.scene.draw(pre, self.receivers)
             gpu.state.depth_mask_set(False)
             gpu.state.depth_test_set("NONE")
-        self._surface = (surface, normal)
+        self._surface = surface
         self._depth = depth
         self._stage("camera_prepass", t, fb)
         return depth
@@ -460,8 +459,7 @@ class ShadowFrame:
             for i in range(shaders.MAX_MAPS):
                 sh.uniform_sampler(f"u_map{i}", maps[i][0] if i < len(maps) else dummy)
             gpu.state.depth_test_set("GREATER")
-            sh.uniform_sampler("u_surface", self._surface[0])
-            sh.uniform_sampler("u_normal", self._surface[1])
+            sh.uniform_sampler("u_surface", self._surface)
             compose.fullscreen_batch().draw(sh)
             gpu.state.depth_test_set("NONE")
         self._shaded = dict(textures=textures, variant=variant, ambient=ambient, albedo=float(albedo),

@@ -151,11 +151,11 @@ def _camera_info(name: str, fragment: str):
 
 @functools.lru_cache(maxsize=None)
 def prepass_shader():
-    """The camera's pre-pass: depth, and the surface seen (position, normal) for
-    the shading pass (``prepass_frag.glsl``)."""
+    """The camera's pre-pass: depth, and the surface seen (position, and the
+    normal packed beside it in one target) for the shading pass
+    (``prepass_frag.glsl``)."""
     info = _camera_info("prepass", "prepass_frag.glsl")
     info.fragment_out(0, "VEC4", "out_surface")
-    info.fragment_out(1, "VEC4", "out_normal")
     return _create(info, "camera pre-pass")
 
 
@@ -167,7 +167,7 @@ def camera_depth_shader():
 
 
 SURFACE_SLOT = MAX_MAPS
-"""Sampler slots of the pre-pass surface (position, then normal) in the shading pass."""
+"""Sampler slot of the pre-pass surface (position and packed normal) in the shading pass."""
 
 
 def _shade_info(variant: ShadeVariant):
@@ -189,7 +189,6 @@ def _shade_info(variant: ShadeVariant):
     for i in range(MAX_MAPS):
         info.sampler(i, "FLOAT_2D" if v.mdsm > 1 else "DEPTH_2D", f"u_map{i}")
     info.sampler(SURFACE_SLOT, "FLOAT_2D", "u_surface")
-    info.sampler(SURFACE_SLOT + 1, "FLOAT_2D", "u_normal")
 
     for slot, name in enumerate(v.outputs):
         info.fragment_out(slot, "VEC4", name)
