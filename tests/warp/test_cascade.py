@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from addon.measure.box_scene import judge
+from addon.measure.box_scene import judge, visible_points
 from addon.warp import WarpError, WarpOptions, compute, intersection_body
 from addon.warp.aliasing import perspective_aliasing
 from addon.cli.config import ConfigError, parse_config
@@ -278,6 +278,20 @@ def test_the_cascade_beats_the_classic_pssm_at_equal_texels(name):
     assert (ours.uncovered, ours.casters_uncovered, ours.depth_order_wrong) == (0, 0, 0)
     assert ours.footprint_p95 <= (1.0 if light_in_view(view, light) else 0.8) * reference.footprint_p95
 
+
+@pytest.mark.parametrize("name", ["camera_inside_scene_box", "camera_inside_scene_box_point"])
+def test_a_camera_inside_a_room_splits_from_the_nearest_wall_it_sees(name):
+    """Inside a receiver box the camera sees only its inner walls: the splits start
+    near the nearest of them (ray-cast), not at the near plane, and stay no worse
+    than the classic PSSM."""
+    view, light, scene = HARD_CASES[name]
+    setup = compute("cascade", view, light, scene, OPTIONS)
+    nearest = float(view.eye_depth(visible_points(view, scene, (192, 108))[0]).min())
+    assert 0.8 * nearest <= setup.diagnostics.extra["splits"][0] <= nearest
+    ours = judge(view, light, scene, setup, samples=(96, 54))
+    assert (ours.uncovered, ours.casters_uncovered, ours.depth_order_wrong) == (0, 0, 0)
+    assert ours.footprint_p95 <= judge(view, light, scene, reference_pssm(view, light, scene, 1024, 3),
+                                       samples=(96, 54)).footprint_p95
 
 def test_a_point_light_cascade_with_too_many_faces_makes_fewer_splits():
     view, light, scene = HARD_CASES["point_light_inside_view"]
