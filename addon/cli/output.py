@@ -34,7 +34,7 @@ def map_json(m: ShadowMap) -> dict:
 
 
 def diagnostics_json(d: Diagnostics) -> dict:
-    """The diagnostics, angles in degrees, every value read (``OnRead`` ones computed)."""
+    """The diagnostics, angles in degrees, every value read."""
     out = {
         "method": d.method,
         "theta_deg": None if d.theta is None else math.degrees(d.theta),

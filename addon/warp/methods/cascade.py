@@ -21,7 +21,7 @@ from typing import Optional
 import numpy as np
 
 from ..body import IntersectionBody, intersection_body
-from ..diagnostics import Diagnostics, OnRead
+from ..diagnostics import Diagnostics
 from ..frame import body_light_angles
 from ..partition.adaptive import max_error, minimax_splits
 from ..partition.budget import shared_sizes
@@ -204,8 +204,7 @@ def cascade(view: View, light: Light, body: IntersectionBody, options: WarpOptio
         split_warps=[s.warp if f else None for s, f in zip(splits, filled)],
         predicted_max_error=max(e for e in errors if e is not None), budget=options.cascade_budget,
         stable=options.cascade_stable,
-        split_bodies=OnRead(lambda: [s.body.vertices if s.body is not None else None for s in splits]),
-        split_body_faces=OnRead(lambda: [list(s.body.faces) if s.body is not None else None for s in splits]),
-        split_frusta=OnRead(lambda: [s.setup.diagnostics.warp_frustum_corners if f else None
-                                     for s, f in zip(splits, filled)]))
+        split_bodies=[s.body.vertices if s.body is not None else None for s in splits],
+        split_body_faces=[list(s.body.faces) if s.body is not None else None for s in splits],
+        split_frusta=[s.setup.diagnostics.warp_frustum_corners if f else None for s, f in zip(splits, filled)])
     return ShadowSetup(maps, diag)

@@ -21,7 +21,7 @@ from typing import Optional
 import numpy as np
 
 from ..body import IntersectionBody
-from ..diagnostics import Diagnostics, OnRead
+from ..diagnostics import Diagnostics
 from ..fit import fit_to_unit_cube
 from ..frame import body_light_angles, light_frames
 from ..geometry import clip_volume_corners_h, translation
@@ -94,7 +94,7 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
     if not shadow_map.contains(body.vertices, COVER_TOLERANCE).all():
         return _uniform_fallback(view, light, body, options, diag, "PSM matrix",
                                  "the composed PSM matrix is not finite or does not cover B (numerically degenerate)")
-    diag.warp_frustum_corners = OnRead(lambda: _clip_corners(relative, origin))
+    diag.warp_frustum_corners = _clip_corners(relative, origin)
     diag.extra["psm_applied"] = True
     diag.extra["frames"] = ["main"]
     if options.linear_z:

@@ -34,7 +34,7 @@ import numpy as np
 from ..aliasing import (folded, lambda_glpr, lambda_gmnpr, lambda_no_worse_on_average, lambda_no_worse_than_uniform,
                         lispsm_inverse_n_opt)
 from ..body import IntersectionBody
-from ..diagnostics import Diagnostics, OnRead
+from ..diagnostics import Diagnostics
 from ..fit import fit_runs, window_matrices
 from ..frame import PARALLEL_BLEND, LightFrame, body_light_angles, light_frames, pyramid_sections
 from ..geometry import clip_volume_corners, homogeneous, point_runs, transform_h_runs
@@ -436,9 +436,9 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
     diag.extra["z_n"] = ctx.z_n
     diag.extra["delta_z"] = ctx.delta_z
     diag.extra["frames"] = [f.role for f in frames]
-    # B's middle vector (Scherzer §4.4): computed only when used or read.
-    middle = body.volume_centroid - view.position if options.middle_vector else None
-    diag.extra["middle_vector"] = OnRead(lambda: _unit_or_zero(body.volume_centroid - view.position))
+    middle = body.volume_centroid - view.position          # B's middle vector (Scherzer §4.4)
+    diag.extra["middle_vector"] = _unit_or_zero(middle)
+    middle = middle if options.middle_vector else None
     if view.orthographic:
         at, reason = None, "orthographic camera: no perspective aliasing to redistribute"
     else:
@@ -480,9 +480,9 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
             diag.extra["n_opt"] = _finite_or_none(w.p_n)
             diag.extra["phi"] = phi
         diag.extra["warp_strength_mu"] = w.mu
-        diag.warp_frustum_corners = OnRead(lambda m=w.matrix: clip_volume_corners(m))
+        diag.warp_frustum_corners = clip_volume_corners(w.matrix)
         diag.extra["v_p"] = geo.v_p_world if geo.v_p_world is not None else np.zeros(3)
-        diag.extra["projection_centre"] = OnRead(lambda f=frame, g=geo, lam=w.lam_frame: projection_centre(f, g, lam))
+        diag.extra["projection_centre"] = projection_centre(frame, geo, w.lam_frame)
     if not reported:                     # no warped map: the angles to the light's axis, as for a uniform map
         diag.theta, diag.gamma = body_light_angles(view, light, body)
     return ShadowSetup(maps, diag)
