@@ -1,9 +1,11 @@
 """Stable cascades: every world point keeps its texel while the camera moves.
-A sun split's grid (stable CSM) has a world-fixed orientation, a scale from its
-depths and lens only (its slab's bounding sphere) and its corner on whole texels;
-the range widens to whole octaves and every warp is uniform. A spot split is the
-spot's own perspective, its window on a ladder of sizes, its corner on whole
-texels. A point light's faces turn with B: not stable.
+The range widens to whole octaves and every warp is uniform. A sun split is the
+uniform map with texel snapping (``methods.common.snapped_window``: a world-fixed
+frame, the window around B_i on a ladder of sizes, its corner on whole texels;
+tighter than stable CSM's bounding sphere of the slab, which holds the empty
+frustum too and coarsens every edge). A spot split is the spot's own perspective,
+its window on the same kind of ladder, its corner on whole texels. A point
+light's faces turn with B: not stable.
 """
 from __future__ import annotations
 
@@ -13,7 +15,7 @@ import numpy as np
 
 from ..body import IntersectionBody
 from ..fit import window_matrix
-from ..frame import WORLD_NORTH, WORLD_UP, image_up, near_far, perspective_of, world_sun_frame
+from ..frame import WORLD_NORTH, WORLD_UP, image_up, near_far, perspective_of
 from ..geometry import look_along, transform_h
 from ..types import Light, ShadowMap, View
 
@@ -26,35 +28,6 @@ def stable_depth_range(z_n: float, z_f: float, view: View) -> tuple[float, float
     near = max(2.0 ** math.floor(math.log2(z_n)), view.near)
     far = min(2.0 ** math.ceil(math.log2(z_f)), view.far)
     return near, max(far, near * (1 + 1e-9))
-
-
-def slab_sphere(split_view: View) -> tuple[np.ndarray, float]:
-    """A sphere around the slab's 8 corners, centred between its faces' centres
-    where both faces' farthest corners are equally far (least for a centred lens)."""
-    corners = split_view.corners()
-    near_c, far_c = corners[:4].mean(axis=0), corners[4:].mean(axis=0)
-    r_near = float(np.linalg.norm(corners[:4] - near_c, axis=1).max())
-    r_far = float(np.linalg.norm(corners[4:] - far_c, axis=1).max())
-    axis = far_c - near_c
-    length2 = float(axis @ axis)
-    t = min(max((length2 + r_far ** 2 - r_near ** 2) / (2.0 * length2), 0.0), 1.0) if length2 > 0 else 0.0
-    centre = near_c + t * axis
-    return centre, float(np.linalg.norm(corners - centre, axis=1).max())
-
-
-def stable_sun_map(split_view: View, light: Light, body: IntersectionBody, size: tuple[int, int],
-                   linear_z: bool = False) -> ShadowMap:
-    """A split's uniform sun map on a world-fixed grid: the window holds the slab's
-    sphere (so B_i's image), corner on whole texels t = 2r / (size - 1); depth holds B_i."""
-    frame = world_sun_frame(light, body)
-    centre_world, radius = slab_sphere(split_view)
-    centre = frame.to_light[:3, :3] @ centre_world + frame.to_light[:3, 3]
-    n = np.asarray(size, dtype=np.float64)
-    texel = 2.0 * radius / (n - 1.0)
-    lo = np.floor((centre[:2] - radius) / texel) * texel
-    depth = body.vertices @ frame.to_light[2, :3] + frame.to_light[2, 3]
-    matrix = window_matrix([*lo, depth.min()], [*(lo + texel * n), depth.max()]) @ frame.to_light
-    return ShadowMap(matrix, tuple(size), "LESS", "main", depth_row=matrix[2].copy() if linear_z else None)
 
 
 def stable_spot_map(light: Light, body: IntersectionBody, size: tuple[int, int], max_angle: float) -> ShadowMap | None:
