@@ -203,7 +203,9 @@ def shading(args, pipeline, shaders, compose, geometry, view, light, body, setup
         frame.draw_maps(st, settings.shadow, body)
         frames[name] = (frame, st)
     variant = shaders.ShadeVariant(map_count=len(setup.maps), light=light.type, pcf=settings.shadow.pcf_kernel,
-                                   bias=settings.shadow.bias_mode, footprint=False)
+                                   bias=settings.shadow.bias_mode, footprint=False,
+                                   linear_z=shaders.agreed(m.depth_row is not None for m in setup.maps),
+                                   greater=shaders.agreed(m.depth_test == "GREATER" for m in setup.maps))
     new_shader = shaders.shade_shader(variant)
     with shaders_of(args.shading_against) as old:
         info = old._shade_info(variant)

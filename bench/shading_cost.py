@@ -94,7 +94,9 @@ def measure(name: str, repeat: int) -> dict:
     _, light, _ = describe_scene(scene, dg, instances=frame.geometry.instances)
     default = ShadowSettings()
     variant = shaders.ShadeVariant(map_count=len(setup.maps), light=light.type, pcf=default.pcf_kernel,
-                                   bias=default.bias_mode, footprint=False, shadow_target=True)
+                                   bias=default.bias_mode, footprint=False, shadow_target=True,
+                                   linear_z=shaders.agreed(m.depth_row is not None for m in setup.maps),
+                                   greater=shaders.agreed(m.depth_test == "GREATER" for m in setup.maps))
     cuts = compiled_variants(shaders, variant)
     build = shaders.shade_shader
 

@@ -45,6 +45,9 @@
  *   LIXEL_LIGHT      0 sun, 1 point, 2 spot
  *   LIXEL_PCF        the PCF kernel k;  LIXEL_MDSM  n > 1 depths per texel
  *   LIXEL_BIAS       the bias mode (LIXEL_BIAS_*, addon.gpu.shaders.BIAS_CODES)
+ *   LIXEL_MAPS_LINEAR / LIXEL_MAPS_GREATER  1 or 0 when every map stores a
+ *                    linear depth row / tests GREATER, or not one does
+ *                    (undefined where maps differ: read per map)
  *   LIXEL_BLURRED    the eye-space blur follows: out_color is the unshadowed
  *                    light (compose_frag.glsl shadows it after the blur)
  *   LIXEL_SHADOW_TARGET / LIXEL_FOOTPRINT / LIXEL_DATA / LIXEL_WORLD
@@ -160,11 +163,32 @@ vec3 lixel_row(mat4 m, int r)
  * edge-on to the light has an unbounded slope). */
 #define LIXEL_SLOPE_LIMIT 16.0
 
+/* Whether map i stores its linear depth row, and whether its depth test is
+ * GREATER: constants where every map agrees (LIXEL_MAPS_*), so that only one
+ * side of each choice below is computed. */
+bool lixel_linear(int i)
+{
+#ifdef LIXEL_MAPS_LINEAR
+  return LIXEL_MAPS_LINEAR == 1;
+#else
+  return lixel.maps[i].info.w > 0.5;
+#endif
+}
+
+bool lixel_greater(int i)
+{
+#ifdef LIXEL_MAPS_GREATER
+  return LIXEL_MAPS_GREATER == 1;
+#else
+  return lixel.maps[i].info.z > 0.5;
+#endif
+}
+
 /* The stored depth (NDC units, linear or hyperbolic) of world point P in map i,
  * whose clip position is h. */
 float lixel_stored_depth(int i, vec3 P, vec4 h)
 {
-  return lixel.maps[i].info.w > 0.5 ? dot(lixel.maps[i].depth_row, vec4(P, 1.0)) : h.z / h.w;
+  return lixel_linear(i) ? dot(lixel.maps[i].depth_row, vec4(P, 1.0)) : h.z / h.w;
 }
 
 /* The receiver's depth at P in map i over its neighbourhood, and the unit of
@@ -194,7 +218,7 @@ LixelReceiver lixel_receiver(int i, vec3 P, vec3 N, vec3 L, vec4 h, vec2 size, b
 {
   LixelReceiver r;
   mat4 M = lixel.maps[i].matrix;
-  bool linear = lixel.maps[i].info.w > 0.5;
+  bool linear = lixel_linear(i);
   vec3 rx = lixel_row(M, 0), ry = lixel_row(M, 1), rz = lixel_row(M, 2), rw = lixel_row(M, 3);
   vec3 ndc = h.xyz / h.w;
   /* The map's Jacobian at P: NDC x, y and stored depth per metre. */
@@ -363,7 +387,7 @@ float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
   vec4 info = lixel.maps[m].info;
   ivec2 size = ivec2(info.xy);
   vec2 tc = (h.xy / h.w * 0.5 + 0.5) * vec2(size);
-  bool greater = info.z > 0.5;
+  bool greater = lixel_greater(m);
   const bool plane_bias = LIXEL_BIAS == LIXEL_BIAS_RECEIVER_PLANE;
   const bool slope_bias = LIXEL_BIAS == LIXEL_BIAS_SLOPE || LIXEL_BIAS == LIXEL_BIAS_CONSTANT_SLOPE;
   vec3 NL = dot(N, L) < 0.0 ? -N : N; /* the receiver's side that faces the light */

@@ -428,7 +428,9 @@ class ShadowFrame:
             ranges=any(m.view_depth_range is not None for m in setup.maps),
             blends=any(m.blend_band > 0 and m.view_depth_range is not None for m in setup.maps), blurred=blurred,
             shadow_target=not blurred and bool(read & {"shadow_mask", "shadow_raw"}),
-            footprint="footprint_heatmap" in read, data=needs_data(read) or blurred, world=world)
+            footprint="footprint_heatmap" in read, data=needs_data(read) or blurred, world=world,
+            linear_z=shaders.agreed(m.depth_row is not None for m in setup.maps),
+            greater=shaders.agreed(m.depth_test == "GREATER" for m in setup.maps))
         ambient = tuple(float(c) for c in ambient)
         spec = [("color", "RGBA32F")]
         spec += [("shadow", "R32F")] if variant.shadow_target else []

@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 from ..warp.types import WarpError
 from .layout import LIXEL_SHADE, MAX_MAPS, MAX_POLYGON  # noqa: F401 (MAX_* re-exported)
@@ -110,6 +111,11 @@ class ShadeVariant:
 
     world: bool = False
     """Also write the world position."""
+    linear_z: Optional[bool] = None
+    """Every map stores its linear depth row (True), none does (False), or they
+    differ (None: read per map, both sides evaluated); see :func:`agreed`."""
+    greater: Optional[bool] = None
+    """Every map's depth test is GREATER (True), none's is (False), or they differ (None)."""
 
     def __post_init__(self):
         if not 1 <= self.map_count <= MAX_MAPS:
@@ -127,6 +133,13 @@ class ShadeVariant:
         """The GLSL defines of the optional targets."""
         return {"LIXEL_SHADOW_TARGET": self.shadow_target, "LIXEL_FOOTPRINT": self.footprint,
                 "LIXEL_DATA": self.data, "LIXEL_WORLD": self.world}
+
+
+def agreed(flags) -> Optional[bool]:
+    """The one value all ``flags`` share, or None where they differ (a
+    :class:`ShadeVariant` field that is compiled in only when every map agrees)."""
+    values = set(bool(f) for f in flags)
+    return values.pop() if len(values) == 1 else None
 
 
 LIGHT_CODES = {"SUN": 0, "POINT": 1, "SPOT": 2}
@@ -184,6 +197,9 @@ def _shade_info(variant: ShadeVariant):
     for name, on in flags.items():
         if on:
             info.define(name, "1")
+    for name, value in (("LIXEL_MAPS_LINEAR", v.linear_z), ("LIXEL_MAPS_GREATER", v.greater)):
+        if value is not None:
+            info.define(name, "1" if value else "0")
     info.typedef_source(LIXEL_SHADE.glsl())
     info.uniform_buf(0, LIXEL_SHADE.name, "lixel")
     for i in range(MAX_MAPS):
