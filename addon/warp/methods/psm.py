@@ -123,8 +123,8 @@ def guarded_warp(view: View, light: Light, body: IntersectionBody, options: Warp
     """The λ guard (docs/papers.md) for PSM, whose one knob is the virtual camera:
     moving it back weakens the warp, and at infinity PSM is the uniform map (§4.2).
     λ is read from the map in the uniform light frame (``warp_frustum.map_lambda``);
-    the virtual near distance rises until it meets the guard's λ within
-    ``GUARD_TOLERANCE`` (secant steps, then regula falsi with Illinois' halving).
+    the virtual near distance rises until PSM's λ is within ``GUARD_TOLERANCE`` above
+    the guard's (secant steps on log λ against log near, bisection once bracketed).
     Returns the warp and why it moved ("": it did not), or None and why the uniform map serves."""
     frames = light_frames(view, light, body, options)
     at, _ = light_at_eye(view, light, options, body, view.direction)
@@ -132,45 +132,34 @@ def guarded_warp(view: View, light: Light, body: IntersectionBody, options: Warp
         return warp, ""
     ctx = eye_depth_range(view, body, options, diag)
     ctx.phi = half_fov_towards(view, at.ell)
-
-    def lambdas(tried: PSMWarp) -> tuple[float, Optional[WarpAxis]]:
-        return map_lambda(tried.relative @ translation(-view.position), frames[0])[::-1]
-
-    def ratio(tried: PSMWarp) -> float:                   # PSM's λ over the guard's least λ along its axis
-        lam, axis = lambdas(tried)
-        guard = guard_lambda(0.0, at.gamma, axis, ctx)[0] if axis is not None else 0.0
-        return lam / guard if guard > 0.0 and math.isfinite(lam) else aim
-
-    aim = 1.0 + GUARD_TOLERANCE / 2
-    lam, axis = lambdas(warp)
+    axis, lam = map_lambda(warp.relative @ translation(-view.position), frames[0])
     guard, why = guard_lambda(lam, at.gamma, axis, ctx) if axis is not None else (lam, None)
     if not why:
         return warp, ""
-    low, q_low, before, high, q_high, side = warp.camera.near, lam / guard, None, None, 0.0, 0
+    if not lam / guard > 0.0:                                         # the guard's λ is ∞
+        return None, f"PSM's {why}; along its axis no warp is no worse than the uniform map"
+    aim = math.log1p(GUARD_TOLERANCE) / 2                             # log(λ / the guard's λ) aimed at
+    x, y = math.log(warp.camera.near), math.log(lam / guard)
+    tried_points, low, high = [(x - 1.0, y - 1.0), (x, y)], x, None   # first step: λ ∝ near
     for _ in range(GUARD_STEPS):
-        if not q_low > 0.0:                               # the guard's λ is ∞
-            return None, f"PSM's {why}; along its axis no warp is no worse than the uniform map"
-        if high is None:                                  # secant through the last two, or λ ∝ near
-            slope = (q_low - before[1]) / (low - before[0]) if before and q_low > before[1] else q_low / low
-            near = low + (aim - q_low) / slope
-        else:
-            near = low + (high[0] - low) * (aim - q_low) / (q_high - q_low)
+        (x0, y0), (x, y) = tried_points[-2:]
+        x += (aim - y) * ((x - x0) / (y - y0) if y > y0 else 1.0)
+        if high is not None and not low < x < high:
+            x = (low + high) / 2
+        near = math.exp(x)
         if not near < GUARD_FAR * (warp.camera.far - warp.camera.near):
             return None, f"PSM's {why}; only a virtual camera {GUARD_FAR:.0e} depths of B back meets it"
         tried = psm_warp(view, light, body, options, near)
         if tried.relative is None:
             return None, f"PSM's {why}; no single post-perspective frustum on the way back"
-        q = ratio(tried)
-        if abs(q - aim) <= GUARD_TOLERANCE / 2:
-            high = (near, tried)
-            break
-        if q > aim:
-            q_low, high, q_high, side = (aim + q_low) / 2 if side > 0 else q_low, (near, tried), q, 1
-        else:
-            q_high, before, low, q_low, side = (aim + q_high) / 2 if side < 0 else q_high, (low, q_low), near, q, -1
-    if high is None:
-        return None, f"PSM's {why}; the search for its virtual camera did not converge"
-    return high[1], f"virtual camera moved back from near {warp.camera.near:.4g} to {high[0]:.4g} (§4.2): PSM's {why}"
+        axis, lam = map_lambda(tried.relative @ translation(-view.position), frames[0])
+        guard = guard_lambda(0.0, at.gamma, axis, ctx)[0] if axis is not None else 0.0
+        y = math.log(lam / guard) if guard > 0.0 and math.isfinite(lam) and lam > 0.0 else aim
+        if abs(y - aim) <= aim:
+            return tried, f"virtual camera moved back from near {warp.camera.near:.4g} to {near:.4g} (§4.2): PSM's {why}"
+        tried_points.append((x, y))
+        low, high = (x, high) if y < aim else (low, x)
+    return None, f"PSM's {why}; the search for its virtual camera did not converge"
 
 
 def _pps_report(warp: PSMWarp) -> dict:
