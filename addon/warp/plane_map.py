@@ -19,6 +19,7 @@ from typing import Optional
 
 import numpy as np
 
+from .geometry import cross
 from .polyhedron import Plane, convex_polygon_on_plane  # noqa: F401  (scene/planes.py reads it here)
 from .types import WarpError
 
@@ -126,19 +127,13 @@ def _targets(dst_bytes: bytes) -> tuple[np.ndarray, np.ndarray]:
 
 def _residual(m: np.ndarray, src: np.ndarray, dst: np.ndarray) -> float:
     """The largest distance between M·X and Y as unit vectors (of either sign)."""
-    m_norm = math.hypot(*m.ravel().tolist())
-    residual = 0.0
-    for x, mx, y in zip(src.tolist(), (src @ m.T).tolist(), dst.tolist()):
-        mx_norm, y_norm = math.hypot(*mx), math.hypot(*y)
-        if mx_norm <= 1e-12 * m_norm * math.hypot(*x):
-            raise WarpError("the five point constraints are degenerate (the solution maps a constrained point to "
-                            "nothing: four of the points are coplanar)")
-        minus = plus = 0.0
-        for p, q in zip(mx, y):
-            p, q = p / mx_norm, q / y_norm
-            minus += (p - q) * (p - q)
-            plus += (p + q) * (p + q)
-        residual = max(residual, math.sqrt(min(minus, plus)))
+    mx = src @ m.T
+    mx_norm = np.linalg.norm(mx, axis=1)
+    if np.any(mx_norm <= 1e-12 * np.linalg.norm(m) * np.linalg.norm(src, axis=1)):
+        raise WarpError("the five point constraints are degenerate (the solution maps a constrained point to "
+                        "nothing: four of the points are coplanar)")
+    mx, y = mx / mx_norm[:, None], dst / np.linalg.norm(dst, axis=1)[:, None]
+    residual = float(np.minimum(np.linalg.norm(mx - y, axis=1), np.linalg.norm(mx + y, axis=1)).max())
     if not residual <= RESIDUAL_TOL:
         raise WarpError(f"the five point solve missed its constraints (residual {residual:.3g})")
     return residual
@@ -262,13 +257,9 @@ def is_convex_polygon(points, normal, tol: float) -> bool:
 
 
 def polygon_area(poly, normal) -> float:
-    """The area of a planar polygon (an array or a list of (x, y, z)) with the unit ``normal``."""
-    pts = poly if isinstance(poly, list) else np.asarray(poly, dtype=np.float64).tolist()
-    sx = sy = sz = 0.0                                       # the sum of a x b over the edges (a, b)
-    for (ax, ay, az), (bx, by, bz) in zip(pts, pts[1:] + pts[:1]):
-        sx, sy, sz = sx + (ay * bz - az * by), sy + (az * bx - ax * bz), sz + (ax * by - ay * bx)
-    nx, ny, nz = (float(c) for c in normal)
-    return 0.5 * abs(sx * nx + sy * ny + sz * nz)
+    """The area of a planar polygon ((K, 3) vertices) with the unit ``normal``."""
+    pts = np.asarray(poly, dtype=np.float64)
+    return 0.5 * abs(float(cross(pts, np.concatenate([pts[1:], pts[:1]])).sum(axis=0) @ np.asarray(normal, dtype=np.float64)))
 
 
 def offset_directions(poly, normal) -> np.ndarray:

@@ -270,15 +270,10 @@ def casters_of(polygon: np.ndarray, outwards: np.ndarray, grown: np.ndarray, hei
 
 def steepest_incidence(points: np.ndarray, height: np.ndarray, l_h: np.ndarray) -> float:
     """tan α of the steepest light ray reaching ``points`` (α from P's normal)."""
-    nx, ny, nz = height[:3].tolist()
-    lx, ly, lz, lw = l_h.tolist()
-    tan = 0.0
-    for gx, gy, gz in points.tolist():
-        rx, ry, rz = (-lx, -ly, -lz) if lw == 0 else (gx - lx / lw, gy - ly / lw, gz - lz / lw)
-        along = abs(rx * nx + ry * ny + rz * nz)                                # |ray| cos α
-        across = math.sqrt(max(rx * rx + ry * ry + rz * rz - along * along, 0.0))  # |ray| sin α
-        tan = max(tan, across / max(along, 1e-300))
-    return tan
+    rays = -l_h[None, :3] if l_h[3] == 0 else points - l_h[:3] / l_h[3]
+    along = np.abs(rays @ height[:3])                                           # |ray| cos α
+    across = np.sqrt(np.maximum(np.einsum("ij,ij->i", rays, rays) - along * along, 0.0))   # |ray| sin α
+    return float((across / np.maximum(along, 1e-300)).max(initial=0.0))
 
 
 def cone_facets(corners: list, height: list, l_h: list, tol: float) -> tuple[np.ndarray, np.ndarray]:
