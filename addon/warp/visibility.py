@@ -105,11 +105,8 @@ class VisibleRegion:
         rows, cols = np.nonzero(t.seen)
         x = np.stack([t.x_edges[cols], t.x_edges[cols + 1]], axis=1)[:, [0, 1, 0, 1]]       # (T, 4)
         y = np.stack([t.y_edges[rows], t.y_edges[rows + 1]], axis=1)[:, [0, 0, 1, 1]]
-        near, far = t.near[rows, cols], t.far[rows, cols]
-        xs = np.concatenate([x, x], axis=1).ravel()
-        ys = np.concatenate([y, y], axis=1).ravel()
-        ds = np.concatenate([np.repeat(near[:, None], 4, axis=1), np.repeat(far[:, None], 4, axis=1)], axis=1).ravel()
-        return unproject(view, xs, ys, ds)
+        depth = np.stack([t.near[rows, cols], t.far[rows, cols]], axis=1)
+        return unproject(view, np.tile(x, 2), np.tile(y, 2), np.repeat(depth, 4, axis=1))
 
     def contains(self, view: View, points, tol: float = 1e-9) -> np.ndarray:
         """Which (N, 3) world points lie in a seen tile's depth slab (depths within ``tol`` relative)."""
@@ -137,20 +134,12 @@ class VisibleRegion:
         z_lo, z_hi = self.depth_range
         z_lo, z_hi = max(z_lo - pad, view.near), z_hi + pad       # (a flat region keeps a thickness)
         row = view.world_to_camera[2]                          # eye depth = -(row . [x, 1])
-        normals = [row[:3], -row[:3]]
-        offsets = [-z_lo - row[3], z_hi + row[3]]
         x0, x1, y0, y1 = self.screen
-        m = view.world_to_clip
-        for r, v in ((0, x1), (1, y1)):                        # ndc <= v: clip_r - v w <= 0
-            plane = m[r] - v * m[3]
-            normals.append(plane[:3])
-            offsets.append(-plane[3])
-        for r, v in ((0, x0), (1, y0)):                        # ndc >= v: v w - clip_r <= 0
-            plane = v * m[3] - m[r]
-            normals.append(plane[:3])
-            offsets.append(-plane[3])
+        m = view.world_to_clip                                 # x0 <= ndc_x <= x1: x0 w - clip_x <= 0, clip_x - x1 w <= 0
+        planes = np.array([row, -row, m[0] - x1 * m[3], m[1] - y1 * m[3], x0 * m[3] - m[0], y0 * m[3] - m[1]])
         kn, ko = kdop_halfspaces(corners, view, light)
-        return np.concatenate([np.array(normals), kn]), np.concatenate([np.array(offsets), ko])
+        return (np.concatenate([planes[:, :3], kn]),
+                np.concatenate([-planes[:, 3] + [-z_lo, z_hi, 0, 0, 0, 0], ko]))
 
 
 def unproject(view: View, x, y, depth) -> np.ndarray:
@@ -229,20 +218,19 @@ def _across(ell: np.ndarray, view: View) -> np.ndarray:
 def tile_reduce(near_samples: np.ndarray, far_samples: np.ndarray, tile: int) -> tuple[np.ndarray, np.ndarray]:
     """Per ``tile`` x ``tile`` block of (H, W) samples, the least near and greatest far
     (+inf / -inf: nothing seen; partial blocks at the top and right)."""
-    h, w = near_samples.shape
-    ny, nx = -(-h // tile), -(-w // tile)
-    pad = ((0, ny * tile - h), (0, nx * tile - w))
-    near = np.pad(near_samples, pad, constant_values=np.inf).reshape(ny, tile, nx, tile).min(axis=(1, 3))
-    far = np.pad(far_samples, pad, constant_values=-np.inf).reshape(ny, tile, nx, tile).max(axis=(1, 3))
-    return near, far
+    return _blocks(near_samples, tile, np.inf).min(axis=(1, 3)), _blocks(far_samples, tile, -np.inf).max(axis=(1, 3))
 
 
 def tile_counts(hits: np.ndarray, tile: int) -> np.ndarray:
     """Per ``tile`` x ``tile`` block of an (H, W) boolean image, how many are set."""
-    h, w = hits.shape
+    return _blocks(hits, tile, False).sum(axis=(1, 3))
+
+
+def _blocks(image: np.ndarray, tile: int, fill) -> np.ndarray:
+    """An (H, W) image as (rows, tile, columns, tile) blocks, padded with ``fill`` at the top and right."""
+    h, w = image.shape
     ny, nx = -(-h // tile), -(-w // tile)
-    padded = np.pad(hits, ((0, ny * tile - h), (0, nx * tile - w)))
-    return padded.reshape(ny, tile, nx, tile).sum(axis=(1, 3))
+    return np.pad(image, ((0, ny * tile - h), (0, nx * tile - w)), constant_values=fill).reshape(ny, tile, nx, tile)
 
 
 def tile_edges(samples: int, tile: int) -> np.ndarray:

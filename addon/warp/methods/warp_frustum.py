@@ -299,14 +299,12 @@ def _forced(options: WarpOptions) -> Optional[float]:
 
 def rule_gmnpr(g: FrameGeometry, ctx: WarpContext, phi: float, options: WarpOptions) -> float:
     """GMNPR Eq. 8 (or the forced ``options.lam``)."""
-    forced = _forced(options)
-    return forced if forced is not None else lambda_gmnpr(folded(g.gamma), ctx.z_n, ctx.z_f, phi)
+    return _forced(options) or lambda_gmnpr(folded(g.gamma), ctx.z_n, ctx.z_f, phi)
 
 
 def rule_glpr(g: FrameGeometry, ctx: WarpContext, phi: float, options: WarpOptions) -> float:
     """GLPR, F(z) ~ z (or the forced ``options.lam``)."""
-    forced = _forced(options)
-    return forced if forced is not None else lambda_glpr(folded(g.gamma), ctx.z_n, ctx.z_f, phi)
+    return _forced(options) or lambda_glpr(folded(g.gamma), ctx.z_n, ctx.z_f, phi)
 
 
 def guard_lambda(lam: float, gamma: float, axis: WarpAxis, ctx: WarpContext,
