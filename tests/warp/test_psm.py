@@ -568,12 +568,18 @@ def test_nearest_visible_depth_is_the_least_over_every_receiver_box():
     assert checked >= 40
 
 
-def test_the_lambda_guard_moves_the_virtual_camera_back_until_psm_is_no_worse_than_uniform():
-    """The λ guard (docs/papers.md) on PSM: on outdoor_sun PSM's own λ, read
-    from its map, is below the guard's, so the virtual camera moves back
-    (§4.2) until it meets it; the map still holds B."""
-    example = Path(__file__).parents[2] / "examples" / "outdoor_sun.json"
-    view, light, scene, options = parse_config(json.loads(example.read_text()))
+@pytest.mark.parametrize("case", ["outdoor_sun", "camera_1cm_above_ground"])
+def test_the_lambda_guard_moves_the_virtual_camera_back_until_psm_is_no_worse_than_uniform(case):
+    """The λ guard (docs/papers.md) on PSM: on outdoor_sun, and a camera 1 cm
+    above the ground whose λ is 1/15 of the guard's, PSM's own λ, read from its
+    map, is below the guard's, so the virtual camera moves back (§4.2) until it
+    meets it; the map still holds B."""
+    if case == "outdoor_sun":
+        example = Path(__file__).parents[2] / "examples" / "outdoor_sun.json"
+        view, light, scene, options = parse_config(json.loads(example.read_text()))
+    else:
+        from hard_cases import HARD_CASES
+        (view, light, scene), options = HARD_CASES[case], WarpOptions()
     body = focused_body(view, light, scene, options)
     frame = light_frames(view, light, body, options)[0]
     at, _ = light_at_eye(view, light, options, body, view.direction)

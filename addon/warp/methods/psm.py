@@ -124,7 +124,7 @@ def guarded_warp(view: View, light: Light, body: IntersectionBody, options: Warp
     moving it back weakens the warp, and at infinity PSM is the uniform map (§4.2).
     λ is read from the map in the uniform light frame (``warp_frustum.map_lambda``);
     the virtual near distance rises until PSM's λ is within ``GUARD_TOLERANCE`` above
-    the guard's (secant steps on log λ against log near, bisection once bracketed).
+    the guard's (secant steps on λ against near, bisection once bracketed).
     Returns the warp and why it moved ("": it did not), or None and why the uniform map serves."""
     frames = light_frames(view, light, body, options)
     at, _ = light_at_eye(view, light, options, body, view.direction)
@@ -136,27 +136,25 @@ def guarded_warp(view: View, light: Light, body: IntersectionBody, options: Warp
     guard, why = guard_lambda(lam, at.gamma, axis, ctx) if axis is not None else (lam, None)
     if not why:
         return warp, ""
-    if not lam / guard > 0.0:                                         # the guard's λ is ∞
-        return None, f"PSM's {why}; along its axis no warp is no worse than the uniform map"
-    aim = math.log1p(GUARD_TOLERANCE) / 2                             # log(λ / the guard's λ) aimed at
-    x, y = math.log(warp.camera.near), math.log(lam / guard)
-    tried_points, low, high = [(x - 1.0, y - 1.0), (x, y)], x, None   # first step: λ ∝ near
-    for _ in range(GUARD_STEPS):
+    aim = 1.0 + GUARD_TOLERANCE / 2                                   # λ / the guard's λ aimed at
+    tried_points, low, high = [(0.0, 0.0), (warp.camera.near, lam / guard)], warp.camera.near, None
+    for _ in range(GUARD_STEPS):                                      # (the first step: λ ∝ near)
         (x0, y0), (x, y) = tried_points[-2:]
-        x += (aim - y) * ((x - x0) / (y - y0) if y > y0 else 1.0)
+        if not y > 0.0:                                               # the guard's λ is ∞
+            return None, f"PSM's {why}; along its axis no warp is no worse than the uniform map"
+        x += (aim - y) * ((x - x0) / (y - y0) if y > y0 else x / y)
         if high is not None and not low < x < high:
             x = (low + high) / 2
-        near = math.exp(x)
-        if not near < GUARD_FAR * (warp.camera.far - warp.camera.near):
+        if not x < GUARD_FAR * (warp.camera.far - warp.camera.near):
             return None, f"PSM's {why}; only a virtual camera {GUARD_FAR:.0e} depths of B back meets it"
-        tried = psm_warp(view, light, body, options, near)
+        tried = psm_warp(view, light, body, options, x)
         if tried.relative is None:
             return None, f"PSM's {why}; no single post-perspective frustum on the way back"
         axis, lam = map_lambda(tried.relative @ translation(-view.position), frames[0])
         guard = guard_lambda(0.0, at.gamma, axis, ctx)[0] if axis is not None else 0.0
-        y = math.log(lam / guard) if guard > 0.0 and math.isfinite(lam) and lam > 0.0 else aim
-        if abs(y - aim) <= aim:
-            return tried, f"virtual camera moved back from near {warp.camera.near:.4g} to {near:.4g} (§4.2): PSM's {why}"
+        y = lam / guard if guard > 0.0 and math.isfinite(lam) else aim
+        if abs(y - aim) <= GUARD_TOLERANCE / 2:
+            return tried, f"virtual camera moved back from near {warp.camera.near:.4g} to {x:.4g} (§4.2): PSM's {why}"
         tried_points.append((x, y))
         low, high = (x, high) if y < aim else (low, x)
     return None, f"PSM's {why}; the search for its virtual camera did not converge"
