@@ -28,8 +28,10 @@ clock is in the JSON) and the median of the per-repeat ratios depth / bare
 engine's Combined and Shadow targets) with REV's gpu_shaders and REV's default
 bias (NDC constant + slope scale, hyperbolic maps) against the working tree's,
 interleaved, on the same scene. REV must share the working tree's frame
-(the deferred shading pass and its uniform block): f213006, the revision
-before the texel-unit biases, does. ``--shading-settings same`` gives REV's
+(the deferred shading pass, its uniform block and the pre-pass surface it
+reads: one target, the normal packed beside the position, since 06f6584;
+f213006 and 8a72d06 read the normal from a second target and no longer
+compile against this frame). ``--shading-settings same`` gives REV's
 shaders the working tree's maps and bias row instead (a revision that already
 has the texel-unit biases and linear z: the shaders' own cost alone).
 
@@ -211,7 +213,11 @@ def shading(args, pipeline, shaders, compose, geometry, view, light, body, setup
         info = old._shade_info(variant)
         if not same:
             info.define("LIXEL_SLOPE_BIAS", "1")  # what the old default bias compiled in
-        old_shader = old._create(info, "old shading pass")
+        try:
+            old_shader = old._create(info, "old shading pass")
+        except shaders.ShaderBuildError as exc:
+            raise SystemExit(f"{args.shading_against}'s shading pass does not build against this frame ({exc}): "
+                             "it must read the pre-pass surface as this revision writes it (06f6584 or later)") from None
     build, vector = shaders.shade_shader, pipeline.bias_vector
 
     def shade(name, shader, bias):
