@@ -623,7 +623,7 @@ def plane_section(poly: ConvexPolytope, normal, offset: float) -> np.ndarray | N
         if cut is not None and cut[1][-1][0] == -1:                  # (P crossed: its new facet comes last)
             vertices, (*facets, (_, cap)) = cut
             section = [vertices[v] for v in _from_first_crossing(facets, cap)]
-            if _turns_exceed(section, n.tolist(), poly.tol):
+            if _turns_exceed(section, n, poly.tol):
                 return np.array(section)
             crossings = [np.array(section)]
         elif cut is None:
@@ -640,19 +640,13 @@ def _from_first_crossing(facets: list, cap: list) -> list:
     return cap[at:] + cap[:at]
 
 
-def _turns_exceed(polygon: list, normal: list, tol: float) -> bool:
+def _turns_exceed(polygon: list, normal: np.ndarray, tol: float) -> bool:
     """Whether the polygon turns left about ``normal`` at every vertex by more than
     2·tol·D (D: at least its diameter)."""
-    nx, ny, nz = normal
-    x0, y0, z0 = polygon[0]
-    limit = 2.0 * tol * max(2.0 * max(abs(x - x0) + abs(y - y0) + abs(z - z0) for x, y, z in polygon), tol)
-    (px, py, pz), (qx, qy, qz) = polygon[-2], polygon[-1]
-    for rx, ry, rz in polygon:
-        ax, ay, az, bx, by, bz = qx - px, qy - py, qz - pz, rx - qx, ry - qy, rz - qz
-        if (ay * bz - az * by) * nx + (az * bx - ax * bz) * ny + (ax * by - ay * bx) * nz <= limit:
-            return False
-        px, py, pz, qx, qy, qz = qx, qy, qz, rx, ry, rz
-    return True
+    p = np.array(polygon)
+    limit = 2.0 * tol * max(2.0 * float(np.abs(p - p[0]).sum(axis=1).max()), tol)
+    edges = np.concatenate([p[1:], p[:1]]) - p
+    return bool(np.all(cross(np.concatenate([edges[-1:], edges[:-1]]), edges) @ normal > limit))
 
 
 def _crossings(poly: ConvexPolytope, height: np.ndarray) -> np.ndarray:
