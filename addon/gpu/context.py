@@ -19,6 +19,7 @@ import os
 import re
 import sys
 import tempfile
+from typing import Callable, Iterator, Optional, TextIO
 
 from ..warp.types import WarpError
 
@@ -46,9 +47,10 @@ EGL_NOISE = re.compile(r"^EGL Error \(0x3009\): EGL_BAD_MATCH")
 
 
 @contextlib.contextmanager
-def _without_egl_noise():
-    """File descriptors 1 and 2 (Blender's and Mesa's C output) into a temporary
-    file for the block, then every line but :data:`EGL_NOISE` on to stderr."""
+def filtered_c_output(is_noise: Callable[[str], bool], out: Optional[TextIO] = None) -> Iterator[None]:
+    """File descriptors 1 and 2 (Blender's and Mesa's C output, below Python's
+    ``sys.stdout``) into a temporary file for the block, then every line for
+    which ``is_noise`` is false on to ``out`` (default: stderr)."""
     sys.stdout.flush()
     sys.stderr.flush()
     saved = {fd: os.dup(fd) for fd in (1, 2)}
@@ -64,10 +66,11 @@ def _without_egl_noise():
                 os.dup2(keep, fd)
                 os.close(keep)
             sink.seek(0)
-            kept = [ln for ln in sink.read().decode("utf-8", "replace").splitlines() if not EGL_NOISE.match(ln)]
+            kept = [ln for ln in sink.read().decode("utf-8", "replace").splitlines() if not is_noise(ln)]
             if kept:
-                sys.stderr.write("\n".join(kept) + "\n")
-                sys.stderr.flush()
+                out = out or sys.stderr
+                out.write("\n".join(kept) + "\n")
+                out.flush()
 
 
 def ensure_gpu_context() -> None:
@@ -106,7 +109,7 @@ def ensure_gpu_context() -> None:
         scene.render.engine = _BOOT_ENGINE
         scene.render.resolution_x = scene.render.resolution_y = 4
         scene.render.resolution_percentage = 100
-        with _without_egl_noise():
+        with filtered_c_output(EGL_NOISE.match):
             bpy.ops.render.render(scene=scene.name)
     except Exception as exc:  # noqa: BLE001
         raise GPUUnavailableError(f"Lixel could not start the GPU ({exc}): run Blender with a working OpenGL "

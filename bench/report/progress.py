@@ -15,12 +15,12 @@ from __future__ import annotations
 import contextlib
 import os
 import re
-import sys
-import tempfile
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Iterator, Optional, TextIO
+from typing import Optional, TextIO
+
+from addon.gpu.context import filtered_c_output
 
 HEARTBEAT_S = 5.0
 """A step that runs longer than this prints a line every HEARTBEAT_S seconds (the brief: no silence over 10 s)."""
@@ -42,31 +42,10 @@ def is_noise(line: str) -> bool:
     return any(p.search(line) for p in NOISE)
 
 
-@contextlib.contextmanager
-def quiet_blender(passthrough: Optional[TextIO] = None) -> Iterator[None]:
-    """Redirect file descriptors 1 and 2 to a temporary file for the block; then
-    write the lines that are not :data:`NOISE` to ``passthrough`` (default: the
-    real stderr). Python-level buffers are flushed on both sides."""
-    sys.stdout.flush()
-    sys.stderr.flush()
-    saved = {fd: os.dup(fd) for fd in (1, 2)}
-    with tempfile.TemporaryFile(mode="w+b") as sink:
-        try:
-            for fd in (1, 2):
-                os.dup2(sink.fileno(), fd)
-            yield
-        finally:
-            sys.stdout.flush()
-            sys.stderr.flush()
-            for fd, keep in saved.items():
-                os.dup2(keep, fd)
-                os.close(keep)
-            sink.seek(0)
-            kept = [ln for ln in sink.read().decode("utf-8", "replace").splitlines() if not is_noise(ln)]
-            if kept:
-                out = passthrough or sys.stderr
-                out.write("\n".join(kept) + "\n")
-                out.flush()
+def quiet_blender(passthrough: Optional[TextIO] = None):
+    """Blender's C output for the block, every line that is not :data:`NOISE`
+    passed on to ``passthrough`` (default: the real stderr)."""
+    return filtered_c_output(is_noise, passthrough)
 
 
 def _clock(seconds: float) -> str:
