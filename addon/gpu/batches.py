@@ -25,6 +25,7 @@ let tests show it.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -80,15 +81,10 @@ class BatchCache:
             del self._entries[k]
 
 
-_shared = None
-
-
+@functools.cache
 def shared_batches() -> BatchCache:
     """The process-wide batch cache (lives as long as the GPU context)."""
-    global _shared
-    if _shared is None:
-        _shared = BatchCache()
-    return _shared
+    return BatchCache()
 
 
 def _texture(fmt: str, width: int, rows: int, flat: np.ndarray):

@@ -15,6 +15,7 @@ object's identity is the context's).
 """
 from __future__ import annotations
 
+import functools
 
 class TargetPool:
     MAX_FRAMEBUFFERS = 64
@@ -87,12 +88,7 @@ class TargetPool:
         return sum(self._size_of(*key) for key, _ in self._textures.values())
 
 
-_shared = None
-
-
+@functools.cache
 def shared_targets() -> TargetPool:
     """The process-wide pool (the render engine's context; background scripts)."""
-    global _shared
-    if _shared is None:
-        _shared = TargetPool()
-    return _shared
+    return TargetPool()

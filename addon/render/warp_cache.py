@@ -14,6 +14,7 @@ kept alive here), everything else by value.
 """
 from __future__ import annotations
 
+import functools
 import weakref
 from dataclasses import fields, is_dataclass
 
@@ -65,12 +66,7 @@ class WarpCache:
         return got
 
 
-_shared = None
-
-
+@functools.cache
 def shared_warps() -> WarpCache:
     """The process-wide warp cache (the render engine's frames)."""
-    global _shared
-    if _shared is None:
-        _shared = WarpCache()
-    return _shared
+    return WarpCache()
