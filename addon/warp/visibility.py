@@ -475,7 +475,8 @@ def _add_small_boxes(view: View, boxes, missed, lo_box, hi_box, samples, tile, n
     nx, ny = samples
     # The image's rectangle in sample cells (cell i spans [i, i + 1) of (ndc + 1) / 2 · n).
     x, y = (h[..., 0] / w + 1) * (nx / 2), (h[..., 1] / w + 1) * (ny / 2)
-    x0, x1, y0, y1 = x.min(axis=1), x.max(axis=1), y.min(axis=1), y.max(axis=1)
+    x0, x1, y0, y1 = np.maximum(x.min(axis=1), 0), np.minimum(x.max(axis=1), nx), np.maximum(y.min(axis=1), 0), \
+        np.minimum(y.max(axis=1), ny)                  # on screen: a box at its border shows a sliver
     small = front & ((x1 - x0 < 2.0) | (y1 - y0 < 2.0)) & (x1 >= 0) & (x0 < nx) & (y1 >= 0) & (y0 < ny)
     if not small.any():
         return

@@ -298,6 +298,16 @@ def test_a_camera_inside_a_room_splits_from_the_nearest_wall_it_sees(name):
     assert ours.footprint_p95 <= judge(view, light, scene, reference_pssm(view, light, scene, 1024, 3),
                                        samples=(96, 54)).footprint_p95
 
+def test_a_box_showing_a_sliver_at_the_screens_border_is_covered():
+    """generated_51_sun: a box mostly off screen shows a sliver narrower than a sample
+    spacing at the left border, nearer than anything else seen; the visible region
+    takes it as a small box, so the splits start at it and cover it."""
+    from bench.cascade import generated_configurations
+    view, light, scene = generated_configurations(52)["generated_51_sun"]
+    for method in ("cascade", "uniform"):
+        ours = judge(view, light, scene, compute(method, view, light, scene, OPTIONS), samples=(96, 54))
+        assert (ours.uncovered, ours.casters_uncovered, ours.depth_order_wrong) == (0, 0, 0), method
+
 def test_a_point_light_cascade_with_too_many_faces_makes_fewer_splits():
     view, light, scene = HARD_CASES["point_light_inside_view"]
     setup = compute("cascade", view, light, scene, dataclasses.replace(OPTIONS, cascade_splits=4))
