@@ -1,13 +1,5 @@
-"""The intersection body B (Scherzer §4.1, Fig. 5; Stamminger-Drettakis §4.1, H = M ∩ S ∩ L):
-
-    B = hull(R ∪ light) ∩ S_c,   R = V ∩ S_r ∩ L
-
-V the view frustum, L the spot's cone (all space otherwise), S_r the box
-around the receivers that meet V ∩ L, S_c the box around R and the casters
-that meet hull(R ∪ light): the papers' scene box S tightened to what the view
-needs. hull(R ∪ light) ⊂ L since R ⊂ L (``light_hull``). All are convex
-polytopes (:mod:`.polyhedron`), relative to the camera position, with
-tolerances relative to the scene's scale; boxes are culled by :mod:`.culling`."""
+"""The intersection body B = hull(R ∪ light) ∩ S_c, R = V ∩ S_r ∩ L (Scherzer §4.1, Fig. 5;
+Stamminger-Drettakis §4.1), as convex polytopes relative to the camera position (docs/papers.md)."""
 from __future__ import annotations
 
 import logging

@@ -1,9 +1,5 @@
-"""Light frames: the transform after which a light's rays run parallel to +z (z
-growing away from the light), x, y spanning the map. A sun's is a rotation; a
-point or spot light's is its perspective (Stamminger-Drettakis §3), or one per
-cube face B needs when no frustum narrower than ``max_frustum_angle`` holds B.
-The image's +y is V_P (Scherzer §4.4, Eq. 3), blended continuously into the
-camera's up near parallel light and view (:func:`image_up`)."""
+"""Light frames: the transform after which a light's rays run parallel to +z (z growing away from the
+light), x, y spanning the map, +y along V_P (Scherzer §4.4, Eq. 3; Stamminger-Drettakis §3; docs/papers.md)."""
 from __future__ import annotations
 
 import itertools

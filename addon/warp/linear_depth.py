@@ -1,14 +1,5 @@
-"""Linear depth rows (Scherzer §4.2, "linear z-distribution").
-
-A map's stored depth is, by default, a *depth row* r (``ShadowMap.depth_row``):
-z = r · [x, y, z, 1], affine in the world position, growing along every light
-ray and spanning [-1, 1] over the points the map holds, so its precision is
-even along every ray whatever the warp does to x and y. For a sun it is the
-distance along the light direction; for a point or spot light the distance
-a · (P - l) along an axis a acute to every ray the map holds (a frame's own
-axis, or for PSM's map the most acute of the cone's axis around B and the
-inward normals of B's facets facing the light). The matrix's z row still
-defines the clip volume."""
+"""Linear depth rows (Scherzer §4.2, "linear z-distribution"): z = r · [x, y, z, 1], affine in the world
+position, growing along every light ray and spanning [-1, 1] over the map's points (docs/papers.md)."""
 from __future__ import annotations
 
 import math

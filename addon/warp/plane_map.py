@@ -1,15 +1,6 @@
-"""The plane-optimal light matrix and its pieces (Chong & Gortler, "A Lixel for
-every Pixel", EGSR 2004, §2), in the paper's notation: M_v the viewer's world
--> clip matrix, l the light (homogeneous, w = 0 for a sun), P the plane of
-interest as the 4-vector π (π·X = 0 on P).
-
-:func:`plane_light_matrix` solves Eq. 1 and 7-10 (:func:`five_point_matrix`):
-p^1..p^4 where the view's corner rays meet P (homogeneous, so a quad
-straddling infinity, Fig. 5, is fine), p^4 raised along its light ray to p̂^4
-(Fig. 2), l the centre of projection. On P its x, y, w rows equal the
-viewer's. The needed part of P is a convex polygon (:func:`clip_to_polygon`,
-:func:`enclosing_polygon`); :func:`min_area_twist` is §2's twist;
-:func:`default_plane_of` picks the top of the widest flat receiver box."""
+"""The plane-optimal light matrix and its pieces (Chong & Gortler, "A Lixel for every Pixel", EGSR 2004,
+§2, Eq. 1 and 7-10), in the paper's notation: M_v the viewer's world -> clip matrix, l the light
+(homogeneous, w = 0 for a sun), π the plane of interest (π·X = 0 on P). Derivation: docs/papers.md."""
 from __future__ import annotations
 
 import functools

@@ -1,19 +1,5 @@
-"""Convex polytopes: the one representation of every convex body in the warp core
-(V, R, the light hull, B) and its two operations. float64, tolerances passed
-in (relative to the scene's scale), every construction deterministic.
-
-A :class:`ConvexPolytope` has its ``vertices`` and its facets: unit outward
-``normals``, ``offsets`` (normal · x <= offset inside) and vertex ``loops``,
-counter-clockwise seen from outside.
-
-* Clip (:meth:`ConvexPolytope.clip`): one half-space at a time by a face walk
-  (:func:`_cut`), facet planes carried over; a cut too degenerate to walk
-  (:class:`OpenCut`) falls back to vertex enumeration (:meth:`ConvexPolytope.from_halfspaces`).
-* Section (:func:`section_points`): points whose hull is P ∩ Q for convex
-  bodies Q given by facets and edges. Every vertex of P ∩ Q lies on an edge of
-  P or of Q and ends that edge's stretch inside the other body, so the ends of
-  each body's edges clipped to the other (Cyrus-Beck, :func:`clip_segments`)
-  are the points; many bodies Q at once."""
+"""Convex polytopes: the one representation of every convex body in the warp core (V, R, the light hull, B),
+float64, tolerances passed in, deterministic; its clip (a face walk) and section (Cyrus-Beck): docs/papers.md."""
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -1,18 +1,6 @@
-"""Post-perspective space (PPS) and the light's frustum in it (Stamminger &
-Drettakis, *Perspective Shadow Maps*, §3-§4, §6).
-
-The virtual camera (§4.2, §6) moves back by s = d_R - d_B >= 0 (d_R the nearest
-visible eye depth, d_B B's nearest), and B's image B' fills [-1, 1]^3. The light
-L' = (l, w') is a point light (w' > 0), an inverted one (w' < 0) or a
-directional one (w' = 0) in PPS (§3); one frustum serves all three
-(:func:`pps_light_matrix`): with u(p) = w'p - l, k the axis of the smallest cone
-around u(B'), c the mean of B' and q = p - c,
-
-    x = (a·q + γx k·q) / (1 + ρ k·q),  y = (b·q + γy k·q) / (1 + ρ k·q),  z = k·q / (1 + ρ k·q),
-
-γ, ρ making the x, y, w rows vanish at L'. Depth grows away from the real light
-in every case (the test is always LESS: a reversed depth axis where the paper
-reverses the test, docs/papers.md), continuous as the light crosses the camera plane."""
+"""Post-perspective space (PPS) and the light's frustum in it (Stamminger & Drettakis, *Perspective Shadow
+Maps*, §3-§4, §6): the virtual camera and one frustum for point, inverted and directional lights L'.
+Its formulas: docs/papers.md, "The warp core's derivations"."""
 from __future__ import annotations
 
 import bisect

@@ -1,16 +1,6 @@
-"""What the camera sees: the visible region that focuses B.
-
-Scherzer §4.4 takes n_opt's z_n and Δz "from a visibility algorithm";
-Lauritzen et al. (*Sample Distribution Shadow Maps*, I3D 2011) fit the maps to
-the samples the camera shades. A :class:`VisibleRegion` holds, per screen
-tile, the eye-depth interval of what is visible there; B is built from R cut
-by it (``intersection_body(..., visible=region)``), never B itself, so every
-caster of a visible point stays in B (docs/papers.md). The region is
-conservative: tiles take min / max padded by the depth precision; a depth
-pre-pass (``addon/gpu/visibility.py``) samples the shaded pixel centres, a ray
-cast against the boxes (:func:`region_from_boxes`) widens each sample to what
-its face and box can show within one sample spacing and adds boxes small
-enough to slip between the rays."""
+"""What the camera sees: the visible region that focuses B (Scherzer §4.4's "visibility algorithm";
+Lauritzen et al., *Sample Distribution Shadow Maps*, I3D 2011), conservative, from a depth pre-pass or a
+ray cast against the boxes. Why R is cut and not B: docs/papers.md."""
 from __future__ import annotations
 
 import math
@@ -296,7 +286,7 @@ def region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int] =
                       tile: int = BOX_TILE) -> VisibleRegion:
     """The visible region of a box scene without a GPU: one ray per cell of a
     ``samples`` grid against the receivers, widened to hold every visible point
-    (module docstring). The last region per scene is kept for its view."""
+    (docs/papers.md). The last region per scene is kept for its view."""
     key = (view.camera_to_world.tobytes(), view.projection.tobytes(), view.near, view.far, samples, tile)
     last = scene.cached("visible region", dict)
     if last.get("key") != key:

@@ -1,17 +1,6 @@
-"""Plane-optimal shadow maps: Chong & Gortler, "A Lixel for every Pixel" (EGSR 2004).
-
-One map per plane of interest, exact on that plane, then the uniform fallback
-maps (§3), as §2's steps: the five point constraints (Eq. 1, 7-10,
-``plane_map.plane_light_matrix``); sign and scale so that w is the viewer's
-clip w on the plane (Fig. 5, ``scaled_to_view_w``); less of the plane, P ∩ R
-(Fig. 6, ``needed_polygon``) and its casters B ∩ C (``casters_of``); the
-pixel -> lixel -> texel chain, one lixel per pixel when the budget allows,
-else a common scale s < 1 and optionally a twist (``share_budget``,
-``light_map``). The free z row (§2 footnote) is z = a·w - b·h, h the height
-above P towards the light, or the linear height (Scherzer §4.2). Map k serves
-its ``Region`` (the plane's slab over the needed polygon); the fallback maps
-take the texels the plane maps leave. A plane that cannot have a map is left
-out with a recorded fallback. Lixel's readings of §2: docs/papers.md."""
+"""Plane-optimal shadow maps: Chong & Gortler, "A Lixel for every Pixel" (EGSR 2004): one map per plane of
+interest, exact on that plane (§2), then the uniform fallback maps (§3). The steps and Lixel's readings of
+§2: docs/papers.md."""
 from __future__ import annotations
 
 import dataclasses

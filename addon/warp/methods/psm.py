@@ -1,17 +1,6 @@
-"""Perspective shadow maps (Stamminger & Drettakis, SIGGRAPH 2002): the map is
-rendered in the post-perspective space (PPS) of a virtual camera, world ->
-virtual camera clip (§4.2, §6) -> the PPS light's frustum (§3) -> the unit-cube
-fit (§4); the pieces live in ``post_perspective.py``. The composed w is the
-product of the virtual eye depth and the PPS frustum's w, both positive on B,
-and lines through the light become lines through L', one texel each.
-
-Where PSM hands over to the uniform map (recorded as a fallback): an
-orthographic camera (its PPS is affine: PSM *is* the uniform map, §1.1), a
-point or spot light inside B or needing a PPS frustum wider than
-``max_frustum_angle`` (the uniform cube faces; §3.3: near the eye PSM gains
-little), and the λ guard's search failing. The near plane at the nearest
-visible receiver (§6) jumps when a nearer receiver enters the view, as the
-paper's depth readback does; a smoothed ``visible_depth_range`` avoids it."""
+"""Perspective shadow maps (Stamminger & Drettakis, SIGGRAPH 2002): world -> virtual camera clip (§4.2, §6)
+-> the PPS light's frustum (§3) -> the unit-cube fit (§4), with the pieces in ``post_perspective.py``.
+Where PSM hands over to the uniform map: docs/papers.md, "The warp core's derivations"."""
 from __future__ import annotations
 
 import math

@@ -1,28 +1,6 @@
-"""The light-space perspective warp shared by ``lispsm``, ``gmnpr`` and ``glpr``:
-Wimmer et al.'s LiSPSM as made robust by Scherzer §4.4, the three differing
-only in their λ rule (:mod:`..aliasing`).
-
-The warp frustum P (Scherzer §4.4, Fig. 9, Eq. 2-3), in a light frame
-(``frame.light_frames``: light rays parallel to +z). In the image plane P looks
-along V_P, the view direction across the light (Eq. 3). With h = V_P·(x, y),
-q = (x, y) × V_P, B's extent [h_min, h_max] along V_P, D = h_max - h_min,
-δ = (h - h_min)/D and μ = 1/λ, P's centre lies λ·D behind B's near side at
-the eye's lateral position and height (Eq. 2, with h_min for z_n, so w >= 1
-on B), and in homogeneous light space [X, Y, Z, W]
-
-    x' = q - q_eye·W,  y' = δ·W,  z' = Z - z_eye·W,  w' = (1 + μ·δ)·W,
-
-then the unit-cube fit. μ = 0 is exactly the uniform map, so the warp fades
-into it continuously as light and view become parallel. λ = P_n/(P_f - P_n)
-(GMNPR §3); LiSPSM's is n_opt/D (Eq. 1, z_n and Δz as eye depths of R:
-docs/papers.md). A point or spot light's frames are its post-perspective
-space: λ is set by the world quantities across the light ray through the eye
-and shared out by each frame's part of B; the warp fades to uniform as the
-eye's image leaves B's (``FADE_START``..``FADE_END``), and a frame with the eye
-behind its light plane stays uniform (a heuristic transfer: the papers model
-directional lights, GMNPR §5). Orthographic cameras get uniform maps.
-``middle_vector`` takes V_P towards the centre of B's volume (§4.4);
-``linear_z`` stores the frame's linear depth (§4.2); ``lam`` forces λ."""
+"""The light-space perspective warp P shared by ``lispsm``, ``gmnpr`` and ``glpr``: Wimmer et al.'s LiSPSM
+made robust by Scherzer §4.4 (Fig. 9, Eq. 1-3), the three differing only in their λ rule (:mod:`..aliasing`).
+Its derivation, the point-light transfer and the fades: docs/papers.md, "The warp core's derivations"."""
 from __future__ import annotations
 
 import math
@@ -83,7 +61,7 @@ class LightAtEye:
 class WarpAxis:
     """A warp's depth axis in a light frame (``to_light``: world -> light
     space, rays along z): V_P as the unit 2-vector ``a`` in the image plane and
-    B's part along it, from ``h_min`` over ``extent`` D (module docs)."""
+    B's part along it, from ``h_min`` over ``extent`` D (docs/papers.md)."""
 
     to_light: np.ndarray
     a: tuple
@@ -147,7 +125,7 @@ def _sin_between(v: np.ndarray, ell: np.ndarray) -> float:
 
 
 def eye_depth_range(view: View, body: IntersectionBody, options: WarpOptions, diag: Diagnostics) -> WarpContext:
-    """z_n and z_n + Δz for Eq. 1 / GMNPR's (n, f): eye depths (see module docs)."""
+    """z_n and z_n + Δz for Eq. 1 / GMNPR's (n, f): eye depths (docs/papers.md)."""
     depths = view.eye_depth(body.visible_vertices)
     z_n = max(view.near, float(depths.min()))
     z_f = max(min(view.far, float(depths.max())), z_n)
@@ -266,7 +244,7 @@ def _turned(a: tuple, fade: float) -> tuple[float, float]:
 
 
 def warp_matrix(g: FrameGeometry, mu: float) -> np.ndarray:
-    """P acting on the frame's homogeneous light space [X, Y, Z, W] (module docs)."""
+    """P acting on the frame's homogeneous light space [X, Y, Z, W] (docs/papers.md)."""
     (a0, a1), (b0, b1), (ex, ey, ez) = g.a, g.b, g.eye
     to_delta = 1.0 / g.extent if g.extent > 0 else 0.0
     delta = [a0 * to_delta, a1 * to_delta, 0.0, -g.h_min * to_delta]           # δ = (h - h_min) / D
