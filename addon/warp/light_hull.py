@@ -25,9 +25,8 @@ _CONE_ROWS = np.stack([np.cos(_CONE_ANGLES), np.sin(_CONE_ANGLES), np.ones(CONE_
 
 
 def cone_halfspaces(apex, axis, full_angle) -> tuple[np.ndarray, np.ndarray]:
-    """(normals (k, 3), offsets (k,)) of the regular pyramid of k = CONE_SIDES sides
-    circumscribing the cone (apex, axis, full angle): side i's unit normal is
-    cos ω (cos θ_i u + sin θ_i v) - sin ω a, ω the half-angle widened by sec(π/k)."""
+    """(normals (k, 3), offsets (k,)) of the regular pyramid of k = CONE_SIDES sides circumscribing the cone
+    (apex, axis, full angle)."""
     a = normalize(axis)
     u = perpendicular(a)
     widened = math.atan(math.tan(full_angle / 2) / math.cos(math.pi / CONE_SIDES))
@@ -73,10 +72,8 @@ class LightHull(NamedTuple):
     """The light in homogeneous coordinates."""
 
     def polytope(self, cap: tuple | None = None) -> ConvexPolytope:
-        """hull(P ∪ light) as a polytope: P's facets that do not face the light and the
-        sides, each a triangle to a point light or, for a sun (u towards it), a strip
-        along u up to the plane ``cap`` = (m, h) that closes the body. A facet holding
-        the light takes its sides into its own loop. P itself when no facet faces the light."""
+        """hull(P ∪ light) as a polytope: P's facets not facing the light and the sides (triangles to a point light;
+        for a sun, strips up to the plane ``cap`` = (m, h)). P itself when no facet faces the light."""
         p = self.body
         if self.sides is None:
             raise OpenCut("P's loops do not close: the hull has no boundary")
@@ -143,12 +140,9 @@ def _ring(next_vertex: dict) -> list:
 
 
 def light_hull(p: ConvexPolytope, light_h) -> LightHull:
-    """hull(P ∪ light), the light homogeneous (w = 0: (x, y, z) the unit direction
-    towards it): P's facets that do not face the light and, through each
-    silhouette edge between g (not facing) and f (facing), the plane
-    σ = -G(light)·F + F(light)·G, a positive combination of two half-spaces that
-    hold P, so exact however short the edge. A facet holding the light adds
-    none. Open loops (a near-degenerate clip): half-spaces but no sides."""
+    """hull(P ∪ light) as half-spaces (Scherzer §4.1), the light homogeneous (w = 0: the unit direction towards
+    it): P's facets not facing the light and, through each silhouette edge between g (not facing) and f (facing),
+    σ = -G(light)·F + F(light)·G. Open loops (a near-degenerate clip): half-spaces but no sides."""
     light = np.asarray(light_h, dtype=np.float64)
     planes = np.concatenate([p.normals, -p.offsets[:, None]], axis=1)  # F(X) = plane · X for X = (x, 1)
     s = planes @ light                                                # F(light) of every facet

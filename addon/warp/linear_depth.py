@@ -29,20 +29,14 @@ def fitted_row(along: np.ndarray, points) -> np.ndarray:
 
 
 def frame_depth_row(frame: LightFrame, points=None) -> np.ndarray:
-    """The linear depth of a light frame over its points (or ``points``):
-    light-space z for a sun's frame, the perspective's w (the distance along
-    the frame's axis) for a point light's."""
+    """The linear depth of a light frame over its points (or ``points``): light-space z, or a perspective's w."""
     along = frame.to_light[2] if frame.directional else frame.to_light[3]
     return fitted_row(along, frame.points if points is None else points)
 
 
 def light_depth_row(light: Light, body) -> Optional[np.ndarray]:
-    """The linear depth of ``light`` over the intersection body B without a
-    frame: along a sun's direction; for a point or spot light outside B,
-    along the axis from the light that is nearest to B's every ray (the most
-    acute of the axis of the light's cone around B and the inward normals of
-    B's facets that face the light, each of which has all of B ahead of it).
-    None when even the best axis is 89° or more from some ray of B."""
+    """The linear depth of ``light`` over B without a frame: along a sun's direction; for a point or spot light
+    outside B, along the most acute axis to B's every ray (docs/papers.md). None when that is 89° or more."""
     points = body.vertices
     if light.is_directional:
         return fitted_row(np.append(light.direction, 0.0), points)

@@ -69,9 +69,8 @@ class Plane:
 
 @dataclass(frozen=True, eq=False)
 class ConvexPolytope:
-    """A closed convex polytope: ``vertices`` (n, 3); per facet its unit outward
-    normal, offset and vertex loop (CCW seen from outside); ``tol``, the length
-    below which points and planes meet."""
+    """A closed convex polytope: ``vertices`` (n, 3); per facet its unit outward normal, offset and vertex loop
+    (CCW seen from outside); ``tol``, the length below which points and planes meet."""
 
     vertices: np.ndarray
     normals: np.ndarray
@@ -90,9 +89,7 @@ class ConvexPolytope:
 
     @classmethod
     def hexahedron(cls, corners, tol: float) -> "ConvexPolytope":
-        """A hexahedron (a view frustum) from 8 corners in ``UNIT_CUBE_CORNERS`` order:
-        each face's normal is the cross product of its quad's diagonals, turned
-        outwards (with its loop) when the corners reverse orientation."""
+        """A hexahedron (a view frustum) from 8 corners in ``UNIT_CUBE_CORNERS`` order, either orientation."""
         c = np.asarray(corners, dtype=np.float64)
         diagonals = c[_HEX_DIAGONAL_ENDS] - c[_HEX_DIAGONAL_STARTS]      # (6, 2, 3): each quad's two diagonals
         n = cross(diagonals[:, 0], diagonals[:, 1])
@@ -154,9 +151,7 @@ class ConvexPolytope:
 
     @cached_property
     def volume_centroid(self) -> np.ndarray:
-        """The centre of the volume (continuous in the polytope, unlike the vertices'
-        mean): the centres of the tetrahedra from the vertices' mean over the facets'
-        triangle fans, weighted by their volumes."""
+        """The centre of the volume (continuous in the polytope, unlike the vertices' mean)."""
         m = self.centroid
         fans = np.array([(loop[0], b, c) for loop in self.loops for b, c in zip(loop[1:-1], loop[2:])]).reshape(-1, 3)
         a, b, c = (self.vertices - m)[fans.T]
@@ -225,15 +220,9 @@ class ConvexPolytope:
 # ---------------------------------------------------------------------------
 
 def _cut(vertices: list, facets: list, normal: list, offset: float, tol: float, plane: int):
-    """The polytope (``vertices``, ``facets`` as (plane number, loop) pairs) ∩
-    {normal · x <= offset}: (vertices, facets) with the new facet (``plane``, its
-    loop) last; the same two when nothing is cut; None when nothing with volume
-    is left. A facet with no vertex beyond the plane (by more than ``tol``) is
-    kept, one with none inside dropped, any other walked: its vertices beyond are
-    one run of its loop, replaced by the points where the loop leaves and comes
-    back (a vertex on the plane, or the edge's crossing, made once per edge so
-    both facets share it); those new edges, reversed, chain into the new facet.
-    A facet crossed more than twice (rounding) raises OpenCut."""
+    """The polytope (``vertices``, ``facets`` as (plane number, loop) pairs) ∩ {normal · x <= offset} by a face
+    walk: (vertices, facets) with the new facet (``plane``, its loop) last, unchanged when nothing is cut, None when
+    nothing with volume is left. A facet crossed more than twice (rounding) raises OpenCut."""
     nx, ny, nz = normal
     d = [nx * x + ny * y + nz * z - offset for x, y, z in vertices]
     if max(d) <= tol:
@@ -343,11 +332,9 @@ class Edges(NamedTuple):
 
 def clip_segments(edges: Edges, normals: np.ndarray, offsets: np.ndarray,
                   own: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Cyrus-Beck: the stretch [t_lo, t_hi] of each segment inside every half-space
-    ``normals · x <= offsets`` (normals (..., m, 3), segments (..., s)); empty where
-    t_lo > t_hi. ``own`` = (m', s'): the first m' half-spaces leave the first s'
-    segments (the same body's edges) whole. A segment parallel to a facet
-    (rate +0) gets +inf inside, -inf outside, NaN on the plane (kept by fmin)."""
+    """Cyrus-Beck: the stretch [t_lo, t_hi] of each segment (..., s) inside every half-space ``normals · x <= offsets``
+    (..., m); empty where t_lo > t_hi. ``own`` = (m', s'): the first m' half-spaces leave the first s'
+    segments whole."""
     rate = normals @ np.swapaxes(edges.step, -1, -2) + 0.0                   # (..., m, s)
     room = offsets[..., None] - normals @ np.swapaxes(edges.start, -1, -2)
     if own is not None:
@@ -433,10 +420,8 @@ def _dedupe_planes(n: np.ndarray, o: np.ndarray, tol: float,
 
 def _enumerate(kept: np.ndarray, n: np.ndarray, o: np.ndarray, tri: np.ndarray, tol: float,
                kept_inc: np.ndarray | None = None) -> ConvexPolytope | None:
-    """The polytope of the planes ``n · x <= o`` whose vertices are the ``kept`` points
-    (incidence ``kept_inc``) and the feasible solutions of the triples ``tri``
-    (Cramer's rule). Incidence comes from the construction (and rounding
-    distance), so planes passing a vertex at a few tolerances do not tangle the faces."""
+    """The polytope of the planes ``n · x <= o`` whose vertices are the ``kept`` points (incidence ``kept_inc``) and
+    the feasible solutions of the triples ``tri`` (Cramer's rule)."""
     m = len(n)
     scale_o = float(np.abs(o).max()) + tol
     cand, radius = kept, np.zeros(len(kept))
@@ -592,11 +577,8 @@ def convex_polygon_on_plane(points, normal, tol: float) -> np.ndarray | None:
 
 
 def plane_section(poly: ConvexPolytope, normal, offset: float) -> np.ndarray | None:
-    """P ∩ {normal · x = offset} as a convex polygon CCW about ``normal``, or None
-    without area: the new facet of the face walk (:func:`_cut`) in order from the
-    first crossed facet, kept as it is when every turn exceeds 2·tol·D (then the
-    hull would keep every vertex); otherwise (a vertex on the plane, an open cut,
-    a smaller turn) the hull of the crossings and P's vertices on the plane."""
+    """P ∩ {normal · x = offset} as a convex polygon CCW about ``normal``, or None without area: the face walk's new
+    facet when every turn exceeds 2·tol·D, else the hull of the crossings and P's vertices on the plane."""
     n = np.asarray(normal, dtype=np.float64)
     height = poly.vertices @ n - offset
     on = np.abs(height) <= poly.tol

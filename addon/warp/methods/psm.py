@@ -42,11 +42,7 @@ class PSMWarp:
 
 
 def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
-    """The paper's pipeline: the virtual camera and its post-perspective space
-    (§4.2, §6), the light in PPS (§3), its frustum around B', the unit-cube fit
-    (§4), composed into world -> light clip; with the λ guard, the virtual
-    camera moved back until the map is no worse than the uniform map
-    (``guarded_warp``)."""
+    """World -> light clip by the paper's pipeline (§3, §4.2, §4, §6), guarded by ``guarded_warp``."""
     theta, gamma = body_light_angles(view, light, body)
     diag = Diagnostics("psm", theta, gamma, body_vertices=body.vertices)
     if view.orthographic:
@@ -95,9 +91,8 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
 
 def psm_warp(view: View, light: Light, body: IntersectionBody, options: WarpOptions,
              visible_near: float) -> PSMWarp:
-    """The virtual camera with its near plane at ``visible_near`` (§4.2, §6),
-    the light's frustum around B' in its PPS (§3; a point or spot light's
-    wider than ``options.max_frustum_angle`` is not built) and the fit (§4)."""
+    """The virtual camera with its near plane at ``visible_near`` (§4.2, §6), the light's frustum around B' in
+    its PPS (§3) and the fit (§4)."""
     camera = virtual_camera(view, body, visible_near)
     light_in_pps = pps_light_matrix(camera.to_pps @ light.homogeneous_from(view.position), camera.points,
                                     math.inf if light.is_directional else options.max_frustum_angle / 2)
@@ -109,12 +104,9 @@ def psm_warp(view: View, light: Light, body: IntersectionBody, options: WarpOpti
 
 def guarded_warp(view: View, light: Light, body: IntersectionBody, options: WarpOptions, warp: PSMWarp,
                  diag: Diagnostics) -> tuple[Optional[PSMWarp], str]:
-    """The λ guard (docs/papers.md) for PSM, whose one knob is the virtual camera:
-    moving it back weakens the warp, and at infinity PSM is the uniform map (§4.2).
-    λ is read from the map in the uniform light frame (``warp_frustum.map_lambda``);
-    the virtual near distance rises until PSM's λ is within ``GUARD_TOLERANCE`` above
-    the guard's (secant steps on λ against near, bisection once bracketed).
-    Returns the warp and why it moved ("": it did not), or None and why the uniform map serves."""
+    """The λ guard (docs/papers.md) for PSM: the virtual near distance rises until PSM's λ (``map_lambda``) is
+    within ``GUARD_TOLERANCE`` above the guard's (§4.2: at infinity PSM is the uniform map). Returns the warp and
+    why it moved ("": it did not), or None and why the uniform map serves."""
     frames = light_frames(view, light, body, options)
     at, _ = light_at_eye(view, light, options, body, view.direction)
     if len(frames) != 1 or at is None:

@@ -88,9 +88,8 @@ class FrameGeometry(WarpAxis):
 
 def light_at_eye(view: View, light: Light, options: WarpOptions, body: IntersectionBody,
                  middle: Optional[np.ndarray]) -> tuple[Optional[LightAtEye], str]:
-    """The world-space quantities every frame shares (``middle``: the middle
-    vector, given and used when ``options.middle_vector``), or (None, reason)
-    when the light ray through the eye is undefined."""
+    """The world-space quantities every frame shares, or (None, reason) when the light ray through the eye is
+    undefined."""
     d = view.direction
     if light.is_directional:
         ell, dist = light.direction, 0.0
@@ -140,10 +139,8 @@ def eye_depth_range(view: View, body: IntersectionBody, options: WarpOptions, di
 
 
 def half_fov_towards(view: View, light_dir) -> float:
-    """GMNPR's φ: the angle from the view axis to the side of the view frustum
-    in the direction of the (folded) light direction's projection onto the
-    image: φ = atan(t) for the image-plane point t·u (z = -1 in camera space,
-    u the unit direction) on the frustum's side, lens shift included."""
+    """GMNPR's φ: the angle from the view axis to the view frustum's side towards the (folded) light direction's
+    projection onto the image, lens shift included."""
     axes = view.camera_to_world[:3, :3]
     cx, cy, cz = ((np.asarray(light_dir, dtype=np.float64) @ axes) / np.sqrt(np.einsum("ij,ij->j", axes, axes))).tolist()
     if cz > 0:                           # fold: the light line's half that points along the view (-Z)
@@ -164,9 +161,7 @@ def half_fov_towards(view: View, light_dir) -> float:
 
 def frame_geometries(at: LightAtEye, frames: list, to_light: np.ndarray, b_in_light: np.ndarray, starts: list,
                      run: np.ndarray, view: View, options: WarpOptions, body: IntersectionBody) -> list:
-    """Each frame's warp geometry, or why its map stays uniform: V_P, the eye and the
-    fade (``frame_axes``), then B's extent along V_P in light space and in the
-    world, over every frame's points (one run each, ``geometry.point_runs``) at once."""
+    """Each frame's warp geometry (V_P, eye, fade and B's extent along V_P), or why its map stays uniform."""
     images = (to_light @ np.array([view.position.tolist() + [1.0], at.vector.tolist() + [0.0]]).T).transpose(0, 2, 1).tolist()
     boxes = [None] * len(frames)                       # (a point light frame's points, (lo, hi) in light space)
     if not frames[0].directional:
@@ -192,10 +187,8 @@ def frame_geometries(at: LightAtEye, frames: list, to_light: np.ndarray, b_in_li
 
 
 def frame_axes(at: LightAtEye, frame: LightFrame, eye_h: list, vector_h: list, box, options: WarpOptions):
-    """A frame's warp axes in its light space: (V_P as a unit 2-vector, the
-    eye, the fade), or the reason the warp is undefined. ``eye_h``, ``vector_h``:
-    the frame applied to the eye (w = 1) and to ``at.vector`` (w = 0); ``box``:
-    a point light frame's points' (lo, hi) in its light space."""
+    """A frame's warp axes in its light space: (V_P as a unit 2-vector, the eye, the fade), or the reason the
+    warp is undefined."""
     x, y, z, w = eye_h
     if frame.directional:             # a sun frame's +y is Eq. 3's V_P (blended near parallel, frame.image_up)
         v_p = _image_direction(vector_h[:2], at.s) if options.middle_vector else (0.0, 1.0)
@@ -287,11 +280,8 @@ def rule_glpr(g: FrameGeometry, ctx: WarpContext, phi: float, options: WarpOptio
 
 def guard_lambda(lam: float, gamma: float, axis: WarpAxis, ctx: WarpContext,
                  scale: float = 1.0) -> tuple[float, Optional[str]]:
-    """``lam`` raised to the least λ at which the warp is no worse than the uniform
-    map (docs/papers.md, "The λ guard"): at its worst over [z_n, z_f]
-    (``lambda_no_worse_than_uniform``) and, with a visible region, over the visible
-    pixels (``lambda_no_worse_on_average`` along ``axis``; ``scale`` into ``lam``'s
-    units). Returns the λ and, when raised, why."""
+    """``lam`` raised to the least λ at which the warp is no worse than the uniform map (docs/papers.md, "The λ
+    guard"), at its worst over [z_n, z_f] and over the visible pixels along ``axis``: (λ, why raised or "")."""
     theta = folded(gamma)
     worst = lambda_no_worse_than_uniform(theta, ctx.z_n, ctx.z_f, ctx.phi)
     mean = 0.0
@@ -311,10 +301,8 @@ def guard_lambda(lam: float, gamma: float, axis: WarpAxis, ctx: WarpContext,
 
 
 def map_lambda(matrix: np.ndarray, frame: LightFrame) -> tuple[Optional[WarpAxis], float]:
-    """The warp of any light map in ``frame``'s terms: its axis and λ (None and ∞ for
-    an affine map there). Its x, y, w rows depend on the image point only; V_P is
-    the normal of the line where w vanishes, towards B, and λ = (h_min - h_0)/D
-    (GMNPR §3's λ, read from the map)."""
+    """The warp of any light map in ``frame``'s terms (GMNPR §3's λ read from the map): its axis V_P and
+    λ = (h_min - h_0)/D (None and ∞ for a map affine there)."""
     w_row = (matrix @ np.linalg.inv(frame.to_light))[3].tolist()
     length = math.hypot(w_row[0], w_row[1])
     light = frame.points_h @ frame.to_light.T
@@ -355,10 +343,8 @@ class FrameWarp:
 
 def frame_warps(frames: list, view: View, at: Optional[LightAtEye], reason: str, rule: LambdaRule,
                 ctx: WarpContext, phi: Optional[float], options: WarpOptions, body: IntersectionBody) -> list:
-    """Every frame's warp (``at`` None: all uniform for ``reason``): its
-    geometry (``frame_geometries``), λ by the rule (P_n = λ·(all of B along
-    V_P) in world units, then λ for this frame's part of B), P, and the
-    unit-cube fit of every map at once."""
+    """Every frame's warp (``at`` None: all uniform for ``reason``): geometry, λ by the rule, P and the unit-cube
+    fit of every map at once."""
     points_h, starts, run = point_runs([f.points for f in frames])
     to_light = np.array([f.to_light for f in frames])
     b_in_light_h = transform_h_runs(to_light, points_h, run)
@@ -465,12 +451,9 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
 
 
 def ray_closed(matrices, body: IntersectionBody, light_position) -> list:
-    """Make a point light's cube-face maps ray-closed over B: a map must hold every
-    point of B on the light rays its window claims (the casters of what it
-    serves), so its depth range is widened to B ∩ window, a pyramid from the
-    light (``frame.pyramid_sections``, all maps at once). Per map: the (re-fitted)
-    matrix, a note and the vertices of B ∩ window; or None and why (that part
-    of B touches the light)."""
+    """A point light's cube-face maps made ray-closed over B: each map's depth range widened to B ∩ its window
+    (``frame.pyramid_sections``). Per map: the re-fitted matrix, a note and the vertices of B ∩ window; or None and
+    why (that part of B touches the light)."""
     m = np.asarray(matrices, dtype=np.float64)                   # (k, 4, 4)
     rows = m[:, :, :3]                     # on directions from the light (every row but z vanishes at the light)
     # The window's sides x = ±w, y = ±w, as outward normals x - w, -x - w, y - w, -y - w.
