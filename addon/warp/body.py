@@ -116,9 +116,8 @@ def view_frustum(view: View, origin: np.ndarray, tol: float | None = None) -> Co
 
 def intersection_body(view: View, light: Light, scene: SceneBounds,
                       visible: VisibleRegion | None = None) -> IntersectionBody:
-    """B for this view, light and scene (Scherzer §4.1); ``visible`` cuts R down to
-    what the camera sees (:mod:`.visibility`). EmptyBodyError, with the reason,
-    when nothing visible can receive a shadow."""
+    """B for this view, light and scene (Scherzer §4.1), R cut by ``visible`` when given; EmptyBodyError, with the
+    reason, when nothing visible can receive a shadow."""
     if scene.is_empty:
         raise EmptyBodyError("the scene has no shadow casters or receivers")
     origin = view.position

@@ -52,9 +52,7 @@ CLUSTER_SIZE = 32
 
 
 class BoxIndex:
-    """Boxes in clusters of ``CLUSTER_SIZE`` (the leaves of a median-split k-d tree)
-    with their bounds: a cluster wholly outside a half-space is rejected, one
-    wholly inside all accepted, the boxes of the rest tested one by one."""
+    """Boxes in clusters of ``CLUSTER_SIZE`` (the leaves of a median-split k-d tree) with their bounds."""
 
     def __init__(self, boxes: np.ndarray):
         b = self.boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3)
@@ -108,9 +106,7 @@ class BoxIndex:
         return scene.cached(("BoxIndex", which), build)
 
     def select(self, normals, offsets, tol: float = 0.0) -> Selection:
-        """The boxes meeting ``normals @ x <= offsets`` (within ``tol``): the clusters'
-        least and greatest plane values bound their boxes'; the boxes of the edge
-        clusters are tested against the planes crossing their cluster only."""
+        """The boxes meeting ``normals @ x <= offsets`` (within ``tol``), by the clusters' bounds first."""
         n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
         o = np.asarray(offsets, dtype=np.float64).reshape(-1)
         if self.count == 0:

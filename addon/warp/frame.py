@@ -24,10 +24,8 @@ FLIP_Z = np.diag([1.0, 1.0, -1.0, 1.0])
 
 @dataclass(frozen=True)
 class LightFrame:
-    """``to_light``: world -> light space (projective for point lights); ``points``:
-    world vertices of the part of B it serves; ``role``: "main", "cube+X", ...;
-    ``directional``: orthographic; ``near_clamped``: the near plane cuts a box that
-    matters (``cube_near_floor``), reported as a "near plane" fallback."""
+    """``to_light``: world -> light space (projective for point lights); ``points``: world vertices of the part of B
+    it serves; ``role``; ``directional``; ``near_clamped``: reported as a "near plane" fallback."""
 
     to_light: np.ndarray
     points: np.ndarray
@@ -66,11 +64,8 @@ def image_up_blend(view_direction, view_up, light_direction) -> list:
 
 
 def image_up(view_direction, view_up, light_direction) -> np.ndarray:
-    """The map's +y: V_P = (V_light x V_eye) x V_light (Scherzer Eq. 3) across the
-    light, blended within PARALLEL_BLEND (sin 1°) of parallel as
-    t V_P + (1 - t) up_cam + 2 t (1 - t) right_cam, t = |V_P| / sin 1°: the camera's
-    up at exact parallel. Any continuous choice has a singular point in the blend;
-    the right-vector term puts it off plain pitch and pan paths (``image_up_blend``)."""
+    """The map's +y: V_P = (V_light x V_eye) x V_light (Scherzer Eq. 3) across the light, blended within
+    PARALLEL_BLEND of parallel into the camera's up (``image_up_blend``)."""
     up = image_up_blend(view_direction, view_up, light_direction)
     length = math.sqrt(dot3(up, up))
     if length < 1e-300:
@@ -117,10 +112,8 @@ def world_sun_frame(light: Light, body: IntersectionBody) -> LightFrame:
 
 
 def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]:
-    """Axis and half-angle of a cone from ``apex`` holding ``points``: the axis points
-    at the centre c of the bounding box of the unit directions (continuous as B's
-    vertices split), blended into world down when B nearly surrounds the light.
-    Points at the apex are ignored; a half-angle near π: no single cone."""
+    """Axis and half-angle of a cone from ``apex`` holding ``points`` (those at the apex ignored); a half-angle
+    near π: no single cone."""
     dirs = np.asarray(points, dtype=np.float64) - apex
     norms = np.sqrt(np.einsum("ij,ij->i", dirs, dirs))
     lengths = norms.tolist()
@@ -148,10 +141,8 @@ def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]
 
 def perspective_frame(apex, axis, up_hint, points, role, scale, floor: float | None = None,
                       cuts_a_box: bool = True) -> LightFrame:
-    """A point light's perspective along ``axis`` from ``apex`` (rays become parallel
-    to z). Near is the nearest point's depth, clamped to ``floor`` (default 1e-6
-    of ``scale``) when the light is on B; points nearer give way to where their
-    rays cross the near plane. ``cuts_a_box``: whether that matters (the note)."""
+    """A point light's perspective along ``axis`` from ``apex`` (rays become parallel to z), near at the nearest
+    point's depth clamped to ``floor``; ``cuts_a_box``: whether that clamp matters."""
     view = look_along(apex, axis, up_hint)
     depth = (points - apex) @ -view[2, :3]                   # along the axis (the eye looks down -z)
     floor = 1e-6 * scale if floor is None else floor
@@ -183,10 +174,9 @@ def nearest_box_distance(body: IntersectionBody, apex) -> float:
 
 def cube_near_floor(body: IntersectionBody, apex, hyperbolic: bool,
                     widest_cos: float = CUBE_FACE_COS) -> tuple[float, bool]:
-    """The near distance of a point light's cube faces with the light on or in B, and
-    whether it cuts a box that matters. Linear depth (Scherzer §4.2): 1e-6 of the
-    scene scale. Hyperbolic depth: the nearest box's distance times ``widest_cos``
-    (cos of a face's widest ray angle), so float32 keeps precision at the receivers."""
+    """The near distance of a point light's cube faces with the light on or in B, and whether it cuts a box that
+    matters: 1e-6 of the scene scale for linear depth (Scherzer §4.2), else the nearest box's distance times
+    ``widest_cos``."""
     least = 1e-6 * body.scale
     bound = 0.999 * widest_cos * nearest_box_distance(body, apex)
     cuts_a_box = bound < least
@@ -228,10 +218,8 @@ _FACE_TURNS = np.array([[[sign if j == row else 0.0 for j in range(3)] for row, 
 
 
 def point_frames(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> list[LightFrame]:
-    """One perspective frame when B fits a frustum narrower than
-    ``max_frustum_angle`` (a light on B's boundary too: B then lies in the cone
-    of its other points), else one per cube face B reaches, the cube aligned with
-    the cone axis. The switch changes the number of maps (a known discontinuity)."""
+    """One perspective frame when B fits a frustum narrower than ``max_frustum_angle``, else one per cube face B
+    reaches, the cube aligned with the cone axis (a known discontinuity in the number of maps)."""
     apex = light.position
     axis, half = light_cone(body.vertices, apex)
     up = image_up(view.direction, view.up, axis)
@@ -323,9 +311,7 @@ class FacePart(NamedTuple):
 
 
 def cube_sections(poly: ConvexPolytope, basis: np.ndarray) -> list[FacePart]:
-    """The parts of P (relative to the apex) in the faces of the cube with axes
-    ``basis``, for the faces whose part has volume (four points or more, some off
-    each side by more than SNAP tolerances)."""
+    """The parts of P (relative to the apex) with volume in the faces of the cube with axes ``basis``."""
     planes = _FACE_SIDES_AND_AXES @ basis                    # (30, 3): the 6 x 4 sides, then the 6 axes
     pts, face = pyramid_sections(poly, planes[:24].reshape(6, 4, 3), _FACE_RAYS @ basis)
     counts = np.bincount(face, minlength=6).tolist()

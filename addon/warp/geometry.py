@@ -148,18 +148,15 @@ UNIT_CUBE_CORNERS = np.array(
 
 
 def clip_volume_corners(matrix) -> np.ndarray:
-    """World-space corners of the clip volume of ``matrix`` (inverse projection of
-    the NDC unit cube), ordered like ``UNIT_CUBE_CORNERS``. Points at infinity
-    (orthographic limits) are returned as very far finite points only if the
-    matrix is invertible; callers check ``np.isfinite``."""
+    """World-space corners of the clip volume of ``matrix`` (the NDC unit cube unprojected), ordered like
+    ``UNIT_CUBE_CORNERS``; callers check ``np.isfinite``."""
     h = clip_volume_corners_h(matrix)
     return h[:, :3] / h[:, 3:]
 
 
 def clip_volume_corners_h(matrix) -> np.ndarray:
-    """The clip volume's corners as homogeneous world points (8, 4), before the
-    divide (w <= 0: a corner at or beyond infinity). Raises LinAlgError for a
-    singular matrix."""
+    """The clip volume's corners as homogeneous world points (8, 4) (w <= 0: at or beyond infinity);
+    LinAlgError for a singular matrix."""
     return _UNIT_CUBE_CORNERS_H @ np.linalg.inv(np.asarray(matrix, dtype=np.float64)).T
 
 

@@ -84,11 +84,8 @@ class PlaneOfInterest:
 
 
 def five_point_matrix(src, dst) -> tuple[np.ndarray, dict]:
-    """The 4x4 projective M with M·src_i ∝ dst_i for five homogeneous
-    correspondences, no four coplanar (§2 after Faugeras 1993): the null vector of
-    the 15x16 DLT system, whose rank 15 is checked by SVD, is F_dst·F_src⁻¹
-    (:func:`projective_frame`). WarpError below rank 15 (RANK_TOL) or past
-    RESIDUAL_TOL. Returns (M, {"condition", "residual"})."""
+    """The 4x4 projective M with M·src_i ∝ dst_i for five homogeneous correspondences, no four coplanar (§2
+    after Faugeras 1993), and {"condition", "residual"}; WarpError below rank 15 (RANK_TOL) or past RESIDUAL_TOL."""
     src = np.asarray(src, dtype=np.float64).reshape(5, 4)
     dst = np.asarray(dst, dtype=np.float64).reshape(5, 4)
     coefficients, dst_frame = _targets(dst.tobytes())
@@ -167,10 +164,8 @@ def corner_ray_points(corners: np.ndarray, plane_vec) -> np.ndarray:
 
 
 def plane_light_matrix(corner_points, light_h, length_scale: float) -> tuple[np.ndarray, dict]:
-    """The light matrix of Eq. 1 and 7-10 from p^1..p^4 (``corner_points``) and l
-    (``light_h``), relative to the camera: (4x4 M, info). The points are scaled by
-    their spread and normalised, so the solve stays well conditioned (a camera
-    1 cm above a 100 m floor). WarpError naming the reason."""
+    """The light matrix of Eq. 1 and 7-10 from p^1..p^4 (``corner_points``) and l (``light_h``), relative to the
+    camera: (4x4 M, info), or WarpError naming the reason."""
     points = np.asarray(corner_points, dtype=np.float64).reshape(4, 4).tolist()
     if not all(math.isfinite(c) for q in points for c in q) or min(math.hypot(*q) for q in points) <= 1e-300:
         raise WarpError("a corner ray of the view lies in the plane (the plane is seen edge-on)")
@@ -229,9 +224,8 @@ def clip_to_polygon(poly: np.ndarray, bound, normal, tol: float) -> Optional[np.
 
 
 def is_convex_polygon(points, normal, tol: float) -> bool:
-    """Whether the points, in order, are a convex polygon CCW about ``normal`` that
-    ``convex_polygon_on_plane`` keeps whole: every turn left by more than tol times
-    the perimeter, one turn around in all."""
+    """Whether the points, in order, are a convex polygon CCW about ``normal`` that ``convex_polygon_on_plane``
+    keeps whole."""
     pts = np.asarray(points, dtype=np.float64).tolist()
     if len(pts) < 3:
         return False
@@ -369,9 +363,8 @@ def flattest_box(receiver_boxes) -> Optional[tuple[int, float, float]]:
 
 
 def default_plane_of(receivers) -> Optional[PlaneOfInterest]:
-    """The default plane of interest: the top face of the widest flat receiver box
-    (then the thinnest, then the first) that a culling ``Selection`` holds, opening
-    only the clusters whose bounds are as wide as the widest flat top found."""
+    """The default plane of interest: the top face of the widest flat receiver box (then the thinnest, then the
+    first) that a culling ``Selection`` holds."""
     index, selected, picked = receivers.index, receivers.selected, receivers.by_cluster
     clusters, size = index.c_box_bounds.shape[1:]
     c_lo, c_hi = index.c_bounds[:3], -index.c_bounds[3:]           # (c_bounds: lo, -hi)

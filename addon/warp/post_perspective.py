@@ -80,11 +80,8 @@ def virtual_camera(view: View, body: IntersectionBody, visible_near: float | Non
 
 def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
                           options: WarpOptions | None = None) -> float:
-    """d_R, the nearest eye depth at which a receiver can be seen (§6's near plane "as
-    far as possible"): ``options.visible_depth_range`` when given, else the least
-    eye depth of V ∩ L ∩ box over the receiver boxes, nearest bound first, in
-    [view.near, the true nearest visible depth]. When a box holds R's nearest
-    vertex, that vertex's depth is the answer without measuring."""
+    """d_R, the nearest eye depth at which a receiver can be seen (§6's near plane "as far as possible"):
+    ``options.visible_depth_range`` when given, else the least eye depth of V ∩ L ∩ box over the receiver boxes."""
     if options is not None and options.visible_depth_range is not None:
         return max(float(options.visible_depth_range[0]), view.near)
     axis = -view.world_to_camera[2, :3]                     # camera-relative world -> eye depth
@@ -111,9 +108,8 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
 
 
 class _BoxesByDepth:
-    """The receiver boxes of a culling ``Selection``, camera-relative, drawn a batch at
-    a time in order of a lower bound of their eye depth (the nearest corner's,
-    floored at ``floor``); a cluster is opened only when it may hold a box of the next batch."""
+    """The receiver boxes of a culling ``Selection``, camera-relative, a batch at a time in order of a lower bound
+    of their eye depth (floored at ``floor``)."""
 
     def __init__(self, receivers, axis: np.ndarray, origin: np.ndarray, floor: float):
         self.index, self.picked = receivers.index, receivers.by_cluster
@@ -159,9 +155,7 @@ class _BoxesByDepth:
 
 
 def lowest_in_boxes(region: ConvexPolytope, lo: np.ndarray, hi: np.ndarray, axis: np.ndarray) -> np.ndarray:
-    """min k·x over ``region`` ∩ [lo_i, hi_i] for each box i (inf where they do not
-    meet): a linear function is least at a vertex of the section, and every
-    vertex ends an edge of one body clipped exactly to the other (``section_points``)."""
+    """min k·x over ``region`` ∩ [lo_i, hi_i] for each box i (inf where they do not meet)."""
     return np.minimum(_lowest_on_edges(region.segments, BOX_NORMALS, box_offsets(lo, hi), axis),
                       _lowest_on_edges(box_edges(lo, hi), region.normals, region.offsets, axis))
 
@@ -233,9 +227,8 @@ def _affine_min_norm(q: np.ndarray) -> np.ndarray:
 
 
 def smallest_cone(directions) -> tuple[np.ndarray, float]:
-    """Axis k and margin min_i k·d_i of the narrowest cone around the unit
-    ``directions``: by minimax duality k is the direction of their hull's point
-    nearest the origin, the margin its norm; Wolfe starts from the most distant pair."""
+    """Axis k and margin min_i k·d_i of the narrowest cone around the unit ``directions`` (minimax duality:
+    Wolfe's nearest point of their hull to the origin)."""
     d = np.asarray(directions, dtype=np.float64)
     i, j = divmod(int((d @ d.T).argmin()), len(d))
     x = min_norm_point(d, start=(i,) if i == j else (i, j))

@@ -9,9 +9,8 @@ from .culling import BoxIndex, Selection
 
 
 def slab_intervals(origins, inverse_directions, lo, hi, entering_axis: bool = False):
-    """Where rays (origins, 1 / directions) enter and leave boxes [lo, hi] (arrays
-    that broadcast), and with ``entering_axis`` the axis they enter by. A ray in a
-    slab's plane (0 · inf = NaN) counts as inside it: fmax / fmin skip the NaN."""
+    """Where rays (origins, 1 / directions) enter and leave boxes [lo, hi] (broadcast), and with ``entering_axis``
+    the axis they enter by; a ray in a slab's plane counts as inside it."""
     with np.errstate(invalid="ignore"):
         t1 = (lo - origins) * inverse_directions
         t2 = (hi - origins) * inverse_directions
@@ -54,10 +53,8 @@ def _pair_intervals(o, inv, lo, hi, rays, boxes) -> tuple[np.ndarray, np.ndarray
 
 def ray_index(origins, directions, t_max, index: BoxIndex, selection: Selection | None = None,
               ranks_per_round: int = 2) -> tuple[np.ndarray, np.ndarray]:
-    """Nearest hit of each ray with the boxes of a culling index (of ``selection``)
-    within [0, t_max]: (t, box in the original order; inf and -1 for none), as
-    ``addon.measure.box_scene.ray_boxes``. Each ray opens the clusters it meets nearest first,
-    ``ranks_per_round`` at a time, until its hit is nearer than the next cluster."""
+    """Nearest hit of each ray with the boxes of a culling index within [0, t_max]: (t, box in the original
+    order; inf and -1 for none), as ``addon.measure.box_scene.ray_boxes``."""
     o = np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3).T)
     with np.errstate(divide="ignore"):
         inv = np.ascontiguousarray((1.0 / np.asarray(directions, dtype=np.float64).reshape(-1, 3)).T)

@@ -156,9 +156,8 @@ def eye_depth_from_ndc(view: View, z_ndc) -> np.ndarray:
 
 
 def kdop_halfspaces(corners: np.ndarray, view: View, light: Light) -> tuple[np.ndarray, np.ndarray]:
-    """A k-DOP of ``corners`` around the light: the nearest and farthest planes across
-    its depth direction ℓ and, in ``KDOP_DIRECTIONS`` directions across ℓ, the
-    tightest planes parallel to ℓ (a sun) or through the light; moved out by ``KDOP_PAD``."""
+    """A k-DOP of ``corners`` around the light (nearest and farthest planes across its depth direction ℓ, the
+    tightest planes parallel to ℓ or through the light), moved out by ``KDOP_PAD``."""
     base = np.zeros(3) if light.is_directional else np.asarray(light.position, dtype=np.float64)
     rel = corners - base
     if light.is_directional:
@@ -284,9 +283,8 @@ def sample_rays(view: View, samples: tuple[int, int]) -> tuple[np.ndarray, np.nd
 
 def region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int] = BOX_SAMPLES,
                       tile: int = BOX_TILE) -> VisibleRegion:
-    """The visible region of a box scene without a GPU: one ray per cell of a
-    ``samples`` grid against the receivers, widened to hold every visible point
-    (docs/papers.md). The last region per scene is kept for its view."""
+    """The visible region of a box scene without a GPU: one ray per cell of a ``samples`` grid, widened to hold
+    every visible point (docs/papers.md); the last region per scene is kept."""
     key = (view.camera_to_world.tobytes(), view.projection.tobytes(), view.near, view.far, samples, tile)
     last = scene.cached("visible region", dict)
     if last.get("key") != key:
@@ -368,9 +366,8 @@ def _face_reach(view: View, boxes, origins, dirs, t, box, samples, lo_box, hi_bo
 
 
 def _box_depths_in_squares(view: View, boxes, low, high, lo, hi) -> tuple[np.ndarray, np.ndarray]:
-    """The least and greatest eye depth over box_i ∩ the pyramid of the NDC square
-    [low_i, high_i], from the vertices of that section (box corners inside, corner
-    rays through the box, box edges through the sides); ``lo``/``hi`` where they do not meet."""
+    """The least and greatest eye depth over box_i ∩ the pyramid of the NDC square [low_i, high_i]; ``lo``/``hi``
+    where they do not meet."""
     m = view.world_to_clip
     # The pyramid's sides as world half-spaces side . [x, 1] <= 0 (x <= x1: clip_x - x1 w <= 0, ...).
     sides = np.stack([m[0] - high[:, 0, None] * m[3], low[:, 0, None] * m[3] - m[0],
@@ -486,8 +483,7 @@ def _add_small_boxes(view: View, boxes, missed, lo_box, hi_box, samples, tile, n
 
 def focused_body(view: View, light: Light, scene: SceneBounds, options: WarpOptions | None = None,
                  visible: VisibleRegion | None = None):
-    """B as ``options.focus`` asks: on the visible region (``visible``, or the scene's
-    boxes ray-cast) or on the whole view (``focus="view"``, Scherzer §4.1 as printed).
+    """B as ``options.focus`` asks (the visible region, or the whole view: Scherzer §4.1 as printed);
     EmptyBodyError when nothing is visible."""
     from .body import intersection_body
     options = options or WarpOptions()

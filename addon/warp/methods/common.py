@@ -28,9 +28,8 @@ def near_plane_notes(frames: list[LightFrame], prefix: str = "") -> list[tuple[s
 
 def frame_maps(frames: list[LightFrame], size: tuple[int, int], snap: bool = False,
                linear_z: bool = False) -> list[ShadowMap]:
-    """The unwarped map of each light frame, fitted to its points (cube faces at once);
-    ``snap``: an orthographic window on whole texels; ``linear_z``: each map's
-    linear depth row (Scherzer §4.2)."""
+    """The unwarped map of each light frame, fitted to its points; ``snap``: an orthographic window on whole
+    texels; ``linear_z``: linear depth rows (Scherzer §4.2)."""
     if len(frames) > 1:
         fitted = fit_runs(np.array([f.to_light for f in frames]), *point_runs([f.points for f in frames]))
         maps = [ShadowMap(m, size, "LESS", f.role) for m, f in zip(fitted, frames)]

@@ -236,10 +236,8 @@ def scaled_to_view_w(m: np.ndarray, view: View, centre: np.ndarray, origin: np.n
 
 def casters_of(polygon: np.ndarray, outwards: np.ndarray, grown: np.ndarray, height: np.ndarray, l_h: np.ndarray,
                tol: float, body: IntersectionBody, origin: np.ndarray) -> tuple[np.ndarray, bool]:
-    """B ∩ C, the points of B on the needed rays (§2, Fig. 5-6): C is the cone (a
-    prism for a sun) from the light over the region grown by tol·(1 + tan α) and
-    cut at h = -tol. The flag: a point light inside B, casters within
-    NEAR_FRACTION of its height left out."""
+    """B ∩ C, the points of B on the needed rays (§2, Fig. 5-6), C the cone (a prism for a sun) from the light
+    over the region; the flag: a point light inside B, casters within NEAR_FRACTION of its height left out."""
     corners = polygon + tol * (2 + min(steepest_incidence(grown, height, l_h), 1e12)) * outwards
     normals, offsets = cone_facets(corners.tolist(), height.tolist(), l_h.tolist(), tol)
     b_poly = body.polytope_from(origin)
