@@ -1,16 +1,7 @@
-"""The analytic aliasing model, one place for its formulas.
-
-1. The λ rules of the shared warp frustum, each a function of (θ, n, f, φ) in
-   GMNPR's 2D model (§2-3, Fig. 4; θ ∈ [0, π/2] between light and view, φ half
-   the field of view, λ = P_n / (P_f - P_n), λ → ∞ the uniform map):
-   :func:`lambda_gmnpr` (Eq. 8), :func:`lambda_glpr` (F(z) ~ z, §3), the λ guard
-   (:func:`lambda_no_worse_than_uniform`, :func:`lambda_no_worse_on_average`) and
-   Scherzer §4.4 Eq. 1 as :func:`lispsm_inverse_n_opt`. The model itself (Eq. 2's
-   F, ψ, φ) lives with the tests that check the rules: tests/warp/aliasing_model.py.
-   Corrections and derivations: docs/papers.md.
-2. The raster Jacobian of a map (:func:`raster_jacobian`), from which
-   ``addon/measure/footprint.py`` measures the texel footprint, and Lloyd's perspective aliasing factor m(p) = sqrt(K / z² / |det H⊥|), densities
-   on the plane across the light ray (:func:`perspective_aliasing`)."""
+"""The analytic aliasing model, one place for its formulas: the λ rules of the shared warp frustum in GMNPR's
+2D model (§2-3, Fig. 4; θ ∈ [0, π/2] between light and view, φ half the field of view, λ = P_n / (P_f - P_n),
+λ → ∞ the uniform map), Scherzer §4.4 Eq. 1, a map's raster Jacobian and Lloyd's perspective aliasing factor.
+The model itself (Eq. 2's F, ψ, φ): tests/warp/aliasing_model.py; corrections and derivations: docs/papers.md."""
 from __future__ import annotations
 
 import math
@@ -99,10 +90,8 @@ def lambda_no_worse_than_uniform(theta, n, f, phi) -> float:
 
 
 def lambda_no_worse_on_average(delta, weights=None) -> float:
-    """The least λ with E[ρ²] <= 1 over the visible pixels, ρ(δ) = (λ + δ)²/(λ(λ + 1))
-    the warp's texel along V_P over the uniform map's at δ ∈ [0, 1] along B's extent
-    (``delta``, weighted by ``weights``): the largest positive root of
-    p(λ) = (4m₁ - 2)λ³ + (6m₂ - 1)λ² + 4m₃λ + m₄, ∞ when m₁ >= 1/2 (the λ guard, part 2, docs/papers.md)."""
+    """The least λ with E[ρ²] <= 1 over the visible pixels at δ ∈ [0, 1] along B's extent (``delta``, weighted by
+    ``weights``), ∞ when m₁ >= 1/2 (the λ guard, part 2, docs/papers.md)."""
     d = np.clip(np.asarray(delta, dtype=np.float64), 0.0, 1.0)
     w = np.ones(len(d)) if weights is None else np.asarray(weights, dtype=np.float64)
     total = float(w.sum())

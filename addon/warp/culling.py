@@ -1,7 +1,5 @@
-"""Which of a scene's boxes meet a convex region, and the box around them (the
-receivers meeting V ∩ L, the casters meeting hull(R ∪ light), every frame):
-exactly the plain per-box test, a box meets the region unless it lies wholly
-outside one half-space, through a two-level index (:class:`BoxIndex`)."""
+"""Which of a scene's boxes meet a convex region (the receivers meeting V ∩ L, the casters meeting hull(R ∪ light),
+every frame) and the box around them: exactly the plain per-box test, through a two-level index (:class:`BoxIndex`)."""
 from __future__ import annotations
 
 from typing import NamedTuple

@@ -1,7 +1,5 @@
-"""What a light adds to a body: its frustum L (the spot cone, bounded by a
-circumscribed pyramid; all space for suns and point lights) and hull(P ∪ light),
-which holds everything that can shadow P (Scherzer §4.1, Fig. 5), built
-exactly with the light homogeneous (w = 0 for a sun), as half-spaces and as a polytope."""
+"""What a light adds to a body: its frustum L (the spot cone as a circumscribed pyramid; all space otherwise) and
+hull(P ∪ light), which holds everything that can shadow P (Scherzer §4.1, Fig. 5), the light homogeneous."""
 from __future__ import annotations
 
 import math

@@ -322,8 +322,7 @@ def _chain(next_vertex: dict) -> list:
 # ---------------------------------------------------------------------------
 
 class Edges(NamedTuple):
-    """Segments start + t·step for 0 <= t <= end (end = inf: a ray), in
-    arrays (..., s, 3), (..., s, 3), (..., s)."""
+    """Segments start + t·step for 0 <= t <= end (end = inf: a ray), in arrays (..., s, 3), (..., s, 3), (..., s)."""
 
     start: np.ndarray
     step: np.ndarray
@@ -349,10 +348,8 @@ def clip_segments(edges: Edges, normals: np.ndarray, offsets: np.ndarray,
 
 def section_points(poly: ConvexPolytope, normals: np.ndarray, offsets: np.ndarray, edges: Edges,
                    tol: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Points whose hull is ``poly`` ∩ Q_k for k bodies Q_k (facets ``normals`` (k, m, 3),
-    ``offsets`` (k, m), ``edges`` (k, s)): the ends of both bodies' edges clipped to
-    the other, within ``tol`` (default: poly's), in one clip. Returns the points
-    (N, 3) and the body of each (N,), body by body."""
+    """Points whose hull is ``poly`` ∩ Q_k for k bodies Q_k (facets ``normals`` (k, m, 3), ``offsets`` (k, m),
+    ``edges`` (k, s)), within ``tol``: the points (N, 3) and the body of each (N,), body by body."""
     tol = poly.tol if tol is None else tol
     mine, k = poly.segments, len(normals)
 
@@ -398,9 +395,8 @@ def _unit_rows(normals, offsets) -> tuple[np.ndarray, np.ndarray]:
 
 
 def coincident_planes(n: np.ndarray, o: np.ndarray, points: np.ndarray | None, tol: float) -> np.ndarray:
-    """(m, m): which planes are one where it matters: nearly the same normal and
-    signed distances within ``tol`` of each other at every one of ``points``
-    (without points: equal offsets). An angle alone is no test."""
+    """(m, m): which planes are one where it matters: nearly the same normal and signed distances within ``tol``
+    of each other at every one of ``points`` (without points: equal offsets)."""
     near = n @ n.T > 1.0 - 1e-12
     if points is None or len(points) == 0:
         return near & (np.abs(o[:, None] - o[None, :]) <= tol)
@@ -458,9 +454,8 @@ def _enumerate(kept: np.ndarray, n: np.ndarray, o: np.ndarray, tri: np.ndarray, 
 
 
 def _tidy(verts: np.ndarray, n: np.ndarray, o: np.ndarray, tol: float, inc: np.ndarray) -> ConvexPolytope | None:
-    """The polytope of these vertices, planes and incidence: nearly coincident planes
-    meeting on it merge (the older wins), a facet whose vertices all lie on
-    another is a sliver and goes, a vertex on fewer than three facets goes."""
+    """The polytope of these vertices, planes and incidence, nearly coincident planes merged, slivers and vertices
+    on fewer than three facets dropped."""
     m = len(n)
     near = coincident_planes(n, o, verts, COINCIDENT * tol)
     np.fill_diagonal(near, False)
@@ -511,9 +506,8 @@ def _loops_from_incidence(verts: np.ndarray, normals: np.ndarray, inc: np.ndarra
 
 
 def _merge_groups(p: np.ndarray, tol, radius: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Merge points closer than ``tol`` (plus the larger ``radius``), each joining the
-    first point in lexicographic order within reach, transitively: (indices kept,
-    each point's group's position among them)."""
+    """Merge points closer than ``tol`` (plus the larger ``radius``), transitively, each joining the first point
+    in lexicographic order within reach: (indices kept, each point's group's position among them)."""
     if len(p) == 0:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     order = np.lexsort((p[:, 2], p[:, 1], p[:, 0]))

@@ -241,10 +241,8 @@ def smallest_cone(directions) -> tuple[np.ndarray, float]:
 
 @dataclass(frozen=True)
 class PPSLight:
-    """The light's frustum in PPS: ``matrix`` (PPS -> light clip before the unit-cube
-    fit; None when no frustum narrower than allowed holds B'), ``light`` L' (unit),
-    ``kind`` ("point", "inverted", "directional"), ``cone_half_angle``, ``axis`` k,
-    ``single_frustum`` (the cone is narrower than 180°)."""
+    """The light's frustum in PPS: ``matrix`` (PPS -> light clip before the fit; None when no frustum narrower
+    than allowed holds B'), L' ``light`` (unit), ``kind``, ``cone_half_angle``, ``axis`` k, ``single_frustum``."""
 
     matrix: np.ndarray | None
     light: np.ndarray

@@ -1,6 +1,5 @@
-"""Rays against axis-aligned boxes: the one slab test the visible region
-(:mod:`.visibility`) and the independent judge (``addon.measure.box_scene``)
-share. Boxes are closed shells: a ray starting inside hits the inner wall."""
+"""Rays against axis-aligned boxes: the one slab test :mod:`.visibility` and ``addon.measure.box_scene`` share.
+Boxes are closed shells: a ray starting inside hits the inner wall."""
 from __future__ import annotations
 
 import numpy as np

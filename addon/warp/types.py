@@ -1,7 +1,5 @@
-"""Plain data in and out of the warp core (numpy float64, no bpy): :class:`View`,
-:class:`Light`, :class:`SceneBounds`, :class:`WarpOptions` in; :class:`ShadowSetup`
-(its :class:`ShadowMap` list and :class:`~.diagnostics.Diagnostics`) out. A point
-is tested against the first map that serves it (:meth:`ShadowMap.serves`)."""
+"""Plain data in and out of the warp core (numpy float64, no bpy): :class:`View`, :class:`Light`,
+:class:`SceneBounds`, :class:`WarpOptions` in; :class:`ShadowSetup` (:class:`ShadowMap` list, diagnostics) out."""
 from __future__ import annotations
 
 import math
@@ -119,9 +117,8 @@ LIGHT_TYPES = ("SUN", "POINT", "SPOT")
 
 @dataclass(frozen=True)
 class Light:
-    """A light: ``direction`` the light travels (SUN, SPOT), ``position`` (POINT,
-    SPOT), ``spot_angle`` the full cone angle in radians. An AREA light arrives as
-    a SPOT (the scene glue's conversion)."""
+    """A light: ``direction`` the light travels (SUN, SPOT), ``position`` (POINT, SPOT), ``spot_angle`` the full
+    cone angle in radians (an AREA light arrives as a SPOT)."""
 
     type: str
     direction: Optional[np.ndarray] = None
@@ -225,9 +222,8 @@ class SceneBounds:
 
 @dataclass
 class Region:
-    """The part of the world a plane map serves (Chong-Gortler §3): points within
-    ``tolerance`` of the plane ``dot(normal, x) = offset`` whose projection lies in
-    the convex ``polygon`` (world-space (K, 3) vertices on the plane)."""
+    """The part of the world a plane map serves (Chong-Gortler §3): points within ``tolerance`` of the plane
+    ``dot(normal, x) = offset`` whose projection lies in the convex world-space ``polygon`` (K, 3)."""
 
     normal: np.ndarray
     offset: float
@@ -251,11 +247,9 @@ class Region:
 
 @dataclass
 class ShadowMap:
-    """One shadow map: world -> light clip ``matrix``, texel ``size``, ``depth_test``,
-    ``role`` ("main", "cube+X", "plane:0", "fallback", ...); optionally the
-    ``view_depth_range`` and ``region`` it serves, its linear ``depth_row`` r
-    (z_ndc = r · [x, y, z, 1], Scherzer §4.2) and a cascade's ``blend_band`` (the
-    eye depth past its range it also holds, faded into the next map)."""
+    """One shadow map: world -> light clip ``matrix``, texel ``size``, ``depth_test``, ``role`` ("main", "cube+X",
+    "plane:0", "fallback", ...); optionally the ``view_depth_range`` and ``region`` it serves, its linear
+    ``depth_row`` r (z_ndc = r · [x, y, z, 1], Scherzer §4.2) and a cascade's ``blend_band``."""
 
     matrix: np.ndarray
     size: tuple[int, int]
@@ -324,23 +318,21 @@ class WarpOptions:
     """Every method's knobs, with the defaults a fresh scene gets.
 
     shadow_map_size: texels (w, h) of each map.
-    focus: B fitted to what the camera sees ("visible": ``visibility``) or to the
-        whole view frustum ("view", Scherzer §4.1 as printed).
+    focus: B fitted to what the camera sees ("visible": ``visibility``) or to the whole view frustum ("view",
+        Scherzer §4.1 as printed).
     texel_snapping: snap the uniform map's window to whole texels.
-    delta_z: Scherzer Eq. 1's Δz, "body" (B's extent) or "visible"
-        (``visible_depth_range``); n_opt only, never B.
+    delta_z: Scherzer Eq. 1's Δz, "body" (B's extent) or "visible" (``visible_depth_range``); n_opt only, never B.
     middle_vector: B's middle vector as V_P (Scherzer §4.4) instead of Eq. 3.
     linear_z: every map gets a linear ``depth_row`` (Scherzer §4.2).
     lam: a forced λ for GMNPR and GLPR (None: their rules).
-    lambda_guard: whose λ is kept no worse than the uniform map: "all", "glpr",
-        "off" (docs/papers.md, "The λ guard"); a forced ``lam`` never is.
+    lambda_guard: whose λ is kept no worse than the uniform map: "all", "glpr", "off" (docs/papers.md, "The λ
+        guard"); a forced ``lam`` never is.
     max_frustum_angle: a point light's widest single perspective map (radians).
-    planes, plane_budget, plane_twist: plane_optimal's planes of interest, its
-        largest share of the texel budget, its twist ("auto", "on", "off").
+    planes, plane_budget, plane_twist: plane_optimal's planes of interest, its largest share of the texel budget,
+        its twist ("auto", "on", "off").
     cascade_splits, cascade_warp, cascade_lambda, cascade_adaptive, cascade_stable,
-    cascade_budget, cascade_blend: the cascade's split count (1-8), each split's
-        warp (or "auto"), PSSM's λ, Lloyd-model splits, stable splits and sun
-        maps, "per_map" or "shared" texels, and the blend band (``methods/cascade.py``)."""
+    cascade_budget, cascade_blend: the cascade's split count (1-8), each split's warp (or "auto"), PSSM's λ,
+        Lloyd-model splits, stable splits and sun maps, "per_map" or "shared" texels, the blend band (``cascade``)."""
 
     shadow_map_size: tuple[int, int] = (2048, 2048)
     focus: str = "visible"

@@ -33,9 +33,8 @@ region's boundary stay inside the maps after float32 rounding on the GPU."""
 
 @dataclass(frozen=True)
 class TileDepths:
-    """Per screen tile, the eye-depth interval [near, far] holding every visible point
-    seen through it (near > far: nothing seen); ``x_edges``, ``y_edges``: the tiles'
-    NDC edges; ``near``, ``far``: (ny, nx), row 0 at the bottom."""
+    """Per screen tile, the eye-depth interval [near, far] holding every visible point seen through it (near > far:
+    nothing seen); ``x_edges``, ``y_edges``: the tiles' NDC edges; ``near``, ``far``: (ny, nx), row 0 at the bottom."""
 
     x_edges: np.ndarray
     y_edges: np.ndarray

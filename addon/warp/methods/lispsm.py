@@ -1,7 +1,5 @@
-"""LiSPSM and its generalisations GMNPR and GLPR: one warp frustum
-(:mod:`.warp_frustum`), three λ rules (:mod:`..aliasing`): ``lispsm`` (Wimmer
-et al. with Scherzer §4.4, Eq. 1-3), ``gmnpr`` (GMNPR Eq. 8) and ``glpr``
-(F(z) ~ z, GMNPR §3)."""
+"""LiSPSM and its generalisations: one warp frustum (:mod:`.warp_frustum`), three λ rules (:mod:`..aliasing`):
+``lispsm`` (Wimmer et al. with Scherzer §4.4, Eq. 1-3), ``gmnpr`` (GMNPR Eq. 8), ``glpr`` (F(z) ~ z, GMNPR §3)."""
 from __future__ import annotations
 
 from ..body import IntersectionBody

@@ -28,8 +28,7 @@ MAX_MAPS = 8
 """Maps one shading pass can select from (``addon.gpu.shaders.MAX_MAPS``): plane
 maps beyond what this leaves next to the fallback maps are left out, smallest first."""
 REGION_TOLERANCE = 1e-6
-"""A point belongs to a plane's region within this fraction of the scene scale
-(at least 100x the body tolerance)."""
+"""A point belongs to a plane's region within this fraction of the scene scale (at least 100x the body tolerance)."""
 NEAR_FRACTION = 1e-6
 """A point light inside B: casters nearer than this fraction of the scene scale
 to the light's height are left out of a plane map (as ``frame.perspective_frame``)."""

@@ -1,7 +1,5 @@
-"""Uniform (focused standard) shadow maps: the light frustum fitted to B (Scherzer
-§4.1), orthographic for a sun, the light's perspective (or its cube faces) for
-point and spot lights. Texel snapping (suns) fits in a frame fixed in the world
-with window sizes on a ladder and origins on whole texels, so edges do not crawl."""
+"""Uniform (focused standard) shadow maps: the light frustum fitted to B (Scherzer §4.1); texel snapping (suns)
+fits in a world-fixed frame with window sizes on a ladder and origins on whole texels, so edges do not crawl."""
 from __future__ import annotations
 
 from ..body import IntersectionBody

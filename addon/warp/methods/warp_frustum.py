@@ -59,9 +59,8 @@ class LightAtEye:
 
 @dataclass
 class WarpAxis:
-    """A warp's depth axis in a light frame (``to_light``: world -> light
-    space, rays along z): V_P as the unit 2-vector ``a`` in the image plane and
-    B's part along it, from ``h_min`` over ``extent`` D (docs/papers.md)."""
+    """A warp's depth axis in a light frame (``to_light``: world -> light space, rays along z): V_P as the unit
+    2-vector ``a`` in the image plane and B's part along it, ``h_min`` over ``extent`` D (docs/papers.md)."""
 
     to_light: np.ndarray
     a: tuple
@@ -202,9 +201,8 @@ def frame_axes(at: LightAtEye, frame: LightFrame, eye_h: list, vector_h: list, b
 
 
 def _eye_and_fade(eye: tuple, box) -> tuple[tuple, float]:
-    """A point light frame's fade (``FADE_START``..``FADE_END`` half-diagonals of B's
-    image from its centre) and the eye kept within a box holding the fade region
-    (the fit absorbs its lateral offset where the fade is 0)."""
+    """A point light frame's fade (``FADE_START``..``FADE_END`` half-diagonals of B's image from its centre) and
+    the eye kept within a box holding the fade region."""
     (xlo, ylo, zlo), (xhi, yhi, zhi) = box
     cx, cy = (xlo + xhi) / 2, (ylo + yhi) / 2
     half = max(math.hypot(xhi - xlo, yhi - ylo) / 2, 1e-300)
@@ -216,9 +214,8 @@ def _eye_and_fade(eye: tuple, box) -> tuple[tuple, float]:
 
 
 def _image_direction(v, s: float) -> tuple[float, float]:
-    """The unit image-plane direction along ``v`` (whose sine to the light is
-    ``s``), blended continuously into the frame's +y as s falls below
-    PARALLEL_BLEND (+y for a zero or infinite ``v``)."""
+    """The unit image-plane direction along ``v`` (sine ``s`` to the light), blended into the frame's +y as s falls
+    below PARALLEL_BLEND (+y for a zero or infinite ``v``)."""
     vx, vy = v
     length = math.hypot(vx, vy)
     vx, vy = (vx / length, vy / length) if length > 0 and math.isfinite(length) else (0.0, 1.0)
