@@ -37,16 +37,14 @@ def _warp_errors(what: str):
 
 
 MAX_COORDINATE = 1e12
-"""The largest coordinate (camera, light, box) the core works with. Its tolerances
-are relative to B's size; a scene that mixes this with millimetres is already at
-the edge of float64 (1e12 carries 1e-4 absolutely), and beyond it a single huge
-box makes every relative tolerance swallow the rest of the scene."""
+"""The largest coordinate (camera, light, box) the core works with. Its tolerances are relative to B's size; a scene
+that mixes this with millimetres is already at the edge of float64 (1e12 carries 1e-4 absolutely), and beyond it a
+single huge box makes every relative tolerance swallow the rest of the scene."""
 
 
 MIN_RESOLVED = 1e-9
-"""The smallest view frustum (its bounding box's diagonal) relative to the
-camera's distance from the origin that the core works with: below it float64
-keeps fewer than about 1e7 steps across the frustum and the fits lose coverage."""
+"""The smallest view frustum (its bounding box's diagonal) relative to the camera's distance from the origin that the
+core works with: below it float64 keeps fewer than about 1e7 steps across the frustum and the fits lose coverage."""
 
 
 def _check_range(view: View, light: Light, scene: SceneBounds) -> None:

@@ -13,9 +13,8 @@ from .geometry import homogeneous
 from .types import Light
 
 AXIS_MARGIN = math.cos(math.radians(89.0))
-"""A point light's depth axis must be within 89° of every ray it measures:
-nearer to 90° the depth hardly grows along the ray and its float32 steps are
-long (``light_depth_row`` gives None then)."""
+"""A point light's depth axis must be within 89° of every ray it measures: nearer to 90° the depth hardly grows along
+the ray and its float32 steps are long (``light_depth_row`` gives None then)."""
 
 
 def fitted_row(along: np.ndarray, points) -> np.ndarray:

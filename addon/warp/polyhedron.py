@@ -14,9 +14,8 @@ from .geometry import cross
 EPS = float(np.finfo(np.float64).eps)
 
 SNAP = 4.0
-"""Vertices closer than SNAP tolerances are one vertex, and a vertex within SNAP
-tolerances of a plane lies on it: one scale for both, so near-degenerate
-corners (a plane passing a vertex at a few tolerances) give consistent faces."""
+"""Vertices closer than SNAP tolerances are one vertex, and a vertex within SNAP tolerances of a plane lies on it: one
+scale for both, so near-degenerate corners (a plane passing a vertex at a few tolerances) give consistent faces."""
 
 COINCIDENT = 1000.0
 """Facet planes whose signed distances differ by less than this many tolerances
@@ -27,9 +26,8 @@ DET_MIN = 1e-13
 meeting in no single point (parallel or sharing a line)."""
 
 HEXAHEDRON_LOOPS = ((0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5))
-"""The six quads of a hexahedron whose corners are ordered like
-``geometry.UNIT_CUBE_CORNERS`` (near face first, x fastest, then y): near, far,
-bottom, top, left, right, counter-clockwise seen from outside for a box."""
+"""The six quads of a hexahedron whose corners are ordered like ``geometry.UNIT_CUBE_CORNERS`` (near face first, x
+fastest, then y): near, far, bottom, top, left, right, counter-clockwise seen from outside for a box."""
 
 BOX_NORMALS = np.concatenate([-np.eye(3), np.eye(3)])
 """The outward normals of a box's facets -x, -y, -z, +x, +y, +z (offsets -lo, hi: ``box_offsets``)."""

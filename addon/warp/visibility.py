@@ -26,9 +26,8 @@ ulps of 1.0 (2^-24 each), pushed through the hyperbolic depth to eye depth."""
 KDOP_DIRECTIONS = 8
 """Directions across the light in which the k-DOP bounds the tiles (every 180°/8)."""
 KDOP_PAD = 1e-3
-"""The k-DOP's planes are moved out by this fraction of the region's extent
-(and its angles by this fraction of its angular extent), so points on the
-region's boundary stay inside the maps after float32 rounding on the GPU."""
+"""The k-DOP's planes are moved out by this fraction of the region's extent (and its angles by this fraction of its
+angular extent), so points on the region's boundary stay inside the maps after float32 rounding on the GPU."""
 
 
 @dataclass(frozen=True)
