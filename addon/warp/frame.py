@@ -112,8 +112,7 @@ def world_sun_frame(light: Light, body: IntersectionBody) -> LightFrame:
 
 
 def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]:
-    """Axis and half-angle of a cone from ``apex`` holding ``points`` (those at the apex ignored); a half-angle
-    near π: no single cone."""
+    """Axis and half-angle of a cone from ``apex`` holding ``points`` (apex points ignored; near π: no single cone)."""
     dirs = np.asarray(points, dtype=np.float64) - apex
     norms = np.sqrt(np.einsum("ij,ij->i", dirs, dirs))
     lengths = norms.tolist()

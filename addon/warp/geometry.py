@@ -155,8 +155,7 @@ def clip_volume_corners(matrix) -> np.ndarray:
 
 
 def clip_volume_corners_h(matrix) -> np.ndarray:
-    """The clip volume's corners as homogeneous world points (8, 4) (w <= 0: at or beyond infinity);
-    LinAlgError for a singular matrix."""
+    """The clip volume's corners as homogeneous world points (8, 4) (w <= 0: at infinity); LinAlgError when singular."""
     return _UNIT_CUBE_CORNERS_H @ np.linalg.inv(np.asarray(matrix, dtype=np.float64)).T
 
 

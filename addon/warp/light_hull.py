@@ -23,8 +23,7 @@ _CONE_ROWS = np.stack([np.cos(_CONE_ANGLES), np.sin(_CONE_ANGLES), np.ones(CONE_
 
 
 def cone_halfspaces(apex, axis, full_angle) -> tuple[np.ndarray, np.ndarray]:
-    """(normals (k, 3), offsets (k,)) of the regular pyramid of k = CONE_SIDES sides circumscribing the cone
-    (apex, axis, full angle)."""
+    """(normals (k, 3), offsets (k,)) of the k = CONE_SIDES pyramid circumscribing the cone (apex, axis, full angle)."""
     a = normalize(axis)
     u = perpendicular(a)
     widened = math.atan(math.tan(full_angle / 2) / math.cos(math.pi / CONE_SIDES))

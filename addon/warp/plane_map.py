@@ -224,8 +224,7 @@ def clip_to_polygon(poly: np.ndarray, bound, normal, tol: float) -> Optional[np.
 
 
 def is_convex_polygon(points, normal, tol: float) -> bool:
-    """Whether the points, in order, are a convex polygon CCW about ``normal`` that ``convex_polygon_on_plane``
-    keeps whole."""
+    """Whether the points in order are a convex polygon CCW about ``normal`` that ``convex_polygon_on_plane`` keeps."""
     pts = np.asarray(points, dtype=np.float64).tolist()
     if len(pts) < 3:
         return False

@@ -103,8 +103,7 @@ class ConvexPolytope:
 
     @classmethod
     def from_halfspaces(cls, normals, offsets, tol: float) -> "ConvexPolytope | None":
-        """The bounded intersection of ``normals @ x <= offsets`` by vertex enumeration,
-        or None when it is empty or has no volume."""
+        """The bounded intersection of ``normals @ x <= offsets`` (vertex enumeration), or None when empty or flat."""
         n, o = _unit_rows(normals, offsets)
         n, o = _dedupe_planes(n, o, tol)
         if len(n) < 4:
@@ -113,8 +112,7 @@ class ConvexPolytope:
 
     # -- what follows from it -------------------------------------------------
     def edges(self) -> np.ndarray:
-        """(e, 2) sorted vertex index pairs of the edges (consecutive vertices of the
-        loops), lower index first; read-only, made once."""
+        """(e, 2) sorted vertex index pairs of the loops' edges, lower index first; read-only, made once."""
         return self._edges
 
     @cached_property
@@ -172,8 +170,7 @@ class ConvexPolytope:
 
     # -- clip -----------------------------------------------------------------
     def clip(self, normals, offsets) -> "ConvexPolytope | None":
-        """This polytope ∩ {normals @ x <= offsets} (unit normals), or None when nothing
-        with volume is left; half-spaces that hold every vertex are skipped."""
+        """This polytope ∩ {normals @ x <= offsets} (unit normals), or None when nothing with volume is left."""
         n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
         o = np.asarray(offsets, dtype=np.float64).reshape(-1)
         reach = ((self.vertices @ n.T).max(axis=0) - o).tolist()          # the farthest vertex beyond each plane
@@ -299,8 +296,7 @@ def _add_edge(next_vertex: dict, a: int, b: int) -> None:
 
 
 def _chain(next_vertex: dict) -> list:
-    """The loop of the edges ``next_vertex`` (vertex -> next vertex); OpenCut
-    unless they close into one loop of at least three."""
+    """The loop of the edges ``next_vertex``; OpenCut unless they close into one loop of at least three."""
     if len(next_vertex) < 3:
         raise OpenCut("the cut leaves no new facet")
     start = min(next_vertex)
@@ -532,8 +528,7 @@ def _merge_groups(p: np.ndarray, tol, radius: np.ndarray | None = None) -> tuple
 # ---------------------------------------------------------------------------
 
 def unique_points(points, tol: float) -> np.ndarray:
-    """Points merged within ``tol`` in a deterministic lexicographic order (a
-    point is dropped when an earlier one in that order lies within ``tol``)."""
+    """Points merged within ``tol`` in a deterministic lexicographic order (the earlier one kept)."""
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     return p[_merge_groups(p, tol)[0]] if len(p) else p
 
@@ -601,8 +596,7 @@ def _from_first_crossing(facets: list, cap: list) -> list:
 
 
 def _turns_exceed(polygon: list, normal: np.ndarray, tol: float) -> bool:
-    """Whether the polygon turns left about ``normal`` at every vertex by more than
-    2·tol·D (D: at least its diameter)."""
+    """Whether the polygon turns left about ``normal`` at every vertex by more than 2·tol·D (D >= its diameter)."""
     p = np.array(polygon)
     limit = 2.0 * tol * max(2.0 * float(np.abs(p - p[0]).sum(axis=1).max()), tol)
     edges = np.concatenate([p[1:], p[:1]]) - p

@@ -108,8 +108,7 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
 
 
 class _BoxesByDepth:
-    """The receiver boxes of a culling ``Selection``, camera-relative, a batch at a time in order of a lower bound
-    of their eye depth (floored at ``floor``)."""
+    """A ``Selection``'s receiver boxes, camera-relative, in batches by a lower bound of their eye depth (>= floor)."""
 
     def __init__(self, receivers, axis: np.ndarray, origin: np.ndarray, floor: float):
         self.index, self.picked = receivers.index, receivers.by_cluster
@@ -260,8 +259,8 @@ class PPSLight:
 
 
 def pps_light_matrix(light_h, points, max_half_angle: float = math.inf) -> PPSLight:
-    """The light frustum from the homogeneous PPS light ``light_h`` over B' (module
-    docstring); no matrix when the cone's half-angle exceeds ``max_half_angle``."""
+    """The light frustum from the homogeneous PPS light ``light_h`` over B' (docs/papers.md); no matrix when the
+    cone's half-angle exceeds ``max_half_angle``."""
     light = np.asarray(light_h, dtype=np.float64)
     light = light / math.sqrt(light @ light)
     l, w = light[:3], float(light[3])

@@ -95,8 +95,7 @@ class View:
         return 2.0 * math.atan(1.0 / self.projection[0, 0])
 
     def corners(self) -> np.ndarray:
-        """(8, 3) world-space corners of the view frustum V: near face first
-        (x fastest, then y), then far face; see ``geometry.UNIT_CUBE_CORNERS``."""
+        """(8, 3) world-space corners of the view frustum V in ``geometry.UNIT_CUBE_CORNERS`` order."""
         return self._corners
 
     @cached_property
@@ -106,8 +105,7 @@ class View:
         return _frozen(transform_points(inv, UNIT_CUBE_CORNERS))
 
     def eye_depth(self, points) -> np.ndarray:
-        """Distance along the view direction (positive in front) of (N, 3) points:
-        minus the camera-space z (the third row of ``world_to_camera``)."""
+        """Distance along the view direction (positive in front) of (N, 3) points."""
         row = self.world_to_camera[2]
         return -(np.asarray(points, dtype=np.float64).reshape(-1, 3) @ row[:3] + row[3])
 
@@ -273,8 +271,7 @@ class ShadowMap:
         return ok & np.all(np.abs(ndc) <= 1.0 + tol, axis=1)
 
     def serves(self, points, view: Optional[View] = None, tol: float = 0.0) -> np.ndarray:
-        """Which points this map is responsible for: its clip volume, its region
-        (plane maps) and its view depth range (if any)."""
+        """Which points this map is responsible for: its clip volume, region (plane maps) and view depth range."""
         ok = self.contains(points, tol)
         if self.region is not None:
             ok &= self.region.contains(points)

@@ -364,8 +364,7 @@ def _face_reach(view: View, boxes, origins, dirs, t, box, samples, lo_box, hi_bo
 
 
 def _box_depths_in_squares(view: View, boxes, low, high, lo, hi) -> tuple[np.ndarray, np.ndarray]:
-    """The least and greatest eye depth over box_i ∩ the pyramid of the NDC square [low_i, high_i]; ``lo``/``hi``
-    where they do not meet."""
+    """The least and greatest eye depth over box_i ∩ the pyramid of the NDC square [low_i, high_i], else lo/hi."""
     m = view.world_to_clip
     # The pyramid's sides as world half-spaces side . [x, 1] <= 0 (x <= x1: clip_x - x1 w <= 0, ...).
     sides = np.stack([m[0] - high[:, 0, None] * m[3], low[:, 0, None] * m[3] - m[0],
@@ -481,8 +480,7 @@ def _add_small_boxes(view: View, boxes, missed, lo_box, hi_box, samples, tile, n
 
 def focused_body(view: View, light: Light, scene: SceneBounds, options: WarpOptions | None = None,
                  visible: VisibleRegion | None = None):
-    """B as ``options.focus`` asks (the visible region, or the whole view: Scherzer §4.1 as printed);
-    EmptyBodyError when nothing is visible."""
+    """B as ``options.focus`` asks (visible region or whole view, Scherzer §4.1); EmptyBodyError if nothing is seen."""
     from .body import intersection_body
     options = options or WarpOptions()
     if options.focus == "view":

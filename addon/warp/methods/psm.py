@@ -91,8 +91,7 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
 
 def psm_warp(view: View, light: Light, body: IntersectionBody, options: WarpOptions,
              visible_near: float) -> PSMWarp:
-    """The virtual camera with its near plane at ``visible_near`` (§4.2, §6), the light's frustum around B' in
-    its PPS (§3) and the fit (§4)."""
+    """The virtual camera, near at ``visible_near`` (§4.2, §6), its PPS light frustum around B' (§3), the fit (§4)."""
     camera = virtual_camera(view, body, visible_near)
     light_in_pps = pps_light_matrix(camera.to_pps @ light.homogeneous_from(view.position), camera.points,
                                     math.inf if light.is_directional else options.max_frustum_angle / 2)

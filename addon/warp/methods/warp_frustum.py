@@ -87,8 +87,7 @@ class FrameGeometry(WarpAxis):
 
 def light_at_eye(view: View, light: Light, options: WarpOptions, body: IntersectionBody,
                  middle: Optional[np.ndarray]) -> tuple[Optional[LightAtEye], str]:
-    """The world-space quantities every frame shares, or (None, reason) when the light ray through the eye is
-    undefined."""
+    """The world-space quantities every frame shares, or (None, reason) when the light ray through the eye has none."""
     d = view.direction
     if light.is_directional:
         ell, dist = light.direction, 0.0
@@ -186,8 +185,7 @@ def frame_geometries(at: LightAtEye, frames: list, to_light: np.ndarray, b_in_li
 
 
 def frame_axes(at: LightAtEye, frame: LightFrame, eye_h: list, vector_h: list, box, options: WarpOptions):
-    """A frame's warp axes in its light space: (V_P as a unit 2-vector, the eye, the fade), or the reason the
-    warp is undefined."""
+    """A frame's warp axes in its light space (V_P as a unit 2-vector, the eye, the fade), or why there are none."""
     x, y, z, w = eye_h
     if frame.directional:             # a sun frame's +y is Eq. 3's V_P (blended near parallel, frame.image_up)
         v_p = _image_direction(vector_h[:2], at.s) if options.middle_vector else (0.0, 1.0)
@@ -340,8 +338,7 @@ class FrameWarp:
 
 def frame_warps(frames: list, view: View, at: Optional[LightAtEye], reason: str, rule: LambdaRule,
                 ctx: WarpContext, phi: Optional[float], options: WarpOptions, body: IntersectionBody) -> list:
-    """Every frame's warp (``at`` None: all uniform for ``reason``): geometry, λ by the rule, P and the unit-cube
-    fit of every map at once."""
+    """Every frame's warp (``at`` None: all uniform for ``reason``) and the unit-cube fit of every map at once."""
     points_h, starts, run = point_runs([f.points for f in frames])
     to_light = np.array([f.to_light for f in frames])
     b_in_light_h = transform_h_runs(to_light, points_h, run)
@@ -368,8 +365,7 @@ def frame_warps(frames: list, view: View, at: Optional[LightAtEye], reason: str,
 
 
 def _warp_strength(w: FrameWarp, geo: FrameGeometry, lam: float, guarded: Optional[str]) -> None:
-    """The frame's λ, P_n (world units), its own λ and μ, and their notes
-    (``guarded``: why the λ guard raised λ, if it did)."""
+    """The frame's λ, P_n (world units), its own λ and μ, and their notes (``guarded``: why the guard raised λ)."""
     role = w.frame.role
     if guarded:
         w.notes.append((f"{role}: λ guard", guarded))
@@ -387,8 +383,7 @@ def _warp_strength(w: FrameWarp, geo: FrameGeometry, lam: float, guarded: Option
 
 def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: IntersectionBody,
                  options: WarpOptions) -> ShadowSetup:
-    """The maps of one warp method: one warped map per light frame, each
-    ray-closed over B when there are several (``ray_closed``)."""
+    """The maps of one warp method: one warped map per light frame, ray-closed over B when several (``ray_closed``)."""
     diag = Diagnostics(name, body_vertices=body.vertices)
     frames = light_frames(view, light, body, options)
     ctx = eye_depth_range(view, body, options, diag)
