@@ -35,8 +35,7 @@ class Culled:
 
 @dataclass(frozen=True, eq=False)
 class IntersectionBody:
-    """B relative to ``origin`` (the camera position), with R and the culling it was
-    built from; world-space views of it are made on first use."""
+    """B relative to ``origin`` (the camera position), with R and the culling it was built from."""
 
     polytope: ConvexPolytope
     """B = hull(R ∪ light) ∩ S_c."""

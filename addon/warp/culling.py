@@ -73,8 +73,7 @@ class BoxIndex:
 
     @staticmethod
     def _clusters(b: np.ndarray, k: int) -> np.ndarray:
-        """The boxes' order by cluster: leaves of a median-split k-d tree over their
-        centres (every leaf but the last full)."""
+        """The boxes' order by cluster: leaves of a median-split k-d tree over their centres (all but the last full)."""
         centre = (b[:, 0] + b[:, 1]) / 2
         leaves: list[np.ndarray] = []
         todo = [np.arange(len(b))]

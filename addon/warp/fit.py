@@ -64,8 +64,7 @@ def fit_to_unit_cube(transform, points) -> np.ndarray:
 
 
 def fit_keeping_points(transform, points) -> tuple[np.ndarray, np.ndarray]:
-    """``fit_to_unit_cube`` and the ``points`` as the fitted map divides them
-    (the window is a scale and an offset per axis of the divided coordinates)."""
+    """``fit_to_unit_cube`` and the ``points`` as the fitted map divides them."""
     transform = np.asarray(transform, dtype=np.float64)
     ndc = divided(np.asarray(points, dtype=np.float64) @ transform[:, :3].T + transform[:, 3])
     window = window_matrix(ndc.min(axis=0), ndc.max(axis=0))
@@ -73,8 +72,7 @@ def fit_keeping_points(transform, points) -> tuple[np.ndarray, np.ndarray]:
 
 
 def fit_runs(matrices, points_h, starts, run) -> np.ndarray:
-    """``fit_to_unit_cube`` of maps (k, 4, 4), each to its own run of the homogeneous
-    points (N, 4) (``geometry.point_runs``: ``starts``, ``run``)."""
+    """``fit_to_unit_cube`` of maps (k, 4, 4), each to its run of the points (N, 4) (``geometry.point_runs``)."""
     ndc = divided(transform_h_runs(matrices, points_h, run))
     lo, hi = np.minimum.reduceat(ndc, starts).tolist(), np.maximum.reduceat(ndc, starts).tolist()
     return window_matrices(lo, hi) @ matrices

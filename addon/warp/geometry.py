@@ -35,8 +35,7 @@ def across(v, d) -> list:
 
 
 def normalize(v) -> np.ndarray:
-    """Unit vector along ``v``; raises ValueError for a zero or non-finite vector.
-    Scaled first where |v|² would overflow or underflow."""
+    """Unit vector along ``v`` (scaled first against over- and underflow); ValueError for zero or non-finite v."""
     v = np.asarray(v, dtype=np.float64)
     big = float(np.abs(v).max(initial=0.0))
     if not math.isfinite(big) or big == 0.0:

@@ -165,8 +165,7 @@ def light_hull(p: ConvexPolytope, light_h) -> LightHull:
 
 
 def _silhouette(loops, kept: list, facing: list) -> list | None:
-    """The edges of kept facets whose facet across faces the light; None when an edge
-    has no facet across (open loops)."""
+    """The edges of kept facets whose facet across faces the light; None when an edge has none across (open loops)."""
     across = {}                                      # edge (a, c) -> the facet whose loop runs c -> a
     for f, loop in enumerate(loops):
         a = loop[-1]

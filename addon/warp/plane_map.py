@@ -146,8 +146,7 @@ def _frame_inverse(p: np.ndarray) -> np.ndarray:
 
 
 def line_plane_points(a, b, plane_vec) -> np.ndarray:
-    """Homogeneous (N, 4) points where the lines through a_i and b_i meet π:
-    (π·b) a - (π·a) b (zero for a line in P)."""
+    """Homogeneous (N, 4) points where the lines through a_i and b_i meet π: (π·b) a - (π·a) b (0 for a line in P)."""
     return (b @ plane_vec)[:, None] * a - (a @ plane_vec)[:, None] * b
 
 
@@ -157,8 +156,7 @@ the image corners (-1, -1), (-1, 1), (1, 1), (1, -1) (Eq. 2's order)."""
 
 
 def corner_ray_points(corners: np.ndarray, plane_vec) -> np.ndarray:
-    """p^1..p^4: where the rays through the view's corners (the near and far
-    ``corners``, ``VIEW_CORNER_RAYS``) meet π, homogeneous."""
+    """p^1..p^4: where the rays through the view's ``corners`` (``VIEW_CORNER_RAYS``) meet π, homogeneous."""
     near, far = (np.append(corners[list(ends)], np.ones((4, 1)), axis=1) for ends in VIEW_CORNER_RAYS)
     return line_plane_points(near, far, np.asarray(plane_vec, dtype=np.float64))
 
@@ -309,8 +307,7 @@ def enclosing_polygon(poly: np.ndarray, normal: np.ndarray, max_vertices: int) -
 
 
 def min_area_twist(points2d: np.ndarray) -> float:
-    """The rotation θ in (-π/4, π/4] giving the points' smallest axis-aligned
-    rectangle (rotating calipers: a side lies along a hull edge)."""
+    """The rotation θ in (-π/4, π/4] giving the points' smallest axis-aligned rectangle (rotating calipers)."""
     p = np.asarray(points2d, dtype=np.float64).reshape(-1, 2)
     best, best_area = 0.0, math.inf
     k = len(p)

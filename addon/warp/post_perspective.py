@@ -139,8 +139,7 @@ class _BoxesByDepth:
         self.pool, self.pool_lower, self.opened = pool[:, order], lower[order], stop
 
     def next(self, count: int, below: float):
-        """The nearest ``count`` boxes not drawn yet as (lo, hi, bounds), or None when
-        none left has a bound below ``below``."""
+        """The nearest ``count`` boxes not drawn yet as (lo, hi, bounds); None when no bound left is below ``below``."""
         reach = bisect.bisect_left(self.c_lower, below, self.opened)
         if len(self.pool_lower) < count and self.opened < reach:
             self._open(min(self.opened + count - len(self.pool_lower), reach))

@@ -51,8 +51,7 @@ class TileDepths:
 
 @dataclass(frozen=True)
 class VisibleRegion:
-    """What the camera sees, conservatively: per tile the eye-depth interval of its
-    visible points, and its ``source`` ("depth pre-pass", "scene boxes", ...)."""
+    """What the camera sees, conservatively: per tile the eye-depth interval of its visible points; its ``source``."""
 
     tiles: TileDepths
     source: str

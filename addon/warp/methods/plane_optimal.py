@@ -135,8 +135,7 @@ def _no_default_plane(receiver_boxes) -> str:
 
 def plane_map_of(k: int, plane: PlaneOfInterest, view: View, light: Light, body: IntersectionBody,
                  origin: np.ndarray, tol: float, diag: Diagnostics) -> PlaneMap | None:
-    """Plane k's map but its rectangle, §2's steps in order; None (with a recorded
-    fallback) when the plane cannot have one."""
+    """Plane k's map but its rectangle, §2's steps in order; None (with a recorded fallback) when it can have none."""
     role = f"plane:{k}"
     pi = plane.vector(origin)                                 # π, relative to the camera
     l_h = np.array(light.homogeneous_from(origin))

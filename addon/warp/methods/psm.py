@@ -33,8 +33,7 @@ GUARD_TOLERANCE = 1e-3
 
 @dataclass(frozen=True)
 class PSMWarp:
-    """PSM's map for one virtual camera: the camera, the light's frustum in its
-    PPS and the fitted camera-relative map (None: no single frustum)."""
+    """PSM's map for one virtual camera: the camera, its PPS light frustum, the fitted camera-relative map (or None)."""
 
     camera: VirtualCamera
     light_in_pps: PPSLight
