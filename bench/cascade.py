@@ -69,6 +69,8 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.checks import report
+
 ROOT = Path(__file__).resolve().parents[1]
 SUN_SCENES = ("forest", "floor_wall", "terrain")
 """The sample scenes lit by a sun (chess and telephoto have spots)."""
@@ -405,14 +407,7 @@ def main(argv=None) -> int:
         import bpy  # noqa: F401
         out["flicker"] = run_flicker(scenes, args.size, resolution, args.frames, log=say)
         checks += flicker_checks(out["flicker"])
-    failed = [line for ok, line in checks if not ok]
-    print(f"\n{len(checks) - len(failed)} of {len(checks)} checks hold")
-    for line in failed:
-        print("FAIL", line)
-    if args.json is not None:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps({**out, "checks": [{"holds": ok, "what": w} for ok, w in checks]}, indent=1))
-    return 1 if failed else 0
+    return report(checks, args.json, out)
 
 
 if __name__ == "__main__":

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
 import os
 import sys
@@ -35,6 +34,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from bench.checks import report
 
 ROOT = Path(__file__).resolve().parents[1]
 SIZES = (512, 1024, 2048, 4096)
@@ -203,15 +204,7 @@ def main(argv=None) -> int:
     for name in scenes:
         ms += measure_scene(name, methods, sizes, resolution, args.images, lambda s: print(s, flush=True))
     results = check(ms)
-    failed = [line for ok, line in results if not ok]
-    print(f"\n{len(results) - len(failed)} of {len(results)} checks hold")
-    for line in failed:
-        print("FAIL", line)
-    if args.json is not None:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps({"measurements": [dataclasses.asdict(m) for m in ms],
-                                         "checks": [{"holds": ok, "what": line} for ok, line in results]}, indent=1))
-    return 1 if failed else 0
+    return report(results, args.json, {"measurements": [dataclasses.asdict(m) for m in ms]})
 
 
 if __name__ == "__main__":
