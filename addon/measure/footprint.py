@@ -148,3 +148,58 @@ def perspective_footprints(view, light, setup, points, map_index=None) -> np.nda
         if sel.any():
             out[sel] = perspective_aliasing(view, light, m.matrix, m.size, pts[sel])
     return out
+
+
+def shadow_edge_normals(truth, valid) -> np.ndarray:
+    """(H, W, 2) unit normals on screen (x right, y up: row 0 at the bottom) of the true shadow edges, pointing into
+    the shadow: the Sobel gradient of the shadow image, an invalid neighbour counted as the pixel's own state;
+    NaN where the gradient vanishes or the pixel is not valid."""
+    t = np.asarray(truth, dtype=np.float64)
+    v = np.asarray(valid, dtype=bool)
+    h, w = t.shape
+    pad_t, pad_v = np.pad(t, 1), np.pad(v, 1)
+
+    def at(dy, dx):
+        return np.where(pad_v[1 + dy:1 + dy + h, 1 + dx:1 + dx + w], pad_t[1 + dy:1 + dy + h, 1 + dx:1 + dx + w], t)
+    gx = at(-1, 1) + 2 * at(0, 1) + at(1, 1) - at(-1, -1) - 2 * at(0, -1) - at(1, -1)
+    gy = at(1, -1) + 2 * at(1, 0) + at(1, 1) - at(-1, -1) - 2 * at(-1, 0) - at(-1, 1)
+    length = np.hypot(gx, gy)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.stack([gx, gy], axis=-1) / length[..., None]
+    out[~v | (length == 0)] = np.nan
+    return out
+
+
+def across_edge_width(view, shadow_map, points, normals, edge_normals) -> np.ndarray:
+    """Screen pixels that one texel spans across a shadow edge with unit screen normal n at (N, 3) surface
+    ``points``: |Jᵀn|, J = G·H⁻¹ the pixels per texel of :func:`texel_footprint`. A map puts each shadow edge on its
+    texel grid, so the rendered edge moves across itself by up to about half of this; summed over the pixels of the
+    true edges it predicts a map's edge error where σ_max (:func:`texel_footprint`) only bounds it
+    (``bench.edge_footprint``). +inf edge-on to the map, NaN where w <= 0."""
+    g, h = _surface_jacobians(view, shadow_map, points, normals)
+    n = np.asarray(edge_normals, dtype=np.float64).reshape(-1, 2)
+    out = np.full(len(g), np.nan)
+    ok = np.all(np.isfinite(g), axis=(1, 2)) & np.all(np.isfinite(h), axis=(1, 2)) & np.all(np.isfinite(n), axis=1)
+    det_h = np.linalg.det(np.where(ok[:, None, None], h, np.eye(2)))
+    scale = np.max(np.abs(np.where(ok[:, None, None], h, 0.0)), axis=(1, 2))
+    singular = ok & (np.abs(det_h) <= 1e-14 * scale ** 2)
+    out[singular] = np.inf
+    ok &= ~singular
+    if ok.any():
+        j = g[ok] @ np.linalg.inv(h[ok])                                  # d pixel / d texel
+        out[ok] = np.linalg.norm(np.einsum("nij,ni->nj", j, n[ok]), axis=1)
+    return out
+
+
+def setup_across_edge_width(view, setup, points, normals, edge_normals, map_index=None) -> np.ndarray:
+    """:func:`across_edge_width` of a ShadowSetup, each point in the map that serves it (NaN: none)."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    en = np.asarray(edge_normals, dtype=np.float64).reshape(-1, 2)
+    idx = setup.map_index(pts, view) if map_index is None else np.asarray(map_index)
+    out = np.full(len(pts), np.nan)
+    for i, m in enumerate(setup.maps):
+        sel = idx == i
+        if sel.any():
+            out[sel] = across_edge_width(view, m, pts[sel], nrm[sel], en[sel])
+    return out

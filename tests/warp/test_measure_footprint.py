@@ -90,3 +90,39 @@ def test_perspective_footprint_removes_the_surface_orientation():
     assert not np.isfinite(lin_wall[0]) or lin_wall[0] > 1e6
     # at eye depth 6 the needed pixel density is (10/6)^2 times that at depth 10
     assert persp[1] == pytest.approx(lin[0] * 10 / 6, rel=1e-9)
+
+
+def test_across_edge_width_is_the_texels_screen_width_across_the_edge():
+    # camera straight down, a sun 60 degrees from vertical along +x: on the ground a texel is
+    # 2 texel widths long along x and 1 along y, so an edge running along y (normal along x) moves
+    # by twice what an edge along x moves; σ_max is the larger of the two.
+    from addon.measure.footprint import setup_across_edge_width
+    view = _top_down_view(10.0, 60, (400, 400))
+    t = math.radians(60)
+    d = np.array([math.sin(t), 0.0, -math.cos(t)])
+    setup = ShadowSetup([ShadowMap(ortho_matrix(-10, 10, -10, 10, 1, 100) @ look_along(-50 * d, d, [0, 1, 0]),
+                                   (500, 500))], Diagnostics("uniform"))
+    pts = np.array([[0.5, -1.0, 0.0], [2.0, 3.0, 0.0], [-1.0, 0.0, 0.0]])
+    up = np.tile([0, 0, 1.0], (3, 1))
+    ratio = (20 / 500) / (2 * 10 * math.tan(math.radians(30)) / 400)   # texel / pixel widths
+    width = setup_across_edge_width(view, setup, pts, up, np.array([[1.0, 0.0], [0.0, 1.0], [0.6, -0.8]]))
+    assert width == pytest.approx([2 * ratio, ratio, math.hypot(0.6 * 2, 0.8) * ratio], rel=1e-9)
+    lin, _ = setup_footprints(view, setup, pts, up)
+    assert np.all(width <= lin * (1 + 1e-12))
+
+
+@pytest.mark.parametrize("normal", [(1.0, 0.0), (0.0, -1.0), (math.sqrt(0.5), math.sqrt(0.5))])
+def test_shadow_edge_normals_point_into_the_shadow_across_a_straight_edge(normal):
+    from addon.measure.errors import dilate, shadow_edges
+    from addon.measure.footprint import shadow_edge_normals
+    n = np.array(normal)
+    y, x = np.mgrid[0:40, 0:60]
+    truth = (x - 30.3) * n[0] + (y - 20.2) * n[1] > 0                 # row 0 at the bottom: y up
+    valid = np.ones_like(truth)
+    valid[:, :3] = False
+    got = shadow_edge_normals(truth, valid)
+    edges = shadow_edges(truth, valid)
+    inner = edges & (x > 5) & (x < 55) & (y > 2) & (y < 37)
+    assert inner.sum() > 20
+    assert np.allclose(got[inner], n, atol=1e-12)
+    assert np.all(np.isnan(got[~valid])) and np.all(np.isnan(got[~dilate(edges, 1)]))

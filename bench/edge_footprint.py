@@ -1,0 +1,160 @@
+"""What the rendered error follows: the texel's width across the true shadow edges, and σ_max at their corners.
+
+    python -m bench.edge_footprint --scenes forest_side_sun,stage_spot --sizes 2048
+    python -m bench.edge_footprint --scenes stage_spot --methods cascade --sizes 1024,2048
+
+Renders each scene like ``bench.rendered_error`` (the engine's path, ``LixelSettings`` defaults, only
+the method and the map size changed) and sets each method's numbers against uniform's:
+
+* ``p95``: the analytic footprint σ_max at the 95th percentile over the lit points facing the light,
+  the number the "warping wins" criterion reads;
+* ``straight``: the misclassified pixels at straight true shadow edges and the mean there of
+  ``addon.measure.footprint.setup_across_edge_width``, |Jᵀn|, the screen pixels one texel spans
+  across the edge. A map puts each edge on its texel grid, so the pixels between the true edge and
+  the texel staircase, |Jᵀn| per pixel of edge to first order, are what it gets wrong;
+* ``corners``: the misclassified pixels within a pixel of a corner (the edge turns by more than
+  :data:`TURN_DEG` within :data:`CORNER_RADIUS` pixels: shadow corners, thin and small shadows),
+  where both of the texel's directions count, and the mean σ_max there;
+* ``other``: the misclassified pixels elsewhere (away from true edges: depth, bias, coverage).
+
+A ratio near the method's width ratio in each class is the texel footprint at work; the p95 ratio
+says nothing of edges that lie away from the points that set it.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+CORNER_RADIUS = 2
+TURN_DEG = 35.0
+"""An edge pixel is at a corner when the edge normals within CORNER_RADIUS pixels turn by more than TURN_DEG."""
+
+
+def corners(edges: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """The edge pixels where the true edge turns (see :data:`TURN_DEG`); ``normals`` from ``shadow_edge_normals``."""
+    h, w = edges.shape
+    r = CORNER_RADIUS
+    n = np.where(edges[..., None], np.nan_to_num(normals), 0.0)
+    pad = np.pad(n, ((r, r), (r, r), (0, 0)))
+    ok = np.pad(edges, r)
+    least = np.ones((h, w))
+    for dy in range(-r, r + 1):
+        for dx in range(-r, r + 1):
+            other = pad[r + dy:r + dy + h, r + dx:r + dx + w]
+            cos = np.where(ok[r + dy:r + dy + h, r + dx:r + dx + w], np.einsum("ijk,ijk->ij", n, other), 1.0)
+            least = np.minimum(least, cos)
+    return edges & (least < math.cos(math.radians(TURN_DEG)))
+
+
+def _mean(values) -> float:
+    v = np.asarray(values, dtype=np.float64)
+    v = v[np.isfinite(v)]
+    return float(v.mean()) if len(v) else float("nan")
+
+
+def measure_scene(name: str, methods, sizes, resolution) -> list[dict]:
+    """One row per method and size: wrong pixels by class, the p95, and the mean widths at straight edges and corners."""
+    import bpy
+    from addon.gpu.context import ensure_gpu_context
+    from addon.measure import classify, footprint_stats, setup_footprints
+    from addon.measure.errors import dilate, shadow_edges
+    from addon.measure.footprint import setup_across_edge_width, shadow_edge_normals
+    from addon.render.engine import render_depsgraph
+    from addon.scene.describe import describe_scene
+    from addon.scene.geometry import GeometryCache
+    from addon.settings import LixelSettings
+    from bench.rendered_error import open_scene
+    from bench.report import ground_truth as G
+    from bench.report.analysis import lit_facing
+    from bench.report.lixel import READ
+    from bench.report.run import comparable_mask
+
+    scene = open_scene(name)
+    scene.render.resolution_x, scene.render.resolution_y = resolution
+    scene.render.resolution_percentage = 100
+    scene.frame_set(scene.frame_start)
+    ensure_gpu_context()
+    dg = bpy.context.evaluated_depsgraph_get()
+    geometry = GeometryCache().update(dg)
+    view, light, bounds = describe_scene(scene, dg)
+    gt = G.ground_truth(view, light, G.build_bvh(G.world_triangles(geometry)), bounds.scale())
+    lit = lit_facing(gt, light)
+    edge_n = shadow_edge_normals(gt.shadow, gt.valid)
+    edges = shadow_edges(gt.shadow, gt.valid) & np.isfinite(edge_n[..., 0])
+    corner = corners(edges, edge_n)
+    near_corner = dilate(corner, 1)
+    straight = edges & ~near_corner
+    rows = []
+    for method in methods:
+        for size in sizes:
+            base = LixelSettings()
+            settings = dataclasses.replace(base, method=method,
+                                           warp=dataclasses.replace(base.warp, shadow_map_size=(size, size)))
+            last = render_depsgraph(dg, resolution, settings=settings, read=READ)
+            setup, result = last["setup"], last["result"]
+            shadow, counted = result.shadow_raw >= 0.5, comparable_mask(gt, result)
+            wrong = counted & (shadow != gt.shadow)
+            fp, _ = setup_footprints(view, setup, gt.points[lit], gt.normals[lit])
+            at_corners, _ = setup_footprints(view, setup, gt.points[corner], gt.normals[corner])
+            across = setup_across_edge_width(view, setup, gt.points[straight], gt.normals[straight], edge_n[straight])
+            rows.append({"scene": name, "method": method, "size": size,
+                         "wrong": classify(shadow, gt.shadow, counted, 2).errors,
+                         "straight": int((wrong & straight).sum()), "corners": int((wrong & near_corner).sum()),
+                         "p95": footprint_stats(fp).p95, "across": _mean(across), "corner_smax": _mean(at_corners)})
+    return rows
+
+
+def table(rows: list[dict]) -> list[str]:
+    """The rows against uniform's at the same scene and size: each count's ratio beside its width's ratio."""
+    by = {(r["scene"], r["method"], r["size"]): r for r in rows}
+    lines = []
+    for r in rows:
+        u = by.get((r["scene"], "uniform", r["size"]))
+        if u is None:
+            continue
+        def ratio(key):
+            return r[key] / u[key] if u[key] else float("nan")
+        other = r["wrong"] - r["straight"] - r["corners"]
+        lines.append(f"{r['scene']:>20} {r['method']:>13} {r['size']:5d}: {r['wrong']:5d} wrong ({ratio('wrong'):.2f}x "
+                     f"uniform's; p95 {ratio('p95'):.2f}x) = straight edges {r['straight']:4d} ({ratio('straight'):.2f}x; "
+                     f"across-edge width {r['across']:.3f} px, {ratio('across'):.2f}x) + corners {r['corners']:4d} "
+                     f"({ratio('corners'):.2f}x; σ_max {r['corner_smax']:.3f} px, {ratio('corner_smax'):.2f}x) "
+                     f"+ other {other}")
+    return lines
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m bench.edge_footprint", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scenes", required=True, help="comma-separated scene names (sample or box scenes)")
+    ap.add_argument("--methods", default=None, help="comma-separated methods (default: all)")
+    ap.add_argument("--sizes", default="2048", help="comma-separated map sizes")
+    ap.add_argument("--resolution", default="640x360", help="render size WxH")
+    args = ap.parse_args(argv)
+    from bench.rendered_error import _scratch_env
+    _scratch_env()
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    import bpy  # noqa: F401 - Blender before mathutils
+    from addon.warp import METHODS
+    methods = args.methods.split(",") if args.methods else list(METHODS)
+    methods = methods if "uniform" in methods else ["uniform", *methods]
+    resolution = tuple(int(v) for v in args.resolution.lower().split("x"))
+    rows = []
+    for name in args.scenes.split(","):
+        rows += measure_scene(name, methods, [int(s) for s in args.sizes.split(",")], resolution)
+    print("\n".join(table(rows)), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    code = main()
+    sys.stdout.flush()
+    os._exit(code)  # Blender 4.2/4.5 may crash or hang at interpreter exit
