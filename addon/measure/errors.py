@@ -150,3 +150,36 @@ def flicker(method_frames, truth_frames, valid_frames) -> Flicker:
     stable = (t[1:] == t[:-1]) & v[1:] & v[:-1]
     flips = stable & (m[1:] != m[:-1])
     return Flicker(stable_transitions=int(stable.sum()), flips=int(flips.sum()))
+
+
+@dataclass
+class FlickerSplit:
+    """The two causes of pixel flicker under a moving camera, over the pixel transitions (frames k-1, k) that show
+    one surface point through one map in both frames, where the ground truth keeps its state:
+
+    * ``flips``: the method's state changes (the report's pixel flicker, on these pixels);
+    * ``camera``: it changes between frame k-1 and frame k drawn with frame k-1's maps: only the camera moved, and an
+      edge that stands still in the world but a texel off the truth's slides across the pixels;
+    * ``world``: it changes between frame k drawn with frame k-1's maps and with its own: only the maps changed, the
+      same surface point's state (world-consistent flicker, shimmer). ``flips`` <= ``camera`` + ``world``."""
+
+    transitions: int
+    flips: int
+    camera: int
+    world: int
+
+    def to_json(self) -> dict:
+        return {"transitions": self.transitions, "flips": self.flips, "camera": self.camera, "world": self.world}
+
+
+def flicker_split(previous, held, current, truth_previous, truth_current, same) -> FlickerSplit:
+    """:class:`FlickerSplit` of (T, H, W) boolean stacks, one layer per transition: the method's frame k-1, frame k
+    drawn with frame k-1's maps (``held``) and with its own, the truth's two frames, and the pixels of frame k that
+    show the surface point frame k-1 showed there through the same map (``same``)."""
+    p, h, c, tp, tc, s = (np.asarray(a, dtype=bool) for a in (previous, held, current, truth_previous,
+                                                              truth_current, same))
+    if not p.shape == h.shape == c.shape == tp.shape == tc.shape == s.shape:
+        raise ValueError(f"transition stacks must share one shape: {[a.shape for a in (p, h, c, tp, tc, s)]}")
+    keep = s & (tp == tc)
+    return FlickerSplit(int(keep.sum()), int((keep & (p != c)).sum()), int((keep & (p != h)).sum()),
+                        int((keep & (h != c)).sum()))

@@ -235,6 +235,19 @@ def test_a_stable_spot_cascade_keeps_each_world_point_on_its_texel():
         assert np.allclose(shift, np.round(shift), atol=1e-6)
 
 
+def test_a_stable_cascade_does_not_follow_what_the_camera_sees():
+    """The visible region comes in tiles that jump as the camera moves (and B_i's window across ladder steps with
+    them): a stable cascade fits its splits to B of the view frustum, the same maps whatever the pre-pass saw."""
+    view, light, scene = example("outdoor_sun")
+    for stable in (False, True):
+        options = dataclasses.replace(OPTIONS, cascade_stable=stable)
+        seen, frustum = (compute("cascade", view, light, scene, dataclasses.replace(options, focus=focus))
+                         for focus in ("visible", "view"))
+        same = len(seen.maps) == len(frustum.maps) and all(np.array_equal(a.matrix, b.matrix)
+                                                           for a, b in zip(seen.maps, frustum.maps))
+        assert same == stable
+
+
 def test_a_shared_budget_keeps_the_texels_and_gives_them_where_the_error_is():
     sizes = shared_sizes((2048, 2048), [1.0, 2.0, 4.0])
     assert sum(w * h for w, h in sizes) == pytest.approx(2048 * 2048, rel=0.01)

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from addon.measure.errors import classify, edge_band, error_image, flicker
+from addon.measure.errors import classify, edge_band, error_image, flicker, flicker_split
 
 
 def test_classify_splits_false_shadow_and_false_light():
@@ -45,3 +45,25 @@ def test_flicker_counts_only_where_truth_is_stable():
     assert f.rate == pytest.approx(2 / 7)
     with pytest.raises(ValueError):
         flicker(method[:, :1], truth, truth)
+
+
+def test_an_edge_that_stands_still_in_the_world_flickers_only_with_the_camera():
+    """A shadow edge one pixel off the truth's, fixed in the world, seen by a camera panning one pixel: every pixel it
+    crosses counts as pixel flicker, all of it with the maps held (camera), none when only the maps change (world)."""
+    truth = np.zeros((2, 4, 8), bool)
+    truth[0, :, :3] = True                    # the true edge at column 3 in frame k-1, column 2 after a pan
+    truth[1, :, :2] = True
+    method = np.zeros_like(truth)
+    method[0, :, :4] = True                   # the method's edge a pixel right of the truth's, in the world too
+    method[1, :, :3] = True
+    held = method[1]                          # the same maps draw frame k exactly as its own did
+    same = np.ones((4, 8), bool)
+    s = flicker_split(method[0], held, method[1], truth[0], truth[1], same)
+    assert (s.transitions, s.flips, s.camera, s.world) == (28, 4, 4, 0)
+    assert flicker(method, truth, np.ones_like(truth)).flips == 4
+    shimmer = method[1].copy()
+    shimmer[0, 3] = True                      # new maps move one texel of the edge: the same point changes state
+    s = flicker_split(method[0], held, shimmer, truth[0], truth[1], same)
+    assert (s.flips, s.camera, s.world) == (3, 4, 1) and s.flips <= s.camera + s.world
+    with pytest.raises(ValueError):
+        flicker_split(method[0], held[:2], method[1], truth[0], truth[1], same)

@@ -118,6 +118,8 @@ def split_depths(view: View, light: Light, scene: SceneBounds, body: Intersectio
                  options: WarpOptions) -> tuple[np.ndarray, list, str]:
     """C_0..C_N, their splits and the scheme. The adaptive search keeps each
     split's warp from the λ splits; where it settles, every warp competes again."""
+    if options.cascade_stable:      # B of the view frustum: the visible region's tiles jump as the camera moves
+        body = intersection_body(view, light, scene)
     z_n, z_f = tightened_depth_range(view, light, body, options)
     if options.cascade_stable:
         z_n, z_f = stable_depth_range(z_n, z_f, view)

@@ -1,11 +1,10 @@
 """Stable cascades: every world point keeps its texel while the camera moves.
-The range widens to whole octaves and every warp is uniform. A sun split is the
-uniform map with texel snapping (``methods.common.snapped_window``: a world-fixed
-frame, the window around B_i on a ladder of sizes, its corner on whole texels;
-tighter than stable CSM's bounding sphere of the slab, which holds the empty
-frustum too and coarsens every edge). A spot split is the spot's own perspective,
-its window on the same kind of ladder, its corner on whole texels. A point
-light's faces turn with B: not stable.
+B_i is the view frustum's, never the visible region's (its tiles jump with the camera), the range widens to whole
+octaves and every warp is uniform. A sun split is uniform's map with texel snapping (``methods.common.snapped_window``:
+a world-fixed frame, the window around B_i on a ladder of sizes, its corner on whole texels; tighter than stable CSM's
+bounding sphere of the slab, which holds the empty frustum too and coarsens every edge). A spot split is the spot's own
+perspective, its window on the same kind of ladder, its corner on whole texels. A point light's faces turn with B: not
+stable. Filament's ``ShadowOptions.stable`` likewise gives up every resolution gain that moves with the camera.
 """
 from __future__ import annotations
 
