@@ -168,7 +168,8 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
         description="Move the splits to minimise the largest predicted error (Lloyd's model)")
     cascade_stable: BoolProperty(
         name="Stable", default=False,
-        description="Quantised split depths and texel-snapped uniform maps: no shimmer while the camera moves")
+        description="Quantised split depths and texel-snapped uniform maps of the whole view, not only of what it "
+                    "sees: no shimmer while the camera moves, for coarser shadow edges")
     cascade_budget: EnumProperty(
         name="Texel Budget", default="per_map",
         items=(("per_map", "Per Map", "Every split a map of the configured size (PSSM)"),
