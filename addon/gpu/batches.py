@@ -141,6 +141,7 @@ class _UploadedSet:
         self.geometry = geometry
         self.grouping = _Grouping(inst, geometry.key_triangles)
         self.lists: dict = {}
+        self.selections: dict = {}
         self.matrices = None
         self.origin = np.zeros(3)
         n = len(inst)
@@ -161,6 +162,7 @@ class _UploadedSet:
         self.geometry = geometry
         self.grouping = _Grouping(self.instances, geometry.key_triangles)
         self.lists.clear()
+        self.selections.clear()
 
 
 class GPUScene:
@@ -184,6 +186,8 @@ class GPUScene:
         self.geometry = None
         self.matrix_uploads = 0
         self.list_uploads = 0
+        self.culls = 0
+        """Culling tests run (:meth:`selection`; a kept result is not counted)."""
         self._sets: dict = {}          # id(InstanceSet) -> _UploadedSet, oldest first
         self._current: _UploadedSet | None = None
 
@@ -215,6 +219,24 @@ class GPUScene:
             entry.regroup(geometry)
         self._sets[id(inst)] = entry            # the most recent last
         self._current = entry
+
+    KEEP_SELECTIONS = 8
+    """Culling results kept per instance set (an F12's and a viewport's views, receivers and casters)."""
+
+    def selection(self, query: tuple, select) -> np.ndarray:
+        """The instance mask ``select()`` gives for ``query`` (a hashable
+        description of a culling test over the current instance set), kept for
+        the last few queries: an unchanged view or B (an F12 again, a redraw)
+        culls once. The mask is shared: read it, do not change it."""
+        kept = self._current.selections
+        mask = kept.pop(query, None)
+        if mask is None:
+            mask = select()
+            self.culls += 1
+            while len(kept) >= self.KEEP_SELECTIONS:
+                kept.pop(next(iter(kept)))
+        kept[query] = mask                       # the most recent last
+        return mask
 
     def draw_list(self, pass_name: str, mask: np.ndarray, eye=None) -> DrawList:
         """The instances selected by ``mask`` (bool (N,)), for the pass

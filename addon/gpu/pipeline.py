@@ -323,12 +323,17 @@ class ShadowFrame:
         self.timings[name] = self.timings.get(name, 0.0) + time.perf_counter() - t0
 
     def _select(self, which: str, normals, offsets, tol: float) -> np.ndarray:
-        """Instances of ``which`` ("casters" / "receivers") meeting the region, as a mask over all instances."""
+        """Instances of ``which`` ("casters" / "receivers") meeting the region, as a mask over all
+        instances (kept by the scene for the same region: ``GPUScene.selection``)."""
         inst = self.geometry.instances
-        mask = np.zeros(len(inst), dtype=bool)
-        sel = BoxIndex.of(inst.bounds, which).select(normals, offsets, tol)
-        mask[inst.caster_ids if which == "casters" else inst.receiver_ids] = sel.mask
-        return mask
+        normals, offsets = np.asarray(normals, dtype=np.float64), np.asarray(offsets, dtype=np.float64)
+
+        def select():
+            mask = np.zeros(len(inst), dtype=bool)
+            sel = BoxIndex.of(inst.bounds, which).select(normals, offsets, tol)
+            mask[inst.caster_ids if which == "casters" else inst.receiver_ids] = sel.mask
+            return mask
+        return self.scene.selection((which, normals.tobytes(), offsets.tobytes(), float(tol)), select)
 
     def camera_prepass(self):
         """Cull the receivers to the view frustum and draw them from the camera

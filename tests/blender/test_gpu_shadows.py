@@ -619,9 +619,9 @@ def test_multi_map_selection_matches_shadow_setup(lx, scene):
 
 def test_second_render_uploads_nothing(lx, scene):
     """A second frame of an unchanged scene reads no mesh, uploads nothing
-    (batches, instance matrices, draw lists, render targets) and keeps the
-    culling index; a moved object uploads its matrices but no mesh; an edited
-    mesh uploads that mesh only."""
+    (batches, instance matrices, draw lists, render targets), keeps the
+    culling index and culls nothing again; a moved object uploads its matrices
+    but no mesh; an edited mesh uploads that mesh only."""
     shadow_scene(scene, "SUN")
     gc = lx.geometry.GeometryCache()
     gs = lx.batches.GPUScene()
@@ -639,7 +639,10 @@ def test_second_render_uploads_nothing(lx, scene):
     first, g1, b1 = go()
     assert first.counts.uploads == 2 and gc.extractions == 2
     assert first.counts.matrix_uploads == 1 and first.counts.target_allocations > 0
+    culls = gs.culls
+    assert culls == 2, "the receivers and the casters are culled"
     second, g2, b2 = go()
+    assert gs.culls == culls, "an unchanged view and B culled again"
     c = second.counts
     assert (c.uploads, c.matrix_uploads, c.list_uploads, c.target_allocations) == (0, 0, 0, 0)
     assert gc.extractions == 2 and g2 is g1 and b2 is b1
@@ -648,7 +651,7 @@ def test_second_render_uploads_nothing(lx, scene):
     named(scene, "Box").location.x += 0.5  # a transform: no geometry change
     third, g3, b3 = go()
     assert third.counts.uploads == 0 and third.counts.matrix_uploads == 1 and gc.extractions == 2
-    assert b3 is not b1 and g3.meshes == g1.meshes
+    assert b3 is not b1 and g3.meshes == g1.meshes and gs.culls == culls + 2
     me = named(scene, "Box").data
     me.vertices[0].co.z += 0.3
     me.update()
