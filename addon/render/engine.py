@@ -247,6 +247,8 @@ class LixelRenderEngine(bpy.types.RenderEngine):
     def render(self, depsgraph):
         try:
             from ..gpu.context import ensure_gpu_context
+            from .heap import keep_frame_buffers
+            keep_frame_buffers()  # the passes' buffers of one F12 serve the next
             ensure_gpu_context()
             warnings: list = []
             passes = enabled_passes(depsgraph.view_layer)
