@@ -5,12 +5,16 @@
  * derivatives (helper invocations interpolate the same triangle), stored
  * octahedrally (Cigolle et al., JCGT 2014) in one target:
  *   out_surface = (position, the octahedral normal packed in one float).
- * The packing: each octahedral coordinate in [-1, 1] quantised to 12 bits,
- * the two read as one integer below 2^24, which a float holds exactly (no bit
- * pattern a GPU could flush or canonicalise); a step of 2/4095, so the
- * normal's direction is within about 5e-4 rad (lixel_unpack_normal in
- * shade_frag.glsl undoes it). The colour target is not cleared: where the
- * depth says nothing was drawn it holds stale values, which no pass reads. */
+ * The packing: the octahedral coordinates in [-1, 1] quantised to 14 and 15
+ * bits, stored as the bits of one float: bits 0-14 and 15-28, bit 30 set and
+ * bit 29 clear, so its exponent is 128..191 (a finite normal float, no bit
+ * pattern a GPU could flush or canonicalise); the normal's direction is then
+ * within about 1e-4 rad (lixel_unpack_normal in shade_frag.glsl undoes it).
+ * That matters where the light grazes a receiver: the receiver plane built
+ * from the normal is extrapolated to the PCF taps, and an error of 5e-4 rad
+ * (12-bit coordinates) showed as acne at 4096² with a bilinear kernel. The
+ * colour target is not cleared: where the depth says nothing was drawn it
+ * holds stale values, which no pass reads. */
 vec2 lixel_octahedral(vec3 n)
 {
   n /= abs(n.x) + abs(n.y) + abs(n.z);
@@ -27,6 +31,6 @@ void main()
    * octahedral map divides by the L1 norm, and the shading turns the normal
    * towards the viewer). */
   vec2 o = lixel_octahedral(cross(dFdx(v_world), dFdy(v_world)));
-  vec2 q = floor(clamp(o * 0.5 + 0.5, 0.0, 1.0) * 4095.0 + 0.5);
-  out_surface = vec4(v_world, q.x * 4096.0 + q.y);
+  uvec2 q = uvec2(floor(clamp(o * 0.5 + 0.5, 0.0, 1.0) * vec2(16383.0, 32767.0) + 0.5));
+  out_surface = vec4(v_world, uintBitsToFloat(0x40000000u | (q.x << 15) | q.y));
 }

@@ -333,11 +333,11 @@ bool lixel_serves(int i, vec3 P, float eye_depth, out vec4 h)
 }
 
 /* The normal prepass_frag.glsl packed into the surface's fourth channel:
- * two 12-bit octahedral coordinates in one exactly held integer. */
+ * 14- and 15-bit octahedral coordinates in the bits of one float. */
 vec2 lixel_unpack_normal(float code)
 {
-  int v = int(code);
-  return vec2(float(v >> 12), float(v & 4095)) * (2.0 / 4095.0) - 1.0;
+  uint v = floatBitsToUint(code);
+  return vec2(float((v >> 15) & 16383u), float(v & 32767u)) * (2.0 / vec2(16383.0, 32767.0)) - 1.0;
 }
 
 vec3 lixel_unoctahedral(vec2 p)
