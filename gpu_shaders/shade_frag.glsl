@@ -3,7 +3,9 @@
  * once whatever the depth complexity, and the receivers are drawn once. Per
  * pixel: the world position -> light clip of the first map that serves it
  * (regions first, fallback last: ShadowSetup.map_index), a PCF k x k shadow
- * test on an n-depth map (Pagot et al. §4.2: the n-shadow test counts the
+ * test (lixel_weight: an odd k weighs its k x k nearest texels alike; an even k
+ * filters bilinearly, so the shadow moves smoothly with the point: k = 2 is
+ * the bilinear PCF of graphics hardware, k = 4 a 3 x 3 box of bilinear taps) on an n-depth map (Pagot et al. §4.2: the n-shadow test counts the
  * stored keys nearer the light than the fragment, giving n + 1 outcomes per
  * sample and n*k*k + 1 per PCF(k*k, n)), and Lambert lighting in the light's
  * colour.
@@ -380,6 +382,27 @@ float lixel_texels_per_pixel(int m, vec3 P, vec3 N, vec2 tc, vec2 size)
 }
 #endif
 
+/* Tap i's weight along one axis of the k x k PCF kernel (taps i >= k weigh
+ * nothing). Odd k: the k nearest texels alike (a box of k texels). Even k:
+ * a box of k - 1 texels over the bilinearly interpolated test (Reeves et al.
+ * 1987 with bilinear taps), the outer two taps weighed by the point's
+ * fraction f of a texel past the first tap's centre; the shadow is then
+ * continuous in the point's position. The weights of an axis sum to
+ * lixel_weight_sum(). */
+float lixel_weight(int i, float f)
+{
+  const int k = LIXEL_PCF;
+  if (i >= k) return 0.0;
+  if (k % 2 == 1) return 1.0;
+  return i == 0 ? 1.0 - f : (i == k - 1 ? f : 1.0);
+}
+
+float lixel_weight_sum()
+{
+  const int k = LIXEL_PCF;
+  return float(k % 2 == 1 ? k : k - 1);
+}
+
 /* The shadow of P (normal N, light direction L) in map m, whose clip position
  * of P is h: the k x k PCF test with the bias above. */
 float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
@@ -410,6 +433,7 @@ float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
   bool plane = plane_bias && rcv.det != 0.0;
   const int k = LIXEL_PCF;
   ivec2 base = (k % 2 == 1) ? ivec2(floor(look)) - (k - 1) / 2 : ivec2(floor(look - 0.5)) - (k / 2 - 1);
+  vec2 f = fract(look - 0.5);  /* even k: the point's place between the first two taps' centres */
   vec2 to_ndc = 2.0 / vec2(size);
   float hits = 0.0;
 #if defined(LIXEL_MDSM) || LIXEL_PCF == 1
@@ -417,16 +441,17 @@ float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
     for (int dx = 0; dx < k; dx++) {
       ivec2 s = clamp(base + ivec2(dx, dy), ivec2(0), size - 1);
       vec2 p = (vec2(s) + 0.5) * to_ndc - 1.0;
-      hits += lixel_test(m, s, lixel_refs(rcv, plane, vec4(p.x), vec4(p.y), bias, greater).x, greater);
+      hits += lixel_weight(dx, f.x) * lixel_weight(dy, f.y) *
+              lixel_test(m, s, lixel_refs(rcv, plane, vec4(p.x), vec4(p.y), bias, greater).x, greater);
     }
   }
 #else
   /* The k x k taps as 2 x 2 gathers (a gather costs about one texelFetch on
    * a software rasterizer): the gather at the corner between texels c and
    * c + 1 returns (c, c+1) x (c, c+1), clamped to the edge like the taps,
-   * as x = (c, c+1), y = (c+1, c+1), z = (c+1, c), w = (c, c). Taps beyond
-   * k - 1 are not counted. Each of the four is compared with its own
-   * reference (lixel_refs), in one vec4. */
+   * as x = (c, c+1), y = (c+1, c+1), z = (c+1, c), w = (c, c), each tap
+   * weighed by lixel_weight (taps beyond k - 1 weigh nothing). Each of the
+   * four is compared with its own reference (lixel_refs), in one vec4. */
   for (int gy = 0; gy < k; gy += 2) {
     for (int gx = 0; gx < k; gx += 2) {
       ivec2 c = base + ivec2(gx, gy);
@@ -435,13 +460,13 @@ float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
       vec4 sx = clamp(vec4(c.x, c.x + 1, c.x + 1, c.x), 0.0, float(size.x - 1));
       vec4 sy = clamp(vec4(c.y + 1, c.y + 1, c.y, c.y), 0.0, float(size.y - 1));
       vec4 ref = lixel_refs(rcv, plane, (sx + 0.5) * to_ndc.x - 1.0, (sy + 0.5) * to_ndc.y - 1.0, bias, greater);
-      vec4 counted = vec4(gy + 1 < k ? 1.0 : 0.0, (gx + 1 < k && gy + 1 < k) ? 1.0 : 0.0,
-                          gx + 1 < k ? 1.0 : 0.0, 1.0);
-      hits += dot(counted, vec4(lessThan(key, ref)));
+      vec2 wx = vec2(lixel_weight(gx, f.x), lixel_weight(gx + 1, f.x));
+      vec2 wy = vec2(lixel_weight(gy, f.y), lixel_weight(gy + 1, f.y));
+      hits += dot(vec4(wx.x * wy.y, wx.y * wy.y, wx.y * wy.x, wx.x * wy.x), vec4(lessThan(key, ref)));
     }
   }
 #endif
-  float shadow = hits / float(k * k);
+  float shadow = hits / (lixel_weight_sum() * lixel_weight_sum());
 #ifdef LIXEL_REGIONS
   /* A plane map (a map with a region) samples each pixel's own point of its
    * plane (Chong-Gortler §2): the test of that one lixel is the exact shadow

@@ -198,8 +198,9 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
                                  description="How far the point is moved along its normal, in texels of the receiver")
     back_faces: BoolProperty(name="Back Faces", default=False,
                              description="Render back faces into the map (Scherzer §4.2)")
-    pcf_kernel: IntProperty(name="PCF k", default=3, min=1, max=5,
-                            description="k × k percentage-closer filtering")
+    pcf_kernel: IntProperty(name="PCF k", default=ShadowSettings().pcf_kernel, min=1, max=5,
+                            description="k × k percentage-closer filtering: odd k weighs k × k texels alike, "
+                                        "even k filters bilinearly (smooth as the point moves)")
     mdsm_depths: IntProperty(name="MDSM Depths", default=1, min=1, max=4,
                              description="n of the n-shadow map (Pagot et al. §4.2); 1 = an ordinary map")
     mdsm_selection: EnumProperty(

@@ -353,13 +353,13 @@ def test_a_plane_tilted_80_degrees_from_the_light_shows_no_acne(lx, scene, metho
 @pytest.mark.parametrize("linear", [True, False])
 def test_every_bias_mode_removes_acne_on_a_plane_80_degrees_from_the_light(lx, scene, linear):
     """NONE shows acne; every other mode, in texels of the receiver, removes it,
-    for linear and hyperbolic depth and every PCF kernel."""
+    for linear and hyperbolic depth and every PCF kernel (odd: a box; even: bilinear taps)."""
     acne_scene(scene)
     opts = lx.warp.WarpOptions(shadow_map_size=(1024, 1024), linear_z=linear)
     none, *_ = render(lx, scene, "uniform", warp_options=opts, shadow=dict(bias_mode="NONE", pcf_kernel=1))
     assert acne_fraction(none) > 0.2, "without bias the tilted plane must show acne"
     for mode in ("RECEIVER_PLANE", "NORMAL_OFFSET", "CONSTANT_SLOPE", "SLOPE"):
-        for k in (1, 3, 5):
+        for k in (1, 2, 3, 4, 5):
             out, *_ = render(lx, scene, "uniform", warp_options=opts, shadow=dict(bias_mode=mode, pcf_kernel=k))
             assert acne_fraction(out) < 0.005, f"{mode} k={k}: acne left"
     # tan 80° = 5.7 texels of depth per texel across the plane: a constant bias must exceed it
@@ -576,11 +576,18 @@ def test_mdsm_gives_more_shadow_levels_than_pcf(lx, scene, selection):
 
 
 def test_pcf_levels_follow_kernel_size(lx, scene):
+    """An odd kernel weighs its k x k texels alike: k^2 + 1 shadow levels. An
+    even kernel filters bilinearly: across an edge the shadow takes more
+    levels than any box of k x k taps could."""
     edge_ramp_scene(scene)
-    for k in (1, 2, 4):
+    for k in (1, 3, 5):
         out, *_ = render(lx, scene, "uniform", RAMP_MAP, shadow=dict(pcf_kernel=k))
         lv = levels(out)
         assert len(lv) == k * k + 1, (k, lv)
+    for k in (2, 4):
+        out, *_ = render(lx, scene, "uniform", RAMP_MAP, shadow=dict(pcf_kernel=k))
+        lv = levels(out)
+        assert len(lv) > 2 * (k * k + 1) and lv.min() == 0.0 and lv.max() == 1.0, (k, lv)
 
 
 def test_multi_map_selection_matches_shadow_setup(lx, scene):
