@@ -293,6 +293,19 @@ def test_plane_extent_limits_the_region():
     assert not region.contains(np.array([[5.0, 5.0, 0.0]]))[0]
 
 
+def test_cube_face_fallbacks_share_the_plane_maps_texels():
+    """A point light's n fallback faces take, together with the plane maps,
+    the n·T texels of the uniform method's n faces: each face gives up
+    1/n of the plane maps' texels, not all of them."""
+    view, light = CONFIGS["point_light"]
+    setup, _ = run(view, light, shadow_map_size=(512, 512))
+    budget, faces = setup.diagnostics.extra["budget"], [m for m in setup.maps if m.role.startswith("fallback")]
+    total, n = 512 * 512, len(faces)
+    assert n > 1 and budget["plane_texels"] > 0.1 * total
+    for m in faces:
+        assert total - budget["plane_texels"] / n - 2 * 512 < m.size[0] * m.size[1] <= total - budget["plane_texels"] / n
+
+
 def test_linear_z_depth_row_grows_away_from_the_light_and_is_constant_on_the_plane():
     view, light = CONFIGS["point_light"]
     setup, body = run(view, light, linear_z=True)

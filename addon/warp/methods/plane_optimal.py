@@ -76,7 +76,7 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
     s = share_budget(jobs, options.plane_budget * total, options.plane_twist)
     maps = [light_map(j, s, origin, tol, options) for j in jobs]
     used = sum(m.size[0] * m.size[1] for m in maps)
-    size = _fallback_size(max(total - used, 1), options)
+    size = _fallback_size(max(total - used / len(frames), 1), options)
     for m, frame in zip(frame_maps(frames, size, options.texel_snapping, options.linear_z), frames):
         m.role = "fallback" if len(frames) == 1 else f"fallback:{m.role}"
         maps.append(m)
