@@ -190,10 +190,14 @@ def ground_truth(view: View, light: Light, bvh, scene_scale: float) -> GroundTru
         valid[idx[~inside]] = False
         shadow[idx[~inside]] = True
     todo = np.flatnonzero(facing)
+    # The shadow ray starts on its own line, where it is eps above the surface (eps / n·l along it): a start
+    # moved along the normal would move the line sideways, and at grazing light (n·l = 0.04: 3.8 mm becomes
+    # cm on a wall) pass an occluder's edge on the wrong side.
     eps = 1e-5 * scene_scale + 2e-5 * np.linalg.norm(p - view.position, axis=1)
-    start = p + nrm[idx] * eps[:, None]
-    limit = np.where(np.isfinite(dist), dist - 2 * eps, scene_scale * 4.0)
-    for k in todo.tolist():
+    skip = eps / np.maximum(np.einsum("ij,ij->i", nrm[idx], to_l), 1e-300)
+    start = p + to_l * skip[:, None]
+    limit = np.where(np.isfinite(dist), dist - skip - eps, scene_scale * 4.0)
+    for k in todo[limit[todo] > 0].tolist():
         loc, _, _, _ = ray_cast(Vector(start[k].tolist()), Vector(to_l[k].tolist()), float(limit[k]))
         if loc is not None:
             shadow[idx[k]] = True

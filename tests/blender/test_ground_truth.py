@@ -115,3 +115,22 @@ def test_pixels_follow_blender_orientation(fresh_scene):
         assert gt.valid.sum() == RES * RES                    # everything is ground or plate, facing the sun
     finally:
         _cleanup(objs)
+
+
+def test_grazing_sun_shadow_ends_where_the_occluders_edge_sends_it(fresh_scene):
+    # a sun 89.3° from the zenith (n·l = 0.0125 on the ground) over a wall 0.1 m high at x = -5: its shadow
+    # on the ground ends at x = -5 + 0.1 tan t. A shadow ray moved off the ground along the normal would pass
+    # the wall's top edge eps higher and end the shadow eps tan t (~2 pixels) short
+    t = math.atan(80.0)
+    objs = _build(fresh_scene, "SUN", sun_dir=(math.sin(t), 0.0, -math.cos(t)))
+    objs.append(_mesh(fresh_scene, "gt_wall", [(-5, -3, 0), (-5, -1, 0), (-5, -1, 0.1), (-5, -3, 0.1)], [(0, 1, 2, 3)]))
+    try:
+        view, light, gt = _truth(fresh_scene)
+        row = gt.hit & (np.abs(gt.points[..., 1] + 2.0) < 0.02) & (np.abs(gt.points[..., 2]) < 1e-4)
+        x = gt.points[..., 0]
+        end = float(x[row & gt.shadow].max())
+        pixel = 2 * H_CAM * math.tan(FOV / 2) / RES
+        assert abs(end - (-5.0 + 0.1 * 80.0)) <= pixel
+        assert not gt.shadow[row & (x > -5.0 + 0.1 * 80.0 + pixel)].any()
+    finally:
+        _cleanup(objs)
