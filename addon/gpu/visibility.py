@@ -13,17 +13,21 @@ then tests against the same depth target. ``bench/visibility.py`` times it.
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
-from ..warp.visibility import PIXEL_TILE, VisibleRegion, region_from_window_depth, region_from_window_tiles
+from ..warp.visibility import (PIXEL_TILE, VisibleRegion, region_from_window_depth, region_from_window_tiles,
+                               surface_from_window_depth)
 from . import compose
 
 
 def region_from_frame(frame, tile: int = PIXEL_TILE, source: str = "depth pre-pass",
-                      on_gpu: bool = True) -> tuple[VisibleRegion, float]:
+                      on_gpu: bool = True, surface: bool = False) -> tuple[VisibleRegion, float]:
     """The visible region of ``frame.view`` from the frame's camera pre-pass
     (drawn now if it was not), and the seconds it took. ``on_gpu``: reduce the
     tiles on the GPU and read back only them; else read the whole depth target
-    back and reduce in numpy (the reference; slower from 1280x720 on)."""
+    back and reduce in numpy (the reference; slower from 1280x720 on).
+    ``surface``: also read the whole depth target back for ``VisibleRegion.surface``
+    (the seen pixels themselves, which plane_optimal's default planes are chosen by)."""
     depth = frame.camera_prepass()
     t = time.perf_counter()
     if on_gpu:
@@ -34,4 +38,7 @@ def region_from_frame(frame, tile: int = PIXEL_TILE, source: str = "depth pre-pa
     else:
         window = compose.read_depth(frame.targets.framebuffer(depth=depth), frame.size)
         region = region_from_window_depth(frame.view, window, tile, source)
+    if surface:
+        window = window if not on_gpu else compose.read_depth(frame.targets.framebuffer(depth=depth), frame.size)
+        region = replace(region, surface=surface_from_window_depth(frame.view, window))
     return region, time.perf_counter() - t

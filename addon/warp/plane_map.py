@@ -353,54 +353,33 @@ def flattest_box(receiver_boxes) -> Optional[tuple[int, float, float]]:
     side = np.minimum(ext[:, 0], ext[:, 1])
     if not (side > 0).any():
         return None
-    ratio = np.where(side > 0, ext[:, 2] / np.where(side > 0, side, 1.0), np.inf)
-    i = int(np.argmin(ratio))
+    i = int(np.argmin(np.where(side > 0, ext[:, 2] / np.where(side > 0, side, 1.0), np.inf)))
     return i, float(ext[i, 2]), float(side[i])
 
 
-def default_plane_of(receivers) -> Optional[PlaneOfInterest]:
-    """The default plane of interest: the top face of the widest flat receiver box (then the thinnest, then the
-    first) that a culling ``Selection`` holds."""
-    index, selected, picked = receivers.index, receivers.selected, receivers.by_cluster
-    clusters, size = index.c_box_bounds.shape[1:]
-    c_lo, c_hi = index.c_bounds[:3], -index.c_bounds[3:]           # (c_bounds: lo, -hi)
-    c_area = (c_hi[0] - c_lo[0]) * (c_hi[1] - c_lo[1])
-    first = np.argmax(c_area, keepdims=True)
-    best, widest = _widest_flat_tops(index, picked, first)
-    if best >= 0:
-        rivals = np.flatnonzero(c_area >= best)
-        if len(rivals) > 1:
-            best, widest = _widest_flat_tops(index, picked, rivals)
-    else:
-        order = np.argsort(-c_area, kind="stable")
-        c_area = c_area[order].tolist()
-        widest = []                          # (position, height) of the widest flat tops so far
-        opened, batch = 0, 1
-        while opened < clusters and c_area[opened] >= best:
-            top, found = _widest_flat_tops(index, picked, order[opened:opened + batch])
-            opened, batch = opened + batch, 2 * batch
-            if top >= max(best, 0.0):
-                if top > best:
-                    best, widest = top, []
-                widest.append(found)
-        if best < 0:
-            return None
-        widest = tuple(np.concatenate(parts) for parts in zip(*widest))
-    # widest first, then thinnest, then lowest index (deterministic)
-    position, height = widest
-    _, scene_index, at = min(zip(height.tolist(), index.perm[position].tolist(), position.tolist()))
-    c, j = divmod(at, size)
-    i = int(np.count_nonzero(selected & (index.perm < scene_index)))
-    corners = index.c_box_bounds[:, c, j].tolist()
-    return _top_face(corners[:3], [-x for x in corners[3:]], i)
+def top_shares(boxes, surface: np.ndarray, tol: float) -> np.ndarray:
+    """Per box, the share of the seen surface (``VisibleRegion.surface``) on its top face: the samples whose depth
+    interval meets the top's height and whose middle lies over the box, within ``tol``."""
+    b = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3)
+    order = np.argsort(b[:, 1, 2], kind="stable")
+    z, tops = np.sort(surface[:, :, 2], axis=1), b[order, 1, 2]
+    first = np.searchsorted(tops, z[:, 0] - tol)
+    count = np.searchsorted(tops, z[:, 1] + tol, "right") - first          # per sample: the tops its depths meet
+    sample = np.repeat(np.arange(len(z)), count)
+    box = order[np.repeat(first - np.cumsum(count) + count, count) + np.arange(count.sum())]
+    mid = surface[sample].mean(axis=1)[:, :2]
+    over = ((mid >= b[box, 0, :2] - tol) & (mid <= b[box, 1, :2] + tol)).all(axis=1)
+    return np.bincount(box[over], minlength=len(b)) / max(len(z), 1)
 
 
-def _widest_flat_tops(index, picked: np.ndarray, batch: np.ndarray) -> tuple[float, tuple]:
-    """Among the picked boxes of the clusters ``batch``: the widest flat top's area
-    (-inf: none picked, -1: none flat) and (positions, heights) of the boxes that have it."""
-    bounds = index.c_box_bounds[:, batch]                        # (6, batch, size): lo, -hi
-    area, height = _flat_tops(bounds[:3], -bounds[3:])
-    area = np.where(picked[batch], area, -np.inf)
-    top = float(area.max())
-    at = np.nonzero(area == top)
-    return top, (batch[at[0]] * index.c_box_bounds.shape[2] + at[1], height[at])
+def default_plane(receiver_boxes, surface: Optional[np.ndarray] = None,
+                  tol: float = 0.0) -> tuple[Optional[PlaneOfInterest], Optional[float]]:
+    """The default plane of interest and its seen share: the flat receiver top the ``surface`` is most on
+    (``top_shares``; on none: None), without a surface the widest (share None); then widest, thinnest, first."""
+    b = np.asarray(receiver_boxes, dtype=np.float64).reshape(-1, 2, 3)
+    area, height = _flat_tops(b[:, 0].T, b[:, 1].T)
+    share = np.zeros(len(b)) if surface is None else top_shares(b, surface, tol)
+    for i in np.lexsort((np.arange(len(b)), height, -area, -np.where(area >= 0, share, -1.0)))[:1].tolist():
+        if area[i] >= 0 and (surface is None or share[i] > 0):
+            return _top_face(b[i, 0], b[i, 1], i), None if surface is None else float(share[i])
+    return None, None

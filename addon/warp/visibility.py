@@ -4,7 +4,7 @@ ray cast against the boxes. Why R is cut and not B: docs/papers.md."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -20,6 +20,8 @@ BOX_TILE = 3
 """Samples per tile side of :func:`region_from_boxes`."""
 PIXEL_TILE = 16
 """Pixels per tile side of a depth pre-pass (``addon.gpu.visibility``)."""
+SURFACE_SAMPLES = 1 << 14
+"""At most this many pixels of a depth pre-pass make ``VisibleRegion.surface``."""
 DEPTH_ULPS = 16
 """Float32 depth-buffer precision padded on each tile's window depth: this many
 ulps of 1.0 (2^-24 each), pushed through the hyperbolic depth to eye depth."""
@@ -55,6 +57,8 @@ class VisibleRegion:
 
     tiles: TileDepths
     source: str
+    surface: np.ndarray | None = None
+    """(N, 2, 3) world points, per sample (pixel, ray) that hit a surface: the nearest and farthest its depth allows."""
 
     @property
     def is_empty(self) -> bool:
@@ -264,6 +268,18 @@ def region_from_window_tiles(view: View, near, far, counts, size: tuple[int, int
     return VisibleRegion(tiles, source)
 
 
+def surface_from_window_depth(view: View, window_depth: np.ndarray) -> np.ndarray:
+    """``VisibleRegion.surface`` of an (H, W) depth buffer: every k-th pixel each way (SURFACE_SAMPLES) ± DEPTH_ULPS."""
+    h, w = window_depth.shape
+    k = max(1, math.ceil(math.sqrt(h * w / SURFACE_SAMPLES)))
+    d = window_depth[k // 2::k, k // 2::k]
+    rows, cols = np.nonzero(d < 1.0)
+    x, y = (cols * k + k // 2 + 0.5) * (2.0 / w) - 1, (rows * k + k // 2 + 0.5) * (2.0 / h) - 1
+    ends = [np.clip(eye_depth_from_ndc(view, 2.0 * np.clip(d[rows, cols] + s * DEPTH_ULPS * 2.0 ** -24, 0.0, 1.0) - 1),
+                    view.near, view.far) for s in (-1, 1)]
+    return np.stack([unproject(view, x, y, e) for e in ends], axis=1)
+
+
 def sample_rays(view: View, samples: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Near-plane origins, unit directions and lengths to the far plane of rays through
     the centres of a (columns, rows) grid over the image, row 0 at the bottom."""
@@ -308,7 +324,9 @@ def _region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int],
     missed = selection.mask
     missed[box[box >= 0]] = False
     _add_small_boxes(view, scene.receivers, missed, lo_box, hi_box, samples, tile, near, far)
-    return _region(view, near, far, samples, tile, "scene boxes", tile_counts(box >= 0, tile))
+    hit = np.flatnonzero(box >= 0)
+    return replace(_region(view, near, far, samples, tile, "scene boxes", tile_counts(box >= 0, tile)),
+                   surface=(origins[hit] + t[hit, None] * dirs[hit])[:, None].repeat(2, axis=1))
 
 
 def _face_reach(view: View, boxes, origins, dirs, t, box, samples, lo_box, hi_box):

@@ -120,6 +120,30 @@ def test_the_prepass_region_holds_every_shaded_point(mods, fresh_scene):
     assert (out.map_index[out.covered] == 0).all()               # and the map serves every one of them
 
 
+def test_the_prepass_surface_holds_the_shaded_point_of_each_sampled_pixel(mods, fresh_scene):
+    """plane_optimal's seen surface read back from the same pre-pass: at 160 x 90 one sample per drawn pixel, row
+    by row, whose segment (its depth's float32 precision) holds the point the shading pass shades there."""
+    overlook(fresh_scene)
+    dg = fresh_scene.view_layers[0].depsgraph
+    dg.update()
+    mods.context.ensure_gpu_context()
+    geometry = mods.geometry.GeometryCache().update(dg)
+    view, light, bounds = mods.describe.describe_scene(fresh_scene, dg, instances=geometry.instances)
+    frame = mods.pipeline.ShadowFrame(geometry, view, read={"world_position", "covered"})
+    region, _ = mods.visibility.region_from_frame(frame, surface=True)
+    body = mods.warp.focused_body(view, light, bounds, visible=region)
+    setup = mods.warp.compute("uniform", view, light, bounds, mods.warp.WarpOptions(shadow_map_size=256), body=body)
+    frame.draw_maps(setup, mods.settings.ShadowSettings(), body)
+    frame.shade(light, setup, mods.settings.ShadowSettings())
+    out = frame.finish()
+    points = out.world_position[out.covered].astype(np.float64)
+    a, b = region.surface[:, 0], region.surface[:, 1]
+    assert len(points) == len(a) > 1000
+    t = np.clip(np.einsum("ij,ij->i", points - a, b - a) / np.einsum("ij,ij->i", b - a, b - a), 0.0, 1.0)
+    gap = np.linalg.norm(a + t[:, None] * (b - a) - points, axis=1)
+    assert (gap <= 1e-4 * np.linalg.norm(points - view.position, axis=1)).all()
+
+
 def test_on_the_terrain_view_z_n_comes_from_the_depth_prepass(mods):
     """The terrain sample: nothing is visible nearer than about 128 m, with the
     camera's near plane at 1 m. z_n follows what is seen (issue 12's diagnosis)."""

@@ -13,7 +13,7 @@ from ..diagnostics import Diagnostics
 from ..fit import window_matrix
 from ..frame import body_light_angles, light_frames
 from ..geometry import homogeneous, translation
-from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_to_polygon, corner_ray_points, default_plane_of,
+from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_to_polygon, corner_ray_points, default_plane,
                          enclosing_polygon, flattest_box, is_convex_polygon, min_area_twist, offset_directions,
                          plane_light_matrix, polygon_area, rotation2d)
 from ..polyhedron import Edges, convex_polygon_on_plane, plane_section, section_points
@@ -61,7 +61,7 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
     diag = Diagnostics("plane_optimal", theta, gamma, body_vertices=body.vertices)
     origin = view.position
     tol = max(REGION_TOLERANCE * body.scale, 100 * body.tolerance)
-    planes = planes_of_interest(options, body, diag)
+    planes, share = planes_of_interest(options, body, tol, diag)
     jobs = [j for j in (plane_map_of(k, p, view, light, body, origin, tol, diag) for k, p in enumerate(planes))
             if j is not None]
     frames = light_frames(view, light, body, options)
@@ -74,6 +74,9 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
         jobs = sorted(ranked[:max(room, 0)], key=lambda j: j.index)
     total = options.shadow_map_size[0] * options.shadow_map_size[1]
     s = share_budget(jobs, options.plane_budget * total, options.plane_twist)
+    if jobs and not worth_its_texels(share, sum(_texels(j.rect) for j in jobs), len(frames) * total):
+        diag.fallback("plane:0", f"{jobs[0].plane.name}: {share:.1%} of the seen pixels, not worth its map's texels")
+        jobs = []
     maps = [light_map(j, s, origin, tol, options) for j in jobs]
     used = sum(m.size[0] * m.size[1] for m in maps)
     size = _fallback_size(max(total - used / len(frames), 1), options)
@@ -88,7 +91,7 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
         "pixel_area": j.info["pixel_area"], "condition": j.info["condition"], "residual": j.info["residual"],
     } for j in jobs]
     diag.extra["budget"] = {
-        "plane_budget": options.plane_budget, "total_texels": total, "plane_texels": used,
+        "plane_budget": options.plane_budget, "seen_share": share, "total_texels": total, "plane_texels": used,
         "one_lixel_texels": sum(_texels(r) for r in _rects(jobs, 1.0)) if jobs else 0,
         "plane_share": used / total, "fallback_sizes": [list(size) for _ in frames], "fallback_maps": len(frames),
         "lixels_per_pixel": s if jobs else None,
@@ -101,23 +104,34 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
 # The planes of interest.
 # ---------------------------------------------------------------------------
 
-def planes_of_interest(options: WarpOptions, body: IntersectionBody, diag: Diagnostics) -> list[PlaneOfInterest]:
-    """``WarpOptions.planes``, else the top of the widest flat receiver box in view (``plane_map.default_plane_of``)."""
+def planes_of_interest(options: WarpOptions, body: IntersectionBody, tol: float,
+                       diag: Diagnostics) -> tuple[list[PlaneOfInterest], float | None]:
+    """``WarpOptions.planes``, else the flat receiver top the camera sees most (``plane_map.default_plane``; without a
+    seen surface the widest); and its seen share (None: unknown, or planes given)."""
     if options.planes:
-        return [PlaneOfInterest.from_option(p, i) for i, p in enumerate(options.planes)]
-    plane = default_plane_of(body.culled.receivers)
+        return [PlaneOfInterest.from_option(p, i) for i, p in enumerate(options.planes)], None
+    surface = None if body.visible is None else body.visible.surface
+    plane, share = default_plane(body.culled.receivers.boxes, surface, tol)
     if plane is None:
-        diag.fallback("planes", _no_default_plane(body.culled.receivers.boxes))
-        return []
-    diag.extra["default_plane"] = plane.name
-    return [plane]
+        diag.fallback("planes", _no_default_plane(body.culled.receivers.boxes, surface is not None))
+        return [], None
+    diag.extra.update(default_plane=plane.name, seen_share=share)
+    return [plane], share
 
 
-def _no_default_plane(receiver_boxes) -> str:
+def worth_its_texels(share: float | None, texels: int, budget: float) -> bool:
+    """Whether a map making its ``share`` of the seen pixels exact is worth ``texels`` of the fallbacks' ``budget``:
+    errors even over pixels and texel-wide leave (1 - share)·√(budget / (budget - texels)) of uniform's (None: yes)."""
+    return share is None or (1.0 - share) ** 2 <= 1.0 - texels / budget
+
+
+def _no_default_plane(receiver_boxes, seen: bool) -> str:
     """Why no receiver gives a default plane (a fallback note)."""
     flattest = flattest_box(receiver_boxes)
     if flattest is None:
         found = "no receiver box is in view"
+    elif seen and default_plane(receiver_boxes)[0] is not None:
+        found = "the camera sees no flat receiver's top (a floor, a table top)"
     else:
         i, height, side = flattest
         found = (f"no receiver in view is flat (a plane of interest needs a box at most {FLAT_RATIO:.0%} as high as "

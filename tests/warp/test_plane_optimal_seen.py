@@ -1,0 +1,88 @@
+"""plane_optimal's default plane of interest is chosen by what the camera sees (issue 12): the flat receiver top
+that holds most of the seen surface, and its map is made only when the pixels it makes exact ("a lixel for every
+pixel", Chong-Gortler §2) are worth the texels the fallback gives up for it."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from addon.measure.box_scene import visible_points
+from addon.warp import SceneBounds, WarpOptions, compute, focused_body, intersection_body
+from addon.warp.methods.plane_optimal import worth_its_texels
+from addon.warp.plane_map import default_plane, top_shares
+from addon.warp.visibility import BOX_SAMPLES, SURFACE_SAMPLES, surface_from_window_depth
+from plane_optimal_helpers import camera, sun_at
+
+TABLE = np.array([[-12.0, -12.0, -0.3], [12.0, 12.0, 0.0]])
+BOARD = np.array([[-4.0, -4.0, 0.0], [4.0, 4.0, 0.06]])
+PIECES = np.array([[[x - 0.3, y - 0.3, 0.05], [x + 0.3, y + 0.3, 1.2]]
+                   for x in np.arange(-3.5, 4.0) for y in (0.5, 1.5, 2.5, 3.5)])
+TOL = 1e-9
+
+
+def _board():
+    """A board on a wider table, pieces on its far half, seen from close by (the chess sample scene's kind)."""
+    return (SceneBounds.from_boxes(np.array([TABLE, BOARD, *PIECES])),
+            camera((0.0, -6.0, 2.5), (0.0, 0.5, 0.0), fov_deg=70.0), sun_at(50.0, 30.0))
+
+
+def test_the_default_plane_is_the_flat_top_the_camera_sees_most():
+    sc, view, light = _board()
+    body = focused_body(view, light, sc)
+    boxes = body.culled.receivers.boxes
+    shares = top_shares(boxes, body.visible.surface, TOL)
+    plane, share = default_plane(boxes, body.visible.surface, TOL)
+    assert plane.offset == pytest.approx(0.06) and share == shares.max() > shares[0] > 0     # the board, not the table
+    assert default_plane(boxes)[0].offset == pytest.approx(0.0)     # without a seen surface: the widest top, the table
+
+
+def test_a_seen_share_is_the_share_of_the_camera_rays_that_end_on_the_top():
+    sc, view, light = _board()
+    body = focused_body(view, light, sc)
+    points, _ = visible_points(view, sc, BOX_SAMPLES)              # (the CLI's ray grid)
+    on_board = (np.abs(points[:, 2] - 0.06) < 1e-9) & (np.abs(points[:, :2]) <= 4.0).all(axis=1)
+    shares = top_shares(body.culled.receivers.boxes, body.visible.surface, TOL)
+    assert len(body.visible.surface) == len(points)
+    assert shares[1] == pytest.approx(on_board.mean(), abs=1.0 / len(points))
+
+
+def test_a_plane_map_is_made_only_when_what_it_makes_exact_outweighs_what_the_fallback_loses():
+    # errors even over the pixels and as wide as a texel: (1 - share)·√(T / (T - texels)) of uniform's are left
+    assert worth_its_texels(0.5, 50, 100) and not worth_its_texels(0.2, 50, 100)
+    assert worth_its_texels(None, 99, 100)                          # the share unknown: the paper's budget
+    sc, view, light = _board()
+    body = focused_body(view, light, sc)
+    small, large = (compute("plane_optimal", view, light, sc, WarpOptions(shadow_map_size=(n, n)), body=body)
+                    for n in (256, 2048))
+    uniform = compute("uniform", view, light, sc, WarpOptions(shadow_map_size=(256, 256)), body=body)
+    assert [m.role for m in small.maps] == ["fallback"] and "plane:0" in dict(small.diagnostics.fallbacks)
+    assert np.allclose(small.maps[0].matrix, uniform.maps[0].matrix) and small.maps[0].size == (256, 256)
+    assert [m.role for m in large.maps] == ["plane:0", "fallback"]
+    assert large.diagnostics.extra["budget"]["lixels_per_pixel"] == 1.0
+
+
+def test_without_a_seen_surface_the_plane_map_keeps_the_papers_budget():
+    sc, view, light = _board()
+    setup = compute("plane_optimal", view, light, sc, WarpOptions(shadow_map_size=(256, 256)),
+                    body=intersection_body(view, light, sc))
+    assert [m.role for m in setup.maps] == ["plane:0", "fallback"]
+
+
+def test_the_seen_surface_of_a_depth_buffer_straddles_each_sampled_point():
+    """Each sample of a depth buffer (float32 window depths of a floor, as read back) is the segment of its ray
+    that the buffer's precision allows; the floor crosses every one, and undrawn pixels give none."""
+    view = camera((0.0, -10.0, 3.0), (0.0, 10.0, 0.0), near=0.1, far=500.0, resolution=(400, 300))
+    y, x = np.mgrid[0:300, 0:400]
+    ndc = np.stack([(x + 0.5) / 200 - 1, (y + 0.5) / 150 - 1], axis=-1).reshape(-1, 2)
+    inverse = np.linalg.inv(view.world_to_clip)
+    ends = np.concatenate([ndc, np.full((len(ndc), 1), -1.0), np.ones((len(ndc), 1))], axis=1) @ inverse.T
+    far = np.concatenate([ndc, np.ones((len(ndc), 2))], axis=1) @ inverse.T
+    a, b = ends[:, :3] / ends[:, 3:], far[:, :3] / far[:, 3:]
+    t = a[:, 2] / (a[:, 2] - b[:, 2])                              # where each ray meets z = 0
+    floor = a + t[:, None] * (b - a)
+    h = np.append(floor, np.ones((len(floor), 1)), axis=1) @ view.world_to_clip.T
+    window = np.where((t > 0) & (t < 1), (h[:, 2] / h[:, 3] + 1) / 2, 1.0).reshape(300, 400).astype(np.float32)
+    surface = surface_from_window_depth(view, window)
+    drawn = (window < 1).sum()
+    assert SURFACE_SAMPLES // 4 < len(surface) <= SURFACE_SAMPLES and len(surface) < drawn
+    assert (surface[:, :, 2].min(axis=1) <= 1e-9).all() and (surface[:, :, 2].max(axis=1) >= -1e-9).all()
