@@ -203,7 +203,7 @@ def ray_plane_points(view_clip, plane_vec, ndc_xy) -> np.ndarray:
 
 
 def default_plane(receiver_boxes):
-    """The reference for ``plane_map.default_plane_of``, over every box: the top
+    """The reference for ``plane_map.default_plane`` without a seen surface: the top
     face of the widest flat box (height <= FLAT_RATIO x its smaller side), then
     the thinnest, then the first; None when no box is flat."""
     b = np.asarray(receiver_boxes, dtype=np.float64).reshape(-1, 2, 3)
