@@ -29,9 +29,10 @@ engine's Combined and Shadow targets) with REV's gpu_shaders and REV's default
 bias (NDC constant + slope scale, hyperbolic maps) against the working tree's,
 interleaved, on the same scene. REV must share the working tree's frame
 (the deferred shading pass, its uniform block and the pre-pass surface it
-reads: one target, the normal packed beside the position, since 06f6584;
-f213006 and 8a72d06 read the normal from a second target and no longer
-compile against this frame). ``--shading-settings same`` gives REV's
+reads: one target, the normal packed beside the position, since 06f6584,
+in 14 + 15 bits since ecdfa66 (an earlier REV compiles but decodes the
+normal wrongly); f213006 and 8a72d06 read the normal from a second target
+and no longer compile against this frame). ``--shading-settings same`` gives REV's
 shaders the working tree's maps and bias row instead (a revision that already
 has the texel-unit biases and linear z: the shaders' own cost alone).
 

@@ -13,7 +13,8 @@ llvmpipe's rasterizer threads) and of the wall clock:
   a constant output; one surface fetch; the surface and normal decoded;
   + the map selection; + the lighting with no shadow test; the whole pass;
 * **settings**: the whole pass with the PCF kernel and the bias mode changed
-  (PCF 1 / 3 / 5; receiver plane / constant / none) and without the Shadow target;
+  (PCF 1 / 2 / 3 / 5, PCF 2 filtering bilinearly; receiver plane / constant / none) and without the
+  Shadow target;
 * the floor's **trivial full-screen pass** (``bench.frame.Floor.full_screen``).
 """
 from __future__ import annotations
@@ -114,6 +115,7 @@ def measure(name: str, repeat: int) -> dict:
         "whole pass (PCF 3, receiver plane)": lambda: shade(default),
         "whole pass, no Shadow target": lambda: shade(default, frozenset({"combined"})),
         "PCF 1": lambda: shade(ShadowSettings(pcf_kernel=1)),
+        "PCF 2 (bilinear)": lambda: shade(ShadowSettings(pcf_kernel=2)),
         "PCF 5": lambda: shade(ShadowSettings(pcf_kernel=5)),
         "PCF 3, constant bias": lambda: shade(ShadowSettings(bias_mode="CONSTANT")),
         "PCF 1, no bias": lambda: shade(ShadowSettings(pcf_kernel=1, bias_mode="NONE")),
