@@ -8,9 +8,11 @@ are triangulated in numpy (``loop_triangles.foreach_get`` costs ~100 ms per
 million triangles and is used only for meshes with n-gons). Instance matrices
 are copied during the walk (``.copy()`` rule, see :mod:`.instances`).
 
-Cache rule: a mesh is re-extracted (and its batch re-uploaded, see
-``addon.gpu.batches``) only when its content fingerprint (sizes + CRC of
-positions and corners, ~3 ms per million vertices) changed.
+Cache rule: a mesh is re-extracted (triangulated, and its batch re-uploaded,
+see ``addon.gpu.batches``) only when its content fingerprint (sizes + CRC of
+positions and corners, ~3 ms per million vertices) changed; an unchanged one
+costs the reads and the CRC (1M triangles: 3.3 ms, against 46 ms when it was
+triangulated again before the comparison).
 ``depsgraph.updates`` alone cannot decide it (measured, 4.2 and 5.0): a fresh
 render depsgraph (every F12 without persistent data) flags every object as
 updated, and outside ``depsgraph_update_post`` handlers and
@@ -129,8 +131,10 @@ def _quads_and_tris(positions: np.ndarray, starts: np.ndarray, sizes: np.ndarray
     return np.ascontiguousarray(np.concatenate(out), dtype=np.int32)
 
 
-def read_mesh(mesh) -> tuple[np.ndarray, np.ndarray, tuple]:
-    """(positions float32 (V,3), triangles int32 (T,3), fingerprint) of a Mesh."""
+def read_mesh(mesh, known: tuple = ()) -> tuple[np.ndarray, Optional[np.ndarray], tuple]:
+    """(positions float32 (V,3), triangles int32 (T,3), fingerprint) of a Mesh; the
+    triangles are None when the fingerprint is ``known`` (the caller has them: an
+    unchanged mesh is not triangulated again, 22-35 ms for a mesh of 250k quads)."""
     nv = len(mesh.vertices)
     pos = np.empty(nv * 3, dtype=np.float32)
     mesh.attributes["position"].data.foreach_get("vector", pos)
@@ -144,6 +148,8 @@ def read_mesh(mesh) -> tuple[np.ndarray, np.ndarray, tuple]:
         mesh.loops.foreach_get("vertex_index", corners)
     npoly = len(mesh.polygons)
     fp = _fingerprint(pos, corners) + ((nv, nl, npoly),)
+    if fp == known:
+        return pos, None, fp
     if nl == 3 * npoly:
         return pos, corners.reshape(-1, 3).copy(), fp
     starts = np.empty(npoly, dtype=np.int32)
@@ -157,18 +163,18 @@ def read_mesh(mesh) -> tuple[np.ndarray, np.ndarray, tuple]:
     return pos, tris.reshape(-1, 3), fp
 
 
-def read_object(ob_eval) -> Optional[tuple[np.ndarray, np.ndarray, tuple]]:
+def read_object(ob_eval, known: tuple = ()) -> Optional[tuple[np.ndarray, Optional[np.ndarray], tuple]]:
     """Triangles of an evaluated object (mesh, curve, text, metaball), or None
-    if it has no faces."""
+    if it has no faces (``known``: see :func:`read_mesh`)."""
     if ob_eval.type == "MESH":
         mesh = ob_eval.data
-        return read_mesh(mesh) if len(mesh.polygons) else None
+        return read_mesh(mesh, known) if len(mesh.polygons) else None
     try:
         mesh = ob_eval.to_mesh()
     except RuntimeError:
         return None
     try:
-        return read_mesh(mesh) if mesh is not None and len(mesh.polygons) else None
+        return read_mesh(mesh, known) if mesh is not None and len(mesh.polygons) else None
     finally:
         ob_eval.to_mesh_clear()
 
@@ -244,14 +250,17 @@ class GeometryCache:
                 used[key] = old
                 self.reused += 1
                 return True
-            got = read_mesh(mesh) if mesh is not None else read_object(ob)
-            if got is None or len(got[1]) == 0:
+            known = old.fingerprint if old is not None else ()
+            got = read_mesh(mesh, known) if mesh is not None else read_object(ob, known)
+            if got is None:
                 return False
             pos, tris, fp = got
             if old is not None and old.fingerprint == fp:
                 used[key] = old
                 self.reused += 1
                 return True
+            if len(tris) == 0:
+                return False
             self.extractions += 1
             used[key] = MeshData(key, pos, tris, fp, version=(old.version + 1) if old is not None else 1)
             return True
