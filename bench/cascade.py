@@ -6,8 +6,8 @@
     python -m bench.cascade all --json out/cascade.json
 
 **judge.** Every bundled example, every named hard case and ``--generated``
-seeded "normal" configurations (a town of boxes, a camera above it, a sun,
-point or spot light): the independent judge (``addon.measure.box_scene``)
+"normal" configurations drawn with ``--seed`` (a town of boxes, a camera above it, a sun,
+point or spot light; another seed draws configurations no one tuned to): the independent judge (``addon.measure.box_scene``)
 measures coverage and the p95 texel footprint of the cascade with
 ``--splits`` splits, each map of the config's size, and of the classic PSSM
 (``bench.reference_pssm``) with as many maps of the same size: equal texels.
@@ -138,7 +138,7 @@ def light_in_view(view, light) -> bool:
     return bool(clip[3] > 0 and np.all(np.abs(clip[:3]) <= clip[3]))
 
 
-def judge_configurations(generated: int) -> list:
+def judge_configurations(generated: int, seed: int = 1) -> list:
     """(name, kind, view, light, scene): the examples and generated ones are
     "normal" unless ``light_in_view``, the named hard cases "hard"."""
     sys.path.insert(0, str(ROOT / "tests" / "warp"))
@@ -148,7 +148,7 @@ def judge_configurations(generated: int) -> list:
     for path in sorted((ROOT / "examples").glob("*.json")):
         view, light, scene, _ = parse_config(json.loads(path.read_text()))
         out.append((path.stem, "hard" if light_in_view(view, light) else "normal", view, light, scene))
-    out += [(n, "hard" if light_in_view(*c[:2]) else "normal", *c) for n, c in generated_configurations(generated).items()]
+    out += [(n, "hard" if light_in_view(*c[:2]) else "normal", *c) for n, c in generated_configurations(generated, seed).items()]
     out += [(n, "hard", *c) for n, c in HARD_CASES.items() if n not in EMPTY_CASES]
     return out
 
@@ -171,12 +171,12 @@ def perspective_p95(view, light, scene, setup, samples=(96, 54)) -> float:
     return float(np.nanpercentile(m, 95))
 
 
-def run_judge(splits: int, size: int, generated: int, samples=(96, 54), log=print) -> list:
+def run_judge(splits: int, size: int, generated: int, samples=(96, 54), log=print, seed: int = 1) -> list:
     from addon.measure.box_scene import judge
     from addon.warp import WarpOptions, compute
     from bench.reference_pssm import reference_pssm
     rows = []
-    for name, kind, view, light, scene in judge_configurations(generated):
+    for name, kind, view, light, scene in judge_configurations(generated, seed):
         reference = reference_pssm(view, light, scene, size, splits)
         ref = judge(view, light, scene, reference, samples=samples)
         row = {"config": name, "kind": kind, "reference_p95": ref.footprint_p95,
@@ -463,6 +463,7 @@ def main(argv=None) -> int:
     ap.add_argument("--splits", type=int, default=3, help="judge: the cascade's and the reference's splits")
     ap.add_argument("--size", type=int, default=1024, help="texels per side of each map")
     ap.add_argument("--generated", type=int, default=24, help="judge: generated normal configurations")
+    ap.add_argument("--seed", type=int, default=1, help="judge: the generated configurations' random seed")
     ap.add_argument("--scenes", default="forest,chess,floor_wall,terrain,telephoto")
     ap.add_argument("--resolution", default="640x360")
     ap.add_argument("--frames", type=int, default=8, help="flicker: frames of each camera animation")
@@ -478,7 +479,7 @@ def main(argv=None) -> int:
     say = lambda s: print(s, flush=True)      # noqa: E731
     out, checks = {}, []
     if args.what in ("judge", "all"):
-        out["judge"] = run_judge(args.splits, args.size, args.generated, log=say)
+        out["judge"] = run_judge(args.splits, args.size, args.generated, log=say, seed=args.seed)
         checks += judge_checks(out["judge"])
     if args.what in ("limit", "all"):
         import bpy  # noqa: F401 - Blender before mathutils
