@@ -126,3 +126,21 @@ def test_shadow_edge_normals_point_into_the_shadow_across_a_straight_edge(normal
     assert inner.sum() > 20
     assert np.allclose(got[inner], n, atol=1e-12)
     assert np.all(np.isnan(got[~valid])) and np.all(np.isnan(got[~dilate(edges, 1)]))
+
+
+def test_a_grid_phase_moves_every_texel_coordinate_by_the_offset_and_keeps_the_depth():
+    from bench.edge_footprint import phases, shifted
+    offsets = phases(12)
+    assert np.array_equal(offsets[0], [0.0, 0.0]) and np.all((offsets >= 0) & (offsets < 1))
+    assert len({tuple(np.round(o, 9)) for o in offsets}) == 12
+    t = math.radians(60)
+    d = np.array([math.sin(t), 0.0, -math.cos(t)])
+    m = ShadowMap(ortho_matrix(-10, 10, -10, 10, 1, 100) @ look_along(-50 * d, d, [0, 1, 0]), (500, 400))
+    moved = shifted(ShadowSetup([m], Diagnostics("uniform")), (0.25, 0.75)).maps[0]
+    pts = np.c_[np.random.default_rng(1).uniform(-5, 5, (20, 3)), np.ones(20)]
+
+    def texel_and_depth(matrix):
+        h = pts @ matrix.T
+        return (h[:, :2] / h[:, 3:] * 0.5 + 0.5) * [500, 400], h[:, 2] / h[:, 3]
+    (a, za), (b, zb) = texel_and_depth(m.matrix), texel_and_depth(moved.matrix)
+    assert np.allclose(b - a, [0.25, 0.75], atol=1e-9) and np.allclose(za, zb, atol=0)
