@@ -348,8 +348,7 @@ def _top_face(lo, hi, i: int) -> PlaneOfInterest:
 
 def flattest_box(receiver_boxes) -> Optional[tuple[int, float, float]]:
     """(index, height, smaller side) of the receiver box nearest to flat, or None."""
-    b = np.asarray(receiver_boxes, dtype=np.float64).reshape(-1, 2, 3)
-    ext = b[:, 1] - b[:, 0]
+    ext = np.diff(np.asarray(receiver_boxes, dtype=np.float64).reshape(-1, 2, 3), axis=1)[:, 0]
     side = np.minimum(ext[:, 0], ext[:, 1])
     if not (side > 0).any():
         return None
@@ -365,11 +364,14 @@ def top_shares(boxes, surface: np.ndarray, tol: float) -> np.ndarray:
     z, tops = np.sort(surface[:, :, 2], axis=1), b[order, 1, 2]
     first = np.searchsorted(tops, z[:, 0] - tol)
     count = np.searchsorted(tops, z[:, 1] + tol, "right") - first          # per sample: the tops its depths meet
-    sample = np.repeat(np.arange(len(z)), count)
-    box = order[np.repeat(first - np.cumsum(count) + count, count) + np.arange(count.sum())]
-    mid = surface[sample].mean(axis=1)[:, :2]
-    over = ((mid >= b[box, 0, :2] - tol) & (mid <= b[box, 1, :2] + tol)).all(axis=1)
-    return np.bincount(box[over], minlength=len(b)) / max(len(z), 1)
+    seen = np.zeros(len(b))
+    for part in np.array_split(np.arange(len(z)), 1 + (int(count.sum()) >> 22)):      # (~4M sample-top pairs at once)
+        c = count[part]
+        box = order[np.repeat(first[part] - np.cumsum(c) + c, c) + np.arange(c.sum())]
+        mid = surface[np.repeat(part, c)].mean(axis=1)[:, :2]
+        over = ((mid >= b[box, 0, :2] - tol) & (mid <= b[box, 1, :2] + tol)).all(axis=1)
+        seen += np.bincount(box[over], minlength=len(b))
+    return seen / max(len(z), 1)
 
 
 def default_plane(receiver_boxes, surface: Optional[np.ndarray] = None,

@@ -86,3 +86,21 @@ def test_the_seen_surface_of_a_depth_buffer_straddles_each_sampled_point():
     drawn = (window < 1).sum()
     assert SURFACE_SAMPLES // 4 < len(surface) <= SURFACE_SAMPLES and len(surface) < drawn
     assert (surface[:, :, 2].min(axis=1) <= 1e-9).all() and (surface[:, :, 2].max(axis=1) >= -1e-9).all()
+
+
+def test_a_tops_share_counts_each_sample_whose_depths_meet_it_inside_its_rectangle():
+    """top_shares against the definition, box by box, on a tiled floor (many tops at one height) and slabs."""
+    rng = np.random.default_rng(5)
+    x, y = np.meshgrid(np.arange(-10.0, 10.0), np.arange(-10.0, 10.0))
+    tiles = np.stack([np.c_[x.ravel(), y.ravel(), np.zeros(x.size)], np.c_[x.ravel() + 1, y.ravel() + 1,
+                                                                          np.full(x.size, 0.02)]], axis=1)
+    slabs = np.array([[[-3.0, -3.0, 0.02], [3.0, 3.0, 0.5]], [[4.0, 4.0, 0.02], [6.0, 9.0, 0.5]]])
+    boxes = np.concatenate([tiles, slabs])
+    points = np.c_[rng.uniform(-10, 10, (3000, 2)), rng.choice([0.02, 0.5, 0.3], 3000)]
+    surface = points[:, None] + rng.uniform(-1e-3, 1e-3, (3000, 2, 1)) * np.array([0.0, 0.0, 1.0])
+    shares = top_shares(boxes, surface, TOL)
+    for i, (lo, hi) in enumerate(boxes):
+        meets = (surface[:, :, 2].min(axis=1) <= hi[2] + TOL) & (surface[:, :, 2].max(axis=1) >= hi[2] - TOL)
+        mid = surface.mean(axis=1)
+        inside = ((mid[:, :2] >= lo[:2] - TOL) & (mid[:, :2] <= hi[:2] + TOL)).all(axis=1)
+        assert shares[i] == (meets & inside).mean()

@@ -187,7 +187,7 @@ def plane_map_of(k: int, plane: PlaneOfInterest, view: View, light: Light, body:
                       [0.0, view.resolution[1] / 2, view.resolution[1] / 2], [0.0, 0.0, 1.0]])
     pixels = homogeneous(grown) @ (pixel @ rows).T
     pixels = (pixels[:, :2] / pixels[:, 2:]).tolist()                 # (a few: plain floats)
-    area = _area2d(pixels)
+    area = polygon_area(np.c_[pixels, np.zeros(len(pixels))], (0.0, 0.0, 1.0))
     if area < 1.0:
         diag.fallback(role, f"{plane.name} covers less than one pixel of the view ({area:.3g})")
         return None
@@ -410,11 +410,6 @@ def light_map(job: PlaneMap, s: float, origin: np.ndarray, tol: float, options: 
         depth_row = (-k * job.height + np.array([0, 0, 0, 1.0 + k * (hlo - pad)])) @ translation(-origin)
     region = Region(job.plane.normal.copy(), float(job.plane.offset), job.polygon + origin, tol)
     return ShadowMap(world, (wm, hm), "LESS", f"plane:{job.index}", region=region, depth_row=depth_row)
-
-
-def _area2d(p: list) -> float:
-    """The area of a polygon given as (x, y) pairs (the shoelace formula)."""
-    return 0.5 * abs(sum(ax * by - ay * bx for (ax, ay), (bx, by) in zip(p, p[1:] + p[:1])))
 
 
 def _fallback_size(texels: float, options: WarpOptions) -> tuple[int, int]:
