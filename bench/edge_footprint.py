@@ -105,30 +105,16 @@ def _mean(values) -> float:
 def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1) -> list[dict]:
     """One row per method and size: wrong pixels by class, the p95, the mean widths at straight edges and corners,
     and the wrong pixels at each of ``phase_count`` grid phases (the first: the maps as computed)."""
-    import bpy
-    from addon.gpu.context import ensure_gpu_context
     from addon.measure import classify, footprint_stats, setup_footprints
     from addon.measure.errors import dilate, shadow_edges
     from addon.measure.footprint import setup_across_edge_width, shadow_edge_normals
     from addon.render.engine import render_depsgraph
-    from addon.scene.describe import describe_scene
-    from addon.scene.geometry import GeometryCache
-    from addon.settings import LixelSettings
-    from bench.rendered_error import open_scene
-    from bench.report import ground_truth as G
+    from bench.rendered_error import default_settings, scene_with_truth
     from bench.report.analysis import lit_facing
     from bench.report.lixel import READ
     from bench.report.run import comparable_mask
 
-    scene = open_scene(name)
-    scene.render.resolution_x, scene.render.resolution_y = resolution
-    scene.render.resolution_percentage = 100
-    scene.frame_set(scene.frame_start)
-    ensure_gpu_context()
-    dg = bpy.context.evaluated_depsgraph_get()
-    geometry = GeometryCache().update(dg)
-    view, light, bounds = describe_scene(scene, dg)
-    gt = G.ground_truth(view, light, G.build_bvh(G.world_triangles(geometry)), bounds.scale())
+    dg, geometry, view, light, gt, _ = scene_with_truth(name, resolution)
     lit = lit_facing(gt, light)
     edge_n = shadow_edge_normals(gt.shadow, gt.valid)
     edges = shadow_edges(gt.shadow, gt.valid) & np.isfinite(edge_n[..., 0])
@@ -138,9 +124,7 @@ def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1) -
     rows = []
     for method in methods:
         for size in sizes:
-            base = LixelSettings()
-            settings = dataclasses.replace(base, method=method,
-                                           warp=dataclasses.replace(base.warp, shadow_map_size=(size, size)))
+            settings = default_settings(method, size)
             last = render_depsgraph(dg, resolution, settings=settings, read=READ)
             setup, result = last["setup"], last["result"]
             shadow, counted = result.shadow_raw >= 0.5, comparable_mask(gt, result)

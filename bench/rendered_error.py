@@ -82,25 +82,21 @@ def open_scene(name: str):
     return bpy.context.scene
 
 
-def _n_dot_l(gt, light) -> np.ndarray:
-    """(H, W) cosine between each visible point's normal and the direction to the light."""
-    p = gt.points.reshape(-1, 3)
-    to_light = -light.rays_to(np.nan_to_num(p))
-    return np.einsum("ij,ij->i", gt.normals.reshape(-1, 3), to_light).reshape(gt.shape)
+def default_settings(method: str, size: int):
+    """``LixelSettings`` defaults with only the method and the map size (size x size) changed: what a user gets."""
+    from addon.settings import LixelSettings
+    base = LixelSettings()
+    return dataclasses.replace(base, method=method, warp=dataclasses.replace(base.warp, shadow_map_size=(size, size)))
 
 
-def measure_scene(name: str, methods, sizes, resolution, images: Path | None, log) -> list[Measurement]:
+def scene_with_truth(name: str, resolution):
+    """Open ``name`` (:func:`open_scene`) at ``resolution``, its first frame, with the GPU context ready; returns
+    (depsgraph, geometry, view, light, ground truth, the truth's seconds)."""
     import bpy
-    from addon.measure import classify, footprint_stats, setup_footprints
     from addon.gpu.context import ensure_gpu_context
-    from addon.render.engine import render_depsgraph
     from addon.scene.describe import describe_scene
     from addon.scene.geometry import GeometryCache
-    from addon.settings import LixelSettings
     from bench.report import ground_truth as G
-    from bench.report.lixel import READ
-    from bench.report.run import comparable_mask
-
     scene = open_scene(name)
     scene.render.resolution_x, scene.render.resolution_y = resolution
     scene.render.resolution_percentage = 100
@@ -111,17 +107,25 @@ def measure_scene(name: str, methods, sizes, resolution, images: Path | None, lo
     view, light, bounds = describe_scene(scene, dg)
     t = time.perf_counter()
     gt = G.ground_truth(view, light, G.build_bvh(G.world_triangles(geometry)), bounds.scale())
-    log(f"{name}: {len(geometry.instances)} instances, ground truth {time.perf_counter() - t:.1f}s, "
+    return dg, geometry, view, light, gt, time.perf_counter() - t
+
+
+def measure_scene(name: str, methods, sizes, resolution, images: Path | None, log) -> list[Measurement]:
+    from addon.measure import classify, footprint_stats, setup_footprints
+    from addon.render.engine import render_depsgraph
+    from bench.report.analysis import lit_facing
+    from bench.report.lixel import READ
+    from bench.report.run import comparable_mask
+
+    dg, geometry, view, light, gt, truth_seconds = scene_with_truth(name, resolution)
+    log(f"{name}: {len(geometry.instances)} instances, ground truth {truth_seconds:.1f}s, "
         f"{100 * gt.shadow[gt.valid].mean():.1f}% of {int(gt.valid.sum())} counted pixels in shadow")
-    lit = gt.valid & ~gt.shadow & (_n_dot_l(gt, light) >= LIT_FACING)
+    lit = lit_facing(gt, light)
     out = []
     for method in methods:
         for size in sizes:
-            base = LixelSettings()
-            settings = dataclasses.replace(base, method=method,
-                                           warp=dataclasses.replace(base.warp, shadow_map_size=(size, size)))
             t = time.perf_counter()
-            last = render_depsgraph(dg, resolution, settings=settings, read=READ)
+            last = render_depsgraph(dg, resolution, settings=default_settings(method, size), read=READ)
             seconds = time.perf_counter() - t
             setup = last["setup"]
             result = last["result"]

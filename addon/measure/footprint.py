@@ -68,17 +68,23 @@ def texel_footprint_area(view, shadow_map, points, normals) -> np.ndarray:
     return out
 
 
-def setup_texel_footprint(view, setup, points, normals) -> np.ndarray:
-    """:func:`texel_footprint` of a ShadowSetup, each point in the map that serves it (NaN: none)."""
+def per_serving_map(view, setup, points, measure, *per_point, map_index=None) -> np.ndarray:
+    """``measure(shadow_map, points, *per_point)`` of a ShadowSetup at (N, 3) world ``points``, each point measured in
+    the map that serves it (``setup.map_index``, or ``map_index``); NaN for points that no map serves."""
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
-    idx = setup.map_index(pts, view)
+    idx = setup.map_index(pts, view) if map_index is None else np.asarray(map_index)
     out = np.full(len(pts), np.nan)
     for i, m in enumerate(setup.maps):
         sel = idx == i
         if sel.any():
-            out[sel] = texel_footprint(view, m, pts[sel], nrm[sel])
+            out[sel] = measure(m, pts[sel], *(a[sel] for a in per_point))
     return out
+
+
+def setup_texel_footprint(view, setup, points, normals) -> np.ndarray:
+    """:func:`texel_footprint` of a ShadowSetup, each point in the map that serves it (NaN: none)."""
+    nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    return per_serving_map(view, setup, points, lambda m, p, n: texel_footprint(view, m, p, n), nrm)
 
 
 def setup_footprints(view, setup, points, normals, map_index=None):
@@ -88,13 +94,8 @@ def setup_footprints(view, setup, points, normals, map_index=None):
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
     idx = setup.map_index(pts, view) if map_index is None else np.asarray(map_index)
-    lin = np.full(len(pts), np.nan)
-    area = np.full(len(pts), np.nan)
-    for i, m in enumerate(setup.maps):
-        sel = idx == i
-        if sel.any():
-            lin[sel] = texel_footprint(view, m, pts[sel], nrm[sel])
-            area[sel] = texel_footprint_area(view, m, pts[sel], nrm[sel])
+    lin = per_serving_map(view, setup, pts, lambda m, p, n: texel_footprint(view, m, p, n), nrm, map_index=idx)
+    area = per_serving_map(view, setup, pts, lambda m, p, n: texel_footprint_area(view, m, p, n), nrm, map_index=idx)
     return lin, area
 
 
@@ -140,14 +141,8 @@ def perspective_footprints(view, light, setup, points, map_index=None) -> np.nda
     orientation drops out), each point measured in the map that serves it.
     With the best possible warp of N texels its maximum over the frustum is
     m_min = sqrt(N_min / N). NaN for points served by no map."""
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    idx = setup.map_index(pts, view) if map_index is None else np.asarray(map_index)
-    out = np.full(len(pts), np.nan)
-    for i, m in enumerate(setup.maps):
-        sel = idx == i
-        if sel.any():
-            out[sel] = perspective_aliasing(view, light, m.matrix, m.size, pts[sel])
-    return out
+    return per_serving_map(view, setup, points, lambda m, p: perspective_aliasing(view, light, m.matrix, m.size, p),
+                           map_index=map_index)
 
 
 def shadow_edge_normals(truth, valid) -> np.ndarray:
@@ -193,13 +188,7 @@ def across_edge_width(view, shadow_map, points, normals, edge_normals) -> np.nda
 
 def setup_across_edge_width(view, setup, points, normals, edge_normals, map_index=None) -> np.ndarray:
     """:func:`across_edge_width` of a ShadowSetup, each point in the map that serves it (NaN: none)."""
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
     en = np.asarray(edge_normals, dtype=np.float64).reshape(-1, 2)
-    idx = setup.map_index(pts, view) if map_index is None else np.asarray(map_index)
-    out = np.full(len(pts), np.nan)
-    for i, m in enumerate(setup.maps):
-        sel = idx == i
-        if sel.any():
-            out[sel] = across_edge_width(view, m, pts[sel], nrm[sel], en[sel])
-    return out
+    return per_serving_map(view, setup, points, lambda m, p, n, e: across_edge_width(view, m, p, n, e), nrm, en,
+                           map_index=map_index)
