@@ -38,11 +38,11 @@ class ShadowSettings:
     the rendered-error scenes (bench/rendered_error.py; docs/papers.md)."""
 
     bias_mode: str = "RECEIVER_PLANE"
-    constant_bias: float = 0.5         # texels of the receiver, along the light ray
+    constant_bias: float = 1.0         # texels of the receiver, along the light ray
     slope_bias: float = 1.0            # SLOPE modes: multiples of the depth change over the PCF reach
     normal_offset: float = 1.0         # NORMAL_OFFSET: texels of the receiver, along its normal
     back_faces: bool = False           # render back faces into the map (Scherzer §4.2)
-    pcf_kernel: int = 3                # k in k x k PCF, 1..5 (odd k: a box; even k: bilinear taps)
+    pcf_kernel: int = 2                # k in k x k PCF, 1..5 (odd k: a box; even k: bilinear taps, 2 = hardware PCF)
     mdsm_depths: int = 1               # n of n-SM, 1..4 (MDSM §4.2)
     mdsm_selection: str = "MINMAX"     # MDSM §4.3
     mdsm_neighbourhood: int = 3        # q of the q x q neighbourhood
