@@ -27,7 +27,10 @@
  *     made one-sided). A planar receiver then never shadows itself however
  *     steep it is or wide the kernel, a concave crease (a wall's foot) does
  *     not darken the ground beside it through the kernel's far taps, and no
- *     shadow moves: c only absorbs rounding and faceting.
+ *     shadow moves: c only absorbs rounding and faceting. The plane's own
+ *     error is added: the pre-pass normal's (LIXEL_NORMAL_ERROR) moves the
+ *     plane's depth at the PCF reach by r e / (n.l)^2 texels, which passes c
+ *     where the light grazes the receiver (n.l < ~0.01).
  *   NORMAL_OFFSET: the point looked up is P moved s texels along its normal
  *     (towards the light), less c texels.
  *   CONSTANT, SLOPE, CONSTANT_SLOPE: the classic offsets, c texels plus
@@ -164,6 +167,9 @@ vec3 lixel_row(mat4 m, int r)
 /* The slope term's ceiling in texels (a depth-bias clamp: a surface nearly
  * edge-on to the light has an unbounded slope). */
 #define LIXEL_SLOPE_LIMIT 16.0
+/* The pre-pass normal's direction error in radians (its 14/15-bit packing
+ * and the float32 screen derivatives it comes from; prepass_frag.glsl). */
+#define LIXEL_NORMAL_ERROR 1e-4
 
 /* Whether map i stores its linear depth row, and whether its depth test is
  * GREATER: constants where every map agrees (LIXEL_MAPS_*), so that only one
@@ -431,6 +437,15 @@ float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
     bias += lixel.bias.y * lixel.bias.z * rcv.slope;
   }
   bool plane = plane_bias && rcv.det != 0.0;
+  if (plane) {
+    /* The plane's own error: a normal off by e radians moves the plane's
+     * depth at a tap d texels across the light ray by d e / (n.l)^2 texels
+     * along it (the derivative of d tan(alpha), n.l = cos(alpha)), which
+     * passes any constant bias where the light grazes the receiver. Up to
+     * the slope limit, as the SLOPE modes. */
+    float ndl = max(dot(NL, L), 1e-6);
+    bias += min(lixel.bias.z * LIXEL_NORMAL_ERROR / (ndl * ndl), LIXEL_SLOPE_LIMIT) * rcv.texel;
+  }
   const int k = LIXEL_PCF;
   ivec2 base = (k % 2 == 1) ? ivec2(floor(look)) - (k - 1) / 2 : ivec2(floor(look - 0.5)) - (k / 2 - 1);
   vec2 f = fract(look - 0.5);  /* even k: the point's place between the first two taps' centres */
