@@ -112,12 +112,13 @@ def measure(name: str, repeat: int) -> dict:
 
     runs = {f"part: {k}": (lambda s=s: shade(default, shader=s)) for k, s in cuts.items()}
     runs.update({
-        "whole pass (PCF 3, receiver plane)": lambda: shade(default),
+        f"whole pass (the defaults: PCF {default.pcf_kernel}, receiver plane)": lambda: shade(default),
         "whole pass, no Shadow target": lambda: shade(default, frozenset({"combined"})),
         "PCF 1": lambda: shade(ShadowSettings(pcf_kernel=1)),
         "PCF 2 (bilinear)": lambda: shade(ShadowSettings(pcf_kernel=2)),
+        "PCF 3 (box; the default until session 3, 0.5 texel)": lambda: shade(ShadowSettings(pcf_kernel=3, constant_bias=0.5)),
         "PCF 5": lambda: shade(ShadowSettings(pcf_kernel=5)),
-        "PCF 3, constant bias": lambda: shade(ShadowSettings(bias_mode="CONSTANT")),
+        "PCF 2, constant bias": lambda: shade(ShadowSettings(bias_mode="CONSTANT")),
         "PCF 1, no bias": lambda: shade(ShadowSettings(pcf_kernel=1, bias_mode="NONE")),
         "floor: trivial full-screen pass": bf.Floor(frame, setup).full_screen,
     })
