@@ -94,17 +94,21 @@ def test_the_engine_fits_the_warp_to_its_depth_prepass(mods, fresh_scene):
     assert old["setup"].diagnostics.extra["z_n"] < 0.1 * nearest_shaded
 
 
-def test_the_prepass_region_holds_every_shaded_point(mods, fresh_scene):
-    """Every pixel the shading pass shades (its world position) lies in the
-    region read back from the depth target that pass reuses."""
-    overlook(fresh_scene)
-    dg = fresh_scene.view_layers[0].depsgraph
+def overlooked_frame(mods, scene, read):
+    """The overlooked scene's view, light, bounds and a ShadowFrame of its camera reading back ``read``."""
+    overlook(scene)
+    dg = scene.view_layers[0].depsgraph
     dg.update()
     mods.context.ensure_gpu_context()
     geometry = mods.geometry.GeometryCache().update(dg)
-    view, light, bounds = mods.describe.describe_scene(fresh_scene, dg, instances=geometry.instances)
-    read = {"world_position", "covered", "map_index"}
-    frame = mods.pipeline.ShadowFrame(geometry, view, read=read)
+    view, light, bounds = mods.describe.describe_scene(scene, dg, instances=geometry.instances)
+    return view, light, bounds, mods.pipeline.ShadowFrame(geometry, view, read=read)
+
+
+def test_the_prepass_region_holds_every_shaded_point(mods, fresh_scene):
+    """Every pixel the shading pass shades (its world position) lies in the
+    region read back from the depth target that pass reuses."""
+    view, light, bounds, frame = overlooked_frame(mods, fresh_scene, {"world_position", "covered", "map_index"})
     frame.camera_prepass()
     region, seconds = mods.visibility.region_from_frame(frame)
     assert seconds >= 0 and region.source == "depth pre-pass"
@@ -123,13 +127,7 @@ def test_the_prepass_region_holds_every_shaded_point(mods, fresh_scene):
 def test_the_prepass_surface_holds_the_shaded_point_of_each_sampled_pixel(mods, fresh_scene):
     """plane_optimal's seen surface read back from the same pre-pass: at 160 x 90 one sample per drawn pixel, row
     by row, whose segment (its depth's float32 precision) holds the point the shading pass shades there."""
-    overlook(fresh_scene)
-    dg = fresh_scene.view_layers[0].depsgraph
-    dg.update()
-    mods.context.ensure_gpu_context()
-    geometry = mods.geometry.GeometryCache().update(dg)
-    view, light, bounds = mods.describe.describe_scene(fresh_scene, dg, instances=geometry.instances)
-    frame = mods.pipeline.ShadowFrame(geometry, view, read={"world_position", "covered"})
+    view, light, bounds, frame = overlooked_frame(mods, fresh_scene, {"world_position", "covered"})
     region, _ = mods.visibility.region_from_frame(frame, surface=True)
     body = mods.warp.focused_body(view, light, bounds, visible=region)
     setup = mods.warp.compute("uniform", view, light, bounds, mods.warp.WarpOptions(shadow_map_size=256), body=body)
