@@ -5,7 +5,8 @@
  * (regions first, fallback last: ShadowSetup.map_index), a PCF k x k shadow
  * test (lixel_weight: an odd k weighs its k x k nearest texels alike; an even k
  * filters bilinearly, so the shadow moves smoothly with the point: k = 2 is
- * the bilinear PCF of graphics hardware, k = 4 a 3 x 3 box of bilinear taps) on an n-depth map (Pagot et al. §4.2: the n-shadow test counts the
+ * the bilinear PCF of graphics hardware, k = 4 a 3 x 3 box of bilinear taps)
+ * on an n-depth map (Pagot et al. §4.2: the n-shadow test counts the
  * stored keys nearer the light than the fragment, giving n + 1 outcomes per
  * sample and n*k*k + 1 per PCF(k*k, n)), and Lambert lighting in the light's
  * colour.
