@@ -33,6 +33,7 @@ from ..warp.geometry import perpendicular, translation
 from ..warp.polyhedron import face_planes, hexahedron_faces
 from ..warp.types import EmptyBodyError, Light, ShadowSetup, View, WarpError
 from . import compose, shaders
+from .blas import one_blas_thread
 from .batches import DrawList, GPUScene, shared_scene
 from .layout import LIXEL_SHADE
 from .result import ANALYSIS, RenderCounts, RenderMemory, RenderResult, check_read
@@ -589,6 +590,7 @@ def needs_data(read) -> bool:
     return bool(set(read) & {"covered", "eye_depth", "map_index", "texels_per_pixel", "world_position"})
 
 
+@one_blas_thread()
 def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, settings=None,
                    resolution: Optional[tuple[int, int]] = None, *, body=None,
                    scene: Optional[GPUScene] = None, targets: Optional[TargetPool] = None,

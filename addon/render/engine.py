@@ -29,6 +29,7 @@ from typing import Optional
 import bpy
 import numpy as np
 
+from ..gpu.blas import one_blas_thread
 from ..guard import guarded_draw, user_message
 from ..scene.owned import is_debug_object
 from ..settings import LixelSettings
@@ -149,6 +150,7 @@ def fit_warp(frame, light, bounds, options, method: str):
     return body, compute(method, frame.view, light, bounds, options, body=body), seconds
 
 
+@one_blas_thread()
 def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, settings: Optional[LixelSettings] = None,
                      warnings: Optional[list] = None, read=None, timed: bool = True, targets=None) -> dict:
     """Describe, compute and render an evaluated scene (what the engine does);
@@ -162,7 +164,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     tile: what the camera sees, ``addon.gpu.visibility``), B fitted to it and
     the warp (both kept while the geometry, view, light and settings are
     unchanged: :mod:`.warp_cache`), the depth pass, the shading pass, compose and one read-back of the
-    images in ``read`` (default: the combined image and the shadow). ``timed``: wait for the
+    images in ``read`` (default: the combined image and the shadow), all with
+    numpy's OpenBLAS at one thread (``addon.gpu.blas``). ``timed``: wait for the
     GPU after every stage so each stage's time is its own (the engine's F12
     waits once, at the read-back). ``targets``: the render targets (default:
     the process-wide pool)."""

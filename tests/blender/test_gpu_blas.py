@@ -1,0 +1,42 @@
+"""numpy's OpenBLAS runs one thread while a frame is made, and gets its own count back after."""
+import numpy as np
+import pytest
+
+from addon.gpu.blas import one_blas_thread, openblas_threads
+
+
+def test_one_thread_inside_the_block_and_the_old_count_after():
+    before = openblas_threads()
+    if not before:
+        pytest.skip("this numpy has no OpenBLAS of its own")
+    with one_blas_thread():
+        assert openblas_threads() == [1] * len(before)
+        m = np.diag([2.0, 4.0, 8.0, 1.0])
+        assert np.allclose(np.linalg.inv(m) @ m, np.eye(4))
+    assert openblas_threads() == before
+
+
+def test_the_count_comes_back_when_the_block_raises():
+    before = openblas_threads()
+    with pytest.raises(RuntimeError):
+        with one_blas_thread():
+            raise RuntimeError("a frame that fails")
+    assert openblas_threads() == before
+
+
+def test_render_shadows_makes_its_frame_with_one_thread(monkeypatch):
+    from addon.gpu import pipeline
+    before = openblas_threads()
+    if not before:
+        pytest.skip("this numpy has no OpenBLAS of its own")
+    seen = []
+
+    def frame(*args, **kwargs):
+        seen.append(openblas_threads())
+        raise RuntimeError("stop after the frame is made")
+    monkeypatch.setattr(pipeline, "ShadowFrame", frame)
+    setup = type("Setup", (), {"maps": [object()]})()
+    with pytest.raises(RuntimeError):
+        pipeline.render_shadows(None, None, setup, None)
+    assert seen == [[1] * len(before)]
+    assert openblas_threads() == before
