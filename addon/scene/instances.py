@@ -359,13 +359,14 @@ class _Reader:
                 self.chunks.append((k, flags, self.owner(name), source, r if len(refs) > 1 else None, local))
 
     def same_as(self, previous: Optional["InstanceSet"]) -> bool:
-        """Whether this read gives exactly ``previous`` (same keys, chunks and raw arrays)."""
+        """Whether this read gives exactly ``previous`` (same keys, boxes, chunks and raw arrays)."""
         old = getattr(previous, "_source", None)
         if old is None:
             return False
         key_list, chunks, sources = old
-        if key_list != self.key_list or len(chunks) != len(self.chunks) or len(sources) != len(self.sources):
-            return False
+        if key_list != self.key_list or len(chunks) != len(self.chunks) or len(sources) != len(self.sources) or \
+                not np.array_equal(np.array(self.boxes, dtype=np.float64).reshape(-1, 2, 3), previous.key_boxes):
+            return False                    # (a mesh edited in place keeps its key but not its box)
         for a, b in zip(chunks, self.chunks):
             if a[:2] != b[:2] or a[3:5] != b[3:5] or not _same_local(a[5], b[5]):
                 return False

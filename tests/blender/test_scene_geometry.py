@@ -240,3 +240,18 @@ def test_an_unchanged_scene_gives_the_same_instance_set_and_a_change_a_new_one(g
         assert cache.extractions == 3   # tree geometry, host: read once; the instances' mesh read once
     finally:
         bpy.data.node_groups.remove(ng)
+
+
+def test_a_mesh_edited_in_place_gives_new_bounds(geom, scene):
+    """Vertices moved without moving the object (edit mode, a script, another file's
+    mesh of the same name) make a new InstanceSet with the mesh's new box: B and the
+    culling are made from it, and a stale box loses or invents shadows."""
+    ob = mesh(scene, "Slab", [(0, 0, 0), (1, 0, 0), (1, 1, 0)], [(0, 1, 2)])
+    cache = geom.GeometryCache()
+    g1 = cache.update(depsgraph(scene))
+    for v in ob.data.vertices:
+        v.co.z += 3.0
+    ob.data.update()
+    g2 = cache.update(depsgraph(scene))
+    assert g2.instances is not g1.instances
+    np.testing.assert_allclose(g2.instances.world_box_array[0], [[0, 0, 3], [1, 1, 3]])
