@@ -15,7 +15,11 @@ the method and the map size changed) and sets each method's numbers against unif
 * ``corners``: the misclassified pixels within a pixel of a corner (the edge turns by more than
   :data:`TURN_DEG` within :data:`CORNER_RADIUS` pixels: shadow corners, thin and small shadows),
   where both of the texel's directions count, and the mean σ_max there;
-* ``other``: the misclassified pixels elsewhere (away from true edges: depth, bias, coverage).
+* ``other``: the misclassified pixels elsewhere (away from true edges: depth, bias, coverage);
+* ``grid angle``: the straight edges' mean angle to the nearest texel axis of their map, and how many lie within
+  :data:`ALIGNED_DEG` of one. The staircase of an edge that runs nearly along a texel axis is long: whole runs
+  of its pixels fall on one side of the true edge together, so the same |Jᵀn| gives more wrong pixels, and a
+  count that swings more with the grid's phase, than on an edge across the grid's diagonal.
 
 A ratio near the method's width ratio in each class is the texel footprint at work; the p95 ratio
 says nothing of edges that lie away from the points that set it.
@@ -25,6 +29,9 @@ staircase takes changes with it. ``--phases N`` renders each method N times, eve
 moved by a sub-texel offset (the same texels; the first phase unmoved, the others an R2 sequence,
 the same for every method), and prints the counts' mean and spread, the ratio of the means to
 uniform's and in how many phases the count is at most 0.8x uniform's at the same phase.
+
+A method ``cascade:<warp>`` is the cascade with every split's warp fixed (``cascade_warp``):
+``cascade:uniform``, ``cascade:lispsm``, ``cascade:psm``, ...
 """
 from __future__ import annotations
 
@@ -42,6 +49,8 @@ ROOT = Path(__file__).resolve().parents[1]
 CORNER_RADIUS = 2
 TURN_DEG = 35.0
 """An edge pixel is at a corner when the edge normals within CORNER_RADIUS pixels turn by more than TURN_DEG."""
+ALIGNED_DEG = 10.0
+"""A straight edge within this angle of a texel axis counts as aligned with its map's grid."""
 
 
 def corners(edges: np.ndarray, normals: np.ndarray) -> np.ndarray:
@@ -58,6 +67,32 @@ def corners(edges: np.ndarray, normals: np.ndarray) -> np.ndarray:
             cos = np.where(ok[r + dy:r + dy + h, r + dx:r + dx + w], np.einsum("ijk,ijk->ij", n, other), 1.0)
             least = np.minimum(least, cos)
     return edges & (least < math.cos(math.radians(TURN_DEG)))
+
+
+def grid_angle(view, shadow_map, points, normals, edge_normals) -> np.ndarray:
+    """Degrees (0..45) between shadow edges with unit screen normals ``edge_normals`` at (N, 3) surface ``points``
+    and the nearest texel axis of ``shadow_map``: the edge's normal in texels is Jᵀn (J = G·H⁻¹, pixels per texel,
+    ``addon.measure.footprint.across_edge_width``). NaN where w <= 0 or the surface is edge-on to the map."""
+    from addon.measure.footprint import tangent_basis
+    from addon.warp.aliasing import raster_jacobian
+    t = tangent_basis(normals)
+    g = raster_jacobian(view.world_to_clip, view.resolution, points) @ t
+    h = raster_jacobian(shadow_map.matrix, shadow_map.size, points) @ t
+    ok = np.all(np.isfinite(g), axis=(1, 2)) & np.all(np.isfinite(h), axis=(1, 2)) & (np.abs(np.linalg.det(h)) > 0)
+    out = np.full(len(g), np.nan)
+    n_texels = np.einsum("nij,ni->nj", g[ok] @ np.linalg.inv(h[ok]), np.asarray(edge_normals)[ok])
+    a = np.degrees(np.arctan2(np.abs(n_texels[:, 1]), np.abs(n_texels[:, 0])))
+    out[ok] = np.minimum(a, 90.0 - a)
+    return out
+
+
+def method_settings(method: str, size: int):
+    """``bench.rendered_error.default_settings``; ``cascade:<warp>`` fixes the cascade's ``cascade_warp``."""
+    from bench.rendered_error import default_settings
+    name, _, warp = method.partition(":")
+    settings = default_settings(name, size)
+    return settings if not warp else dataclasses.replace(
+        settings, warp=dataclasses.replace(settings.warp, cascade_warp=warp))
 
 
 def phases(count: int) -> np.ndarray:
@@ -107,9 +142,9 @@ def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1) -
     and the wrong pixels at each of ``phase_count`` grid phases (the first: the maps as computed)."""
     from addon.measure import classify, footprint_stats, setup_footprints
     from addon.measure.errors import dilate, shadow_edges
-    from addon.measure.footprint import setup_across_edge_width, shadow_edge_normals
+    from addon.measure.footprint import per_serving_map, setup_across_edge_width, shadow_edge_normals
     from addon.render.engine import render_depsgraph
-    from bench.rendered_error import default_settings, scene_with_truth
+    from bench.rendered_error import scene_with_truth
     from bench.report.analysis import lit_facing
     from bench.report.lixel import READ
     from bench.report.run import comparable_mask
@@ -124,7 +159,7 @@ def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1) -
     rows = []
     for method in methods:
         for size in sizes:
-            settings = default_settings(method, size)
+            settings = method_settings(method, size)
             last = render_depsgraph(dg, resolution, settings=settings, read=READ)
             setup, result = last["setup"], last["result"]
             shadow, counted = result.shadow_raw >= 0.5, comparable_mask(gt, result)
@@ -132,6 +167,8 @@ def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1) -
             fp, _ = setup_footprints(view, setup, gt.points[lit], gt.normals[lit])
             at_corners, _ = setup_footprints(view, setup, gt.points[corner], gt.normals[corner])
             across = setup_across_edge_width(view, setup, gt.points[straight], gt.normals[straight], edge_n[straight])
+            angle = per_serving_map(view, setup, gt.points[straight], lambda m, p, n, e: grid_angle(view, m, p, n, e),
+                                    gt.normals[straight], edge_n[straight])
             by_phase = [classify(shadow, gt.shadow, counted, 2).errors]
             for offset in phases(phase_count)[1:]:
                 with grid_phase(offset):
@@ -139,7 +176,8 @@ def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1) -
                 by_phase.append(classify(moved.shadow_raw >= 0.5, gt.shadow, comparable_mask(gt, moved), 2).errors)
             rows.append({"scene": name, "method": method, "size": size, "wrong": by_phase[0], "phases": by_phase,
                          "straight": int((wrong & straight).sum()), "corners": int((wrong & near_corner).sum()),
-                         "p95": footprint_stats(fp).p95, "across": _mean(across), "corner_smax": _mean(at_corners)})
+                         "p95": footprint_stats(fp).p95, "across": _mean(across), "corner_smax": _mean(at_corners),
+                         "grid_angle": _mean(angle), "aligned": int(np.sum(angle <= ALIGNED_DEG))})
     return rows
 
 
@@ -158,7 +196,8 @@ def table(rows: list[dict]) -> list[str]:
                      f"uniform's; p95 {ratio('p95'):.2f}x) = straight edges {r['straight']:4d} ({ratio('straight'):.2f}x; "
                      f"across-edge width {r['across']:.3f} px, {ratio('across'):.2f}x) + corners {r['corners']:4d} "
                      f"({ratio('corners'):.2f}x; σ_max {r['corner_smax']:.3f} px, {ratio('corner_smax'):.2f}x) "
-                     f"+ other {other}")
+                     f"+ other {other}; straight edges' grid angle {r['grid_angle']:.1f}°, {r['aligned']} "
+                     f"within {ALIGNED_DEG:.0f}°")
         if len(r["phases"]) > 1:
             v, uv = np.array(r["phases"]), np.array(u["phases"])
             lines.append(f"{'':>42}over {len(v)} grid phases: {v.mean():.1f} ± {v.std(ddof=1):.1f} wrong "

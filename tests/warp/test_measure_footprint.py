@@ -111,6 +111,21 @@ def test_across_edge_width_is_the_texels_screen_width_across_the_edge():
     assert np.all(width <= lin * (1 + 1e-12))
 
 
+def test_an_edge_along_a_texel_axis_has_grid_angle_zero_and_one_across_the_diagonal_45_degrees():
+    # camera straight down; a sun straight down whose map is turned 30 degrees about the vertical: an edge
+    # along that map's texel rows (or columns) is at 0, one along its diagonal at 45
+    from bench.edge_footprint import grid_angle
+    view = _top_down_view(10.0, 60, (400, 400))
+    turn = math.radians(30)
+    m = ShadowMap(ortho_matrix(-10, 10, -10, 10, 1, 100) @ look_along([0, 0, 50.0], [0, 0, -1],
+                                                                      [-math.sin(turn), math.cos(turn), 0]), (512, 512))
+    pts = np.array([[0.5, -1.0, 0.0], [2.0, 3.0, 0.0], [-1.0, 0.0, 0.0], [1.0, 1.0, 0.0]])
+    normals = [turn, turn + math.pi / 2, turn + math.pi / 4, turn + math.radians(10)]
+    edge = np.array([[math.cos(a), math.sin(a)] for a in normals])
+    got = grid_angle(view, m, pts, np.tile([0, 0, 1.0], (4, 1)), edge)
+    assert got == pytest.approx([0.0, 0.0, 45.0, 10.0], abs=1e-7)
+
+
 @pytest.mark.parametrize("normal", [(1.0, 0.0), (0.0, -1.0), (math.sqrt(0.5), math.sqrt(0.5))])
 def test_shadow_edge_normals_point_into_the_shadow_across_a_straight_edge(normal):
     from addon.measure.errors import dilate, shadow_edges
