@@ -9,12 +9,13 @@ llvmpipe's rasterizer threads) and of the wall clock:
 
 * **parts**: the working tree's ``shade_frag.glsl`` cut short after each
   step of its ``main`` (the same pass otherwise: the background pass, the
-  depth test against the pre-pass, the Combined and Shadow targets):
+  depth test against the pre-pass, the colour target with the shadow in
+  its alpha):
   a constant output; one surface fetch; the surface and normal decoded;
   + the map selection; + the lighting with no shadow test; the whole pass;
 * **settings**: the whole pass with the PCF kernel and the bias mode changed
   (PCF 1 / 2 / 3 / 5, PCF 2 filtering bilinearly; receiver plane / constant / none) and without the
-  Shadow target;
+  Shadow pass read back;
 * the floor's **trivial full-screen pass** (``bench.frame.Floor.full_screen``).
 """
 from __future__ import annotations
@@ -36,14 +37,12 @@ READ = frozenset({"combined", "shadow_mask"})
 """The engine's default passes: the Combined image and the Shadow."""
 
 CUTS = {
-    "constant output": ("  ivec2 px = ivec2(gl_FragCoord.xy);",
-                        "  out_color = vec4(1.0);\n  out_shadow = vec4(0.5);"),
-    "one surface fetch": ("  vec4 surface = texelFetch(u_surface, px, 0);",
-                          "  out_color = surface;\n  out_shadow = vec4(0.5);"),
+    "constant output": ("  ivec2 px = ivec2(gl_FragCoord.xy);", "  out_color = vec4(1.0);"),
+    "one surface fetch": ("  vec4 surface = texelFetch(u_surface, px, 0);", "  out_color = surface;"),
     "surface and normal": ("  float eye_depth = -dot(lixel.eye_row, vec4(P, 1.0));",
-                           "  out_color = vec4(N * 0.5 + 0.5, 1.0);\n  out_shadow = vec4(eye_depth, 0.0, 0.0, 1.0);"),
+                           "  out_color = vec4(N * 0.5 + 0.5, eye_depth);"),
     "+ map selection": ("  vec2 tc = (ndc.xy * 0.5 + 0.5) * vec2(size);",
-                        "  out_color = vec4(N * 0.5 + 0.5, 1.0);\n  out_shadow = vec4(tc, float(index), 1.0);"),
+                        "  out_color = vec4(N.xy * 0.5 + 0.5, tc.x + tc.y, float(index));"),
 }
 """Name -> (the line of main() after which the pass stops, what it writes then)."""
 
@@ -95,7 +94,7 @@ def measure(name: str, repeat: int) -> dict:
     _, light, _ = describe_scene(scene, dg, instances=frame.geometry.instances)
     default = ShadowSettings()
     variant = shaders.ShadeVariant(map_count=len(setup.maps), light=light.type, pcf=default.pcf_kernel,
-                                   bias=default.bias_mode, footprint=False, shadow_target=True,
+                                   bias=default.bias_mode, footprint=False, shadow_alpha=True,
                                    linear_z=shaders.agreed(m.depth_row is not None for m in setup.maps),
                                    greater=shaders.agreed(m.depth_test == "GREATER" for m in setup.maps))
     cuts = compiled_variants(shaders, variant)
@@ -113,7 +112,7 @@ def measure(name: str, repeat: int) -> dict:
     runs = {f"part: {k}": (lambda s=s: shade(default, shader=s)) for k, s in cuts.items()}
     runs.update({
         f"whole pass (the defaults: PCF {default.pcf_kernel}, receiver plane)": lambda: shade(default),
-        "whole pass, no Shadow target": lambda: shade(default, frozenset({"combined"})),
+        "whole pass, no Shadow pass read": lambda: shade(default, frozenset({"combined"})),
         "PCF 1": lambda: shade(ShadowSettings(pcf_kernel=1)),
         "PCF 2 (bilinear)": lambda: shade(ShadowSettings(pcf_kernel=2)),
         "PCF 3 (box; the default until session 3, 0.5 texel)": lambda: shade(ShadowSettings(pcf_kernel=3, constant_bias=0.5)),

@@ -56,20 +56,22 @@
  *                    (undefined where maps differ: read per map)
  *   LIXEL_BLURRED    the eye-space blur follows: out_color is the unshadowed
  *                    light (compose_frag.glsl shadows it after the blur)
- *   LIXEL_SHADOW_TARGET / LIXEL_FOOTPRINT / LIXEL_DATA / LIXEL_WORLD
+ *   LIXEL_SHADOW_ALPHA  the shadow goes into out_color's alpha (the Shadow
+ *                    pass; the combined image's alpha, 1, is set on read-back)
+ *   LIXEL_FOOTPRINT / LIXEL_DATA / LIXEL_WORLD
  *                    the optional targets (what the frame reads back)
  *
  * Outputs (addon/gpu/pipeline.py ShadowFrame.shade):
  *   out_color     = (ambient * albedo + direct * (1 - shadow), 1), or
- *                   (direct, 1) with LIXEL_BLURRED; direct = light * albedo / pi
- *   out_shadow    = (shadow 0..1, 0, 0, 1), LIXEL_SHADOW_TARGET
+ *                   (direct, 1) with LIXEL_BLURRED; direct = light * albedo / pi;
+ *                   alpha = the shadow 0..1 with LIXEL_SHADOW_ALPHA
  *   out_footprint = the footprint heatmap of the texels per pixel t
  *                   (log2 t / 4 clamped to [-1, 1]: red below one texel per
  *                   pixel (undersampled), green at one, blue above), LIXEL_FOOTPRINT
  *   out_data      = (shadow, map index or -1, texels per pixel, eye depth), LIXEL_DATA
  *   out_world     = (world position, 1), LIXEL_WORLD
- * Pixels no surface covers keep the targets' clear values (the world colour
- * in out_color, zero elsewhere, black in out_footprint).
+ * Pixels no surface covers get background_frag.glsl's values (the world
+ * colour in out_color, with no shadow; zero elsewhere, black in out_footprint).
  * Positions are relative to the frame's origin; the uniform block `lixel` is
  * declared in addon/gpu/layout.py (LIXEL_SHADE). */
 #define LIXEL_PI 3.14159265358979
@@ -579,8 +581,8 @@ void main()
 #else
   out_color = vec4(direct * (1.0 - shadow) + lixel.ambient.rgb * lixel.light_color.w, 1.0);
 #endif
-#ifdef LIXEL_SHADOW_TARGET
-  out_shadow = vec4(shadow, 0.0, 0.0, 1.0);
+#ifdef LIXEL_SHADOW_ALPHA
+  out_color.a = shadow;
 #endif
 #ifdef LIXEL_FOOTPRINT
   out_footprint = lixel_footprint_colour(texels_per_pixel);

@@ -433,13 +433,12 @@ class ShadowFrame:
             bias=shadow.bias_mode, regions=any(m.region is not None for m in setup.maps),
             ranges=any(m.view_depth_range is not None for m in setup.maps),
             blends=any(m.blend_band > 0 and m.view_depth_range is not None for m in setup.maps), blurred=blurred,
-            shadow_target=not blurred and bool(read & {"shadow_mask", "shadow_raw"}),
+            shadow_alpha=not blurred and bool(read & {"shadow_mask", "shadow_raw"}),
             footprint="footprint_heatmap" in read, data=needs_data(read) or blurred, world=world,
             linear_z=shaders.agreed(m.depth_row is not None for m in setup.maps),
             greater=shaders.agreed(m.depth_test == "GREATER" for m in setup.maps))
         ambient = tuple(float(c) for c in ambient)
         spec = [("color", "RGBA32F")]
-        spec += [("shadow", "R32F")] if variant.shadow_target else []
         spec += [("footprint", "RGBA32F")] if variant.footprint else []
         spec += [("data", "RGBA32F")] if variant.data else []
         spec += [("world", "RGBA32F")] if world else []
@@ -457,7 +456,8 @@ class ShadowFrame:
             gpu.state.depth_test_set("LESS_EQUAL")
             bg = shaders.background_shader(variant)
             bg.bind()
-            bg.uniform_float("u_background", (0.0, 0.0, 0.0, 0.0) if blurred else (*ambient, 1.0))
+            bg.uniform_float("u_background", (0.0, 0.0, 0.0, 0.0) if blurred else
+                             (*ambient, 0.0 if variant.shadow_alpha else 1.0))
             compose.fullscreen_batch().draw(bg)
             sh = shaders.shade_shader(variant)
             sh.bind()
@@ -488,8 +488,10 @@ class ShadowFrame:
 
     def combined_texture(self):
         """The combined image as a GPU texture (RGBA32F, the frame's size), not read
-        back: for drawing it (the viewport's picture-in-picture). Valid until the
-        targets are used by another frame."""
+        back: for drawing it (the viewport's picture-in-picture). Its alpha is
+        the shadow when the frame reads the shadow back (``shade(read=...)``
+        with "shadow_mask" or "shadow_raw"; see ``ShadeVariant.shadow_alpha``),
+        1 otherwise. Valid until the targets are used by another frame."""
         if self._shaded is None:
             raise WarpError("combined_texture() needs shade() first")
         if self._shaded["variant"].blurred:
@@ -513,7 +515,7 @@ class ShadowFrame:
         missing = (read & {"world_position"} if not variant.world else set()) | \
             (read & (data_images - {"shadow_raw"}) if not variant.data else set()) | \
             (read & {"footprint_heatmap"} if not variant.footprint else set()) | \
-            (read & {"shadow_mask", "shadow_raw"} if not (variant.shadow_target or variant.blurred) else set())
+            (read & {"shadow_mask", "shadow_raw"} if not (variant.shadow_alpha or variant.blurred) else set())
         if missing:
             raise WarpError(f"{', '.join(sorted(missing))}: made only when shade(read=...) asks for them")
         t = time.perf_counter()
@@ -530,10 +532,18 @@ class ShadowFrame:
 
         t = time.perf_counter()
         out = RenderResult()
-        if "combined" in read:
-            out.combined = compose.read_color(combined_fb, 0, size) if combined_fb else self._read_target("color")
-        if "shadow_mask" in read:
-            out.shadow_mask = compose.read_color(mask_fb, 0, size, 1) if mask_fb else self._read_target("shadow", 1)
+        if variant.shadow_alpha and read & {"combined", "shadow_mask", "shadow_raw"}:
+            # One read of the colour target: its alpha is the shadow, the combined image's is 1.
+            colour = self._read_target("color")
+            shadow = np.ascontiguousarray(colour[..., 3])
+            colour[..., 3] = 1.0
+            out.combined = colour if "combined" in read else None
+            out.shadow_mask = shadow if "shadow_mask" in read else None
+        else:
+            if "combined" in read:
+                out.combined = compose.read_color(combined_fb, 0, size) if combined_fb else self._read_target("color")
+            if "shadow_mask" in read:
+                out.shadow_mask = compose.read_color(mask_fb, 0, size, 1)
         if "footprint_heatmap" in read:
             out.footprint_heatmap = self._read_target("footprint")
         if preview is not None:
@@ -555,7 +565,7 @@ class ShadowFrame:
                 world = self._read_target("world")
                 out.world_position = np.where(covered[..., None], world[..., :3] + self.origin, np.nan)
         elif "shadow_raw" in read:
-            out.shadow_raw = out.shadow_mask if out.shadow_mask is not None else self._read_target("shadow", 1)
+            out.shadow_raw = shadow
         if "shadow_maps" in read:
             out.shadow_maps = [compose.read_depth(f, tuple(int(v) for v in m.size))
                                for (_, f), m in zip(self.maps, self.setup.maps)]
@@ -576,8 +586,7 @@ class ShadowFrame:
             per_map_bytes=map_bytes,
             mdsm_bytes_per_layer=list(map_bytes) if self.keys else [],
             mdsm_texture_bytes=[b * 4 for b in map_bytes] if self.keys else [],
-            render_target_bytes=w * h * (4 + 16 + 4 * variant.shadow_target + 16 * (variant.footprint + variant.data +
-                                                                              variant.world)),
+            render_target_bytes=w * h * (4 + 16 + 16 * (variant.footprint + variant.data + variant.world)),
         )
         out.timings = dict(self.timings)
         out.counts = c

@@ -102,8 +102,11 @@ class ShadeVariant:
     """Some map has a blend band (a cascade's seams)."""
     blurred: bool = False
     """The eye-space blur follows: the colour target gets the unshadowed light."""
-    shadow_target: bool = True
-    """Write the shadow into a target of its own (the Shadow pass)."""
+    shadow_alpha: bool = True
+    """Write the shadow (the Shadow pass) into the colour target's alpha; the
+    combined image's alpha, always 1, is set when it is read back
+    (``ShadowFrame.finish``). A second target costs the shading pass more than
+    the split costs the read-back (docs/performance.md)."""
     footprint: bool = True
     """Write the footprint heatmap (the Footprint pass)."""
     data: bool = False
@@ -124,14 +127,14 @@ class ShadeVariant:
     @property
     def outputs(self) -> tuple[str, ...]:
         """The fragment outputs, in target order."""
-        return ("out_color",) + (("out_shadow",) if self.shadow_target else ()) + \
+        return ("out_color",) + \
             (("out_footprint",) if self.footprint else ()) + (("out_data",) if self.data else ()) + \
             (("out_world",) if self.world else ())
 
     @property
     def flags(self) -> dict:
         """The GLSL defines of the optional targets."""
-        return {"LIXEL_SHADOW_TARGET": self.shadow_target, "LIXEL_FOOTPRINT": self.footprint,
+        return {"LIXEL_SHADOW_ALPHA": self.shadow_alpha, "LIXEL_FOOTPRINT": self.footprint,
                 "LIXEL_DATA": self.data, "LIXEL_WORLD": self.world}
 
 
