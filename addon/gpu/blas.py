@@ -10,9 +10,11 @@ GPU: the spinning workers take their time from the frame's rasterisation.
 
 :func:`one_blas_thread` sets the loaded OpenBLAS to one thread for the block
 and gives back the count it had (so the rest of Blender keeps its BLAS
-threads). It finds OpenBLAS among the libraries the process has loaded (Linux)
-or beside numpy; where there is none (numpy on Accelerate or MKL, Blender's
-own builds without it) it does nothing.
+threads). F12 (``render_shadows``, the engine's frame), the sidebar's live
+update and the viewport's picture-in-picture hold it. It finds OpenBLAS among
+the libraries the process has loaded (Linux) or beside numpy; where there is
+none (numpy on Accelerate or MKL, Blender's own builds without it) it does
+nothing.
 """
 from __future__ import annotations
 

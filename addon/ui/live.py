@@ -19,6 +19,7 @@ from typing import Optional
 
 import numpy as np
 
+from ..gpu.blas import one_blas_thread
 from ..guard import user_message
 from ..scene.describe import (check_finite_geometry, describe_bounds, describe_light, describe_view, light_notes,
                               pick_light)
@@ -142,6 +143,7 @@ def resolve_method(method: str) -> tuple[str, str]:
     return "uniform", f"method '{method}' is not available in this build; showing 'uniform' instead"
 
 
+@one_blas_thread()
 def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[LixelSettings] = None,
            camera=None, light_obj=None) -> LiveState:
     """Recompute the scene's Lixel state. ``changed``: a subset of ``INPUTS``

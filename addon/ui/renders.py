@@ -11,6 +11,7 @@ from typing import Optional
 
 import numpy as np
 
+from ..gpu.blas import one_blas_thread
 from ..scene.owned import find_made, mark_made
 from .live import LiveState, scene_geometry
 
@@ -124,6 +125,7 @@ def mosaic(images: list, columns: int, gap: int = 4, background=(0.0, 0.0, 0.0, 
     return out
 
 
+@one_blas_thread()
 def pip_textures(st: LiveState, depsgraph, longest: int, want_map: bool, want_scene: bool, targets=None) -> dict:
     """The picture-in-picture images as GPU textures, drawn without a read-back:
     ``"scene"`` (the camera view shaded with Lixel's shadows) and ``"map"`` (the

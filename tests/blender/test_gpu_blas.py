@@ -40,3 +40,25 @@ def test_render_shadows_makes_its_frame_with_one_thread(monkeypatch):
         pipeline.render_shadows(None, None, setup, None)
     assert seen == [[1] * len(before)]
     assert openblas_threads() == before
+
+
+def test_the_viewport_computes_and_draws_with_one_thread(monkeypatch):
+    """The sidebar's live update (the warp) and the picture-in-picture frame hold the same limit as F12."""
+    from addon.gpu import context
+    from addon.ui import live, renders
+    before = openblas_threads()
+    if not before:
+        pytest.skip("this numpy has no OpenBLAS of its own")
+    seen = []
+
+    def probe(*args, **kwargs):
+        seen.append(openblas_threads())
+        raise RuntimeError("stop once inside")
+    monkeypatch.setattr(live, "LiveState", probe)
+    monkeypatch.setattr(context, "ensure_gpu_context", probe)
+    with pytest.raises(RuntimeError):
+        live.update(type("Scene", (), {"name": "lixel_blas_probe"})())
+    with pytest.raises(RuntimeError):
+        renders.pip_textures(None, None, 64, want_map=True, want_scene=False)
+    assert seen == [[1] * len(before)] * 2
+    assert openblas_threads() == before
