@@ -194,7 +194,9 @@ def main(argv=None) -> int:
     ap.add_argument("--method", default="lispsm")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
-    rows = run(args)
+    from addon.gpu.blas import one_blas_thread
+    with one_blas_thread():   # as every frame has it (render_depsgraph)
+        rows = run(args)
     if args.json:
         json.dump(rows, sys.stdout, indent=1)
         print()
