@@ -319,7 +319,7 @@ def _region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int],
     near_s, far_s = _face_reach(view, scene.receivers, origins, dirs, t, box.ravel(), samples, lo_box, hi_box)
     box = box.reshape(ny, nx)
     # Each tile also takes its neighbouring samples (one sample spacing of padding).
-    near_s, far_s = _dilate(near_s, np.minimum, np.inf), _dilate(far_s, np.maximum, -np.inf)
+    near_s, far_s = _dilate(near_s, np.min, np.inf), _dilate(far_s, np.max, -np.inf)
     near, far = tile_reduce(near_s, far_s, tile)
     missed = selection.mask
     missed[box[box >= 0]] = False
@@ -443,23 +443,9 @@ def _box_depths(view: View, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-def _shifted(a: np.ndarray, dy: int, dx: int, fill) -> np.ndarray:
-    """``a`` moved so that out[i, j] = a[i + dy, j + dx] (``fill`` outside)."""
-    out = np.full_like(a, fill)
-    h, w = a.shape
-    out[max(0, -dy):h - max(0, dy), max(0, -dx):w - max(0, dx)] = a[max(0, dy):h - max(0, -dy) or None,
-                                                                    max(0, dx):w - max(0, -dx) or None]
-    return out
-
-
 def _dilate(a: np.ndarray, pick, fill) -> np.ndarray:
-    """``pick`` (min or max) over each sample's 3 x 3 neighbourhood."""
-    out = a.copy()
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            if dy or dx:
-                out = pick(out, _shifted(a, dy, dx, fill))
-    return out
+    """``pick`` (``np.min`` or ``np.max``) over each sample's 3 x 3 neighbourhood (``fill`` outside)."""
+    return pick(np.lib.stride_tricks.sliding_window_view(np.pad(a, 1, constant_values=fill), (3, 3)), axis=(2, 3))
 
 
 def _add_small_boxes(view: View, boxes, missed, lo_box, hi_box, samples, tile, near, far) -> None:
