@@ -253,19 +253,12 @@ def region_from_window_tiles(view: View, near, far, counts, size: tuple[int, int
                              source: str = "depth pre-pass") -> VisibleRegion:
     """A region from each tile's least and greatest window depth and drawn pixel count
     of a (W, H) depth buffer; each padded by ``DEPTH_ULPS`` before conversion to eye depth."""
-    near, far = np.asarray(near, np.float64), np.asarray(far, np.float64)
-    counts = np.asarray(counts)
-    seen = counts > 0
-    pad = DEPTH_ULPS * 2.0 ** -24
+    seen, pad = np.asarray(counts) > 0, DEPTH_ULPS * 2.0 ** -24
     with np.errstate(invalid="ignore", divide="ignore"):
-        near_eye = eye_depth_from_ndc(view, 2.0 * np.clip(near - pad, 0.0, 1.0) - 1.0)
-        far_eye = eye_depth_from_ndc(view, 2.0 * np.clip(far + pad, 0.0, 1.0) - 1.0)
-    w, h = size
-    tiles = TileDepths(tile_edges(w, tile), tile_edges(h, tile),
-                       np.where(seen, np.clip(near_eye, view.near, view.far), np.inf),
-                       np.where(seen, np.clip(far_eye, view.near, view.far), -np.inf),
-                       np.where(seen, counts, 0).astype(np.int64))
-    return VisibleRegion(tiles, source)
+        near_eye = eye_depth_from_ndc(view, 2.0 * np.clip(np.asarray(near, np.float64) - pad, 0.0, 1.0) - 1.0)
+        far_eye = eye_depth_from_ndc(view, 2.0 * np.clip(np.asarray(far, np.float64) + pad, 0.0, 1.0) - 1.0)
+    return _region(view, np.where(seen, near_eye, np.inf), np.where(seen, far_eye, -np.inf), size, tile, source,
+                   np.where(seen, counts, 0).astype(np.int64))
 
 
 def surface_from_window_depth(view: View, window_depth: np.ndarray) -> np.ndarray:
