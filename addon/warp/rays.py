@@ -31,8 +31,7 @@ def first_hits(enter, leave, t_max) -> np.ndarray:
 
 
 CHUNK = 1 << 14
-"""(ray, cluster) or (ray, box) pairs tested at once: temporaries stay small
-enough for the cache (a 10,000-box scene's every-pair arrays would not)."""
+"""(ray, cluster) or (ray, box) pairs tested at once: temporaries stay small enough for the cache."""
 
 
 def _pair_intervals(o, inv, lo, hi, rays, boxes) -> tuple[np.ndarray, np.ndarray]:

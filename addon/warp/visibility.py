@@ -23,8 +23,7 @@ PIXEL_TILE = 16
 SURFACE_SAMPLES = 1 << 14
 """At most this many pixels of a depth pre-pass make ``VisibleRegion.surface``."""
 DEPTH_ULPS = 16
-"""Float32 depth-buffer precision padded on each tile's window depth: this many
-ulps of 1.0 (2^-24 each), pushed through the hyperbolic depth to eye depth."""
+"""Ulps of 1.0 (2^-24 each, float32 depth) padded on each tile's window depth, then taken to eye depth."""
 KDOP_DIRECTIONS = 8
 """Directions across the light in which the k-DOP bounds the tiles (every 180°/8)."""
 KDOP_PAD = 1e-3

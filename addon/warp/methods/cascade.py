@@ -1,16 +1,7 @@
-"""Cascaded shadow maps (Scherzer §3: "a partitioning of the view frustum into
-subsets, each rendered into its own shadow map"; GMNPR §1), :func:`cascade`:
-
-1. C_0..C_N over ``partition.splits.tightened_depth_range``: PSSM's practical
-   splits, moved to the least largest predicted error (``partition.adaptive``),
-   or on whole octaves when stable (``partition.stable``).
-2. Split i: the view clipped to [C_i, C_(i+1) + band_i] (band_i =
-   ``cascade_blend``·(C_(i+1) - C_i), none for the last), its B_i (Scherzer §4.1)
-   and ``cascade_warp``, or with "auto" the warp of least predicted error.
-3. One ShadowSetup: the maps split by split (texels: ``partition.budget``),
-   ``view_depth_range`` tiling [near, far], ``blend_band`` fading into the next
-   split; at most ``MAX_MAPS`` maps (fewer splits otherwise).
-"""
+"""Cascaded shadow maps (Scherzer §3: "a partitioning of the view frustum into subsets, each rendered into its own
+shadow map"; GMNPR §1), :func:`cascade` (docs/papers.md, ``addon/warp/methods/cascade.py``): split depths C_0..C_N
+(``partition``); split i the view clipped to [C_i, C_(i+1) + band_i], its B_i (Scherzer §4.1) and warp; one
+ShadowSetup of every split's maps, ``view_depth_range`` tiling [near, far], at most ``MAX_MAPS`` maps."""
 from __future__ import annotations
 
 import dataclasses

@@ -1,11 +1,5 @@
-"""Split depths of least largest predicted error (Lloyd's model): a split's
-error is Lloyd's perspective aliasing at its largest over R_i's vertices (exact
-for a sun: m² = K·w³/(c·z²) is convex). :func:`minimax_splits` equalises
-E_i = k_i·w_i^p_i over log widths w_i = ln(C_(i+1)/C_i) summing to
-ln(z_f/z_n) (k_i, p_i through each split's last two errors; a secant step on
-all at once); with a shared budget it equalises p_i·E_i²/w_i (Σ E_i² least,
-``budget``). PSSM's λ splits stay unless the objective fell.
-"""
+"""Split depths of least largest predicted error E_i, Lloyd's m at its largest over R_i's vertices, equalised
+as E_i = k_i·w_i^p_i over log widths w_i (docs/papers.md, ``addon/warp/partition``)."""
 from __future__ import annotations
 
 from typing import Callable
@@ -23,8 +17,7 @@ MIN_POWER, MAX_POWER = 0.6, 3.0
 
 
 def max_error(view: View, light: Light, setup: ShadowSetup, region_world: np.ndarray) -> float:
-    """Lloyd's perspective aliasing at its largest over a convex region's
-    vertices, each in the map that serves it."""
+    """Lloyd's perspective aliasing at its largest over a convex region's vertices, each in the map that serves it."""
     from ..aliasing import perspective_aliasing
     points = np.asarray(region_world, dtype=np.float64).reshape(-1, 3)
     served = setup.map_index(points, tol=1e-6)
@@ -40,10 +33,9 @@ def objective(errors, shared_budget: bool) -> float:
 
 def minimax_splits(error_of: Callable[[int, float, float], float], splits: np.ndarray, errors: list,
                    shared_budget: bool = False) -> tuple[np.ndarray, list[float]]:
-    """The depths (ends kept) after ``ROUNDS`` equalising steps on
-    ``error_of(i, C_i, C_(i+1))`` from ``splits`` with their ``errors``, or
-    those when the :func:`objective` did not fall. Few rounds keep the result
-    continuous: a long search settles where a split's B jumps, and tips."""
+    """The depths (ends kept) after ``ROUNDS`` equalising steps on ``error_of(i, C_i, C_(i+1))`` from ``splits`` with
+    their ``errors``, or those when the :func:`objective` did not fall. Few rounds keep the result continuous: a long
+    search settles where a split's B jumps, and tips."""
     start, start_e = np.asarray(splits, dtype=np.float64), np.asarray(errors, dtype=np.float64)
     c, e = start, start_e
     power = np.ones(len(e))
@@ -65,8 +57,7 @@ def usable(errors: np.ndarray) -> bool:
 
 
 def local_power(w0, e0, w1, e1, fallback) -> np.ndarray:
-    """p_i of E_i = k_i·w_i^p_i through two measurements (``fallback`` where
-    the width barely moved)."""
+    """p_i of E_i = k_i·w_i^p_i through two measurements (``fallback`` where the width barely moved)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         p = np.log(e1 / e0) / np.log(w1 / w0)
     ok = np.isfinite(p) & (np.abs(np.log(w1 / w0)) > 1e-3)

@@ -1,16 +1,6 @@
-"""z-partitioning of the view (Scherzer §3): z_n = C_0 < ... < C_N = z_f,
-split i the slab C_i <= eye depth <= C_(i+1) of the view frustum V.
-
-PSSM's practical scheme (Zhang et al.) blends the logarithmic split (equal
-depth ratios, the ideal for perspective aliasing) with the uniform one:
-
-    C_i = λ·z_n·(z_f/z_n)^(i/N) + (1 - λ)·(z_n + (z_f - z_n)·i/N).
-
-[z_n, z_f] is tightened to where a shadowed receiver can be seen: z_n the
-nearest visible receiver (PSM §6, ``post_perspective.nearest_visible_depth``),
-z_f R's farthest depth, both within the visible region's depths and a
-caller's ``WarpOptions.visible_depth_range``.
-"""
+"""z-partitioning of the view (Scherzer §3): z_n = C_0 < ... < C_N = z_f, split i the slab C_i <= eye depth <=
+C_(i+1) of V, by PSSM's practical scheme C_i = λ·z_n·(z_f/z_n)^(i/N) + (1 - λ)·(z_n + (z_f - z_n)·i/N) over
+[z_n, z_f] tightened to the visible receivers (docs/papers.md, ``addon/warp/partition``)."""
 from __future__ import annotations
 
 import numpy as np

@@ -1,11 +1,6 @@
-"""Stable cascades: every world point keeps its texel while the camera moves.
-B_i is the view frustum's, never the visible region's (its tiles jump with the camera), the range widens to whole
-octaves and every warp is uniform. A sun split is uniform's map with texel snapping (``methods.common.snapped_window``:
-a world-fixed frame, the window around B_i on a ladder of sizes, its corner on whole texels; tighter than stable CSM's
-bounding sphere of the slab, which holds the empty frustum too and coarsens every edge). A spot split is the spot's own
-perspective, its window on the same kind of ladder, its corner on whole texels. A point light's faces turn with B: not
-stable. Filament's ``ShadowOptions.stable`` likewise gives up every resolution gain that moves with the camera.
-"""
+"""Stable cascades: every world point keeps its texel while the camera moves (docs/papers.md,
+``addon/warp/partition``): B_i of the view frustum, whole octaves, uniform warps; a sun split is uniform's snapped
+map, a spot split the spot's own perspective on a ladder of windows, its corner on whole texels; points: not stable."""
 from __future__ import annotations
 
 import math
@@ -30,8 +25,7 @@ def stable_depth_range(z_n: float, z_f: float, view: View) -> tuple[float, float
 
 
 def stable_spot_map(light: Light, body: IntersectionBody, size: tuple[int, int], max_angle: float) -> ShadowMap | None:
-    """A split's spot map on a world-fixed image plane, or None when B_i leaves
-    ``max_angle`` around the spot's axis."""
+    """A split's spot map on a world-fixed image plane, or None when B_i leaves ``max_angle`` around the spot's axis."""
     eye = look_along(light.position, light.direction, image_up(WORLD_UP, WORLD_NORTH, light.direction))
     rel = body.vertices @ eye[:3, :3].T + eye[:3, 3]
     depth = -rel[:, 2]                                   # along the spot's axis
