@@ -9,6 +9,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .culling import BoxIndex
+from .geometry import perpendicular
 from .polyhedron import box_corners
 from .rays import ray_index, slab_intervals
 from .types import EmptyBodyError, Light, SceneBounds, View, WarpOptions
@@ -106,14 +107,10 @@ class VisibleRegion:
             x, y = h[:, 0] / h[:, 3], h[:, 1] / h[:, 3]
         d = view.eye_depth(p)
         t = self.tiles
-        col = np.searchsorted(t.x_edges, x, side="right") - 1
-        row = np.searchsorted(t.y_edges, y, side="right") - 1
-        # A point on the last edge belongs to the last tile.
-        col = np.where(x == t.x_edges[-1], len(t.x_edges) - 2, col)
-        row = np.where(y == t.y_edges[-1], len(t.y_edges) - 2, row)
-        ok = (h[:, 3] > 0) & (col >= 0) & (col < len(t.x_edges) - 1) & (row >= 0) & (row < len(t.y_edges) - 1)
-        c, r = np.where(ok, col, 0), np.where(ok, row, 0)
-        near, far = t.near[r, c], t.far[r, c]
+        # The tile among the inner edges (a point on the last edge belongs to the last tile).
+        col, row = np.searchsorted(t.x_edges[1:-1], x, side="right"), np.searchsorted(t.y_edges[1:-1], y, side="right")
+        ok = (h[:, 3] > 0) & (x >= t.x_edges[0]) & (x <= t.x_edges[-1]) & (y >= t.y_edges[0]) & (y <= t.y_edges[-1])
+        near, far = t.near[row, col], t.far[row, col]
         return ok & (d >= near - tol * np.abs(near)) & (d <= far + tol * np.abs(far))
 
     def halfspaces(self, view: View, light: Light) -> tuple[np.ndarray, np.ndarray]:
@@ -160,12 +157,8 @@ def kdop_halfspaces(corners: np.ndarray, view: View, light: Light) -> tuple[np.n
     tightest planes parallel to ℓ or through the light), moved out by ``KDOP_PAD``."""
     base = np.zeros(3) if light.is_directional else np.asarray(light.position, dtype=np.float64)
     rel = corners - base
-    if light.is_directional:
-        ell = np.asarray(light.direction, dtype=np.float64)
-    else:
-        mid = rel.mean(axis=0)
-        length = math.sqrt(mid @ mid)
-        ell = mid / length if length > 0 else view.direction
+    mid = np.asarray(light.direction, dtype=np.float64) if light.is_directional else rel.mean(axis=0)
+    ell = mid / math.sqrt(mid @ mid) if mid @ mid > 0 else view.direction
     across = _across(ell, view)                                     # (K, 3)
     along, sideways = rel @ ell, rel @ across.T                     # (N,), (N, K)
     pad = KDOP_PAD * (float(np.ptp(corners, axis=0).max()) or 1.0)
@@ -189,17 +182,13 @@ def kdop_halfspaces(corners: np.ndarray, view: View, light: Light) -> tuple[np.n
 
 
 def _across(ell: np.ndarray, view: View) -> np.ndarray:
-    """(K, 3) unit directions across ℓ, every 180°/K from V_P (Scherzer Eq. 3), so
+    """(K, 3) unit directions across ℓ, every 180°/K from the maps' +y (``frame.image_up``: V_P, Scherzer Eq. 3), so
     the k-DOP bounds a map's own axes exactly."""
-    for v in (view.direction, view.up, np.eye(3)[int(np.argmin(np.abs(ell)))]):
-        u = v - (v @ ell) * ell
-        n = math.sqrt(u @ u)
-        if n > 1e-6:
-            break
-    u = u / n
-    q = np.cross(ell, u)
+    from .frame import image_up                      # (frame imports body, which imports this module)
+    u = image_up(view.direction, view.up, ell)
+    u = u if u.any() else perpendicular(ell)
     a = np.arange(KDOP_DIRECTIONS) * (math.pi / KDOP_DIRECTIONS)
-    return np.cos(a)[:, None] * u + np.sin(a)[:, None] * q
+    return np.cos(a)[:, None] * u + np.sin(a)[:, None] * np.cross(ell, u)
 
 
 # ---------------------------------------------------------------- sources
@@ -275,15 +264,10 @@ def surface_from_window_depth(view: View, window_depth: np.ndarray) -> np.ndarra
 def sample_rays(view: View, samples: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Near-plane origins, unit directions and lengths to the far plane of rays through
     the centres of a (columns, rows) grid over the image, row 0 at the bottom."""
-    nx, ny = samples
-    x = (np.arange(nx) + 0.5) / nx * 2 - 1
-    y = (np.arange(ny) + 0.5) / ny * 2 - 1
-    gx, gy = np.meshgrid(x, y)
-    near = unproject(view, gx, gy, np.full(gx.size, view.near))
-    far = unproject(view, gx, gy, np.full(gx.size, view.far))
-    d = far - near
-    length = np.sqrt(np.einsum("ij,ij->i", d, d))
-    return near, d / length[:, None], length
+    gx, gy = np.meshgrid(*((np.arange(n) + 0.5) / n * 2 - 1 for n in samples))
+    near, far = (unproject(view, gx, gy, np.full(gx.size, depth)) for depth in (view.near, view.far))
+    length = np.sqrt(np.einsum("ij,ij->i", far - near, far - near))
+    return near, (far - near) / length[:, None], length
 
 
 def region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int] = BOX_SAMPLES,
