@@ -59,6 +59,8 @@ class VisibleRegion:
     source: str
     surface: np.ndarray | None = None
     """(N, 2, 3) world points, per sample (pixel, ray) that hit a surface: the nearest and farthest its depth allows."""
+    normals: np.ndarray | None = None
+    """(N, 3) the unit normal at each ``surface`` sample (the ray cast's faces, the pre-pass's; None: not known)."""
 
     @property
     def is_empty(self) -> bool:
@@ -292,7 +294,7 @@ def _region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int],
     # the square reaching to the neighbouring samples (a plane's depth is monotonic along each screen
     # axis), bounded by its box's own eye-depth range.
     lo_box, hi_box = _box_depths(view, scene.receivers)
-    near_s, far_s = _face_reach(view, scene.receivers, origins, dirs, t, box.ravel(), samples, lo_box, hi_box)
+    near_s, far_s, normals = _face_reach(view, scene.receivers, origins, dirs, t, box.ravel(), samples, lo_box, hi_box)
     box = box.reshape(ny, nx)
     # Each tile also takes its neighbouring samples (one sample spacing of padding).
     near_s, far_s = _dilate(near_s, np.min, np.inf), _dilate(far_s, np.max, -np.inf)
@@ -302,24 +304,25 @@ def _region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int],
     _add_small_boxes(view, scene.receivers, missed, lo_box, hi_box, samples, tile, near, far)
     hit = np.flatnonzero(box >= 0)
     return replace(_region(view, near, far, samples, tile, "scene boxes", tile_counts(box >= 0, tile)),
-                   surface=(origins[hit] + t[hit, None] * dirs[hit])[:, None].repeat(2, axis=1))
+                   surface=(origins[hit] + t[hit, None] * dirs[hit])[:, None].repeat(2, axis=1), normals=normals)
 
 
 def _face_reach(view: View, boxes, origins, dirs, t, box, samples, lo_box, hi_box):
     """Per ray sample, the eye-depth interval of the face it hit over the square out
-    to its neighbouring samples, within the hit box's depth range."""
+    to its neighbouring samples, within the hit box's depth range; each hit's face normal."""
     nx, ny = samples
     hit = np.flatnonzero(box >= 0)
     near = np.full(nx * ny, np.inf)
     far = np.full(nx * ny, -np.inf)
-    if not len(hit):
-        return near.reshape(ny, nx), far.reshape(ny, nx)
     b = boxes[box[hit]]                                                      # (H, 2, 3)
     p = origins[hit] + t[hit, None] * dirs[hit]
     # The face hit: the box boundary plane nearest the hit point.
     gap = np.abs(np.concatenate([p - b[:, 0], p - b[:, 1]], axis=1))        # (H, 6)
     face = gap.argmin(axis=1)
     axis, side = face % 3, face // 3
+    normals = np.eye(3)[axis] * (2.0 * side - 1.0)[:, None]
+    if not len(hit):
+        return near.reshape(ny, nx), far.reshape(ny, nx), normals
     plane = b[np.arange(len(hit)), side, axis]
     # The square's corners in NDC (one sample spacing out, within the image).
     col, row = hit % nx, hit // nx
@@ -353,7 +356,7 @@ def _face_reach(view: View, boxes, origins, dirs, t, box, samples, lo_box, hi_bo
         lo[whole], hi[whole] = _box_depths_in_squares(view, b[whole], square[:, 0], square[:, 3], lo[whole], hi[whole])
     near[hit] = np.where(whole, lo, np.maximum(np.nanmin(np.where(whole[:, None], 0.0, d), axis=1), lo))
     far[hit] = np.where(whole, hi, np.minimum(np.nanmax(np.where(whole[:, None], 0.0, d), axis=1), hi))
-    return near.reshape(ny, nx), far.reshape(ny, nx)
+    return near.reshape(ny, nx), far.reshape(ny, nx), normals
 
 
 def _box_depths_in_squares(view: View, boxes, low, high, lo, hi) -> tuple[np.ndarray, np.ndarray]:

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Optional
 
 import numpy as np
@@ -16,6 +16,7 @@ from ..diagnostics import Diagnostics
 from ..frame import body_light_angles
 from ..partition.adaptive import max_error, minimax_splits
 from ..partition.budget import shared_sizes
+from ..partition.receivers import footprint_p95, footprints, receivers, turned
 from ..partition.splits import practical_splits, split_region, split_view, tightened_depth_range
 from ..partition.stable import stable_depth_range, stable_spot_map
 from ..types import EmptyBodyError, Light, SceneBounds, ShadowSetup, View, WarpError, WarpOptions
@@ -26,8 +27,8 @@ from .uniform import uniform
 
 SPLIT_WARPS = {"uniform": uniform, "lispsm": lispsm, "gmnpr": gmnpr, "psm": psm}
 """A split's warps, in the order "auto" prefers them on a tie."""
-TIE = 1e-6
-"""Relative error difference "auto" treats as a tie (no pick by rounding noise)."""
+TIE, MARGIN = 1e-6, 0.03
+"""Relative differences of Lloyd's m (rounding noise) and of the receivers' p95 (a sample) taken as ties."""
 MAX_MAPS = 8
 """The most maps the shading pass reads (``addon.gpu.shaders.MAX_MAPS``)."""
 OVERLAP = 1e-4
@@ -45,6 +46,7 @@ class Split:
     warp: str = "uniform"
     setup: Optional[ShadowSetup] = None
     predicted_error: float = 0.0
+    tried: list = field(default_factory=list)   # (warp, setup) of each warp it tried
 
 
 def split_setup(warp: str, view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
@@ -102,13 +104,36 @@ def build_split(view: View, light: Light, scene: SceneBounds, near: float, far: 
         error = max_error(split.view, light, setup, split.body.visible_vertices)
         if split.setup is None or error < split.predicted_error * (1.0 - TIE):
             split.warp, split.setup, split.predicted_error = name, setup, error
+        split.tried.append((name, setup))
     return split
+
+
+def least_footprint(view: View, light: Light, splits: list, visible: Optional[VisibleRegion]) -> list:
+    """``splits`` with the maps (its warps' or those ``turned``) of least p95 ``footprints`` at the ``receivers``,
+    where known: coordinate descent from Lloyd's picks (two sweeps), kept if ``MARGIN`` below theirs."""
+    scored = []
+    for s in splits:
+        seen = None if s.setup is None else receivers(view, light, visible, s.near, s.far)
+        if seen is not None:                                                    # Lloyd's pick first
+            maps = sorted(s.tried, key=lambda t, s=s: t[1] is not s.setup)
+            maps += [(w, dataclasses.replace(m, maps=[dataclasses.replace(m.maps[0], matrix=turn)]))
+                     for w, m in maps if len(m.maps) == 1 for turn in turned(m.maps[0].matrix, s.body.vertices)]
+            scored.append((s, [(w, m, footprints(m, seen)) for w, m in maps]))
+    error = lambda picks: footprint_p95([c[k][2] for (_, c), k in zip(scored, picks)])  # noqa: E731
+    pick = [0] * len(scored)
+    for i in [*range(len(scored))] * 2:
+        pick[i] = min(range(len(scored[i][1])), key=lambda k: error(pick[:i] + [k] + pick[i + 1:]))
+    if scored and error(pick) < (1.0 - MARGIN) * error([0] * len(scored)):
+        for (s, c), k in zip(scored, pick):
+            s.warp, s.setup, _ = c[k]
+            s.predicted_error = max_error(s.view, light, s.setup, s.body.visible_vertices)
+    return splits
 
 
 def split_depths(view: View, light: Light, scene: SceneBounds, body: IntersectionBody,
                  options: WarpOptions) -> tuple[np.ndarray, list, str]:
-    """C_0..C_N, their splits and the scheme. The adaptive search keeps each
-    split's warp from the λ splits; where it settles, every warp competes again."""
+    """C_0..C_N, their splits and the scheme. The adaptive search keeps each split's warp from the λ splits; where it
+    settles, every warp competes again (and their turned maps at known receivers: ``least_footprint``)."""
     if options.cascade_stable:      # B of the view frustum: the visible region's tiles jump as the camera moves
         body = intersection_body(view, light, scene)
     z_n, z_f = tightened_depth_range(view, light, body, options)
@@ -132,7 +157,8 @@ def split_depths(view: View, light: Light, scene: SceneBounds, body: Intersectio
                                            [kept[i]], body.visible, bodies).predicted_error
     moved, _ = minimax_splits(error_of, depths, [s.predicted_error for s in splits],
                               options.cascade_budget == "shared")
-    return moved, splits if np.array_equal(moved, depths) else splits_at(moved), "adaptive"
+    splits = splits if np.array_equal(moved, depths) else splits_at(moved)
+    return moved, least_footprint(view, light, splits, body.visible), "adaptive"
 
 
 def cascade_maps(view: View, light: Light, splits: list, options: WarpOptions) -> tuple[list, list]:

@@ -1,0 +1,66 @@
+"""The receivers' footprint (docs/papers.md, "The receivers' footprint"): where receivers are nearly edge-on to the
+light (PSM §1.1's cos α) Lloyd's m is blind, and how the texel axes lie against them sets the p95."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..aliasing import raster_jacobian
+from ..fit import divided, fit_to_unit_cube
+from ..geometry import transform_h
+from ..polyhedron import convex_polygon_on_plane
+from ..types import Light, ShadowSetup, View, WarpError
+from ..visibility import VisibleRegion
+
+def receivers(view: View, light: Light, region: VisibleRegion | None, near: float, far: float) -> tuple | None:
+    """(p, tangent bases T (N, 3, 2), G = D_view·T) of the ``region``'s ``surface`` samples with known ``normals``
+    at eye depths [near, far) that the light reaches (a spot's cone); None if there are none."""
+    if region is None or region.normals is None:
+        return None
+    p, n = region.surface[:, 0], region.normals
+    k = (view.eye_depth(p) >= near) & (view.eye_depth(p) < far)
+    if light.type == "SPOT":
+        k &= light.rays_to(p) @ light.direction >= np.cos(light.spot_angle / 2)
+    p, n = p[k], n[k]
+    t1 = np.cross(n, np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]]))
+    tangent = np.stack([t1, np.cross(n, t1)], axis=2) / np.linalg.norm(t1, axis=1)[:, None, None]
+    return (p, tangent, raster_jacobian(view.world_to_clip, view.resolution, p) @ tangent) if len(p) else None
+
+
+def footprints(setup: ShadowSetup, seen: tuple) -> np.ndarray:
+    """Screen pixels per texel σ_max(G·H⁻¹) at the ``receivers`` ``seen``, H = D_map·T of the map serving each (inf
+    edge-on, NaN unserved): the judge's ``addon.measure.footprint`` (PSM §1.1), σ_max of a 2x2 by its norm and det."""
+    p, tangent, g = seen
+    served = setup.map_index(p, None, 1e-6) if len(setup.maps) > 1 else np.zeros(len(p), int)
+    out = np.full(len(p), np.nan)
+    for i, m in enumerate(setup.maps):
+        h = raster_jacobian(m.matrix, m.size, p[served == i]) @ tangent[served == i]
+        j = g[served == i] @ (np.swapaxes(h[:, ::-1, ::-1], 1, 2) * [[1.0, -1.0], [-1.0, 1.0]])   # G·H⁻¹·det H
+        f2, det_j, det_h = (j * j).sum(axis=(1, 2)), np.linalg.det(j), np.abs(np.linalg.det(h))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sigma = np.sqrt((f2 + np.sqrt(np.maximum(f2 * f2 - 4.0 * det_j * det_j, 0.0))) / 2.0) / det_h
+        out[served == i] = np.where(det_h > 1e-14 * np.max(np.abs(h), axis=(1, 2), initial=0.0) ** 2, sigma, np.inf)
+    return out
+
+
+def footprint_p95(footprints: list) -> float:
+    """The 95th percentile of the finite values of ``footprints`` (0 if none): the judge's p95, edge-on left out."""
+    v = np.concatenate(footprints)
+    return float(np.percentile(v[np.isfinite(v)], 95)) if np.isfinite(v).any() else 0.0
+
+
+def turned(matrix: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
+    """``matrix`` turned about its depth axis so that each edge of the points' image hull in turn lies along a texel
+    axis, refitted to the points (Freeman & Shapira 1975: a least enclosing rectangle has a side on a hull edge);
+    the turn is a rotation at the points' centre (the map's Jacobian there), about ℓ for a sun."""
+    j = raster_jacobian(matrix, (2, 2), points.mean(axis=0)[None])[0]
+    w, v = np.linalg.eigh(j @ j.T)
+    metric = (v / np.sqrt(w)) @ v.T                                   # (J·Jᵀ)^(-1/2): NDC to lengths across ℓ
+    try:
+        xy = divided(transform_h(matrix, points))[:, :2] @ metric.T
+    except WarpError:                                                 # an inverted map (w < 0 on B): left as it is
+        return []
+    hull = convex_polygon_on_plane(np.c_[xy, np.zeros(len(xy))], (0.0, 0.0, 1.0), 1e-9 * float(np.ptp(xy)))
+    edges = np.zeros((0, 2)) if hull is None else (np.roll(hull, -1, axis=0) - hull)[:, :2]
+    turns = [np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]]) @ metric
+             for a in np.unique(np.round(np.mod(np.arctan2(edges[:, 1], edges[:, 0]), np.pi / 2), 3))]
+    return [fit_to_unit_cube(np.vstack([t @ matrix[:2], matrix[2:]]), points) for t in turns]
