@@ -251,8 +251,9 @@ def region_from_window_tiles(view: View, near, far, counts, size: tuple[int, int
                    np.where(seen, counts, 0).astype(np.int64))
 
 
-def surface_from_window_depth(view: View, window_depth: np.ndarray) -> np.ndarray:
-    """``VisibleRegion.surface`` of an (H, W) depth buffer: every k-th pixel each way (SURFACE_SAMPLES) ± DEPTH_ULPS."""
+def surface_from_window_depth(view: View, window_depth: np.ndarray, per_pixel=None) -> tuple[np.ndarray, np.ndarray]:
+    """``VisibleRegion.surface`` of an (H, W) depth buffer: every k-th pixel each way (SURFACE_SAMPLES) ± DEPTH_ULPS;
+    and the (H, W, ...) ``per_pixel`` at those pixels (None without)."""
     h, w = window_depth.shape
     k = max(1, math.ceil(math.sqrt(h * w / SURFACE_SAMPLES)))
     d = window_depth[k // 2::k, k // 2::k]
@@ -260,7 +261,8 @@ def surface_from_window_depth(view: View, window_depth: np.ndarray) -> np.ndarra
     x, y = (cols * k + k // 2 + 0.5) * (2.0 / w) - 1, (rows * k + k // 2 + 0.5) * (2.0 / h) - 1
     ends = [np.clip(eye_depth_from_ndc(view, 2.0 * np.clip(d[rows, cols] + s * DEPTH_ULPS * 2.0 ** -24, 0.0, 1.0) - 1),
                     view.near, view.far) for s in (-1, 1)]
-    return np.stack([unproject(view, x, y, e) for e in ends], axis=1)
+    return np.stack([unproject(view, x, y, e) for e in ends], axis=1), \
+        None if per_pixel is None else per_pixel[k // 2::k, k // 2::k][rows, cols]
 
 
 def sample_rays(view: View, samples: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

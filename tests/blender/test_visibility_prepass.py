@@ -142,6 +142,18 @@ def test_the_prepass_surface_holds_the_shaded_point_of_each_sampled_pixel(mods, 
     assert (gap <= 1e-4 * np.linalg.norm(points - view.position, axis=1)).all()
 
 
+def test_the_prepass_surface_samples_carry_their_faces_normals(mods, fresh_scene):
+    """The cascade scores its maps by the footprint at the seen receivers: each sampled pixel's normal, unpacked
+    from the pre-pass's octahedral code, is its face's (the overlooked scene's faces are axis-aligned, most of them
+    the ground's)."""
+    view, light, bounds, frame = overlooked_frame(mods, fresh_scene, {"covered"})
+    region, _ = mods.visibility.region_from_frame(frame, surface=True)
+    n = region.normals
+    assert n.shape == (len(region.surface), 3) and np.allclose(np.linalg.norm(n, axis=1), 1.0)
+    assert (np.abs(n).max(axis=1) > 1 - 1e-6).all()                        # within about 1e-3 rad of an axis
+    assert (np.abs(n[:, 2]) > 1 - 1e-6).sum() > 0.5 * len(n)
+
+
 def test_on_the_terrain_view_z_n_comes_from_the_depth_prepass(mods):
     """The terrain sample: nothing is visible nearer than about 128 m, with the
     camera's near plane at 1 m. z_n follows what is seen (issue 12's diagnosis)."""

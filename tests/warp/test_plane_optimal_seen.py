@@ -82,7 +82,7 @@ def test_the_seen_surface_of_a_depth_buffer_straddles_each_sampled_point():
     floor = a + t[:, None] * (b - a)
     h = np.append(floor, np.ones((len(floor), 1)), axis=1) @ view.world_to_clip.T
     window = np.where((t > 0) & (t < 1), (h[:, 2] / h[:, 3] + 1) / 2, 1.0).reshape(300, 400).astype(np.float32)
-    surface = surface_from_window_depth(view, window)
+    surface, _ = surface_from_window_depth(view, window)
     drawn = (window < 1).sum()
     assert SURFACE_SAMPLES // 4 < len(surface) <= SURFACE_SAMPLES and len(surface) < drawn
     assert (surface[:, :, 2].min(axis=1) <= 1e-9).all() and (surface[:, :, 2].max(axis=1) >= -1e-9).all()

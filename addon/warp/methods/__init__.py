@@ -20,5 +20,5 @@ METHODS: dict[str, Callable] = {
     "cascade": cascade,
 }
 SCENE_METHODS = frozenset({"cascade"})
-SURFACE_METHODS = frozenset({"plane_optimal"})
-"""Methods that read the seen surface, ``VisibleRegion.surface`` (a depth pre-pass read back whole)."""
+SURFACE_METHODS = frozenset({"plane_optimal", "cascade"})
+"""Methods that read the seen surface, ``VisibleRegion.surface`` and ``normals`` (the pre-pass read back whole)."""
