@@ -32,8 +32,7 @@ TIE, MARGIN = 1e-6, 0.03
 MAX_MAPS = 8
 """The most maps the shading pass reads (``addon.gpu.shaders.MAX_MAPS``)."""
 OVERLAP = 1e-4
-"""Each split's B reaches this fraction of its depths past both ends (a floor
-exactly at a split depth meets it in a volume, not a face)."""
+"""Each split's B reaches this fraction of its depths past both ends (a floor at a split depth meets it in a volume)."""
 
 
 @dataclass
@@ -87,9 +86,8 @@ def split_body(view: View, light: Light, scene: SceneBounds, near: float, far: f
 def build_split(view: View, light: Light, scene: SceneBounds, near: float, far: float, band: float,
                 options: WarpOptions, warps: Optional[list] = None, visible: Optional[VisibleRegion] = None,
                 bodies: Optional[dict] = None) -> Split:
-    """Split [near, far] holding ``band`` more, its B kept in ``bodies`` by
-    depths, with the warp of lowest predicted error among ``warps`` (default:
-    those ``options`` allows)."""
+    """Split [near, far] holding ``band`` more, its B kept in ``bodies`` by depths, with the warp of lowest predicted
+    error among ``warps`` (default: those ``options`` allows)."""
     bodies = {} if bodies is None else bodies
     if (near, far + band) not in bodies:
         bodies[near, far + band] = split_body(view, light, scene, near, far + band, visible)
@@ -162,9 +160,8 @@ def split_depths(view: View, light: Light, scene: SceneBounds, body: Intersectio
 
 
 def cascade_maps(view: View, light: Light, splits: list, options: WarpOptions) -> tuple[list, list]:
-    """Every split's maps at their budgeted sizes, with depth ranges tiling
-    [near, far] (an empty split's range goes to the one before), blend bands,
-    and which split owns each."""
+    """Every split's maps at their budgeted sizes, with depth ranges tiling [near, far] (an empty split's range goes
+    to the one before), blend bands, and which split owns each."""
     filled = [i for i, s in enumerate(splits) if s.setup is not None]
     errors = [splits[i].predicted_error for i in filled for _ in splits[i].setup.maps]
     sizes = iter([options.shadow_map_size] * len(errors) if options.cascade_budget == "per_map"

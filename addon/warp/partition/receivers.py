@@ -11,12 +11,16 @@ from ..polyhedron import convex_polygon_on_plane
 from ..types import Light, ShadowSetup, View, WarpError
 from ..visibility import VisibleRegion
 
+SAMPLES = 2048
+"""At most this many of a region's receivers (every k-th) score its splits: the engine's pre-pass gives up to 16,384."""
+
 def receivers(view: View, light: Light, region: VisibleRegion | None, near: float, far: float) -> tuple | None:
     """(p, tangent bases T (N, 3, 2), G = D_view·T) of the ``region``'s ``surface`` samples with known ``normals``
     at eye depths [near, far) that the light reaches (a spot's cone); None if there are none."""
     if region is None or region.normals is None:
         return None
-    p, n = region.surface[:, 0], region.normals
+    step = max(1, -(-len(region.normals) // SAMPLES))
+    p, n = region.surface[::step, 0], region.normals[::step]
     k = (view.eye_depth(p) >= near) & (view.eye_depth(p) < far)
     if light.type == "SPOT":
         k &= light.rays_to(p) @ light.direction >= np.cos(light.spot_angle / 2)
