@@ -25,11 +25,18 @@ _CONE_ROWS = np.stack([np.cos(_CONE_ANGLES), np.sin(_CONE_ANGLES), np.ones(CONE_
 def cone_halfspaces(apex, axis, full_angle) -> tuple[np.ndarray, np.ndarray]:
     """(normals (k, 3), offsets (k,)) of the k = CONE_SIDES pyramid circumscribing the cone (apex, axis, full angle)."""
     a = normalize(axis)
-    u = perpendicular(a)
+    u = pyramid_side(a)
     widened = math.atan(math.tan(full_angle / 2) / math.cos(math.pi / CONE_SIDES))
     c, s = math.cos(widened), math.sin(widened)
     normals = _CONE_ROWS @ np.array([c * u, c * cross(a, u), -s * a])
     return normals, normals @ np.asarray(apex, dtype=np.float64)
+
+
+def pyramid_side(a) -> np.ndarray:
+    """The pyramid's first side direction: world x turned by the least rotation from straight down to the unit axis
+    ``a`` (Rodrigues), so it turns continuously with the spot; singular only pointing straight up."""
+    (ax, ay, az), k = a.tolist(), 1.0 - float(a[2])
+    return perpendicular(a) if k < 1e-9 else normalize(np.array([1.0 - ax * ax / k, -ax * ay / k, ax]))
 
 
 def light_halfspaces(light: Light, origin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

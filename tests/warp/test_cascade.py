@@ -244,8 +244,11 @@ def test_a_stable_spot_cascade_keeps_each_world_point_on_its_texel():
             for dy in (0.0, 0.013))
     assert a.diagnostics.extra["splits"] == b.diagnostics.extra["splits"] and not a.diagnostics.fallbacks
     for ma, mb in zip(a.maps, b.maps):
-        assert np.allclose(ma.matrix[[0, 1, 3], :3], mb.matrix[[0, 1, 3], :3], rtol=1e-12)
-        shift = (mb.matrix[:2, 3] - ma.matrix[:2, 3]) * np.asarray(ma.size) / 2
+        w = ma.matrix[3]
+        assert np.allclose(w, mb.matrix[3], rtol=1e-12), "the same perspective"
+        # A window moved by k texels adds k (2 / size) w to its x or y row (NDC x = row x / w).
+        shift = (mb.matrix[:2] - ma.matrix[:2]) @ w / (w @ w) * np.asarray(ma.size) / 2
+        assert np.allclose(mb.matrix[:2] - ma.matrix[:2], np.outer(shift * 2 / np.asarray(ma.size), w), atol=1e-12)
         assert np.allclose(shift, np.round(shift), atol=1e-6)
 
 
