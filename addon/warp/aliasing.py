@@ -34,9 +34,7 @@ def lispsm_inverse_n_opt(z_n, delta_z, gamma) -> float:
     finite for every γ (0 when light and view are parallel: the uniform map)."""
     z_n = max(float(z_n), 0.0)
     root = z_n + math.sqrt(z_n * (z_n + max(float(delta_z), 0.0)))
-    if root <= 0.0:
-        return math.inf
-    return abs(math.sin(folded(gamma))) / root    # (folded: exactly 0 at γ = π too)
+    return abs(math.sin(folded(gamma))) / root if root > 0.0 else math.inf    # (folded: exactly 0 at γ = π too)
 
 
 def lambda_gmnpr(theta, n, f, phi) -> float:
@@ -89,20 +87,29 @@ def lambda_no_worse_than_uniform(theta, n, f, phi) -> float:
     return max(near, far)
 
 
-def lambda_no_worse_on_average(delta, weights=None) -> float:
-    """The least λ with E[ρ²] <= 1 over the visible pixels at δ ∈ [0, 1] along B's extent (``delta``, weighted by
-    ``weights``), ∞ when m₁ >= 1/2 (the λ guard, part 2, docs/papers.md)."""
+def lambda_no_worse_on_average(delta, weights=None, body=None) -> float:
+    """The least λ with E[ρ²] <= 1 over the visible pixels at δ ∈ [0, 1] along B's extent (``delta``, ``weights``) for
+    ρ = (λ + δ)²/(λ(λ + 1)) along V_P and, given B's vertices ``body`` = (δ, (q - q_eye)/D), for the texel's longer
+    side (across: (1 + δ/λ)·range((q - q_eye)/(1 + δ/λ))/D; the λ guard, part 2, docs/papers.md); ∞: none to 1e4."""
     d = np.clip(np.asarray(delta, dtype=np.float64), 0.0, 1.0)
     w = np.ones(len(d)) if weights is None else np.asarray(weights, dtype=np.float64)
-    total = float(w.sum())
-    if not len(d) or not total > 0:
+    if not len(d) or not w.sum() > 0:
         return 0.0
-    m1, m2, m3, m4 = (float(w @ d ** k) / total for k in (1, 2, 3, 4))
-    if not m1 < 0.5:
-        return math.inf
-    roots = np.roots([4.0 * m1 - 2.0, 6.0 * m2 - 1.0, 4.0 * m3, m4])
-    real = roots.real[(np.abs(roots.imag) <= 1e-9 * np.maximum(1.0, np.abs(roots.real))) & (roots.real > 0)]
-    return float(real.max()) if len(real) else 0.0
+
+    def excess(lam):                                  # max(E[ρ²]) - 1 along and by the longer side, at λ (K, 1)
+        rho = [(lam + d) ** 2 / (lam * (lam + 1.0))]
+        if body is not None and np.ptp(body[1]) > 0:   # the texel's longer side, across or along, over uniform's
+            across = (1.0 + d / lam) * np.ptp(body[1] / (1.0 + body[0] / lam), axis=1, keepdims=True)
+            rho.append(np.maximum(across, rho[0]) / max(float(np.ptp(body[1])), 1.0))
+        return np.max([r ** 2 @ w for r in rho], axis=0) / w.sum() - 1.0
+    low, high = 1e-4, 1e4
+    for _ in range(8):                                # each pass: the last λ that fails and the next, 80 steps finer
+        grid = np.geomspace(low, high, 81)
+        bad = np.flatnonzero(excess(grid[:, None]) > 0)
+        if not len(bad) or bad[-1] == len(grid) - 1:  # (first pass only: later ones bracket low fails, high holds)
+            return math.inf if len(bad) else 0.0
+        low, high = grid[bad[-1]], grid[bad[-1] + 1]
+    return float(high)
 
 
 # ---------------------------------------------------------------- raster densities

@@ -264,3 +264,32 @@ def test_no_warp_wins_when_most_pixels_are_far_along_v_p():
     assert al.lambda_no_worse_on_average(np.full(10, 0.6)) == math.inf
     assert al.lambda_no_worse_on_average(np.linspace(0.1, 1.0, 91)) == math.inf
     assert al.lambda_no_worse_on_average(np.zeros(10)) == 0.0        # all at B's near side: any warp helps
+
+
+def test_across_v_p_the_guard_weighs_the_texels_longer_side():
+    """Across V_P the warp's texel at δ is (1 + δ/λ)·range((q - q_eye)/(1 + δ/λ))/D (the warp's x' fitted to B's
+    vertices; the uniform map's is range(q)/D, its texel along V_P 1/D on a square map); the guard also asks
+    E[ρ²] <= 1 for the texel's longer side over the uniform map's. B narrower than long (a wedge from the warp's
+    centre, q = ±(δ + λ₀)/10, or a narrow box): the longer side stays along V_P, the guard is the along-only one.
+    B wider than long and as wide at its near side as at its far side (casters beside the eye): every warp widens
+    the longer side, only the uniform map is no worse. In between, the guard asks a weaker warp than along V_P
+    alone, at which the longer side's E[ρ²] is exactly 1."""
+    rng = np.random.default_rng(1)
+    delta, weights = rng.beta(1, 4, 4000), rng.uniform(0.5, 2.0, 4000)
+
+    def body(near, far):                      # B's vertices (δ, (q - q_eye)/D): half-widths at its near and far sides
+        return np.array([0.0, 0.0, 1.0, 1.0]), np.array([-near, near, -far, far])
+    along_only = al.lambda_no_worse_on_average(delta, weights)
+    for narrow_or_wedge in (body(0.001, 0.101), body(0.01, 0.01)):
+        assert al.lambda_no_worse_on_average(delta, weights, narrow_or_wedge) == pytest.approx(along_only, rel=1e-12)
+    assert al.lambda_no_worse_on_average(delta, weights, body(1.0, 1.0)) == math.inf
+    b = body(0.6, 1.0)
+    lam = al.lambda_no_worse_on_average(delta, weights, b)
+    assert lam > 1.5 * along_only
+
+    def longer_side(x):
+        across = (1 + delta / x) * np.ptp(b[1] / (1 + b[0] / x))
+        side = np.maximum(across, (x + delta) ** 2 / (x * (x + 1))) / np.ptp(b[1])
+        return float(weights @ side ** 2 / weights.sum())
+    assert longer_side(lam) == pytest.approx(1.0, rel=1e-9)
+    assert longer_side(0.9 * lam) > 1.0 > longer_side(1.1 * lam)

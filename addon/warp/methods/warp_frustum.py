@@ -113,10 +113,7 @@ def light_at_eye(view: View, light: Light, options: WarpOptions, body: Intersect
 
 def _sin_between(v: np.ndarray, ell: np.ndarray) -> float:
     """sin of the angle between ``v`` and the unit ``ell`` (0 for a zero ``v``)."""
-    length = math.sqrt(v @ v)
-    if length == 0.0:
-        return 0.0
-    u = v / length
+    u = _unit_or_zero(v)
     across = u - (u @ ell) * ell
     return math.sqrt(across @ across)
 
@@ -273,26 +270,33 @@ def rule_glpr(g: FrameGeometry, ctx: WarpContext, phi: float, options: WarpOptio
     return _forced(options) or lambda_glpr(folded(g.gamma), ctx.z_n, ctx.z_f, phi)
 
 
-def guard_lambda(lam: float, gamma: float, axis: WarpAxis, ctx: WarpContext,
-                 scale: float = 1.0) -> tuple[float, Optional[str]]:
+def guard_lambda(lam: float, gamma: float, axis: WarpAxis, ctx: WarpContext, scale: float = 1.0,
+                 body_h: Optional[np.ndarray] = None) -> tuple[float, Optional[str]]:
     """``lam`` raised to the least λ at which the warp is no worse than the uniform map (docs/papers.md, "The λ
-    guard"), at its worst over [z_n, z_f] and over the visible pixels along ``axis``: (λ, why raised or "")."""
+    guard"), at its worst over [z_n, z_f] and over the visible pixels along ``axis`` (and across it, given B's
+    homogeneous vertices ``body_h`` and ``axis`` a FrameGeometry): (λ, why raised or "")."""
     theta = folded(gamma)
     worst = lambda_no_worse_than_uniform(theta, ctx.z_n, ctx.z_f, ctx.phi)
     mean = 0.0
     if ctx.visible is not None and axis.extent > 0 and scale > 0:
-        points, weights = ctx.visible
-        h = points @ axis.to_light[:, :3].T + axis.to_light[:, 3]
-        along = (h[:, 0] * axis.a[0] + h[:, 1] * axis.a[1]) / h[:, 3]
-        mean = lambda_no_worse_on_average((along - axis.h_min) / axis.extent, weights) * scale
+        delta = _along_across(homogeneous(ctx.visible[0]), axis)[0]
+        body = None if body_h is None else _along_across(body_h, axis, float(np.dot(axis.eye[:2], axis.b)))
+        mean = lambda_no_worse_on_average(delta, ctx.visible[1], body) * scale
     guard = max(worst, mean)
     if not guard > lam:
         return lam, None
     why = (f"its worst aliasing over the visible depths [{ctx.z_n:.4g}, {ctx.z_f:.4g}]" if worst >= mean
-           else "its aliasing over the visible pixels (the L2 norm of its texels' ratio to the uniform map's)")
+           else "its aliasing over the visible pixels (its texels' side along V_P or their longer side, L2 over them)")
     return guard, (f"λ raised from {lam:.4g} to {guard:.4g}" + (" (the uniform map)" if guard == math.inf else "")
                    + f": below it {why} would be worse than the uniform map's (θ = {math.degrees(theta):.1f}°, "
                    f"φ = {math.degrees(ctx.phi):.1f}°)")
+
+
+def _along_across(points_h: np.ndarray, axis: WarpAxis, q_0: float = 0.0) -> np.ndarray:
+    """(2, N): homogeneous world points' δ = (h - h_min)/D along ``axis``'s V_P and (q - ``q_0``)/D across it."""
+    h = points_h @ axis.to_light.T
+    x, y = h[:, 0] / h[:, 3], h[:, 1] / h[:, 3]
+    return np.array([x * axis.a[0] + y * axis.a[1] - axis.h_min, x * axis.a[1] - y * axis.a[0] - q_0]) / axis.extent
 
 
 def map_lambda(matrix: np.ndarray, frame: LightFrame) -> tuple[Optional[WarpAxis], float]:
@@ -354,9 +358,10 @@ def frame_warps(frames: list, view: View, at: Optional[LightAtEye], reason: str,
             continue
         lam, guarded = rule(geo, ctx, phi, options), None
         if ctx.guard and options.lam is None:
-            # (the rules' λ is in units of all of B's extent along V_P, this frame's in its part's)
+            # (the rules' λ is in units of all of B's extent along V_P, this frame's in its part's; across V_P too for
+            # a sun's frame only: on point-light faces it left warped faces worse than unwarped, tests/warp/test_cascade)
             scale = geo.extent_world / geo.body_extent_world if geo.body_extent_world > 0 else 0.0
-            lam, guarded = guard_lambda(lam, geo.gamma, geo, ctx, scale)
+            lam, guarded = guard_lambda(lam, geo.gamma, geo, ctx, scale, frame.points_h if frame.directional else None)
         _warp_strength(w, geo, lam, guarded)
         warp[k] = warp_matrix(geo, w.mu)
     for w, matrix in zip(warps, fit_runs(warp, b_in_light_h, starts, run) @ to_light):
