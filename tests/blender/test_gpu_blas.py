@@ -24,41 +24,39 @@ def test_the_count_comes_back_when_the_block_raises():
     assert openblas_threads() == before
 
 
-def test_render_shadows_makes_its_frame_with_one_thread(monkeypatch):
-    from addon.gpu import pipeline
+@pytest.fixture
+def probe():
+    """A stand-in for what a frame calls first: it notes OpenBLAS's thread counts there and stops the frame.
+    After the test the counts must be back."""
     before = openblas_threads()
     if not before:
         pytest.skip("this numpy has no OpenBLAS of its own")
-    seen = []
 
-    def frame(*args, **kwargs):
-        seen.append(openblas_threads())
-        raise RuntimeError("stop after the frame is made")
-    monkeypatch.setattr(pipeline, "ShadowFrame", frame)
-    setup = type("Setup", (), {"maps": [object()]})()
-    with pytest.raises(RuntimeError):
-        pipeline.render_shadows(None, None, setup, None)
-    assert seen == [[1] * len(before)]
+    def stop(*args, **kwargs):
+        stop.seen.append(openblas_threads())
+        raise RuntimeError("stop once inside")
+    stop.seen, stop.one = [], [1] * len(before)
+    yield stop
     assert openblas_threads() == before
 
 
-def test_the_viewport_computes_and_draws_with_one_thread(monkeypatch):
+def test_render_shadows_makes_its_frame_with_one_thread(monkeypatch, probe):
+    from addon.gpu import pipeline
+    monkeypatch.setattr(pipeline, "ShadowFrame", probe)
+    setup = type("Setup", (), {"maps": [object()]})()
+    with pytest.raises(RuntimeError):
+        pipeline.render_shadows(None, None, setup, None)
+    assert probe.seen == [probe.one]
+
+
+def test_the_viewport_computes_and_draws_with_one_thread(monkeypatch, probe):
     """The sidebar's live update (the warp) and the picture-in-picture frame hold the same limit as F12."""
     from addon.gpu import context
     from addon.ui import live, renders
-    before = openblas_threads()
-    if not before:
-        pytest.skip("this numpy has no OpenBLAS of its own")
-    seen = []
-
-    def probe(*args, **kwargs):
-        seen.append(openblas_threads())
-        raise RuntimeError("stop once inside")
     monkeypatch.setattr(live, "LiveState", probe)
     monkeypatch.setattr(context, "ensure_gpu_context", probe)
     with pytest.raises(RuntimeError):
         live.update(type("Scene", (), {"name": "lixel_blas_probe"})())
     with pytest.raises(RuntimeError):
         renders.pip_textures(None, None, 64, want_map=True, want_scene=False)
-    assert seen == [[1] * len(before)] * 2
-    assert openblas_threads() == before
+    assert probe.seen == [probe.one] * 2
