@@ -99,12 +99,6 @@ class IntersectionBody:
         return moved[key]
 
 
-def _box_halfspaces(box, pad: float) -> tuple[np.ndarray, np.ndarray]:
-    """The facets (``polyhedron.BOX_NORMALS``) of the box [lo, hi] widened by ``pad``."""
-    lo, hi = np.asarray(box, dtype=np.float64)
-    return BOX_NORMALS, box_offsets(lo, hi) + pad
-
-
 def view_frustum(view: View, origin: np.ndarray, tol: float | None = None) -> ConvexPolytope:
     """V relative to ``origin``, with the tolerance ``tol`` (default: relative to its size)."""
     corners = view.corners() - origin
@@ -149,7 +143,7 @@ def intersection_body(view: View, light: Light, scene: SceneBounds,
     tol = RELATIVE_TOLERANCE * max(scale, float(np.abs(s_r).max()))
 
     # R = V ∩ S_r ∩ L.
-    bn, bo = _box_halfspaces(s_r, max(BOX_PAD * scale, 512 * tol))
+    bn, bo = BOX_NORMALS, box_offsets(*s_r) + max(BOX_PAD * scale, 512 * tol)       # S_r, padded
     if len(ln):
         bn, bo = np.concatenate([bn, ln]), np.concatenate([bo, lo])
     r = ConvexPolytope(frustum.vertices, frustum.normals, frustum.offsets, frustum.loops, tol).clip(bn, bo)
@@ -165,7 +159,7 @@ def intersection_body(view: View, light: Light, scene: SceneBounds,
     s_c = np.array([held.min(axis=0), held.max(axis=0)])
     scale = max(math.dist(*s_c), scale)
     pad = max(BOX_PAD * scale, 512 * tol)
-    bn, bo = _box_halfspaces(s_c, pad)
+    bn, bo = BOX_NORMALS, box_offsets(*s_c) + pad
 
     # B = hull(R ∪ light) ∩ S_c; a sun's hull is closed on the face of S_c the light leaves it by.
     try:

@@ -57,13 +57,9 @@ class BoxIndex:
         self.count = len(b)
         k = CLUSTER_SIZE
         n_c = -(-self.count // k)
-        if self.count == 0:
-            self.perm = np.zeros(0, dtype=np.int64)
-            b = np.zeros((1, 2, 3))
-        else:
-            self.perm = self._clusters(b, k)
+        self.perm = self._clusters(b, k)
         # Each cluster's boxes, the last padded with copies of its last box: (6, clusters, k) lo and -hi.
-        sb = b[np.concatenate([self.perm, np.repeat(self.perm[-1:], n_c * k - self.count)])] if self.count else b[:0]
+        sb = b[np.concatenate([self.perm, np.repeat(self.perm[-1:], n_c * k - self.count)])]
         lo, hi = sb[:, 0].reshape(n_c, k, 3), sb[:, 1].reshape(n_c, k, 3)
         self.c_box_bounds = np.ascontiguousarray(np.concatenate([lo, -hi], axis=2).transpose(2, 0, 1))   # lo, -hi
         # The clusters' bounds, (6, clusters) lo and -hi (numpy reduces along a long last axis far faster

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import transform_h, transform_h_runs
+from .geometry import transform_h_runs
 from .types import WarpError
 
 NDC_PAD = 1e-7
@@ -59,8 +59,7 @@ def _axis_window(a: float, b: float, least: float) -> tuple[float, float]:
 
 def fit_to_unit_cube(transform, points) -> np.ndarray:
     """A @ transform with ``points`` filling NDC [-1, 1]^3."""
-    lo, hi = ndc_box(transform_h(transform, points))
-    return window_matrix(lo, hi) @ np.asarray(transform, dtype=np.float64)
+    return fit_keeping_points(transform, points)[0]
 
 
 def fit_keeping_points(transform, points) -> tuple[np.ndarray, np.ndarray]:

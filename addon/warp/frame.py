@@ -13,7 +13,7 @@ import numpy as np
 from .aliasing import folded
 from .body import IntersectionBody
 from .polyhedron import SNAP, ConvexPolytope, Edges, section_points
-from .geometry import across, cross, dot3, homogeneous, look_along, normalize, perpendicular
+from .geometry import across, cross, depth_coefficients, dot3, homogeneous, look_along, normalize, perpendicular
 from .types import Light, View, WarpOptions
 
 PARALLEL_BLEND = math.sin(math.radians(1.0))
@@ -190,11 +190,6 @@ def near_far(nearest: float, farthest: float, floor: float) -> tuple[float, floa
     return near, max(farthest, near * (1 + 1e-9) + floor), nearest < floor
 
 
-def depth_coefficients(near: float, far: float) -> tuple[float, float]:
-    """(A, B) of the OpenGL perspective: z_gl = A z + B, w = -z, A = -(f + n)/(f - n), B = -2fn/(f - n)."""
-    return -(far + near) / (far - near), -2 * far * near / (far - near)
-
-
 def perspective_of(view: np.ndarray, near: float, far: float) -> np.ndarray:
     """``proj @ view`` for the unit-image-plane OpenGL perspective, row by row."""
     a, b = depth_coefficients(near, far)
@@ -299,14 +294,13 @@ def pyramid_sections(poly: ConvexPolytope, sides: np.ndarray, rays: np.ndarray) 
 
 
 class FacePart(NamedTuple):
-    """A cube face's part of P (``cube_sections``)."""
+    """A cube face's part of P (``cube_sections``): the ``face``'s number in CUBE_FACES, ``points`` whose convex hull
+    is P ∩ C_face (relative to the apex), and the ``nearest`` and ``farthest`` of their depths along the face's axis."""
+
     face: int
-    """Its number in CUBE_FACES."""
     points: np.ndarray
-    """Points whose convex hull is P ∩ C_face (relative to the apex)."""
     nearest: float
     farthest: float
-    """The least and greatest of their depths along the face's axis."""
 
 
 def cube_sections(poly: ConvexPolytope, basis: np.ndarray) -> list[FacePart]:

@@ -7,9 +7,6 @@ import math
 
 import numpy as np
 
-EPS = np.finfo(np.float64).eps
-
-
 def cross(a, b) -> np.ndarray:
     """Cross products of 3-vectors along the last axis, (a × b)_i = ε_ijk a_j b_k."""
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
@@ -109,6 +106,11 @@ def look_along(eye, forward, up_hint) -> np.ndarray:
     return m
 
 
+def depth_coefficients(near: float, far: float) -> tuple[float, float]:
+    """(A, B) of the OpenGL perspective: z_gl = A z + B, w = -z, A = -(f + n)/(f - n), B = -2fn/(f - n)."""
+    return -(far + near) / (far - near), -2 * far * near / (far - near)
+
+
 def frustum_matrix(left, right, bottom, top, near, far) -> np.ndarray:
     """OpenGL glFrustum: eye space (looking down -Z) -> clip, near -> z_ndc -1."""
     m = np.zeros((4, 4))
@@ -116,8 +118,7 @@ def frustum_matrix(left, right, bottom, top, near, far) -> np.ndarray:
     m[0, 2] = (right + left) / (right - left)
     m[1, 1] = 2 * near / (top - bottom)
     m[1, 2] = (top + bottom) / (top - bottom)
-    m[2, 2] = -(far + near) / (far - near)
-    m[2, 3] = -2 * far * near / (far - near)
+    m[2, 2], m[2, 3] = depth_coefficients(near, far)
     m[3, 2] = -1.0
     return m
 

@@ -8,7 +8,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .geometry import cross, normalize, perpendicular
-from .polyhedron import ConvexPolytope, OpenCut
+from .polyhedron import ConvexPolytope, OpenCut, closed_loop
 from .types import Light
 
 CONE_SIDES = 16
@@ -98,7 +98,7 @@ class LightHull(NamedTuple):
         normals, offsets, vertices = self.normals, self.offsets, [p.vertices]
         if sun:
             m, h = np.asarray(cap[0], dtype=np.float64), cap[1]
-            loops.append(_ring(ring))
+            loops.append(closed_loop(ring))
             normals, offsets = np.concatenate([normals, [m]]), np.concatenate([offsets, [h]])
             u = self.light[:3]
             vertices.append(p.vertices + ((h - p.vertices @ m) / (m @ u))[:, None] * u)
@@ -129,18 +129,6 @@ def _grow_over_sides(loop, silhouette: set, n: int, sun: bool, ring: dict) -> li
     if sun:
         ring[n + last] = n + first
     return grown + [loop[(j + 1 + t) % k] for t in range(k - (j - i) - 1)]
-
-
-def _ring(next_vertex: dict) -> list:
-    """The sun's cap: the raised silhouette as one loop."""
-    start = min(next_vertex)
-    ring, v = [start], next_vertex[start]
-    while v != start and len(ring) <= len(next_vertex):
-        ring.append(v)
-        v = next_vertex.get(v, start)
-    if len(ring) != len(next_vertex) or v != start:
-        raise OpenCut("the silhouette is not one loop")
-    return ring
 
 
 def light_hull(p: ConvexPolytope, light_h) -> LightHull:

@@ -39,14 +39,10 @@ def light_depth_row(light: Light, body) -> Optional[np.ndarray]:
     points = body.vertices
     if light.is_directional:
         return fitted_row(np.append(light.direction, 0.0), points)
-    rays = points - light.position
-    rays = rays / np.sqrt(np.einsum("ij,ij->i", rays, rays))[:, None]
-    axes = [light_cone(points, light.position)[0]]
-    if body.polytope is not None:
-        poly = body.polytope
-        facing = poly.normals @ (light.position - body.origin) > poly.offsets
-        axes += list(-poly.normals[facing])
-    axes = np.array(axes)
+    rays = light.rays_to(points)
+    poly = body.polytope
+    facing = poly.normals @ (light.position - body.origin) > poly.offsets
+    axes = np.array([light_cone(points, light.position)[0], *-poly.normals[facing]])
     acute = (rays @ axes.T).min(axis=0)
     best = int(np.argmax(acute))
     if not acute[best] > AXIS_MARGIN:

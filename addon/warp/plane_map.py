@@ -110,7 +110,7 @@ def _targets(dst_bytes: bytes) -> tuple[np.ndarray, np.ndarray]:
         m = int(np.argmax(np.abs(y)))
         for e, j in enumerate(k for k in range(4) if k != m):
             coefficients[3 * i + e, j], coefficients[3 * i + e, m] = y[m], -y[j]
-    return coefficients, projective_frame(dst)
+    return coefficients, np.linalg.inv(_frame_inverse(dst))
 
 
 def _residual(m: np.ndarray, src: np.ndarray, dst: np.ndarray) -> float:
@@ -127,14 +127,9 @@ def _residual(m: np.ndarray, src: np.ndarray, dst: np.ndarray) -> float:
     return residual
 
 
-def projective_frame(points) -> np.ndarray:
-    """The 4x4 F with F e_i ∝ p_i and F (1, 1, 1, 1) = p_5: the columns p_1..p_4 scaled
-    by λ = [p_1 .. p_4]⁻¹ p_5 (Faugeras 1993). WarpError when four are coplanar."""
-    return np.linalg.inv(_frame_inverse(np.asarray(points, dtype=np.float64).reshape(5, 4)))
-
-
 def _frame_inverse(p: np.ndarray) -> np.ndarray:
-    """``projective_frame(p)``⁻¹ = diag(1/λ)·[p_1 .. p_4]⁻¹."""
+    """F⁻¹ = diag(1/λ)·[p_1 .. p_4]⁻¹ for the projective frame F of five points (5, 4): F e_i ∝ p_i, F (1, 1, 1, 1) =
+    p_5, its columns p_1..p_4 scaled by λ = [p_1 .. p_4]⁻¹ p_5 (Faugeras 1993). WarpError when four are coplanar."""
     try:
         columns_inverse = np.linalg.inv(p[:4].T)
     except np.linalg.LinAlgError:
@@ -247,7 +242,16 @@ def polygon_area(poly, normal) -> float:
 def offset_directions(poly, normal) -> np.ndarray:
     """Per vertex of the convex polygon, how it moves when every edge moves out by 1
     (the polygon grown by d, as ``Region.contains`` accepts it with tolerance d)."""
-    return np.array(offset_steps(np.asarray(poly, dtype=np.float64).tolist(), normal)).reshape(-1, 3)
+    out_n = edge_normals(np.asarray(poly, dtype=np.float64).tolist(), normal)
+    out = []
+    for n1, n2 in zip(out_n[-1:] + out_n[:-1], out_n):      # the edges before and after each vertex
+        s = 1.0 + n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]
+        if s > 1e-9:
+            out.append([(a + b) / s for a, b in zip(n1, n2)])
+        else:                                                # the polygon turns back on itself there
+            m = [a + b for a, b in zip(n1, n2)]
+            out.append(_unit_list(m if any(m) else list(n1)))
+    return np.array(out).reshape(-1, 3)
 
 
 def edge_normals(pts: list, normal) -> list:
@@ -261,20 +265,6 @@ def edge_normals(pts: list, normal) -> list:
         if norm > 0:
             ex, ey, ez = ex / norm, ey / norm, ez / norm
         out.append((ey * nz - ez * ny, ez * nx - ex * nz, ex * ny - ey * nx))
-    return out
-
-
-def offset_steps(pts: list, normal) -> list:
-    """``offset_directions`` of a polygon given as a list of (x, y, z), as a list."""
-    out_n = edge_normals(pts, normal)
-    out = []
-    for n1, n2 in zip(out_n[-1:] + out_n[:-1], out_n):      # the edges before and after each vertex
-        s = 1.0 + n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]
-        if s > 1e-9:
-            out.append([(a + b) / s for a, b in zip(n1, n2)])
-        else:                                                # the polygon turns back on itself there
-            m = [a + b for a, b in zip(n1, n2)]
-            out.append(_unit_list(m if any(m) else list(n1)))
     return out
 
 

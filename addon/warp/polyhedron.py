@@ -197,10 +197,9 @@ class ConvexPolytope:
         """``clip`` by vertex enumeration, for half-spaces that all cut."""
         n2, o2 = _dedupe_planes(n2, o2, self.tol, self.vertices)
         inside = (self.vertices @ n2.T - o2 <= self.tol).all(axis=1)
-        m = len(self.normals)
         n = np.concatenate([self.normals, n2])
         o = np.concatenate([self.offsets, o2])
-        return _enumerate(self.vertices[inside], n, o, _combinations3(len(n), m), self.tol,
+        return _enumerate(self.vertices[inside], n, o, _combinations3(len(n), len(self.normals)), self.tol,
                           self.incidence[inside])
 
     def section(self, normals, offsets) -> np.ndarray | None:
@@ -276,7 +275,7 @@ def _cut(vertices: list, facets: list, normal: list, offset: float, tol: float, 
             raise OpenCut("a facet crosses the plane more than twice")
         _add_edge(cap_next, back, leave)
         kept.append((facet[0], new))
-    kept.append((plane, _chain(cap_next)))
+    kept.append((plane, closed_loop(cap_next)))
     return _close_gaps(verts, kept, free) if free else (verts, kept)
 
 
@@ -295,8 +294,9 @@ def _add_edge(next_vertex: dict, a: int, b: int) -> None:
     next_vertex[a] = b
 
 
-def _chain(next_vertex: dict) -> list:
-    """The loop of the edges ``next_vertex``; OpenCut unless they close into one loop of at least three."""
+def closed_loop(next_vertex: dict) -> list:
+    """The loop of the edges ``next_vertex`` (vertex -> next vertex) from its least vertex; OpenCut unless they close
+    into one loop of at least three (a cut's new facet, a sun's cap over the silhouette)."""
     if len(next_vertex) < 3:
         raise OpenCut("the cut leaves no new facet")
     start = min(next_vertex)
@@ -619,19 +619,13 @@ def _turn(o, a, b) -> float:
 
 def hexahedron_faces(corners) -> list[np.ndarray]:
     """The six quads of 8 corners in ``UNIT_CUBE_CORNERS`` order (e.g. a view frustum)."""
-    c = np.asarray(corners, dtype=np.float64)
-    return list(c[_HEX_QUADS])
+    return list(np.asarray(corners, dtype=np.float64)[_HEX_QUADS])
 
 
 def face_planes(faces: list[np.ndarray]) -> list[Plane]:
-    """Outward half-spaces of the faces of a closed convex polyhedron."""
-    return [Plane(n, float(o)) for n, o in zip(*_face_halfspaces(faces))]
-
-
-def _face_halfspaces(faces: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Each face's plane by Newell's normal, turned outwards (faces of no area left out)."""
+    """The outward half-spaces of a closed convex polyhedron's faces, by Newell's normal (faces of no area left out)."""
     centre = np.concatenate(faces).mean(axis=0)
-    normals, offsets = [], []
+    planes = []
     for f in faces:
         f = np.asarray(f, dtype=np.float64)
         g = np.roll(f, -1, axis=0)
@@ -644,9 +638,8 @@ def _face_halfspaces(faces: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         o = float(n @ f.mean(axis=0))
         if n @ centre > o:
             n, o = -n, -o
-        normals.append(n)
-        offsets.append(o)
-    return np.array(normals).reshape(-1, 3), np.array(offsets)
+        planes.append(Plane(n, o))
+    return planes
 
 
 def _rows(rows: list) -> np.ndarray:

@@ -198,16 +198,12 @@ class SceneBounds:
         return c[key]
 
     @property
-    def all_boxes(self) -> np.ndarray:
-        return np.concatenate([self.casters, self.receivers])
-
-    @property
     def is_empty(self) -> bool:
         return len(self.casters) == 0 and len(self.receivers) == 0
 
     def aabb(self) -> Optional[np.ndarray]:
         """(2, 3) box around every caster and receiver, or None for an empty scene."""
-        b = self.all_boxes
+        b = np.concatenate([self.casters, self.receivers])
         if len(b) == 0:
             return None
         return np.array([b[:, 0].min(axis=0), b[:, 1].max(axis=0)])

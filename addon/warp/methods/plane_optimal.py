@@ -13,6 +13,7 @@ from ..diagnostics import Diagnostics
 from ..fit import window_matrix
 from ..frame import body_light_angles, light_frames
 from ..geometry import homogeneous, translation
+from ..linear_depth import fitted_row
 from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_to_polygon, corner_ray_points, default_plane,
                          enclosing_polygon, flattest_box, is_convex_polygon, min_area_twist, offset_directions,
                          plane_light_matrix, polygon_area, rotation2d)
@@ -49,7 +50,6 @@ class PlaneMap:
     height: np.ndarray           # 4-vector: height above P on the light's side, h(x) = height · (x, 1)
     fit_h: np.ndarray            # (N, 4) region slab + casters, homogeneous: all inside the map's clip volume
     depth: tuple                 # the least and greatest -h / w over fit_h (the map's z / w before its window)
-    heights: tuple               # the least and greatest h over fit_h
     pixels: list                 # (x, y) pixel coordinates of the tolerance-grown polygon
     info: dict
     twist: float = 0.0
@@ -191,9 +191,9 @@ def plane_map_of(k: int, plane: PlaneOfInterest, view: View, light: Light, body:
     if area < 1.0:
         diag.fallback(role, f"{plane.name} covers less than one pixel of the view ({area:.3g})")
         return None
-    depth, heights = (-float((h / w).max()), -float((h / w).min())), (float(h.min()), float(h.max()))
+    depth = (-float((h / w).max()), -float((h / w).min()))
     info = dict(info, pixel_area=float(area), near_clamped=near_clamped)
-    return PlaneMap(k, plane, polygon, rows, pixel, height, fit_h, depth, heights, pixels, info)
+    return PlaneMap(k, plane, polygon, rows, pixel, height, fit_h, depth, pixels, info)
 
 
 def height_above(plane: PlaneOfInterest, pi: np.ndarray, l_h: np.ndarray, tol: float,
@@ -397,17 +397,12 @@ def light_map(job: PlaneMap, s: float, origin: np.ndarray, tol: float, options: 
     to_ndc = np.array([[2.0 / wm, 0.0, -1.0], [0.0, 2.0 / hm, -1.0], [0.0, 0.0, 1.0]])
     x_row, y_row, w_row = to_ndc @ to_texel @ lixel_of_pixel(s, job.twist) @ job.pixel @ job.rows
     # Depth: the fit points' z / w = -h / w (w > 0 on them) onto [-1, 1], as the unit-cube fit pads it.
-    (zlo, zhi), (hlo, hhi) = job.depth, job.heights
+    zlo, zhi = job.depth
     win = window_matrix([-1.0, -1.0, zlo], [1.0, 1.0, zhi])
     z_row = win[2, 3] * w_row - win[2, 2] * job.height
     world = np.array([x_row, y_row, z_row, w_row]) @ translation(-origin)
-    depth_row = None
-    if options.linear_z:
-        span = max(hhi - hlo, tol)
-        pad = 1e-7 * span
-        # z = 1 at the lowest height (farthest from the light), -1 at the highest
-        k = 2.0 / (span + 2 * pad)
-        depth_row = (-k * job.height + np.array([0, 0, 0, 1.0 + k * (hlo - pad)])) @ translation(-origin)
+    # Linear depth (Scherzer §4.2): 1 at the fit points' lowest height (farthest from the light), -1 at the highest.
+    depth_row = fitted_row(-job.height, job.fit_h[:, :3]) @ translation(-origin) if options.linear_z else None
     region = Region(job.plane.normal.copy(), float(job.plane.offset), job.polygon + origin, tol)
     return ShadowMap(world, (wm, hm), "LESS", f"plane:{job.index}", region=region, depth_row=depth_row)
 
