@@ -34,7 +34,7 @@ from ..guard import guarded_draw, user_message
 from ..scene.owned import is_debug_object
 from ..settings import LixelSettings
 from ..warp import compute, focused_body
-from ..warp.methods import METHODS, SURFACE_METHODS
+from ..warp.methods import METHODS, reads_surface
 from ..warp.types import Diagnostics, EmptyBodyError, ShadowMap, ShadowSetup, WarpError
 from .warp_cache import shared_warps
 
@@ -145,7 +145,7 @@ def fit_warp(frame, light, bounds, options, method: str):
     from ..gpu.visibility import region_from_frame
     visible = seconds = None
     if options.focus == "visible":
-        visible, seconds = region_from_frame(frame, surface=method in SURFACE_METHODS)
+        visible, seconds = region_from_frame(frame, surface=reads_surface(method, options))
     body = focused_body(frame.view, light, bounds, options, visible)
     return body, compute(method, frame.view, light, bounds, options, body=body), seconds
 

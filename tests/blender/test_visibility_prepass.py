@@ -94,6 +94,31 @@ def test_the_engine_fits_the_warp_to_its_depth_prepass(mods, fresh_scene):
     assert old["setup"].diagnostics.extra["z_n"] < 0.1 * nearest_shaded
 
 
+def test_the_engine_reads_the_seen_surface_back_only_for_a_method_that_reads_it(mods, fresh_scene, monkeypatch):
+    """Issue 15's wasted work (``warp.methods.reads_surface``): a stable or a one-split cascade does not read the
+    pre-pass's surface back and gets the maps it got when it did; the adaptive cascade reads it."""
+    overlook(fresh_scene)
+    read, asked, force = mods.visibility.region_from_frame, [], []
+
+    def spy(frame, *args, surface=False, **kwargs):
+        asked.append(surface)
+        return read(frame, *args, surface=surface or bool(force), **kwargs)
+
+    def maps(**warp):
+        mods.engine.shared_warps().clear()                   # (an unchanged frame would take the last one's warp)
+        return [(m.role, m.matrix.tolist()) for m in render(mods, fresh_scene, "cascade", **warp)["setup"].maps]
+
+    monkeypatch.setattr(mods.visibility, "region_from_frame", spy)
+    for warp in (dict(cascade_stable=True), dict(cascade_splits=1)):
+        without = maps(**warp)
+        assert asked[-1] is False
+        force.append(True)
+        assert maps(**warp) == without                       # the surface read back as before: the same maps
+        force.clear()
+    maps()
+    assert asked[-1] is True
+
+
 def overlooked_frame(mods, scene, read):
     """The overlooked scene's view, light, bounds and a ShadowFrame of its camera reading back ``read``."""
     overlook(scene)

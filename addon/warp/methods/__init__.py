@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from typing import Callable
 
-from .cascade import cascade
+from ..types import WarpOptions
+from .cascade import adaptive_splits, cascade
 from .lispsm import glpr, gmnpr, lispsm
 from .plane_optimal import plane_optimal
 from .psm import psm
@@ -20,5 +21,9 @@ METHODS: dict[str, Callable] = {
     "cascade": cascade,
 }
 SCENE_METHODS = frozenset({"cascade"})
-SURFACE_METHODS = frozenset({"plane_optimal", "cascade"})
-"""Methods that read the seen surface, ``VisibleRegion.surface`` and ``normals`` (the pre-pass read back whole)."""
+
+
+def reads_surface(method: str, options: WarpOptions) -> bool:
+    """Whether ``method`` reads the seen surface, ``VisibleRegion.surface`` and ``normals`` (the pre-pass read back
+    whole): plane_optimal for its default plane (no ``planes`` given), the cascade for its adaptive splits."""
+    return (method == "plane_optimal" and not options.planes) or (method == "cascade" and adaptive_splits(options))

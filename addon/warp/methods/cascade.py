@@ -128,6 +128,11 @@ def least_footprint(view: View, light: Light, splits: list, visible: Optional[Vi
     return splits
 
 
+def adaptive_splits(options: WarpOptions) -> bool:
+    """Whether the split depths move (``minimax_splits``) and the maps are then scored at the seen receivers."""
+    return options.cascade_adaptive and options.cascade_splits > 1 and not options.cascade_stable
+
+
 def split_depths(view: View, light: Light, scene: SceneBounds, body: IntersectionBody,
                  options: WarpOptions) -> tuple[np.ndarray, list, str]:
     """C_0..C_N, their splits and the scheme. The adaptive search keeps each split's warp from the λ splits; where it
@@ -148,7 +153,7 @@ def split_depths(view: View, light: Light, scene: SceneBounds, body: Intersectio
                 for i, (a, b) in enumerate(zip(c[:-1], c[1:]))]
 
     splits = splits_at(depths)
-    if not options.cascade_adaptive or options.cascade_splits == 1 or options.cascade_stable:
+    if not adaptive_splits(options):
         return depths, splits, "practical"
     kept = [s.warp for s in splits]
     error_of = lambda i, a, b: build_split(view, light, scene, a, b, band(i, a, b), options,  # noqa: E731
