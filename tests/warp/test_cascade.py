@@ -30,7 +30,6 @@ from addon.measure.footprint import setup_texel_footprint
 from addon.warp import WarpError, WarpOptions, compute, intersection_body
 from addon.warp.aliasing import perspective_aliasing
 from addon.warp.geometry import transform_points
-from addon.warp.methods.common import SNAP_STEPS_PER_OCTAVE
 from addon.cli.config import ConfigError, parse_config
 from addon.warp.methods.cascade import SPLIT_WARPS, build_split, cascade
 from addon.warp.partition.adaptive import max_error
@@ -195,26 +194,28 @@ def test_adaptive_splits_equalise_the_predicted_errors():
 
 # ----------------------------------------------------------------------------- stable splits and budgets
 
-def test_stable_depth_ranges_are_whole_octaves_and_hold_the_range():
+def test_stable_depth_ranges_reach_from_the_near_clip_to_a_whole_octave():
     view = camera([0.0, -20.0, 5.0], [0.0, 10.0, 0.0], near=0.1, far=100.0)
-    near, far = stable_depth_range(3.7, 41.0, view)
-    assert (near, far) == (2.0, 64.0)
-    assert stable_depth_range(3.9, 44.0, view) == (near, far), "a small move of the range keeps it"
-    assert stable_depth_range(0.05, 300.0, view) == (0.1, 100.0), "within the clip range"
+    assert stable_depth_range(41.0, view) == (0.1, 64.0)
+    assert stable_depth_range(44.0, view) == (0.1, 64.0), "a small move of the range keeps it"
+    assert stable_depth_range(300.0, view) == (0.1, 100.0), "within the clip range"
 
 
-def test_a_stable_sun_split_is_the_snapped_uniform_map_of_its_body():
-    """A stable sun split is uniform's texel-snapped map of B_i (a ladder of window
-    sizes, whole-texel corners): it holds B_i, at most a ladder step and a texel
-    wider than B_i's image on each side (not the slab's bounding sphere)."""
+def test_a_stable_sun_splits_window_is_the_square_about_its_slabs_sphere():
+    """Valient (ShaderX6): a stable sun split's window is the square about the sphere around its slab of the view
+    frustum, the same side whichever way the camera turns: it holds B_i, its side the sphere's diameter and a texel."""
     view, light, scene = example("outdoor_sun")
     options = dataclasses.replace(OPTIONS, cascade_stable=True)
     setup = compute("cascade", view, light, scene, options)
-    for shadow_map, body in zip(setup.maps, setup.diagnostics.extra["split_bodies"]):
+    depths = setup.diagnostics.extra["splits"]
+    for shadow_map, body, near, far in zip(setup.maps, setup.diagnostics.extra["split_bodies"], depths, depths[1:]):
         ndc = transform_points(shadow_map.matrix, body)
         assert np.all(np.abs(ndc) <= 1 + 1e-9)
-        fill = (ndc[:, :2].max(axis=0) - ndc[:, :2].min(axis=0)) / 2
-        assert np.all(fill >= 2 ** (-1 / 8) - 2 / 1024), "no wider than a ladder step and a texel"
+        slab = split_view(view, near * (1 - 1e-4), (far + shadow_map.blend_band) * (1 + 1e-4))
+        eye = transform_points(slab.world_to_camera, slab.corners())
+        diameter = np.linalg.norm(eye.max(axis=0) - eye.min(axis=0))      # the sphere about the slab's box
+        side = 2.0 / np.linalg.norm(shadow_map.matrix[:2, :3], axis=1)
+        assert np.all(side <= diameter * (1 + 1 / 1023) * (1 + 1e-6))
 
 
 def test_stable_cascades_keep_their_splits_and_texel_grids_while_the_camera_moves():
@@ -230,9 +231,9 @@ def test_stable_cascades_keep_their_splits_and_texel_grids_while_the_camera_move
         shift = (b.matrix[:2, 3] - a.matrix[:2, 3]) * np.asarray(a.size) / 2                 # in texels
         assert np.allclose(shift, np.round(shift), atol=1e-6), "the window moves by whole texels"
     turned = compute("cascade", camera([0.0, -20.0, 5.0], [9.0, 10.0, 2.0]), light, scene, options)
-    for m in setups[0].maps + turned.maps:          # window sides on the ladder 2^(k/8): few sizes as it turns
-        steps = np.log2(2.0 / np.linalg.norm(m.matrix[:2, :3], axis=1)) * SNAP_STEPS_PER_OCTAVE
-        assert np.allclose(steps, np.round(steps), atol=1e-6)
+    assert turned.diagnostics.extra["splits"] == setups[0].diagnostics.extra["splits"]
+    for a, b in zip(setups[0].maps, turned.maps):   # the camera turned: the same window sides
+        assert np.allclose(np.linalg.norm(a.matrix[:2, :3], axis=1), np.linalg.norm(b.matrix[:2, :3], axis=1))
 
 
 def test_a_stable_spot_cascade_keeps_each_world_point_on_its_texel():

@@ -18,7 +18,7 @@ from ..partition.adaptive import max_error, minimax_splits
 from ..partition.budget import shared_sizes
 from ..partition.receivers import footprint_p95, footprints, receivers, turned
 from ..partition.splits import practical_splits, split_region, split_view, tightened_depth_range
-from ..partition.stable import stable_depth_range, stable_spot_map
+from ..partition.stable import stable_depth_range, stable_spot_map, stable_sun_map
 from ..types import EmptyBodyError, Light, SceneBounds, ShadowSetup, View, WarpError, WarpOptions
 from ..visibility import VisibleRegion
 from .lispsm import gmnpr, lispsm
@@ -54,9 +54,8 @@ def split_setup(warp: str, view: View, light: Light, body: IntersectionBody, opt
     with a split's ends (sun_behind_camera), which the adaptive splits cannot equalise; "auto"
     weighs each split's warps against the uniform map's predicted error anyway."""
     stable, size = options.cascade_stable and light.type != "POINT", options.shadow_map_size
-    if stable and light.is_directional:      # uniform's texel snapping: a world-fixed grid, a ladder of sizes
-        return uniform(view, light, body, dataclasses.replace(options, texel_snapping=True))
-    snapped = stable_spot_map(light, body, size, options.max_frustum_angle) if stable else None
+    snapped = None if not stable else stable_sun_map(light, body, view, size) if light.is_directional \
+        else stable_spot_map(light, body, size, options.max_frustum_angle)
     if snapped is not None:
         return ShadowSetup([snapped], Diagnostics("uniform", body_vertices=body.vertices))
     if warp == "psm":
@@ -141,7 +140,7 @@ def split_depths(view: View, light: Light, scene: SceneBounds, body: Intersectio
         body = intersection_body(view, light, scene)
     z_n, z_f = tightened_depth_range(view, light, body, options)
     if options.cascade_stable:
-        z_n, z_f = stable_depth_range(z_n, z_f, view)
+        z_n, z_f = stable_depth_range(z_f, view)
     depths = practical_splits(z_n, z_f, options.cascade_splits, options.cascade_lambda)
     bodies: dict = {}
 

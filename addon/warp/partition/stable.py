@@ -1,6 +1,7 @@
 """Stable cascades: every world point keeps its texel while the camera moves (docs/papers.md,
-``addon/warp/partition``): B_i of the view frustum, whole octaves, uniform warps; a sun split is uniform's snapped
-map, a spot split the spot's own perspective on a ladder of windows, its corner on whole texels; points: not stable."""
+``addon/warp/partition``): B_i of the view frustum, splits from the near clip to a whole octave, uniform warps; a sun
+split's window the square about its slab's sphere (Valient, ShaderX6: the same for any turn of the camera), a spot
+split the spot's own perspective on a ladder of windows, each corner on whole texels; points: not stable."""
 from __future__ import annotations
 
 import math
@@ -9,19 +10,19 @@ import numpy as np
 
 from ..body import IntersectionBody
 from ..fit import window_matrix
-from ..frame import WORLD_NORTH, WORLD_UP, image_up, near_far, perspective_of
-from ..geometry import look_along, transform_h
+from ..frame import WORLD_NORTH, WORLD_UP, image_up, near_far, perspective_of, world_sun_frame
+from ..geometry import UNIT_CUBE_CORNERS, look_along, transform_h, transform_points
 from ..types import Light, ShadowMap, View
 
 LADDER_STEPS = 8
 """A stable spot window's sides are 2^(k/8), about 9 % apart."""
 
 
-def stable_depth_range(z_n: float, z_f: float, view: View) -> tuple[float, float]:
-    """[z_n, z_f] widened to whole octaves (2^k), within the camera's clip range."""
-    near = max(2.0 ** math.floor(math.log2(z_n)), view.near)
+def stable_depth_range(z_f: float, view: View) -> tuple[float, float]:
+    """[near clip, z_f widened to a whole octave (2^k)] within the camera's clip range: the nearest depth seen
+    crosses octaves back and forth as the camera moves (and every split with it); the near clip stays."""
     far = min(2.0 ** math.ceil(math.log2(z_f)), view.far)
-    return near, max(far, near * (1 + 1e-9))
+    return view.near, max(far, view.near * (1 + 1e-9))
 
 
 def stable_spot_map(light: Light, body: IntersectionBody, size: tuple[int, int], max_angle: float) -> ShadowMap | None:
@@ -44,3 +45,18 @@ def stable_spot_map(light: Light, body: IntersectionBody, size: tuple[int, int],
     z = h[:, 2] / h[:, 3]
     matrix = window_matrix([*corner, z.min()], [*(corner + texel * n), z.max()]) @ to_light
     return ShadowMap(matrix, tuple(size), "LESS", "main")
+
+
+def stable_sun_map(light: Light, body: IntersectionBody, split: View, size: tuple[int, int]) -> ShadowMap:
+    """A split's map in the world-fixed sun frame: the square about the sphere (centred on the slab's box in eye
+    space) around ``split``'s slab, its corner on whole texels; depths B_i's (B_i's own image turns with the camera)."""
+    to_light = world_sun_frame(light, body).to_light
+    eye = transform_points(np.linalg.inv(split.projection), UNIT_CUBE_CORNERS)
+    centre = transform_points(split.camera_to_world, (0.5 * (eye.min(axis=0) + eye.max(axis=0)))[None])[0]
+    radius = float(np.sqrt(((split.corners() - centre) ** 2).sum(axis=1).max()))
+    n = np.asarray(size, dtype=np.float64)
+    texel = 2.0 * radius / (n - 1.0)                     # a texel to spare for the corner's rounding
+    corner = np.floor((transform_points(to_light, centre[None])[0, :2] - radius) / texel) * texel
+    z = transform_points(to_light, body.vertices)[:, 2]
+    return ShadowMap(window_matrix([*corner, z.min()], [*(corner + texel * n), z.max()]) @ to_light,
+                     tuple(size), "LESS", "main")
