@@ -199,6 +199,7 @@ class Floor:
             sh = shaders.camera_depth_shader()
             sh.bind()
             sh.uniform_float("u_view_proj", f._view_proj)
+            f.scene.draw(sh, f.solids)          # every receiver the frame draws, no face culled
             f.scene.draw(sh, f.receivers)
             gpu.state.depth_mask_set(False)
             gpu.state.depth_test_set("NONE")

@@ -51,6 +51,46 @@ class MeshData:
     def triangle_count(self) -> int:
         return len(self.triangles)
 
+    @cached_property
+    def bounds_solids(self) -> bool:
+        """Whether the triangles bound solids with their normals outwards: every
+        edge is shared by exactly two triangles wound opposite ways (a closed,
+        consistently oriented surface), and each connected part encloses a
+        positive volume (an inside-out part does not). From a point outside
+        such a mesh every ray meets one of its front faces before any of its
+        back faces, so a camera that sees it from outside may cull its back
+        faces (``addon.gpu.pipeline.ShadowFrame.camera_prepass``). Made once per
+        mesh content (this object)."""
+        t = self.triangles.astype(np.int64)
+        n = len(self.positions)
+        edges = np.sort(t * n + np.roll(t, -1, axis=1), axis=None)               # (a, b) for a -> b
+        if len(t) == 0 or np.any(edges[1:] == edges[:-1]) or \
+                not np.array_equal(edges, np.sort(np.roll(t, -1, axis=1) * n + t, axis=None)):
+            return False
+        p = self.positions.astype(np.float64)
+        p -= p.mean(axis=0)
+        volume = np.einsum("ij,ij->i", p[t[:, 0]], np.cross(p[t[:, 1]], p[t[:, 2]])) / 6.0
+        part = _parts(t, n)[t[:, 0]]
+        used = np.unique(part)
+        volumes = np.bincount(part, weights=volume, minlength=n)[used]
+        rounding = np.bincount(part, weights=np.abs(volume), minlength=n)[used] * 1e-9
+        return bool(np.all(volumes > rounding))
+
+
+def _parts(triangles: np.ndarray, vertex_count: int) -> np.ndarray:
+    """Each vertex's connected part (the least vertex index in it), joined by
+    the triangles' edges: roots hooked under the least root they meet, then
+    paths halved, until every edge joins one part."""
+    a, b = triangles.ravel(), np.roll(triangles, -1, axis=1).ravel()
+    label = np.arange(vertex_count)
+    while not np.array_equal(label[a], label[b]):
+        low = np.minimum(label[a], label[b])
+        np.minimum.at(label, label[a], low)
+        np.minimum.at(label, label[b], low)
+        while not np.array_equal(label[label], label):
+            label = label[label]
+    return label
+
 
 @dataclass(eq=False)
 class SceneGeometry:

@@ -647,7 +647,7 @@ def test_second_render_uploads_nothing(lx, scene):
     assert first.counts.uploads == 2 and gc.extractions == 2
     assert first.counts.matrix_uploads == 1 and first.counts.target_allocations > 0
     culls = gs.culls
-    assert culls == 2, "the receivers and the casters are culled"
+    assert culls == 3, "the receivers and the casters are culled, the solids seen from outside found"
     second, g2, b2 = go()
     assert gs.culls == culls, "an unchanged view and B culled again"
     c = second.counts
@@ -658,7 +658,7 @@ def test_second_render_uploads_nothing(lx, scene):
     named(scene, "Box").location.x += 0.5  # a transform: no geometry change
     third, g3, b3 = go()
     assert third.counts.uploads == 0 and third.counts.matrix_uploads == 1 and gc.extractions == 2
-    assert b3 is not b1 and g3.meshes == g1.meshes and gs.culls == culls + 2
+    assert b3 is not b1 and g3.meshes == g1.meshes and gs.culls == culls + 3
     me = named(scene, "Box").data
     me.vertices[0].co.z += 0.3
     me.update()
@@ -728,6 +728,63 @@ def test_caster_culling_counts(lx, scene):
     on_ghost = out.covered & (np.abs(out.world_position[..., 0] + 1.5) < 0.45) & \
         (np.abs(out.world_position[..., 1] + 1.5) < 0.45) & (out.world_position[..., 2] > 0.05)
     assert not on_ghost.any(), "an object hidden from the camera must not be drawn"
+
+
+def nearest_surface_errors(out, view, dg):
+    """Covered pixels whose camera ray meets geometry before the surface the frame saw there (ray-cast)."""
+    bvh = bvh_of(dg)
+    eye = Vector(view.position.tolist())
+    bad = 0
+    for p in out.world_position[out.covered][::7]:
+        d = Vector(p.tolist()) - eye
+        hit = bvh.ray_cast(eye, d.normalized(), d.length * 1.01)
+        bad += hit[0] is None or hit[3] < d.length * (1.0 - 1e-3)
+    return bad
+
+
+@pytest.mark.parametrize("where", ["outside", "inside a room"])
+def test_the_prepass_culls_back_faces_only_where_front_faces_hide_them(lx, scene, where):
+    """The camera pre-pass culls the back faces of solids seen from outside (a
+    closed box, a mirrored one), not those of an open plane, an inside-out box
+    or a room the camera stands in; every pixel still sees the nearest surface."""
+    plane(scene, size=30.0)
+    box(scene, "Solid", location=(-1.5, 0.0, 1.0))
+    box(scene, "Mirrored", location=(1.5, 0.0, 1.0)).scale = (-1.0, 1.0, 1.0)
+    inside_out = box(scene, "InsideOut", location=(0.0, 2.5, 1.0))
+    faces = [tuple(reversed(p.vertices)) for p in inside_out.data.polygons]
+    mesh_object(scene, "InsideOutMesh", [v.co for v in inside_out.data.vertices], faces, (0.0, 2.5, 1.0))
+    bpy.data.objects.remove(inside_out)
+    cam = camera(scene, (0.0, -8.0, 5.0), (0, 0, 0))
+    aim(cam, (0.0, 0.0, 1.0))
+    light(scene, "SUN", energy=3.0).rotation_euler = (math.radians(30), 0, math.radians(20))
+    if where != "outside":
+        box(scene, "Room", size=(40.0, 40.0, 40.0), location=(0.0, 0.0, 0.0))
+    dg = scene.view_layers[0].depsgraph
+    dg.update()
+    geometry = lx.geometry.GeometryCache().update(dg)
+    view, *_ = lx.describe.describe_scene(scene, dg, instances=geometry.instances)
+    frame = lx.pipeline.ShadowFrame(geometry, view, scene=lx.batches.GPUScene())
+    frame.camera_prepass()
+    assert (frame.solids.instance_count, frame.receivers.instance_count) == ((2, 2) if where == "outside" else (2, 3))
+    out, view, _, _, dg = render(lx, scene, "uniform", 512)
+    assert out.covered.mean() > (0.3 if where == "outside" else 0.999)
+    assert nearest_surface_errors(out, view, dg) == 0
+
+
+def test_a_mesh_bounds_solids_when_closed_with_normals_outwards(lx):
+    corners = np.array([(x, y, z) for z in (0, 1) for y in (0, 1) for x in (0, 1)], dtype=np.float32)
+    quads = [(0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5)]
+    cube = np.array([t for q in quads for t in ((q[0], q[1], q[2]), (q[0], q[2], q[3]))], dtype=np.int32)
+    two = np.concatenate([corners, corners + 3.0])
+
+    def solid(positions, triangles):
+        return lx.geometry.MeshData(("test",), positions, np.ascontiguousarray(triangles)).bounds_solids
+    assert solid(corners, cube)
+    assert solid(two, np.concatenate([cube, cube + 8])), "two cubes, each closed and outwards"
+    assert not solid(corners, cube[:, ::-1]), "inside out"
+    assert not solid(corners, cube[:-1]), "a hole"
+    assert not solid(two, np.concatenate([cube, cube[:, ::-1] + 8])), "one part inside out"
+    assert not solid(corners, np.concatenate([cube, cube[:2]])), "a face twice"
 
 
 def test_too_many_maps_is_a_clear_error(lx, scene):
