@@ -220,8 +220,9 @@ class GPUScene:
         self._sets[id(inst)] = entry            # the most recent last
         self._current = entry
 
-    KEEP_SELECTIONS = 8
-    """Culling results kept per instance set (an F12's and a viewport's views, receivers and casters)."""
+    KEEP_SELECTIONS = 24
+    """Culling results kept per instance set (an F12's and a viewport's views: receivers, casters, and the
+    solids the camera and each map see from outside)."""
 
     def selection(self, query: tuple, select) -> np.ndarray:
         """The instance mask ``select()`` gives for ``query`` (a hashable

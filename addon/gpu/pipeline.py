@@ -29,7 +29,7 @@ import numpy as np
 from ..settings import LixelSettings, ShadowSettings
 from ..warp.body import intersection_body
 from ..warp.culling import BoxIndex
-from ..warp.geometry import perpendicular, translation
+from ..warp.geometry import UNIT_CUBE_CORNERS, clip_volume_corners, homogeneous, perpendicular, translation
 from ..warp.polyhedron import face_planes, hexahedron_faces
 from ..warp.types import EmptyBodyError, Light, ShadowSetup, View, WarpError
 from . import compose, shaders
@@ -139,8 +139,61 @@ def depth_draw(shadow_map, origin=(0.0, 0.0, 0.0)) -> tuple[np.ndarray, Optional
     return matrix, 0.5 * row + np.array([0.0, 0.0, 0.0, 0.5])
 
 
-def depth_pass(setup: ShadowSetup, scene: GPUScene, casters: DrawList, shadow: ShadowSettings,
-               targets: Optional[TargetPool] = None, bare: bool = False) -> list:
+NEAR_MARGIN = 1e-5
+"""How far beyond a view's near plane (NDC depth) a solid must lie to have its back faces culled."""
+
+
+def clear_of(face: np.ndarray, boxes: np.ndarray, margin: float) -> np.ndarray:
+    """Whether each of ``boxes`` ((N, 2, 3) world AABBs) stays ``margin`` away
+    from the convex planar polygon ``face`` ((4, 3) corners in order), by a
+    separating axis: a box axis, the face's normal, or one across a box axis
+    and a face edge."""
+    edges = np.roll(face, -1, axis=0) - face
+    axes = np.concatenate([np.eye(3), np.cross(edges[0], edges[1])[None],
+                           np.cross(np.eye(3)[:, None], edges[None]).reshape(-1, 3)])
+    reach = margin * np.linalg.norm(axes, axis=1)
+    on_face = face @ axes.T
+    centre, radius = (boxes.sum(axis=1) / 2) @ axes.T, ((boxes[:, 1] - boxes[:, 0]) / 2) @ np.abs(axes).T
+    return np.any((centre + radius < on_face.min(axis=0) - reach) | (centre - radius > on_face.max(axis=0) + reach),
+                  axis=1)
+
+
+def seen_from_outside(geometry, matrix, greater: bool = False) -> np.ndarray:
+    """Instances whose back faces a view cannot see, as a mask: their mesh
+    bounds solids (``MeshData.bounds_solids``) and the view's near plane
+    (clip matrix ``matrix``: NDC depth -1, or +1 for a reversed, ``greater``
+    depth) clips none of them open where the view looks: their box stays
+    clear of the near face by its diagonal (:func:`clear_of`), or they lie
+    wholly beyond the near plane by :data:`NEAR_MARGIN` (w > 0 at the corners
+    of their local box, or else at all their vertices). Every ray of the view,
+    starting on the near face, then meets one of their front faces before any
+    of their back faces."""
+    inst = geometry.instances
+    solid = np.array([geometry.meshes[k].bounds_solids for k in inst.key_list], dtype=bool)[inst.key_ids]
+    try:
+        face = clip_volume_corners(matrix)[4:] if greater else clip_volume_corners(matrix)[:4]
+    except np.linalg.LinAlgError:
+        return np.zeros(len(inst), dtype=bool)
+    if not np.all(np.isfinite(face)):
+        return np.zeros(len(inst), dtype=bool)
+    ids = np.flatnonzero(solid & ~clear_of(face, inst.world_boxes(), float(np.ptp(face, axis=0).max())))
+    to_clip = np.asarray(matrix, dtype=np.float64) @ inst.matrices[ids]                 # (n, 4, 4)
+    lo, hi = inst.key_boxes[inst.key_ids[ids], 0], inst.key_boxes[inst.key_ids[ids], 1]
+    corners = (lo + hi)[:, None] / 2 + (hi - lo)[:, None] / 2 * UNIT_CUBE_CORNERS[None]   # (n, 8, 3)
+    sign = -1.0 if greater else 1.0
+
+    def beyond(h):
+        return np.all((h[..., 3] > 0) & (sign * h[..., 2] > (NEAR_MARGIN - 1.0) * h[..., 3]), axis=-1)
+    near = ~beyond(np.einsum("nij,nkj->nki", to_clip, homogeneous(corners).reshape(-1, 8, 4)))
+    for n in np.flatnonzero(near):       # the box reaches the near plane: its triangles may not
+        mesh = geometry.meshes[inst.key_list[inst.key_ids[ids[n]]]]
+        near[n] = not beyond(homogeneous(mesh.positions) @ to_clip[n].T)
+    solid[ids[near]] = False
+    return solid
+
+
+def depth_pass(setup: ShadowSetup, scene: GPUScene, casters, shadow: ShadowSettings,
+               targets: Optional[TargetPool] = None, bare: bool = False, solids: Optional[list] = None) -> list:
     """Draw every map of ``setup``: returns [(depth texture, framebuffer)].
 
     Per map: clear to 1 (LESS) or 0 (GREATER, reversed test), depth test
@@ -148,9 +201,13 @@ def depth_pass(setup: ShadowSetup, scene: GPUScene, casters: DrawList, shadow: S
     culls the faces that face the light (Scherzer §4.2); the depth stored is
     the map's linear depth row where it has one (:func:`depth_draw`). Biasing
     is applied where depths are compared (shading pass), so otherwise this is
-    a bare draw. ``bare`` (the benchmark's reference) draws every map with its
-    own matrix, no culling and an empty fragment stage. Matrices are made
-    relative to ``scene.origin`` (see :func:`relative`).
+    a bare draw. ``casters``: the ``DrawList`` every map draws, or one per
+    map; ``solids`` (without back-face rendering): per map, the casters it
+    sees as solids from outside (:func:`seen_from_outside`), drawn with their
+    faces turned from the light culled, which their light-facing faces hide:
+    the same map, less drawn. ``bare`` (the benchmark's reference) draws
+    every map with its own matrix, no culling and an empty fragment stage.
+    Matrices are made relative to ``scene.origin`` (see :func:`relative`).
     """
     import gpu
     targets = targets if targets is not None else shared_targets()
@@ -173,7 +230,10 @@ def depth_pass(setup: ShadowSetup, scene: GPUScene, casters: DrawList, shadow: S
             if window_row is not None:
                 shader.uniform_float("u_depth_row", tuple(float(v) for v in window_row))
             cull = "FRONT" if (shadow.back_faces and not bare) else "NONE"
-            scene.draw(shader, casters, cull=cull, flip=light_facing_winds_clockwise(m))
+            flip = light_facing_winds_clockwise(m)
+            if solids is not None and cull == "NONE" and not bare:
+                scene.draw(shader, solids[i], cull="BACK", flip=flip)
+            scene.draw(shader, casters[i] if isinstance(casters, list) else casters, cull=cull, flip=flip)
             gpu.state.depth_mask_set(False)
             gpu.state.depth_test_set("NONE")
         out.append((tex, fb))
@@ -309,6 +369,10 @@ class ShadowFrame:
         """Every position the GPU sees is relative to this point (float32 precision)."""
         self.receivers: Optional[DrawList] = None
         self.solids: Optional[DrawList] = None
+        """The receivers the pre-pass draws as solids (their back faces culled); ``receivers`` the others."""
+        self.map_solids: list = []
+        """Per map, the casters it draws as solids (their faces turned from the light culled); none with
+        back-face rendering, which culls the faces towards the light of every caster."""
         self.casters: Optional[DrawList] = None
         self.maps: list = []
         self.keys: list = []
@@ -337,23 +401,19 @@ class ShadowFrame:
             return mask
         return self.scene.selection((which, normals.tobytes(), offsets.tobytes(), float(tol)), select)
 
-    def _seen_as_solids(self, near: np.ndarray) -> np.ndarray:
-        """Instances whose back faces the camera cannot see, as a mask: their
-        mesh bounds solids (``MeshData.bounds_solids``) and their box stays
-        clear of the near plane's rectangle (corners ``near``), where the
-        camera's rays start, by the near distance (so no clipped solid shows
-        its inside)."""
-        inst, meshes = self.geometry.instances, self.geometry.meshes
-        solid = np.array([meshes[k].bounds_solids for k in inst.key_list], dtype=bool)[inst.key_ids]
-        lo, hi = near.min(axis=0) - self.view.near, near.max(axis=0) + self.view.near
-        boxes = inst.world_boxes()
-        return solid & np.any((boxes[:, 0] > hi) | (boxes[:, 1] < lo), axis=1)
+    def _solids(self, mask: np.ndarray, matrix, greater: bool = False) -> np.ndarray:
+        """The instances of ``mask`` that the view of clip matrix ``matrix``
+        sees as solids from outside (:func:`seen_from_outside`); kept by the
+        scene for the same view (``GPUScene.selection``)."""
+        matrix = np.asarray(matrix, dtype=np.float64)
+        return mask & self.scene.selection(("solids", matrix.tobytes(), greater),
+                                           lambda: seen_from_outside(self.geometry, matrix, greater))
 
     def camera_prepass(self):
         """Cull the receivers to the view frustum and draw them from the camera
         (``prepass_shader``): the depth and the surface seen (position, normal),
         which the shading pass shades; the back faces of solids seen from
-        outside (:meth:`_seen_as_solids`: ``solids``, the others
+        outside (:func:`seen_from_outside`: ``solids``, the others
         ``receivers``) are culled, as their front faces hide them: the same
         surface, ~1/3 less work on llvmpipe (docs/performance.md). Returns the
         camera depth texture (window depth, row 0 at the bottom; the visible
@@ -365,9 +425,7 @@ class ShadowFrame:
         view = self.view
         n, o = _view_planes(view)
         mask = self._select("receivers", n, o, 1e-9 * max(view.far, 1.0))
-        near = view.corners()[:4]
-        solids = self.scene.selection(("solids", near.tobytes(), view.near), lambda: self._seen_as_solids(near))
-        solid = mask & solids
+        solid = self._solids(mask, view.world_to_clip)
         self.solids = self.scene.draw_list("solid receivers", solid, eye=view.position)
         self.receivers = self.scene.draw_list("receivers", mask & ~solid, eye=view.position)
         self.counts.receivers_drawn = self.receivers.instance_count + self.solids.instance_count
@@ -401,7 +459,9 @@ class ShadowFrame:
         """Cull the casters to those that can shadow what the camera sees
         (B's light-extruded hull, ``body.hull_halfspaces``; none without a
         body) and draw the maps of ``setup`` (and their MDSM keys when
-        ``shadow.mdsm_depths`` > 1). Returns [(depth texture, framebuffer)]."""
+        ``shadow.mdsm_depths`` > 1), each culling the faces turned from the
+        light of the solids it sees from outside (``map_solids``, see
+        :func:`depth_pass`). Returns [(depth texture, framebuffer)]."""
         if not setup.maps:
             raise WarpError("the shadow setup has no maps")
         if len(setup.maps) > shaders.MAX_MAPS:
@@ -423,10 +483,15 @@ class ShadowFrame:
         c.non_casters = int((~inst.casts).sum())
         c.caster_triangles_drawn = self.casters.triangle_count
         c.caster_triangles_culled = int(self.geometry.key_triangles[inst.key_ids[culled]].sum())
+        casters, self.map_solids = self.casters, []
+        if not shadow.back_faces:   # per map: the solids it sees from outside, and the other casters
+            solid = [self._solids(mask, depth_draw(m)[0], m.depth_test == "GREATER") for m in setup.maps]
+            self.map_solids = [self.scene.draw_list(f"solid casters {i}", s) for i, s in enumerate(solid)]
+            casters = [self.scene.draw_list(f"casters {i}", mask & ~s) for i, s in enumerate(solid)]
         self._stage("cull", t)
         t = time.perf_counter()
         self.setup = setup
-        self.maps = depth_pass(setup, self.scene, self.casters, shadow, self.targets)
+        self.maps = depth_pass(setup, self.scene, casters, shadow, self.targets, solids=self.map_solids or None)
         self._stage("depth_pass", t, self.maps[-1][1])
         t = time.perf_counter()
         self.keys = mdsm_pass(self.maps, setup, shadow, self.targets) if shadow.mdsm_depths > 1 else []

@@ -647,7 +647,7 @@ def test_second_render_uploads_nothing(lx, scene):
     assert first.counts.uploads == 2 and gc.extractions == 2
     assert first.counts.matrix_uploads == 1 and first.counts.target_allocations > 0
     culls = gs.culls
-    assert culls == 3, "the receivers and the casters are culled, the solids seen from outside found"
+    assert culls == 4, "the receivers and the casters are culled, the solids the camera and the map see found"
     second, g2, b2 = go()
     assert gs.culls == culls, "an unchanged view and B culled again"
     c = second.counts
@@ -658,7 +658,7 @@ def test_second_render_uploads_nothing(lx, scene):
     named(scene, "Box").location.x += 0.5  # a transform: no geometry change
     third, g3, b3 = go()
     assert third.counts.uploads == 0 and third.counts.matrix_uploads == 1 and gc.extractions == 2
-    assert b3 is not b1 and g3.meshes == g1.meshes and gs.culls == culls + 3
+    assert b3 is not b1 and g3.meshes == g1.meshes and gs.culls == culls + 4
     me = named(scene, "Box").data
     me.vertices[0].co.z += 0.3
     me.update()
@@ -769,6 +769,34 @@ def test_the_prepass_culls_back_faces_only_where_front_faces_hide_them(lx, scene
     out, view, _, _, dg = render(lx, scene, "uniform", 512)
     assert out.covered.mean() > (0.3 if where == "outside" else 0.999)
     assert nearest_surface_errors(out, view, dg) == 0
+
+
+def test_each_map_culls_faces_turned_from_the_light_only_on_solids_it_sees_from_outside(lx, lixel, scene):
+    """The depth pass culls the faces turned from the light of the solids a map
+    sees from outside: the maps are those of drawing every face; a room the
+    point light stands in is drawn whole in every map."""
+    box(scene, "Solid", size=(1.0, 1.0, 2.0), location=(0.8, 0.5, 1.0), rotation=(0.0, 0.0, 0.3))
+    box(scene, "Room", size=(12.0, 12.0, 8.0), location=(0.0, 0.0, 3.99))
+    lt = light(scene, "POINT", (0.0, 0.0, 4.5), energy=500.0)
+    cam = camera(scene, (0.0, -5.0, 3.0), (0, 0, 0))
+    aim(cam, (0.0, 0.0, 0.5))
+    dg = scene.view_layers[0].depsgraph
+    dg.update()
+    geometry = lx.geometry.GeometryCache().update(dg)
+    view, lt, bounds = lx.describe.describe_scene(scene, dg, instances=geometry.instances)
+    frame = lx.pipeline.ShadowFrame(geometry, view, scene=lx.batches.GPUScene())
+    frame.camera_prepass()
+    options = lx.warp.WarpOptions(shadow_map_size=(1024, 1024))
+    body, setup, _ = importlib.import_module(f"{lixel.__name__}.addon.render.engine").fit_warp(
+        frame, lt, bounds, options, "uniform")
+    shadow = lx.settings.ShadowSettings()
+    frame.draw_maps(setup, shadow, body)
+    solids = [{g.key[1] for g in s.groups} for s in frame.map_solids]
+    assert len(setup.maps) > 1 and all("Room" not in s for s in solids) and any("Solid" in s for s in solids)
+    whole = lx.pipeline.depth_pass(setup, frame.scene, frame.casters, shadow, lx.targets.TargetPool())
+    for (_, culled_fb), (_, whole_fb), m in zip(frame.maps, whole, setup.maps):
+        a, b = lx.compose.read_depth(culled_fb, m.size), lx.compose.read_depth(whole_fb, m.size)
+        assert np.mean(np.abs(a - b) > 1e-5) < 1e-4, "a map differs from drawing every face"
 
 
 def test_a_mesh_bounds_solids_when_closed_with_normals_outwards(lx):
