@@ -158,8 +158,8 @@ def clear_of(face: np.ndarray, boxes: np.ndarray, margin: float) -> np.ndarray:
                   axis=1)
 
 
-def seen_from_outside(geometry, matrix, greater: bool = False) -> np.ndarray:
-    """Instances whose back faces a view cannot see, as a mask: their mesh
+def seen_from_outside(geometry, matrix, greater: bool = False, among: Optional[np.ndarray] = None) -> np.ndarray:
+    """Instances (of the mask ``among``, default all) whose back faces a view cannot see, as a mask: their mesh
     bounds solids (``MeshData.bounds_solids``) and the view's near plane
     (clip matrix ``matrix``: NDC depth -1, or +1 for a reversed, ``greater``
     depth) clips none of them open where the view looks: their box stays
@@ -170,13 +170,16 @@ def seen_from_outside(geometry, matrix, greater: bool = False) -> np.ndarray:
     of their back faces."""
     inst = geometry.instances
     solid = np.array([geometry.meshes[k].bounds_solids for k in inst.key_list], dtype=bool)[inst.key_ids]
+    if among is not None:
+        solid &= among
     try:
         face = clip_volume_corners(matrix)[4:] if greater else clip_volume_corners(matrix)[:4]
     except np.linalg.LinAlgError:
         return np.zeros(len(inst), dtype=bool)
     if not np.all(np.isfinite(face)):
         return np.zeros(len(inst), dtype=bool)
-    ids = np.flatnonzero(solid & ~clear_of(face, inst.world_boxes(), float(np.ptp(face, axis=0).max())))
+    ids = np.flatnonzero(solid)
+    ids = ids[~clear_of(face, inst.world_boxes()[ids], float(np.ptp(face, axis=0).max()))]
     to_clip = np.asarray(matrix, dtype=np.float64) @ inst.matrices[ids]                 # (n, 4, 4)
     lo, hi = inst.key_boxes[inst.key_ids[ids], 0], inst.key_boxes[inst.key_ids[ids], 1]
     corners = (lo + hi)[:, None] / 2 + (hi - lo)[:, None] / 2 * UNIT_CUBE_CORNERS[None]   # (n, 8, 3)
@@ -185,9 +188,11 @@ def seen_from_outside(geometry, matrix, greater: bool = False) -> np.ndarray:
     def beyond(h):
         return np.all((h[..., 3] > 0) & (sign * h[..., 2] > (NEAR_MARGIN - 1.0) * h[..., 3]), axis=-1)
     near = ~beyond(np.einsum("nij,nkj->nki", to_clip, homogeneous(corners).reshape(-1, 8, 4)))
-    for n in np.flatnonzero(near):       # the box reaches the near plane: its triangles may not
-        mesh = geometry.meshes[inst.key_list[inst.key_ids[ids[n]]]]
-        near[n] = not beyond(homogeneous(mesh.positions) @ to_clip[n].T)
+    for key in np.unique(inst.key_ids[ids[near]]):     # the box reaches the near plane: its triangles may not
+        positions = homogeneous(geometry.meshes[inst.key_list[key]].positions)
+        which = np.flatnonzero(near & (inst.key_ids[ids] == key))
+        for part in np.array_split(which, -(-len(which) * len(positions) // (1 << 20))):
+            near[part] = ~beyond(np.einsum("nij,vj->nvi", to_clip[part], positions))
     solid[ids[near]] = False
     return solid
 
@@ -406,8 +411,8 @@ class ShadowFrame:
         sees as solids from outside (:func:`seen_from_outside`); kept by the
         scene for the same view (``GPUScene.selection``)."""
         matrix = np.asarray(matrix, dtype=np.float64)
-        return mask & self.scene.selection(("solids", matrix.tobytes(), greater),
-                                           lambda: seen_from_outside(self.geometry, matrix, greater))
+        return self.scene.selection(("solids", matrix.tobytes(), greater, mask.tobytes()),
+                                    lambda: seen_from_outside(self.geometry, matrix, greater, mask))
 
     def camera_prepass(self):
         """Cull the receivers to the view frustum and draw them from the camera
