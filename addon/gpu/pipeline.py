@@ -159,11 +159,12 @@ def clear_of(face: np.ndarray, boxes: np.ndarray, margin: float) -> np.ndarray:
 
 
 def seen_from_outside(geometry, matrix, greater: bool = False, among: Optional[np.ndarray] = None) -> np.ndarray:
-    """Instances (of the mask ``among``, default all) whose back faces a view cannot see, as a mask: their mesh
-    bounds solids (``MeshData.bounds_solids``) and the view's near plane
-    (clip matrix ``matrix``: NDC depth -1, or +1 for a reversed, ``greater``
-    depth) clips none of them open where the view looks: their box stays
-    clear of the near face by its diagonal (:func:`clear_of`), or they lie
+    """Instances (of the mask ``among``, default all) whose back faces a
+    view cannot see, as a mask: their mesh bounds solids
+    (``MeshData.bounds_solids``) and the view's near plane (clip matrix
+    ``matrix``: NDC depth -1, or +1 for a reversed, ``greater`` depth) clips
+    none of them open where the view looks: their box stays clear of the near
+    face by the face's size (:func:`clear_of`), or they lie
     wholly beyond the near plane by :data:`NEAR_MARGIN` (w > 0 at the corners
     of their local box, or else at all their vertices). Every ray of the view,
     starting on the near face, then meets one of their front faces before any
@@ -173,7 +174,7 @@ def seen_from_outside(geometry, matrix, greater: bool = False, among: Optional[n
     if among is not None:
         solid &= among
     try:
-        face = clip_volume_corners(matrix)[4:] if greater else clip_volume_corners(matrix)[:4]
+        face = clip_volume_corners(matrix)[slice(4, 8) if greater else slice(0, 4)]
     except np.linalg.LinAlgError:
         return np.zeros(len(inst), dtype=bool)
     if not np.all(np.isfinite(face)):
