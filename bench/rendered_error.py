@@ -12,11 +12,12 @@ only the method and the map size changed: what a user gets. The ground truth
 is the report's ray caster (``bench.report.ground_truth``). Per scene, method
 and size it prints the misclassified pixels (false light: lit where the truth
 is shadowed; false shadow: the opposite) and the analytic p95 texel footprint
-over the lit points facing the light (n·l >= 0.1), then checks the rendered-shadows issue's criteria:
+over the lit points facing the light (n·l >= 0.1, the report's) and over all lit points (n·l > 0, the issue's
+words read plainly: "p95 over lit points"), then checks the rendered-shadows issue's criteria:
 
 * never much worse than uniform: error <= max(1.25 x uniform's, uniform's + 0.05 points);
 * warping wins where it should: where a method's p95 footprint at 2048² is at most
-  half of uniform's, its error at 2048² is at most 0.8 x uniform's;
+  half of uniform's, by either reading, its error at 2048² is at most 0.8 x uniform's;
 * more texels never hurt: error(1024) >= error(2048) >= error(4096);
 * point lights are right: under 1 % wrong at 2048² in the point-light scenes (light behind the
   camera, low in the view: the names ending in ``POINT_SCENES``).
@@ -60,7 +61,8 @@ class Measurement:
     error: float            # fraction of counted pixels misclassified
     false_light: float
     false_shadow: float
-    p95: float              # analytic texel footprint (pixels per texel) over the lit points
+    p95: float              # analytic texel footprint (pixels per texel) over the lit points facing the light
+    p95_lit: float          # the same over all lit points (grazing ones too)
     maps: int
     fallbacks: list = field(default_factory=list)
     seconds: float = 0.0
@@ -124,7 +126,8 @@ def measure_scene(name: str, methods, sizes, resolution, images: Path | None, lo
     dg, geometry, view, light, gt, truth_seconds = scene_with_truth(name, resolution)
     log(f"{name}: {len(geometry.instances)} instances, ground truth {truth_seconds:.1f}s, "
         f"{100 * gt.shadow[gt.valid].mean():.1f}% of {int(gt.valid.sum())} counted pixels in shadow")
-    lit = lit_facing(gt, light)
+    lit = gt.valid & ~gt.shadow                  # (the truth's lit points all have n·l > 0)
+    facing = lit_facing(gt, light)[lit]
     out = []
     for method in methods:
         for size in sizes:
@@ -139,11 +142,11 @@ def measure_scene(name: str, methods, sizes, resolution, images: Path | None, lo
             n = max(counts.valid, 1)
             fp, _ = setup_footprints(view, setup, gt.points[lit], gt.normals[lit])
             m = Measurement(name, method, size, counts.error_rate, counts.false_light / n, counts.false_shadow / n,
-                            footprint_stats(fp).p95, len(setup.maps),
+                            footprint_stats(fp[facing]).p95, footprint_stats(fp).p95, len(setup.maps),
                             sorted({w for w, _ in setup.diagnostics.fallbacks}), seconds)
             out.append(m)
             log(f"  {method:>13} {size:5d}: {100 * m.error:6.2f}% wrong (light {100 * m.false_light:5.2f}, "
-                f"shadow {100 * m.false_shadow:5.2f}), p95 {m.p95:8.2f} px/texel, {m.maps} map(s)"
+                f"shadow {100 * m.false_shadow:5.2f}), p95 {m.p95:8.2f} px/texel (all lit {m.p95_lit:8.2f}), {m.maps} map(s)"
                 + (f", fallbacks {', '.join(m.fallbacks)}" if m.fallbacks else ""))
             if images is not None:
                 _save_error_image(images / f"{name}_{method}_{size}.png", shadow, gt.shadow, comparable)
@@ -180,9 +183,9 @@ def check(ms: list[Measurement]) -> list[Check]:
             continue
         limit = max(1.25 * u.error, u.error + 0.0005)
         add(m.error <= limit, "not much worse than uniform", m, f"{m.size}: {100 * m.error:.2f}% vs limit {100 * limit:.2f}%")
-        if m.size == 2048 and m.p95 <= 0.5 * u.p95:
-            add(m.error <= 0.8 * u.error, "warping wins", m, f"2048 (p95 {m.p95:.2f} vs uniform {u.p95:.2f}): "
-                                                            f"{100 * m.error:.2f}% vs limit {100 * 0.8 * u.error:.2f}%")
+        if m.size == 2048 and (m.p95 <= 0.5 * u.p95 or m.p95_lit <= 0.5 * u.p95_lit):
+            add(m.error <= 0.8 * u.error, "warping wins", m, f"2048 (p95 {m.p95:.2f} vs uniform {u.p95:.2f}, all lit "
+                f"{m.p95_lit:.2f} vs {u.p95_lit:.2f}): {100 * m.error:.3f}% vs limit {100 * 0.8 * u.error:.3f}%")
     for m in ms:
         nxt = by.get((m.scene, m.method, m.size * 2))
         if m.size >= 1024 and nxt is not None:
