@@ -87,29 +87,47 @@ def lambda_no_worse_than_uniform(theta, n, f, phi) -> float:
     return max(near, far)
 
 
+def texel_ratios(lam, delta, body=None) -> list:
+    """The warp's texel at λ (K, 1) over the uniform map's at δ ∈ [0, 1] along B's extent (N): along V_P,
+    ρ = (λ + δ)²/(λ(λ + 1)), and, given B's vertices ``body`` = (δ, (q - q_eye)/D), its longer side (across:
+    (1 + δ/λ)·range((q - q_eye)/(1 + δ/λ))/D) over uniform's (the λ guard, docs/papers.md). (K, N) each."""
+    rho = [(lam + delta) ** 2 / (lam * (lam + 1.0))]
+    if body is not None and np.ptp(body[1]) > 0:
+        across = (1.0 + delta / lam) * np.ptp(body[1] / (1.0 + body[0] / lam), axis=1, keepdims=True)
+        rho.append(np.maximum(across, rho[0]) / max(float(np.ptp(body[1])), 1.0))
+    return rho
+
+
 def lambda_no_worse_on_average(delta, weights=None, body=None) -> float:
-    """The least λ with E[ρ²] <= 1 over the visible pixels at δ ∈ [0, 1] along B's extent (``delta``, ``weights``) for
-    ρ = (λ + δ)²/(λ(λ + 1)) along V_P and, given B's vertices ``body`` = (δ, (q - q_eye)/D), for the texel's longer
-    side (across: (1 + δ/λ)·range((q - q_eye)/(1 + δ/λ))/D; the λ guard, part 2, docs/papers.md); ∞: none to 1e4."""
+    """The least λ with E[ρ²] <= 1 over the visible pixels at δ (``delta``, ``weights``), along V_P and for the
+    texel's longer side (:func:`texel_ratios`; the λ guard, part 2, docs/papers.md); ∞: none to 1e4."""
     d = np.clip(np.asarray(delta, dtype=np.float64), 0.0, 1.0)
     w = np.ones(len(d)) if weights is None else np.asarray(weights, dtype=np.float64)
     if not len(d) or not w.sum() > 0:
         return 0.0
-
-    def excess(lam):                                  # max(E[ρ²]) - 1 along and by the longer side, at λ (K, 1)
-        rho = [(lam + d) ** 2 / (lam * (lam + 1.0))]
-        if body is not None and np.ptp(body[1]) > 0:   # the texel's longer side, across or along, over uniform's
-            across = (1.0 + d / lam) * np.ptp(body[1] / (1.0 + body[0] / lam), axis=1, keepdims=True)
-            rho.append(np.maximum(across, rho[0]) / max(float(np.ptp(body[1])), 1.0))
-        return np.max([r ** 2 @ w for r in rho], axis=0) / w.sum() - 1.0
     low, high = 1e-4, 1e4
     for _ in range(8):                                # each pass: the last λ that fails and the next, 80 steps finer
         grid = np.geomspace(low, high, 81)
-        bad = np.flatnonzero(excess(grid[:, None]) > 0)
+        bad = np.flatnonzero(np.max([r ** 2 @ w for r in texel_ratios(grid[:, None], d, body)], axis=0) > w.sum())
         if not len(bad) or bad[-1] == len(grid) - 1:  # (first pass only: later ones bracket low fails, high holds)
             return math.inf if len(bad) else 0.0
         low, high = grid[bad[-1]], grid[bad[-1] + 1]
     return float(high)
+
+
+def lambda_least_on_screen(delta, weights, depth, body=None) -> float:
+    """The λ whose texels are least on screen over the visible pixels: argmin E[ρ/z], ρ the texel's longer side over
+    uniform's (:func:`texel_ratios`) at each pixel's eye depth z (the λ guard, part 5, docs/papers.md); ∞: uniform."""
+    d = np.clip(np.asarray(delta, dtype=np.float64), 0.0, 1.0)
+    w = np.asarray(weights, dtype=np.float64) / np.asarray(depth, dtype=np.float64)
+    grid = np.geomspace(1e-4, 1e4, 161)
+    for refine in range(3):                           # each pass 40 steps finer around the least
+        cost = texel_ratios(grid[:, None], d, body)[-1] @ w
+        k = int(np.argmin(cost))
+        if not cost[k] < w.sum() or (k == len(grid) - 1 and not refine):
+            return math.inf
+        least, grid = grid[k], np.geomspace(grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)], 41)
+    return float(least)
 
 
 # ---------------------------------------------------------------- raster densities

@@ -293,3 +293,23 @@ def test_across_v_p_the_guard_weighs_the_texels_longer_side():
         return float(weights @ side ** 2 / weights.sum())
     assert longer_side(lam) == pytest.approx(1.0, rel=1e-9)
     assert longer_side(0.9 * lam) > 1.0 > longer_side(1.1 * lam)
+
+
+def test_the_screen_guard_is_the_warp_whose_texels_are_least_on_screen():
+    """lambda_least_on_screen: a texel at eye depth z spans ∝ 1/z pixels, so over the visible pixels the warp's mean
+    texel on screen is E[ρ/z]·(the uniform map's texel) for ρ the texel's side along V_P over uniform's; the λ
+    returned is its least (against a brute-force sweep). Near pixels close to the eye ask a strong warp, pixels
+    all at one depth none (the uniform map), and at the least the mean is below the uniform map's E[1/z]."""
+    rng = np.random.default_rng(2)
+    for a, b, depth_range in ((1, 4, 20.0), (2, 5, 5.0), (1, 2, 50.0)):
+        delta = rng.beta(a, b, 3000)
+        weights = rng.uniform(0.5, 2.0, 3000)
+        depth = 1.0 + depth_range * delta * rng.uniform(0.8, 1.2, 3000)
+        lam = al.lambda_least_on_screen(delta, weights, depth)
+
+        def on_screen(x):
+            return float(weights @ ((x + delta) ** 2 / (x * (x + 1)) / depth))
+        sweep = np.geomspace(1e-3, 1e3, 4001)
+        assert on_screen(lam) <= min(on_screen(x) for x in sweep) * (1 + 1e-9)
+        assert on_screen(lam) < float(weights @ (1.0 / depth))
+    assert al.lambda_least_on_screen(rng.uniform(0, 1, 100), np.ones(100), np.full(100, 3.0)) > 100.0

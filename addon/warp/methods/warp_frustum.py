@@ -9,8 +9,8 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from ..aliasing import (folded, lambda_glpr, lambda_gmnpr, lambda_no_worse_on_average, lambda_no_worse_than_uniform,
-                        lispsm_inverse_n_opt)
+from ..aliasing import (folded, lambda_glpr, lambda_gmnpr, lambda_least_on_screen, lambda_no_worse_on_average,
+                        lambda_no_worse_than_uniform, lispsm_inverse_n_opt)
 from ..body import IntersectionBody
 from ..diagnostics import Diagnostics
 from ..fit import fit_runs, window_matrices
@@ -32,8 +32,9 @@ class WarpContext:
 
     z_n: float
     z_f: float
-    visible: Optional[tuple[np.ndarray, np.ndarray]] = None
-    """The visible surface as weighted world points (``VisibleRegion.samples``), when B was focused."""
+    visible: Optional[tuple[np.ndarray, np.ndarray, np.ndarray]] = None
+    """The visible surface as weighted world points (``VisibleRegion.samples``) and their eye depths, when B was
+    focused."""
     phi: float = 0.0
     """GMNPR's φ (half the field of view towards the light), for the λ guard's model."""
     guard: bool = False
@@ -130,7 +131,8 @@ def eye_depth_range(view: View, body: IntersectionBody, options: WarpOptions, di
             a, b = (float(v) for v in options.visible_depth_range)
             z_n = max(view.near, a)
             z_f = max(min(view.far, b), z_n)
-    return WarpContext(z_n, z_f, None if body.visible is None else body.visible.samples(view))
+    visible = None if body.visible is None else body.visible.samples(view)
+    return WarpContext(z_n, z_f, None if visible is None else (*visible, view.eye_depth(visible[0])))
 
 
 def half_fov_towards(view: View, light_dir) -> float:
@@ -274,22 +276,24 @@ def guard_lambda(lam: float, gamma: float, axis: WarpAxis, ctx: WarpContext, sca
                  body_h: Optional[np.ndarray] = None) -> tuple[float, Optional[str]]:
     """``lam`` raised to the least λ at which the warp is no worse than the uniform map (docs/papers.md, "The λ
     guard"), at its worst over [z_n, z_f] and over the visible pixels along ``axis`` (and across it, given B's
-    homogeneous vertices ``body_h`` and ``axis`` a FrameGeometry): (λ, why raised or "")."""
+    homogeneous vertices ``body_h`` and ``axis`` a FrameGeometry), and to the λ whose texels are least on screen
+    over the visible pixels: (λ, why raised or "")."""
     theta = folded(gamma)
-    worst = lambda_no_worse_than_uniform(theta, ctx.z_n, ctx.z_f, ctx.phi)
-    mean = 0.0
+    bounds = {f"its worst aliasing over the visible depths [{ctx.z_n:.4g}, {ctx.z_f:.4g}] would be worse than the "
+              f"uniform map's": lambda_no_worse_than_uniform(theta, ctx.z_n, ctx.z_f, ctx.phi)}
     if ctx.visible is not None and axis.extent > 0 and scale > 0:
-        delta = _along_across(homogeneous(ctx.visible[0]), axis)[0]
+        points, weights, depth = ctx.visible
+        delta = _along_across(homogeneous(points), axis)[0]
         body = None if body_h is None else _along_across(body_h, axis, float(np.dot(axis.eye[:2], axis.b)))
-        mean = lambda_no_worse_on_average(delta, ctx.visible[1], body) * scale
-    guard = max(worst, mean)
+        bounds["its aliasing over the visible pixels (its texels' side along V_P or their longer side, L2 over them) "
+               "would be worse than the uniform map's"] = lambda_no_worse_on_average(delta, weights, body) * scale
+        bounds["its texels would be larger on screen, on average over the visible pixels"] = lambda_least_on_screen(
+            delta, weights, depth, body) * scale
+    why, guard = max(bounds.items(), key=lambda item: item[1])
     if not guard > lam:
         return lam, None
-    why = (f"its worst aliasing over the visible depths [{ctx.z_n:.4g}, {ctx.z_f:.4g}]" if worst >= mean
-           else "its aliasing over the visible pixels (its texels' side along V_P or their longer side, L2 over them)")
     return guard, (f"λ raised from {lam:.4g} to {guard:.4g}" + (" (the uniform map)" if guard == math.inf else "")
-                   + f": below it {why} would be worse than the uniform map's (θ = {math.degrees(theta):.1f}°, "
-                   f"φ = {math.degrees(ctx.phi):.1f}°)")
+                   + f": below it {why} (θ = {math.degrees(theta):.1f}°, φ = {math.degrees(ctx.phi):.1f}°)")
 
 
 def _along_across(points_h: np.ndarray, axis: WarpAxis, q_0: float = 0.0) -> np.ndarray:
