@@ -146,9 +146,10 @@ def perspective_frame(apex, axis, up_hint, points, role, scale, floor: float | N
     depth = (points - apex) @ -view[2, :3]                   # along the axis (the eye looks down -z)
     floor = 1e-6 * scale if floor is None else floor
     near, far, clamped = near_far(float(depth.min()), float(depth.max()), floor)
-    ahead = depth >= floor
-    if clamped and ahead.any():
-        points = np.concatenate([points[ahead], apex + (points[ahead] - apex) * (floor / depth[ahead])[:, None]])
+    if clamped:         # B from the floor on, and where the light's rays to it cross the floor (to all of B if none)
+        ahead = depth >= floor
+        rays = ahead if ahead.any() else depth > 0
+        points = np.concatenate([points[ahead], apex + (points[rays] - apex) * (floor / depth[rays])[:, None]])
     return LightFrame(perspective_of(view, near, far), points, role, False, clamped and cuts_a_box)
 
 

@@ -232,9 +232,7 @@ class Region:
         q = p - dist[:, None] * n
         poly = np.asarray(self.polygon, dtype=np.float64)
         inside = np.ones(len(p), dtype=bool)
-        k = len(poly)
-        for i in range(k):
-            a, b = poly[i], poly[(i + 1) % k]
+        for a, b in zip(poly, np.roll(poly, -1, axis=0)):
             inside &= np.cross(b - a, q - a) @ n >= -self.tolerance * np.linalg.norm(b - a)
         return on_plane & inside
 

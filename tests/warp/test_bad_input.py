@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -232,3 +233,21 @@ def check_splits_cover_their_bodies(method, setup, body, light):
         for k in np.flatnonzero(owner == i):
             held |= setup.maps[k].contains(pts, NDC_TOL)
         assert held.all(), f"{method}: split {i}: {int((~held).sum())} of {len(pts)} points of its B in none of its maps"
+
+
+def test_a_point_light_whose_b_lies_within_the_near_floor_gets_maps_with_the_near_plane_note():
+    """A 1:1e15 clip range makes the scale 9e4 and the near floor (1e-6 of it) 0.09 from a point light on a B 0.02
+    across: the frame keeps B's directions on the floor (``frame.perspective_frame``), not the light itself at w = 0
+    (found by the contract test: an internal WarpError, and warp_frustum's divide by zero)."""
+    c2w = [[-0.85749293, 0.41577536, -0.30304576, 0.0], [-0.51449576, -0.69295893, 0.50507627, 0.0],
+           [0.0, 0.58901509, 0.80812204, 0.0], [0.0, 0.0, 0.0, 1.0]]
+    view = View.perspective(np.array(c2w), math.radians(1.0), 1.0, 1e-4, 1e11, (720, 720))
+    light = Light("POINT", position=np.array([0.001, -0.002, 0.008]))
+    bounds = SceneBounds.from_boxes([[[-0.005, -0.005, -0.0001], [0.005, 0.005, 0.0]]])
+    body = intersection_body(view, light, bounds)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        for method in METHODS:
+            setup = compute(method, view, light, bounds, WarpOptions(shadow_map_size=(16, 16)), body=body)
+            assert all(np.isfinite(m.matrix).all() for m in setup.maps), method
+            assert method == "cascade" or any(what.endswith("near plane") for what, _ in setup.diagnostics.fallbacks)
