@@ -162,8 +162,8 @@ def _lowest_on_edges(edges: Edges, normals: np.ndarray, offsets: np.ndarray, axi
     """min k·x over the edges clipped to the half-spaces, along the last axis (inf: nothing left)."""
     t_lo, t_hi = clip_segments(edges, normals, offsets)
     rise = edges.step @ axis
-    least = edges.start @ axis + np.where(rise >= 0, t_lo, t_hi) * rise
-    return np.where(t_lo <= t_hi, least, np.inf).min(axis=-1)
+    t = np.where(t_lo <= t_hi, np.where(rise >= 0, t_lo, t_hi), np.nan)     # NaN: nothing left (t may be infinite)
+    return np.fmin.reduce(edges.start @ axis + t * rise, axis=-1, initial=np.inf)
 
 
 def _visible_region(view: View, light: Light, body: IntersectionBody) -> ConvexPolytope | None:
