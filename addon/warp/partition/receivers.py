@@ -14,6 +14,7 @@ from ..visibility import VisibleRegion
 SAMPLES = 2048
 """At most this many of a region's receivers (every k-th) score its splits: the engine's pre-pass gives up to 16,384."""
 
+
 def receivers(view: View, light: Light, region: VisibleRegion | None, near: float, far: float) -> tuple | None:
     """(p, tangent bases T (N, 3, 2), G = D_view·T) of the ``region``'s ``surface`` samples with known ``normals``
     at eye depths [near, far) that the light reaches (a spot's cone); None if there are none."""
