@@ -79,17 +79,20 @@ class MeshData:
 
 def _parts(triangles: np.ndarray, vertex_count: int) -> np.ndarray:
     """Each vertex's connected part (the least vertex index in it), joined by
-    the triangles' edges: roots hooked under the least root they meet, then
-    paths halved, until every edge joins one part."""
+    the triangles' edges: the greater root of each edge whose ends differ is
+    hooked under the lesser, then every vertex pointed at its root, until
+    every edge joins one part."""
     a, b = triangles.ravel(), np.roll(triangles, -1, axis=1).ravel()
     label = np.arange(vertex_count)
-    while not np.array_equal(label[a], label[b]):
-        low = np.minimum(label[a], label[b])
-        np.minimum.at(label, label[a], low)
-        np.minimum.at(label, label[b], low)
+    while True:
+        la, lb = label[a], label[b]
+        apart = la != lb
+        if not apart.any():
+            return label
+        la, lb = la[apart], lb[apart]
+        label[np.maximum(la, lb)] = np.minimum(la, lb)      # roots only point lower: no cycle
         while not np.array_equal(label[label], label):
             label = label[label]
-    return label
 
 
 @dataclass(eq=False)
