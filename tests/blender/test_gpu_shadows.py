@@ -815,6 +815,31 @@ def test_a_mesh_bounds_solids_when_closed_with_normals_outwards(lx):
     assert not solid(corners, np.concatenate([cube, cube[:2]])), "a face twice"
 
 
+def test_a_mesh_whose_vertices_moved_keeps_its_closed_parts_and_finds_its_volumes_again(lx, scene):
+    """A viewport edit that moves vertices only re-reads the mesh with the
+    same triangles: the new content takes the closed surface's parts from the
+    old, and the volumes are found again (a mirror turns it inside out)."""
+    ob = box(scene, "Solid", size=(1.0, 2.0, 3.0))
+    dg = scene.view_layers[0].depsgraph
+    dg.update()
+    cache = lx.geometry.GeometryCache()
+    first = next(iter(cache.update(dg).meshes.values()))
+    assert first.bounds_solids
+    for v in ob.data.vertices:
+        v.co.x = -v.co.x
+    ob.data.update()
+    dg.update()
+    mirrored = next(iter(cache.update(dg).meshes.values()))
+    assert mirrored is not first and np.array_equal(mirrored.triangles, first.triangles)
+    assert mirrored.closed_parts is first.closed_parts, "the parts are not found again"
+    assert not mirrored.bounds_solids, "inside out after the vertices moved"
+    ob.data.polygons[0].flip()
+    ob.data.update()
+    dg.update()
+    flipped = next(iter(cache.update(dg).meshes.values()))
+    assert flipped.closed_parts is None and not flipped.bounds_solids, "new triangles: tested again, one face flipped"
+
+
 def test_too_many_maps_is_a_clear_error(lx, scene):
     shadow_scene(scene, "SUN")
     dg = scene.view_layers[0].depsgraph
