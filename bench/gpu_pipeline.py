@@ -7,12 +7,14 @@ Scene: a displaced terrain grid (half the triangles) plus a field of boxes in
 one mesh (the other half) under a sun, seen obliquely. Stages: extraction
 (``GeometryCache.update`` on a fresh cache: positions, corners, triangles),
 upload (new batches and instance tables), depth pass, shading (camera
-pre-pass + shading pass), read-back. The depth pass (default biasing:
-constant + slope-scale in the shader) is also timed against a bare draw of the
-same batches (no culling, empty fragment stage) as a ratio: with the default
-settings (biasing is applied in the shading pass, so this is the same draw),
-with back-face rendering (front faces culled) and with linear z (writes
-``gl_FragDepth``, so no early depth test). Stage times are medians over
+pre-pass + shading pass), read-back. The depth pass is also timed against a
+bare draw of the same batches (the casters rendering draws, every face of
+each, empty fragment stage) as a ratio, each variant drawing what rendering
+draws (:func:`engine_maps`): with the default settings (biasing is applied in
+the shading pass; each map culls the faces turned from the light of the
+solids it sees from outside, the boxes), with back-face rendering (front
+faces culled, no solids) and with linear z (writes ``gl_FragDepth`` where a
+map is projective, so no early depth test). Stage times are medians over
 ``repeat`` runs; the three depth-pass variants run interleaved and report the
 best of ``2 * repeat`` (the machine is shared). Every timing ends with a
 1-pixel read (no ``gpu.finish`` in the API).
@@ -89,6 +91,16 @@ def _mesh(bpy, name, verts, quads):
     return bpy.data.objects.new(name, me)
 
 
+def engine_maps(geometry, view, body, setup, shadow, gpu_scene):
+    """A frame whose ``draw_maps`` has drawn ``setup``'s maps as rendering
+    does: its ``casters`` (the body's light-extruded hull), and per map
+    ``map_casters`` and ``map_solids`` (what ``pipeline.depth_pass`` draws)."""
+    from addon.gpu import pipeline
+    frame = pipeline.ShadowFrame(geometry, view, scene=gpu_scene, timed=False)
+    frame.draw_maps(setup, shadow, body)
+    return frame
+
+
 def run(args) -> list[dict]:
     import bpy
 
@@ -121,14 +133,17 @@ def run(args) -> list[dict]:
             runs = [pipeline.render_shadows(view, light, setup, geometry, settings, body=body, scene=gpu_scene)
                     for _ in range(args.repeat)]
             med = {k: statistics.median(r.timings[k] for r in runs) for k in runs[0].timings}
-            casters = gpu_scene.draw_list("bench casters", np.ones(len(geometry.instances), dtype=bool))
-
-            def depth(st, shadow, bare=False):
-                maps = pipeline.depth_pass(st, gpu_scene, casters, shadow, bare=bare)
-                compose.sync(maps[-1][1])
-
             linear_setup = compute(method, view, light, bounds, replace(settings.warp, linear_z=True), body=body)
             back = replace(settings.shadow, back_faces=True)
+            drawn = {(id(st), sh.back_faces): engine_maps(geometry, view, body, st, sh, gpu_scene)
+                     for st, sh in ((setup, settings.shadow), (setup, back), (linear_setup, settings.shadow))}
+
+            def depth(st, shadow, bare=False):
+                frame = drawn[id(st), shadow.back_faces]
+                casters, solids = (frame.casters, None) if bare else (frame.map_casters, frame.map_solids or None)
+                maps = pipeline.depth_pass(st, gpu_scene, casters, shadow, bare=bare, solids=solids)
+                compose.sync(maps[-1][1])
+
             # Interleaved, best of 2*repeat: other processes on the machine slow single runs.
             variants = {"bare": lambda: depth(setup, settings.shadow, bare=True),
                         "default": lambda: depth(setup, settings.shadow),

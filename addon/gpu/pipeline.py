@@ -211,8 +211,9 @@ def depth_pass(setup: ShadowSetup, scene: GPUScene, casters, shadow: ShadowSetti
     map; ``solids`` (without back-face rendering): per map, the casters it
     sees as solids from outside (:func:`seen_from_outside`), drawn with their
     faces turned from the light culled, which their light-facing faces hide:
-    the same map, less drawn. ``bare`` (the benchmark's reference) draws
-    every map with its own matrix, no culling and an empty fragment stage.
+    the same map, less drawn. ``bare`` (the benchmarks' reference) draws
+    every map with its own matrix and an empty fragment stage, culling no
+    face but those of ``solids`` where given.
     Matrices are made relative to ``scene.origin`` (see :func:`relative`).
     """
     import gpu
@@ -237,7 +238,7 @@ def depth_pass(setup: ShadowSetup, scene: GPUScene, casters, shadow: ShadowSetti
                 shader.uniform_float("u_depth_row", tuple(float(v) for v in window_row))
             cull = "FRONT" if (shadow.back_faces and not bare) else "NONE"
             flip = light_facing_winds_clockwise(m)
-            if solids is not None and cull == "NONE" and not bare:
+            if solids is not None and cull == "NONE":
                 scene.draw(shader, solids[i], cull="BACK", flip=flip)
             scene.draw(shader, casters[i] if isinstance(casters, list) else casters, cull=cull, flip=flip)
             gpu.state.depth_mask_set(False)
@@ -380,6 +381,9 @@ class ShadowFrame:
         """Per map, the casters it draws as solids (their faces turned from the light culled); none with
         back-face rendering, which culls the faces towards the light of every caster."""
         self.casters: Optional[DrawList] = None
+        self.map_casters = None
+        """What each map draws besides its solids: a list of ``DrawList`` per map (the casters it does not
+        see as solids), or ``casters`` for every map; with ``map_solids``, what :func:`depth_pass` draws."""
         self.maps: list = []
         self.keys: list = []
         self.setup: Optional[ShadowSetup] = None
@@ -489,15 +493,16 @@ class ShadowFrame:
         c.non_casters = int((~inst.casts).sum())
         c.caster_triangles_drawn = self.casters.triangle_count
         c.caster_triangles_culled = int(self.geometry.key_triangles[inst.key_ids[culled]].sum())
-        casters, self.map_solids = self.casters, []
+        self.map_casters, self.map_solids = self.casters, []
         if not shadow.back_faces:   # per map: the solids it sees from outside, and the other casters
             solid = [self._solids(mask, depth_draw(m)[0], m.depth_test == "GREATER") for m in setup.maps]
             self.map_solids = [self.scene.draw_list(f"solid casters {i}", s) for i, s in enumerate(solid)]
-            casters = [self.scene.draw_list(f"casters {i}", mask & ~s) for i, s in enumerate(solid)]
+            self.map_casters = [self.scene.draw_list(f"casters {i}", mask & ~s) for i, s in enumerate(solid)]
         self._stage("cull", t)
         t = time.perf_counter()
         self.setup = setup
-        self.maps = depth_pass(setup, self.scene, casters, shadow, self.targets, solids=self.map_solids or None)
+        self.maps = depth_pass(setup, self.scene, self.map_casters, shadow, self.targets,
+                               solids=self.map_solids or None)
         self._stage("depth_pass", t, self.maps[-1][1])
         t = time.perf_counter()
         self.keys = mdsm_pass(self.maps, setup, shadow, self.targets) if shadow.mdsm_depths > 1 else []
