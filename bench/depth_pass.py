@@ -4,9 +4,10 @@ shading pass against an earlier revision's.
     python -m bench.depth_pass                       # 1M triangles, 2048², sun and point light
     python -m bench.depth_pass --tris 100000 1000000 --sizes 1024 2048 --repeat 9
     python -m bench.depth_pass --shading-against main~3   # the shading pass, old shaders vs the working tree's
+    python -m bench.depth_pass --box-meshes 64            # the boxes as 64 meshes: most are solids a map culls
 
 Scene: ``bench.gpu_pipeline.build_scene`` (a displaced terrain grid and a field
-of boxes, half the triangles each) under its sun, or under a point light 25 m
+of boxes, half the triangles each; ``--box-meshes``) under its sun, or under a point light 25 m
 above the ground off the side (one perspective map or cube faces, as the
 method decides). Every variant draws the casters the engine draws (those
 ``ShadowFrame.draw_maps`` keeps: the body's light-extruded hull) into the
@@ -158,7 +159,7 @@ def run(args) -> list[dict]:
     rows = []
     for n_tris in args.tris:
         for light_kind in args.lights:
-            scene = build_scene(bpy, n_tris)
+            scene = build_scene(bpy, n_tris, args.box_meshes)
             if light_kind == "point":
                 point_light(bpy, scene)
             scene.render.resolution_x, scene.render.resolution_y = args.camera
@@ -282,6 +283,9 @@ def main(argv=None) -> int:
     ap.add_argument("--methods", nargs="+", default=["uniform", "lispsm", "psm", "plane_optimal"])
     ap.add_argument("--camera", type=int, nargs=2, default=[1280, 720])
     ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--box-meshes", type=int, default=1,
+                    help="the box field as this many meshes (a square number), one per tile: 1 (the default) "
+                         "is one mesh that every map's near plane cuts, so no map culls faces of it")
     ap.add_argument("--shading-against", default=None, metavar="REV",
                     help="also time the shading pass with this git revision's shaders against the working tree's")
     ap.add_argument("--shading-settings", choices=["before-biases", "same"], default="before-biases",

@@ -42,8 +42,12 @@ os.environ.setdefault("BLENDER_USER_RESOURCES", os.path.join(_scratch, "blender-
 import numpy as np  # noqa: E402
 
 
-def build_scene(bpy, n_tris: int):
-    """Terrain grid + box field with about ``n_tris`` triangles; returns the scene."""
+def build_scene(bpy, n_tris: int, box_meshes: int = 1):
+    """Terrain grid + box field with about ``n_tris`` triangles; returns the
+    scene. The boxes are one mesh, or ``box_meshes`` (a square number) meshes,
+    one per tile of the field: a mesh whose box a map's near plane cuts is
+    drawn whole, so one mesh over the field has no faces culled as a solid's
+    in any map focused on part of it (``pipeline.seen_from_outside``)."""
     scene = bpy.data.scenes.new(f"bench_{n_tris}")
     half = n_tris // 2
     side = int(math.sqrt(half / 2)) + 1  # side x side quads -> 2 side^2 triangles
@@ -59,11 +63,15 @@ def build_scene(bpy, n_tris: int):
     centre = np.c_[rng.uniform(-45, 45, (n_boxes, 2)), np.zeros(n_boxes)]
     size = np.c_[rng.uniform(0.2, 1.0, (n_boxes, 2)), rng.uniform(0.5, 4.0, n_boxes)]
     corners = np.array([(x, y, z) for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (0.0, 1.0)])
-    bverts = (centre[:, None, :] + corners[None] * size[:, None, :]).reshape(-1, 3)
     faces = np.array([(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)])
-    bquads = (faces[None] + 8 * np.arange(n_boxes)[:, None, None]).reshape(-1, 4)
-    boxes = _mesh(bpy, "Boxes", bverts, bquads)
-    for ob in (terrain, boxes):
+    across = math.isqrt(box_meshes)
+    tile = np.clip(((centre[:, :2] + 45) / 90 * across).astype(int), 0, across - 1) @ [across, 1]
+    tiles = [np.flatnonzero(tile == i) for i in range(across * across)]
+    boxes = [_mesh(bpy, f"Boxes{i}" if box_meshes > 1 else "Boxes",
+                   (corners[None] * size[ids, None, :] + centre[ids, None, :]).reshape(-1, 3),
+                   (faces[None] + 8 * np.arange(len(ids))[:, None, None]).reshape(-1, 4))
+             for i, ids in enumerate(tiles) if len(ids)]
+    for ob in (terrain, *boxes):
         scene.collection.objects.link(ob)
     cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
     cam.data.clip_start, cam.data.clip_end = 0.1, 200.0
@@ -115,7 +123,7 @@ def run(args) -> list[dict]:
     ensure_gpu_context()
     rows = []
     for n_tris in args.tris:
-        scene = build_scene(bpy, n_tris)
+        scene = build_scene(bpy, n_tris, args.box_meshes)
         scene.render.resolution_x, scene.render.resolution_y = args.camera
         scene.render.resolution_percentage = 100
         dg = evaluated_depsgraph(scene)
@@ -207,6 +215,7 @@ def main(argv=None) -> int:
     ap.add_argument("--camera", type=int, nargs=2, default=[1280, 720])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--method", default="lispsm")
+    ap.add_argument("--box-meshes", type=int, default=1, help="the box field as this many meshes (a square number)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     from addon.gpu.blas import one_blas_thread
