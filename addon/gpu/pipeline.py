@@ -125,8 +125,8 @@ def depth_draw(shadow_map, origin=(0.0, 0.0, 0.0)) -> tuple[np.ndarray, Optional
       (times the constant w) and the rasterizer interpolates it exactly: a bare
       draw with early depth testing.
     * A depth row and a projective matrix (warped maps, point and spot lights):
-      the matrix, and the window depth row 0.5 r + (0, 0, 0, 0.5) written per
-      fragment (Scherzer §4.2's linear z).
+      the matrix as it clips (:func:`clip_matrix`), and the window depth row
+      0.5 r + (0, 0, 0, 0.5) written per fragment (Scherzer §4.2's linear z).
     """
     matrix = relative(shadow_map.matrix, origin)
     if shadow_map.depth_row is None:
@@ -136,7 +136,19 @@ def depth_draw(shadow_map, origin=(0.0, 0.0, 0.0)) -> tuple[np.ndarray, Optional
         matrix = matrix.copy()
         matrix[2] = matrix[3, 3] * row
         return matrix, None
-    return matrix, 0.5 * row + np.array([0.0, 0.0, 0.0, 0.5])
+    return clip_matrix(shadow_map, origin), 0.5 * row + np.array([0.0, 0.0, 0.0, 0.5])
+
+
+def clip_matrix(shadow_map, origin=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """The map's matrix as the depth pass and the shading clip with it, relative to ``origin``. With a depth row on
+    a projective matrix its z row only clips, and is halved: a point or spot light's frame has hyperbolic z with its
+    near plane at the light, which puts everything seen within 1e-4 of the far plane z = w (gen2_03_spot: all of it
+    at 1 to 1e-6), where float32 clipping drops casters and receivers at random (speckled false light); halved, it
+    lies about z = w/2."""
+    matrix = relative(shadow_map.matrix, origin)
+    if shadow_map.depth_row is None or is_affine(matrix):
+        return matrix
+    return np.diag([1.0, 1.0, 0.5, 1.0]) @ matrix
 
 
 NEAR_MARGIN = 1e-5
@@ -299,7 +311,7 @@ def shade_block(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSett
     b.screen[:2] = 2.0 / np.asarray(resolution, dtype=np.float64)
     for i, m in enumerate(setup.maps):
         bm = b.maps[i]
-        bm.matrix[:] = relative(m.matrix, o).T  # columns
+        bm.matrix[:] = clip_matrix(m, o).T  # columns
         if m.depth_row is not None:
             bm.depth_row[:] = relative_row(m.depth_row, o)
         bm.info[:] = (m.size[0], m.size[1], 1.0 if m.depth_test == "GREATER" else 0.0,
