@@ -27,27 +27,18 @@ def ndc_box(h) -> tuple[np.ndarray, np.ndarray]:
 
 def window_matrix(lo, hi) -> np.ndarray:
     """The affine NDC map taking the box [lo, hi] onto [-1, 1]^3."""
-    lo, hi = np.asarray(lo, dtype=np.float64).tolist(), np.asarray(hi, dtype=np.float64).tolist()
-    return np.array(_window_entries(lo, hi)).reshape(4, 4)
+    return window_matrices([np.asarray(lo, dtype=np.float64).tolist()], [np.asarray(hi, dtype=np.float64).tolist()])[0]
 
 
 def window_matrices(lo: list, hi: list) -> np.ndarray:
-    """``window_matrix`` for several boxes given as lists of float 3-lists, (k, 4, 4)."""
+    """``window_matrix`` for several boxes given as lists of float 3-lists, (k, 4, 4); each axis padded by
+    ``NDC_PAD`` of its extent, or of a millionth of the box's largest extent if more (a flat box)."""
     entries = []
-    for a, b in zip(lo, hi):
-        entries += _window_entries(a, b)
+    for (x0, y0, z0), (x1, y1, z1) in zip(lo, hi):
+        least = max(x1 - x0, y1 - y0, z1 - z0, 0.0) * 1e-6
+        (sx, ox), (sy, oy), (sz, oz) = (_axis_window(a, b, least) for a, b in ((x0, x1), (y0, y1), (z0, z1)))
+        entries += [sx, 0.0, 0.0, ox, 0.0, sy, 0.0, oy, 0.0, 0.0, sz, oz, 0.0, 0.0, 0.0, 1.0]
     return np.array(entries).reshape(-1, 4, 4)
-
-
-def _window_entries(lo: list, hi: list) -> list:
-    """``window_matrix``'s 16 entries, row by row; each axis padded by ``NDC_PAD`` of
-    its extent, or of a millionth of the box's largest extent if more (a flat box)."""
-    (x0, y0, z0), (x1, y1, z1) = lo, hi
-    least = max(x1 - x0, y1 - y0, z1 - z0, 0.0) * 1e-6
-    sx, ox = _axis_window(x0, x1, least)
-    sy, oy = _axis_window(y0, y1, least)
-    sz, oz = _axis_window(z0, z1, least)
-    return [sx, 0.0, 0.0, ox, 0.0, sy, 0.0, oy, 0.0, 0.0, sz, oz, 0.0, 0.0, 0.0, 1.0]
 
 
 def _axis_window(a: float, b: float, least: float) -> tuple[float, float]:

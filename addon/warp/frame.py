@@ -115,17 +115,13 @@ def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]
     """Axis and half-angle of a cone from ``apex`` holding ``points`` (apex points ignored; near π: no single cone)."""
     dirs = np.asarray(points, dtype=np.float64) - apex
     norms = np.sqrt(np.einsum("ij,ij->i", dirs, dirs))
-    lengths = norms.tolist()
-    farthest = max(lengths, default=0.0)
+    farthest = float(norms.max(initial=0.0))
     if farthest == 0:
         return SURROUND_AXIS.copy(), math.pi
     # Points at the apex itself (B has the light as a vertex when the light is
     # outside R) have no direction: a rounding error would give them any.
-    if min(lengths) > 1e-7 * farthest:
-        dirs /= norms[:, None]
-    else:
-        far = norms > 1e-7 * farthest
-        dirs = dirs[far] / norms[far, None]
+    far = norms > 1e-7 * farthest
+    dirs = dirs[far] / norms[far, None]
     mid = [(a + b) / 2 for a, b in zip(dirs.min(axis=0).tolist(), dirs.max(axis=0).tolist())]   # (plain floats)
     short = SURROUND_BLEND - math.hypot(*mid)
     if short > 0:
@@ -226,11 +222,12 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
         if body.contains(apex[None])[0]:                                              # (on B)
             floor, cuts_a_box = cube_near_floor(body, apex, not options.linear_z, math.cos(half))
         return [perspective_frame(apex, axis, up, body.vertices, "main", body.scale, floor, cuts_a_box)]
-    basis = cube_basis(axis.tolist(), up.tolist())
+    basis = cube_basis(axis, up)
     near_floor, cuts_a_box = cube_near_floor(body, apex, not options.linear_z)
     turns = _FACE_TURNS @ basis                              # (6, 3, 3): each face's eye rows x, y, -forward
-    rows, shifts = turns.tolist(), (-(turns @ apex)).tolist()   # each face's view: rotation rows, translation
-    frames, entries = [], []
+    views = np.tile(np.eye(4), (6, 1, 1))                    # each face's view: those rows through the apex
+    views[:, :3, :3], views[:, :3, 3] = turns, -(turns @ apex)
+    frames = []
     for f, part, nearest, farthest in cube_sections(body.polytope_from(apex), basis):
         clamped = nearest < near_floor
         if clamped:
@@ -246,25 +243,16 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
                 nearest_part = part[ahead] * (near_floor / depth[ahead])[:, None]
             part = np.concatenate([part[ahead], nearest_part])
             farthest = float((part @ forward).max())
-        # The face's view (rows x, y, -forward through the apex) and perspective, entry by entry.
-        near, far, _ = near_far(nearest, farthest, near_floor)
-        a, b = depth_coefficients(near, far)
-        (x, y, (z0, z1, z2)), (tx, ty, tz) = rows[f], shifts[f]
-        entries += x + [tx] + y + [ty] + [a * z0, a * z1, a * z2, a * tz + b, -z0, -z1, -z2, -tz]
-        frames.append((f, part + apex, clamped and cuts_a_box))
-    to_light = np.array(entries).reshape(-1, 4, 4)
-    return [LightFrame(m, p, "cube" + CUBE_FACES[f][0], False, c) for m, (f, p, c) in zip(to_light, frames)]
+        to_light = perspective_of(views[f], *near_far(nearest, farthest, near_floor)[:2])
+        frames.append(LightFrame(to_light, part + apex, "cube" + CUBE_FACES[f][0], False, clamped and cuts_a_box))
+    return frames
 
 
 def cube_basis(axis, up) -> np.ndarray:
     """The cube's axes (rows) for a unit cone ``axis`` and image ``up``: x = up × -axis,
     y = up across the axis, z = -axis (the -Z face looks along the axis)."""
-    (ax, ay, az), (ux, uy, uz) = axis, up
-    x = (ay * uz - az * uy, az * ux - ax * uz, ax * uy - ay * ux)
-    k = ux * ax + uy * ay + uz * az
-    y = (ux - k * ax, uy - k * ay, uz - k * az)
-    nx, ny = math.sqrt(x[0] ** 2 + x[1] ** 2 + x[2] ** 2), math.sqrt(y[0] ** 2 + y[1] ** 2 + y[2] ** 2)
-    return np.array([[c / nx for c in x], [c / ny for c in y], [-ax, -ay, -az]])
+    a, u = np.asarray(axis, dtype=np.float64), np.asarray(up, dtype=np.float64)
+    return np.array([normalize(cross(a, u)), normalize(u - (u @ a) * a), -a])
 
 
 _FACE_CORNERS = np.array([[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]])

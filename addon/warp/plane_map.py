@@ -68,10 +68,10 @@ class PlaneOfInterest:
         try:
             items = list(entry)
         except TypeError:
-            raise WarpError(f"{name}: must be (point, normal) or (point, normal, extent)") from None
+            items = []
         if len(items) not in (2, 3):
             raise WarpError(f"{name}: must be (point, normal) or (point, normal, extent)")
-        return cls.through(items[0], items[1], items[2] if len(items) == 3 else None, name)
+        return cls.through(*items, name=name)
 
     @property
     def point(self) -> np.ndarray:
@@ -307,8 +307,7 @@ def min_area_twist(points2d: np.ndarray) -> float:
             continue
         theta = -math.atan2(e[1], e[0])
         theta = (theta + math.pi / 4) % (math.pi / 2) - math.pi / 4
-        c, s = math.cos(theta), math.sin(theta)
-        q = p @ np.array([[c, s], [-s, c]])
+        q = p @ rotation2d(theta).T
         area = float(np.prod(q.max(axis=0) - q.min(axis=0)))
         if area < best_area * (1 - 1e-12):
             best, best_area = theta, area

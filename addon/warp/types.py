@@ -302,6 +302,9 @@ FOCUS_MODES = ("visible", "view")
 """``WarpOptions.focus``: B fitted to what the camera sees, or to the whole view frustum."""
 LAMBDA_GUARDS = ("all", "glpr", "off")
 """``WarpOptions.lambda_guard``: the warps whose λ is kept no worse than the uniform map."""
+CHOICES = {"focus": FOCUS_MODES, "delta_z": ("body", "visible"), "lambda_guard": LAMBDA_GUARDS,
+           "plane_twist": ("auto", "on", "off"), "cascade_warp": CASCADE_WARPS, "cascade_budget": ("per_map", "shared")}
+"""The ``WarpOptions`` fields that name one of a few choices, and those choices."""
 
 
 @dataclass(frozen=True)
@@ -354,17 +357,11 @@ class WarpOptions:
         if not (1 <= w <= 16384 and 1 <= h <= 16384):
             raise WarpError(f"shadow map size must be between 1 and 16384 texels per side (got {w}x{h})")
         object.__setattr__(self, "shadow_map_size", (w, h))
-        if self.lambda_guard not in LAMBDA_GUARDS:
-            raise WarpError(f"lambda_guard must be one of {', '.join(map(repr, LAMBDA_GUARDS))} "
-                            f"(got {self.lambda_guard!r})")
-        if self.focus not in FOCUS_MODES:
-            raise WarpError(f"focus must be one of {', '.join(map(repr, FOCUS_MODES))} (got {self.focus!r})")
-        if self.delta_z not in ("body", "visible"):
-            raise WarpError(f"delta_z must be 'body' or 'visible' (got {self.delta_z!r})")
+        for name, choices in CHOICES.items():
+            if getattr(self, name) not in choices:
+                raise WarpError(f"{name} must be one of {', '.join(map(repr, choices))} (got {getattr(self, name)!r})")
         if not (0.0 < self.plane_budget <= 1.0):
             raise WarpError("plane_budget must be in (0, 1]")
-        if self.plane_twist not in ("auto", "on", "off"):
-            raise WarpError(f"plane_twist must be 'auto', 'on' or 'off' (got {self.plane_twist!r})")
         self._check_cascade()
 
     def _check_cascade(self) -> None:
@@ -372,11 +369,7 @@ class WarpOptions:
         if isinstance(splits, bool) or not isinstance(splits, (int, np.integer)) or not 1 <= splits <= 8:
             raise WarpError(f"cascade_splits must be a whole number from 1 to 8 (got {splits!r})")
         object.__setattr__(self, "cascade_splits", int(splits))
-        if self.cascade_warp not in CASCADE_WARPS:
-            raise WarpError(f"cascade_warp must be one of {', '.join(CASCADE_WARPS)} (got {self.cascade_warp!r})")
         if not 0.0 <= self.cascade_lambda <= 1.0:
             raise WarpError(f"cascade_lambda must be in [0, 1] (got {self.cascade_lambda!r})")
-        if self.cascade_budget not in ("per_map", "shared"):
-            raise WarpError(f"cascade_budget must be 'per_map' or 'shared' (got {self.cascade_budget!r})")
         if not 0.0 <= self.cascade_blend <= 0.5:
             raise WarpError(f"cascade_blend must be in [0, 0.5] (got {self.cascade_blend!r})")

@@ -12,7 +12,7 @@ from ..body import IntersectionBody
 from ..diagnostics import Diagnostics
 from ..fit import window_matrix
 from ..frame import body_light_angles, light_frames
-from ..geometry import homogeneous, translation
+from ..geometry import cross, homogeneous, translation
 from ..linear_depth import fitted_row
 from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_to_polygon, corner_ray_points, default_plane,
                          enclosing_polygon, flattest_box, is_convex_polygon, min_area_twist, offset_directions,
@@ -251,7 +251,7 @@ def casters_of(polygon: np.ndarray, outwards: np.ndarray, grown: np.ndarray, hei
     """B ∩ C, the points of B on the needed rays (§2, Fig. 5-6), C the cone (a prism for a sun) from the light
     over the region; the flag: a point light inside B, casters within NEAR_FRACTION of its height left out."""
     corners = polygon + tol * (2 + min(steepest_incidence(grown, height, l_h), 1e12)) * outwards
-    normals, offsets = cone_facets(corners.tolist(), height.tolist(), l_h.tolist(), tol)
+    normals, offsets = cone_facets(corners, height, l_h, tol)
     b_poly = body.polytope_from(origin)
     if len(normals) == len(corners) + 1:                             # (every side plane made)
         points, _ = section_points(b_poly, normals[None], offsets[None], cone_edges(corners, height, l_h, tol), 0.0)
@@ -275,27 +275,16 @@ def steepest_incidence(points: np.ndarray, height: np.ndarray, l_h: np.ndarray) 
     return float((across / np.maximum(along, 1e-300)).max(initial=0.0))
 
 
-def cone_facets(corners: list, height: list, l_h: list, tol: float) -> tuple[np.ndarray, np.ndarray]:
+def cone_facets(corners: np.ndarray, height: np.ndarray, l_h: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
     """C's facets as unit normals and offsets: h(x) >= -tol and a side plane through
     each edge of ``corners`` and the light (none for an edge pointing at it)."""
-    hx, hy, hz, h0 = height
-    lx, ly, lz, lw = l_h
-    cx, cy, cz = (sum(c) / len(corners) for c in zip(*corners))
-    normals, offsets = [(-hx, -hy, -hz)], [tol + h0]
-    for (ax, ay, az), (bx, by, bz) in zip(corners, corners[1:] + corners[:1]):
-        ex, ey, ez = bx - ax, by - ay, bz - az
-        tx, ty, tz = lx - ax * lw, ly - ay * lw, lz - az * lw     # from a towards the light (homogeneous)
-        sx, sy, sz = ey * tz - ez * ty, ez * tx - ex * tz, ex * ty - ey * tx
-        length = math.sqrt(sx * sx + sy * sy + sz * sz)
-        if length == 0:
-            continue
-        sx, sy, sz = sx / length, sy / length, sz / length
-        offset = sx * ax + sy * ay + sz * az
-        if sx * cx + sy * cy + sz * cz > offset:
-            sx, sy, sz, offset = -sx, -sy, -sz, -offset
-        normals.append((sx, sy, sz))
-        offsets.append(offset)
-    return np.array(normals), np.array(offsets)
+    sides = cross(np.roll(corners, -1, axis=0) - corners, l_h[:3] - corners * l_h[3])   # edge x (towards the light)
+    length = np.sqrt(np.einsum("ij,ij->i", sides, sides))
+    made = length > 0
+    sides = sides[made] / length[made, None]
+    offsets = np.einsum("ij,ij->i", sides, corners[made])
+    outwards = np.where(sides @ corners.mean(axis=0) > offsets, -1.0, 1.0)        # (the centre on the inner side)
+    return np.vstack([-height[:3], sides * outwards[:, None]]), np.append(tol + height[3], offsets * outwards)
 
 
 def cone_edges(corners: np.ndarray, height: np.ndarray, l_h: np.ndarray, tol: float) -> Edges:
