@@ -14,7 +14,7 @@ import pytest
 from addon.warp import View, WarpOptions, compute, focused_body, intersection_body
 from addon.warp.frame import (PARALLEL_BLEND, image_up, light_angles, light_cone,
                               point_frames)
-from addon.warp.methods.common import SNAP_STEPS_PER_OCTAVE
+from addon.warp.methods.common import SNAP_STEPS_PER_OCTAVE, snapped_window
 from addon.warp.methods.uniform import uniform
 
 from hard_cases import HARD_CASES, image_up_singularity
@@ -147,6 +147,27 @@ def test_texel_snapping_keeps_world_points_on_their_texels(name):
         t1 = (ndc(m, probe)[0][0, :2] + 1) / 2 * size
         assert np.allclose(t1 - t0, np.round(t1 - t0), atol=1e-4 * (1 + np.abs(t1 - t0).max())), t1 - t0
     assert same_scale >= 6
+
+
+def test_snapped_window_is_size_texels_from_the_world_lattice_wherever_b_wanders():
+    """Texel snapping keeps a static scene from shimmering under a moving camera: as B's window wanders and breathes
+    (a random walk, near every ladder step), the snapped window holds it, is exactly ``size`` texels of a ladder
+    step wide and starts on a whole texel of the world-fixed lattice, never with texels added on one side."""
+    rng = np.random.default_rng(16)
+    size = (1024, 256)
+    lo, extent = np.array([-3.0, 7.0, 0.0]), np.array([40.0, 25.0, 10.0])
+    for _ in range(4000):
+        lo = lo + rng.normal(size=3) * 0.05
+        extent = extent * 2.0 ** (rng.normal(size=3) * 0.01)
+        s_lo, s_hi = snapped_window(lo, lo + extent, size)
+        for axis, texels in enumerate(size):
+            width = s_hi[axis] - s_lo[axis]
+            step = math.log2(width) * SNAP_STEPS_PER_OCTAVE
+            assert abs(step - round(step)) < 1e-9, (axis, width)                # a ladder step, no texels added
+            texel = 2.0 ** (round(step) / SNAP_STEPS_PER_OCTAVE) / texels
+            assert abs(s_lo[axis] / texel - round(s_lo[axis] / texel)) < 1e-6      # on the lattice
+            assert s_lo[axis] <= lo[axis] and s_hi[axis] >= lo[axis] + extent[axis] - 1e-12 * width
+        assert (s_lo[2], s_hi[2]) == (lo[2], lo[2] + extent[2])
 
 
 # ----------------------------------------------------------------------------- point and spot lights

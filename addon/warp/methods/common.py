@@ -46,18 +46,17 @@ def frame_maps(frames: list[LightFrame], size: tuple[int, int], snap: bool = Fal
 
 
 def snapped_window(lo: np.ndarray, hi: np.ndarray, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    """Grow the x/y window [lo, hi] to a quantised extent whose origin sits on
-    whole texels (orthographic frames only: light-space units are world units)."""
+    """Grow the x/y window [lo, hi] to exactly ``size`` texels from a whole texel of the world-fixed lattice
+    (orthographic frames only: light-space units are world units), the extent a ladder step with a texel to spare,
+    so that it holds [lo, hi] wherever that lies on the lattice; a side of one texel is not snapped."""
     lo, hi = lo.copy(), hi.copy()
-    for axis in (0, 1):
-        extent = max(hi[axis] - lo[axis], 1e-300)
-        ladder = 2.0 ** (math.ceil(math.log2(extent) * SNAP_STEPS_PER_OCTAVE) / SNAP_STEPS_PER_OCTAVE)
-        texel = ladder / size[axis]
-        start = math.floor(lo[axis] / texel) * texel
-        end = start + ladder
-        if end < hi[axis]:
-            end += texel * math.ceil((hi[axis] - end) / texel)
-        lo[axis], hi[axis] = start, end
+    for axis, texels in zip((0, 1), size):
+        if texels > 1:
+            spared = max(hi[axis] - lo[axis], 1e-300) * texels / (texels - 1)       # ladder - texel >= extent
+            ladder = 2.0 ** (math.ceil(math.log2(spared) * SNAP_STEPS_PER_OCTAVE) / SNAP_STEPS_PER_OCTAVE)
+            texel = ladder / texels
+            lo[axis] = math.floor(lo[axis] / texel) * texel
+            hi[axis] = lo[axis] + ladder
     return lo, hi
 
 
