@@ -11,7 +11,8 @@ import math
 import numpy as np
 import pytest
 
-from addon.warp import WarpOptions, compute
+from addon.warp import SceneBounds, WarpOptions, compute
+from hard_cases import HARD_CASES
 from plane_optimal_helpers import (FLOOR_PLANE, ray_plane_points, assert_pixel_centres_are_lixel_centres, body_samples, check_coverage, camera, camera_yaw_pitch, homography_jacobian, ndc,
                                    pixel_to_texel_homography, plane_maps, point, region_pixels, run, scene, sun,
                                    sun_at)
@@ -179,3 +180,20 @@ def test_orthographic_camera():
     setup, body = run(view, sun_at(35, 120))
     check_exact(view, setup)
     check_covers_b(view, setup, body)
+
+
+@pytest.mark.parametrize("lamp", ["single frame", "cube faces"])
+def test_fallback_maps_note_the_uniform_near_plane_prefixed(lamp):
+    """A point light in a lampshade box (a box reaches nearer to it than the near plane): the fallback maps record
+    the uniform method's near-plane notes, named by their frames behind ``fallback:`` (one note for one concept)."""
+    if lamp == "single frame":
+        view, light = camera((12.0, 0.0, 3.0), (0.0, 0.0, 0.0)), point((0.0, 0.0, 30.0))
+        ground, block = [[-10, -10, -0.1], [10, 10, 0.0]], [[-1, -1, 0], [1, 1, 2]]
+        sc = SceneBounds(np.array([ground, block, [[-0.5, -0.5, 29.5], [0.5, 0.5, 30.5]]]), np.array([ground, block]))
+    else:
+        view, light, sc = HARD_CASES["camera_inside_scene_box_point"]
+    opts = WarpOptions(shadow_map_size=(1024, 1024))
+    uniform, plane = compute("uniform", view, light, sc, opts), compute("plane_optimal", view, light, sc, opts)
+    assert ([m.role for m in uniform.maps] == ["main"]) == (lamp == "single frame")
+    wanted = {f"fallback:{what}": why for what, why in uniform.diagnostics.fallbacks}
+    assert wanted and {what: why for what, why in plane.diagnostics.fallbacks if what.startswith("fallback:")} == wanted

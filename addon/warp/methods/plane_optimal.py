@@ -19,7 +19,7 @@ from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_to_polygon, corner_ra
                          plane_light_matrix, polygon_area, rotation2d)
 from ..polyhedron import Edges, convex_polygon_on_plane, plane_section, section_points
 from ..types import Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
-from .common import NEAR_PLANE_NOTE, frame_maps
+from .common import frame_maps, near_plane_notes
 
 MAX_SIDE = 16384
 MAX_REGION_VERTICES = 32
@@ -80,11 +80,10 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
     maps = [light_map(j, s, origin, tol, options) for j in jobs]
     used = sum(m.size[0] * m.size[1] for m in maps)
     size = _fallback_size(max(total - used / len(frames), 1), options)
-    for m, frame in zip(frame_maps(frames, size, options.texel_snapping, options.linear_z), frames):
+    for m in frame_maps(frames, size, options.texel_snapping, options.linear_z):
         m.role = "fallback" if len(frames) == 1 else f"fallback:{m.role}"
         maps.append(m)
-        if frame.near_clamped:
-            diag.fallback(f"{m.role}: near plane", NEAR_PLANE_NOTE)
+    diag.fallbacks += near_plane_notes(frames, "fallback:")
     diag.extra["planes"] = [{
         "role": f"plane:{j.index}", "name": j.plane.name, "normal": j.plane.normal, "offset": j.plane.offset,
         "lixels_per_pixel": s, "twist_deg": math.degrees(j.twist), "rect": list(j.rect),
