@@ -36,7 +36,9 @@ def window_matrices(lo: list, hi: list) -> np.ndarray:
     entries = []
     for (x0, y0, z0), (x1, y1, z1) in zip(lo, hi):
         least = max(x1 - x0, y1 - y0, z1 - z0, 0.0) * 1e-6
-        (sx, ox), (sy, oy), (sz, oz) = (_axis_window(a, b, least) for a, b in ((x0, x1), (y0, y1), (z0, z1)))
+        sx, ox = _axis_window(x0, x1, least)
+        sy, oy = _axis_window(y0, y1, least)
+        sz, oz = _axis_window(z0, z1, least)
         entries += [sx, 0.0, 0.0, ox, 0.0, sy, 0.0, oy, 0.0, 0.0, sz, oz, 0.0, 0.0, 0.0, 1.0]
     return np.array(entries).reshape(-1, 4, 4)
 

@@ -382,8 +382,6 @@ def _unit_rows(normals, offsets) -> tuple[np.ndarray, np.ndarray]:
     n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
     o = np.asarray(offsets, dtype=np.float64).reshape(-1)
     length = np.sqrt(np.einsum("ij,ij->i", n, n))
-    if length.all():
-        return n / length[:, None], o / length
     good = length > 0
     return n[good] / length[good, None], o[good] / length[good]
 

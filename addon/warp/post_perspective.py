@@ -252,9 +252,7 @@ class PPSLight:
     @property
     def position(self) -> np.ndarray | None:
         """L' as a PPS point, None when it is at infinity (directional)."""
-        if self.kind == "directional":
-            return None
-        return self.light[:3] / self.light[3]
+        return None if self.kind == "directional" else self.light[:3] / self.light[3]
 
 
 def pps_light_matrix(light_h, points, max_half_angle: float = math.inf) -> PPSLight:

@@ -277,7 +277,8 @@ def steepest_incidence(points: np.ndarray, height: np.ndarray, l_h: np.ndarray) 
 def cone_facets(corners: np.ndarray, height: np.ndarray, l_h: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
     """C's facets as unit normals and offsets: h(x) >= -tol and a side plane through
     each edge of ``corners`` and the light (none for an edge pointing at it)."""
-    sides = cross(np.roll(corners, -1, axis=0) - corners, l_h[:3] - corners * l_h[3])   # edge x (towards the light)
+    edges = np.concatenate([corners[1:], corners[:1]]) - corners
+    sides = cross(edges, l_h[:3] - corners * l_h[3])                  # each edge x (from its start towards the light)
     length = np.sqrt(np.einsum("ij,ij->i", sides, sides))
     made = length > 0
     sides = sides[made] / length[made, None]
