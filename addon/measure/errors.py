@@ -152,6 +152,16 @@ def flicker(method_frames, truth_frames, valid_frames) -> Flicker:
     return Flicker(stable_transitions=int(stable.sum()), flips=int(flips.sum()))
 
 
+def screen_motion(view_before, view_now, points) -> np.ndarray:
+    """Pixels each world point moves on screen from ``view_before`` to ``view_now`` (both of one resolution): the
+    camera's speed in the unit flicker meets it (``bench.cascade flicker --speeds``)."""
+    def pixel(view):
+        clip = np.c_[points, np.ones(len(points))] @ view.world_to_clip.T
+        return clip[:, :2] / clip[:, 3:] * 0.5 * np.asarray(view.resolution, dtype=np.float64)
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    return np.linalg.norm(pixel(view_now) - pixel(view_before), axis=1)
+
+
 @dataclass
 class FlickerSplit:
     """The two causes of pixel flicker under a moving camera, over the pixel transitions (frames k-1, k) that show

@@ -37,10 +37,12 @@ DEFINITIONS = [
                 "images), false light = lit where the truth is dark (blue); 'at edges' = within 2 px of a true "
                 "shadow edge."),
     ("flicker %", "over the camera animation, of the pixel transitions where the ground truth keeps its state, the "
-                  "fraction where the method's state changes. The cameras move metres a frame, so this counts the "
-                  "method's error edges sliding across the pixels even where its maps stand still in the world: "
-                  "python -m bench.cascade flicker splits it into that part and the world-consistent flicker (the "
-                  "same surface point changing state as the maps change), with the stable options on and off."),
+                  "fraction where the method's state changes. The sample cameras move a surface point 3-31 pixels "
+                  "a frame at 640×360, so this counts the method's error edges sliding across the pixels even where "
+                  "its maps stand still in the world: python -m bench.cascade flicker splits it into that part and "
+                  "the world-consistent flicker (the same surface point changing state as the maps change), with "
+                  "the stable options on and off, and measures it on the same moves slowed to a few pixels a frame "
+                  "or less (--speeds)."),
     ("footprint", "the analytic texel footprint of the method's matrices: screen pixels spanned by one texel in its "
                   "worst direction (largest singular value of the texel-to-pixel Jacobian on the surface); above 1 "
                   f"means blocky shadow edges. Its statistics (p95, share above 1) are over the lit-facing pixels "

@@ -67,3 +67,19 @@ def test_an_edge_that_stands_still_in_the_world_flickers_only_with_the_camera():
     assert (s.flips, s.camera, s.world) == (3, 4, 1) and s.flips <= s.camera + s.world
     with pytest.raises(ValueError):
         flicker_split(method[0], held[:2], method[1], truth[0], truth[1], same)
+
+
+def test_screen_motion_of_a_pan_and_a_sideways_step():
+    """Panning by the angle of one pixel at the centre moves a point straight ahead one pixel, however far; a sideways
+    step moves a point by its parallax, f·step/depth pixels, so the near one twice as far as one twice as distant."""
+    import math
+    from addon.measure import screen_motion
+    from hard_cases import camera
+    before = camera((0, 0, 0), forward=(0, 1, 0), res=(640, 360))
+    f_px = before.projection[0][0] * 640 / 2                      # focal length in pixels
+    yaw = math.atan(1 / f_px)
+    panned = camera((0, 0, 0), forward=(math.sin(yaw), math.cos(yaw), 0), res=(640, 360))
+    ahead = np.array([[0, 5, 0], [0, 50, 0]])
+    assert screen_motion(before, panned, ahead) == pytest.approx([1, 1], rel=1e-6)
+    stepped = camera((0.1, 0, 0), forward=(0, 1, 0), res=(640, 360))
+    assert screen_motion(before, stepped, ahead) == pytest.approx([f_px * 0.1 / 5, f_px * 0.1 / 50], rel=1e-9)
