@@ -211,7 +211,8 @@ def seen_from_outside(geometry, matrix, greater: bool = False, among: Optional[n
 
 
 def depth_pass(setup: ShadowSetup, scene: GPUScene, casters, shadow: ShadowSettings,
-               targets: Optional[TargetPool] = None, bare: bool = False, solids: Optional[list] = None) -> list:
+               targets: Optional[TargetPool] = None, bare: bool = False, solids: Optional[list] = None,
+               prefix: str = "map") -> list:
     """Draw every map of ``setup``: returns [(depth texture, framebuffer)].
 
     Per map: clear to 1 (LESS) or 0 (GREATER, reversed test), depth test
@@ -227,6 +228,7 @@ def depth_pass(setup: ShadowSetup, scene: GPUScene, casters, shadow: ShadowSetti
     every map with its own matrix and an empty fragment stage, culling no
     face but those of ``solids`` where given.
     Matrices are made relative to ``scene.origin`` (see :func:`relative`).
+    Map i draws into the pool's depth texture "<prefix><i>".
     """
     import gpu
     targets = targets if targets is not None else shared_targets()
@@ -234,7 +236,7 @@ def depth_pass(setup: ShadowSetup, scene: GPUScene, casters, shadow: ShadowSetti
     out = []
     for i, m in enumerate(setup.maps):
         w, h = (int(v) for v in m.size)
-        tex = targets.texture(f"map{i}", (w, h), "DEPTH_COMPONENT32F")
+        tex = targets.texture(f"{prefix}{i}", (w, h), "DEPTH_COMPONENT32F")
         fb = targets.framebuffer(depth=tex)
         greater = m.depth_test == "GREATER"
         matrix, window_row = (relative(m.matrix, origin), None) if bare else depth_draw(m, origin)
@@ -520,6 +522,15 @@ class ShadowFrame:
         self.keys = mdsm_pass(self.maps, setup, shadow, self.targets) if shadow.mdsm_depths > 1 else []
         self._stage("mdsm", t, self.keys[-1][1] if self.keys else None, color=True)
         return self.maps
+
+    def probe_depths(self, setup: ShadowSetup, body) -> list:
+        """Draw ``setup``'s maps apart from the frame's own (depth textures "probe<i>") with every face of the
+        casters that can shadow what the camera sees (``body.hull_halfspaces``), and read back their window depths,
+        (h, w) each: a first look at where shadows fall (``addon.gpu.visibility.shadow_edges``)."""
+        hn, ho = body.hull_halfspaces
+        casters = self.scene.draw_list("casters", self._select("casters", hn, ho, body.tolerance * 10))
+        maps = depth_pass(setup, self.scene, casters, ShadowSettings(), self.targets, prefix="probe")
+        return [compose.read_depth(fb, tuple(int(v) for v in m.size)) for (_, fb), m in zip(maps, setup.maps)]
 
     def shade(self, light: Light, setup: ShadowSetup, shadow: ShadowSettings, albedo: float = DEFAULT_ALBEDO,
               spot_blend: float = 0.0, ambient=DEFAULT_AMBIENT, read=None) -> None:

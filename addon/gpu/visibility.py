@@ -12,11 +12,14 @@ then tests against the same depth target. ``bench/visibility.py`` times it.
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import replace
 
 import numpy as np
 
+from ..warp.aliasing import pixel_density_constant, raster_jacobian
+from ..warp.geometry import transform_h
 from ..warp.visibility import (PIXEL_TILE, VisibleRegion, region_from_window_depth, region_from_window_tiles,
                                surface_from_window_depth)
 from . import compose
@@ -58,3 +61,87 @@ def unpacked_normals(codes: np.ndarray) -> np.ndarray:
     t = np.maximum(-n[..., 2:], 0.0)
     n[..., :2] += np.where(n[..., :2] >= 0.0, -t, t)
     return n / np.linalg.norm(n, axis=-1, keepdims=True)
+
+
+EDGE_MAP = 512
+"""Texels a side of the first look's uniform map(s) (:func:`shadow_edges`)."""
+EDGE_PIXELS = 0.5
+"""The narrowest band on screen an edge sample of :func:`shadow_edges` is taken to stand for, in pixels."""
+EDGE_GRAZING = 0.05
+"""Surface samples whose n·l is below this are left out of :func:`shadow_edges` (turned from the light, or so nearly
+edge-on that a coarse map's texel holds the plane itself at many depths)."""
+
+
+def shadow_edges(frame, region: VisibleRegion, body, light, bounds, options) -> VisibleRegion:
+    """``region`` with ``TileDepths.edges``, where a shadow edge can fall on what the camera sees (docs/papers.md,
+    "The λ guard", part 7): per tile, the length in pixels (up to a constant) of the shadow edges of a first, coarse
+    look, the uniform map(s) of ``body`` at ``EDGE_MAP``² drawn with the frame's casters
+    (``ShadowFrame.probe_depths``): its surface samples at an edge (``at_shadow_edge``), each over the width on
+    screen of the band of texels that found it. Unchanged where the surface was not read back or nothing casts."""
+    if region.surface is None or region.normals is None or not frame.geometry.instances.casts.any():
+        return region
+    from ..warp import compute
+    setup = compute("uniform", frame.view, light, bounds, replace(options, shadow_map_size=(EDGE_MAP, EDGE_MAP)),
+                    body=body)
+    points = region.surface.mean(axis=1)
+    seen_from = -frame.view.direction[None] if frame.view.orthographic else frame.view.position - points
+    normals = region.normals * np.sign(np.einsum("ij,ij->i", region.normals, seen_from))[:, None]   # the seen side
+    band, free = np.zeros(len(points)), np.ones(len(points), dtype=bool)
+    for m, depth in zip(setup.maps, frame.probe_depths(setup, body)):
+        mine = free & m.contains(points)
+        free &= ~mine
+        band[mine] = at_shadow_edge(m, depth, points[mine], normals[mine], light)
+    view = frame.view
+    pixels = band * math.sqrt(pixel_density_constant(view)) / (1.0 if view.orthographic else view.eye_depth(points))
+    h = points @ view.world_to_clip[:, :3].T + view.world_to_clip[:, 3]
+    t = region.tiles
+    col = np.clip(np.searchsorted(t.x_edges[1:-1], h[:, 0] / h[:, 3], side="right"), 0, len(t.x_edges) - 2)
+    row = np.clip(np.searchsorted(t.y_edges[1:-1], h[:, 1] / h[:, 3], side="right"), 0, len(t.y_edges) - 2)
+    edges = np.bincount(row * t.near.shape[1] + col, np.where(band > 0, 1.0 / np.maximum(pixels, EDGE_PIXELS), 0.0),
+                        minlength=t.near.size)
+    return replace(region, tiles=replace(t, edges=edges.reshape(t.near.shape)))
+
+
+def at_shadow_edge(shadow_map, window_depth: np.ndarray, points: np.ndarray, normals: np.ndarray, light) -> np.ndarray:
+    """Where (N, 3) ``points`` (unit ``normals`` on their seen side, inside ``shadow_map``'s clip volume, n·l >=
+    ``EDGE_GRAZING``) lie at one of its shadow edges, the world width of the 3 x 3 texels around each, 0 elsewhere:
+    some but not all of them hold a caster nearer the light than the point's own plane where the light ray through
+    the texel's centre meets it (the shading's receiver-plane test, ``gpu_shaders/shade_frag.glsl``), by more than
+    1.5 texel widths."""
+    m = shadow_map.matrix
+    to_light = -light.direction[None] if light.is_directional else light.position - points
+    to_light = to_light / np.linalg.norm(to_light, axis=1, keepdims=True)
+    j = raster_jacobian(m, shadow_map.size, points)
+    width = 1.0 / np.sqrt(np.linalg.norm(j[:, 0], axis=1) * np.linalg.norm(j[:, 1], axis=1))
+    size = np.array([int(v) for v in shadow_map.size])
+    h = points @ m[:, :3].T + m[:, 3]
+    texel = np.floor((h[:, :2] / h[:, 3:] * 0.5 + 0.5) * size).astype(np.int64)
+    taps = np.clip(texel[:, None] + np.stack(np.meshgrid([-1, 0, 1], [-1, 0, 1]), -1).reshape(1, 9, 2), 0, size - 1)
+    ndc = (taps + 0.5) * (2.0 / size) - 1.0
+    ends = [transform_h(np.linalg.inv(m), np.concatenate([ndc, np.full((*ndc.shape[:2], 1), z)], -1).reshape(-1, 3))
+            for z in (0.0, 1.0)]                                                   # two points of each tap's ray
+    ends = [(e[:, :3] / e[:, 3:]).reshape(*ndc.shape[:2], 3) for e in ends]
+    ray = ends[1] - ends[0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.einsum("ij,ij->i", points, normals)[:, None] - np.einsum("ikj,ij->ik", ends[0], normals)
+        on_plane = ends[0] + (t / np.einsum("ikj,ij->ik", ray, normals))[..., None] * ray
+    depth, slope = stored_depth(shadow_map, points)
+    plane = np.where(np.isfinite(on_plane).all(-1), stored_depth(shadow_map, on_plane.reshape(-1, 3))[0].reshape(-1, 9),
+                     depth[:, None])
+    bias = 1.5 * width * np.abs(np.einsum("ij,ij->i", slope, to_light))
+    reference = 0.5 * (np.minimum(plane, depth[:, None]) - bias[:, None]) + 0.5
+    near = (window_depth[taps[..., 1], taps[..., 0]] < reference).sum(axis=1)
+    edge = (near > 0) & (near < 9) & (np.einsum("ij,ij->i", normals, to_light) >= EDGE_GRAZING)
+    return np.where(edge, 3.0 * width, 0.0)
+
+
+def stored_depth(shadow_map, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The NDC depth ``shadow_map`` stores for (N, 3) world ``points`` (its linear depth row, else z / w) and its
+    gradient per metre, (N,) and (N, 3)."""
+    if shadow_map.depth_row is not None:
+        row = shadow_map.depth_row
+        return points @ row[:3] + row[3], np.broadcast_to(row[:3], points.shape)
+    m = shadow_map.matrix
+    h = points @ m[:, :3].T + m[:, 3]
+    z = h[:, 2] / h[:, 3]
+    return z, (m[2, :3] - z[:, None] * m[3, :3]) / h[:, 3:]

@@ -21,6 +21,7 @@ supported light, nothing to render, no GPU) ends the render with a
 """
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from contextlib import contextmanager
@@ -39,6 +40,21 @@ from ..warp.types import Diagnostics, EmptyBodyError, ShadowMap, ShadowSetup, Wa
 from .warp_cache import shared_warps
 
 log = logging.getLogger(__name__)
+
+GUARDED = ("lispsm", "gmnpr", "glpr", "psm", "cascade")
+"""The methods whose warp strength the λ guard can keep no worse than the uniform map (docs/papers.md, "The λ
+guard"), the cascade through its splits' warps."""
+
+
+def weighs_edges(method: str, options, light) -> bool:
+    """Whether ``method``'s λ guard acts and weighs where shadow edges fall on what is seen (``fit_warp``): not for a
+    point light, whose cube faces' guards each read every visible point, not their own (docs/papers.md, the λ
+    guard, part 7: there the edges made the warps worse)."""
+    if options.focus != "visible" or method not in GUARDED or light.type == "POINT":
+        return False
+    if method == "cascade":
+        return options.lambda_guard == "all" and not options.cascade_stable and options.cascade_warp != "uniform"
+    return options.lambda_guard in ("all", method)
 
 EXTRA_PASSES = (
     # name, channels, channel ids, compositor socket type, view-layer switch, RenderResult image
@@ -140,13 +156,20 @@ def _world_colour(scene) -> tuple:
 def fit_warp(frame, light, bounds, options, method: str):
     """B and the warp for ``frame`` (a ``ShadowFrame`` whose view is the
     camera's): B fitted to what the frame's pre-pass saw when ``options.focus``
-    is "visible", to the view frustum otherwise. Returns (body, setup, seconds
+    is "visible", to the view frustum otherwise; where the λ guard acts
+    (``weighs_edges``), also where shadow edges fall on what is seen
+    (``shadow_edges``, a coarse first look). Returns (body, setup, seconds
     spent reading the visible region, or None). Raises ``EmptyBodyError``."""
-    from ..gpu.visibility import region_from_frame
+    from ..gpu.visibility import region_from_frame, shadow_edges
     visible = seconds = None
+    edges = weighs_edges(method, options, light)
     if options.focus == "visible":
-        visible, seconds = region_from_frame(frame, surface=reads_surface(method, options))
+        visible, seconds = region_from_frame(frame, surface=reads_surface(method, options) or edges)
     body = focused_body(frame.view, light, bounds, options, visible)
+    if edges:
+        t = time.perf_counter()
+        body = dataclasses.replace(body, visible=shadow_edges(frame, visible, body, light, bounds, options))
+        seconds += time.perf_counter() - t
     return body, compute(method, frame.view, light, bounds, options, body=body), seconds
 
 

@@ -44,6 +44,9 @@ class TileDepths:
     samples: np.ndarray | None = None
     """(ny, nx): how many of the tile's samples (pixels, rays) hit a surface;
     with ``near`` and ``far`` the distribution of visible depths (None: unknown)."""
+    edges: np.ndarray | None = None
+    """(ny, nx): the length of the shadow edges seen through each tile, in pixels up to a constant (None: unknown;
+    ``addon.gpu.visibility.shadow_edges``)."""
 
     @property
     def seen(self) -> np.ndarray:
@@ -91,6 +94,13 @@ class VisibleRegion:
                            np.concatenate([t.near[rows, cols], t.far[rows, cols]]))
         w = np.ones(len(rows)) if t.samples is None else t.samples[rows, cols].astype(np.float64)
         return points, np.concatenate([w, w]) / 2.0
+
+    def edge_weights(self) -> np.ndarray | None:
+        """Per point of :meth:`samples`, half its tile's ``TileDepths.edges`` (None: not known)."""
+        if self.tiles.edges is None:
+            return None
+        e = self.tiles.edges[np.nonzero(self.tiles.seen)].astype(np.float64)
+        return np.concatenate([e, e]) / 2.0
 
     def tile_corners(self, view: View) -> np.ndarray:
         """(8 T, 3) world corners of the T seen tiles' depth slabs (their hull holds every visible point)."""

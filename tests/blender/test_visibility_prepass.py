@@ -95,8 +95,10 @@ def test_the_engine_fits_the_warp_to_its_depth_prepass(mods, fresh_scene):
 
 
 def test_the_engine_reads_the_seen_surface_back_only_for_a_method_that_reads_it(mods, fresh_scene, monkeypatch):
-    """Issue 15's wasted work (``warp.methods.reads_surface``): a stable or a one-split cascade does not read the
-    pre-pass's surface back and gets the maps it got when it did; the adaptive cascade reads it."""
+    """Issue 15's wasted work (``warp.methods.reads_surface``): a stable cascade, or a one-split one whose λ guard
+    does not act, does not read the pre-pass's surface back and gets the maps it got when it did; the adaptive
+    cascade reads it, and so does a one-split cascade whose warps the guard weighs by the shadow edges seen
+    (``engine.weighs_edges``)."""
     overlook(fresh_scene)
     read, asked, force = mods.visibility.region_from_frame, [], []
 
@@ -109,14 +111,15 @@ def test_the_engine_reads_the_seen_surface_back_only_for_a_method_that_reads_it(
         return [(m.role, m.matrix.tolist()) for m in render(mods, fresh_scene, "cascade", **warp)["setup"].maps]
 
     monkeypatch.setattr(mods.visibility, "region_from_frame", spy)
-    for warp in (dict(cascade_stable=True), dict(cascade_splits=1)):
+    for warp in (dict(cascade_stable=True), dict(cascade_splits=1, lambda_guard="off")):
         without = maps(**warp)
         assert asked[-1] is False
         force.append(True)
         assert maps(**warp) == without                       # the surface read back as before: the same maps
         force.clear()
-    maps()
-    assert asked[-1] is True
+    for warp in (dict(), dict(cascade_splits=1)):
+        maps(**warp)
+        assert asked[-1] is True
 
 
 def overlooked_frame(mods, scene, read):
@@ -229,3 +232,33 @@ def test_the_gpu_tile_reduction_equals_the_read_back_one(mods, fresh_scene):
     np.testing.assert_array_equal(a.near[a.seen], b.near[b.seen])
     np.testing.assert_array_equal(a.far[a.seen], b.far[b.seen])
     assert 0 < a.seen.sum() < a.seen.size                                 # ground below, sky above
+
+
+def test_the_shadow_edges_found_by_a_first_look_are_where_the_shadows_change(mods, fresh_scene):
+    """The λ guard weighs the warp by where shadow edges fall on what is seen (docs/papers.md, the λ guard, part 7):
+    ``shadow_edges`` marks the tiles whose surface samples lie at an edge of a coarse uniform map's shadows. Against
+    the shadows a fine uniform map renders, every tile it marks holds or touches an edge, and it finds most edge
+    tiles; faces turned from the light (in their own shadow) and unshadowed ground mark nothing."""
+    view, light, bounds, frame = overlooked_frame(mods, fresh_scene, {"shadow_raw", "covered"})
+    region, _ = mods.visibility.region_from_frame(frame, surface=True)
+    options = mods.warp.WarpOptions(shadow_map_size=2048)
+    body = mods.warp.focused_body(view, light, bounds, options, region)
+    found = mods.visibility.shadow_edges(frame, region, body, light, bounds, options).tiles.edges
+    setup = mods.warp.compute("uniform", view, light, bounds, options, body=body)
+    frame.draw_maps(setup, mods.settings.ShadowSettings(), body)
+    frame.shade(light, setup, mods.settings.ShadowSettings())
+    out = frame.finish()
+    shadow, seen = out.shadow_raw >= 0.5, out.covered
+    change = np.zeros_like(shadow)
+    for a, b in (((slice(1, None), slice(None)), (slice(None, -1), slice(None))),
+                 ((slice(None), slice(1, None)), (slice(None), slice(None, -1)))):
+        step = (shadow[a] != shadow[b]) & seen[a] & seen[b]
+        change[a] |= step
+        change[b] |= step
+    truth = mods.warp.visibility.tile_counts(change, mods.visibility.PIXEL_TILE) > 0
+    near_truth = truth.copy()
+    for axis in (0, 1):
+        near_truth |= np.roll(truth, 1, axis) | np.roll(truth, -1, axis)
+    assert found.shape == truth.shape and truth.sum() >= 4
+    assert (found > 0).sum() >= 0.7 * truth.sum()
+    assert not ((found > 0) & ~near_truth).any()

@@ -633,3 +633,37 @@ def test_a_ray_closed_map_holds_b_within_its_window(name):
         held_ndc = hh[:, :3] / hh[:, 3:]
         assert np.allclose(held_ndc.min(axis=0), lo, atol=1e-6) and np.allclose(held_ndc.max(axis=0), hi, atol=1e-6)
     assert compared > 0
+
+
+@pytest.mark.parametrize("method", ["lispsm", "gmnpr", "glpr", "psm"])
+def test_where_shadow_edges_fall_only_far_away_the_guard_warps_less(method):
+    """The λ guard's screen bound is weighed by where shadow edges fall on what is seen, where that is known
+    (``TileDepths.edges``): the wrong pixels lie along them. Edges only in the farthest tiles keep the map nearer
+    the uniform one than the visible pixels alone would (a weaker warp: a larger λ); edges spread as the pixels
+    are give the same map."""
+    import dataclasses
+    from addon.warp.visibility import region_from_boxes
+    view = camera([0.0, -30.0, 6.0], [0.0, 1.0, -0.2], near=0.1, far=80.0)
+    scene = SceneBounds.from_boxes([[[-60.0, -60.0, -0.1], [60.0, 60.0, 0.0]], [[-3.0, 10.0, 0.0], [3.0, 12.0, 5.0]]])
+    light = sun([0.9, 0.1, -0.5])
+    region = region_from_boxes(view, scene)
+    t = region.tiles
+    far = np.where(t.seen & (t.far >= np.quantile(t.far[t.seen], 0.9)), t.samples, 0)
+
+    def strength(tiles):
+        setup = compute(method, view, light, scene, WarpOptions(shadow_map_size=1024),
+                        visible=dataclasses.replace(region, tiles=tiles))
+        return setup.maps[0].matrix, setup.diagnostics
+    plain, _ = strength(t)
+    spread, _ = strength(dataclasses.replace(t, edges=t.samples))
+    np.testing.assert_allclose(spread, plain, rtol=1e-9, atol=1e-12)
+    edged, diag = strength(dataclasses.replace(t, edges=far))
+    assert any("shadow edges" in why for what, why in diag.fallbacks if "λ guard" in what)
+    body = intersection_body(view, light, scene, region)
+    assert warp_lambda(edged, view, light, body) > warp_lambda(plain, view, light, body) * 1.1
+
+
+def warp_lambda(matrix, view, light, body):
+    """λ = (h_min - h_0)/D read from the map (``map_lambda``), in its sun frame (∞: unwarped)."""
+    from addon.warp.methods.warp_frustum import map_lambda
+    return map_lambda(matrix, light_frames(view, light, body, WarpOptions())[0])[1]

@@ -35,6 +35,8 @@ class WarpContext:
     visible: Optional[tuple[np.ndarray, np.ndarray, np.ndarray]] = None
     """The visible surface as weighted world points (``VisibleRegion.samples``) and their eye depths, when B was
     focused."""
+    edges: Optional[np.ndarray] = None
+    """Per visible point, the shadow-edge samples it stands for (``VisibleRegion.edge_weights``; None: unknown)."""
     phi: float = 0.0
     """GMNPR's φ (half the field of view towards the light), for the λ guard's model."""
     guard: bool = False
@@ -131,8 +133,10 @@ def eye_depth_range(view: View, body: IntersectionBody, options: WarpOptions, di
             a, b = (float(v) for v in options.visible_depth_range)
             z_n = max(view.near, a)
             z_f = max(min(view.far, b), z_n)
-    visible = None if body.visible is None else body.visible.samples(view)
-    return WarpContext(z_n, z_f, None if visible is None else (*visible, view.eye_depth(visible[0])))
+    if body.visible is None:
+        return WarpContext(z_n, z_f)
+    visible = body.visible.samples(view)
+    return WarpContext(z_n, z_f, (*visible, view.eye_depth(visible[0])), body.visible.edge_weights())
 
 
 def half_fov_towards(view: View, light_dir) -> float:
@@ -277,7 +281,7 @@ def guard_lambda(lam: float, gamma: float, axis: WarpAxis, ctx: WarpContext, sca
     """``lam`` raised to the least λ at which the warp is no worse than the uniform map (docs/papers.md, "The λ
     guard"), at its worst over [z_n, z_f] and over the visible pixels along ``axis`` (and across it, given B's
     homogeneous vertices ``body_h`` and ``axis`` a FrameGeometry), and to the λ whose texels are least on screen
-    over the visible pixels: (λ, why raised or "")."""
+    over the visible pixels, or over the shadow edges seen where known (``ctx.edges``): (λ, why raised or "")."""
     theta = folded(gamma)
     bounds = {f"its worst aliasing over the visible depths [{ctx.z_n:.4g}, {ctx.z_f:.4g}] would be worse than the "
               f"uniform map's": lambda_no_worse_than_uniform(theta, ctx.z_n, ctx.z_f, ctx.phi)}
@@ -287,8 +291,10 @@ def guard_lambda(lam: float, gamma: float, axis: WarpAxis, ctx: WarpContext, sca
         body = None if body_h is None else _along_across(body_h, axis, float(np.dot(axis.eye[:2], axis.b)))
         bounds["its aliasing over the visible pixels (its texels' side along V_P or their longer side, L2 over them) "
                "would be worse than the uniform map's"] = lambda_no_worse_on_average(delta, weights, body) * scale
-        bounds["its texels would be larger on screen, on average over the visible pixels"] = lambda_least_on_screen(
-            delta, weights, depth, body) * scale
+        edges = ctx.edges if ctx.edges is not None and ctx.edges.sum() > 0 else None     # (part 7: where errors can be)
+        bounds["its texels would be larger on screen, on average over the visible "
+               + ("pixels" if edges is None else "shadow edges")] = lambda_least_on_screen(
+            delta, weights if edges is None else edges, depth, body) * scale
     why, guard = max(bounds.items(), key=lambda item: item[1])
     if not guard > lam:
         return lam, None

@@ -3,12 +3,14 @@ C_(i+1) of V, by PSSM's practical scheme C_i = λ·z_n·(z_f/z_n)^(i/N) + (1 - �
 [z_n, z_f] tightened to the visible receivers (docs/papers.md, ``addon/warp/partition``)."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ..body import IntersectionBody
 from ..post_perspective import nearest_visible_depth
 from ..types import Light, View, WarpError, WarpOptions
-from ..visibility import TileDepths, VisibleRegion
+from ..visibility import VisibleRegion
 
 
 def practical_splits(z_n: float, z_f: float, count: int, lam: float) -> np.ndarray:
@@ -49,5 +51,5 @@ def split_view(view: View, near: float, far: float) -> View:
 def split_region(region: VisibleRegion, near: float, far: float) -> VisibleRegion:
     """``region`` between eye depths ``near`` and ``far`` (each tile's interval clipped)."""
     t = region.tiles
-    tiles = TileDepths(t.x_edges, t.y_edges, np.maximum(t.near, near), np.minimum(t.far, far), t.samples)
+    tiles = dataclasses.replace(t, near=np.maximum(t.near, near), far=np.minimum(t.far, far))
     return VisibleRegion(tiles, region.source)
