@@ -35,8 +35,7 @@ CHUNK = 1 << 14
 
 
 def _pair_intervals(o, inv, lo, hi, rays, boxes) -> tuple[np.ndarray, np.ndarray]:
-    """``slab_intervals`` of ray ``rays[i]`` against box ``boxes[i]``, from (3, R) origins
-    and inverse directions and (3, M) corners."""
+    """``slab_intervals`` of ray ``rays[i]`` against box ``boxes[i]``: (3, R) origins, inverses, (3, M) corners."""
     enter = leave = None
     for axis in range(3):
         oa, ia = o[axis, rays], inv[axis, rays]

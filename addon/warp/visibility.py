@@ -28,8 +28,7 @@ DEPTH_ULPS = 16
 KDOP_DIRECTIONS = 8
 """Directions across the light in which the k-DOP bounds the tiles (every 180°/8)."""
 KDOP_PAD = 1e-3
-"""The k-DOP's planes are moved out by this fraction of the region's extent (and its angles by this fraction of its
-angular extent), so points on the region's boundary stay inside the maps after float32 rounding on the GPU."""
+"""The k-DOP's planes (angles) move out by this fraction of the region's (angular) extent: float32 GPU rounding."""
 
 
 @dataclass(frozen=True)
@@ -42,8 +41,7 @@ class TileDepths:
     near: np.ndarray
     far: np.ndarray
     samples: np.ndarray | None = None
-    """(ny, nx): how many of the tile's samples (pixels, rays) hit a surface;
-    with ``near`` and ``far`` the distribution of visible depths (None: unknown)."""
+    """(ny, nx): how many of the tile's samples (pixels, rays) hit a surface (None: unknown)."""
     edges: np.ndarray | None = None
     """(ny, nx): the length of the shadow edges seen through each tile, in pixels up to a constant (None: unknown;
     ``addon.gpu.visibility.shadow_edges``)."""
@@ -206,8 +204,7 @@ def _across(ell: np.ndarray, view: View) -> np.ndarray:
 # ---------------------------------------------------------------- sources
 
 def tile_reduce(near_samples: np.ndarray, far_samples: np.ndarray, tile: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per ``tile`` x ``tile`` block of (H, W) samples, the least near and greatest far
-    (+inf / -inf: nothing seen; partial blocks at the top and right)."""
+    """Per ``tile`` x ``tile`` block of (H, W) samples (partial at the top, right), least near, greatest far (±inf)."""
     return _blocks(near_samples, tile, np.inf).min(axis=(1, 3)), _blocks(far_samples, tile, -np.inf).max(axis=(1, 3))
 
 
@@ -240,8 +237,7 @@ def _region(view: View, near, far, samples: tuple[int, int], tile: int, source: 
 
 def region_from_window_depth(view: View, window_depth: np.ndarray, tile: int = PIXEL_TILE,
                              source: str = "depth pre-pass") -> VisibleRegion:
-    """A region from a camera depth buffer read back as (H, W) window depths (1: nothing
-    drawn), reduced in numpy (the reference for ``addon.gpu.visibility``)."""
+    """A region from an (H, W) camera depth buffer (1: nothing drawn), in numpy (``addon.gpu.visibility``'s model)."""
     d = np.asarray(window_depth)
     drawn = d < 1.0
     near, far = tile_reduce(d, np.where(drawn, d, -np.inf), tile)

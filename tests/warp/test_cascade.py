@@ -13,11 +13,13 @@ The claims of the papers and of the method's docs, each a test:
 * the cascade beats the classic 3-split PSSM (``bench/reference_pssm.py``) at equal texels;
 * the receivers' footprint is the judge's σ_max(G·H⁻¹), at ray-cast receivers with their faces' normals;
 * a map turned to a hull edge still holds its B and projects along the light rays;
-* with receivers known, the cascade's p95 footprint there is never larger than that of Lloyd's picks.
+* with receivers known, the cascade's p95 footprint there is never larger than that of Lloyd's splits and picks;
+* the receivers' split search moves the split depths only where the p95 over its sampling band falls there.
 """
 from __future__ import annotations
 
 import dataclasses
+import importlib
 import json
 import math
 from pathlib import Path
@@ -34,7 +36,7 @@ from addon.cli.config import ConfigError, parse_config
 from addon.warp.methods.cascade import SPLIT_WARPS, build_split, cascade
 from addon.warp.partition.adaptive import max_error
 from addon.warp.partition.budget import shared_sizes
-from addon.warp.partition.receivers import footprint_p95, footprints, receivers, turned
+from addon.warp.partition.receivers import TAIL, footprint_p95, footprints, receivers, turned
 from addon.warp.partition.splits import practical_splits, split_view
 from addon.warp.partition.stable import stable_depth_range
 from addon.warp.visibility import focused_body, region_from_boxes
@@ -419,13 +421,38 @@ def test_a_turned_map_holds_its_body_and_projects_along_the_light(name):
         assert np.allclose(a[:, :2], b[:, :2], atol=1e-9)
 
 
+def receivers_p95(view, setup, region, band=(95.0,)):
+    """The p95 (or over ``band``) of the footprints at the ray cast's receivers, as the judge measures them (each
+    receiver in the map serving it)."""
+    return footprint_p95([setup_texel_footprint(view, setup, region.surface[:, 0], region.normals)], band)
+
+
 @pytest.mark.parametrize("config", configurations(), ids=config_ids())
-def test_with_receivers_known_the_cascade_never_has_a_larger_p95_footprint_there_than_lloyds_picks(config):
-    """The same split depths; each split's maps those of least footprint at the ray cast's receivers, measured
-    as the judge measures them (each receiver in the map serving it)."""
+def test_with_receivers_known_the_cascade_never_has_a_larger_p95_footprint_there_than_lloyds_splits_and_picks(config):
+    """Each split's maps those of least footprint at the ray cast's receivers, and the split depths moved from
+    Lloyd's only where that p95 does not rise."""
     view, light, scene = config
     region = region_from_boxes(view, scene)
     ours, lloyds = compute("cascade", view, light, scene, OPTIONS), lloyd_only(view, light, scene)
-    assert ours.diagnostics.extra["splits"] == lloyds.diagnostics.extra["splits"]
-    p95 = lambda setup: footprint_p95([setup_texel_footprint(view, setup, region.surface[:, 0], region.normals)])  # noqa
-    assert p95(ours) <= p95(lloyds) * (1 + 1e-9)
+    assert receivers_p95(view, ours, region) <= receivers_p95(view, lloyds, region) * (1 + 1e-9)
+
+
+def test_the_split_search_moves_the_split_depths_only_where_the_receivers_footprint_tail_falls(monkeypatch):
+    """Against the same cascade with the search off (no depths to try): where the depths moved, the p95 over its
+    sampling band (``TAIL``) at the receivers fell; and it moved somewhere, with every receiver still covered."""
+    module = importlib.import_module(build_split.__module__)
+    moved = 0
+    for view, light, scene in configurations():
+        region = region_from_boxes(view, scene)
+        ours = compute("cascade", view, light, scene, OPTIONS)
+        with monkeypatch.context() as m:
+            m.setattr(module, "FRACTIONS", ())
+            fixed = compute("cascade", view, light, scene, OPTIONS)
+        if ours.diagnostics.extra["split_scheme"] == "receivers":
+            moved += 1
+            assert ours.diagnostics.extra["splits"] != fixed.diagnostics.extra["splits"]
+            assert receivers_p95(view, ours, region, TAIL) < receivers_p95(view, fixed, region, TAIL)
+            assert judge(view, light, scene, ours).covering
+        else:
+            assert ours.diagnostics.extra["splits"] == fixed.diagnostics.extra["splits"]
+    assert moved >= 2

@@ -5,6 +5,7 @@ ShadowSetup of every split's maps, ``view_depth_range`` tiling [near, far], at m
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from dataclasses import dataclass, field
 from typing import Optional
@@ -16,7 +17,7 @@ from ..diagnostics import Diagnostics
 from ..frame import body_light_angles
 from ..partition.adaptive import max_error, minimax_splits
 from ..partition.budget import shared_sizes
-from ..partition.receivers import footprint_p95, footprints, receivers, turned
+from ..partition.receivers import TAIL, footprint_p95, footprints, receivers, turned
 from ..partition.splits import practical_splits, split_region, split_view, tightened_depth_range
 from ..partition.stable import stable_depth_range, stable_spot_map, stable_sun_map
 from ..types import EmptyBodyError, Light, SceneBounds, ShadowSetup, View, WarpError, WarpOptions
@@ -27,8 +28,9 @@ from .uniform import uniform
 
 SPLIT_WARPS = {"uniform": uniform, "lispsm": lispsm, "gmnpr": gmnpr, "psm": psm}
 """A split's warps, in the order "auto" prefers them on a tie."""
-TIE, MARGIN = 1e-6, 0.03
-"""Relative differences of Lloyd's m (rounding noise) and of the receivers' p95 (a sample) taken as ties."""
+TIE, MARGIN, SWEEPS, FRACTIONS = 1e-6, 0.03, 2, (0.2, 0.4, 0.6, 0.8)
+"""Relative differences of Lloyd's m (rounding noise) and of the receivers' p95 (a sample) taken as ties; the split
+search's sweeps, each trying every inner split depth at these fractions of its range (``searched_depths``)."""
 MAX_MAPS = 8
 """The most maps the shading pass reads (``addon.gpu.shaders.MAX_MAPS``)."""
 OVERLAP = 1e-4
@@ -49,10 +51,8 @@ class Split:
 
 
 def split_setup(warp: str, view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
-    """A split's maps by ``warp``, or a stable sun or spot split's on its texel grid. PSM runs without
-    its λ guard (``psm.guarded_warp``): read along PSM's own axis, the guard's λ can rise steeply
-    with a split's ends (sun_behind_camera), which the adaptive splits cannot equalise; "auto"
-    weighs each split's warps against the uniform map's predicted error anyway."""
+    """A split's maps by ``warp`` (PSM without its λ guard: docs/papers.md, ``addon/warp/methods/cascade.py``), or a
+    stable sun or spot split's on its texel grid."""
     stable, size = options.cascade_stable and light.type != "POINT", options.shadow_map_size
     snapped = None if not stable else stable_sun_map(light, body, view, size) if light.is_directional \
         else stable_spot_map(light, body, size, options.max_frustum_angle)
@@ -105,26 +105,56 @@ def build_split(view: View, light: Light, scene: SceneBounds, near: float, far: 
     return split
 
 
-def least_footprint(view: View, light: Light, splits: list, visible: Optional[VisibleRegion]) -> list:
-    """``splits`` with the maps (its warps' or those ``turned``) of least p95 ``footprints`` at the ``receivers``,
-    where known: coordinate descent from Lloyd's picks (two sweeps), kept if ``MARGIN`` below theirs."""
+def with_turns(split: Split, seen: tuple) -> list:
+    """(warp, setup, ``footprints`` at ``seen``) of each warp ``split`` tried (Lloyd's pick first), and turned."""
+    maps = sorted(split.tried, key=lambda t: t[1] is not split.setup)
+    maps += [(w, dataclasses.replace(m, maps=[dataclasses.replace(m.maps[0], matrix=turn)]))
+             for w, m in maps if len(m.maps) == 1 for turn in turned(m.maps[0].matrix, split.body.vertices)]
+    return [(w, m, footprints(m, seen)) for w, m in maps]
+
+
+def least_footprint(view: View, light: Light, splits: list, visible: Optional[VisibleRegion]) -> tuple[list, list]:
+    """``splits`` with the maps ``with_turns`` of least p95 at the ``receivers`` (coordinate descent from Lloyd's picks,
+    two sweeps; kept if ``MARGIN`` below theirs) and their footprints there (none: no receivers known)."""
     scored = []
     for s in splits:
         seen = None if s.setup is None else receivers(view, light, visible, s.near, s.far)
-        if seen is not None:                                                    # Lloyd's pick first
-            maps = sorted(s.tried, key=lambda t, s=s: t[1] is not s.setup)
-            maps += [(w, dataclasses.replace(m, maps=[dataclasses.replace(m.maps[0], matrix=turn)]))
-                     for w, m in maps if len(m.maps) == 1 for turn in turned(m.maps[0].matrix, s.body.vertices)]
-            scored.append((s, [(w, m, footprints(m, seen)) for w, m in maps]))
+        if seen is not None:
+            scored.append((s, with_turns(s, seen)))
     error = lambda picks: footprint_p95([c[k][2] for (_, c), k in zip(scored, picks)])  # noqa: E731
     pick = [0] * len(scored)
     for i in [*range(len(scored))] * 2:
         pick[i] = min(range(len(scored[i][1])), key=lambda k: error(pick[:i] + [k] + pick[i + 1:]))
-    if scored and error(pick) < (1.0 - MARGIN) * error([0] * len(scored)):
-        for (s, c), k in zip(scored, pick):
-            s.warp, s.setup, _ = c[k]
-            s.predicted_error = max_error(s.view, light, s.setup, s.body.visible_vertices)
-    return splits
+    if not (scored and error(pick) < (1.0 - MARGIN) * error([0] * len(scored))):
+        pick = [0] * len(scored)
+    for (s, c), k in zip(scored, pick):
+        s.warp, s.setup, _ = c[k]
+        s.predicted_error = max_error(s.view, light, s.setup, s.body.visible_vertices)
+    return splits, [c[k][2] for (_, c), k in zip(scored, pick)]
+
+
+def searched_depths(view: View, light: Light, start: np.ndarray, build, visible: Optional[VisibleRegion]) -> np.ndarray:
+    """``start`` after ``SWEEPS`` coordinate sweeps of the inner ones over ``FRACTIONS`` of their neighbours' log range
+    (linear if orthographic), kept where the receivers' p95 over the ``TAIL`` falls by ``MARGIN``, each split
+    ``build(i, C_i, C_(i+1))`` with its map of least p95 ``with_turns``."""
+    seen, made = receivers(view, light, visible, start[0], math.inf), {}
+    depth = view.eye_depth(seen[0])
+
+    def tail(c: np.ndarray) -> float:
+        for i, a, b in (ends := list(zip(range(len(c)), c[:-1], c[1:]))):
+            if (i, a, b) not in made:
+                mine = (depth >= a) & ((depth < b) | (i == len(c) - 2))
+                made[i, a, b] = min([f for *_, f in with_turns(build(i, a, b), tuple(x[mine] for x in seen))],
+                                    key=lambda f: footprint_p95([f]), default=np.zeros(0))
+        return footprint_p95([made[e] for e in ends], TAIL)
+
+    c, best = start, tail(start)
+    for _, k, f in itertools.product(range(SWEEPS), range(1, len(start) - 1), FRACTIONS):
+        trial = c.copy()
+        trial[k] = c[k - 1] + (c[k + 1] - c[k - 1]) * f if view.orthographic else c[k - 1] * (c[k + 1] / c[k - 1]) ** f
+        if (error := tail(trial)) < best * (1.0 - MARGIN):
+            c, best = trial, error
+    return c
 
 
 def adaptive_splits(options: WarpOptions) -> bool:
@@ -159,8 +189,14 @@ def split_depths(view: View, light: Light, scene: SceneBounds, body: Intersectio
                                            [kept[i]], body.visible, bodies).predicted_error
     moved, _ = minimax_splits(error_of, depths, [s.predicted_error for s in splits],
                               options.cascade_budget == "shared")
-    splits = splits if np.array_equal(moved, depths) else splits_at(moved)
-    return moved, least_footprint(view, light, splits, body.visible), "adaptive"
+    splits, seen = least_footprint(view, light, splits if np.array_equal(moved, depths) else splits_at(moved),
+                                   body.visible)
+    found = moved if not seen else searched_depths(view, light, moved, lambda i, a, b: build_split(
+        view, light, scene, a, b, band(i, a, b), options, [splits[i].warp], body.visible, bodies), body.visible)
+    searched, now = (splits, seen) if found is moved else least_footprint(view, light, splits_at(found), body.visible)
+    better = found is not moved and footprint_p95(now, TAIL) < footprint_p95(seen, TAIL) and \
+        footprint_p95(now) <= footprint_p95(seen) and sum(len(s.setup.maps) for s in searched if s.setup) <= MAX_MAPS
+    return (found, searched, "receivers") if better else (moved, splits, "adaptive")
 
 
 def cascade_maps(view: View, light: Light, splits: list, options: WarpOptions) -> tuple[list, list]:

@@ -33,9 +33,8 @@ def objective(errors, shared_budget: bool) -> float:
 
 def minimax_splits(error_of: Callable[[int, float, float], float], splits: np.ndarray, errors: list,
                    shared_budget: bool = False) -> tuple[np.ndarray, list[float]]:
-    """The depths (ends kept) after ``ROUNDS`` equalising steps on ``error_of(i, C_i, C_(i+1))`` from ``splits`` with
-    their ``errors``, or those when the :func:`objective` did not fall. Few rounds keep the result continuous: a long
-    search settles where a split's B jumps, and tips."""
+    """The depths (ends kept) after ``ROUNDS`` (few: a long search settles where a split's B jumps) equalising steps
+    on ``error_of(i, C_i, C_(i+1))`` from ``splits`` with ``errors``, or those if the :func:`objective` did not fall."""
     start, start_e = np.asarray(splits, dtype=np.float64), np.asarray(errors, dtype=np.float64)
     c, e = start, start_e
     power = np.ones(len(e))

@@ -11,6 +11,8 @@ from ..polyhedron import convex_polygon_on_plane
 from ..types import Light, ShadowSetup, View, WarpError
 from ..visibility import VisibleRegion
 
+TAIL = (93.0, 95.0, 97.0)
+"""Percentiles about the judge's p95: for n ≈ 1,000 receivers ±2 % is about ±3 binomial σ, sqrt(0.95·0.05/n)."""
 SAMPLES = 2048
 """At most this many of a region's receivers (every k-th) score its splits: the engine's pre-pass gives up to 16,384."""
 
@@ -37,26 +39,27 @@ def footprints(setup: ShadowSetup, seen: tuple) -> np.ndarray:
     p, tangent, g = seen
     served = setup.map_index(p, None, 1e-6) if len(setup.maps) > 1 else np.zeros(len(p), int)
     out = np.full(len(p), np.nan)
+    det = lambda a: a[:, 0, 0] * a[:, 1, 1] - a[:, 0, 1] * a[:, 1, 0]     # noqa: E731 (np.linalg.det: LAPACK per 2x2)
     for i, m in enumerate(setup.maps):
         h = raster_jacobian(m.matrix, m.size, p[served == i]) @ tangent[served == i]
         j = g[served == i] @ (np.swapaxes(h[:, ::-1, ::-1], 1, 2) * [[1.0, -1.0], [-1.0, 1.0]])   # G·H⁻¹·det H
-        f2, det_j, det_h = (j * j).sum(axis=(1, 2)), np.linalg.det(j), np.abs(np.linalg.det(h))
+        f2, det_j, det_h = (j * j).sum(axis=(1, 2)), det(j), np.abs(det(h))
         with np.errstate(divide="ignore", invalid="ignore"):
             sigma = np.sqrt((f2 + np.sqrt(np.maximum(f2 * f2 - 4.0 * det_j * det_j, 0.0))) / 2.0) / det_h
         out[served == i] = np.where(det_h > 1e-14 * np.max(np.abs(h), axis=(1, 2), initial=0.0) ** 2, sigma, np.inf)
     return out
 
 
-def footprint_p95(footprints: list) -> float:
-    """The 95th percentile of the finite values of ``footprints`` (0 if none): the judge's p95, edge-on left out."""
+def footprint_p95(footprints: list, band=(95.0,)) -> float:
+    """The judge's p95 of the finite values of ``footprints`` (edge-on left out; 0 if none), or the geometric mean of
+    the percentiles of a ``band`` about it (``TAIL``: a p95 at a cliff of the distribution does not decide alone)."""
     v = np.concatenate(footprints)
-    return float(np.percentile(v[np.isfinite(v)], 95)) if np.isfinite(v).any() else 0.0
+    return float(np.exp(np.log(np.percentile(v[np.isfinite(v)], band)).mean())) if np.isfinite(v).any() else 0.0
 
 
 def turned(matrix: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
-    """``matrix`` turned about its depth axis so that each edge of the points' image hull in turn lies along a texel
-    axis, refitted to the points (Freeman & Shapira 1975: a least enclosing rectangle has a side on a hull edge);
-    the turn is a rotation at the points' centre (the map's Jacobian there), about ℓ for a sun."""
+    """``matrix`` turned about its depth axis (about ℓ for a sun) to lay each edge of the points' image hull along a
+    texel axis, refitted to the points (Freeman & Shapira 1975; docs/papers.md, "The receivers' footprint")."""
     j = raster_jacobian(matrix, (2, 2), points.mean(axis=0)[None])[0]
     w, v = np.linalg.eigh(j @ j.T)
     metric = (v / np.sqrt(w)) @ v.T                                   # (J·Jᵀ)^(-1/2): NDC to lengths across ℓ

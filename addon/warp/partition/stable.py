@@ -1,7 +1,5 @@
-"""Stable cascades: every world point keeps its texel while the camera moves (docs/papers.md,
-``addon/warp/partition``): B_i of the view frustum, splits from the near clip to a whole octave, uniform warps; a sun
-split's window the square about its slab's sphere (Valient, ShaderX6: the same for any turn of the camera), a spot
-split the spot's own perspective on a ladder of windows, each corner on whole texels; points: not stable."""
+"""Stable cascades, every world point on its texel while the camera moves (docs/papers.md, ``addon/warp/partition``):
+a sun split's window the square about its slab's sphere (Valient, ShaderX6), a spot's on a ladder of windows."""
 from __future__ import annotations
 
 import math
