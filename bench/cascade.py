@@ -39,20 +39,20 @@ measures:
 * *pixel flicker*, the report's (``addon.measure.flicker``): pixels whose
   shadow changes between consecutive frames where the ground truth keeps its
   state, each frame rendered through the engine (``bench.report.lixel.frame``).
-  The sample cameras travel metres between frames, so every pixel then shows
+  The sample cameras travel 0.3-8 m between frames, so every pixel then shows
   another world point: a shadow edge that is a texel off the truth, however
   still it stands in the world, crosses pixels where the truth's edge does
-  not, and counts. This measures the error along edges as much as shimmer:
-  at a pixel whose truth keeps its state the shadow changes exactly when
-  its error does, so the count is the truth-stable transitions with an
-  error in one of the two frames. The sample cameras move a surface point
-  3-31 pixels a frame (medians at 640x360: telephoto, floor_wall, terrain,
-  forest, chess), so an error pixel is one in both frames in only 0.3-7 %
-  of them (the cascade, stable or not): the count follows the error pixels
-  per frame, which stable maps (coarser, in the world's grid) raise, by
-  1.5-2.4x at 1024² (forest 451 -> 1,096 a frame: pixel flicker 2,116 ->
-  5,447), whatever their stability; a perfectly still map of the unstable
-  cascade's accuracy would flicker about as much (its *camera only* below).
+  not, and counts. This measures the error along edges as much as shimmer: at
+  a pixel whose truth keeps its state the shadow changes exactly when its
+  error does, so the count is the truth-stable transitions with an error in
+  one of the two frames. The sample cameras move a surface point 3-35 pixels a
+  frame (medians at 640x360: telephoto 3, floor_wall 5, terrain 12, forest 16,
+  chess 35), so an error pixel is one in both frames in only 0.5-7 % of them
+  (the cascade, stable or not): the count follows the error pixels per frame,
+  which stable maps (coarser, in the world's grid) raise, by 1.5-2.4x at 1024²
+  (forest 450 -> 1,096 a frame: pixel flicker 2,151 -> 5,447), whatever their
+  stability; a perfectly still map of the unstable cascade's accuracy would
+  flicker about as much (its *camera only* below).
 * its *split* (``addon.measure.flicker_split``), on the same engine frames:
   each frame k also drawn with frame k-1's maps, over the pixels that show the
   surface point frame k-1 showed, through the same map (outside blend bands).
@@ -61,8 +61,8 @@ measures:
   *world-consistent*: the same surface point's state changing between frame k
   drawn with frame k-1's maps and with its own (only the maps moved). On the
   unstable cascade, holding the maps leaves the pixel flicker as it was
-  (camera only vs pixel flicker on those pixels, 1024²: forest 1808 vs 1751,
-  terrain 3513 vs 3438, chess 931 vs 907): under these animations the pixel
+  (camera only vs pixel flicker on those pixels, 1024²: forest 1,707 vs 1,679,
+  terrain 3,244 vs 3,180, chess 981 vs 989): under these animations the pixel
   flicker is the error edges sliding across pixels, which only fewer errors
   reduce, not stabler maps.
 * *shimmer*: pixels whose shadow changes when only the maps change, the camera
@@ -88,34 +88,36 @@ the frame in no less than about 7 s at 24 fps (the cinematographers' rule
 against judder) is at most 4 px/frame at 640 px wide; a pixel a frame is the
 slow, smooth move on which shimmer is seen. From a quarter of a pixel a frame
 up, the stable cascade's pixel flicker is more than half the unstable's on
-every sample scene (the issue's "Stable" criterion fails). Measured (1024², 640x360, 8 consecutive frames; stable / unstable
-pixel flicker; over 6 frames the same within 0.11):
+every sample scene (the issue's "Stable" criterion fails). Measured (1024²,
+640x360, 8 consecutive frames; stable / unstable pixel flicker, main at
+4b0060d):
 
     px/frame   forest  floor_wall  terrain  chess  telephoto
-    4          3.26    1.90        1.67     1.73   1.35 (6 frames: 8 pass the move's end)
-    1          2.86    1.69        1.52     1.65   1.29
-    0.25       1.78    0.86        0.78     0.94   1.28
-    0.1        0.90    0.50        0.44     0.42   0.85
-    0.05       0.48    0.36        0.28     0.24   0.68
-    0.025      0.29    0.30        0.29     0.13   0.44
+    4          3.20    1.90        1.68     1.69   1.39 (6 frames: 8 pass the move's end)
+    1          2.82    1.69        1.52     1.52   1.35
+    0.25       1.79    0.86        0.78     0.90   1.08
+    0.1        0.93    0.50        0.45     0.44   0.71
+    0.05       0.50    0.36        0.24     0.24   0.53
+    0.025      0.25    0.30        0.16     0.13   0.35
 
-Half or less holds on all five only at 0.025 px/frame, a camera that takes
-18 minutes to cross the frame. The count has two parts. A shadow edge off the truth's,
-standing still in the world, crosses pixels in proportion to the speed and to
-its length (the stable cascade's pixel flicker on terrain at 0.025, 0.05 and
-0.1 px/frame: 431, 851, 1,638; its world-consistent flicker 0 at every
-speed), up to the error pixels a frame at a pixel a frame or more; the stable
-maps, coarser, have 1.6-2.9x the unstable's error pixels (forest 1,060 against
-360 a frame) and longer staircase steps. Maps refitted to the view every frame
-move their edges at any speed (the unstable cascade's world-consistent
-flicker on terrain at those speeds: 1,474, 3,058, 3,601). The stable option
-removes the second part and doubles the first, so it flickers less by this
-count only when the camera almost stands still. At a pixel a frame the
-unstable cascade's own maps held still keep 0.77-0.98 of its pixel flicker
-(*camera only* on the same-point pixels): no map of its accuracy, however
-stable, flickers half as much there; that takes finer maps, not stabler ones. Followed by the eye, the
-stable cascade's jagged edges stand still on the surfaces and the unstable's
-crawl: the world-consistent flicker and the shimmer measure that.
+Half or less holds on all five only at 0.025 px/frame, a camera that takes 18
+minutes to cross the frame. The count has two parts. A shadow edge off the
+truth's, standing still in the world, crosses pixels in proportion to the
+speed and to its length (the stable cascade's pixel flicker on terrain at
+0.025, 0.05 and 0.1 px/frame: 431, 851, 1,638; its world-consistent flicker 0
+at every speed), up to the error pixels a frame at a pixel a frame or more;
+the stable maps, coarser, have 1.4-2.9x the unstable's error pixels (forest
+1,050 against 370 a frame) and longer staircase steps. Maps refitted to the
+view every frame move their edges at any speed (the unstable cascade's
+world-consistent flicker on terrain at those speeds: 2,695, 3,568, 3,485). The
+stable option removes the second part and doubles the first, so it flickers
+less by this count only when the camera almost stands still. At a pixel a
+frame the unstable cascade's own maps held still keep 0.82-0.98 of its pixel
+flicker (*camera only* on the same-point pixels): no map of its accuracy,
+however stable, flickers half as much there; that takes finer maps, not
+stabler ones. Followed by the eye, the stable cascade's jagged edges stand
+still on the surfaces and the unstable's crawl: the world-consistent flicker
+and the shimmer measure that.
 
 Criteria: the stable cascade shimmers on at most half the pixels of the
 unstable one, and its world-consistent flicker is at most half (its pixel

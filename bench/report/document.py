@@ -37,7 +37,7 @@ DEFINITIONS = [
                 "images), false light = lit where the truth is dark (blue); 'at edges' = within 2 px of a true "
                 "shadow edge."),
     ("flicker %", "over the camera animation, of the pixel transitions where the ground truth keeps its state, the "
-                  "fraction where the method's state changes. The sample cameras move a surface point 3-31 pixels "
+                  "fraction where the method's state changes. The sample cameras move a surface point 3-35 pixels "
                   "a frame at 640×360, so this counts the method's error edges sliding across the pixels even where "
                   "its maps stand still in the world: python -m bench.cascade flicker splits it into that part and "
                   "the world-consistent flicker (the same surface point changing state as the maps change), with "
