@@ -19,7 +19,6 @@ from dataclasses import replace
 import numpy as np
 
 from ..warp.aliasing import pixel_density_constant, raster_jacobian
-from ..warp.geometry import transform_h
 from ..warp.visibility import (PIXEL_TILE, VisibleRegion, region_from_window_depth, region_from_window_tiles,
                                surface_from_window_depth)
 from . import compose
@@ -111,28 +110,39 @@ def at_shadow_edge(shadow_map, window_depth: np.ndarray, points: np.ndarray, nor
     m = shadow_map.matrix
     to_light = -light.direction[None] if light.is_directional else light.position - points
     to_light = to_light / np.linalg.norm(to_light, axis=1, keepdims=True)
-    j = raster_jacobian(m, shadow_map.size, points)
-    width = 1.0 / np.sqrt(np.linalg.norm(j[:, 0], axis=1) * np.linalg.norm(j[:, 1], axis=1))
+    j = np.linalg.norm(raster_jacobian(m, shadow_map.size, points), axis=2)      # texels per metre, each way
+    width = 1.0 / np.sqrt(j[:, 0] * j[:, 1])
     size = np.array([int(v) for v in shadow_map.size])
     h = points @ m[:, :3].T + m[:, 3]
     texel = np.floor((h[:, :2] / h[:, 3:] * 0.5 + 0.5) * size).astype(np.int64)
     taps = np.clip(texel[:, None] + np.stack(np.meshgrid([-1, 0, 1], [-1, 0, 1]), -1).reshape(1, 9, 2), 0, size - 1)
+    stored = window_depth[taps[..., 1], taps[..., 0]]
+    depth, slope = stored_depth(shadow_map, points)
+    cos = np.einsum("ij,ij->i", normals, to_light)
+    along = np.abs(np.einsum("ij,ij->i", slope, to_light))
+    reach = 3.0 * along * np.sqrt(np.maximum(1.0 - cos * cos, 0.0)) / np.maximum(cos, 1e-6) / j.min(axis=1)
+    out = np.zeros(len(points))              # only where a tap is nearer than the plane can come over 2 texels:
+    some = (cos >= EDGE_GRAZING) & (stored.min(axis=1) < 0.5 * (depth - reach) + 0.5)
+    if some.any():
+        out[some] = _edge_test(m, size, taps[some], stored[some], points[some], normals[some], depth[some],
+                               1.5 * width[some] * along[some], shadow_map) * 3.0 * width[some]
+    return out
+
+
+def _edge_test(m, size, taps, stored, points, normals, depth, bias, shadow_map) -> np.ndarray:
+    """:func:`at_shadow_edge`'s test at its (K, 9, 2) ``taps`` (``stored`` window depths there) of K points."""
     ndc = (taps + 0.5) * (2.0 / size) - 1.0
-    ends = [transform_h(np.linalg.inv(m), np.concatenate([ndc, np.full((*ndc.shape[:2], 1), z)], -1).reshape(-1, 3))
-            for z in (0.0, 1.0)]                                                   # two points of each tap's ray
-    ends = [(e[:, :3] / e[:, 3:]).reshape(*ndc.shape[:2], 3) for e in ends]
+    inverse = np.linalg.inv(m)
+    start = ndc @ inverse[:, :2].T + inverse[:, 3]                         # each tap's ray at NDC depth 0 and 1
+    ends = [h[..., :3] / h[..., 3:] for h in (start, start + inverse[:, 2])]
     ray = ends[1] - ends[0]
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.einsum("ij,ij->i", points, normals)[:, None] - np.einsum("ikj,ij->ik", ends[0], normals)
         on_plane = ends[0] + (t / np.einsum("ikj,ij->ik", ray, normals))[..., None] * ray
-    depth, slope = stored_depth(shadow_map, points)
     plane = np.where(np.isfinite(on_plane).all(-1), stored_depth(shadow_map, on_plane.reshape(-1, 3))[0].reshape(-1, 9),
                      depth[:, None])
-    bias = 1.5 * width * np.abs(np.einsum("ij,ij->i", slope, to_light))
-    reference = 0.5 * (np.minimum(plane, depth[:, None]) - bias[:, None]) + 0.5
-    near = (window_depth[taps[..., 1], taps[..., 0]] < reference).sum(axis=1)
-    edge = (near > 0) & (near < 9) & (np.einsum("ij,ij->i", normals, to_light) >= EDGE_GRAZING)
-    return np.where(edge, 3.0 * width, 0.0)
+    near = (stored < 0.5 * (np.minimum(plane, depth[:, None]) - bias[:, None]) + 0.5).sum(axis=1)
+    return (near > 0) & (near < 9)
 
 
 def stored_depth(shadow_map, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
