@@ -50,7 +50,7 @@ measures:
   chess 35), so an error pixel is one in both frames in only 0.5-7 % of them
   (the cascade, stable or not): the count follows the error pixels per frame,
   which stable maps (coarser, in the world's grid) raise, by 1.5-2.4x at 1024²
-  (forest 450 -> 1,096 a frame: pixel flicker 2,151 -> 5,447), whatever their
+  (forest 465 -> 1,096 a frame: pixel flicker 2,191 -> 5,447), whatever their
   stability; a perfectly still map of the unstable cascade's accuracy would
   flicker about as much (its *camera only* below).
 * its *split* (``addon.measure.flicker_split``), on the same engine frames:
@@ -61,7 +61,7 @@ measures:
   *world-consistent*: the same surface point's state changing between frame k
   drawn with frame k-1's maps and with its own (only the maps moved). On the
   unstable cascade, holding the maps leaves the pixel flicker as it was
-  (camera only vs pixel flicker on those pixels, 1024²: forest 1,707 vs 1,679,
+  (camera only vs pixel flicker on those pixels, 1024²: forest 1,609 vs 1,558,
   terrain 3,244 vs 3,180, chess 981 vs 989): under these animations the pixel
   flicker is the error edges sliding across pixels, which only fewer errors
   reduce, not stabler maps.
@@ -90,15 +90,15 @@ slow, smooth move on which shimmer is seen. From a quarter of a pixel a frame
 up, the stable cascade's pixel flicker is more than half the unstable's on
 every sample scene (the issue's "Stable" criterion fails). Measured (1024²,
 640x360, 8 consecutive frames; stable / unstable pixel flicker, main at
-4b0060d):
+a486a4f; at 4 px/frame 6 frames, as 8 pass the end of telephoto's move):
 
     px/frame   forest  floor_wall  terrain  chess  telephoto
-    4          3.20    1.90        1.68     1.69   1.39 (6 frames: 8 pass the move's end)
-    1          2.82    1.69        1.52     1.52   1.35
-    0.25       1.79    0.86        0.78     0.90   1.08
-    0.1        0.93    0.50        0.45     0.44   0.71
-    0.05       0.50    0.36        0.24     0.24   0.53
-    0.025      0.25    0.30        0.16     0.13   0.35
+    4          3.26    1.83        1.71     1.68   1.39
+    1          2.61    1.69        1.52     1.48   1.35
+    0.25       1.84    0.86        0.78     0.89   1.08
+    0.1        0.89    0.50        0.45     0.44   0.71
+    0.05       0.48    0.36        0.24     0.23   0.53
+    0.025      0.25    0.30        0.16     0.14   0.35
 
 Half or less holds on all five only at 0.025 px/frame, a camera that takes 18
 minutes to cross the frame. The count has two parts. A shadow edge off the
@@ -107,7 +107,7 @@ speed and to its length (the stable cascade's pixel flicker on terrain at
 0.025, 0.05 and 0.1 px/frame: 431, 851, 1,638; its world-consistent flicker 0
 at every speed), up to the error pixels a frame at a pixel a frame or more;
 the stable maps, coarser, have 1.4-2.9x the unstable's error pixels (forest
-1,050 against 370 a frame) and longer staircase steps. Maps refitted to the
+1,050 against 380 a frame) and longer staircase steps. Maps refitted to the
 view every frame move their edges at any speed (the unstable cascade's
 world-consistent flicker on terrain at those speeds: 2,695, 3,568, 3,485). The
 stable option removes the second part and doubles the first, so it flickers
