@@ -48,8 +48,8 @@ guard"), the cascade through its splits' warps."""
 
 def weighs_edges(method: str, options, light) -> bool:
     """Whether ``method``'s λ guard acts and weighs where shadow edges fall on what is seen (``fit_warp``): not for a
-    point light, whose cube faces' guards each read every visible point, not their own (docs/papers.md, the λ
-    guard, part 7: there the edges made the warps worse)."""
+    point light, whose warped cube faces rendered worse with the edges (docs/papers.md, the λ guard, part 7; why is
+    not known)."""
     if options.focus != "visible" or method not in GUARDED or light.type == "POINT":
         return False
     if method == "cascade":
