@@ -1,5 +1,4 @@
-"""The receivers' footprint (docs/papers.md, "The receivers' footprint"): where receivers are nearly edge-on to the
-light (PSM §1.1's cos α) Lloyd's m is blind, and how the texel axes lie against them sets the p95."""
+"""The receivers' footprint, where Lloyd's m is blind (edge-on receivers: PSM §1.1's cos α; docs/papers.md)."""
 from __future__ import annotations
 
 import numpy as np
@@ -53,8 +52,9 @@ def footprints(setup: ShadowSetup, seen: tuple) -> np.ndarray:
 def footprint_p95(footprints: list, band=(95.0,)) -> float:
     """The judge's p95 of the finite values of ``footprints`` (edge-on left out; 0 if none), or the geometric mean of
     the percentiles of a ``band`` about it (``TAIL``: a p95 at a cliff of the distribution does not decide alone)."""
-    v = np.concatenate(footprints)
-    return float(np.exp(np.log(np.percentile(v[np.isfinite(v)], band)).mean())) if np.isfinite(v).any() else 0.0
+    v = np.sort(np.concatenate(footprints))          # edge-on (inf), unserved (NaN) last; np.percentile is 3x slower
+    k = int(np.isfinite(v).sum())
+    return float(np.exp(np.log(np.interp(np.multiply(band, (k - 1) / 100), np.arange(k), v[:k])).mean())) if k else 0.0
 
 
 def turned(matrix: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
