@@ -35,7 +35,7 @@ def ray_boxes(origins, directions, t_max, boxes) -> tuple[np.ndarray, np.ndarray
     with np.errstate(divide="ignore"):
         inverse = 1.0 / directions
     enter, leave, axes = slab_intervals(origins[:, None, :], inverse[:, None, :],
-                                        boxes[None, :, 0, :], boxes[None, :, 1, :], entering_axis=True)
+                                        boxes[None, :, 0, :], boxes[None, :, 1, :], hit_axis=True)
     t = first_hits(enter, leave, np.asarray(t_max, dtype=np.float64)[:, None])
     if t.shape[1] == 0:
         return np.full(len(origins), np.inf), np.zeros(len(origins), dtype=np.int64), np.zeros_like(origins)

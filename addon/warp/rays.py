@@ -7,9 +7,9 @@ import numpy as np
 from .culling import BoxIndex, Selection
 
 
-def slab_intervals(origins, inverse_directions, lo, hi, entering_axis: bool = False):
-    """Where rays (origins, 1 / directions) enter and leave boxes [lo, hi] (broadcast), and with ``entering_axis``
-    the axis they enter by; a ray in a slab's plane counts as inside it."""
+def slab_intervals(origins, inverse_directions, lo, hi, hit_axis: bool = False):
+    """Where rays (origins, 1 / directions) enter and leave boxes [lo, hi] (broadcast), and with ``hit_axis`` the
+    axis of the face ``first_hits`` meets (from inside, the one left by); a ray in a slab's plane is inside it."""
     with np.errstate(invalid="ignore"):
         t1 = (lo - origins) * inverse_directions
         t2 = (hi - origins) * inverse_directions
@@ -18,9 +18,11 @@ def slab_intervals(origins, inverse_directions, lo, hi, entering_axis: bool = Fa
     x, y, z = near[..., 0], near[..., 1], near[..., 2]
     enter = np.fmax(np.fmax(x, y), z)
     leave = np.fmin(np.fmin(far[..., 0], far[..., 1]), far[..., 2])
-    if not entering_axis:
+    if not hit_axis:
         return enter, leave
-    return enter, leave, np.where(x == enter, 0, np.where(y == enter, 1, 2))
+    entered = np.where(x == enter, 0, np.where(y == enter, 1, 2))
+    left = np.where(far[..., 0] == leave, 0, np.where(far[..., 1] == leave, 1, 2))
+    return enter, leave, np.where(enter >= 0, entered, left)
 
 
 def first_hits(enter, leave, t_max) -> np.ndarray:

@@ -237,3 +237,14 @@ def test_rays_through_the_culling_index_equal_rays_against_every_box():
     t4, b4, _ = ray_boxes(origins, dirs, t_max, boxes[sel.mask])
     assert np.array_equal(t3, t4)
     assert np.array_equal(box3, np.where(np.isfinite(t4), np.flatnonzero(sel.mask)[b4], -1))
+
+
+def test_a_ray_from_inside_a_box_meets_the_inner_wall_and_its_normal_faces_back_along_the_ray():
+    """A camera standing in a room sees the wall it looks at, turned towards it: the hit face's normal
+    (the face the ray leaves by), not the axis it would have entered by from outside."""
+    room = np.array([[[0.0, 0.0, 0.0], [10.0, 10.0, 10.0]]])
+    origins = np.array([[1.0, 9.0, 5.0], [5.0, 5.0, 9.0], [-5.0, 5.0, 5.0]])
+    dirs = np.array([[0.6, 0.8, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+    t, box, normal = ray_boxes(origins, dirs, np.full(3, 100.0), room)
+    np.testing.assert_allclose(t, [1.25, 9.0, 5.0])
+    np.testing.assert_array_equal(normal, [[0, -1, 0], [0, 0, 1], [-1, 0, 0]])   # the last from outside
