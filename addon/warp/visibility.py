@@ -271,10 +271,15 @@ def surface_from_window_depth(view: View, window_depth: np.ndarray, per_pixel=No
         None if per_pixel is None else per_pixel[k // 2::k, k // 2::k][rows, cols]
 
 
+def sample_ndc(n: int) -> np.ndarray:
+    """NDC of the centres of ``n`` cells over [-1, 1] and of its ends, which bound the outermost cells' outer halves."""
+    return np.concatenate([[-1.0], (np.arange(n) + 0.5) / n * 2 - 1, [1.0]])
+
+
 def sample_rays(view: View, samples: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Near-plane origins, unit directions and lengths to the far plane of rays through
-    the centres of a (columns, rows) grid over the image, row 0 at the bottom."""
-    gx, gy = np.meshgrid(*((np.arange(n) + 0.5) / n * 2 - 1 for n in samples))
+    """Near-plane origins, unit directions and lengths to the far plane of rays through the (rows + 2, columns + 2)
+    points of ``sample_ndc`` over the image (a ring on its border around the cells' centres), row 0 at the bottom."""
+    gx, gy = np.meshgrid(*(sample_ndc(n) for n in samples))
     near, far = (unproject(view, gx, gy, np.full(gx.size, depth)) for depth in (view.near, view.far))
     length = np.sqrt(np.einsum("ij,ij->i", far - near, far - near))
     return near, (far - near) / length[:, None], length
@@ -282,8 +287,8 @@ def sample_rays(view: View, samples: tuple[int, int]) -> tuple[np.ndarray, np.nd
 
 def region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int] = BOX_SAMPLES,
                       tile: int = BOX_TILE) -> VisibleRegion:
-    """The visible region of a box scene without a GPU: one ray per cell of a ``samples`` grid, widened to hold
-    every visible point (docs/papers.md); the last region per scene is kept."""
+    """The visible region of a box scene without a GPU: one ray per cell of a ``samples`` grid and a ring of them on
+    the image's border, widened to hold every visible point (docs/papers.md); the last region per scene is kept."""
     key = (view.camera_to_world.tobytes(), view.projection.tobytes(), view.near, view.far, samples, tile)
     last = scene.cached("visible region", dict)
     if last.get("key") != key:
@@ -303,25 +308,28 @@ def _region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int],
     # axis), bounded by its box's own eye-depth range.
     lo_box, hi_box = _box_depths(view, scene.receivers)
     near_s, far_s, normals = _face_reach(view, scene.receivers, origins, dirs, t, box.ravel(), samples, lo_box, hi_box)
-    box = box.reshape(ny, nx)
-    # Each tile also takes its neighbouring samples (one sample spacing of padding).
-    near_s, far_s = _dilate(near_s, np.min, np.inf), _dilate(far_s, np.max, -np.inf)
+    box = box.reshape(ny + 2, nx + 2)
+    cells = box[1:-1, 1:-1]                                        # the cells' rays (the border's: their neighbours)
+    # Each cell's sample also takes its neighbours' (one sample spacing of padding), the border's rays among them.
+    near_s, far_s = _dilate(near_s, np.min, np.inf)[1:-1, 1:-1], _dilate(far_s, np.max, -np.inf)[1:-1, 1:-1]
     near, far = tile_reduce(near_s, far_s, tile)
     missed = selection.mask
-    missed[box[box >= 0]] = False
+    missed[cells[cells >= 0]] = False
     _add_small_boxes(view, scene.receivers, missed, lo_box, hi_box, samples, tile, near, far)
     hit = np.flatnonzero(box >= 0)
-    return replace(_region(view, near, far, samples, tile, "scene boxes", tile_counts(box >= 0, tile)),
-                   surface=(origins[hit] + t[hit, None] * dirs[hit])[:, None].repeat(2, axis=1), normals=normals)
+    cell = np.pad(np.ones((ny, nx), bool), 1).ravel()[hit]         # the surface: the cells' rays, not the border's
+    hit = hit[cell]
+    return replace(_region(view, near, far, samples, tile, "scene boxes", tile_counts(cells >= 0, tile)),
+                   surface=(origins[hit] + t[hit, None] * dirs[hit])[:, None].repeat(2, axis=1), normals=normals[cell])
 
 
 def _face_reach(view: View, boxes, origins, dirs, t, box, samples, lo_box, hi_box):
     """Per ray sample, the eye-depth interval of the face it hit over the square out
     to its neighbouring samples, within the hit box's depth range; each hit's face normal."""
-    nx, ny = samples
+    xs, ys = (sample_ndc(n) for n in samples)
     hit = np.flatnonzero(box >= 0)
-    near = np.full(nx * ny, np.inf)
-    far = np.full(nx * ny, -np.inf)
+    near = np.full(len(xs) * len(ys), np.inf)
+    far = np.full(len(xs) * len(ys), -np.inf)
     b = boxes[box[hit]]                                                      # (H, 2, 3)
     p = origins[hit] + t[hit, None] * dirs[hit]
     # The face hit: the box boundary plane nearest the hit point.
@@ -330,13 +338,11 @@ def _face_reach(view: View, boxes, origins, dirs, t, box, samples, lo_box, hi_bo
     axis, side = face % 3, face // 3
     normals = np.eye(3)[axis] * (2.0 * side - 1.0)[:, None]
     if not len(hit):
-        return near.reshape(ny, nx), far.reshape(ny, nx), normals
+        return near.reshape(len(ys), len(xs)), far.reshape(len(ys), len(xs)), normals
     plane = b[np.arange(len(hit)), side, axis]
     # The square's corners in NDC (one sample spacing out, within the image).
-    col, row = hit % nx, hit // nx
-    x = (col + 0.5) / nx * 2 - 1
-    y = (row + 0.5) / ny * 2 - 1
-    sx, sy = 2.0 / nx, 2.0 / ny
+    x, y = xs[hit % len(xs)], ys[hit // len(xs)]
+    sx, sy = 2.0 / samples[0], 2.0 / samples[1]
     cx = np.clip(np.stack([x - sx, x + sx, x - sx, x + sx], axis=1), -1, 1).ravel()
     cy = np.clip(np.stack([y - sy, y - sy, y + sy, y + sy], axis=1), -1, 1).ravel()
     # Each corner's ray as p(d) = p1 + (d - d1) (p2 - p1) / (d2 - d1), met with the face's plane.
@@ -364,7 +370,7 @@ def _face_reach(view: View, boxes, origins, dirs, t, box, samples, lo_box, hi_bo
         lo[whole], hi[whole] = _box_depths_in_squares(view, b[whole], square[:, 0], square[:, 3], lo[whole], hi[whole])
     near[hit] = np.where(whole, lo, np.maximum(np.nanmin(np.where(whole[:, None], 0.0, d), axis=1), lo))
     far[hit] = np.where(whole, hi, np.minimum(np.nanmax(np.where(whole[:, None], 0.0, d), axis=1), hi))
-    return near.reshape(ny, nx), far.reshape(ny, nx), normals
+    return near.reshape(len(ys), len(xs)), far.reshape(len(ys), len(xs)), normals
 
 
 def _box_depths_in_squares(view: View, boxes, low, high, lo, hi) -> tuple[np.ndarray, np.ndarray]:

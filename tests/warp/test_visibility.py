@@ -24,7 +24,7 @@ from addon.warp.geometry import ortho_matrix
 from addon.measure.box_scene import ray_boxes
 from addon.warp.rays import ray_index
 from addon.warp.types import EmptyBodyError, View, WarpError
-from addon.warp.visibility import (TileDepths, VisibleRegion, eye_depth_from_ndc, region_from_window_depth,
+from addon.warp.visibility import (BOX_SAMPLES, TileDepths, VisibleRegion, eye_depth_from_ndc, region_from_window_depth,
                                    tile_edges, tile_reduce, unproject)
 from hard_cases import EMPTY_CASES, HARD_CASES, camera, point, sun, town
 
@@ -95,6 +95,24 @@ def test_a_box_smaller_than_the_ray_spacing_is_still_held():
     region = region_from_boxes(view, scene)
     pts = _jittered_points(view, SceneBounds.from_boxes(np.array([pole])), (1280, 720), 0)
     assert len(pts) > 0 and region.contains(view, pts).all()
+
+
+def test_ground_seen_past_a_box_in_the_image_corner_beyond_the_outermost_ray_is_held():
+    """A wall fills the image but for a strip at its left and top edges, narrower than half a cell: the outermost
+    ray, through the corner cell's centre, hits the wall; the ground behind it shows in the image corner."""
+    view = camera([0.0, 0.0, 10.0], forward=[0.0, math.cos(0.75), -math.sin(0.75)])
+    nx, ny = BOX_SAMPLES
+    x, y = -1 + 0.5 / nx, 1 - 0.5 / ny                          # a quarter cell in from the image's top-left corner
+    a, b = (unproject(view, [x], [y], [d])[0] for d in (view.near, view.far))
+    edge = a + (5.0 - a[1]) / (b[1] - a[1]) * (b - a)           # where that ray meets the wall's front (y = 5)
+    ground = [[-50.0, -50.0, -0.1], [50.0, 50.0, 0.0]]
+    scene = SceneBounds.from_boxes(np.array([ground, [[edge[0], 5.0, 0.0], [50.0, 6.0, edge[2]]]]))
+    rays = unproject(view, [-1 + 1 / nx, -1], [1 - 1 / ny, 1], [view.near] * 2)
+    towards = unproject(view, [-1 + 1 / nx, -1], [1 - 1 / ny, 1], [view.far] * 2) - rays
+    _, box, _ = ray_boxes(rays, towards / np.linalg.norm(towards, axis=1)[:, None], [view.far] * 2, scene.receivers)
+    assert box.tolist() == [1, 0]                                # outermost ray: the wall; the corner: the ground
+    pts, _ = visible_points(view, scene, (960, 540))
+    assert region_from_boxes(view, scene).contains(view, pts).all()
 
 
 def test_nothing_visible_is_an_empty_body():
