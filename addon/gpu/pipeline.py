@@ -27,10 +27,9 @@ from typing import Optional
 import numpy as np
 
 from ..settings import LixelSettings, ShadowSettings
-from ..warp.body import intersection_body
+from ..warp.body import intersection_body, view_frustum
 from ..warp.culling import BoxIndex
 from ..warp.geometry import UNIT_CUBE_CORNERS, clip_volume_corners, homogeneous, perpendicular, translation
-from ..warp.polyhedron import face_planes, hexahedron_faces
 from ..warp.types import EmptyBodyError, Light, ShadowSetup, View, WarpError
 from . import compose, shaders
 from .blas import one_blas_thread
@@ -355,8 +354,8 @@ def _shadow_settings(settings) -> ShadowSettings:
 
 
 def _view_planes(view: View) -> tuple[np.ndarray, np.ndarray]:
-    planes = face_planes(hexahedron_faces(view.corners()))
-    return np.array([p.normal for p in planes]), np.array([p.offset for p in planes])
+    frustum = view_frustum(view, np.zeros(3))
+    return frustum.normals, frustum.offsets
 
 
 class ShadowFrame:

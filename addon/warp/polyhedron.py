@@ -620,26 +620,6 @@ def hexahedron_faces(corners) -> list[np.ndarray]:
     return list(np.asarray(corners, dtype=np.float64)[_HEX_QUADS])
 
 
-def face_planes(faces: list[np.ndarray]) -> list[Plane]:
-    """The outward half-spaces of a closed convex polyhedron's faces, by Newell's normal (faces of no area left out)."""
-    centre = np.concatenate(faces).mean(axis=0)
-    planes = []
-    for f in faces:
-        f = np.asarray(f, dtype=np.float64)
-        g = np.roll(f, -1, axis=0)
-        n = np.sum([(f[:, 1] - g[:, 1]) * (f[:, 2] + g[:, 2]), (f[:, 2] - g[:, 2]) * (f[:, 0] + g[:, 0]),
-                    (f[:, 0] - g[:, 0]) * (f[:, 1] + g[:, 1])], axis=1)
-        length = np.linalg.norm(n)
-        if length == 0:
-            continue
-        n = n / length
-        o = float(n @ f.mean(axis=0))
-        if n @ centre > o:
-            n, o = -n, -o
-        planes.append(Plane(n, o))
-    return planes
-
-
 def _rows(rows: list) -> np.ndarray:
     """(n, 3) float64 array of n rows of 3 plain floats."""
     return np.fromiter(chain.from_iterable(rows), np.float64, 3 * len(rows)).reshape(-1, 3)
