@@ -271,47 +271,33 @@ def edge_normals(pts: list, normal) -> list:
 def enclosing_polygon(poly: np.ndarray, normal: np.ndarray, max_vertices: int) -> np.ndarray:
     """A convex polygon of at most ``max_vertices`` containing the convex ``poly``:
     edges removed one at a time by extending their neighbours, the least added area first."""
-    p = np.asarray(poly, dtype=np.float64)
+    p, n = np.asarray(poly, dtype=np.float64), np.asarray(normal, dtype=np.float64)
     while len(p) > max(max_vertices, 3):
-        k = len(p)
-        best, best_area, best_pt = -1, math.inf, None
-        for i in range(k):
-            a0, a1 = p[i - 1], p[i]                   # edge before
-            b0, b1 = p[(i + 1) % k], p[(i + 2) % k]   # edge after; edge (a1, b0) is removed
-            d1, d2 = a1 - a0, b1 - b0
-            cr = np.cross(d1, d2) @ normal
-            if cr <= 1e-15 * np.linalg.norm(d1) * np.linalg.norm(d2):
-                continue                              # the neighbours do not meet beyond the edge
-            t = np.cross(b0 - a0, d2) @ normal / cr
-            x = a0 + t * d1
-            area = 0.5 * abs(float(np.cross(x - a1, b0 - a1) @ normal))
-            if area < best_area:
-                best, best_area, best_pt = i, area, x
-        if best < 0:
+        a0, a1, b0, b1 = (np.roll(p, -shift, axis=0) for shift in (-1, 0, 1, 2))   # edge a1 -> b0 is removed
+        d1, d2 = a1 - a0, b1 - b0
+        turn = cross(d1, d2) @ n
+        meet = turn > 1e-15 * np.linalg.norm(d1, axis=1) * np.linalg.norm(d2, axis=1)    # beyond the edge
+        if not meet.any():
             break
-        keep = [j for j in range(k) if j not in (best, (best + 1) % k)]
-        pts = [p[j] for j in keep]
-        pts.insert(keep.index((best + 2) % k) if (best + 2) % k in keep else len(pts), best_pt)
-        p = np.asarray(pts)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = a0 + ((cross(b0 - a0, d2) @ n) / turn)[:, None] * d1
+        added = np.where(meet, np.abs(cross(x - a1, b0 - a1) @ n), np.inf)        # twice the area each adds
+        i, k = int(np.argmin(added)), len(p)
+        p = np.insert(np.delete(p, [i, (i + 1) % k], axis=0), i if i + 2 < k else 0, x[i], axis=0)
     return p
 
 
 def min_area_twist(points2d: np.ndarray) -> float:
     """The rotation θ in (-π/4, π/4] giving the points' smallest axis-aligned rectangle (rotating calipers)."""
     p = np.asarray(points2d, dtype=np.float64).reshape(-1, 2)
-    best, best_area = 0.0, math.inf
-    k = len(p)
-    for i in range(k):
-        e = p[(i + 1) % k] - p[i]
-        if not np.any(e):
-            continue
-        theta = -math.atan2(e[1], e[0])
-        theta = (theta + math.pi / 4) % (math.pi / 2) - math.pi / 4
-        q = p @ rotation2d(theta).T
-        area = float(np.prod(q.max(axis=0) - q.min(axis=0)))
-        if area < best_area * (1 - 1e-12):
-            best, best_area = theta, area
-    return best
+    e = np.roll(p, -1, axis=0) - p
+    e = e[e.any(axis=1)]                                   # each edge of some length gives one candidate
+    if not len(e):
+        return 0.0
+    theta = (math.pi / 4 - np.arctan2(e[:, 1], e[:, 0])) % (math.pi / 2) - math.pi / 4
+    c, s = np.cos(theta)[:, None], np.sin(theta)[:, None]
+    area = np.ptp(c * p[:, 0] - s * p[:, 1], axis=1) * np.ptp(s * p[:, 0] + c * p[:, 1], axis=1)
+    return float(theta[np.argmax(area <= area.min() * (1 + 1e-12))])     # the first of the least (to rounding)
 
 
 def rotation2d(theta: float) -> np.ndarray:

@@ -227,14 +227,11 @@ class Region:
     def contains(self, points) -> np.ndarray:
         p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         n = np.asarray(self.normal, dtype=np.float64)
-        dist = p @ n - self.offset
-        on_plane = np.abs(dist) <= self.tolerance
-        q = p - dist[:, None] * n
         poly = np.asarray(self.polygon, dtype=np.float64)
-        inside = np.ones(len(p), dtype=bool)
-        for a, b in zip(poly, np.roll(poly, -1, axis=0)):
-            inside &= np.cross(b - a, q - a) @ n >= -self.tolerance * np.linalg.norm(b - a)
-        return on_plane & inside
+        edges = np.roll(poly, -1, axis=0) - poly
+        inward = np.cross(n, edges)          # (q - a)·(n × e) = (e × (q - a))·n, the same for p as for its projection q
+        left = p @ inward.T - np.einsum("ij,ij->i", poly, inward) >= -self.tolerance * np.linalg.norm(edges, axis=1)
+        return (np.abs(p @ n - self.offset) <= self.tolerance) & left.all(axis=1)
 
 
 @dataclass

@@ -317,7 +317,7 @@ def share_budget(jobs: list[PlaneMap], budget: float, twist_mode: str) -> float:
     need = sum(map(_texels, _rects(jobs, 1.0)))
     if twist_mode == "on" or (twist_mode == "auto" and need > budget):
         _choose_twists(jobs, always=twist_mode == "on")
-    s = 1.0 if _fits(_rects(jobs, 1.0), budget) else _fraction_of_a_lixel(jobs, budget)
+    s = _fraction_of_a_lixel(jobs, budget)
     for j, r in zip(jobs, _rects(jobs, s)):
         j.rect = r
     return s
@@ -348,11 +348,6 @@ def _rects(jobs: list[PlaneMap], s: float) -> list[tuple[int, int, int, int]]:
     return [_rect(j.pixels, s, j.twist) for j in jobs]
 
 
-def _fits(rects: list, budget: float) -> bool:
-    """Whether the rectangles take at most ``budget`` texels, none wider than MAX_SIDE."""
-    return sum(map(_texels, rects)) <= budget and max(max(r[2] - r[0], r[3] - r[1]) for r in rects) <= MAX_SIDE
-
-
 def _choose_twists(jobs: list[PlaneMap], always: bool) -> None:
     """Each map's twist (§2): the tightest rectangle's rotation, kept when ``always``
     or when it saves at least 1 - TWIST_GAIN."""
@@ -364,14 +359,14 @@ def _choose_twists(jobs: list[PlaneMap], always: bool) -> None:
 
 
 def _fraction_of_a_lixel(jobs: list[PlaneMap], budget: float) -> float:
-    """The largest s <= 1 (to 0.1 %) whose rectangles fit ``budget`` texels and MAX_SIDE."""
+    """The largest s <= 1 (to 0.1 %) whose rectangles take at most ``budget`` texels, none wider than MAX_SIDE."""
     s = 1.0
     for _ in range(60):
         rects = _rects(jobs, s)
-        if _fits(rects, budget):
-            return s
         total = sum(map(_texels, rects))
         side = max(max(r[2] - r[0], r[3] - r[1]) for r in rects)
+        if total <= budget and side <= MAX_SIDE:
+            return s
         shrink = min(math.sqrt(budget / total), MAX_SIDE / side)
         s *= min(shrink, 1.0) * (1 - 1e-3) if shrink < 1 - 1e-3 else (1 - 1e-3)
     raise WarpError("plane_optimal: could not fit the plane maps into the texel budget")
