@@ -124,13 +124,12 @@ def intersection_body(view: View, light: Light, scene: SceneBounds,
             raise EmptyBodyError(f"the visible region ({visible.source}) does not meet the view frustum")
     ln, lo = light_halfspaces(light, origin)
     cone = " and the spot cone" if len(ln) else ""
-    if len(ln):
-        # Only the cone's planes that cut V matter for V ∩ L (V is convex).
-        d = ln @ corners.T - lo[:, None]
-        if np.any(d.min(axis=1) >= 0):
-            raise EmptyBodyError("no shadow receiver is lit in view: the view frustum is outside the spot cone")
-        cuts = d.max(axis=1) > 0
-        ln, lo = ln[cuts], lo[cuts]
+    # Only the cone's planes that cut V matter for V ∩ L (V is convex).
+    d = ln @ corners.T - lo[:, None]
+    if np.any(d.min(axis=1) >= 0):
+        raise EmptyBodyError("no shadow receiver is lit in view: the view frustum is outside the spot cone")
+    cuts = d.max(axis=1) > 0
+    ln, lo = ln[cuts], lo[cuts]
 
     # Receivers meeting V ∩ L (planes moved to world space for the culling).
     vn = np.concatenate([frustum.normals, ln])
@@ -143,9 +142,8 @@ def intersection_body(view: View, light: Light, scene: SceneBounds,
     tol = RELATIVE_TOLERANCE * max(scale, float(np.abs(s_r).max()))
 
     # R = V ∩ S_r ∩ L.
-    bn, bo = BOX_NORMALS, box_offsets(*s_r) + max(BOX_PAD * scale, 512 * tol)       # S_r, padded
-    if len(ln):
-        bn, bo = np.concatenate([bn, ln]), np.concatenate([bo, lo])
+    pad = max(BOX_PAD * scale, 512 * tol)
+    bn, bo = np.concatenate([BOX_NORMALS, ln]), np.concatenate([box_offsets(*s_r) + pad, lo])     # S_r, padded; L
     r = ConvexPolytope(frustum.vertices, frustum.normals, frustum.offsets, frustum.loops, tol).clip(bn, bo)
     if r is None:
         raise EmptyBodyError("the view frustum does not meet the receivers" + (" inside the spot cone" if len(ln) else ""))

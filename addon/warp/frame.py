@@ -237,8 +237,7 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
             depth = part @ forward
             ahead = depth >= near_floor
             if inside or not ahead.any():
-                others = np.delete(basis, CUBE_FACES[f][1], axis=0)
-                nearest_part = near_floor * (forward + _FACE_CORNERS @ others)
+                nearest_part = near_floor * (_FACE_RAYS[f] @ basis)
             else:
                 nearest_part = part[ahead] * (near_floor / depth[ahead])[:, None]
             part = np.concatenate([part[ahead], nearest_part])
@@ -256,21 +255,10 @@ def cube_basis(axis, up) -> np.ndarray:
 
 
 _FACE_CORNERS = np.array([[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]])
-"""(a, b) of a cube face's 4 corner rays forward + a·others[0] + b·others[1]."""
-
-
-def _face_pyramids() -> tuple[np.ndarray, np.ndarray]:
-    """Each cube face's pyramid in the cube's basis: its 4 sides' unit outward normals
-    (s·o - forward)/√2 and its 4 corner rays, (6, 4, 3) each."""
-    sides, rays = [], []
-    for _, k, sign in CUBE_FACES:
-        forward, (o1, o2) = sign * np.eye(3)[k], np.delete(np.eye(3), k, axis=0)
-        sides.append([(s * o - forward) / math.sqrt(2.0) for o in (o1, o2) for s in (1.0, -1.0)])
-        rays.append([forward + a * o1 + b * o2 for a, b in _FACE_CORNERS])
-    return np.array(sides), np.array(rays)
-
-
-_FACE_SIDES, _FACE_RAYS = _face_pyramids()
+_FACE_RAYS = _FACE_CORNERS @ _FACE_TURNS[:, :2] - _FACE_TURNS[:, 2:]
+"""Each cube face's 4 corner rays forward + a·x + b·y (a, b = ±1; x, y its eye rows) in the cube's basis, (6, 4, 3)."""
+_FACE_SIDES = (np.array([1.0, -1.0, 1.0, -1.0])[:, None] * _FACE_TURNS[:, [0, 0, 1, 1]] + _FACE_TURNS[:, 2:]) / math.sqrt(2)
+"""Each face's pyramid's 4 sides' unit outward normals (±x - forward)/√2, (±y - forward)/√2 in the cube's basis."""
 _FACE_SIDES_AND_AXES = np.concatenate([_FACE_SIDES.reshape(24, 3), -_FACE_TURNS[:, 2]])
 """The faces' sides, then their axes (forward), in the cube's basis."""
 

@@ -9,7 +9,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .geometry import cross
+from .geometry import UNIT_CUBE_CORNERS, cross
 
 EPS = float(np.finfo(np.float64).eps)
 
@@ -38,7 +38,7 @@ BOX_LOOPS = tuple(HEXAHEDRON_LOOPS[i] for i in (4, 2, 0, 5, 3, 1))
 
 def box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """The corners (..., 8, 3) of boxes [lo, hi] (``geometry.UNIT_CUBE_CORNERS`` order)."""
-    return np.where(_CORNER_BITS, hi[..., None, :], lo[..., None, :]) + 0.0
+    return np.where(UNIT_CUBE_CORNERS > 0, hi[..., None, :], lo[..., None, :]) + 0.0
 
 
 def box_offsets(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -631,5 +631,3 @@ _HEX_REVERSED = tuple(loop[::-1] for loop in HEXAHEDRON_LOOPS)
 _HEX_EDGES = np.array([(loop[i - 1], loop[i]) for loop in HEXAHEDRON_LOOPS[:2] for i in range(4)]
                       + [(i, i + 4) for i in range(4)])
 """The 12 edges of a hexahedron with UNIT_CUBE_CORNERS ordering."""
-_CORNER_BITS = np.array([[i & 1, (i >> 1) & 1, (i >> 2) & 1] for i in range(8)], dtype=bool)
-"""Which of a box's corners (UNIT_CUBE_CORNERS order) take hi in x, y, z."""
