@@ -117,7 +117,7 @@ def at_shadow_edge(shadow_map, window_depth: np.ndarray, points: np.ndarray, nor
     texel = np.floor((h[:, :2] / h[:, 3:] * 0.5 + 0.5) * size).astype(np.int64)
     taps = np.clip(texel[:, None] + np.stack(np.meshgrid([-1, 0, 1], [-1, 0, 1]), -1).reshape(1, 9, 2), 0, size - 1)
     stored = window_depth[taps[..., 1], taps[..., 0]]
-    depth, slope = stored_depth(shadow_map, points)
+    depth, slope = shadow_map.stored_depth(points)
     cos = np.einsum("ij,ij->i", normals, to_light)
     along = np.abs(np.einsum("ij,ij->i", slope, to_light))
     reach = 3.0 * along * np.sqrt(np.maximum(1.0 - cos * cos, 0.0)) / np.maximum(cos, 1e-6) / j.min(axis=1)
@@ -139,19 +139,7 @@ def _edge_test(m, size, taps, stored, points, normals, depth, bias, shadow_map) 
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.einsum("ij,ij->i", points, normals)[:, None] - np.einsum("ikj,ij->ik", ends[0], normals)
         on_plane = ends[0] + (t / np.einsum("ikj,ij->ik", ray, normals))[..., None] * ray
-    plane = np.where(np.isfinite(on_plane).all(-1), stored_depth(shadow_map, on_plane.reshape(-1, 3))[0].reshape(-1, 9),
+    plane = np.where(np.isfinite(on_plane).all(-1), shadow_map.stored_depth(on_plane.reshape(-1, 3))[0].reshape(-1, 9),
                      depth[:, None])
     near = (stored < 0.5 * (np.minimum(plane, depth[:, None]) - bias[:, None]) + 0.5).sum(axis=1)
     return (near > 0) & (near < 9)
-
-
-def stored_depth(shadow_map, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The NDC depth ``shadow_map`` stores for (N, 3) world ``points`` (its linear depth row, else z / w) and its
-    gradient per metre, (N,) and (N, 3)."""
-    if shadow_map.depth_row is not None:
-        row = shadow_map.depth_row
-        return points @ row[:3] + row[3], np.broadcast_to(row[:3], points.shape)
-    m = shadow_map.matrix
-    h = points @ m[:, :3].T + m[:, 3]
-    z = h[:, 2] / h[:, 3]
-    return z, (m[2, :3] - z[:, None] * m[3, :3]) / h[:, 3:]

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .footprint import setup_texel_footprint
-from ..warp.geometry import transform_h, transform_points
+from ..warp.geometry import transform_points
 from ..warp.rays import first_hits, slab_intervals
 from ..warp.types import Light, SceneBounds, ShadowSetup, View
 
@@ -103,14 +103,6 @@ def caster_points(points, light: Light, scene: SceneBounds) -> tuple[np.ndarray,
     return np.concatenate(pts), np.concatenate(owner)
 
 
-def _depth(shadow_map, points) -> np.ndarray:
-    if shadow_map.depth_row is not None:
-        return transform_h(np.vstack([np.zeros((2, 4)), shadow_map.depth_row, [0, 0, 0, 1]]), points)[:, 2]
-    h = shadow_map.clip(points)
-    with np.errstate(divide="ignore", invalid="ignore"):   # w <= 0: not contained, never compared
-        return h[:, 2] / h[:, 3]
-
-
 @dataclass
 class Judgement:
     visible: int
@@ -145,7 +137,7 @@ def judge(view: View, light: Light, scene: SceneBounds, setup: ShadowSetup, samp
             continue
         inside = m.contains(cpts[sel], tol)
         bad_caster[sel] = ~inside
-        dc, dr = _depth(m, cpts[sel]), _depth(m, pts[owner[sel]])
+        dc, dr = m.stored_depth(cpts[sel])[0], m.stored_depth(pts[owner[sel]])[0]
         nearer = dc < dr if m.depth_test == "LESS" else dc > dr
         gap = np.abs(dc - dr) > 1e-12
         bad_order[sel] = inside & gap & ~nearer

@@ -252,6 +252,18 @@ class ShadowMap:
     def clip(self, points) -> np.ndarray:
         return transform_h(self.matrix, points)
 
+    def stored_depth(self, points) -> tuple[np.ndarray, np.ndarray]:
+        """The NDC depth this map stores for (N, 3) world ``points`` (its ``depth_row``, else z / w) and its gradient
+        per metre, (N,) and (N, 3); not finite where w = 0."""
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        if self.depth_row is not None:
+            row = np.asarray(self.depth_row, dtype=np.float64)
+            return p @ row[:3] + row[3], np.broadcast_to(row[:3], p.shape)
+        h = self.clip(p)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            z = h[:, 2] / h[:, 3]
+            return z, (self.matrix[2, :3] - z[:, None] * self.matrix[3, :3]) / h[:, 3:]
+
     def contains(self, points, tol: float = 0.0) -> np.ndarray:
         """Which (N, 3) points are inside the clip volume (w > 0, |ndc| <= 1 + tol)."""
         h = self.clip(points)

@@ -52,6 +52,23 @@ def test_hyperbolic_depth_stays_an_option(method):
         assert all(m.depth_row is None for m in setup.maps)
 
 
+@pytest.mark.parametrize("linear_z", [True, False])
+@pytest.mark.parametrize("name", ["sun_behind_camera", "point_light_inside_view", "spot_over_scene"])
+def test_the_stored_depth_is_the_depth_row_or_z_over_w_and_its_gradient_is_its_rate_per_metre(name, linear_z):
+    _, _, body, setup = _setup("lispsm", name, linear_z=linear_z)
+    for m in setup.maps:
+        h = m.clip(body.vertices)
+        pts = body.vertices[h[:, 3] > 1e-3 * np.abs(h[:, 3]).max()]         # (well in front of a perspective map)
+        depth, gradient = m.stored_depth(pts)
+        h = m.clip(pts)
+        assert np.allclose(depth, _depth(m.depth_row, pts) if linear_z else h[:, 2] / h[:, 3], rtol=0, atol=1e-12)
+        step = 1e-6 * body.scale
+        for axis in range(3):
+            ahead, behind = (m.stored_depth(pts + sign * step * np.eye(3)[axis])[0] for sign in (1, -1))
+            rate = (ahead - behind) / (2 * step)
+            assert np.allclose(gradient[:, axis], rate, rtol=1e-4, atol=1e-6 * np.abs(gradient).max()), (m.role, axis)
+
+
 @pytest.mark.parametrize("name", ["sun_behind_camera", "point_light_high_above", "point_light_inside_view"])
 def test_a_frames_depth_is_its_distance_along_the_light(name):
     """A sun's frame stores light-space z and a point light's its axis distance
