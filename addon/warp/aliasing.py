@@ -133,16 +133,15 @@ def lambda_least_on_screen(delta, weights, depth, body=None) -> float:
 # ---------------------------------------------------------------- raster densities
 
 def raster_jacobian(matrix, size, points) -> np.ndarray:
-    """(N, 2, 3) d(raster)/d(world) of the projective ``matrix`` onto a ``size`` raster,
-    D_M = diag(w, h)/2 · (M[:2, :3] - ndc ⊗ M[3, :3]) / w_clip. NaN where w_clip <= 0."""
+    """(N, 2, 3) d(raster)/d(world) of the projective ``matrix`` onto a ``size`` raster (of a stack of (M, 4, 4) with
+    (M, 2) sizes: (M, N, 2, 3)), D_M = diag(w, h)/2 · (M[:2, :3] - ndc ⊗ M[3, :3]) / w_clip. NaN where w_clip <= 0."""
     m = np.asarray(matrix, dtype=np.float64)
-    h = homogeneous(points) @ m.T
-    w = h[:, 3]
+    h = homogeneous(points) @ np.swapaxes(m, -1, -2)
+    w = h[..., 3]
     w = np.where(w > 0, w, np.nan)
-    ndc = h[:, :2] / w[:, None]
-    d = (m[None, :2, :3] - ndc[:, :, None] * m[None, 3:4, :3]) / w[:, None, None]
-    scale = np.array([size[0], size[1]], dtype=np.float64) / 2.0
-    return d * scale[None, :, None]
+    ndc = h[..., :2] / w[..., None]
+    d = (m[..., None, :2, :3] - ndc[..., None] * m[..., None, 3:4, :3]) / w[..., None, None]
+    return d * (np.asarray(size, dtype=np.float64)[..., None, :, None] / 2.0)
 
 
 def pixel_density_constant(view) -> float:

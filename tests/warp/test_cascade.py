@@ -33,7 +33,7 @@ from addon.warp import WarpError, WarpOptions, compute, intersection_body
 from addon.warp.aliasing import perspective_aliasing
 from addon.warp.geometry import transform_points
 from addon.cli.config import ConfigError, parse_config
-from addon.warp.methods.cascade import SPLIT_WARPS, build_split, cascade
+from addon.warp.methods.cascade import SPLIT_WARPS, Trials, cascade
 from addon.warp.partition.adaptive import max_error
 from addon.warp.partition.budget import shared_sizes
 from addon.warp.partition.receivers import TAIL, footprint_p95, footprints, receivers, turned
@@ -153,7 +153,7 @@ def test_the_blend_band_reaches_into_the_next_split():
 def test_the_predicted_error_is_lloyds_maximum_over_the_split(name):
     """m² = K·w³/(c·z²) is convex for a sun, so its largest value over R_i is at a vertex."""
     view, light, scene = example(name)
-    split = build_split(view, light, scene, 6.0, 20.0, 0.0, OPTIONS)
+    split = Trials(view, light, scene, OPTIONS).split(6.0, 20.0, 0.0)
     region = split.body.visible_vertices
     rng = np.random.default_rng(7)
     inside = rng.dirichlet(np.ones(len(region)) * 0.2, size=4000) @ region
@@ -167,8 +167,8 @@ def test_the_predicted_error_is_lloyds_maximum_over_the_split(name):
 
 def test_auto_takes_the_warp_with_the_lowest_predicted_error():
     view, light, scene = example("sun_behind_camera")
-    auto = build_split(view, light, scene, 7.0, 25.0, 0.0, OPTIONS)
-    errors = {w: build_split(view, light, scene, 7.0, 25.0, 0.0, dataclasses.replace(OPTIONS, cascade_warp=w))
+    auto = Trials(view, light, scene, OPTIONS).split(7.0, 25.0, 0.0)
+    errors = {w: Trials(view, light, scene, dataclasses.replace(OPTIONS, cascade_warp=w)).split(7.0, 25.0, 0.0)
               .predicted_error for w in SPLIT_WARPS}
     assert auto.predicted_error == min(errors.values())
     assert errors[auto.warp] == auto.predicted_error
@@ -397,7 +397,7 @@ def test_the_receivers_footprint_is_the_judges(name):
     seen = receivers(view, light, region, view.near, math.inf)
     for method in ("uniform", "lispsm", "psm"):
         setup = compute(method, view, light, scene, OPTIONS)
-        ours = footprints(setup, seen)
+        ours = footprints([setup], seen)[0]
         judges = setup_texel_footprint(view, setup, seen[0], np.cross(seen[1][:, :, 0], seen[1][:, :, 1]))
         finite = np.isfinite(judges)
         assert finite.mean() > 0.9
@@ -409,7 +409,7 @@ def test_a_turned_map_holds_its_body_and_projects_along_the_light(name):
     """Turning x, y about the depth axis keeps the map a projection from the light:
     every point of a light ray falls on one texel, and B stays inside the map."""
     view, light, scene = example(name) if name in EXAMPLES else HARD_CASES[name]
-    split = build_split(view, light, scene, 6.0, 20.0, 0.0, OPTIONS)
+    split = Trials(view, light, scene, OPTIONS).split(6.0, 20.0, 0.0)
     base = split.setup.maps[0]
     turns = turned(base.matrix, split.body.vertices)
     assert len(turns) >= 2
@@ -440,7 +440,7 @@ def test_with_receivers_known_the_cascade_never_has_a_larger_p95_footprint_there
 def test_the_split_search_moves_the_split_depths_only_where_the_receivers_footprint_tail_falls(monkeypatch):
     """Against the same cascade with the search off (no depths to try): where the depths moved, the p95 over its
     sampling band (``TAIL``) at the receivers fell; and it moved somewhere, with every receiver still covered."""
-    module = importlib.import_module(build_split.__module__)
+    module = importlib.import_module(Trials.__module__)
     moved = 0
     for view, light, scene in configurations():
         region = region_from_boxes(view, scene)

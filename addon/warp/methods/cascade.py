@@ -67,94 +67,111 @@ def split_setup(warp: str, view: View, light: Light, body: IntersectionBody, opt
     return setup
 
 
-def split_body(view: View, light: Light, scene: SceneBounds, near: float, far: float,
-               visible: Optional[VisibleRegion]) -> tuple[View, Optional[IntersectionBody]]:
-    """The view clipped to eye depths [near, far] and its B, on its part of
-    ``visible`` if given (None: nothing visible there)."""
-    start, end = near * (1.0 - OVERLAP), far * (1.0 + OVERLAP)
-    clipped = split_view(view, max(start, view.near * (1.0 - OVERLAP)), end)
-    seen = None if visible is None else split_region(visible, start, end)
-    if seen is not None and seen.is_empty:
-        return clipped, None
-    try:
-        return clipped, intersection_body(clipped, light, scene, seen)
-    except EmptyBodyError:
-        return clipped, None
+@dataclass
+class Trials:
+    """The splits one ``split_depths`` tries, each part (B_i, a warp's maps and their error, turns, footprints) made
+    ``once``, kept by its depths: Lloyd's rounds and the split search meet most depth pairs again."""
+    view: View
+    light: Light
+    scene: SceneBounds
+    options: WarpOptions
+    visible: Optional[VisibleRegion] = None
+    seen: Optional[tuple] = None        # the ``receivers`` from C_0 on (None: their normals unknown)
+    made: dict = field(default_factory=dict)
 
+    def once(self, key: tuple, make):
+        """``make()``, called the first time ``key`` is asked for."""
+        if key not in self.made:
+            self.made[key] = make()
+        return self.made[key]
 
-def build_split(view: View, light: Light, scene: SceneBounds, near: float, far: float, band: float,
-                options: WarpOptions, warps: Optional[list] = None, visible: Optional[VisibleRegion] = None,
-                bodies: Optional[dict] = None) -> Split:
-    """Split [near, far] holding ``band`` more, its B kept in ``bodies`` by depths, with the warp of lowest predicted
-    error among ``warps`` (default: those ``options`` allows)."""
-    bodies = {} if bodies is None else bodies
-    if (near, far + band) not in bodies:
-        bodies[near, far + band] = split_body(view, light, scene, near, far + band, visible)
-    split = Split(near, far, band, *bodies[near, far + band])
-    if split.body is None:
+    def body(self, near: float, far: float) -> tuple[View, Optional[IntersectionBody]]:
+        """The view clipped to eye depths [near, far] and its B on its part of ``visible`` (None: nothing seen)."""
+        start, end = near * (1.0 - OVERLAP), far * (1.0 + OVERLAP)
+        clipped = split_view(self.view, max(start, self.view.near * (1.0 - OVERLAP)), end)
+        seen = None if self.visible is None else split_region(self.visible, start, end)
+        if seen is not None and seen.is_empty:
+            return clipped, None
+        try:
+            return clipped, intersection_body(clipped, self.light, self.scene, seen)
+        except EmptyBodyError:
+            return clipped, None
+
+    def split(self, near: float, far: float, band: float, warps: Optional[list] = None) -> Split:
+        """Split [near, far] holding ``band`` more, by the warp of least predicted error among ``warps`` (or all)."""
+        end, options = far + band, self.options
+        view, body = self.once(("body", near, end), lambda: self.body(near, end))
+        split = Split(near, far, band, view, body)
+        if warps is None:
+            warps = ["uniform"] if options.cascade_stable else list(SPLIT_WARPS) if options.cascade_warp == "auto" \
+                else [options.cascade_warp]
+        for name in warps if body is not None else []:
+            setup = self.once(("maps", near, end, name), lambda: split_setup(name, view, self.light, body, options))
+            error = self.once(("m", near, end, name), lambda: max_error(view, self.light, setup, body.visible_vertices))
+            if split.setup is None or error < split.predicted_error * (1.0 - TIE):
+                split.warp, split.setup, split.predicted_error = name, setup, error
+            split.tried.append((name, setup))
         return split
-    if warps is None:
-        warps = ["uniform"] if options.cascade_stable else list(SPLIT_WARPS) if options.cascade_warp == "auto" \
-            else [options.cascade_warp]
-    for name in warps:
-        setup = split_setup(name, split.view, light, split.body, options)
-        error = max_error(split.view, light, setup, split.body.visible_vertices)
-        if split.setup is None or error < split.predicted_error * (1.0 - TIE):
-            split.warp, split.setup, split.predicted_error = name, setup, error
-        split.tried.append((name, setup))
-    return split
 
+    def splits_at(self, c: np.ndarray, warps: Optional[list] = None) -> list:
+        """The splits between the depths ``c``, split i with the warps allowed or ``warps[i]``, and a band of
+        ``cascade_blend``·(C_(i+1) - C_i) (none for the last)."""
+        return [self.split(a, b, 0.0 if i == len(c) - 2 else self.options.cascade_blend * (b - a),
+                           None if warps is None else [warps[i]]) for i, (a, b) in enumerate(zip(c[:-1], c[1:]))]
 
-def with_turns(split: Split, seen: tuple) -> list:
-    """(warp, setup, ``footprints`` at ``seen``) of each warp ``split`` tried (Lloyd's pick first), and turned."""
-    maps = sorted(split.tried, key=lambda t: t[1] is not split.setup)
-    maps += [(w, dataclasses.replace(m, maps=[dataclasses.replace(m.maps[0], matrix=turn)]))
-             for w, m in maps if len(m.maps) == 1 for turn in turned(m.maps[0].matrix, split.body.vertices)]
-    return [(w, m, footprints(m, seen)) for w, m in maps]
+    def candidates(self, split: Split, far: float) -> list:
+        """(warp, setup, ``footprints`` at the receivers at eye depths [C_i, ``far``)) of each warp ``split`` tried
+        (Lloyd's pick first), then of each single map of those ``turned``."""
+        maps = sorted(split.tried, key=lambda t: t[1] is not split.setup)
+        for w, m in maps[:len(split.tried)]:
+            turns = self.once(("turned", split.near, split.far + split.band, w), lambda: [] if len(m.maps) > 1
+                              else turned(m.maps[0].matrix, split.body.vertices))
+            maps += [(w, dataclasses.replace(m, maps=[dataclasses.replace(m.maps[0], matrix=t)])) for t in turns]
+        depth = self.view.eye_depth(self.seen[0])
+        seen = tuple(x[(depth >= split.near) & (depth < far)] for x in self.seen)
+        return [(w, m, f) for (w, m), f in zip(maps, footprints([m for _, m in maps], seen) if maps else [])]
 
+    def least_footprint(self, splits: list) -> tuple[list, list]:
+        """``splits`` with the maps among their ``candidates`` of least p95 at the receivers (coordinate descent from
+        Lloyd's picks, two sweeps; kept if ``MARGIN`` below theirs) and their footprints there (none: none known)."""
+        depth = np.zeros(0) if self.seen is None else self.view.eye_depth(self.seen[0])
+        scored = [(s, self.candidates(s, s.far)) for s in splits
+                  if s.setup is not None and np.any((depth >= s.near) & (depth < s.far))]
 
-def least_footprint(view: View, light: Light, splits: list, visible: Optional[VisibleRegion]) -> tuple[list, list]:
-    """``splits`` with the maps ``with_turns`` of least p95 at the ``receivers`` (coordinate descent from Lloyd's picks,
-    two sweeps; kept if ``MARGIN`` below theirs) and their footprints there (none: no receivers known)."""
-    scored = []
-    for s in splits:
-        seen = None if s.setup is None else receivers(view, light, visible, s.near, s.far)
-        if seen is not None:
-            scored.append((s, with_turns(s, seen)))
-    error = lambda picks: footprint_p95([c[k][2] for (_, c), k in zip(scored, picks)])  # noqa: E731
-    pick = [0] * len(scored)
-    for i in [*range(len(scored))] * 2:
-        pick[i] = min(range(len(scored[i][1])), key=lambda k: error(pick[:i] + [k] + pick[i + 1:]))
-    if not (scored and error(pick) < (1.0 - MARGIN) * error([0] * len(scored))):
-        pick = [0] * len(scored)
-    for (s, c), k in zip(scored, pick):
-        s.warp, s.setup, _ = c[k]
-        s.predicted_error = max_error(s.view, light, s.setup, s.body.visible_vertices)
-    return splits, [c[k][2] for (_, c), k in zip(scored, pick)]
+        def error(picks: list) -> float:
+            return footprint_p95([c[k][2] for (_, c), k in zip(scored, picks)])
 
+        lloyds, pick = [0] * len(scored), [0] * len(scored)
+        for i in [*range(len(scored))] * 2:
+            pick[i] = min(range(len(scored[i][1])), key=lambda k: error(pick[:i] + [k] + pick[i + 1:]))
+        if not (scored and error(pick) < (1.0 - MARGIN) * error(lloyds)):
+            pick = lloyds
+        for (s, c), k in zip(scored, pick):
+            s.warp, s.setup, _ = c[k]
+            s.predicted_error = max_error(s.view, self.light, s.setup, s.body.visible_vertices)
+        return splits, [c[k][2] for (_, c), k in zip(scored, pick)]
 
-def searched_depths(view: View, light: Light, start: np.ndarray, build, visible: Optional[VisibleRegion]) -> np.ndarray:
-    """``start`` after ``SWEEPS`` coordinate sweeps of the inner ones over ``FRACTIONS`` of their neighbours' log range
-    (linear if orthographic), kept where the receivers' p95 over the ``TAIL`` falls by ``MARGIN``, each split
-    ``build(i, C_i, C_(i+1))`` with its map of least p95 ``with_turns``."""
-    seen, made = receivers(view, light, visible, start[0], math.inf), {}
-    depth = view.eye_depth(seen[0])
+    def least(self, split: Split, far: float) -> np.ndarray:
+        """The footprints of ``split``'s candidate of least p95 at the receivers at eye depths [C_i, ``far``)."""
+        return self.once(("least", split.near, far, split.warp), lambda: min(
+            [f for *_, f in self.candidates(split, far)], key=lambda f: footprint_p95([f]), default=np.zeros(0)))
 
-    def tail(c: np.ndarray) -> float:
-        for i, a, b in (ends := list(zip(range(len(c)), c[:-1], c[1:]))):
-            if (i, a, b) not in made:
-                mine = (depth >= a) & ((depth < b) | (i == len(c) - 2))
-                made[i, a, b] = min([f for *_, f in with_turns(build(i, a, b), tuple(x[mine] for x in seen))],
-                                    key=lambda f: footprint_p95([f]), default=np.zeros(0))
-        return footprint_p95([made[e] for e in ends], TAIL)
+    def searched_depths(self, start: np.ndarray, warps: list) -> np.ndarray:
+        """``start`` after ``SWEEPS`` coordinate sweeps of the inner ones over ``FRACTIONS`` of their neighbours'
+        log range (linear if orthographic), kept where the ``TAIL`` p95 of the splits' ``least`` falls by ``MARGIN``."""
+        def tail(c: np.ndarray) -> float:
+            return footprint_p95([self.least(s, far) for s, far in zip(self.splits_at(c, warps), [*c[1:-1], math.inf])],
+                                 TAIL)
 
-    c, best = start, tail(start)
-    for _, k, f in itertools.product(range(SWEEPS), range(1, len(start) - 1), FRACTIONS):
-        trial = c.copy()
-        trial[k] = c[k - 1] + (c[k + 1] - c[k - 1]) * f if view.orthographic else c[k - 1] * (c[k + 1] / c[k - 1]) ** f
-        if (error := tail(trial)) < best * (1.0 - MARGIN):
-            c, best = trial, error
-    return c
+        c, best = start, tail(start)
+        for _, k, f in itertools.product(range(SWEEPS), range(1, len(start) - 1), FRACTIONS):
+            trial = c.copy()
+            trial[k] = c[k - 1] + (c[k + 1] - c[k - 1]) * f if self.view.orthographic \
+                else c[k - 1] * (c[k + 1] / c[k - 1]) ** f
+            error = tail(trial)
+            if error < best * (1.0 - MARGIN):
+                c, best = trial, error
+        return c
 
 
 def adaptive_splits(options: WarpOptions) -> bool:
@@ -172,30 +189,21 @@ def split_depths(view: View, light: Light, scene: SceneBounds, body: Intersectio
     if options.cascade_stable:
         z_n, z_f = stable_depth_range(z_f, view)
     depths = practical_splits(z_n, z_f, options.cascade_splits, options.cascade_lambda)
-    bodies: dict = {}
-
-    def band(i: int, a: float, b: float) -> float:
-        return 0.0 if i == options.cascade_splits - 1 else options.cascade_blend * (b - a)
-
-    def splits_at(c: np.ndarray) -> list:
-        return [build_split(view, light, scene, a, b, band(i, a, b), options, None, body.visible, bodies)
-                for i, (a, b) in enumerate(zip(c[:-1], c[1:]))]
-
-    splits = splits_at(depths)
+    seen = receivers(view, light, body.visible, z_n, math.inf) if adaptive_splits(options) else None
+    trials = Trials(view, light, scene, options, body.visible, seen)
+    splits = trials.splits_at(depths)
     if not adaptive_splits(options):
         return depths, splits, "practical"
     kept = [s.warp for s in splits]
-    error_of = lambda i, a, b: build_split(view, light, scene, a, b, band(i, a, b), options,  # noqa: E731
-                                           [kept[i]], body.visible, bodies).predicted_error
-    moved, _ = minimax_splits(error_of, depths, [s.predicted_error for s in splits],
-                              options.cascade_budget == "shared")
-    splits, seen = least_footprint(view, light, splits if np.array_equal(moved, depths) else splits_at(moved),
-                                   body.visible)
-    found = moved if not seen else searched_depths(view, light, moved, lambda i, a, b: build_split(
-        view, light, scene, a, b, band(i, a, b), options, [splits[i].warp], body.visible, bodies), body.visible)
-    searched, now = (splits, seen) if found is moved else least_footprint(view, light, splits_at(found), body.visible)
-    better = found is not moved and footprint_p95(now, TAIL) < footprint_p95(seen, TAIL) and \
-        footprint_p95(now) <= footprint_p95(seen) and sum(len(s.setup.maps) for s in searched if s.setup) <= MAX_MAPS
+    moved, _ = minimax_splits(lambda c: [s.predicted_error for s in trials.splits_at(c, kept)], depths,
+                              [s.predicted_error for s in splits], options.cascade_budget == "shared")
+    splits, seen = trials.least_footprint(splits if np.array_equal(moved, depths) else trials.splits_at(moved))
+    found = trials.searched_depths(moved, [s.warp for s in splits]) if seen else moved
+    if found is moved:
+        return moved, splits, "adaptive"
+    searched, now = trials.least_footprint(trials.splits_at(found))
+    better = footprint_p95(now, TAIL) < footprint_p95(seen, TAIL) and footprint_p95(now) <= footprint_p95(seen) and \
+        sum(len(s.setup.maps) for s in searched if s.setup) <= MAX_MAPS
     return (found, searched, "receivers") if better else (moved, splits, "adaptive")
 
 

@@ -31,16 +31,16 @@ def objective(errors, shared_budget: bool) -> float:
     return float(np.sqrt(np.mean(e * e))) if shared_budget else float(e.max())
 
 
-def minimax_splits(error_of: Callable[[int, float, float], float], splits: np.ndarray, errors: list,
+def minimax_splits(errors_at: Callable[[np.ndarray], list], splits: np.ndarray, errors: list,
                    shared_budget: bool = False) -> tuple[np.ndarray, list[float]]:
     """The depths (ends kept) after ``ROUNDS`` (few: a long search settles where a split's B jumps) equalising steps
-    on ``error_of(i, C_i, C_(i+1))`` from ``splits`` with ``errors``, or those if the :func:`objective` did not fall."""
+    on ``errors_at(C_0..C_N)`` from ``splits`` with ``errors``, or those if the :func:`objective` did not fall."""
     start, start_e = np.asarray(splits, dtype=np.float64), np.asarray(errors, dtype=np.float64)
     c, e = start, start_e
     power = np.ones(len(e))
     for _ in range(ROUNDS if len(c) > 2 and usable(e) else 0):
         moved = equalising_step(c, e, power, shared_budget)
-        moved_e = np.array([error_of(i, a, b) for i, (a, b) in enumerate(zip(moved[:-1], moved[1:]))])
+        moved_e = np.array(errors_at(moved))
         if not usable(moved_e):           # a split with nothing visible: no slope
             break
         power = local_power(np.diff(np.log(c)), e, np.diff(np.log(moved)), moved_e, power)

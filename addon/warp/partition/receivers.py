@@ -32,21 +32,26 @@ def receivers(view: View, light: Light, region: VisibleRegion | None, near: floa
     return (p, tangent, raster_jacobian(view.world_to_clip, view.resolution, p) @ tangent) if len(p) else None
 
 
-def footprints(setup: ShadowSetup, seen: tuple) -> np.ndarray:
-    """Screen pixels per texel σ_max(G·H⁻¹) at the ``receivers`` ``seen``, H = D_map·T of the map serving each (inf
-    edge-on, NaN unserved): the judge's ``addon.measure.footprint`` (PSM §1.1), σ_max of a 2x2 by its norm and det."""
+def footprints(setups: list, seen: tuple) -> list[np.ndarray]:
+    """Screen pixels per texel σ_max(G·H⁻¹) of each of ``setups`` at the ``receivers`` ``seen``, H = D_map·T of the map
+    serving each (inf edge-on, NaN unserved): the judge's ``addon.measure.footprint`` (PSM §1.1), σ_max of a 2x2 by
+    its norm and det; every map of every setup at every receiver in one batch."""
     p, tangent, g = seen
-    served = setup.map_index(p, None, 1e-6) if len(setup.maps) > 1 else np.zeros(len(p), int)
-    out = np.full(len(p), np.nan)
-    det = lambda a: a[:, 0, 0] * a[:, 1, 1] - a[:, 0, 1] * a[:, 1, 0]     # noqa: E731 (np.linalg.det: LAPACK per 2x2)
-    for i, m in enumerate(setup.maps):
-        h = raster_jacobian(m.matrix, m.size, p[served == i]) @ tangent[served == i]
-        j = g[served == i] @ (np.swapaxes(h[:, ::-1, ::-1], 1, 2) * [[1.0, -1.0], [-1.0, 1.0]])   # G·H⁻¹·det H
-        f2, det_j, det_h = (j * j).sum(axis=(1, 2)), det(j), np.abs(det(h))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            sigma = np.sqrt((f2 + np.sqrt(np.maximum(f2 * f2 - 4.0 * det_j * det_j, 0.0))) / 2.0) / det_h
-        out[served == i] = np.where(det_h > 1e-14 * np.max(np.abs(h), axis=(1, 2), initial=0.0) ** 2, sigma, np.inf)
-    return out
+    maps = [m for s in setups for m in s.maps]
+    h = raster_jacobian([m.matrix for m in maps], [m.size for m in maps], p) @ tangent          # (maps, N, 2, 2)
+    j = g @ (np.swapaxes(h[..., ::-1, ::-1], -1, -2) * [[1.0, -1.0], [-1.0, 1.0]])    # G·H⁻¹·det H
+    f2, det_j, det_h = (j * j).sum(axis=(-2, -1)), det2(j), np.abs(det2(h))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sigma = np.sqrt((f2 + np.sqrt(np.maximum(f2 * f2 - 4.0 * det_j * det_j, 0.0))) / 2.0) / det_h
+    sigma = np.where(det_h > 1e-14 * np.max(np.abs(h), axis=(-2, -1), initial=0.0) ** 2, sigma, np.inf)
+    first = np.cumsum([0] + [len(s.maps) for s in setups])
+    served = [s.map_index(p, None, 1e-6) if len(s.maps) > 1 else np.zeros(len(p), int) for s in setups]
+    return [np.where(k >= 0, sigma[i + k, np.arange(len(p))], np.nan) for i, k in zip(first, served)]
+
+
+def det2(a: np.ndarray) -> np.ndarray:
+    """The determinants of a stack of 2x2 matrices (np.linalg.det: LAPACK per 2x2)."""
+    return a[..., 0, 0] * a[..., 1, 1] - a[..., 0, 1] * a[..., 1, 0]
 
 
 def footprint_p95(footprints: list, band=(95.0,)) -> float:
