@@ -256,9 +256,9 @@ def cube_basis(axis, up) -> np.ndarray:
 
 _FACE_CORNERS = np.array([[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]])
 _FACE_RAYS = _FACE_CORNERS @ _FACE_TURNS[:, :2] - _FACE_TURNS[:, 2:]
-"""Each cube face's 4 corner rays forward + a·x + b·y (a, b = ±1; x, y its eye rows) in the cube's basis, (6, 4, 3)."""
-_FACE_SIDES = (np.array([1.0, -1.0, 1.0, -1.0])[:, None] * _FACE_TURNS[:, [0, 0, 1, 1]] + _FACE_TURNS[:, 2:]) / math.sqrt(2)
-"""Each face's pyramid's 4 sides' unit outward normals (±x - forward)/√2, (±y - forward)/√2 in the cube's basis."""
+"""Each cube face's 4 corner rays forward + a·x + b·y (a, b = ±1; x, y: its eye rows), cube basis, (6, 4, 3)."""
+_FACE_SIDES = (_FACE_TURNS[:, [0, 0, 1, 1]] * [[1.0], [-1.0], [1.0], [-1.0]] + _FACE_TURNS[:, 2:]) / math.sqrt(2)
+"""Each face's pyramid's 4 sides' unit outward normals (±x - forward)/√2, (±y - forward)/√2, cube basis."""
 _FACE_SIDES_AND_AXES = np.concatenate([_FACE_SIDES.reshape(24, 3), -_FACE_TURNS[:, 2]])
 """The faces' sides, then their axes (forward), in the cube's basis."""
 

@@ -229,7 +229,7 @@ class Region:
         n = np.asarray(self.normal, dtype=np.float64)
         poly = np.asarray(self.polygon, dtype=np.float64)
         edges = np.roll(poly, -1, axis=0) - poly
-        inward = np.cross(n, edges)          # (q - a)·(n × e) = (e × (q - a))·n, the same for p as for its projection q
+        inward = np.cross(n, edges)          # (q - a)·(n × e) = (e × (q - a))·n: p gives what its projection q does
         left = p @ inward.T - np.einsum("ij,ij->i", poly, inward) >= -self.tolerance * np.linalg.norm(edges, axis=1)
         return (np.abs(p @ n - self.offset) <= self.tolerance) & left.all(axis=1)
 
