@@ -73,3 +73,26 @@ def test_a_convex_extent_is_its_own_hull():
     assert is_convex_polygon(square, [0, 0, 1.0], 1e-9)
     assert not is_convex_polygon(square[::-1], [0, 0, 1.0], 1e-9)             # clockwise
     assert not is_convex_polygon(np.concatenate([square, square]), [0, 0, 1.0], 1e-9)    # around twice
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_a_plane_maps_region_holds_the_points_within_its_tolerance_of_the_plane_over_its_polygon(seed):
+    from addon.warp import Region
+    from addon.warp.geometry import normalize, perpendicular
+    rng = np.random.default_rng(seed)
+    n = normalize(rng.normal(size=3))
+    u = perpendicular(n)
+    axes = np.array([u, np.cross(n, u)])
+    offset, tol = float(rng.normal() * 10), 10.0 ** rng.uniform(-6, -2)
+    corners = np.sort(rng.uniform(0, 2 * math.pi, int(rng.integers(3, 12))))
+    flat = np.column_stack([np.cos(corners), np.sin(corners)]) * rng.uniform(0.5, 50)
+    polygon = offset * n + flat @ axes
+    region = Region(n, offset, polygon, tol)
+    inside = rng.dirichlet(np.ones(len(polygon)), 500) @ polygon
+    assert region.contains(inside + np.outer(rng.uniform(-0.9, 0.9, 500) * tol, n)).all()
+    assert not region.contains(inside + np.outer(rng.choice([-1, 1], 500) * rng.uniform(1.1, 3, 500) * tol, n)).any()
+    edges = np.roll(flat, -1, axis=0) - flat                         # in the plane's axes, CCW about n
+    out = np.column_stack([edges[:, 1], -edges[:, 0]]) / np.linalg.norm(edges, axis=1)[:, None]
+    middle = (flat + np.roll(flat, -1, axis=0)) / 2
+    for reach, expected in ((0.9 * tol, True), (1.5 * tol, False), (1.0, False)):
+        assert (region.contains(offset * n + (middle + reach * out) @ axes) == expected).all(), (reach, expected)
