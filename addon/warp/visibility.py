@@ -25,6 +25,8 @@ SURFACE_SAMPLES = 1 << 14
 """At most this many pixels of a depth pre-pass make ``VisibleRegion.surface``."""
 DEPTH_ULPS = 16
 """Ulps of 1.0 (2^-24 each, float32 depth) padded on each tile's window depth, then taken to eye depth."""
+DEEP_BOX = 0.1
+"""A box deeper than this fraction of its least eye depth adds its depths in a square, not all (:func:`_square_depths`)."""
 KDOP_DIRECTIONS = 8
 """Directions across the light in which the k-DOP bounds the tiles (every 180°/8)."""
 KDOP_PAD = 1e-3
@@ -288,7 +290,8 @@ def sample_rays(view: View, samples: tuple[int, int]) -> tuple[np.ndarray, np.nd
 def region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int] = BOX_SAMPLES,
                       tile: int = BOX_TILE) -> VisibleRegion:
     """The visible region of a box scene without a GPU: one ray per cell of a ``samples`` grid and a ring of them on
-    the image's border, widened to hold every visible point (docs/papers.md); the last region per scene is kept."""
+    the image's border, and between each four the depths of every box that may show there (docs/papers.md); the
+    last region per scene is kept."""
     key = (view.camera_to_world.tobytes(), view.projection.tobytes(), view.near, view.far, samples, tile)
     last = scene.cached("visible region", dict)
     if last.get("key") != key:
@@ -303,98 +306,57 @@ def _region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int],
     selection = index.select(*_frustum_halfspaces(view))
     origins, dirs, length = sample_rays(view, samples)
     t, box = ray_index(origins, dirs, length, index, selection)
-    # What each sample's face may show within one sample spacing: its plane's depth at the corners of
-    # the square reaching to the neighbouring samples (a plane's depth is monotonic along each screen
-    # axis), bounded by its box's own eye-depth range.
-    lo_box, hi_box = _box_depths(view, scene.receivers)
-    near_s, far_s, normals = _face_reach(view, scene.receivers, origins, dirs, t, box.ravel(), samples, lo_box, hi_box)
+    hits = origins + np.where(np.isfinite(t), t, 0.0)[:, None] * dirs
+    face, normals = _faces(scene.receivers, hits, box)
+    # What the square between each four neighbouring rays shows; each cell, the squares within a ray spacing of its own
+    # four (padding, as the warps were tuned on).
+    near_q, far_q = _square_depths(view, scene.receivers, selection.mask, face.reshape(ny + 2, nx + 2), origins, hits,
+                                   samples)
+    near, far = tile_reduce(_neighbours(np.pad(near_q, 1, constant_values=np.inf), np.minimum, 4),
+                            _neighbours(np.pad(far_q, 1, constant_values=-np.inf), np.maximum, 4), tile)
     box = box.reshape(ny + 2, nx + 2)
     cells = box[1:-1, 1:-1]                                        # the cells' rays (the border's: their neighbours)
-    # Each cell's sample also takes its neighbours' (one sample spacing of padding), the border's rays among them.
-    near_s, far_s = _dilate(near_s, np.min, np.inf)[1:-1, 1:-1], _dilate(far_s, np.max, -np.inf)[1:-1, 1:-1]
-    near, far = tile_reduce(near_s, far_s, tile)
-    missed = selection.mask
-    missed[cells[cells >= 0]] = False
-    _add_small_boxes(view, scene.receivers, missed, lo_box, hi_box, samples, tile, near, far)
     hit = np.flatnonzero(box >= 0)
-    cell = np.pad(np.ones((ny, nx), bool), 1).ravel()[hit]         # the surface: the cells' rays, not the border's
-    hit = hit[cell]
+    hit = hit[np.pad(np.ones((ny, nx), bool), 1).ravel()[hit]]     # the surface: the cells' rays, not the border's
     return replace(_region(view, near, far, samples, tile, "scene boxes", tile_counts(cells >= 0, tile)),
-                   surface=(origins[hit] + t[hit, None] * dirs[hit])[:, None].repeat(2, axis=1), normals=normals[cell])
+                   surface=hits[hit][:, None].repeat(2, axis=1), normals=normals[hit])
 
 
-def _face_reach(view: View, boxes, origins, dirs, t, box, samples, lo_box, hi_box):
-    """Per ray sample, the eye-depth interval of the face it hit over the square out
-    to its neighbouring samples, within the hit box's depth range; each hit's face normal."""
-    xs, ys = (sample_ndc(n) for n in samples)
-    hit = np.flatnonzero(box >= 0)
-    near = np.full(len(xs) * len(ys), np.inf)
-    far = np.full(len(xs) * len(ys), -np.inf)
-    b = boxes[box[hit]]                                                      # (H, 2, 3)
-    p = origins[hit] + t[hit, None] * dirs[hit]
-    # The face hit: the box boundary plane nearest the hit point.
-    gap = np.abs(np.concatenate([p - b[:, 0], p - b[:, 1]], axis=1))        # (H, 6)
-    face = gap.argmin(axis=1)
-    axis, side = face % 3, face // 3
-    normals = np.eye(3)[axis] * (2.0 * side - 1.0)[:, None]
-    if not len(hit):
-        return near.reshape(len(ys), len(xs)), far.reshape(len(ys), len(xs)), normals
-    plane = b[np.arange(len(hit)), side, axis]
-    # The square's corners in NDC (one sample spacing out, within the image).
-    x, y = xs[hit % len(xs)], ys[hit // len(xs)]
-    sx, sy = 2.0 / samples[0], 2.0 / samples[1]
-    cx = np.clip(np.stack([x - sx, x + sx, x - sx, x + sx], axis=1), -1, 1).ravel()
-    cy = np.clip(np.stack([y - sy, y - sy, y + sy, y + sy], axis=1), -1, 1).ravel()
-    # Each corner's ray as p(d) = p1 + (d - d1) (p2 - p1) / (d2 - d1), met with the face's plane.
-    d1, d2 = view.near, view.far
-    p1, p2 = unproject(view, cx, cy, np.full(len(cx), d1)), unproject(view, cx, cy, np.full(len(cx), d2))
-    a4 = np.repeat(axis, 4)
-    rows = np.arange(len(cx))
-    rate = p2[rows, a4] - p1[rows, a4]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        d = d1 + (np.repeat(plane, 4) - p1[rows, a4]) * (d2 - d1) / rate
-    # Where the corners' rays meet the plane, and whether that is still on the face (else the square
-    # holds the face's edge, and the box's other faces may show there too).
-    on_plane = p1 + ((np.where(np.isfinite(d), d, d1) - d1) / (d2 - d1))[:, None] * (p2 - p1)
-    bb = np.repeat(b, 4, axis=0)
-    size = np.abs(bb[:, 1] - bb[:, 0]).max(axis=1, keepdims=True)
-    inside = ((on_plane >= bb[:, 0] - 1e-9 * size) & (on_plane <= bb[:, 1] + 1e-9 * size)).all(axis=1)
-    d = np.where(np.isfinite(d) & (d > 0) & inside, d, np.nan).reshape(-1, 4)
-    lo, hi = lo_box[box[hit]], hi_box[box[hit]]
-    # A corner off the face, or whose ray misses its plane in front (grazing): the depths of the
-    # whole part of the box inside the square's pyramid.
-    whole = np.isnan(d).any(axis=1)
-    if whole.any():
-        square = np.stack([cx, cy], axis=1).reshape(-1, 4, 2)[whole]
-        lo, hi = lo.copy(), hi.copy()
-        lo[whole], hi[whole] = _box_depths_in_squares(view, b[whole], square[:, 0], square[:, 3], lo[whole], hi[whole])
-    near[hit] = np.where(whole, lo, np.maximum(np.nanmin(np.where(whole[:, None], 0.0, d), axis=1), lo))
-    far[hit] = np.where(whole, hi, np.minimum(np.nanmax(np.where(whole[:, None], 0.0, d), axis=1), hi))
-    return near.reshape(len(ys), len(xs)), far.reshape(len(ys), len(xs)), normals
+def _faces(boxes, hits, box) -> tuple[np.ndarray, np.ndarray]:
+    """Per ray sample, 6 box + the face it hit (its box's bounding plane nearest the hit, in ``BOX_NORMALS`` order;
+    -1: none) and that face's outward normal."""
+    b = boxes[np.maximum(box, 0)]
+    face = np.abs(np.concatenate([hits - b[:, 0], hits - b[:, 1]], axis=1)).argmin(axis=1)
+    return np.where(box >= 0, 6 * box + face, -1), np.eye(3)[face % 3] * (2.0 * (face // 3) - 1.0)[:, None]
 
 
-def _box_depths_in_squares(view: View, boxes, low, high, lo, hi) -> tuple[np.ndarray, np.ndarray]:
-    """The least and greatest eye depth over box_i ∩ the pyramid of the NDC square [low_i, high_i], else lo/hi."""
+def _box_depths_in_squares(view: View, boxes, low, high) -> tuple[np.ndarray, np.ndarray]:
+    """The least and greatest eye depth over box_i ∩ the pyramid of the NDC square [low_i, high_i] (inf, -inf: none):
+    over the vertices of that polytope, the box's corners in the pyramid, its edges' crossings of the pyramid's sides
+    and the pyramid's corner rays' crossings of the box (less than the near distance where the box comes nearer)."""
     m = view.world_to_clip
     # The pyramid's sides as world half-spaces side . [x, 1] <= 0 (x <= x1: clip_x - x1 w <= 0, ...).
     sides = np.stack([m[0] - high[:, 0, None] * m[3], low[:, 0, None] * m[3] - m[0],
                       m[1] - high[:, 1, None] * m[3], low[:, 1, None] * m[3] - m[1]], axis=1)        # (S, 4, 4)
     corners = box_corners(boxes[:, 0], boxes[:, 1])                                              # (S, 8, 3)
-    value = corners @ sides[:, :, :3].transpose(0, 2, 1) + sides[:, None, :, 3]                 # (S, 8, 4)
-    tol = 1e-9 * np.abs(value).max(axis=(1, 2), keepdims=True)
-    points, keep = [corners], [(value <= tol).all(axis=2)]
-    # Box edges crossing a side: t = v_a / (v_a - v_b) between the corners a, b of each edge.
+    value = np.einsum("sci,sji->scj", corners, sides[:, :, :3]) + sides[:, None, :, 3]           # (S, 8, 4)
+    depth = view.eye_depth(corners).reshape(-1, 8)
+    tol = 1e-9 * np.abs(value).max(axis=(1, 2))
+    which, corner = np.nonzero((value <= tol[:, None, None]).all(axis=2))
+    pairs, depths = [which], [depth[which, corner]]
+    # Box edges crossing a side, at t = v_a / (v_a - v_b) from corner a to b (values and depth are affine along it).
     va, vb = value[:, _EDGES[:, 0]], value[:, _EDGES[:, 1]]                                    # (S, 12, 4)
-    ca, cb = corners[:, _EDGES[:, 0]], corners[:, _EDGES[:, 1]]                                # (S, 12, 3)
     with np.errstate(divide="ignore", invalid="ignore"):
         t = va / (va - vb)
-    on_edge = ((t >= 0) & (t <= 1)).reshape(len(boxes), -1)               # (an edge in a side's plane: NaN, dropped)
-    t = np.where(np.isfinite(t), t, 0.0)
-    cross = (ca[:, :, None] + t[..., None] * (cb - ca)[:, :, None]).reshape(len(boxes), -1, 3)
-    cv = cross @ sides[:, :, :3].transpose(0, 2, 1) + sides[:, None, :, 3]
-    points.append(cross)
-    keep.append(on_edge & (cv <= tol).all(axis=2))
-    # The pyramid's corner rays through the box (from the near plane towards the far plane).
+    which, edge, side = np.nonzero((t >= 0) & (t <= 1))                   # (an edge in a side's plane: NaN, dropped)
+    t = t[which, edge, side]
+    a, b = va[which, edge], vb[which, edge]
+    inside = (a + t[:, None] * (b - a) <= tol[which, None]).all(axis=1)
+    da, db = depth[which, _EDGES[edge, 0]], depth[which, _EDGES[edge, 1]]
+    pairs.append(which[inside])
+    depths.append((da + t * (db - da))[inside])
+    # The pyramid's corner rays through the box from the eye (whole lines for an orthographic view's prism): at
+    # a >= first from their near plane's point (1 at the far plane), depth affine along them.
     cx = np.stack([low[:, 0], high[:, 0], low[:, 0], high[:, 0]], axis=1).ravel()
     cy = np.stack([low[:, 1], low[:, 1], high[:, 1], high[:, 1]], axis=1).ravel()
     start = unproject(view, cx, cy, np.full(len(cx), view.near))
@@ -402,18 +364,21 @@ def _box_depths_in_squares(view: View, boxes, low, high, lo, hi) -> tuple[np.nda
     bb = np.repeat(boxes, 4, axis=0)
     with np.errstate(divide="ignore"):
         enter, leave = slab_intervals(start, 1.0 / ray, bb[:, 0], bb[:, 1])
-    inside = (enter < 0.0).reshape(len(boxes), 4)          # from inside the box: no surface where it starts
-    enter, leave = np.clip(enter, 0.0, 1.0), np.clip(leave, 0.0, 1.0)
-    met = (enter <= leave).reshape(len(boxes), 4)
-    for a, m in ((enter, met & ~inside), (leave, met)):
-        points.append((start + np.nan_to_num(a)[:, None] * ray).reshape(len(boxes), 4, 3))
-        keep.append(m)
-    p, k = np.concatenate(points, axis=1), np.concatenate(keep, axis=1)
-    depth = view.eye_depth(p.reshape(-1, 3)).reshape(k.shape)
-    found = k.any(axis=1)
-    least = np.where(found, np.where(k, depth, np.inf).min(axis=1), lo)
-    most = np.where(found, np.where(k, depth, -np.inf).max(axis=1), hi)
-    return np.maximum(least, lo), np.minimum(most, hi)
+    first = -np.inf if view.orthographic else -view.near / (view.far - view.near)
+    met = (enter <= leave) & (leave >= first)
+    for at, k in ((enter, met & (enter >= first)), (leave, met)):      # (from inside the box: no surface at entry)
+        pairs.append(np.flatnonzero(k) // 4)
+        depths.append(view.near + at[k] * (view.far - view.near))
+    pairs, depths = np.concatenate(pairs), np.concatenate(depths)
+    # Short of the near plane nothing is seen (the region clamps there: a box it cuts shows its surface up to it),
+    # and of a box holding the four rays' starts on it, only the inner walls.
+    holds = ((enter < 0) & (leave >= 0)).reshape(-1, 4).all(axis=1)
+    k = ~(holds[pairs] & (depths < view.near))
+    least, most = np.full(len(boxes), np.inf), np.full(len(boxes), -np.inf)
+    np.minimum.at(least, pairs[k], depths[k])
+    np.maximum.at(most, pairs[k], depths[k])
+    unseen = (least > view.far) | (most < view.near)                     # wholly beyond the far or short of the near plane
+    return np.where(unseen, np.inf, least), np.where(unseen, -np.inf, most)
 
 
 _EDGES = np.array([[a, b] for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1])
@@ -436,42 +401,77 @@ def _box_depths(view: View, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-def _dilate(a: np.ndarray, pick, fill) -> np.ndarray:
-    """``pick`` (``np.min`` or ``np.max``) over each sample's 3 x 3 neighbourhood (``fill`` outside)."""
-    return pick(np.lib.stride_tricks.sliding_window_view(np.pad(a, 1, constant_values=fill), (3, 3)), axis=(2, 3))
+def _square_depths(view: View, boxes, selected, face, origins, hits, samples) -> tuple[np.ndarray, np.ndarray]:
+    """Per square between four neighbouring rays ((rows + 1, columns + 1)), the eye-depth interval [near, far] of every
+    point seen through it (near > far: none). Where its rays all hit one face, the face holds every ray between them
+    (faces are convex) and its corners' depths bound it there; a box meeting the hull of the rays up to the face (one
+    slipping between them) adds its near side. Elsewhere (a silhouette: anything behind may show between the rays)
+    each box meeting the square's pyramid adds its depths in it, or its whole depth range if shallow (``DEEP_BOX``)."""
+    xs, ys = (sample_ndc(n) for n in samples)
+    one_face = (_neighbours(face, np.minimum) == _neighbours(face, np.maximum)) & (face[1:, 1:] >= 0)
+    depth = view.eye_depth(hits).reshape(face.shape)
+    near = np.where(one_face, _neighbours(depth, np.minimum), np.inf)
+    far = np.where(one_face, _neighbours(depth, np.maximum), -np.inf)
+    ends = np.stack([origins, hits]).reshape(2, *face.shape, 3)
+    front_lo = np.where(one_face[..., None], _neighbours(ends.min(axis=0), np.minimum), -np.inf).reshape(-1, 3)
+    front_hi = np.where(one_face[..., None], _neighbours(ends.max(axis=0), np.maximum), np.inf).reshape(-1, 3)
+    ids = np.flatnonzero(selected)
+    ranges = []                                   # each box's image as a rectangle of squares
+    for e, n, (lo, hi) in zip((xs, ys), samples, _ndc_rectangles(view, boxes[ids])):
+        ranges += [np.maximum(np.searchsorted(e, lo, "right") - 1, 0), np.minimum(np.searchsorted(e, hi) - 1, n)]
+    which, q = _rect_cells(*ranges, samples[0] + 1)
+    which = ids[which]
+    # Beside a face: a box nearer than its farthest corner, meeting the rays' hull, not the face's own box.
+    keep = _box_depths(view, boxes)[0][which] < np.where(one_face, far, np.inf).ravel()[q]
+    which, q = which[keep], q[keep]
+    keep = (boxes[which, 0] <= front_hi[q]).all(axis=1) & (boxes[which, 1] >= front_lo[q]).all(axis=1) & \
+        ~(one_face.ravel()[q] & (which == face[1:, 1:].ravel()[q] // 6))
+    b, q = boxes[which[keep]], q[keep]
+    least, most = _box_depths(view, b)
+    deep = most - least > DEEP_BOX * np.maximum(least, view.near)
+    col, row = q[deep] % (samples[0] + 1), q[deep] // (samples[0] + 1)
+    least[deep], most[deep] = _box_depths_in_squares(view, b[deep], np.stack([xs[col], ys[row]], axis=1),
+                                                     np.stack([xs[col + 1], ys[row + 1]], axis=1))
+    np.minimum.at(near.reshape(-1), q, least)
+    np.maximum.at(far.reshape(-1), q, np.where(one_face.ravel()[q], -np.inf, most))
+    return near, far
 
 
-def _add_small_boxes(view: View, boxes, missed, lo_box, hi_box, samples, tile, near, far) -> None:
-    """Receivers no ray hit whose image is narrower than two sample spacings add their
-    eye-depth range to the tiles their image's rectangle meets (in place)."""
-    ids = np.flatnonzero(missed)
-    if not len(ids):
-        return
-    b = boxes[ids]
-    corners = box_corners(b[:, 0], b[:, 1])                                     # (M, 8, 3)
-    h = corners @ view.world_to_clip[:, :3].T + view.world_to_clip[:, 3]
-    front = (h[..., 3] > 0).all(axis=1)
-    w = np.where(h[..., 3] > 0, h[..., 3], 1.0)
-    nx, ny = samples
-    # The image's rectangle in sample cells (cell i spans [i, i + 1) of (ndc + 1) / 2 · n).
-    x, y = (h[..., 0] / w + 1) * (nx / 2), (h[..., 1] / w + 1) * (ny / 2)
-    x0, x1, y0, y1 = np.maximum(x.min(axis=1), 0), np.minimum(x.max(axis=1), nx), np.maximum(y.min(axis=1), 0), \
-        np.minimum(y.max(axis=1), ny)                  # on screen: a box at its border shows a sliver
-    small = front & ((x1 - x0 < 2.0) | (y1 - y0 < 2.0)) & (x1 >= 0) & (x0 < nx) & (y1 >= 0) & (y0 < ny)
-    if not small.any():
-        return
-    ty, tx = near.shape
-    i0, i1 = (np.clip(np.floor(v[small]).astype(np.int64), 0, n - 1) // tile for v, n in ((x0, nx), (x1, nx)))
-    j0, j1 = (np.clip(np.floor(v[small]).astype(np.int64), 0, n - 1) // tile for v, n in ((y0, ny), (y1, ny)))
-    lo, hi = lo_box[ids[small]], hi_box[ids[small]]
-    # Every (box, tile) pair of the boxes' tile rectangles, then a scattered min / max.
-    wide, tall = i1 - i0 + 1, j1 - j0 + 1
+def _ndc_rectangles(view: View, boxes) -> list:
+    """[(x0, x1), (y0, y1)]: each (M, 2, 3) box's NDC rectangle, of its part beyond the near plane (empty: x0 > x1)."""
+    corners = box_corners(boxes[:, 0], boxes[:, 1]).reshape(-1, 3)
+    m = view.world_to_clip                                     # clip x, y, w (row by row: numpy's small matmul is slow)
+    h = np.stack([corners @ m[r, :3] + m[r, 3] for r in (0, 1, 3)], axis=1).reshape(-1, 8, 3)
+    s = view.eye_depth(corners).reshape(-1, 8) - view.near
+    keep = s >= 0
+    cut = np.flatnonzero(~keep.all(axis=1))      # reaching before the near plane: its edges' crossings of it too
+    sa, sb, ha, hb = s[cut][:, _EDGES[:, 0]], s[cut][:, _EDGES[:, 1]], h[cut][:, _EDGES[:, 0]], h[cut][:, _EDGES[:, 1]]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cross = ha + (sa / (sa - sb))[..., None] * (hb - ha)
+    p, k = np.concatenate([h[cut], cross], axis=1), np.concatenate([keep[cut], (sa < 0) != (sb < 0)], axis=1)
+    out = []
+    for axis in (0, 1):
+        v = h[..., axis] / np.where(keep, h[..., 2], 1.0)
+        lo, hi = np.where(keep, v, np.inf).min(axis=1), np.where(keep, v, -np.inf).max(axis=1)
+        v = p[..., axis] / np.where(k, p[..., 2], 1.0)
+        lo[cut], hi[cut] = np.where(k, v, np.inf).min(axis=1), np.where(k, v, -np.inf).max(axis=1)
+        out.append((lo, hi))
+    return out
+
+
+def _neighbours(a: np.ndarray, pick, size: int = 2) -> np.ndarray:
+    """``pick`` (``np.minimum``, ``np.maximum``) over each ``size`` x ``size`` block of (H, W, ...) ``a``'s entries."""
+    return pick.reduce(np.lib.stride_tricks.sliding_window_view(a, (size, size), axis=(0, 1)), axis=(-2, -1))
+
+
+def _rect_cells(i0, i1, j0, j1, columns: int) -> tuple[np.ndarray, np.ndarray]:
+    """Every (rectangle, cell) pair of the rectangles [i0, i1] x [j0, j1] of cells of a grid ``columns`` wide
+    (none where i1 < i0 or j1 < j0): the rectangles' and the cells' flat indices."""
+    wide, tall = np.maximum(i1 - i0 + 1, 0), np.maximum(j1 - j0 + 1, 0)
     count = wide * tall
     which = np.repeat(np.arange(len(count)), count)
     k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-    cells = (j0[which] + k // wide[which]) * tx + i0[which] + k % wide[which]
-    np.minimum.at(near.reshape(-1), cells, lo[which])
-    np.maximum.at(far.reshape(-1), cells, hi[which])
+    return which, (j0[which] + k // wide[which]) * columns + i0[which] + k % wide[which]
 
 
 def focused_body(view: View, light: Light, scene: SceneBounds, options: WarpOptions | None = None,

@@ -25,7 +25,7 @@ from addon.measure.box_scene import ray_boxes
 from addon.warp.rays import ray_index
 from addon.warp.types import EmptyBodyError, View, WarpError
 from addon.warp.visibility import (BOX_SAMPLES, TileDepths, VisibleRegion, eye_depth_from_ndc, region_from_window_depth,
-                                   tile_edges, tile_reduce, unproject)
+                                   sample_rays, tile_edges, tile_reduce, unproject)
 from hard_cases import EMPTY_CASES, HARD_CASES, camera, point, sun, town
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -113,6 +113,25 @@ def test_ground_seen_past_a_box_in_the_image_corner_beyond_the_outermost_ray_is_
     assert box.tolist() == [1, 0]                                # outermost ray: the wall; the corner: the ground
     pts, _ = visible_points(view, scene, (960, 540))
     assert region_from_boxes(view, scene).contains(view, pts).all()
+
+
+def test_what_shows_through_a_gap_narrower_than_the_ray_spacing_is_held():
+    """Two walls fill the view above the ground but for a slit between two columns of rays, a fifth of their spacing
+    wide: no ray passes it, yet the ground and a far wall 50 m behind show through it (a silhouette: the rays either side hit
+    different boxes, so whatever lies behind within their square is held)."""
+    view = camera([0.0, 0.0, 1.5], forward=[0.0, 1.0, 0.0])
+    nx, _ = BOX_SAMPLES
+    x = -1 + 2 * 20 / nx                                        # midway between ray columns 19 and 20
+    left, right = (unproject(view, [x + s * 0.2 / nx], [0.0], [10.0])[0][0] for s in (-1, 1))
+    ground, far_wall = [[-90.0, -5.0, -0.1], [90.0, 90.0, 0.0]], [[-90.0, 60.0, 0.0], [90.0, 61.0, 90.0]]
+    walls = [[[-90.0, 10.0, 0.0], [left, 10.05, 90.0]], [[right, 10.0, 0.0], [90.0, 10.05, 90.0]]]
+    scene = SceneBounds.from_boxes(np.array([ground, far_wall, *walls]))
+    origins, dirs, length = sample_rays(view, BOX_SAMPLES)
+    t = ray_boxes(origins, dirs, length, scene.receivers)[0]
+    assert (view.eye_depth(origins + t[:, None] * dirs) <= 10.05).all()         # every ray meets a wall or the ground
+    slit = _jittered_points(view, scene, (1280, 720), 0)
+    slit = slit[view.eye_depth(slit) > 10.05]                                     # seen through the slit
+    assert len(slit) > 100 and region_from_boxes(view, scene).contains(view, slit).all()
 
 
 def test_nothing_visible_is_an_empty_body():
