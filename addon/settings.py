@@ -34,8 +34,12 @@ class ShadowSettings:
     ``constant_bias``; NORMAL_OFFSET looks up the point moved ``normal_offset``
     texels along its normal, less ``constant_bias``; CONSTANT / SLOPE /
     CONSTANT_SLOPE are the classic offsets (``slope_bias`` multiplies the
-    receiver's depth change over the PCF reach). The defaults were chosen on
-    the rendered-error scenes (bench/rendered_error.py; docs/papers.md)."""
+    receiver's depth change over the PCF reach). ``revectorize``: PCF 2 (one
+    depth per texel) puts a straight shadow edge on the line through the ends
+    of its texel staircase's runs, not on the stairs (shade_frag.glsl,
+    lixel_run; off by default: docs/papers.md, "Revectorized edges"). The
+    defaults were chosen on the rendered-error scenes (bench/rendered_error.py;
+    docs/papers.md)."""
 
     bias_mode: str = "RECEIVER_PLANE"
     constant_bias: float = 1.0         # texels of the receiver, along the light ray
@@ -43,6 +47,7 @@ class ShadowSettings:
     normal_offset: float = 1.0         # NORMAL_OFFSET: texels of the receiver, along its normal
     back_faces: bool = False           # render back faces into the map (Scherzer §4.2)
     pcf_kernel: int = 2                # k in k x k PCF, 1..5 (odd k: a box; even k: bilinear taps, 2 = hardware PCF)
+    revectorize: bool = False          # PCF 2: straight shadow edges followed past the texel staircase (shade_frag.glsl)
     mdsm_depths: int = 1               # n of n-SM, 1..4 (MDSM §4.2)
     mdsm_selection: str = "MINMAX"     # MDSM §4.3
     mdsm_neighbourhood: int = 3        # q of the q x q neighbourhood

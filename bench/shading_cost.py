@@ -14,8 +14,8 @@ llvmpipe's rasterizer threads) and of the wall clock:
   a constant output; one surface fetch; the surface and normal decoded;
   + the map selection; + the lighting with no shadow test; the whole pass;
 * **settings**: the whole pass with the PCF kernel and the bias mode changed
-  (PCF 1 / 2 / 3 / 5, PCF 2 filtering bilinearly; receiver plane / constant / none) and without the
-  Shadow pass read back;
+  (PCF 1 / 2 / 3 / 5, PCF 2 filtering bilinearly with or without its revectorized edges; receiver plane /
+  constant / none) and without the Shadow pass read back;
 * the floor's **trivial full-screen pass** (``bench.frame.Floor.full_screen``).
 """
 from __future__ import annotations
@@ -94,7 +94,8 @@ def measure(name: str, repeat: int) -> dict:
     _, light, _ = describe_scene(scene, dg, instances=frame.geometry.instances)
     default = ShadowSettings()
     variant = shaders.ShadeVariant(map_count=len(setup.maps), light=light.type, pcf=default.pcf_kernel,
-                                   bias=default.bias_mode, footprint=False, shadow_alpha=True,
+                                   revectorize=default.revectorize, bias=default.bias_mode, footprint=False,
+                                   shadow_alpha=True,
                                    linear_z=shaders.agreed(m.depth_row is not None for m in setup.maps),
                                    greater=shaders.agreed(m.depth_test == "GREATER" for m in setup.maps))
     cuts = compiled_variants(shaders, variant)
@@ -114,7 +115,7 @@ def measure(name: str, repeat: int) -> dict:
         f"whole pass (the defaults: PCF {default.pcf_kernel}, receiver plane)": lambda: shade(default),
         "whole pass, no Shadow pass read": lambda: shade(default, frozenset({"combined"})),
         "PCF 1": lambda: shade(ShadowSettings(pcf_kernel=1)),
-        "PCF 2 (bilinear)": lambda: shade(ShadowSettings(pcf_kernel=2)),
+        "PCF 2 (bilinear), edges revectorized": lambda: shade(ShadowSettings(pcf_kernel=2, revectorize=True)),
         "PCF 3 (box; the default until session 3, 0.5 texel)": lambda: shade(ShadowSettings(pcf_kernel=3, constant_bias=0.5)),
         "PCF 5": lambda: shade(ShadowSettings(pcf_kernel=5)),
         "PCF 2, constant bias": lambda: shade(ShadowSettings(bias_mode="CONSTANT")),

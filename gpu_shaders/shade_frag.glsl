@@ -5,7 +5,8 @@
  * (regions first, fallback last: ShadowSetup.map_index), a PCF k x k shadow
  * test (lixel_weight: an odd k weighs its k x k nearest texels alike; an even k
  * filters bilinearly, so the shadow moves smoothly with the point: k = 2 is
- * the bilinear PCF of graphics hardware, k = 4 a 3 x 3 box of bilinear taps)
+ * the bilinear PCF of graphics hardware, k = 4 a 3 x 3 box of bilinear taps;
+ * k = 2 with its straight edges revectorized on request: lixel_revectorized)
  * on an n-depth map (Pagot et al. §4.2: the n-shadow test counts the
  * stored keys nearer the light than the fragment, giving n + 1 outcomes per
  * sample and n*k*k + 1 per PCF(k*k, n)), and Lambert lighting in the light's
@@ -50,6 +51,7 @@
  *   LIXEL_BLENDS     some map has a blend band (a cascade's seams)
  *   LIXEL_LIGHT      0 sun, 1 point, 2 spot
  *   LIXEL_PCF        the PCF kernel k;  LIXEL_MDSM  n > 1 depths per texel
+ *   LIXEL_REVECTORIZE  k = 2 puts straight edges on their line (lixel_run)
  *   LIXEL_BIAS       the bias mode (LIXEL_BIAS_*, addon.gpu.shaders.BIAS_CODES)
  *   LIXEL_MAPS_LINEAR / LIXEL_MAPS_GREATER  1 or 0 when every map stores a
  *                    linear depth row / tests GREATER, or not one does
@@ -412,6 +414,91 @@ float lixel_weight_sum()
   return float(k % 2 == 1 ? k : k - 1);
 }
 
+/* The shadow tests (1 = shadowed) of the 2 x 2 texels c, c + 1 of map m, as
+ * one gather: x = (c.x, c.y+1), y = (c.x+1, c.y+1), z = (c.x+1, c.y),
+ * w = (c.x, c.y), clamped to the edge; each compared with its own reference
+ * (lixel_refs). */
+vec4 lixel_cell(int m, ivec2 c, LixelReceiver rcv, bool plane, float bias, bool greater, ivec2 size)
+{
+  vec2 to_ndc = 2.0 / vec2(size);
+  vec4 t = lixel_gather(m, (vec2(c) + 1.0) / vec2(size));
+  vec4 key = greater ? 1.0 - t : t;
+  vec4 sx = clamp(vec4(c.x, c.x + 1, c.x + 1, c.x), 0.0, float(size.x - 1));
+  vec4 sy = clamp(vec4(c.y + 1, c.y + 1, c.y, c.y), 0.0, float(size.y - 1));
+  vec4 ref = lixel_refs(rcv, plane, (sx + 0.5) * to_ndc.x - 1.0, (sy + 0.5) * to_ndc.y - 1.0, bias, greater);
+  return vec4(lessThan(key, ref));
+}
+
+#define LIXEL_REACH 4
+/* Silhouette revectorization of the bilinear PCF 2 (Bondarev's shadow map
+ * silhouette revectorization, 2014; Macedo and Apolinario, "Revectorization-
+ * based shadow mapping", GI 2016, its cases): a straight shadow edge at a
+ * shallow angle to a texel axis is stored as a staircase, runs of columns
+ * split alike between two rows (near, far), and the bilinear filter follows
+ * the stairs: up to half a texel from the edge across it. Each run ends where
+ * the edge crosses one of its rows, at the middle between the run's last
+ * column and the first one past it (within half a texel along the edge, a
+ * fraction of that across it), so the edge is the line through the run's two
+ * ends when they lie on opposite rows. P's cell (columns 0 and 1, taps
+ * `first` and `second` as (near, far) along the strip `along`, P at fraction
+ * f = (along, across)) is on a run when a column of it is split; a column not
+ * split is then the run's end in the cell (a step of the stairs, at x = 0.5),
+ * and up to LIXEL_REACH columns are read each way from the split ones.
+ * Returns (P's shadow: the bilinear ramp across the rows, one texel wide,
+ * moved to that line; the run's length), or shadow -1 where the cell is not
+ * on a run along this axis, an end is not found (a run longer than the
+ * reach) or both lie on one row (a bump between two corners of a shadow). */
+vec2 lixel_run(int m, ivec2 c, ivec2 along, vec2 first, vec2 second, vec2 f, LixelReceiver rcv, bool plane, float bias,
+               bool greater, ivec2 size)
+{
+  bool split0 = first.x != first.y, split1 = second.x != second.y;
+  if ((!split0 && !split1) || (split0 && split1 && first != second)) {
+    return vec2(-1.0, 0.0);
+  }
+  float s = split0 ? first.x : second.x;
+  vec2 run = vec2(s, 1.0 - s);
+  /* The ends: x in cell units (column 0 at 0), and the row the edge crosses there (0 near, 1 far; -1 unknown). */
+  float x0 = 0.5, x1 = 0.5;
+  float row0 = split0 ? -1.0 : (first.x == s ? 1.0 : 0.0);
+  float row1 = split1 ? -1.0 : (second.x == s ? 1.0 : 0.0);
+  for (int j = 0; j < LIXEL_REACH / 2; j++) {
+    for (int side = 0; side < 2; side++) {
+      if ((side == 0 && !split0) || (side == 1 && !split1)) continue;
+      int offset = side == 0 ? -2 * (j + 1) : 2 * (j + 1);
+      vec4 t = lixel_cell(m, c + offset * along, rcv, plane, bias, greater, size);
+      /* its two columns as (near, far), nearest P first: along x (z, y), (w, x) left, (w, x), (z, y) right */
+      vec2 a = along.x == 1 ? t.wx : t.wz, b = along.x == 1 ? t.zy : t.xy;
+      vec2 near = side == 0 ? b : a, far = side == 0 ? a : b;
+      for (int k = 0; k < 2; k++) {
+        vec2 col = k == 0 ? near : far;
+        float x = side == 0 ? -0.5 - float(2 * j + k) : 1.5 + float(2 * j + k);
+        bool open = side == 0 ? (split0 && x0 == 0.5) : (split1 && x1 == 0.5);
+        if (open && col != run) {
+          float row = col.x != col.y ? -2.0 : (col.x == s ? 1.0 : 0.0);
+          if (side == 0) { x0 = x; row0 = row; } else { x1 = x; row1 = row; }
+        }
+      }
+    }
+  }
+  if (row0 < 0.0 || row1 < 0.0 || row0 == row1) {
+    return vec2(-1.0, 0.0);
+  }
+  float edge = clamp(mix(row0, row1, (f.x - x0) / (x1 - x0)), -0.5, 1.5);
+  return vec2(clamp(0.5 + (s > 0.5 ? edge - f.y : f.y - edge), 0.0, 1.0), x1 - x0);
+}
+
+/* P's shadow with the edge revectorized (lixel_run) along whichever texel axis
+ * the edge runs on the longer run, or `bilinear` where it runs on none; b: the
+ * cell's taps (lixel_cell). */
+float lixel_revectorized(int m, ivec2 c, vec4 b, vec2 f, float bilinear, LixelReceiver rcv, bool plane, float bias,
+                         bool greater, ivec2 size)
+{
+  vec2 across_y = lixel_run(m, c, ivec2(1, 0), b.wx, b.zy, f, rcv, plane, bias, greater, size);
+  vec2 across_x = lixel_run(m, c, ivec2(0, 1), b.wz, b.xy, f.yx, rcv, plane, bias, greater, size);
+  vec2 best = across_x.y > across_y.y ? across_x : across_y;
+  return best.x >= 0.0 ? best.x : bilinear;
+}
+
 /* The shadow of P (normal N, light direction L) in map m, whose clip position
  * of P is h: the k x k PCF test with the bias above. */
 float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
@@ -440,6 +527,7 @@ float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
     bias += lixel.bias.y * lixel.bias.z * rcv.slope;
   }
   bool plane = plane_bias && rcv.det != 0.0;
+  float grazing = 0.0;  /* the plane's own error per texel of reach, in texels (below) */
   if (plane) {
     /* The plane's own error: a normal off by e radians moves the plane's
      * depth at a tap d texels across the light ray by d e / (n.l)^2 texels
@@ -447,7 +535,8 @@ float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
      * passes any constant bias where the light grazes the receiver. Up to
      * the slope limit, as the SLOPE modes. */
     float ndl = max(dot(NL, L), 1e-6);
-    bias += min(lixel.bias.z * LIXEL_NORMAL_ERROR / (ndl * ndl), LIXEL_SLOPE_LIMIT) * rcv.texel;
+    grazing = LIXEL_NORMAL_ERROR / (ndl * ndl);
+    bias += min(lixel.bias.z * grazing, LIXEL_SLOPE_LIMIT) * rcv.texel;
   }
   const int k = LIXEL_PCF;
   ivec2 base = (k % 2 == 1) ? ivec2(floor(look)) - (k - 1) / 2 : ivec2(floor(look - 0.5)) - (k / 2 - 1);
@@ -465,26 +554,27 @@ float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
   }
 #else
   /* The k x k taps as 2 x 2 gathers (a gather costs about one texelFetch on
-   * a software rasterizer): the gather at the corner between texels c and
-   * c + 1 returns (c, c+1) x (c, c+1), clamped to the edge like the taps,
-   * as x = (c, c+1), y = (c+1, c+1), z = (c+1, c), w = (c, c), each tap
-   * weighed by lixel_weight (taps beyond k - 1 weigh nothing). Each of the
-   * four is compared with its own reference (lixel_refs), in one vec4. */
+   * a software rasterizer; lixel_cell), the cell at c holding texels c and
+   * c + 1 each way, each tap weighed by lixel_weight (taps beyond k - 1 weigh
+   * nothing). */
+  vec4 cell = vec4(0.0);
   for (int gy = 0; gy < k; gy += 2) {
     for (int gx = 0; gx < k; gx += 2) {
-      ivec2 c = base + ivec2(gx, gy);
-      vec4 t = lixel_gather(m, (vec2(c) + 1.0) / vec2(size));
-      vec4 key = greater ? 1.0 - t : t;
-      vec4 sx = clamp(vec4(c.x, c.x + 1, c.x + 1, c.x), 0.0, float(size.x - 1));
-      vec4 sy = clamp(vec4(c.y + 1, c.y + 1, c.y, c.y), 0.0, float(size.y - 1));
-      vec4 ref = lixel_refs(rcv, plane, (sx + 0.5) * to_ndc.x - 1.0, (sy + 0.5) * to_ndc.y - 1.0, bias, greater);
+      cell = lixel_cell(m, base + ivec2(gx, gy), rcv, plane, bias, greater, size);
       vec2 wx = vec2(lixel_weight(gx, f.x), lixel_weight(gx + 1, f.x));
       vec2 wy = vec2(lixel_weight(gy, f.y), lixel_weight(gy + 1, f.y));
-      hits += dot(vec4(wx.x * wy.y, wx.y * wy.y, wx.y * wy.x, wx.x * wy.x), vec4(lessThan(key, ref)));
+      hits += dot(vec4(wx.x * wy.y, wx.y * wy.y, wx.y * wy.x, wx.x * wy.x), cell);
     }
   }
 #endif
   float shadow = hits / (lixel_weight_sum() * lixel_weight_sum());
+#if LIXEL_PCF == 2 && !defined(LIXEL_MDSM) && defined(LIXEL_REVECTORIZE)
+  if (shadow > 0.0 && shadow < 1.0) {
+    /* its taps reach LIXEL_REACH texels farther: the plane's error there too */
+    float reach_bias = bias + min(float(LIXEL_REACH) * grazing, LIXEL_SLOPE_LIMIT) * rcv.texel;
+    shadow = lixel_revectorized(m, base, cell, f, shadow, rcv, plane, reach_bias, greater, size);
+  }
+#endif
 #ifdef LIXEL_REGIONS
   /* A plane map (a map with a region) samples each pixel's own point of its
    * plane (Chong-Gortler §2): the test of that one lixel is the exact shadow

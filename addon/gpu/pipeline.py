@@ -551,6 +551,7 @@ class ShadowFrame:
         world = "world_position" in read
         variant = shaders.ShadeVariant(
             map_count=len(setup.maps), light=light.type, pcf=shadow.pcf_kernel, mdsm=shadow.mdsm_depths,
+            revectorize=shadow.revectorize,
             bias=shadow.bias_mode, regions=any(m.region is not None for m in setup.maps),
             ranges=any(m.view_depth_range is not None for m in setup.maps),
             blends=any(m.blend_band > 0 and m.view_depth_range is not None for m in setup.maps), blurred=blurred,

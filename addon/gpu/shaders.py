@@ -94,6 +94,8 @@ class ShadeVariant:
     pcf: int = 3
     mdsm: int = 1
     """Depths per texel (n); > 1 samples RGBA32F key maps."""
+    revectorize: bool = False
+    """``ShadowSettings.revectorize``: PCF 2 follows straight shadow edges past the texel staircase."""
     bias: str = "RECEIVER_PLANE"
     """``ShadowSettings.bias_mode`` (LIXEL_BIAS)."""
     regions: bool = False
@@ -196,7 +198,7 @@ def _shade_info(variant: ShadeVariant):
         info.define("LIXEL_MDSM", str(int(v.mdsm)))
     info.define("LIXEL_BIAS", str(BIAS_CODES[v.bias]))
     flags = {"LIXEL_REGIONS": v.regions, "LIXEL_RANGES": v.ranges, "LIXEL_BLENDS": v.blends,
-             "LIXEL_BLURRED": v.blurred, **v.flags}
+             "LIXEL_BLURRED": v.blurred, "LIXEL_REVECTORIZE": v.revectorize and v.pcf == 2 and v.mdsm == 1, **v.flags}
     for name, on in flags.items():
         if on:
             info.define(name, "1")

@@ -162,6 +162,9 @@ class LIXEL_PT_shadows(LixelPanel, bpy.types.Panel):
         col.prop(props, "back_faces")
         col.separator()
         col.prop(props, "pcf_kernel")
+        sub = col.column()
+        sub.enabled = props.pcf_kernel == 2 and props.mdsm_depths == 1
+        sub.prop(props, "revectorize")
         col.prop(props, "mdsm_depths")
         sub = col.column()
         sub.enabled = props.mdsm_depths > 1

@@ -201,6 +201,9 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
     pcf_kernel: IntProperty(name="PCF k", default=ShadowSettings().pcf_kernel, min=1, max=5,
                             description="k × k percentage-closer filtering: odd k weighs k × k texels alike, "
                                         "even k filters bilinearly (smooth as the point moves)")
+    revectorize: BoolProperty(name="Revectorize Edges", default=ShadowSettings().revectorize,
+                              description="With PCF 2: put straight shadow edges on the line through the ends of the "
+                                          "texel staircase's runs, not on the stairs (silhouette revectorization)")
     mdsm_depths: IntProperty(name="MDSM Depths", default=1, min=1, max=4,
                              description="n of the n-shadow map (Pagot et al. §4.2); 1 = an ordinary map")
     mdsm_selection: EnumProperty(
@@ -262,7 +265,8 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
         return ShadowSettings(
             bias_mode=self.bias_mode, constant_bias=float(self.constant_bias), slope_bias=float(self.slope_bias),
             normal_offset=float(self.normal_offset),
-            back_faces=self.back_faces, pcf_kernel=int(self.pcf_kernel), mdsm_depths=int(self.mdsm_depths),
+            back_faces=self.back_faces, pcf_kernel=int(self.pcf_kernel), revectorize=self.revectorize,
+            mdsm_depths=int(self.mdsm_depths),
             mdsm_selection=self.mdsm_selection, mdsm_neighbourhood=int(self.mdsm_neighbourhood),
             eye_blur=float(self.eye_blur))
 
@@ -309,7 +313,7 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
                 p = self.planes.add()
                 p.point, p.normal = point, normal
         for name in ("bias_mode", "constant_bias", "slope_bias", "normal_offset", "back_faces", "pcf_kernel",
-                     "mdsm_depths", "mdsm_selection", "mdsm_neighbourhood", "eye_blur"):
+                     "revectorize", "mdsm_depths", "mdsm_selection", "mdsm_neighbourhood", "eye_blur"):
             setattr(self, name, getattr(sh, name))
 
     def any_overlay(self) -> bool:
@@ -367,7 +371,7 @@ def _touched(name: str):
 SETTING_NAMES = ("light", "method", "shadow_map_size", "focus", "lambda_guard", "texel_snapping", "delta_z", "use_visible_depth_range",
                  "visible_depth_range", "middle_vector", "linear_z", "use_lambda", "lam", "max_frustum_angle",
                  "plane_budget", "plane_twist", "bias_mode", "constant_bias", "slope_bias", "normal_offset",
-                 "back_faces", "pcf_kernel", "mdsm_depths", "mdsm_selection", "mdsm_neighbourhood",
+                 "back_faces", "pcf_kernel", "revectorize", "mdsm_depths", "mdsm_selection", "mdsm_neighbourhood",
                  "eye_blur") + CASCADE_SETTINGS
 for _name in SETTING_NAMES:  # one update callback for every setting (before registration)
     LixelSceneSettings.__annotations__[_name].keywords["update"] = _touched(_name)

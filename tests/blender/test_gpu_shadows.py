@@ -540,12 +540,12 @@ def test_reversed_and_mirrored_maps_cull_the_right_faces(lx, scene, variant):
         np.testing.assert_allclose(out.shadow_maps[0], ref.shadow_maps[0][:, ::-1], atol=1e-5)
 
 
-def edge_ramp_scene(scene):
-    """A long box casting one straight shadow edge, slightly rotated against the
+def edge_ramp_scene(scene, degrees=3.0):
+    """A long box casting one straight shadow edge, rotated ``degrees`` against the
     map's texel grid, seen from straight above by an orthographic camera below
     the box (each map texel spans about four pixels)."""
     plane(scene, size=8)
-    box(scene, size=(8, 4, 0.2), location=(0, 2.0, 1.0), rotation=(0, 0, math.radians(3)))
+    box(scene, size=(8, 4, 0.2), location=(0, 2.0, 1.0), rotation=(0, 0, math.radians(degrees)))
     camera(scene, (0, 0, 0.5), (0, 0, 0), res=(192, 192), ortho_scale=1.5)
     light(scene, "SUN", (0, 0, 10), energy=2.0)
 
@@ -588,6 +588,24 @@ def test_pcf_levels_follow_kernel_size(lx, scene):
         out, *_ = render(lx, scene, "uniform", RAMP_MAP, shadow=dict(pcf_kernel=k))
         lv = levels(out)
         assert len(lv) > 2 * (k * k + 1) and lv.min() == 0.0 and lv.max() == 1.0, (k, lv)
+
+
+@pytest.mark.parametrize("degrees", [12.0, 20.0])
+def test_revectorized_pcf2_puts_a_straight_edge_on_its_line_not_on_the_texel_staircase(lx, scene, degrees):
+    """A straight shadow edge at a shallow angle to the texel grid is stored as a
+    staircase, runs of about 1 / tan(angle) texels; the bilinear PCF 2 follows
+    the stairs (up to half a texel across the edge), revectorized it follows the
+    line through the runs' ends: fewer than half as many pixels disagree with
+    ray casting."""
+    edge_ramp_scene(scene, degrees)
+    wrong = {}
+    for revectorize in (False, True):
+        out, _, lt, _, dg = render(lx, scene, "uniform", RAMP_MAP, shadow=dict(pcf_kernel=2, revectorize=revectorize))
+        ys, xs = np.nonzero(out.covered)
+        truth = ray_shadow(bvh_of(dg), lt, out.world_position[ys, xs].astype(np.float64))
+        assert 0.1 < truth.mean() < 0.9, "the edge must cross the view"
+        wrong[revectorize] = int(((out.shadow_mask[ys, xs] > 0.5) != truth).sum())
+    assert 0 < wrong[False] and wrong[True] <= 0.5 * wrong[False], wrong
 
 
 def test_multi_map_selection_matches_shadow_setup(lx, scene):

@@ -34,6 +34,7 @@ def custom_settings(mods):
         cascade_stable=True, cascade_budget="shared", cascade_blend=0.2)
     shadow = mods.settings.ShadowSettings(
         bias_mode="SLOPE", constant_bias=0.002, slope_bias=2.5, normal_offset=2.0, back_faces=True, pcf_kernel=5,
+        revectorize=True,
         mdsm_depths=3, mdsm_selection="SORT", mdsm_neighbourhood=5, eye_blur=2.0)
     return mods.settings.LixelSettings(method="gmnpr", warp=warp, shadow=shadow)
 
