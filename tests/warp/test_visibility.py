@@ -134,6 +134,19 @@ def test_what_shows_through_a_gap_narrower_than_the_ray_spacing_is_held():
     assert len(slit) > 100 and region_from_boxes(view, scene).contains(view, slit).all()
 
 
+def test_a_rail_slipping_diagonally_between_the_rays_is_held():
+    """A 5 mm rail 20 m ahead of a rolled camera, against the sky: its image crosses the ray grid diagonally, many
+    spacings wide and tall, and meets no ray; every square its image meets holds its depths."""
+    roll = math.radians(25.0)
+    view = camera([0.0, 0.0, 2.0], forward=[0.0, 1.0, 0.0], up=(math.sin(roll), 0.0, math.cos(roll)))
+    rail = [[-6.0, 20.0, 3.0], [6.0, 20.005, 3.005]]
+    scene = SceneBounds.from_boxes(np.array([[[-50.0, -50.0, -0.1], [50.0, 50.0, 0.0]], rail]))
+    origins, dirs, length = sample_rays(view, BOX_SAMPLES)
+    assert np.isinf(ray_boxes(origins, dirs, length, np.array([rail]))[0]).all()
+    pts, _ = visible_points(view, SceneBounds.from_boxes(np.array([rail])), (1920, 1080))
+    assert len(pts) > 100 and region_from_boxes(view, scene).contains(view, pts).all()
+
+
 def test_nothing_visible_is_an_empty_body():
     view = camera([0.0, 0.0, 5.0], forward=[0.0, 0.0, 1.0])               # looking at the sky
     with pytest.raises(EmptyBodyError, match="sees no shadow receiver"):
