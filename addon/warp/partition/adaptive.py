@@ -69,12 +69,12 @@ def equalising_step(c: np.ndarray, errors: np.ndarray, power: np.ndarray, shared
     widths = np.diff(np.log(c))
     k = errors / widths ** power
     total = widths.sum()
-    if shared_budget:
-        width_at = lambda t: (t / (power * k * k)) ** (1.0 / (2.0 * power - 1.0))    # noqa: E731
-        guess = np.log(power * k * k * widths ** (2 * power - 1))
-    else:
-        width_at = lambda t: (t / k) ** (1.0 / power)                                # noqa: E731
-        guess = np.log(k * widths ** power)
+    a, q = (power * k * k, 2.0 * power - 1.0) if shared_budget else (k, power)     # the equalised a·w^q = t
+
+    def width_at(t: float) -> np.ndarray:
+        return (t / a) ** (1.0 / q)
+
+    guess = np.log(a * widths ** q)
     lo, hi = guess.min() - 50.0, guess.max() + 50.0
     for _ in range(60):        # bisection in log t: the widths grow with t
         mid = 0.5 * (lo + hi)
