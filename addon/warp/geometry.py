@@ -154,6 +154,19 @@ def clip_volume_corners(matrix) -> np.ndarray:
     return h[:, :3] / h[:, 3:]
 
 
+def finite_clip_volume_corners(matrix, origin=0.0) -> np.ndarray | None:
+    """``clip_volume_corners`` moved by ``origin`` (a camera-relative ``matrix``'s), or None where the volume
+    reaches infinity (w <= 0 at a corner, to round-off) or ``matrix`` is singular."""
+    try:
+        h = clip_volume_corners_h(matrix)
+    except np.linalg.LinAlgError:
+        return None
+    w = h[:, 3]
+    if not np.all(np.isfinite(h)) or np.any(w <= 1e-12 * np.abs(h[:, :3]).max(axis=1)):
+        return None
+    return h[:, :3] / w[:, None] + origin
+
+
 def clip_volume_corners_h(matrix) -> np.ndarray:
     """The clip volume's corners as homogeneous world points (8, 4) (w <= 0: at infinity); LinAlgError when singular."""
     return _UNIT_CUBE_CORNERS_H @ np.linalg.inv(np.asarray(matrix, dtype=np.float64)).T

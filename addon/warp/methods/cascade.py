@@ -14,7 +14,6 @@ import numpy as np
 
 from ..body import IntersectionBody, intersection_body
 from ..diagnostics import Diagnostics
-from ..frame import body_light_angles
 from ..partition.adaptive import max_error, minimax_splits
 from ..partition.budget import shared_sizes
 from ..partition.receivers import TAIL, footprint_p95, footprints, receivers, turned
@@ -22,6 +21,7 @@ from ..partition.splits import practical_splits, split_region, split_view, tight
 from ..partition.stable import stable_depth_range, stable_spot_map, stable_sun_map
 from ..types import EmptyBodyError, Light, SceneBounds, ShadowSetup, View, WarpError, WarpOptions
 from ..visibility import VisibleRegion
+from .common import body_diagnostics
 from .lispsm import gmnpr, lispsm
 from .psm import psm
 from .uniform import uniform
@@ -250,7 +250,7 @@ def cascade(view: View, light: Light, body: IntersectionBody, options: WarpOptio
     """The cascade's maps (module docs)."""
     if scene is None:
         raise WarpError("the cascade builds one intersection body per split from the scene: call it through compute()")
-    diag = Diagnostics("cascade", *body_light_angles(view, light, body), body_vertices=body.vertices)
+    diag = body_diagnostics("cascade", view, light, body)
     if options.cascade_stable and light.type == "POINT":
         diag.fallback("stable", f"point light '{light.name}': its cube faces turn with B, so its maps are not "
                                 "texel-snapped")

@@ -8,7 +8,8 @@ import numpy as np
 
 from ..fit import fit_runs, ndc_box, window_matrix
 from ..body import IntersectionBody
-from ..frame import LightFrame, light_frames, world_sun_frame
+from ..diagnostics import Diagnostics
+from ..frame import LightFrame, body_light_angles, light_frames, world_sun_frame
 from ..geometry import point_runs
 from ..linear_depth import frame_depth_row
 from ..types import Light, ShadowMap, View, WarpOptions
@@ -19,6 +20,11 @@ SNAP_STEPS_PER_OCTAVE = 8
 NEAR_PLANE_NOTE = ("the light is inside B and a box reaches nearer to it than the near plane "
                    "(1e-6 of the scene scale); what lies nearer is not covered")
 """The "near plane" fallback's reason (``frame.LightFrame.near_clamped``)."""
+
+
+def body_diagnostics(method: str, view: View, light: Light, body: IntersectionBody, **fields) -> Diagnostics:
+    """``method``'s Diagnostics opened with B and its light-view angles θ, γ (``frame.body_light_angles``)."""
+    return Diagnostics(method, *body_light_angles(view, light, body), body_vertices=body.vertices, **fields)
 
 
 def near_plane_notes(frames: list[LightFrame], prefix: str = "") -> list[tuple[str, str]]:

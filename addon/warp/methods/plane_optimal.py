@@ -11,7 +11,7 @@ import numpy as np
 from ..body import IntersectionBody
 from ..diagnostics import Diagnostics
 from ..fit import window_matrix
-from ..frame import body_light_angles, light_frames
+from ..frame import light_frames
 from ..geometry import cross, homogeneous, translation
 from ..linear_depth import fitted_row
 from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_to_polygon, corner_ray_points, default_plane,
@@ -19,7 +19,7 @@ from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_to_polygon, corner_ra
                          plane_light_matrix, polygon_area, rotation2d)
 from ..polyhedron import Edges, convex_polygon_on_plane, plane_section, section_points
 from ..types import Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
-from .common import frame_maps, near_plane_notes
+from .common import body_diagnostics, frame_maps, near_plane_notes
 
 MAX_SIDE = 16384
 MAX_REGION_VERTICES = 32
@@ -57,8 +57,7 @@ class PlaneMap:
 
 
 def plane_optimal(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
-    theta, gamma = body_light_angles(view, light, body)
-    diag = Diagnostics("plane_optimal", theta, gamma, body_vertices=body.vertices)
+    diag = body_diagnostics("plane_optimal", view, light, body)
     origin = view.position
     tol = max(REGION_TOLERANCE * body.scale, 100 * body.tolerance)
     planes, share = planes_of_interest(options, body, tol, diag)

@@ -12,12 +12,12 @@ import numpy as np
 from ..body import IntersectionBody
 from ..diagnostics import Diagnostics
 from ..fit import fit_to_unit_cube
-from ..frame import body_light_angles, light_frames
-from ..geometry import clip_volume_corners_h, translation
+from ..frame import light_frames
+from ..geometry import finite_clip_volume_corners, translation
 from ..linear_depth import light_depth_row
 from ..post_perspective import PPSLight, VirtualCamera, nearest_visible_depth, pps_light_matrix, virtual_camera
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpOptions
-from .common import near_plane_notes, uniform_maps
+from .common import body_diagnostics, near_plane_notes, uniform_maps
 from .warp_frustum import WarpAxis, eye_depth_range, guard_lambda, half_fov_towards, light_at_eye, map_lambda
 
 COVER_TOLERANCE = 1e-6
@@ -42,8 +42,7 @@ class PSMWarp:
 
 def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
     """World -> light clip by the paper's pipeline (§3, §4.2, §4, §6), guarded by ``guarded_warp``."""
-    theta, gamma = body_light_angles(view, light, body)
-    diag = Diagnostics("psm", theta, gamma, body_vertices=body.vertices)
+    diag = body_diagnostics("psm", view, light, body)
     if view.orthographic:
         return _uniform_fallback(view, light, body, options, diag, "orthographic camera",
                                  "the post-perspective space of an orthographic camera is affine: "
@@ -78,7 +77,7 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
     if not shadow_map.contains(body.vertices, COVER_TOLERANCE).all():
         return _uniform_fallback(view, light, body, options, diag, "PSM matrix",
                                  "the composed PSM matrix is not finite or does not cover B (numerically degenerate)")
-    diag.warp_frustum_corners = _clip_corners(relative, origin)
+    diag.warp_frustum_corners = finite_clip_volume_corners(relative, origin)
     diag.extra["psm_applied"] = True
     diag.extra["frames"] = ["main"]
     if options.linear_z:
@@ -163,15 +162,3 @@ def _uniform_fallback(view: View, light: Light, body: IntersectionBody, options:
     diag.extra["frames"] = [f.role for f in frames]
     diag.extra["psm_applied"] = False
     return ShadowSetup(maps, diag)
-
-
-def _clip_corners(matrix: np.ndarray, origin: np.ndarray) -> np.ndarray | None:
-    """World corners of the clip volume of the camera-relative ``matrix``, or None when it reaches infinity."""
-    try:
-        h = clip_volume_corners_h(matrix)
-    except np.linalg.LinAlgError:
-        return None
-    w = h[:, 3]
-    if not np.all(np.isfinite(h)) or np.any(w <= 1e-12 * np.abs(h[:, :3]).max(axis=1)):
-        return None
-    return h[:, :3] / w[:, None] + origin

@@ -3,15 +3,12 @@ fits in a world-fixed frame with window sizes on a ladder and origins on whole t
 from __future__ import annotations
 
 from ..body import IntersectionBody
-from ..diagnostics import Diagnostics
-from ..frame import body_light_angles
 from ..types import Light, ShadowSetup, View, WarpOptions
-from .common import near_plane_notes, uniform_maps
+from .common import body_diagnostics, near_plane_notes, uniform_maps
 
 
 def uniform(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
     maps, frames = uniform_maps(view, light, body, options)
-    theta, gamma = body_light_angles(view, light, body)
-    diag = Diagnostics("uniform", theta, gamma, body_vertices=body.vertices, fallbacks=near_plane_notes(frames))
+    diag = body_diagnostics("uniform", view, light, body, fallbacks=near_plane_notes(frames))
     diag.extra["frames"] = [f.role for f in frames]
     return ShadowSetup(maps, diag)
