@@ -408,15 +408,13 @@ def _same_point(view_before, view_now, before, now, held_map_index) -> np.ndarra
     """The pixels of frame ``now`` whose surface point frame ``before`` also showed (reprojected into it, within two
     pixels), served by the same one of frame ``before``'s maps both times and outside its blend bands: there frame
     ``now`` drawn with frame ``before``'s maps reads exactly the texels frame ``before`` read for that point."""
+    from addon.warp.geometry import raster_position
     h, w = now.shadow.shape
     points = now.world_position.reshape(-1, 3)
     ok = np.isfinite(points).all(axis=1)
     points = np.where(ok[:, None], points, 0.0)
-    clip = np.c_[points, np.ones(len(points))] @ view_before.world_to_clip.T
-    with np.errstate(divide="ignore", invalid="ignore"):
-        col = np.floor((clip[:, 0] / clip[:, 3] * 0.5 + 0.5) * w)
-        row = np.floor((clip[:, 1] / clip[:, 3] * 0.5 + 0.5) * h)
-    ok &= (clip[:, 3] > 0) & (col >= 0) & (col < w) & (row >= 0) & (row < h)
+    col, row = np.floor(raster_position(view_before.world_to_clip, (w, h), points)).T
+    ok &= (col >= 0) & (col < w) & (row >= 0) & (row < h)
     at = np.where(ok, row * w + col, 0).astype(np.int64)
     reach = 1.0 if view_before.orthographic else np.abs(view_before.eye_depth(points))
     pixel = reach * 2.0 / (abs(view_before.projection[0][0]) * w)

@@ -19,6 +19,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..warp.aliasing import pixel_density_constant, raster_jacobian
+from ..warp.geometry import raster_position
 from ..warp.visibility import (PIXEL_TILE, VisibleRegion, region_from_window_depth, region_from_window_tiles,
                                surface_from_window_depth)
 from . import compose
@@ -113,8 +114,7 @@ def at_shadow_edge(shadow_map, window_depth: np.ndarray, points: np.ndarray, nor
     j = np.linalg.norm(raster_jacobian(m, shadow_map.size, points), axis=2)      # texels per metre, each way
     width = 1.0 / np.sqrt(j[:, 0] * j[:, 1])
     size = np.array([int(v) for v in shadow_map.size])
-    h = points @ m[:, :3].T + m[:, 3]
-    texel = np.floor((h[:, :2] / h[:, 3:] * 0.5 + 0.5) * size).astype(np.int64)
+    texel = np.floor(raster_position(m, size, points)).astype(np.int64)
     taps = np.clip(texel[:, None] + np.stack(np.meshgrid([-1, 0, 1], [-1, 0, 1]), -1).reshape(1, 9, 2), 0, size - 1)
     stored = window_depth[taps[..., 1], taps[..., 0]]
     depth, slope = shadow_map.stored_depth(points)

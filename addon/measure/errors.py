@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..warp.geometry import raster_position
+
 
 def dilate(mask, radius: int) -> np.ndarray:
     """Binary dilation by a (2r+1)² square (Chebyshev distance <= radius)."""
@@ -155,11 +157,8 @@ def flicker(method_frames, truth_frames, valid_frames) -> Flicker:
 def screen_motion(view_before, view_now, points) -> np.ndarray:
     """Pixels each world point moves on screen from ``view_before`` to ``view_now`` (both of one resolution): the
     camera's speed in the unit flicker meets it (``bench.cascade flicker --speeds``)."""
-    def pixel(view):
-        clip = np.c_[points, np.ones(len(points))] @ view.world_to_clip.T
-        return clip[:, :2] / clip[:, 3:] * 0.5 * np.asarray(view.resolution, dtype=np.float64)
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    return np.linalg.norm(pixel(view_now) - pixel(view_before), axis=1)
+    pixels = [raster_position(v.world_to_clip, v.resolution, points) for v in (view_before, view_now)]
+    return np.linalg.norm(pixels[1] - pixels[0], axis=1)
 
 
 @dataclass

@@ -78,6 +78,13 @@ def transform_points(matrix, points) -> np.ndarray:
     return h[:, :3] / h[:, 3:4]
 
 
+def raster_position(matrix, size, points) -> np.ndarray:
+    """(N, 2) places of (N, 3) world ``points`` on the (width, height) ``size`` raster of the projective ``matrix``:
+    NDC [-1, 1]² -> [0, size]², so ``floor`` is the texel's or pixel's (column, row); NaN where w <= 0."""
+    h = transform_h(matrix, points)
+    return (h[:, :2] / np.where(h[:, 3:] > 0, h[:, 3:], np.nan) * 0.5 + 0.5) * np.asarray(size, dtype=np.float64)
+
+
 def translation(offset) -> np.ndarray:
     m = np.eye(4)
     m[:3, 3] = offset
