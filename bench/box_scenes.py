@@ -25,7 +25,10 @@ from dataclasses import dataclass
 import bpy
 import numpy as np
 
-from sample_blends.scenes import _aim, add_sun, box, grid, merge, mesh_object, reset
+from sample_blends.scenes import _aim, add_spot, add_sun, box, grid, merge, mesh_object, reset
+
+SPOT_ENERGY = 20000.0
+"""The box scenes' spot lights' energy (W), ten times ``add_spot``'s default."""
 
 
 def _camera(scene, location, target, fov_deg=60.0, near=0.1, far=150.0):
@@ -47,18 +50,6 @@ def _point(scene, location, energy=5000.0, name="Lamp"):
     ob = bpy.data.objects.new(name, lt)
     scene.collection.objects.link(ob)
     ob.location = location
-    return ob
-
-
-def _spot(scene, location, target, cone_deg, energy=20000.0, name="Spot"):
-    lt = bpy.data.lights.new(name, "SPOT")
-    lt.energy = energy
-    lt.spot_size = math.radians(cone_deg)
-    lt.spot_blend = 0.0
-    lt.shadow_soft_size = 0.0
-    ob = bpy.data.objects.new(name, lt)
-    scene.collection.objects.link(ob)
-    _aim(ob, location, target)
     return ob
 
 
@@ -135,7 +126,7 @@ def stage_spot():
     parts.append(box((-6, 5, 0), (6, 5.5, 4)))             # a back wall
     mesh_object("Props", *merge(parts))
     _camera(scene, (0.0, -12.0, 5.0), (0.0, 0.0, 0.5), fov_deg=55.0, near=0.5, far=40.0)
-    _spot(scene, (-3.0, -8.0, 10.0), (0.0, 0.0, 0.0), 60.0)
+    add_spot(scene, (-3.0, -8.0, 10.0), (0.0, 0.0, 0.0), 60.0, energy=SPOT_ENERGY)
     return scene
 
 
@@ -282,7 +273,7 @@ def build_generated(g: GeneratedScene):
     if g.kind.endswith("sun"):
         add_sun(scene, tuple(g.light))
     elif g.kind == "spot":
-        _spot(scene, tuple(g.light), tuple(g.target), g.cone_deg)
+        add_spot(scene, tuple(g.light), tuple(g.target), g.cone_deg, energy=SPOT_ENERGY)
     else:
         _point(scene, tuple(g.light))
     return scene
