@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from addon.measure.box_scene import pixel_rays
 from addon.warp.types import Light, View
 
 
@@ -68,23 +69,6 @@ def build_bvh(tris: Triangles):
     verts = t.reshape(-1, 3).tolist()
     polys = np.arange(len(verts), dtype=np.int64).reshape(-1, 3).tolist()
     return BVHTree.FromPolygons(verts, polys, all_triangles=True, epsilon=0.0)
-
-
-def pixel_rays(view: View):
-    """World ray origins and unit directions (H*W, 3) through the pixel centres
-    (row 0 at the bottom), plus the NDC grid."""
-    w, h = view.resolution
-    xs = (2 * np.arange(w) + 1) / w - 1
-    ys = (2 * np.arange(h) + 1) / h - 1
-    X, Y = np.meshgrid(xs, ys)
-    inv = np.linalg.inv(view.world_to_clip)
-    def unproject(z):
-        p = np.stack([X.ravel(), Y.ravel(), np.full(X.size, z), np.ones(X.size)], axis=1) @ inv.T
-        return p[:, :3] / p[:, 3:4]
-    a, b = unproject(-1.0), unproject(1.0)
-    d = b - a
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    return a, d
 
 
 @dataclass
@@ -156,7 +140,7 @@ def ground_truth(view: View, light: Light, bvh, scene_scale: float) -> GroundTru
     from mathutils import Vector
     w, h = view.resolution
     t0 = time.perf_counter()
-    origins, dirs = pixel_rays(view)
+    origins, dirs, _ = pixel_rays(view, view.resolution)
     n = len(origins)
     pts = np.full((n, 3), np.nan)
     nrm = np.zeros((n, 3))
