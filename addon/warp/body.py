@@ -11,7 +11,7 @@ import numpy as np
 
 from .culling import BoxIndex, Selection
 from .light_hull import light_halfspaces, light_hull
-from .polyhedron import BOX_NORMALS, ConvexPolytope, OpenCut, box_offsets
+from .polyhedron import BOX_NORMALS, ConvexPolytope, OpenCut, box_offsets, unit_halfspaces
 from .types import EmptyBodyError, Light, SceneBounds, View
 from .visibility import VisibleRegion
 
@@ -118,8 +118,7 @@ def intersection_body(view: View, light: Light, scene: SceneBounds,
     view_size = math.dist(corners[0], corners[7])
     if visible is not None:
         n, o = visible.halfspaces(view, light)
-        length = np.sqrt(np.einsum("ij,ij->i", n, n))
-        frustum = frustum.clip(n / length[:, None], (o - n @ origin) / length)
+        frustum = frustum.clip(*unit_halfspaces(n, o - n @ origin))
         if frustum is None:
             raise EmptyBodyError(f"the visible region ({visible.source}) does not meet the view frustum")
     ln, lo = light_halfspaces(light, origin)

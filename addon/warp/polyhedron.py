@@ -104,7 +104,7 @@ class ConvexPolytope:
     @classmethod
     def from_halfspaces(cls, normals, offsets, tol: float) -> "ConvexPolytope | None":
         """The bounded intersection of ``normals @ x <= offsets`` (vertex enumeration), or None when empty or flat."""
-        n, o = _unit_rows(normals, offsets)
+        n, o = unit_halfspaces(normals, offsets)
         n, o = _dedupe_planes(n, o, tol)
         if len(n) < 4:
             return None
@@ -377,8 +377,8 @@ def _combinations3(m: int, first_new: int = 0) -> np.ndarray:
     return c
 
 
-def _unit_rows(normals, offsets) -> tuple[np.ndarray, np.ndarray]:
-    """Half-spaces with unit normals (zero normals dropped)."""
+def unit_halfspaces(normals, offsets) -> tuple[np.ndarray, np.ndarray]:
+    """The half-spaces ``normals @ x <= offsets`` with unit normals (zero normals dropped)."""
     n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
     o = np.asarray(offsets, dtype=np.float64).reshape(-1)
     length = np.sqrt(np.einsum("ij,ij->i", n, n))

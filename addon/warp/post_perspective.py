@@ -212,11 +212,8 @@ def _affine_min_norm(q: np.ndarray) -> np.ndarray:
     """The weights α (Σ α_i = 1) of the affine hull's point nearest the origin:
     [Q Qᵀ 1; 1ᵀ 0] (α, μ) = (0, 1), by least squares when singular."""
     n = len(q)
-    bordered = np.ones((n + 1, n + 1))
-    bordered[:n, :n] = q @ q.T
-    bordered[n, n] = 0.0
-    rhs = np.zeros(n + 1)
-    rhs[n] = 1.0
+    bordered = np.block([[q @ q.T, np.ones((n, 1))], [np.ones((1, n)), np.zeros((1, 1))]])
+    rhs = np.eye(n + 1)[n]
     try:
         solution = np.linalg.solve(bordered, rhs)
     except np.linalg.LinAlgError:

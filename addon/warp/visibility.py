@@ -133,12 +133,17 @@ class VisibleRegion:
         z_lo, z_hi = self.depth_range
         z_lo, z_hi = max(z_lo - pad, view.near), z_hi + pad       # (a flat region keeps a thickness)
         row = view.world_to_camera[2]                          # eye depth = -(row . [x, 1])
-        x0, x1, y0, y1 = self.screen
-        m = view.world_to_clip                                 # x0 <= ndc_x <= x1: x0 w - clip_x <= 0, clip_x - x1 w <= 0
-        planes = np.array([row, -row, m[0] - x1 * m[3], m[1] - y1 * m[3], x0 * m[3] - m[0], y0 * m[3] - m[1]])
+        planes = np.array([row, -row, *screen_sides(view, *self.screen)])
         kn, ko = kdop_halfspaces(corners, view, light)
         return (np.concatenate([planes[:, :3], kn]),
                 np.concatenate([-planes[:, 3] + [-z_lo, z_hi, 0, 0, 0, 0], ko]))
+
+
+def screen_sides(view: View, x0, x1, y0, y1) -> np.ndarray:
+    """(..., 4, 4): world half-spaces side · [x, 1] <= 0 of the pyramid (an orthographic view's prism) through the NDC
+    rectangles [x0, x1] x [y0, y1] (each (..., 1)): x <= x1, y <= y1, x >= x0, y >= y0 (x <= x1: clip_x - x1 w <= 0)."""
+    m = view.world_to_clip
+    return np.stack([m[0] - x1 * m[3], m[1] - y1 * m[3], x0 * m[3] - m[0], y0 * m[3] - m[1]], axis=-2)
 
 
 def unproject(view: View, x, y, depth) -> np.ndarray:
@@ -334,10 +339,7 @@ def _box_depths_in_squares(view: View, boxes, low, high) -> tuple[np.ndarray, np
     """The least and greatest eye depth over box_i ∩ the pyramid of the NDC square [low_i, high_i] (inf, -inf: none):
     over the vertices of that polytope, the box's corners in the pyramid, its edges' crossings of the pyramid's sides
     and the pyramid's corner rays' crossings of the box (less than the near distance where the box comes nearer)."""
-    m = view.world_to_clip
-    # The pyramid's sides as world half-spaces side . [x, 1] <= 0 (x <= x1: clip_x - x1 w <= 0, ...).
-    sides = np.stack([m[0] - high[:, 0, None] * m[3], low[:, 0, None] * m[3] - m[0],
-                      m[1] - high[:, 1, None] * m[3], low[:, 1, None] * m[3] - m[1]], axis=1)        # (S, 4, 4)
+    sides = screen_sides(view, low[:, 0, None], high[:, 0, None], low[:, 1, None], high[:, 1, None])   # (S, 4, 4)
     corners = box_corners(boxes[:, 0], boxes[:, 1])                                              # (S, 8, 3)
     value = np.einsum("sci,sji->scj", corners, sides[:, :, :3]) + sides[:, None, :, 3]           # (S, 8, 4)
     depth = view.eye_depth(corners).reshape(-1, 8)
