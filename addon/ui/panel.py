@@ -4,6 +4,8 @@ overlay toggles and the operators' buttons.
 Draw code only reads (``ensure_defaults`` and computing are left to the
 operators and handlers); a scene never computed shows a Refresh button.
 """
+import textwrap
+
 import bpy
 
 from ..guard import guarded_draw
@@ -34,6 +36,12 @@ def method_parameters(method: str, light_type: str = "") -> tuple[str, ...]:
     return tuple(names)
 
 
+def split_layout(layout):
+    """``layout`` with properties in split rows, without animation decorators."""
+    layout.use_property_split, layout.use_property_decorate = True, False
+    return layout
+
+
 class LixelPanel:
     bl_space_type = "VIEW_3D"
     bl_region_type = "UI"
@@ -52,11 +60,9 @@ class LIXEL_PT_main(LixelPanel, bpy.types.Panel):
 
     @guarded_draw("drawing Lixel's panel")
     def draw(self, context):
-        layout = self.layout
+        layout = split_layout(self.layout)
         scene = context.scene
         props = scene.lixel
-        layout.use_property_split = True
-        layout.use_property_decorate = False
         col = layout.column()
         col.prop(props, "light", text="Light")
         if props.light is None:
@@ -72,7 +78,8 @@ class LIXEL_PT_main(LixelPanel, bpy.types.Panel):
         st = live.state(scene)
         if st is not None and st.error:
             box = layout.box()
-            for i, line in enumerate(_wrap(st.error, 42)):
+            for i, line in enumerate(textwrap.wrap(" ".join(st.error.split()), 42, break_long_words=False,
+                                                   break_on_hyphens=False) or [""]):
                 box.label(text=line, icon="ERROR" if i == 0 else "BLANK1")
         elif st is not None and st.note:
             layout.label(text=st.note, icon="INFO")
@@ -82,28 +89,13 @@ class LIXEL_PT_main(LixelPanel, bpy.types.Panel):
             box.operator("lixel.reset_settings", text="Set Up From Preferences")
 
 
-def _wrap(text: str, width: int) -> list:
-    words, lines, cur = text.split(), [], ""
-    for w in words:
-        if cur and len(cur) + 1 + len(w) > width:
-            lines.append(cur)
-            cur = w
-        else:
-            cur = f"{cur} {w}" if cur else w
-    if cur:
-        lines.append(cur)
-    return lines or [""]
-
-
 class LIXEL_PT_method(LixelPanel, bpy.types.Panel):
     bl_label = "Method"
     bl_parent_id = "LIXEL_PT_main"
 
     @guarded_draw("drawing Lixel's panel")
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
+        layout = split_layout(self.layout)
         props = context.scene.lixel
         light = props.light
         light_type = light.data.type if light is not None and light.type == "LIGHT" else ""
@@ -144,9 +136,7 @@ class LIXEL_PT_shadows(LixelPanel, bpy.types.Panel):
 
     @guarded_draw("drawing Lixel's panel")
     def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
+        layout = split_layout(self.layout)
         props = context.scene.lixel
         col = layout.column()
         col.prop(props, "bias_mode")

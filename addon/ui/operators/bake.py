@@ -123,12 +123,8 @@ class LIXEL_OT_texel_grid_add(LixelSceneOperator, bpy.types.Operator):
             n = sum(nodes.remove_texel_grid(ob) for ob in meshes)
             self.report({"INFO"}, f"Lixel: removed the texel grid from {n} object(s)")
             return {"FINISHED"}
-        st = self.fresh_state(context)
+        st = self.fresh_state(context, self.map_index)
         if st is None:
-            return {"CANCELLED"}
-        if self.map_index >= len(st.setup.maps):
-            self.report({"ERROR"}, f"Lixel: map {self.map_index} does not exist; this setup has "
-                                   f"{len(st.setup.maps)} map(s)")
             return {"CANCELLED"}
         carrier = nodes.ensure_carrier(context.scene, st.setup)
         for ob in meshes:
@@ -148,12 +144,8 @@ class LIXEL_OT_frustum_add(LixelSceneOperator, bpy.types.Operator):
 
     @guarded_operator
     def execute(self, context):
-        st = self.fresh_state(context)
+        st = self.fresh_state(context, self.map_index)
         if st is None:
-            return {"CANCELLED"}
-        if self.map_index >= len(st.setup.maps):
-            self.report({"ERROR"}, f"Lixel: map {self.map_index} does not exist; this setup has "
-                                   f"{len(st.setup.maps)} map(s)")
             return {"CANCELLED"}
         carrier = nodes.ensure_carrier(context.scene, st.setup)
         ob = nodes.add_frustum_object(context.scene, carrier, self.map_index)

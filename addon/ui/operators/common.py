@@ -52,6 +52,11 @@ class LixelSceneOperator:
     def poll(cls, context):
         return scene_poll(cls, context)
 
-    def fresh_state(self, context):
+    def fresh_state(self, context, map_index: int | None = None):
+        """The recomputed state; None, reported, when something is missing or the setup has no map ``map_index``."""
         initialise(context)
-        return current_state(self, context, force=True)
+        st = current_state(self, context, force=True)
+        if st is not None and map_index is not None and map_index >= len(st.setup.maps):
+            self.report({"ERROR"}, f"Lixel: map {map_index} does not exist; this setup has {len(st.setup.maps)} map(s)")
+            return None
+        return st
