@@ -41,23 +41,27 @@ def reset() -> bpy.types.Scene:
     return scene
 
 
+def diffuse_material(name: str, albedo: float = 1.0) -> bpy.types.Material:
+    """A fully rough diffuse material of grey ``albedo``, made once per ``name`` (its colour set on every call)."""
+    mat = bpy.data.materials.get(name)
+    if mat is None:
+        mat = bpy.data.materials.new(name)
+        mat.use_nodes = True
+        nt = mat.node_tree
+        for n in list(nt.nodes):
+            nt.nodes.remove(n)
+        out = nt.nodes.new("ShaderNodeOutputMaterial")
+        bsdf = nt.nodes.new("ShaderNodeBsdfDiffuse")
+        bsdf.inputs["Roughness"].default_value = 0.0
+        nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    bsdf = next(n for n in mat.node_tree.nodes if n.type == "BSDF_DIFFUSE")
+    bsdf.inputs["Color"].default_value = mat.diffuse_color = (albedo, albedo, albedo, 1.0)
+    return mat
+
+
 def white_material() -> bpy.types.Material:
     """White, fully rough diffuse: the material every peer renders the shadow term with."""
-    mat = bpy.data.materials.get("White diffuse")
-    if mat is not None:
-        return mat
-    mat = bpy.data.materials.new("White diffuse")
-    mat.diffuse_color = (1, 1, 1, 1)
-    mat.use_nodes = True
-    nt = mat.node_tree
-    for n in list(nt.nodes):
-        nt.nodes.remove(n)
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
-    bsdf = nt.nodes.new("ShaderNodeBsdfDiffuse")
-    bsdf.inputs["Color"].default_value = (1, 1, 1, 1)
-    bsdf.inputs["Roughness"].default_value = 0.0
-    nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
-    return mat
+    return diffuse_material("White diffuse")
 
 
 def mesh_object(name: str, verts, faces, collection=None) -> bpy.types.Object:

@@ -74,22 +74,8 @@ class PeerResult:
 def grey_material(albedo: float):
     """One grey, fully rough diffuse material with Lixel's albedo, so that the
     peers' radiance and Lixel's are in the same units and one exposure shows both."""
-    import bpy
-    mat = bpy.data.materials.get(MATERIAL_NAME)
-    if mat is None:
-        mat = bpy.data.materials.new(MATERIAL_NAME)
-        mat.use_nodes = True
-        nt = mat.node_tree
-        for n in list(nt.nodes):
-            nt.nodes.remove(n)
-        out = nt.nodes.new("ShaderNodeOutputMaterial")
-        bsdf = nt.nodes.new("ShaderNodeBsdfDiffuse")
-        bsdf.inputs["Roughness"].default_value = 0.0
-        nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
-    bsdf = next(n for n in mat.node_tree.nodes if n.type == "BSDF_DIFFUSE")
-    bsdf.inputs["Color"].default_value = (albedo, albedo, albedo, 1.0)
-    mat.diffuse_color = (albedo, albedo, albedo, 1.0)
-    return mat
+    from sample_blends.scenes import diffuse_material
+    return diffuse_material(MATERIAL_NAME, albedo)
 
 
 def black_world():
