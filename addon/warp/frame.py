@@ -87,9 +87,12 @@ def body_light_angles(view: View, light: Light, body: IntersectionBody) -> tuple
 
 def sun_frame(view: View, light: Light, body: IntersectionBody) -> LightFrame:
     """Orthographic frame of a sun, anchored at the camera for precision."""
-    up = image_up(view.direction, view.up, light.direction)
-    m = FLIP_Z @ look_along(view.position, light.direction, up)
-    return LightFrame(m, body.vertices, "main", True)
+    return _sun_frame(light, body, view.position, image_up(view.direction, view.up, light.direction))
+
+
+def _sun_frame(light: Light, body: IntersectionBody, eye, up) -> LightFrame:
+    """A sun's orthographic frame looking along its light from ``eye``, +y ``up``."""
+    return LightFrame(FLIP_Z @ look_along(eye, light.direction, up), body.vertices, "main", True)
 
 
 SURROUND_BLEND = 0.2
@@ -106,9 +109,7 @@ WORLD_NORTH = np.array([0.0, 1.0, 0.0])
 def world_sun_frame(light: Light, body: IntersectionBody) -> LightFrame:
     """An orthographic sun frame fixed in the world (+y: world up across the light,
     blended as in ``image_up``), so a texel-snapped window keeps its grid as the camera moves."""
-    up = image_up(WORLD_UP, WORLD_NORTH, light.direction)
-    m = FLIP_Z @ look_along(np.zeros(3), light.direction, up)
-    return LightFrame(m, body.vertices, "main", True)
+    return _sun_frame(light, body, np.zeros(3), image_up(WORLD_UP, WORLD_NORTH, light.direction))
 
 
 def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]:

@@ -21,9 +21,8 @@ def fitted_row(along: np.ndarray, points) -> np.ndarray:
     """The depth row ``along`` (an affine function, 4 entries) scaled and offset
     so that ``points`` span [-1, 1] (padded like the unit-cube fit)."""
     along = np.asarray(along, dtype=np.float64)
-    d = homogeneous(np.asarray(points, dtype=np.float64).reshape(-1, 3)) @ along
-    lo, hi = float(d.min()), float(d.max())
-    window = window_matrix([lo] * 3, [hi] * 3)
+    d = homogeneous(points) @ along
+    window = window_matrix([float(d.min())] * 3, [float(d.max())] * 3)
     return window[2, 2] * along + np.array([0.0, 0.0, 0.0, window[2, 3]])
 
 

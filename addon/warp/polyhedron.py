@@ -111,12 +111,9 @@ class ConvexPolytope:
         return _enumerate(np.zeros((0, 3)), n, o, _combinations3(len(n)), tol)
 
     # -- what follows from it -------------------------------------------------
-    def edges(self) -> np.ndarray:
-        """(e, 2) sorted vertex index pairs of the loops' edges, lower index first; read-only, made once."""
-        return self._edges
-
     @cached_property
-    def _edges(self) -> np.ndarray:
+    def edges(self) -> np.ndarray:
+        """(e, 2) sorted vertex index pairs of the loops' edges, lower index first; read-only."""
         pairs = sorted({(a, c) if a < c else (c, a) for loop in self.loops for a, c in zip(loop[-1:] + loop[:-1], loop)})
         edges = np.fromiter(chain.from_iterable(pairs), np.int64, 2 * len(pairs)).reshape(-1, 2)
         edges.flags.writeable = False
@@ -133,7 +130,7 @@ class ConvexPolytope:
     @cached_property
     def segments(self) -> "Edges":
         """The edges as segments from their lower vertex (t in [0, 1])."""
-        a, b = self.vertices[self.edges().T]
+        a, b = self.vertices[self.edges.T]
         return Edges(a, b - a, np.ones(len(a)))
 
     def faces(self) -> list[np.ndarray]:
@@ -165,7 +162,7 @@ class ConvexPolytope:
         """The same polytope moved by ``offset`` (sharing its edges)."""
         t = np.asarray(offset, dtype=np.float64)
         moved = ConvexPolytope(self.vertices + t, self.normals, self.offsets + self.normals @ t, self.loops, self.tol)
-        moved.__dict__["_edges"] = self._edges
+        moved.__dict__["edges"] = self.edges
         return moved
 
     # -- clip -----------------------------------------------------------------
@@ -201,11 +198,6 @@ class ConvexPolytope:
         o = np.concatenate([self.offsets, o2])
         return _enumerate(self.vertices[inside], n, o, _combinations3(len(n), len(self.normals)), self.tol,
                           self.incidence[inside])
-
-    def section(self, normals, offsets) -> np.ndarray | None:
-        """The vertices of this polytope ∩ {normals @ x <= offsets}, or None."""
-        part = self.clip(normals, offsets)
-        return None if part is None else part.vertices
 
 
 # ---------------------------------------------------------------------------
@@ -603,7 +595,7 @@ def _turns_exceed(polygon: list, normal: np.ndarray, tol: float) -> bool:
 
 def _crossings(poly: ConvexPolytope, height: np.ndarray) -> np.ndarray:
     """Where P's edges cross the plane, both ends beyond the tolerance (``height``: the vertices')."""
-    a, b = poly.edges().T
+    a, b = poly.edges.T
     crossed = ((height[a] > poly.tol) & (height[b] < -poly.tol)) | ((height[a] < -poly.tol) & (height[b] > poly.tol))
     a, b = a[crossed], b[crossed]
     t = height[a] / (height[a] - height[b])

@@ -294,9 +294,8 @@ def sample_rays(view: View, samples: tuple[int, int]) -> tuple[np.ndarray, np.nd
 
 def region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int] = BOX_SAMPLES,
                       tile: int = BOX_TILE) -> VisibleRegion:
-    """The visible region of a box scene without a GPU: one ray per cell of a ``samples`` grid and a ring of them on
-    the image's border, and between each four the depths of every box that may show there (docs/papers.md); the
-    last region per scene is kept."""
+    """The visible region of a box scene without a GPU: rays through a ``samples`` grid's cells and the image's border,
+    between each four the depths of every box that may show there (docs/papers.md); the last per scene is kept."""
     key = (view.camera_to_world.tobytes(), view.projection.tobytes(), view.near, view.far, samples, tile)
     last = scene.cached("visible region", dict)
     if last.get("key") != key:
@@ -336,9 +335,8 @@ def _faces(boxes, hits, box) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _box_depths_in_squares(view: View, boxes, low, high) -> tuple[np.ndarray, np.ndarray]:
-    """The least and greatest eye depth over box_i ∩ the pyramid of the NDC square [low_i, high_i] (inf, -inf: none):
-    over the vertices of that polytope, the box's corners in the pyramid, its edges' crossings of the pyramid's sides
-    and the pyramid's corner rays' crossings of the box (less than the near distance where the box comes nearer)."""
+    """The least and greatest eye depth over box_i ∩ the pyramid of the NDC square [low_i, high_i] (inf, -inf: none),
+    over its vertices: the box's corners inside, its edges' crossings of the sides, the corner rays' crossings of it."""
     sides = screen_sides(view, low[:, 0, None], high[:, 0, None], low[:, 1, None], high[:, 1, None])   # (S, 4, 4)
     corners = box_corners(boxes[:, 0], boxes[:, 1])                                              # (S, 8, 3)
     value = np.einsum("sci,sji->scj", corners, sides[:, :, :3]) + sides[:, None, :, 3]           # (S, 8, 4)
@@ -405,10 +403,8 @@ def _box_depths(view: View, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _square_depths(view: View, boxes, selected, face, origins, hits, samples) -> tuple[np.ndarray, np.ndarray]:
     """Per square between four neighbouring rays ((rows + 1, columns + 1)), the eye-depth interval [near, far] of every
-    point seen through it (near > far: none). Where its rays all hit one face, the face holds every ray between them
-    (faces are convex) and its corners' depths bound it there; a box meeting the hull of the rays up to the face (one
-    slipping between them) adds its near side. Elsewhere (a silhouette: anything behind may show between the rays)
-    each box meeting the square's pyramid adds its depths in it, or its whole depth range if shallow (``DEEP_BOX``)."""
+    point seen through it (near > far: none): one face's corners, the boxes slipping in front of it or, at a silhouette,
+    every box meeting the square's pyramid (``DEEP_BOX``); why these bound it: docs/papers.md, ``visibility.py``."""
     xs, ys = (sample_ndc(n) for n in samples)
     one_face = (_neighbours(face, np.minimum) == _neighbours(face, np.maximum)) & (face[1:, 1:] >= 0)
     depth = view.eye_depth(hits).reshape(face.shape)

@@ -391,7 +391,7 @@ def test_polytope_clip_is_exact_on_awkward_cuts():
             continue
         clear = np.abs(d) > flat
         assert np.array_equal(out.contains(pts[clear], 0.0), d[clear] < 0), (n.tolist(), o.tolist())
-        edges = out.edges()
+        edges = out.edges
         open_faces += len(out.vertices) - len(edges) + len(out.normals) != 2
     assert open_faces <= AWKWARD_SAMPLES // 100
 
@@ -407,5 +407,5 @@ def test_two_cuts_nearly_along_a_face_leave_nearly_the_whole_box():
     out = box.clip(n / length[:, None], np.array([2.0, 2.0]) / length)
     assert out is not None
     assert np.allclose(out.vertices.min(axis=0), [-1, -2, -3]) and np.allclose(out.vertices.max(axis=0), [2, 1, 3])
-    edges = out.edges()
+    edges = out.edges
     assert len(out.vertices) - len(edges) + len(out.normals) == 2

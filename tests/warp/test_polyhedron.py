@@ -241,7 +241,7 @@ def test_a_plane_section_is_the_polygon_of_the_edge_crossings_counter_clockwise(
             assert half is None or half is p or np.ptp(half.vertices @ n) <= 1e-9
             continue
         height = p.vertices @ n - offset
-        a, b = p.edges().T
+        a, b = p.edges.T
         crossed = height[a] * height[b] < 0
         t = height[a][crossed] / (height[a][crossed] - height[b][crossed])
         crossings = p.vertices[a[crossed]] + t[:, None] * (p.vertices[b[crossed]] - p.vertices[a[crossed]])

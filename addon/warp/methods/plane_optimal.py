@@ -254,14 +254,15 @@ def casters_of(polygon: np.ndarray, outwards: np.ndarray, grown: np.ndarray, hei
     if len(normals) == len(corners) + 1:                             # (every side plane made)
         points, _ = section_points(b_poly, normals[None], offsets[None], cone_edges(corners, height, l_h, tol), 0.0)
     else:
-        points = b_poly.section(normals, offsets)
+        part = b_poly.clip(normals, offsets)
+        points = None if part is None else part.vertices
     if points is None or not len(points):
         return np.zeros((0, 3)), False
     if l_h[3] != 0:
         top = float(height @ l_h) / l_h[3] - NEAR_FRACTION * body.scale
         if float((points @ height[:3]).max()) + height[3] > top:
-            points = b_poly.section(np.vstack([normals, height[:3]]), np.append(offsets, top - height[3]))
-            return (np.zeros((0, 3)) if points is None else points), True
+            part = b_poly.clip(np.vstack([normals, height[:3]]), np.append(offsets, top - height[3]))
+            return (np.zeros((0, 3)) if part is None else part.vertices), True
     return points, False
 
 
