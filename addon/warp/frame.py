@@ -215,8 +215,7 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
     apex = light.position
     axis, half = light_cone(body.vertices, apex)
     up = image_up(view.direction, view.up, axis)
-    if not up.any():
-        up = perpendicular(axis)
+    up = up if up.any() else perpendicular(axis)
     inside = body.contains(apex[None], -10.0 * body.tolerance)[0]                  # (strictly inside B)
     if 2 * half <= options.max_frustum_angle and not inside:
         floor, cuts_a_box = None, True

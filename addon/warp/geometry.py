@@ -148,9 +148,7 @@ def ortho_matrix(left, right, bottom, top, near, far) -> np.ndarray:
     return m
 
 
-UNIT_CUBE_CORNERS = np.array(
-    [[x, y, z] for z in (-1.0, 1.0) for y in (-1.0, 1.0) for x in (-1.0, 1.0)]
-)
+UNIT_CUBE_CORNERS = np.array([[x, y, z] for z in (-1.0, 1.0) for y in (-1.0, 1.0) for x in (-1.0, 1.0)])
 """The 8 corners of NDC [-1,1]^3: near face (z=-1) first, x fastest."""
 
 

@@ -204,9 +204,7 @@ class SceneBounds:
     def aabb(self) -> Optional[np.ndarray]:
         """(2, 3) box around every caster and receiver, or None for an empty scene."""
         b = np.concatenate([self.casters, self.receivers])
-        if len(b) == 0:
-            return None
-        return np.array([b[:, 0].min(axis=0), b[:, 1].max(axis=0)])
+        return np.array([b[:, 0].min(axis=0), b[:, 1].max(axis=0)]) if len(b) else None
 
     def scale(self) -> float:
         """A length typical of the scene (the AABB diagonal), for relative tolerances."""

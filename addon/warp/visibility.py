@@ -320,8 +320,7 @@ def _region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int],
                             _neighbours(np.pad(far_q, 1, constant_values=-np.inf), np.maximum, 4), tile)
     box = box.reshape(ny + 2, nx + 2)
     cells = box[1:-1, 1:-1]                                        # the cells' rays (the border's: their neighbours)
-    hit = np.flatnonzero(box >= 0)
-    hit = hit[np.pad(np.ones((ny, nx), bool), 1).ravel()[hit]]     # the surface: the cells' rays, not the border's
+    hit = np.flatnonzero(np.pad(cells >= 0, 1))                    # the surface: the cells' rays, not the border's
     return replace(_region(view, near, far, samples, tile, "scene boxes", tile_counts(cells >= 0, tile)),
                    surface=hits[hit][:, None].repeat(2, axis=1), normals=normals[hit])
 

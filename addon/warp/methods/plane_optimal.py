@@ -1,6 +1,5 @@
-"""Plane-optimal shadow maps: Chong & Gortler, "A Lixel for every Pixel" (EGSR 2004): one map per plane of
-interest, exact on that plane (§2), then the uniform fallback maps (§3). The steps and Lixel's readings of
-§2: docs/papers.md."""
+"""Plane-optimal shadow maps: Chong & Gortler, "A Lixel for every Pixel" (EGSR 2004): one map per plane of interest,
+exact on that plane (§2), then the uniform fallback maps (§3). The steps and Lixel's readings of §2: docs/papers.md."""
 from __future__ import annotations
 
 import dataclasses
