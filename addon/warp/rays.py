@@ -51,9 +51,9 @@ def _pair_intervals(o, inv, lo, hi, rays, boxes) -> tuple[np.ndarray, np.ndarray
 
 
 def ray_index(origins, directions, t_max, index: BoxIndex, selection: Selection | None = None,
-              ranks_per_round: int = 2) -> tuple[np.ndarray, np.ndarray]:
-    """Nearest hit of each ray with the boxes of a culling index within [0, t_max]: (t, box in the original
-    order; inf and -1 for none), as ``addon.measure.box_scene.ray_boxes``."""
+              may_meet: np.ndarray | bool = True, ranks_per_round: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest hit of each ray with the boxes of a culling index within [0, t_max]: (t, box in the original order;
+    inf and -1 for none), as ``addon.measure.box_scene.ray_boxes``; ``may_meet`` (rays, clusters): the pairs tested."""
     o = np.ascontiguousarray(np.asarray(origins, dtype=np.float64).reshape(-1, 3).T)
     with np.errstate(divide="ignore"):
         inv = np.ascontiguousarray((1.0 / np.asarray(directions, dtype=np.float64).reshape(-1, 3)).T)
@@ -65,8 +65,6 @@ def ray_index(origins, directions, t_max, index: BoxIndex, selection: Selection 
     if selection is not None:
         usable = usable & selection.by_cluster
     clusters = np.flatnonzero(usable.any(axis=1))
-    if n == 0 or not len(clusters):
-        return best, which
     # Each cluster's usable boxes as a run of slots (clusters in order), and their bounds (3, S).
     counts = usable[clusters].sum(axis=1)
     slots = (clusters[:, None] * k + np.arange(k))[usable[clusters]]
@@ -74,12 +72,11 @@ def ray_index(origins, directions, t_max, index: BoxIndex, selection: Selection 
     flat = index.c_box_bounds.reshape(6, -1)[:, slots]
     box_lo, box_hi = np.ascontiguousarray(flat[:3]), np.ascontiguousarray(-flat[3:])
     c_lo, c_hi = index.c_bounds[:3, clusters], -index.c_bounds[3:, clusters]         # (3, C)
-    # The clusters each ray meets, with its entry distance, rays a chunk at a time.
-    per_chunk = max(1, CHUNK // len(clusters))
-    found = []
-    for first in range(0, n, per_chunk):
-        r = np.arange(first, min(n, first + per_chunk))
-        rr, cc = np.repeat(r, len(clusters)), np.tile(np.arange(len(clusters)), len(r))
+    # The clusters each ray meets, with its entry distance, a chunk of (ray, cluster) pairs at a time.
+    pair_rays, pair_clusters = np.nonzero(np.broadcast_to(may_meet, (n, len(usable)))[:, clusters])
+    found = [(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))]
+    for first in range(0, len(pair_rays), CHUNK):
+        rr, cc = pair_rays[first:first + CHUNK], pair_clusters[first:first + CHUNK]
         enter, leave = _pair_intervals(o, inv, c_lo, c_hi, rr, cc)
         near = np.maximum(enter, 0.0)
         meet = (enter <= leave) & (leave >= 0) & (near <= t_max[rr])

@@ -307,9 +307,9 @@ def region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int] =
 def _region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int], tile: int) -> VisibleRegion:
     nx, ny = samples
     index = BoxIndex.of(scene, "receivers")
-    selection = index.select(*_frustum_halfspaces(view))
+    selection = index.select(*frustum_halfspaces(view))
     origins, dirs, length = sample_rays(view, samples)
-    t, box = ray_index(origins, dirs, length, index, selection)
+    t, box = ray_index(origins, dirs, length, index, selection, grid_may_meet(view, index, samples))
     hits = origins + np.where(np.isfinite(t), t, 0.0)[:, None] * dirs
     face, normals = _faces(scene.receivers, hits, box)
     # What the square between each four neighbouring rays shows; each cell, the squares within a ray spacing of its own
@@ -323,6 +323,16 @@ def _region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int],
     hit = np.flatnonzero(np.pad(cells >= 0, 1))                    # the surface: the cells' rays, not the border's
     return replace(_region(view, near, far, samples, tile, "scene boxes", tile_counts(cells >= 0, tile)),
                    surface=hits[hit][:, None].repeat(2, axis=1), normals=normals[hit])
+
+
+def grid_may_meet(view: View, index: BoxIndex, samples) -> np.ndarray:
+    """(rays, clusters): whether each ray of ``sample_rays``' grid lies within a cell of the image of the cluster's
+    bounds grown by the rays' rounding (NaN: yes), as every ray that meets them does (``rays.ray_index``)."""
+    grow = 1e-9 * (view.far + float(np.abs(index.c_bounds).max(initial=0.0)))         # (c_bounds: lo, -hi rows)
+    (x0, x1), (y0, y1) = _ndc_rectangles(view, np.stack([index.c_bounds[:3].T - grow, grow - index.c_bounds[3:].T], 1))
+    x, y = (g.reshape(-1, 1) for g in np.meshgrid(*(sample_ndc(n) for n in samples)))
+    cx, cy = 2.0 / samples[0], 2.0 / samples[1]
+    return ~((x < x0 - cx) | (x > x1 + cx) | (y < y0 - cy) | (y > y1 + cy))
 
 
 def _faces(boxes, hits, box) -> tuple[np.ndarray, np.ndarray]:
@@ -384,7 +394,7 @@ _EDGES = np.array([[a, b] for a in range(8) for b in range(a + 1, 8) if bin(a ^ 
 """The 12 edges of a box as pairs of its corners (``box_corners`` order): corners differing in one axis."""
 
 
-def _frustum_halfspaces(view: View) -> tuple[np.ndarray, np.ndarray]:
+def frustum_halfspaces(view: View) -> tuple[np.ndarray, np.ndarray]:
     """The view frustum's six half-spaces in world space (clip-space -w <= c <= w)."""
     m = view.world_to_clip
     rows = np.array([m[r] * s - m[3] for r in range(3) for s in (1.0, -1.0)])

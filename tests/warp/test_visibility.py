@@ -8,6 +8,7 @@ can shadow one (the independent judge, tests/warp/test_independent_judge.py,
 runs with this default), z_n is the nearest visible eye depth, and
 ``focus="view"`` is exactly the unfocused B of before.
 """
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -24,8 +25,9 @@ from addon.warp.geometry import ortho_matrix
 from addon.measure.box_scene import ray_boxes
 from addon.warp.rays import ray_index
 from addon.warp.types import EmptyBodyError, View, WarpError
-from addon.warp.visibility import (BOX_SAMPLES, TileDepths, VisibleRegion, eye_depth_from_ndc, region_from_window_depth,
-                                   sample_rays, tile_edges, tile_reduce, unproject)
+from addon.warp.visibility import (BOX_SAMPLES, TileDepths, VisibleRegion, eye_depth_from_ndc, frustum_halfspaces,
+                                   grid_may_meet, region_from_window_depth, sample_rays, tile_edges, tile_reduce,
+                                   unproject)
 from hard_cases import EMPTY_CASES, HARD_CASES, camera, point, sun, town
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -287,6 +289,32 @@ def test_rays_through_the_culling_index_equal_rays_against_every_box():
     t4, b4, _ = ray_boxes(origins, dirs, t_max, boxes[sel.mask])
     assert np.array_equal(t3, t4)
     assert np.array_equal(box3, np.where(np.isfinite(t4), np.flatnonzero(sel.mask)[b4], -1))
+
+
+def test_the_grids_rays_tested_only_against_the_clusters_they_may_meet_find_the_same_hits():
+    """``grid_may_meet`` leaves out only (ray, cluster) pairs that cannot meet: the same hit distances and boxes, bit
+    for bit, as testing every cluster, for cameras among 1,500 boxes (five of them inside one), perspective and
+    orthographic, with near planes up to 4 m."""
+    rng = np.random.default_rng(5)
+    centre, half = rng.uniform(-60, 60, (1500, 2)), rng.uniform(0.3, 3, (1500, 2))
+    boxes = np.stack([np.c_[centre - half, np.zeros(1500)], np.c_[centre + half, rng.uniform(1, 12, 1500)]], axis=1)
+    index = BoxIndex(np.concatenate([[[[-70, -70, -0.2], [70, 70, 0.0]]], boxes]))
+    views = [camera([*rng.uniform(-50, 50, 2), rng.choice([0.5, 1.7, 6.0, 40.0])],
+                    forward=[*rng.normal(size=2), rng.uniform(-1.0, 0.2)], near=float(rng.choice([0.01, 0.5, 4.0])),
+                    far=float(rng.uniform(20, 200))) for _ in range(12)]
+    views += [dataclasses.replace(v, projection=ortho_matrix(-20, 20, -12, 12, v.near, v.far), orthographic=True)
+              for v in views[:4]]
+    tested = []
+    for view in views:
+        origins, dirs, length = sample_rays(view, BOX_SAMPLES)
+        selection = index.select(*frustum_halfspaces(view))
+        may_meet = grid_may_meet(view, index, BOX_SAMPLES)
+        every = ray_index(origins, dirs, length, index, selection)
+        tested.append((may_meet.mean(), np.isfinite(every[0]).mean()))
+        culled = ray_index(origins, dirs, length, index, selection, may_meet)
+        assert np.array_equal(every[0], culled[0]) and np.array_equal(every[1], culled[1])
+    share, hit = np.array(tested).T
+    assert share.max() < 0.5 and (hit > 0.2).sum() >= 12      # (most pairs left out, most views see boxes)
 
 
 def test_a_ray_from_inside_a_box_meets_the_inner_wall_and_its_normal_faces_back_along_the_ray():
