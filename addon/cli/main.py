@@ -30,6 +30,12 @@ def _internal(exc: BaseException) -> str:
     return f"internal error ({type(exc).__name__}: {exc}); set LIXEL_DEBUG=1 for the traceback"
 
 
+def _error(message: str, status: int = 2) -> int:
+    """The command's one error line on stderr; returns the exit status."""
+    print(f"lixel: error: {message}", file=sys.stderr)
+    return status
+
+
 def run_method(name, view, light, scene, options, body):
     if isinstance(body, EmptyBodyError):
         return {"maps": [], "diagnostics": {"method": name, "empty_body": str(body), "fallbacks": []}}
@@ -53,44 +59,34 @@ def _main(argv=None) -> int:
     parser.add_argument("--indent", type=int, default=None, help="pretty-print the JSON")
     args = parser.parse_args(argv)
     if args.method != "all" and args.method not in METHODS:
-        print(f"lixel: error: --method: unknown method {args.method!r}; choose one of {', '.join(METHODS)} or all",
-              file=sys.stderr)
-        return 2
+        return _error(f"--method: unknown method {args.method!r}; choose one of {', '.join(METHODS)} or all")
     try:
         text = sys.stdin.read() if args.config == "-" else open(args.config, encoding="utf-8").read()
     except OSError as exc:
-        print(f"lixel: error: config: cannot read {args.config}: {exc.strerror}", file=sys.stderr)
-        return 2
+        return _error(f"config: cannot read {args.config}: {exc.strerror}")
     except UnicodeDecodeError:
-        print(f"lixel: error: config: {args.config} is not UTF-8 text", file=sys.stderr)
-        return 2
+        return _error(f"config: {args.config} is not UTF-8 text")
     try:
         config = json.loads(text)
-    except (json.JSONDecodeError, RecursionError) as exc:
-        if isinstance(exc, RecursionError):
-            print("lixel: error: config: nested too deeply", file=sys.stderr)
-            return 2
-        print(f"lixel: error: config: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})", file=sys.stderr)
-        return 2
+    except RecursionError:
+        return _error("config: nested too deeply")
+    except json.JSONDecodeError as exc:
+        return _error(f"config: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})")
     try:
         view, light, scene, options = parse_config(config)
     except WarpError as exc:
-        print(f"lixel: error: {exc}", file=sys.stderr)
-        return 2
+        return _error(str(exc))
     except Exception as exc:
-        print(f"lixel: error: config: {_internal(exc)}", file=sys.stderr)
-        return 2
+        return _error(f"config: {_internal(exc)}")
     try:
         body = focused_body(view, light, scene, options)     # (as options.focus says: the visible region by default)
     except EmptyBodyError as exc:
         body = exc
         print(f"lixel: note: the intersection body is empty: {exc}", file=sys.stderr)
     except WarpError as exc:
-        print(f"lixel: error: {exc}", file=sys.stderr)
-        return 1
+        return _error(str(exc), 1)
     except Exception as exc:
-        print(f"lixel: error: intersection body: {_internal(exc)}", file=sys.stderr)
-        return 1
+        return _error(f"intersection body: {_internal(exc)}", 1)
     names = list(METHODS) if args.method == "all" else [args.method]
     results = {n: run_method(n, view, light, scene, options, body) for n in names}
     if args.method == "all":
@@ -98,8 +94,7 @@ def _main(argv=None) -> int:
     else:
         out = results[args.method]
         if "error" in out["diagnostics"]:
-            print(f"lixel: error: {args.method}: {out['diagnostics']['error']}", file=sys.stderr)
-            return 1
+            return _error(f"{args.method}: {out['diagnostics']['error']}", 1)
     json.dump(out, sys.stdout, indent=args.indent)
     sys.stdout.write("\n")
     return 0
