@@ -40,7 +40,7 @@ from addon.warp.partition.receivers import TAIL, footprint_p95, footprints, rece
 from addon.warp.partition.splits import practical_splits, split_view
 from addon.warp.partition.stable import stable_depth_range
 from addon.warp.visibility import focused_body, region_from_boxes
-from bench.cascade import light_in_view
+from bench.cascade import light_in_view, percentile_ratios
 from bench.reference_pssm import reference_pssm
 from hard_cases import HARD_CASES, camera, point, spot, sun, town
 
@@ -315,6 +315,15 @@ def test_the_cascade_beats_the_classic_pssm_at_equal_texels(name):
     reference = judge(view, light, scene, reference_pssm(view, light, scene, 1024, 3), samples=(96, 54))
     assert (ours.uncovered, ours.casters_uncovered, ours.depth_order_wrong) == (0, 0, 0)
     assert ours.footprint_p95 <= (1.0 if light_in_view(view, light) else 0.8) * reference.footprint_p95
+
+
+@pytest.mark.parametrize("name", ["outdoor_sun", "chess_spot"])
+def test_the_benchs_percentile_ratios_are_measured_on_the_judges_points(name):
+    """At the 95th percentile the ratio beside the judge's is the judge's own (a spot's unlit points left out)."""
+    view, light, scene = example(name)
+    ours, reference = compute("cascade", view, light, scene, OPTIONS), reference_pssm(view, light, scene, 1024, 3)
+    judged = judge(view, light, scene, ours).footprint_p95 / judge(view, light, scene, reference).footprint_p95
+    assert percentile_ratios(view, light, scene, ours, reference, at=(95.0,)) == [pytest.approx(judged, rel=1e-12)]
 
 
 @pytest.mark.parametrize("name", ["camera_inside_scene_box", "camera_inside_scene_box_point"])
