@@ -9,7 +9,9 @@ Each scene (a committed sample scene from ``sample_blends/``, a box scene
 from :mod:`bench.box_scenes`, or one generated there from ``--seed``) is rendered through the render engine's own path
 (``addon.render.engine.render_depsgraph``) with ``LixelSettings`` defaults,
 only the method and the map size changed: what a user gets. The ground truth
-is the report's ray caster (``bench.report.ground_truth``). Per scene, method
+is the report's ray caster (``bench.report.ground_truth``), counted where the render shows the point and the
+face the ray caster hit (``bench.report.run.comparable_mask``: not at silhouettes, nor at a box's edge where the
+two saw the same point on different faces, whose shadows differ). Per scene, method
 and size it prints the misclassified pixels (false light: lit where the truth
 is shadowed; false shadow: the opposite) and the analytic p95 texel footprint
 over the lit points facing the light (n·l >= 0.1, the report's) and over all lit points (n·l > 0, the issue's

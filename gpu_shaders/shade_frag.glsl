@@ -71,7 +71,8 @@
  *                   (log2 t / 4 clamped to [-1, 1]: red below one texel per
  *                   pixel (undersampled), green at one, blue above), LIXEL_FOOTPRINT
  *   out_data      = (shadow, map index or -1, texels per pixel, eye depth), LIXEL_DATA
- *   out_world     = (world position, 1), LIXEL_WORLD
+ *   out_world     = (world position, the pre-pass's packed normal), LIXEL_WORLD
+ *                   (which surface the pixel shows: result.unpack_normals)
  * Pixels no surface covers get background_frag.glsl's values (the world
  * colour in out_color, with no shadow; zero elsewhere, black in out_footprint).
  * Positions are relative to the frame's origin; the uniform block `lixel` is
@@ -681,6 +682,6 @@ void main()
   out_data = vec4(shadow, float(index), texels_per_pixel, eye_depth);
 #endif
 #ifdef LIXEL_WORLD
-  out_world = vec4(P, 1.0);
+  out_world = vec4(P, surface.w);
 #endif
 }

@@ -35,7 +35,7 @@ from . import compose, shaders
 from .blas import one_blas_thread
 from .batches import DrawList, GPUScene, shared_scene
 from .layout import LIXEL_SHADE
-from .result import ANALYSIS, RenderCounts, RenderMemory, RenderResult, check_read
+from .result import ANALYSIS, SURFACE, RenderCounts, RenderMemory, RenderResult, check_read, unpack_normals
 from .targets import TargetPool, shared_targets
 
 log = logging.getLogger(__name__)
@@ -539,7 +539,7 @@ class ShadowFrame:
         (the :meth:`finish` that follows takes the same ``read``): the
         combined image (the unshadowed light when the eye-space blur follows),
         the shadow, the footprint heatmap, (shadow, map index, texels per
-        pixel, eye depth), the world position."""
+        pixel, eye depth), the surface seen (world position and normal)."""
         import gpu
         if self._depth is None:
             self.camera_prepass()
@@ -548,7 +548,7 @@ class ShadowFrame:
         t = time.perf_counter()
         read = self.read if read is None else check_read(read)
         blurred = shadow.eye_blur > 0
-        world = "world_position" in read
+        world = bool(read & SURFACE)
         variant = shaders.ShadeVariant(
             map_count=len(setup.maps), light=light.type, pcf=shadow.pcf_kernel, mdsm=shadow.mdsm_depths,
             revectorize=shadow.revectorize,
@@ -634,7 +634,7 @@ class ShadowFrame:
         sh = self._shaded
         variant = sh["variant"]
         data_images = {"shadow_raw", "covered", "eye_depth", "map_index", "texels_per_pixel"}
-        missing = (read & {"world_position"} if not variant.world else set()) | \
+        missing = (read & SURFACE if not variant.world else set()) | \
             (read & (data_images - {"shadow_raw"}) if not variant.data else set()) | \
             (read & {"footprint_heatmap"} if not variant.footprint else set()) | \
             (read & {"shadow_mask", "shadow_raw"} if not (variant.shadow_alpha or variant.blurred) else set())
@@ -670,7 +670,7 @@ class ShadowFrame:
             out.footprint_heatmap = self._read_target("footprint")
         if preview is not None:
             out.shadow_map_preview = compose.read_color(preview, 0, size, 1)
-        if variant.data and read & (data_images | {"world_position"}):
+        if variant.data and read & (data_images | SURFACE):
             data = self._read_target("data")
             covered = data[..., 3] > 0.0
             if "covered" in read:
@@ -683,9 +683,10 @@ class ShadowFrame:
                 out.map_index = np.where(covered, np.rint(data[..., 1]), -1).astype(np.int32)
             if "texels_per_pixel" in read:
                 out.texels_per_pixel = np.where(covered, data[..., 2], 0.0).astype(np.float32)
-            if "world_position" in read:
+            if read & SURFACE:
                 world = self._read_target("world")
                 out.world_position = np.where(covered[..., None], world[..., :3] + self.origin, np.nan)
+                out.world_normal = np.where(covered[..., None], unpack_normals(world[..., 3]), np.nan)
         elif "shadow_raw" in read:
             out.shadow_raw = shadow
         if "shadow_maps" in read:
@@ -718,7 +719,7 @@ class ShadowFrame:
 
 def needs_data(read) -> bool:
     """Whether the images in ``read`` need the shading pass's data target."""
-    return bool(set(read) & {"covered", "eye_depth", "map_index", "texels_per_pixel", "world_position"})
+    return bool(set(read) & ({"covered", "eye_depth", "map_index", "texels_per_pixel"} | SURFACE))
 
 
 @one_blas_thread()

@@ -15,7 +15,9 @@ import numpy as np
 ANALYSIS = frozenset({"combined", "shadow_mask", "shadow_raw", "covered", "eye_depth", "map_index",
                       "texels_per_pixel", "footprint_heatmap"})
 """The per-pixel images of the shading pass (the default read)."""
-EVERYTHING = ANALYSIS | {"world_position", "shadow_map_preview", "shadow_maps", "mdsm_keys"}
+EVERYTHING = ANALYSIS | {"world_position", "world_normal", "shadow_map_preview", "shadow_maps", "mdsm_keys"}
+SURFACE = frozenset({"world_position", "world_normal"})
+"""The surface the pre-pass saw (one target, read together)."""
 
 
 @dataclass
@@ -67,6 +69,9 @@ class RenderResult:
     """(H, W) bool: a surface is seen."""
     world_position: Optional[np.ndarray] = None
     """(H, W, 3) float64 (computed in float32 relative to the frame's origin), NaN where nothing is seen."""
+    world_normal: Optional[np.ndarray] = None
+    """(H, W, 3) the unit geometric normal of the triangle seen (its side as the pre-pass's screen derivatives
+    give it; within about 5e-4 rad), NaN where nothing is seen: which surface the pixel shows."""
     eye_depth: Optional[np.ndarray] = None
     """(H, W) distance along the view direction, inf where nothing is seen."""
     map_index: Optional[np.ndarray] = None
@@ -94,6 +99,17 @@ class RenderResult:
             if img is not None:
                 return img.shape[1], img.shape[0]
         raise ValueError("no image was read back")
+
+
+def unpack_normals(codes) -> np.ndarray:
+    """(..., 3) unit normals from the pre-pass's packed floats (``prepass_frag.glsl``: octahedral coordinates in
+    14 and 15 bits of one float; ``lixel_unpack_normal`` and ``lixel_unoctahedral`` in ``shade_frag.glsl``)."""
+    bits = np.ascontiguousarray(codes, dtype=np.float32).view(np.uint32)
+    p = np.stack([(bits >> 15) & 16383, bits & 32767], axis=-1) * (2.0 / np.array([16383.0, 32767.0])) - 1.0
+    n = np.concatenate([p, 1.0 - np.abs(p).sum(axis=-1, keepdims=True)], axis=-1)
+    fold = np.maximum(-n[..., 2:], 0.0)
+    n[..., :2] -= np.copysign(fold, n[..., :2])
+    return n / np.linalg.norm(n, axis=-1, keepdims=True)
 
 
 def check_read(read) -> frozenset:

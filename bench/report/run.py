@@ -141,16 +141,29 @@ def scene_path(name: str, workdir: Path, log) -> Path:
 
 # --------------------------------------------------------------------------- helpers
 
+SAME_SURFACE_RAD = 0.01
+"""Largest angle between the pipeline's and the ray caster's normals at a pixel showing the same surface: the
+pre-pass normal is within about 5e-4 rad of its triangle's; a box's faces meet at 90 degrees."""
+
+
 def comparable_mask(gt, frame) -> np.ndarray:
-    """Pixels where the pipeline shows the same surface point as the ray caster
-    (silhouette pixels where rasterization and ray casting disagree are left out).
-    ``frame``: a ``LixelFrame`` or anything with ``world_position`` and ``covered``
-    as keys (a render result dict) or attributes."""
+    """Pixels where the pipeline shows the same surface point as the ray caster: silhouette pixels where
+    rasterization and ray casting disagree are left out, and so are crease pixels where both see the same point
+    (an edge or corner of a box, within a rasterizer's sub-pixel snapping) but on different faces, whose shadows
+    differ (``world_normal``, where the frame has it).
+    ``frame``: a ``LixelFrame`` or anything with ``world_position`` and ``covered`` (and optionally
+    ``world_normal``) as keys (a render result dict) or attributes."""
     get = frame.get if isinstance(frame, dict) else (lambda k: getattr(frame, k))
     world, covered = np.asarray(get("world_position"), dtype=np.float64), np.asarray(get("covered"), dtype=bool)
     d = np.linalg.norm(world - gt.points, axis=2)
     depth = np.linalg.norm(gt.points - gt.camera, axis=2)
-    return gt.valid & covered & np.isfinite(d) & (d <= 2e-3 * depth + 1e-6)
+    same = gt.valid & covered & np.isfinite(d) & (d <= 2e-3 * depth + 1e-6)
+    normal = frame.get("world_normal") if isinstance(frame, dict) else getattr(frame, "world_normal", None)
+    if normal is not None:
+        with np.errstate(invalid="ignore"):
+            same &= np.abs(np.einsum("ijk,ijk->ij", np.asarray(normal, dtype=np.float64), gt.normals)) \
+                >= math.cos(SAME_SURFACE_RAD)
+    return same
 
 
 def diagnostics(setup) -> dict:

@@ -221,6 +221,22 @@ def agreement(out, lt, dg, texels=2.0):
 
 # ---------------------------------------------------------------- tests
 
+def test_the_frame_says_which_face_each_pixel_shows(lx, scene):
+    """world_normal is the geometric normal of the face each pixel shows (the pre-pass's, read with the position),
+    within its packing and derivatives' error, and NaN where nothing is seen: what tells a judge that the
+    rasterizer and a ray caster saw one point on two faces of a box."""
+    shadow_scene(scene, "SUN")
+    out, *_ = render(lx, scene, "uniform", 512)
+    c, s = math.cos(0.4), math.sin(0.4)
+    faces = np.array([[0, 0, 1], [c, s, 0], [-s, c, 0]], dtype=np.float64)   # ground and box tops, the box's sides
+    n = out.world_normal[out.covered]
+    assert len(n) > 5000 and np.all(np.isnan(out.world_normal[~out.covered]))
+    angle = np.arccos(np.clip(np.abs(n @ faces.T).max(axis=1), 0.0, 1.0))
+    assert angle.max() < 1e-3
+    ground = out.covered & (np.abs(out.world_position[..., 2]) < 1e-4)
+    assert np.all(np.abs(out.world_normal[ground][:, 2]) > math.cos(1e-3))
+
+
 @pytest.mark.parametrize("kind", ["SUN", "SPOT", "POINT"])
 @pytest.mark.parametrize("method", METHOD_NAMES)
 def test_shadows_agree_with_ray_casting(lx, scene, kind, method):
