@@ -172,6 +172,14 @@ def finite_clip_volume_corners(matrix, origin=0.0) -> np.ndarray | None:
     return h[:, :3] / w[:, None] + origin
 
 
+def clip_halfspaces(matrix) -> tuple[np.ndarray, np.ndarray]:
+    """The world points ``matrix`` maps into its clip volume (-w <= x, y, z <= w; w > 0 follows), bounded or not, as
+    six half-spaces ``normals @ x <= offsets``."""
+    m = np.asarray(matrix, dtype=np.float64)
+    rows = np.array([m[r] * s - m[3] for r in range(3) for s in (1.0, -1.0)])
+    return rows[:, :3], -rows[:, 3]
+
+
 def clip_volume_corners_h(matrix) -> np.ndarray:
     """The clip volume's corners as homogeneous world points (8, 4) (w <= 0: at infinity); LinAlgError when singular."""
     return _UNIT_CUBE_CORNERS_H @ np.linalg.inv(np.asarray(matrix, dtype=np.float64)).T

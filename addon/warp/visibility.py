@@ -9,7 +9,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .culling import BoxIndex
-from .geometry import perpendicular
+from .geometry import clip_halfspaces, perpendicular
 from .polyhedron import box_corners
 from .rays import ray_index, slab_intervals
 from .types import EmptyBodyError, Light, SceneBounds, View, WarpOptions
@@ -307,7 +307,7 @@ def region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int] =
 def _region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int], tile: int) -> VisibleRegion:
     nx, ny = samples
     index = BoxIndex.of(scene, "receivers")
-    selection = index.select(*frustum_halfspaces(view))
+    selection = index.select(*clip_halfspaces(view.world_to_clip))
     origins, dirs, length = sample_rays(view, samples)
     t, box = ray_index(origins, dirs, length, index, selection, grid_may_meet(view, index, samples))
     hits = origins + np.where(np.isfinite(t), t, 0.0)[:, None] * dirs
@@ -392,13 +392,6 @@ def _box_depths_in_squares(view: View, boxes, low, high) -> tuple[np.ndarray, np
 
 _EDGES = np.array([[a, b] for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1])
 """The 12 edges of a box as pairs of its corners (``box_corners`` order): corners differing in one axis."""
-
-
-def frustum_halfspaces(view: View) -> tuple[np.ndarray, np.ndarray]:
-    """The view frustum's six half-spaces in world space (clip-space -w <= c <= w)."""
-    m = view.world_to_clip
-    rows = np.array([m[r] * s - m[3] for r in range(3) for s in (1.0, -1.0)])
-    return rows[:, :3], -rows[:, 3]
 
 
 def _box_depths(view: View, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

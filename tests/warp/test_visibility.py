@@ -21,13 +21,12 @@ from addon.warp import (METHODS, SceneBounds, WarpOptions, compute, focused_body
                         region_from_boxes)
 from addon.cli.config import parse_config
 from addon.warp.culling import BoxIndex
-from addon.warp.geometry import ortho_matrix
+from addon.warp.geometry import clip_halfspaces, clip_volume_corners_h, ortho_matrix
 from addon.measure.box_scene import ray_boxes
 from addon.warp.rays import ray_index
 from addon.warp.types import EmptyBodyError, View, WarpError
-from addon.warp.visibility import (BOX_SAMPLES, TileDepths, VisibleRegion, eye_depth_from_ndc, frustum_halfspaces,
-                                   grid_may_meet, region_from_window_depth, sample_rays, tile_edges, tile_reduce,
-                                   unproject)
+from addon.warp.visibility import (BOX_SAMPLES, TileDepths, VisibleRegion, eye_depth_from_ndc, grid_may_meet,
+                                   region_from_window_depth, sample_rays, tile_edges, tile_reduce, unproject)
 from hard_cases import EMPTY_CASES, HARD_CASES, camera, point, sun, town
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -307,7 +306,7 @@ def test_the_grids_rays_tested_only_against_the_clusters_they_may_meet_find_the_
     tested = []
     for view in views:
         origins, dirs, length = sample_rays(view, BOX_SAMPLES)
-        selection = index.select(*frustum_halfspaces(view))
+        selection = index.select(*clip_halfspaces(view.world_to_clip))
         may_meet = grid_may_meet(view, index, BOX_SAMPLES)
         every = ray_index(origins, dirs, length, index, selection)
         tested.append((may_meet.mean(), np.isfinite(every[0]).mean()))
@@ -326,3 +325,17 @@ def test_a_ray_from_inside_a_box_meets_the_inner_wall_and_its_normal_faces_back_
     t, box, normal = ray_boxes(origins, dirs, np.full(3, 100.0), room)
     np.testing.assert_allclose(t, [1.25, 9.0, 5.0])
     np.testing.assert_array_equal(normal, [[0, -1, 0], [0, 0, 1], [-1, 0, 0]])   # the last from outside
+
+
+def test_clip_halfspaces_hold_exactly_what_a_matrix_maps_into_its_clip_volume():
+    """-w <= x, y, z <= w as six world half-spaces, for a view frustum and for a volume through infinity."""
+    rng = np.random.default_rng(2)
+    through_infinity = rng.normal(size=(4, 4))
+    assert np.sum(clip_volume_corners_h(through_infinity)[:, 3] < 0) == 1         # one corner behind
+    for matrix in (camera(np.array([0.0, -5.0, 2.0]), np.array([0.0, 1.0, -0.3])).world_to_clip, through_infinity):
+        n, o = clip_halfspaces(matrix)
+        p = rng.uniform(-30.0, 30.0, (20000, 3))
+        h = np.c_[p, np.ones(len(p))] @ matrix.T
+        inside = (h[:, 3] > 0) & np.all(np.abs(h[:, :3]) <= h[:, 3:], axis=1)
+        assert 0 < inside.sum() < len(p)
+        np.testing.assert_array_equal(np.all(p @ n.T <= o, axis=1), inside)
