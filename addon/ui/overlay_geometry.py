@@ -3,7 +3,8 @@
 The draw handlers in :mod:`.overlays` only upload these arrays, so everything
 drawn can be checked in background mode against the warp core: B's faces are the
 :class:`~addon.warp.body.IntersectionBody` faces, the light frusta are the clip
-volumes of the maps' matrices (inverse projection of the unit cube), the warp
+volumes of the maps' matrices (inverse projection of the unit cube; where one
+reaches through infinity, its part around B: :func:`map_volume`), the warp
 frustum P is ``Diagnostics.warp_frustum_corners``.
 
 Also here: the footprint readout of the panel, from ``addon.measure.footprint``.
@@ -14,7 +15,9 @@ from typing import Optional
 
 import numpy as np
 
-from ..warp.geometry import UNIT_CUBE_CORNERS, clip_volume_corners, normalize
+from ..warp.body import RELATIVE_TOLERANCE
+from ..warp.geometry import UNIT_CUBE_CORNERS, clip_halfspaces, finite_clip_volume_corners, normalize
+from ..warp.polyhedron import ConvexPolytope, unit_halfspaces
 from ..warp.types import Light, ShadowSetup, View
 
 HEXAHEDRON_EDGES = np.array(
@@ -33,6 +36,10 @@ HEXAHEDRON_QUADS = np.array([(0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7,
 EXTRA_PROJECTION_CENTRE = ("projection_centre", "projection_center", "eye", "warp_eye")
 EXTRA_V_P = ("v_p", "V_P", "warp_direction", "view_dir_projected")
 EXTRA_MIDDLE_VECTOR = ("middle_vector", "middle", "body_middle_vector")
+
+VOLUME_MARGIN = 0.25
+"""A map's volume that reaches through infinity is drawn within B's box grown by this fraction of the box's
+diagonal on every side: enough to show it leaving B, little enough to keep the picture on the scene."""
 
 
 def fan_triangles(faces) -> np.ndarray:
@@ -63,6 +70,35 @@ def hexahedron_lines(corners) -> np.ndarray:
     return c[HEXAHEDRON_EDGES]
 
 
+def drawing_bound(points) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi): the box of ``points`` grown by ``VOLUME_MARGIN`` of its diagonal on every side."""
+    p = np.concatenate([np.asarray(q, dtype=np.float64).reshape(-1, 3) for q in points])
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    grow = VOLUME_MARGIN * max(float(np.linalg.norm(hi - lo)), 1e-9)
+    return lo - grow, hi + grow
+
+
+def map_volume(matrix, bound) -> Optional[ConvexPolytope]:
+    """The world points a map's ``matrix`` covers, its clip volume (``warp.geometry.clip_halfspaces``): the
+    hexahedron of its 8 corners where it is bounded; where it reaches through infinity (a corner at w <= 0, which
+    the divide by w would mirror to the wrong side), its part inside the box ``bound`` = (lo, hi). None when
+    nothing with volume is left."""
+    corners = finite_clip_volume_corners(matrix)
+    if corners is not None:
+        try:
+            return ConvexPolytope.hexahedron(corners, RELATIVE_TOLERANCE * float(np.ptp(corners, axis=0).max()))
+        except ValueError:                     # a face without area: a flat volume
+            return None
+    lo, hi = (np.asarray(b, dtype=np.float64) for b in bound)
+    box = ConvexPolytope.box(lo, hi, RELATIVE_TOLERANCE * float(np.linalg.norm(hi - lo)))
+    return box.clip(*unit_halfspaces(*clip_halfspaces(matrix)))
+
+
+def volume_lines(volume: Optional[ConvexPolytope]) -> np.ndarray:
+    """(E, 2, 3) edges of a ``map_volume`` (none for None)."""
+    return volume.vertices[volume.edges] if volume is not None else np.zeros((0, 2, 3))
+
+
 def _extra_vector(extra: dict, names) -> Optional[np.ndarray]:
     for n in names:
         v = extra.get(n)
@@ -89,13 +125,15 @@ def overlay_geometry(view: View, setup: Optional[ShadowSetup], body_faces=None) 
     Keys:
       ``body_triangles`` (T, 3, 3) and ``body_edges`` (E, 2, 3): B (Scherzer §4.1);
       ``view_corners`` (8, 3) and ``view_lines`` (12, 2, 3): the camera's frustum V;
-      ``light_corners`` list of (8, 3) and ``light_lines`` (12·M, 2, 3): each map's clip volume;
+      ``light_faces``, per map, the faces ((K, 3) outward loops; none when flat) and ``light_lines``
+      (E, 2, 3) the edges of its volume (``map_volume``; 12 per map when bounded, else its part inside
+      ``drawing_bound`` of B's faces, or of V's corners without B);
       ``warp_corners`` (8, 3) or None and ``warp_lines``: the warp frustum P (Scherzer §4.4);
       ``points`` dict name -> (3,): the projection centre, B's centroid;
       ``vectors`` dict name -> (2, 3) segment: V_P and B's middle vector from B's centroid
       (or the projection centre), scaled to B's size;
       ``splits``: a cascade's splits, nearest first, each a dict of ``body_edges`` (its
-      own B), ``light_lines`` (its maps' clip volumes) and ``view_lines`` (its slab of V),
+      own B), ``light_lines`` (its maps' volumes) and ``view_lines`` (its slab of V),
       each (E, 2, 3); the cascade's maps are drawn there and not in ``light_lines``.
     ``body_faces``: B as convex polygons (``IntersectionBody.faces``); when None,
     nothing of B is drawn.
@@ -105,25 +143,21 @@ def overlay_geometry(view: View, setup: Optional[ShadowSetup], body_faces=None) 
         "body_triangles": fan_triangles(faces),
         "body_edges": polygon_edges(faces),
         "view_corners": view.corners(),
-        "light_corners": [],
+        "light_faces": [],
         "warp_corners": None,
         "points": {},
         "vectors": {},
-        "splits": split_geometry(view, setup),
     }
+    bound = drawing_bound(faces or [view.corners()])
+    volumes = [map_volume(m.matrix, bound) for m in setup.maps] if setup is not None else []
+    out["splits"] = split_geometry(view, setup, volumes)
     out["view_lines"] = hexahedron_lines(out["view_corners"])
     light_lines = []
     if setup is not None:
-        for m in setup.maps:
-            try:
-                corners = clip_volume_corners(m.matrix)
-            except np.linalg.LinAlgError:
-                continue
-            if not np.all(np.isfinite(corners)):
-                continue
-            out["light_corners"].append(corners)
+        for volume in volumes:
+            out["light_faces"].append(volume.faces() if volume is not None else [])
             if not out["splits"]:              # a cascade's maps are drawn with their splits
-                light_lines.append(hexahedron_lines(corners))
+                light_lines.append(volume_lines(volume))
         diag = setup.diagnostics
         if diag.warp_frustum_corners is not None:
             wc = np.asarray(diag.warp_frustum_corners, dtype=np.float64).reshape(8, 3)
@@ -148,18 +182,10 @@ def overlay_geometry(view: View, setup: Optional[ShadowSetup], body_faces=None) 
     return out
 
 
-def clip_volume_lines(matrix) -> np.ndarray:
-    """(12, 2, 3) edges of a map's clip volume, or none when it is singular or reaches infinity."""
-    try:
-        corners = clip_volume_corners(matrix)
-    except np.linalg.LinAlgError:
-        return np.zeros((0, 2, 3))
-    return hexahedron_lines(corners) if np.all(np.isfinite(corners)) else np.zeros((0, 2, 3))
-
-
-def split_geometry(view: View, setup: Optional[ShadowSetup]) -> list:
+def split_geometry(view: View, setup: Optional[ShadowSetup], volumes: list) -> list:
     """A cascade's splits (``overlay_geometry``'s ``splits``): each split's B,
-    its maps' clip volumes and its slab of the view frustum; [] for other setups."""
+    the edges of its maps' ``volumes`` (``map_volume``, one per map) and its slab
+    of the view frustum; [] for other setups."""
     extra = setup.diagnostics.extra if setup is not None else {}
     if "map_splits" not in extra:
         return []
@@ -167,7 +193,7 @@ def split_geometry(view: View, setup: Optional[ShadowSetup]) -> list:
     depths, owner, faces = extra["splits"], np.asarray(extra["map_splits"]), extra["split_body_faces"]
     out = []
     for i, (near, far) in enumerate(zip(depths[:-1], depths[1:])):
-        maps = [clip_volume_lines(setup.maps[k].matrix) for k in np.flatnonzero(owner == i)]
+        maps = [volume_lines(volumes[k]) for k in np.flatnonzero(owner == i)]
         out.append({
             "body_edges": polygon_edges(faces[i]) if faces[i] is not None else np.zeros((0, 2, 3)),
             "light_lines": np.concatenate(maps) if maps else np.zeros((0, 2, 3)),

@@ -11,7 +11,8 @@ import numpy as np
 class Diagnostics:
     """theta, gamma: the light-view angle folded into [0, π/2] (GMNPR) and in [0, π] (Scherzer §4.4's γ); n_opt,
     lam: the warp's strength (Scherzer Eq. 1, GMNPR Eq. 8); body_vertices: B; warp_frustum_corners: P's 8 world
-    corners; fallbacks: (what, reason) wherever a method departed from its paper; extra: the rest."""
+    corners (None where P reaches through infinity); fallbacks: (what, reason) wherever a method departed from its
+    paper; extra: the rest."""
 
     method: str
     theta: Optional[float] = None

@@ -84,7 +84,8 @@ def snapshots(scene, opts) -> list:
     img = snapshot.draw_snapshot(scene, st, snapshot.OverlayFlags.of(flags), vp, (w, h))
     d = st.setup.diagnostics
     if d.warp_frustum_corners is None:
-        notes.append(f"{warped} has no warp frustum here (its setup made {len(st.setup.maps)} plain map(s))")
+        notes.append(f"{warped} has no bounded warp frustum here (its setup made {len(st.setup.maps)} plain map(s), "
+                     f"or P reaches through infinity: its map's volume is drawn around B)")
     shots.append(Snapshot("observer", [(f"{warped}, {heat_size}², seen from outside", img)], flags, warped,
                           heat_size, len(st.setup.maps), notes))
     live.clear()

@@ -1,8 +1,11 @@
 """What the overlays draw equals the warp core's geometry: B's faces, the view
-frustum, each map's light frustum (inverse projection of the unit cube) and the
-warp frustum P. Computed without drawing, in background mode."""
+frustum, each map's light frustum (inverse projection of the unit cube; where it
+reaches through infinity, its part around B) and the warp frustum P. Computed
+without drawing, in background mode."""
 import importlib
+import json
 import math
+from pathlib import Path
 
 import bpy
 import numpy as np
@@ -22,7 +25,22 @@ def m(lixel):
     ns.types = importlib.import_module(f"{lixel.__name__}.addon.warp.types")
     ns.geometry = importlib.import_module(f"{lixel.__name__}.addon.warp.geometry")
     ns.describe = importlib.import_module(f"{lixel.__name__}.addon.scene.describe")
+    ns.config = importlib.import_module(f"{lixel.__name__}.addon.cli.config")
     return ns
+
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+
+def in_clip_volume(matrix, points, rel=1e-7):
+    """Which world points ``matrix`` maps into its clip volume: w > 0 and |NDC| <= 1 (to ``rel``)."""
+    h = np.c_[np.asarray(points).reshape(-1, 3), np.ones(len(np.asarray(points).reshape(-1, 3)))] @ matrix.T
+    return (h[:, 3] > 0) & np.all(np.abs(h[:, :3]) <= (1 + rel) * h[:, 3:], axis=1)
+
+
+def corners_behind(m, matrix):
+    """Whether a clip-volume corner has homogeneous w < 0: the divide by w puts it at a finite, mirrored point."""
+    return bool(np.any(m.geometry.clip_volume_corners_h(matrix)[:, 3] < 0))
 
 
 def polygon_area(poly):
@@ -73,11 +91,15 @@ def test_overlay_geometry_equals_the_warp_core(lixel, m, light_type):
             g = m.og.overlay_geometry(view, setup, body.faces)
             check_body(m.og, g, body)
             np.testing.assert_allclose(g["view_corners"], view.corners(), rtol=0, atol=0)
-            assert len(g["light_corners"]) == len(setup.maps)
-            for corners, smap in zip(g["light_corners"], setup.maps):
-                # the corners map to the unit cube's corners through the map's own matrix
-                h = np.c_[corners, np.ones(8)] @ smap.matrix.T
-                np.testing.assert_allclose(h[:, :3] / h[:, 3:], m.geometry.UNIT_CUBE_CORNERS, atol=1e-6)
+            assert len(g["light_faces"]) == len(setup.maps)
+            bounded = [m.geometry.finite_clip_volume_corners(s.matrix) is not None for s in setup.maps]
+            for faces, smap, whole in zip(g["light_faces"], setup.maps, bounded):
+                drawn = np.unique(np.concatenate(faces), axis=0)
+                assert in_clip_volume(smap.matrix, drawn).all(), method
+                if whole:   # a bounded volume's drawn vertices map to the unit cube's corners (w > 0)
+                    h = np.c_[drawn, np.ones(len(drawn))] @ smap.matrix.T
+                    assert len(drawn) == 8 and np.all(h[:, 3] > 0)
+                    np.testing.assert_allclose(np.abs(h[:, :3] / h[:, 3:]), 1.0, atol=1e-6)
             if setup.diagnostics.warp_frustum_corners is not None:
                 np.testing.assert_array_equal(g["warp_corners"], setup.diagnostics.warp_frustum_corners)
                 assert len(g["warp_lines"]) == 12
@@ -85,7 +107,7 @@ def test_overlay_geometry_equals_the_warp_core(lixel, m, light_type):
                 assert len(g["warp_lines"]) == 0
             # lines are the 12 edges of each hexahedron (a cascade's drawn with its splits)
             drawn = np.concatenate([g["light_lines"], *[split["light_lines"] for split in g["splits"]]])
-            assert len(drawn) == 12 * len(setup.maps)
+            assert len(drawn) >= 12 * len(setup.maps) and (len(drawn) == 12 * len(setup.maps) or not all(bounded))
             for a, b in g["view_lines"]:
                 assert np.sum(~np.isclose(a, b)) >= 1
 
@@ -98,8 +120,10 @@ def test_live_state_draws_what_the_core_computes(lixel, m):
         body = m.warp.focused_body(view, light, bounds, scene.lixel.to_settings().warp)   # (as the live state does)
         check_body(m.og, st.geometry, body)
         setup = m.warp.compute(st.method_used, view, light, bounds, scene.lixel.to_settings().warp, body=body)
-        for corners, smap in zip(st.geometry["light_corners"], setup.maps):
-            np.testing.assert_allclose(corners, m.geometry.clip_volume_corners(smap.matrix), rtol=1e-12, atol=1e-12)
+        for faces, smap in zip(st.geometry["light_faces"], setup.maps):
+            np.testing.assert_allclose(np.unique(np.concatenate(faces), axis=0),
+                                       np.unique(m.geometry.clip_volume_corners(smap.matrix), axis=0),
+                                       rtol=1e-12, atol=1e-12)
 
 
 def test_projection_centre_and_vectors_from_diagnostics(m):
@@ -189,3 +213,68 @@ def test_a_cascade_draws_each_split_in_its_own_colour(lixel, m):
         props = type("Props", (), {"show_body": True, "show_frusta": True, "show_warp": False})()
         colours = {c for name, c, _ in overlays.line_sets(props, g) if name.startswith("split")}
         assert len({overlays.COLOURS[c] for c in colours}) == 3
+
+
+THROUGH_INFINITY = [("sun_behind_camera", "cascade", True), ("terrain_point", "gmnpr", False),
+                    ("chess_spot", "glpr", False)]
+"""Examples where some map's clip volume passes through infinity (a corner at w < 0), with B focused on the
+visible region (as the live state does) or whole: the sun behind the camera's cascade, a point light's and a
+spot light's warped map."""
+
+
+def example_geometry(m, example, method, focused):
+    view, light, scene, _ = m.config.parse_config(json.loads((EXAMPLES / f"{example}.json").read_text()))
+    options = m.types.WarpOptions(shadow_map_size=1024)              # (as bench.cascade's judge)
+    body = (m.warp.focused_body(view, light, scene, options) if focused
+            else m.warp.intersection_body(view, light, scene))
+    setup = m.warp.compute(method, view, light, scene, options, body=body)
+    return setup, body, m.og.overlay_geometry(view, setup, body.faces)
+
+
+@pytest.mark.parametrize("example,method,focused", THROUGH_INFINITY)
+def test_every_drawn_point_of_a_map_lies_in_its_clip_volume(m, example, method, focused):
+    """The overlay draws what each map covers (w > 0, |NDC| <= 1), never the mirrored hexahedron that dividing
+    corners at w < 0 gives."""
+    setup, _body, g = example_geometry(m, example, method, focused)
+    assert any(corners_behind(m, s.matrix) for s in setup.maps)       # the case in question
+    for faces, smap in zip(g["light_faces"], setup.maps):
+        assert faces                                                    # every map is drawn
+        assert in_clip_volume(smap.matrix, np.concatenate(faces)).all()
+    owner = np.asarray(setup.diagnostics.extra.get("map_splits", np.zeros(len(setup.maps), dtype=int)))
+    drawn = [(split["light_lines"], np.flatnonzero(owner == i)) for i, split in enumerate(g["splits"])]
+    for lines, maps in drawn or [(g["light_lines"], range(len(setup.maps)))]:
+        assert len(lines) >= 12 * len(maps)
+        points = lines.reshape(-1, 3)
+        assert np.any([in_clip_volume(setup.maps[k].matrix, points) for k in maps], axis=0).all()
+
+
+def face_planes(faces):
+    """Outward unit normals and offsets of convex polygons (Newell's normal)."""
+    n = np.array([np.sum(np.cross(f, np.roll(f, -1, axis=0)), axis=0) for f in faces])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    return n, np.einsum("ij,ij->i", n, [f.mean(axis=0) for f in faces])
+
+
+@pytest.mark.parametrize("example,method,focused", THROUGH_INFINITY)
+def test_a_volume_through_infinity_is_drawn_as_its_part_within_the_bound(m, example, method, focused):
+    """Cut by B's box grown by ``VOLUME_MARGIN``: a point of that box is inside the drawn volume exactly when the
+    map covers it, and the drawn volume holds B's part that the map covers."""
+    setup, body, g = example_geometry(m, example, method, focused)
+    lo, hi = m.og.drawing_bound(body.faces)
+    margin = 1e-9 * np.linalg.norm(hi - lo)
+    samples = np.random.default_rng(7).uniform(lo, hi, (4000, 3))
+    b_vertices = np.concatenate(body.faces)
+    behind = [k for k, s in enumerate(setup.maps) if corners_behind(m, s.matrix)]
+    assert behind
+    for k in behind:
+        faces, matrix = g["light_faces"][k], setup.maps[k].matrix
+        drawn = np.concatenate(faces)
+        assert np.all(drawn >= lo - margin) and np.all(drawn <= hi + margin)
+        n, o = face_planes(faces)
+        height = samples @ n.T - o                                      # > 0: outside a face's plane
+        clear = np.abs(height).min(axis=1) > 1e-6 * np.linalg.norm(hi - lo)
+        inside_drawn = np.all(height <= 0, axis=1)
+        np.testing.assert_array_equal(inside_drawn[clear], in_clip_volume(matrix, samples[clear], rel=0.0))
+        assert inside_drawn.any()
+        covered = b_vertices[in_clip_volume(matrix, b_vertices, rel=-1e-6)]
+        assert np.all(covered @ n.T - o <= 1e-6 * np.linalg.norm(hi - lo))

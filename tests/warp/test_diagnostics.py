@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from addon.warp import Light, SceneBounds, View, WarpOptions, compute, intersection_body
-from addon.warp.geometry import clip_volume_corners, look_along
+from addon.warp.geometry import UNIT_CUBE_CORNERS, clip_volume_corners, clip_volume_corners_h, look_along
 from addon.cli.output import setup_json
 
 SCENE = SceneBounds.from_boxes([[[-50.0, -50.0, -0.1], [50.0, 50.0, 0.0]]]
@@ -43,3 +43,17 @@ def test_the_middle_vector_option_still_steers_the_warp():
     plain = compute("lispsm", view, light, SCENE, WarpOptions(), body=body)
     middle = compute("lispsm", view, light, SCENE, WarpOptions(middle_vector=True), body=body)
     assert not np.allclose(plain.maps[0].matrix, middle.maps[0].matrix)
+
+
+@pytest.mark.parametrize("method", ["lispsm", "gmnpr", "glpr"])
+def test_a_warp_frustum_through_infinity_reports_no_mirrored_corners(method):
+    """Where P passes through infinity (a clip corner at w < 0), dividing by w gives finite corners on the wrong
+    side: no corners are reported then (as PSM does), and reported corners are P's, each in front (w > 0)."""
+    from hard_cases import HARD_CASES
+    view, light, scene = HARD_CASES["point_light_in_camera_plane"]
+    setup = compute(method, view, light, scene, WarpOptions(shadow_map_size=1024))
+    assert len(setup.maps) == 1 and np.any(clip_volume_corners_h(setup.maps[0].matrix)[:, 3] < 0)   # P's map
+    assert setup.diagnostics.warp_frustum_corners is None
+    setup = compute(method, _view(), LIGHTS[1], SCENE, WarpOptions())
+    h = [np.c_[setup.diagnostics.warp_frustum_corners, np.ones(8)] @ m.matrix.T for m in setup.maps]
+    assert any(np.all(p[:, 3] > 0) and np.allclose(p[:, :3] / p[:, 3:], UNIT_CUBE_CORNERS) for p in h)

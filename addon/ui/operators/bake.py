@@ -51,9 +51,9 @@ def baked_items(st) -> list:
     g = st.geometry
     items = [("Lixel B", "body", "faces", st.body.faces),
              ("Lixel View Frustum", "view_frustum", "faces", [g["view_corners"][q] for q in HEXAHEDRON_QUADS])]
-    for i, corners in enumerate(g["light_corners"]):
-        items.append((f"Lixel Light Frustum {i} ({st.setup.maps[i].role})", "light_frustum", "faces",
-                      [corners[q] for q in HEXAHEDRON_QUADS]))
+    for i, faces in enumerate(g["light_faces"]):
+        if faces:
+            items.append((f"Lixel Light Frustum {i} ({st.setup.maps[i].role})", "light_frustum", "faces", faces))
     if g["warp_corners"] is not None:
         items.append(("Lixel Warp Frustum P", "warp_frustum", "faces", [g["warp_corners"][q] for q in HEXAHEDRON_QUADS]))
     for key, seg in g["vectors"].items():

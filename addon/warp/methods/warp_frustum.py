@@ -15,7 +15,7 @@ from ..body import IntersectionBody
 from ..diagnostics import Diagnostics
 from ..fit import fit_runs, window_matrices
 from ..frame import PARALLEL_BLEND, LightFrame, body_light_angles, light_frames, pyramid_sections
-from ..geometry import clip_volume_corners, homogeneous, point_runs, transform_h_runs
+from ..geometry import finite_clip_volume_corners, homogeneous, point_runs, transform_h_runs
 from ..linear_depth import frame_depth_row
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .common import NEAR_PLANE_NOTE, frame_maps
@@ -449,7 +449,7 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
             diag.extra["n_opt"] = _finite_or_none(w.p_n)
             diag.extra["phi"] = phi
         diag.extra["warp_strength_mu"] = w.mu
-        diag.warp_frustum_corners = clip_volume_corners(w.matrix)
+        diag.warp_frustum_corners = finite_clip_volume_corners(w.matrix)
         diag.extra["v_p"] = geo.v_p_world if geo.v_p_world is not None else np.zeros(3)
         diag.extra["projection_centre"] = projection_centre(frame, geo, w.lam_frame)
     if not reported:                     # no warped map: the angles to the light's axis, as for a uniform map
