@@ -42,7 +42,7 @@ TEXEL_MODIFIER = "Lixel Texel Grid"
 FRUSTUM_MODIFIER = "Lixel Frustum"
 VERSION_KEY = "lixel_version"
 TEXEL_GROUP_VERSION = 1
-FRUSTUM_GROUP_VERSION = 1
+FRUSTUM_GROUP_VERSION = 2
 MATERIAL_VERSION = 1
 
 
@@ -220,7 +220,9 @@ def ensure_texel_grid_group():
 
 def ensure_frustum_group():
     """The "Lixel Frustum From Matrix" group: the clip volume of map ``Map Index``
-    of the carrier, in the modified object's local space."""
+    of the carrier, in the modified object's local space; nothing where that volume
+    reaches through infinity (a corner at homogeneous w <= 0, which the divide by w
+    would mirror into a box the map does not cover)."""
     tree, current = _reset_tree(FRUSTUM_GROUP, "GeometryNodeTree", FRUSTUM_GROUP_VERSION)
     if tree is None:
         return current
@@ -249,7 +251,16 @@ def ensure_frustum_group():
     setpos = b.node("GeometryNodeSetPosition")
     b.link(_socket(cube.outputs, "Mesh"), _socket(setpos.inputs, "Geometry"))
     b.link(local, _socket(setpos.inputs, "Position"))
-    b.link(_socket(setpos.outputs, "Geometry"), gout.inputs[0])
+    stat = b.node("GeometryNodeAttributeStatistic", data_type="FLOAT", domain="POINT")
+    b.link(_socket(cube.outputs, "Mesh"), _socket(stat.inputs, "Geometry"))
+    b.link(w, _socket(stat.inputs, "Attribute"))
+    behind = b.node("FunctionNodeCompare", data_type="FLOAT", operation="LESS_EQUAL")
+    b.link(_socket(stat.outputs, "Min"), _socket(behind.inputs, "A"))
+    _socket(behind.inputs, "B").default_value = 0.0
+    delete = b.node("GeometryNodeDeleteGeometry", domain="POINT")
+    b.link(_socket(setpos.outputs, "Geometry"), _socket(delete.inputs, "Geometry"))
+    b.link(_socket(behind.outputs, "Result"), _socket(delete.inputs, "Selection"))
+    b.link(_socket(delete.outputs, "Geometry"), gout.inputs[0])
     tree[VERSION_KEY] = FRUSTUM_GROUP_VERSION
     return tree
 

@@ -1,7 +1,8 @@
 """Geometry-node tooling: the texel attribute the Texel Grid group evaluates
 equals numpy's per vertex (explicit homogeneous divide), the frustum group's
-mesh is the inverse projection of the unit cube, both follow the matrices when
-they change, and building is idempotent and versioned."""
+mesh is the inverse projection of the unit cube (nothing where a corner is at
+w <= 0 and would come out mirrored), both follow the matrices when they change,
+and building is idempotent and versioned."""
 import importlib
 import math
 
@@ -131,6 +132,17 @@ def test_frustum_from_matrix_is_the_inverse_projected_cube(scene, nodes, wg):
         scale = np.linalg.norm(expect.max(axis=0) - expect.min(axis=0))
         assert d.min(axis=1).max() < 1e-5 * scale
         assert sorted(d.argmin(axis=1)) == list(range(8))
+
+
+def test_frustum_from_matrix_draws_no_mirrored_box_for_a_volume_through_infinity(scene, nodes, wg):
+    """A clip volume with a corner at w < 0 is not the hexahedron of its divided corners: nothing is drawn."""
+    through_infinity = np.random.default_rng(2).normal(size=(4, 4))
+    assert np.sum(wg.clip_volume_corners_h(through_infinity)[:, 3] < 0) == 1
+    carrier = nodes.ensure_carrier(scene, _Setup(_Map(through_infinity, (512, 512))))
+    ob = nodes.add_frustum_object(scene, carrier, 0)
+    assert len(evaluated_points(ob, ["position"])["position"]) == 0
+    nodes.ensure_carrier(scene, _Setup(_Map(perspective_light(wg, (1.0, 2.0, 9.0), (0.0, 0.0, 0.0)), (512, 512))))
+    assert len(evaluated_points(ob, ["position"])["position"]) == 8                # a bounded one is drawn again
 
 
 def test_groups_are_idempotent_and_versioned(scene, nodes):

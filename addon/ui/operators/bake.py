@@ -7,6 +7,7 @@ from bpy.props import BoolProperty, IntProperty
 
 from ...guard import guarded_operator
 from ...scene.owned import DEBUG_KEY, is_lixel_made
+from ...warp.geometry import finite_clip_volume_corners
 from .. import nodes
 from ..overlay_geometry import HEXAHEDRON_QUADS
 from .common import LixelSceneOperator
@@ -149,7 +150,10 @@ class LIXEL_OT_frustum_add(LixelSceneOperator, bpy.types.Operator):
             return {"CANCELLED"}
         carrier = nodes.ensure_carrier(context.scene, st.setup)
         ob = nodes.add_frustum_object(context.scene, carrier, self.map_index)
-        self.report({"INFO"}, f"Lixel: '{ob.name}' follows map {self.map_index}")
+        unbounded = finite_clip_volume_corners(st.setup.maps[self.map_index].matrix) is None
+        self.report({"INFO"}, f"Lixel: '{ob.name}' follows map {self.map_index}" + (
+            " (empty for now: this map's volume reaches through infinity; the light frustum overlay shows its part "
+            "around B)" if unbounded else ""))
         return {"FINISHED"}
 
 
