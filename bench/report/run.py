@@ -141,9 +141,11 @@ def scene_path(name: str, workdir: Path, log) -> Path:
 
 # --------------------------------------------------------------------------- helpers
 
-SAME_SURFACE_RAD = 0.01
+SAME_SURFACE_RAD = 0.05
 """Largest angle between the pipeline's and the ray caster's normals at a pixel showing the same surface: the
-pre-pass normal is within about 5e-4 rad of its triangle's; a box's faces meet at 90 degrees."""
+pre-pass normal is within about 5e-4 rad of its triangle's, and a non-planar quad that the ray caster's BVH
+splits along the other diagonal tilts by up to 1e-2 rad (the terrain sample's ground, 9.6e-3); a box's faces
+meet at 90 degrees, a 32-sided cylinder's at 11."""
 
 
 def comparable_mask(gt, frame) -> np.ndarray:

@@ -1,4 +1,5 @@
 """Texel footprint on analytic cases."""
+import dataclasses
 import math
 
 import numpy as np
@@ -6,7 +7,7 @@ import pytest
 
 from addon.measure.footprint import footprint_stats, setup_footprints
 from addon.warp.geometry import look_along, ortho_matrix
-from addon.warp.types import Diagnostics, ShadowMap, ShadowSetup, View
+from addon.warp.types import Diagnostics, Region, ShadowMap, ShadowSetup, View
 
 
 def _top_down_view(height, fov_y_deg, res):
@@ -159,3 +160,13 @@ def test_a_grid_phase_moves_every_texel_coordinate_by_the_offset_and_keeps_the_d
         return (h[:, :2] / h[:, 3:] * 0.5 + 0.5) * [500, 400], h[:, 2] / h[:, 3]
     (a, za), (b, zb) = texel_and_depth(m.matrix), texel_and_depth(moved.matrix)
     assert np.allclose(b - a, [0.25, 0.75], atol=1e-9) and np.allclose(za, zb, atol=0)
+
+
+def test_a_grid_phase_leaves_a_plane_maps_lixels_on_their_pixels():
+    """Chong-Gortler §2 places a plane map's lixels on the pixels: its grid has no free phase to move."""
+    from bench.edge_footprint import shifted
+    m = ShadowMap(ortho_matrix(-10, 10, -10, 10, 1, 100) @ look_along([0, 0, 50], [0, 0, -1], [0, 1, 0]), (500, 400))
+    plane = dataclasses.replace(m, region=Region(np.array([0.0, 0.0, 1.0]), 0.0,
+                                                 np.array([[-5.0, -5, 0], [5, -5, 0], [5, 5, 0], [-5, 5, 0]]), 1e-6))
+    kept, moved = shifted(ShadowSetup([plane, m], Diagnostics("plane_optimal")), (0.5, 0.5)).maps
+    assert kept is plane and not np.array_equal(moved.matrix, m.matrix)
