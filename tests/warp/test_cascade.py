@@ -28,12 +28,12 @@ import numpy as np
 import pytest
 
 from addon.measure.box_scene import judge, visible_points
-from addon.measure.footprint import setup_texel_footprint
+from addon.measure.footprint import setup_texel_footprint, texel_footprint
 from addon.warp import WarpError, WarpOptions, compute, intersection_body
 from addon.warp.aliasing import perspective_aliasing
 from addon.warp.geometry import transform_points
 from addon.cli.config import ConfigError, parse_config
-from addon.warp.methods.cascade import SPLIT_WARPS, Trials, cascade
+from addon.warp.methods.cascade import SPLIT_WARPS, Trials, cascade, stretched
 from addon.warp.partition.adaptive import max_error
 from addon.warp.partition.budget import shared_sizes
 from addon.warp.partition.receivers import TAIL, footprint_p95, footprints, receivers, turned
@@ -268,8 +268,36 @@ def test_a_stable_cascade_does_not_follow_what_the_camera_sees():
         assert same == stable
 
 
+def test_a_wider_layout_of_the_same_texels_shortens_a_texel_across_a_wall_nearly_edge_on_to_the_light():
+    """PSM §1.1, dp = ds·r_s·cosβ/(r_i·cosα): on a wall at cos α = 0.05 to the light whose steep direction images
+    along the map's x, a texel's length is ds along x over cos α; the same texels laid out 2:1 wider cut ds, and
+    the footprint, by √2."""
+    view, light, scene = example("outdoor_sun")
+    split = Trials(view, light, scene, dataclasses.replace(OPTIONS, cascade_warp="uniform")).split(6.0, 40.0, 0.0)
+    square = split.setup.maps[0]
+    wide = dataclasses.replace(square, size=stretched(square.size)[0])
+    assert wide.size[0] * wide.size[1] == pytest.approx(square.size[0] * square.size[1], rel=1e-3)
+    x = square.matrix[0, :3] / np.linalg.norm(square.matrix[0, :3])        # the image's x across ℓ (orthographic)
+    wall = np.sqrt(1.0 - 0.05 ** 2) * x + 0.05 * light.direction
+    points = split.body.visible_vertices
+    ratio = texel_footprint(view, wide, points, np.tile(wall, (len(points), 1))) \
+        / texel_footprint(view, square, points, np.tile(wall, (len(points), 1)))
+    assert np.allclose(ratio, 1.0 / np.sqrt(2.0), rtol=0.02)
+
+
+@pytest.mark.parametrize("config", configurations(), ids=config_ids())
+def test_each_map_of_a_per_map_cascade_holds_the_configured_texels(config):
+    """Equal texels with the classic PSSM: each map w·h of ``shadow_map_size``, square or ``stretched`` (never past the
+    GPU's 16384 a side)."""
+    view, light, scene = config
+    for m in compute("cascade", view, light, scene, OPTIONS).maps:
+        assert m.size in [(1024, 1024), *stretched((1024, 1024))]
+        assert m.size[0] * m.size[1] == pytest.approx(1024 * 1024, rel=1e-3)
+    assert stretched((1024, 1024)) == [(1448, 724), (724, 1448)] and stretched((16384, 16384)) == []
+
+
 def test_a_shared_budget_keeps_the_texels_and_gives_them_where_the_error_is():
-    sizes = shared_sizes((2048, 2048), [1.0, 2.0, 4.0])
+    sizes = shared_sizes([(2048, 2048)] * 3, [1.0, 2.0, 4.0])
     assert sum(w * h for w, h in sizes) == pytest.approx(2048 * 2048, rel=0.01)
     assert sizes[0][0] < sizes[1][0] < sizes[2][0]
     assert sizes[2][0] / sizes[1][0] == pytest.approx(2.0, rel=0.01)

@@ -23,6 +23,7 @@ from ..types import EmptyBodyError, Light, SceneBounds, ShadowSetup, View, WarpE
 from ..visibility import VisibleRegion
 from .common import body_diagnostics
 from .lispsm import gmnpr, lispsm
+from .plane_optimal import MAX_SIDE
 from .psm import psm
 from .uniform import uniform
 
@@ -31,6 +32,17 @@ SPLIT_WARPS = {"uniform": uniform, "lispsm": lispsm, "gmnpr": gmnpr, "psm": psm}
 TIE, MARGIN, SWEEPS, FRACTIONS = 1e-6, 0.03, 2, (0.2, 0.4, 0.6, 0.8)
 """Relative differences of Lloyd's m (rounding noise) and of the receivers' p95 (a sample) taken as ties; the split
 search's sweeps, each trying every inner split depth at these fractions of its range (``searched_depths``)."""
+ASPECTS = (2.0, 0.5)
+"""Each single map's texels also laid out this much wider (or taller), w·h kept, for the receivers' footprint to pick:
+on a wall nearly edge-on to the light a texel's length is ds/cos α (PSM §1.1), ds its side along one image axis."""
+
+
+def stretched(size: tuple) -> list[tuple[int, int]]:
+    """``size``'s texels w·h laid out by each of ``ASPECTS`` (w:h that much wider), those within ``MAX_SIDE``."""
+    laid = [(int(round(size[0] * math.sqrt(a))), int(round(size[1] / math.sqrt(a)))) for a in ASPECTS]
+    return [s for s in laid if max(s) <= MAX_SIDE]
+
+
 MAX_MAPS = 8
 """The most maps the shading pass reads (``addon.gpu.shaders.MAX_MAPS``)."""
 OVERLAP = 1e-4
@@ -121,12 +133,14 @@ class Trials:
 
     def candidates(self, split: Split, far: float) -> list:
         """(warp, setup, ``footprints`` at the receivers at eye depths [C_i, ``far``)) of each warp ``split`` tried
-        (Lloyd's pick first), then of each single map of those ``turned``."""
+        (Lloyd's pick first), then of each single map of those ``turned``, then of each single map ``stretched``."""
         maps = sorted(split.tried, key=lambda t: t[1] is not split.setup)
         for w, m in maps[:len(split.tried)]:
             turns = self.once(("turned", split.near, split.far + split.band, w), lambda: [] if len(m.maps) > 1
                               else turned(m.maps[0].matrix, split.body.vertices))
             maps += [(w, dataclasses.replace(m, maps=[dataclasses.replace(m.maps[0], matrix=t)])) for t in turns]
+        maps += [(w, dataclasses.replace(m, maps=[dataclasses.replace(m.maps[0], size=size)])) for w, m in maps
+                 if len(m.maps) == 1 for size in stretched(m.maps[0].size)]
         depth = self.view.eye_depth(self.seen[0])
         seen = tuple(x[(depth >= split.near) & (depth < far)] for x in self.seen)
         return [(w, m, f) for (w, m), f in zip(maps, footprints([m for _, m in maps], seen) if maps else [])]
@@ -212,8 +226,8 @@ def cascade_maps(view: View, light: Light, splits: list, options: WarpOptions) -
     to the one before), blend bands, and which split owns each."""
     filled = [i for i, s in enumerate(splits) if s.setup is not None]
     errors = [splits[i].predicted_error for i in filled for _ in splits[i].setup.maps]
-    sizes = iter([options.shadow_map_size] * len(errors) if options.cascade_budget == "per_map"
-                 else shared_sizes(options.shadow_map_size, errors))
+    given = [m.size for i in filled for m in splits[i].setup.maps]               # per_map: PSSM's texels each
+    sizes = iter(given if options.cascade_budget == "per_map" else shared_sizes(given, errors))
     maps, owner = [], []
     for k, i in enumerate(filled):
         split = splits[i]

@@ -8,10 +8,11 @@ SMALLEST_SIDE = 16
 """No shared map is narrower than this many texels."""
 
 
-def shared_sizes(size: tuple[int, int], errors) -> list[tuple[int, int]]:
-    """Each map's (w, h): ``size``'s texels ∝ the maps' errors squared, ``size``'s aspect kept."""
+def shared_sizes(sizes, errors) -> list[tuple[int, int]]:
+    """Each map's (w, h): the texels of one of ``sizes`` (each map's, all of one count) ∝ the maps' errors squared,
+    each map's aspect kept."""
     e = np.asarray(errors, dtype=np.float64)
     e = np.where(np.isfinite(e) & (e > 0), e, np.nanmax(np.where(np.isfinite(e), e, np.nan), initial=1.0))
     scale = e / np.sqrt(np.sum(e * e))                       # each side ∝ sqrt of its share
-    sides = np.clip(np.rint(np.outer(scale, size)), SMALLEST_SIDE, 16384).astype(int)
+    sides = np.clip(np.rint(scale[:, None] * np.asarray(sizes, dtype=np.float64)), SMALLEST_SIDE, 16384).astype(int)
     return [(int(a), int(b)) for a, b in sides]
