@@ -31,8 +31,8 @@ DEFINITIONS = [
     ("Ground truth", "exact hard shadows per pixel: the first hit of the camera ray in a BVH of the scene's "
                      "triangles, then a ray from that point to the light."),
     ("Counted pixels", "a surface is visible, it faces the light and (spot) lies in the cone; Lixel pixels where "
-                       "the rasterized surface differs from the ray-cast one (silhouettes) are left out and counted "
-                       "as 'excluded'."),
+                       "the rasterized surface differs from the ray-cast one (silhouettes), or shows the same point on "
+                       "another face (a box's edge), are left out and counted as 'excluded'."),
     ("error %", "misclassified counted pixels; false shadow = dark where the truth is lit (red in the error "
                 "images), false light = lit where the truth is dark (blue); 'at edges' = within 2 px of a true "
                 "shadow edge."),

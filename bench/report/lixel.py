@@ -11,6 +11,7 @@ a change of its type touches only :func:`frame`. The timed frames
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import Optional
 
 import numpy as np
 
@@ -46,6 +47,7 @@ class LixelFrame:
     cpu_seconds: float              # process CPU time of the whole frame (every thread)
     stages: dict = field(default_factory=dict)   # the engine's own stage times (seconds)
     warnings: list = field(default_factory=list)
+    world_normal: Optional[np.ndarray] = None   # (H, W, 3) the surface's normal, NaN off-surface (crease pixels)
 
 
 def timed_frame(depsgraph, settings, resolution) -> tuple[float, float]:
@@ -82,6 +84,7 @@ def frame(depsgraph, settings, resolution) -> LixelFrame:
         shadow=np.asarray(res.shadow_raw) >= SHADOW_THRESHOLD,
         covered=np.asarray(res.covered, dtype=bool),
         world_position=np.asarray(res.world_position, dtype=np.float64),
+        world_normal=None if res.world_normal is None else np.asarray(res.world_normal, dtype=np.float64),
         map_index=np.asarray(res.map_index),
         combined=np.asarray(res.combined)[..., :3],
         shadow_maps=list(res.shadow_maps),

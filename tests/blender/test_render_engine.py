@@ -294,3 +294,20 @@ def test_the_viewport_and_the_engine_share_one_scene_cache(engine, scene, lixel)
     importlib.import_module(lixel.__name__ + ".addon.gpu.context").ensure_gpu_context()
     engine.render_depsgraph(dg)
     assert geometry_mod.shared_cache().update(dg, exclude=engine.is_debug_object).instances.bounds is st.bounds
+
+
+def test_the_reports_frame_says_which_face_each_pixel_shows(engine, scene, lixel):
+    """The report judges a frame as bench.rendered_error does: its frame carries the face normal of every pixel
+    (NaN off the surfaces), so ``comparable_mask`` leaves out the crease pixels where the rasterizer and the ray
+    caster saw one point of a box on two faces."""
+    from bench.report.lixel import frame, report_settings
+    build(scene)
+    importlib.import_module(lixel.__name__ + ".addon.gpu.context").ensure_gpu_context()
+    dg = scene.view_layers[0].depsgraph
+    dg.update()
+    fr = frame(dg, report_settings("uniform", 512), (96, 64))
+    assert fr.world_normal is not None and fr.world_normal.shape == fr.world_position.shape
+    seen = fr.world_normal[fr.covered]
+    assert len(seen) > 1000 and np.all(np.isnan(fr.world_normal[~fr.covered]))
+    axes = np.abs(seen).max(axis=1)                  # the ground and the box's faces are axis-aligned
+    assert np.all(axes > math.cos(1e-3))
