@@ -131,16 +131,16 @@ class Trials:
         return [self.split(a, b, 0.0 if i == len(c) - 2 else self.options.cascade_blend * (b - a),
                            None if warps is None else [warps[i]]) for i, (a, b) in enumerate(zip(c[:-1], c[1:]))]
 
-    def candidates(self, split: Split, far: float) -> list:
+    def candidates(self, split: Split, far: float, laid: bool = True) -> list:
         """(warp, setup, ``footprints`` at the receivers at eye depths [C_i, ``far``)) of each warp ``split`` tried
-        (Lloyd's pick first), then of each single map of those ``turned``, then of each single map ``stretched``."""
+        (Lloyd's pick first), then of each single map of those ``turned``, then (``laid``) of each ``stretched``."""
         maps = sorted(split.tried, key=lambda t: t[1] is not split.setup)
         for w, m in maps[:len(split.tried)]:
             turns = self.once(("turned", split.near, split.far + split.band, w), lambda: [] if len(m.maps) > 1
                               else turned(m.maps[0].matrix, split.body.vertices))
             maps += [(w, dataclasses.replace(m, maps=[dataclasses.replace(m.maps[0], matrix=t)])) for t in turns]
         maps += [(w, dataclasses.replace(m, maps=[dataclasses.replace(m.maps[0], size=size)])) for w, m in maps
-                 if len(m.maps) == 1 for size in stretched(m.maps[0].size)]
+                 if len(m.maps) == 1 and laid for size in stretched(m.maps[0].size)]
         depth = self.view.eye_depth(self.seen[0])
         seen = tuple(x[(depth >= split.near) & (depth < far)] for x in self.seen)
         return [(w, m, f) for (w, m), f in zip(maps, footprints([m for _, m in maps], seen) if maps else [])]
@@ -166,9 +166,10 @@ class Trials:
         return splits, [c[k][2] for (_, c), k in zip(scored, pick)]
 
     def least(self, split: Split, far: float) -> np.ndarray:
-        """The footprints of ``split``'s candidate of least p95 at the receivers at eye depths [C_i, ``far``)."""
+        """The footprints of ``split``'s square candidate of least p95 at the receivers at eye depths [C_i, ``far``)
+        (the split search's: the layouts come after it)."""
         return self.once(("least", split.near, far, split.warp), lambda: min(
-            [f for *_, f in self.candidates(split, far)], key=lambda f: footprint_p95([f]), default=np.zeros(0)))
+            [f for *_, f in self.candidates(split, far, False)], key=lambda f: footprint_p95([f]), default=np.zeros(0)))
 
     def searched_depths(self, start: np.ndarray, warps: list) -> np.ndarray:
         """``start`` after ``SWEEPS`` coordinate sweeps of the inner ones over ``FRACTIONS`` of their neighbours'
