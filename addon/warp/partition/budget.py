@@ -1,5 +1,6 @@
-"""A cascade's texels: ``per_map`` (PSSM) gives every map ``shadow_map_size``; ``shared`` shares that size's texels so
-the predicted errors come out equal: E ∝ 1/sqrt(texels), so map i takes texels ∝ E_i² (the least largest error)."""
+"""A cascade's texels: ``per_map`` (PSSM) gives every map ``shadow_map_size``'s texels (square or laid out 2:1,
+``methods.cascade.stretched``); ``shared`` shares them so the predicted errors come out equal: E ∝ 1/sqrt(texels), so
+map i takes texels ∝ E_i² (the least largest error)."""
 from __future__ import annotations
 
 import numpy as np
