@@ -9,10 +9,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 
-from .warp.types import WarpOptions, WarpError
+from .warp.types import MAX_MAP_SIDE, WarpOptions, WarpError
 
 MIN_MAP_SIZE = 16
-MAX_MAP_SIZE = 16384
+MAX_MAP_SIZE = MAX_MAP_SIDE
 """A scene's shadow map side in texels: at most the GPU's largest texture (shared
 notes §8.8); below 16 texels a map cannot resolve a shadow, so a smaller value is
 a typing slip that Lixel refuses rather than renders."""

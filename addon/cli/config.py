@@ -24,7 +24,7 @@ import numpy as np
 
 from ..warp import MAX_COORDINATE
 from ..warp.geometry import ortho_matrix
-from ..warp.types import Light, SceneBounds, View, WarpError, WarpOptions
+from ..warp.types import MAX_MAP_SIDE, Light, SceneBounds, View, WarpError, WarpOptions
 
 
 class ConfigError(WarpError):
@@ -122,8 +122,8 @@ def _size(value, field: str) -> tuple[int, int]:
         w, h = value
     else:
         raise ConfigError(f"{field}: must be an int or [w, h] of ints (got {value!r})")
-    if not (1 <= w <= 16384 and 1 <= h <= 16384):
-        raise ConfigError(f"{field}: must be between 1 and 16384 texels per side (got {value!r})")
+    if not (1 <= w <= MAX_MAP_SIDE and 1 <= h <= MAX_MAP_SIDE):
+        raise ConfigError(f"{field}: must be between 1 and {MAX_MAP_SIDE} texels per side (got {value!r})")
     return int(w), int(h)
 
 

@@ -303,6 +303,8 @@ class ShadowSetup:
         return idx
 
 
+MAX_MAP_SIDE = 16384
+"""The longest side of any shadow map, in texels: the GPU's largest texture (shared notes §8.8)."""
 CASCADE_WARPS = ("uniform", "psm", "lispsm", "gmnpr", "auto")
 """What ``WarpOptions.cascade_warp`` may name: a split's warp, or "auto"."""
 FOCUS_MODES = ("visible", "view")
@@ -361,8 +363,8 @@ class WarpOptions:
         if isinstance(size, (int, np.integer)):
             size = (int(size), int(size))
         w, h = (int(v) for v in size)
-        if not (1 <= w <= 16384 and 1 <= h <= 16384):
-            raise WarpError(f"shadow map size must be between 1 and 16384 texels per side (got {w}x{h})")
+        if not (1 <= w <= MAX_MAP_SIDE and 1 <= h <= MAX_MAP_SIDE):
+            raise WarpError(f"shadow map size must be between 1 and {MAX_MAP_SIDE} texels per side (got {w}x{h})")
         object.__setattr__(self, "shadow_map_size", (w, h))
         for name, choices in CHOICES.items():
             if getattr(self, name) not in choices:

@@ -19,11 +19,10 @@ from ..partition.budget import shared_sizes
 from ..partition.receivers import TAIL, footprint_p95, footprints, receivers, turned
 from ..partition.splits import practical_splits, split_region, split_view, tightened_depth_range
 from ..partition.stable import stable_depth_range, stable_spot_map, stable_sun_map
-from ..types import EmptyBodyError, Light, SceneBounds, ShadowSetup, View, WarpError, WarpOptions
+from ..types import MAX_MAP_SIDE, EmptyBodyError, Light, SceneBounds, ShadowSetup, View, WarpError, WarpOptions
 from ..visibility import VisibleRegion
 from .common import body_diagnostics
 from .lispsm import gmnpr, lispsm
-from .plane_optimal import MAX_SIDE
 from .psm import psm
 from .uniform import uniform
 
@@ -38,9 +37,9 @@ on a wall nearly edge-on to the light a texel's length is ds/cos α (PSM §1.1),
 
 
 def stretched(size: tuple) -> list[tuple[int, int]]:
-    """``size``'s texels w·h laid out by each of ``ASPECTS`` (w:h that much wider), those within ``MAX_SIDE``."""
+    """``size``'s texels w·h laid out by each of ``ASPECTS`` (w:h that much wider), those within ``MAX_MAP_SIDE``."""
     laid = [(int(round(size[0] * math.sqrt(a))), int(round(size[1] / math.sqrt(a)))) for a in ASPECTS]
-    return [s for s in laid if max(s) <= MAX_SIDE]
+    return [s for s in laid if max(s) <= MAX_MAP_SIDE]
 
 
 MAX_MAPS = 8

@@ -17,10 +17,9 @@ from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_to_polygon, corner_ra
                          enclosing_polygon, flattest_box, is_convex_polygon, min_area_twist, offset_directions,
                          plane_light_matrix, polygon_area, rotation2d)
 from ..polyhedron import Edges, convex_polygon_on_plane, plane_section, section_points
-from ..types import Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
+from ..types import MAX_MAP_SIDE, Light, Region, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .common import body_diagnostics, frame_maps, near_plane_notes
 
-MAX_SIDE = 16384
 MAX_REGION_VERTICES = 32
 """A region polygon has at most this many vertices (the shader's limit,
 ``addon.gpu.shaders.MAX_POLYGON``); a larger one is replaced by an enclosing one."""
@@ -358,15 +357,15 @@ def _choose_twists(jobs: list[PlaneMap], always: bool) -> None:
 
 
 def _fraction_of_a_lixel(jobs: list[PlaneMap], budget: float) -> float:
-    """The largest s <= 1 (to 0.1 %) whose rectangles take at most ``budget`` texels, none wider than MAX_SIDE."""
+    """The largest s <= 1 (to 0.1 %) whose rectangles take at most ``budget`` texels, none wider than MAX_MAP_SIDE."""
     s = 1.0
     for _ in range(60):
         rects = _rects(jobs, s)
         total = sum(map(_texels, rects))
         side = max(max(r[2] - r[0], r[3] - r[1]) for r in rects)
-        if total <= budget and side <= MAX_SIDE:
+        if total <= budget and side <= MAX_MAP_SIDE:
             return s
-        shrink = min(math.sqrt(budget / total), MAX_SIDE / side)
+        shrink = min(math.sqrt(budget / total), MAX_MAP_SIDE / side)
         s *= min(shrink, 1.0) * (1 - 1e-3) if shrink < 1 - 1e-3 else (1 - 1e-3)
     raise WarpError("plane_optimal: could not fit the plane maps into the texel budget")
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..types import MAX_MAP_SIDE
+
 SMALLEST_SIDE = 16
 """No shared map is narrower than this many texels."""
 
@@ -15,5 +17,5 @@ def shared_sizes(sizes, errors) -> list[tuple[int, int]]:
     e = np.asarray(errors, dtype=np.float64)
     e = np.where(np.isfinite(e) & (e > 0), e, np.nanmax(np.where(np.isfinite(e), e, np.nan), initial=1.0))
     scale = e / np.sqrt(np.sum(e * e))                       # each side ∝ sqrt of its share
-    sides = np.clip(np.rint(scale[:, None] * np.asarray(sizes, dtype=np.float64)), SMALLEST_SIDE, 16384).astype(int)
+    sides = np.clip(np.rint(scale[:, None] * np.asarray(sizes, dtype=np.float64)), SMALLEST_SIDE, MAX_MAP_SIDE).astype(int)
     return [(int(a), int(b)) for a, b in sides]
