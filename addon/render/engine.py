@@ -248,6 +248,16 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     return {"setup": setup, "settings": settings, "result": result, "scene": scene.name, "method": method}
 
 
+def result_window(render, w: int, h: int) -> tuple[int, int, int, int]:
+    """(x0, y0, x1, y1), row 0 at the bottom, of the (w, h) frame that Blender's render result holds: the render
+    border when one is on (Blender sizes the result to it, truncating ``border * size`` as its pipeline does; the
+    frame is rendered whole and cut), else the whole frame."""
+    if not render.use_border:
+        return 0, 0, w, h
+    return (int(render.border_min_x * w), int(render.border_min_y * h),
+            int(render.border_max_x * w), int(render.border_max_y * h))
+
+
 def _set_pass(layer, name: str, data: np.ndarray) -> None:
     rp = layer.passes.find_by_name(name, "") if hasattr(layer.passes, "find_by_name") else layer.passes.get(name)
     if rp is None:
@@ -289,14 +299,14 @@ class LixelRenderEngine(bpy.types.RenderEngine):
             got.append({**out, "warnings": tuple(warnings)})
         res = out["result"]
         t = time.perf_counter()
-        w, h = res.resolution  # the full frame (a render border is not cropped)
+        x0, y0, x1, y1 = result_window(depsgraph.scene.render, *res.resolution)
         for name, channels, chan_id, *_ in passes:
             self.add_pass(name, channels, chan_id)
-        result = self.begin_result(0, 0, w, h)
+        result = self.begin_result(0, 0, x1 - x0, y1 - y0)
         layer = result.layers[0]
-        _set_pass(layer, "Combined", res.combined)
+        _set_pass(layer, "Combined", res.combined[y0:y1, x0:x1])
         for name, *_, image in passes:
-            _set_pass(layer, name, getattr(res, image))
+            _set_pass(layer, name, getattr(res, image)[y0:y1, x0:x1])
         self.end_result(result)
         res.timings["passes"] = time.perf_counter() - t
         c = res.counts

@@ -77,6 +77,33 @@ def test_render_writes_lixel_shadows(engine, scene, tmp_path):
         bpy.data.images.remove(img)
 
 
+@pytest.mark.parametrize("crop", [True, False])
+def test_a_render_border_gets_its_part_of_the_frame(engine, scene, tmp_path, capfd, crop):
+    """Render Region (Output properties > Format): Blender's result holds only the border's pixels; the engine
+    fills it with that part of the frame, cropped to it in the file or not."""
+    build(scene)
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.filepath = str(tmp_path / "frame.exr")
+    scene.render.use_border, scene.render.use_crop_to_border = True, crop
+    r = scene.render
+    r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.21, 0.77, 0.13, 0.59
+    with engine.watch_renders() as got:
+        assert bpy.ops.render.render(write_still=True, scene=scene.name) == {"FINISHED"}
+    assert "Traceback" not in capfd.readouterr().err
+    x0, x1, y0, y1 = int(0.21 * 96), int(0.77 * 96), int(0.13 * 64), int(0.59 * 64)
+    img = bpy.data.images.load(str(tmp_path / "frame.exr"))
+    try:
+        w, h = img.size
+        px = np.empty(w * h * img.channels, dtype=np.float32)
+        img.pixels.foreach_get(px)
+    finally:
+        bpy.data.images.remove(img)
+    part = px.reshape(h, w, -1)[..., :3] if crop else px.reshape(h, w, -1)[y0:y1, x0:x1, :3]
+    assert (w, h) == ((x1 - x0, y1 - y0) if crop else (96, 64))
+    np.testing.assert_allclose(part, got[-1]["result"].combined[y0:y1, x0:x1, :3], atol=1e-5)
+    assert part.max() > 0
+
+
 def test_view_layer_switches_choose_the_passes(engine, scene):
     """Shadow on, Footprint and Shadow Map off by default; each switch adds its
     pass (and only then is it drawn and read back)."""
