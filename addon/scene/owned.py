@@ -7,6 +7,10 @@ geometry-node helpers) and every datablock Lixel made for them.
   Lixel gave it. Lixel finds its datablocks by that mark, never by name alone:
   when a user's datablock already has the name, Lixel's gets Blender's next free
   name ("Lixel B.001") and the user's is never touched (:func:`lixel_datablock`).
+* The mark also holds the datablock's own name when it was made (``NAME_KEY``).
+  A copy the user makes (Shift+D copies custom properties) gets another name, as
+  does a datablock the user renames to keep: either is the user's from then on,
+  and Lixel neither reuses, rewrites nor removes it.
 
 The scene layer, the render engine and the UI all ask here; no bpy import.
 """
@@ -16,6 +20,8 @@ DEBUG_KEY = "lixel_debug"
 """Custom property marking Lixel's own debug objects; its value says what the object is."""
 MADE_KEY = "lixel_made"
 """Custom property on every datablock Lixel made; its value is the name Lixel gave it."""
+NAME_KEY = "lixel_made_name"
+"""Custom property on every datablock Lixel made: the datablock's own name then (a copy's or a renamed one's differs)."""
 LEGACY_KEYS = (DEBUG_KEY, "lixel_version")
 """Marks that files saved before MADE_KEY existed put on Lixel's objects, node groups and materials."""
 
@@ -37,12 +43,14 @@ def is_lixel_made(idb) -> bool:
         keys = idb.keys()
     except (AttributeError, ReferenceError, TypeError):
         return False
-    return MADE_KEY in keys or any(k in keys for k in LEGACY_KEYS)
+    if MADE_KEY in keys:
+        return idb.get(NAME_KEY, idb.name) == idb.name
+    return any(k in keys for k in LEGACY_KEYS)
 
 
 def _made_as(idb, name: str) -> bool:
     made = idb.get(MADE_KEY)
-    return made == name if made is not None else (idb.name == name and is_lixel_made(idb))
+    return is_lixel_made(idb) and (made == name if made is not None else idb.name == name)
 
 
 def find_made(datablocks, name: str):
@@ -52,7 +60,7 @@ def find_made(datablocks, name: str):
     if idb is not None and getattr(idb, "library", None) is None and _made_as(idb, name):
         return idb
     for idb in datablocks:
-        if idb.get(MADE_KEY) == name and getattr(idb, "library", None) is None:
+        if idb.get(MADE_KEY) == name and getattr(idb, "library", None) is None and is_lixel_made(idb):
             return idb
     return None
 
@@ -60,6 +68,7 @@ def find_made(datablocks, name: str):
 def mark_made(idb, name: str):
     """Mark ``idb`` as made by Lixel under ``name``; returns it."""
     idb[MADE_KEY] = name
+    idb[NAME_KEY] = idb.name
     return idb
 
 

@@ -310,8 +310,12 @@ def debug_collection(scene):
 
 
 def lixel_mesh(name):
-    """Lixel's mesh ``name`` (made if needed; never a user's mesh of that name)."""
-    return lixel_datablock(bpy.data.meshes, name)[0]
+    """The mesh for Lixel's object ``name``: the one it shows when Lixel made it and nothing else shows it (a copy
+    the user keeps may share it), else a new one. Never a user's mesh, whatever its name."""
+    mesh = getattr(find_made(bpy.data.objects, name), "data", None)
+    if mesh is not None and mesh.users == 1 and is_lixel_made(mesh):
+        return mesh
+    return mark_made(bpy.data.meshes.new(name), name)
 
 
 def debug_object(scene, name, kind, data):

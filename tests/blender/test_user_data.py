@@ -152,6 +152,32 @@ def test_bake_keeps_a_users_mesh_and_object_named_lixel_b(user_scene, mods):
     assert "my keepsake" in bpy.data.collections[mods.nodes.DEBUG_COLLECTION].objects
 
 
+def test_a_copy_or_a_renamed_baked_object_is_the_users_and_a_rebake_leaves_it(lixel, mods):
+    """Shift+D copies custom properties, Lixel's mark included: the copy a user keeps beside the baked B, and the
+    baked frustum the user renames to keep, are the user's; baking again neither removes nor rewrites them."""
+    with active_scene("lixel_keep_bake") as scene:
+        scene.lixel.initialised = True
+        try:
+            assert bpy.ops.lixel.bake_debug() == {"FINISHED"}
+            body = bpy.data.objects["Lixel B"]
+            copy = body.copy()
+            copy.data = body.data.copy()
+            body.users_collection[0].objects.link(copy)            # "Lixel B.001" beside it, as Shift+D makes
+            kept = bpy.data.objects["Lixel View Frustum"]
+            kept.name = "my view frustum"
+            users = (copy, copy.data, kept, kept.data)
+            before = [digest(idb) for idb in users]
+            scene.camera.location.x += 2.0
+            bpy.context.view_layer.update()
+            assert bpy.ops.lixel.bake_debug() == {"FINISHED"}
+            assert [digest(idb) for idb in users] == before
+            assert not mods.owned.is_lixel_made(copy) and not mods.owned.is_lixel_made(kept)
+            assert mods.owned.find_made(bpy.data.objects, "Lixel View Frustum") not in (None, kept)
+        finally:
+            _remove_lixel_data(mods)
+    mods.live.clear()
+
+
 def test_the_texel_grid_is_removed_without_touching_a_users_modifier(user_scene, mods):
     scene, _users = user_scene
     ground = scene.objects["lixel_user_data ground"]
