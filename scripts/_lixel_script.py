@@ -236,6 +236,9 @@ def run(main) -> None:
     except ScriptError as exc:
         print(f"lixel: error: {exc}", file=sys.stderr)
         code = 1
+    except OSError as exc:  # an output the script cannot write: the path and why, not a bug report
+        print(f"lixel: error: cannot write '{exc.filename}': {exc.strerror or exc}", file=sys.stderr)
+        code = 1
     except Exception as exc:  # noqa: BLE001 - the script's guard: WarpError's message, or one line for a bug
         print(f"lixel: error: {_user_message(exc, f'running {Path(main.__code__.co_filename).name}')}",
               file=sys.stderr)

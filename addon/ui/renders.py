@@ -200,12 +200,17 @@ def to_image(name: str, rgba: np.ndarray, existing_ok: bool = True, linear: bool
 
 
 def save_png(rgba: np.ndarray, path: str, name: Optional[str] = None, linear: bool = True) -> None:
-    """Write an image (row 0 at the bottom) to a PNG file; ``linear`` as in :func:`to_image`."""
+    """Write an image (row 0 at the bottom) to a PNG file; ``linear`` as in :func:`to_image`. OSError (naming
+    ``path``) when it cannot be written."""
     import bpy
     img = to_image(name or "Lixel output", rgba, existing_ok=False, linear=linear)
     try:
         img.filepath_raw = str(path)
         img.file_format = "PNG"
         img.save()
+    except RuntimeError as exc:  # Blender's "Error: Could not write image: <why>" (or "internal error, see console")
+        why = str(exc).strip().splitlines()[0].partition("Could not write image: ")[2]
+        raise OSError(0, why if why and "internal error" not in why else "the image cannot be written there",
+                      str(path)) from None
     finally:
         bpy.data.images.remove(img)

@@ -163,3 +163,11 @@ def test_scene_problems_are_errors_not_tracebacks(mode, blend, tmp_path):
     assert "Traceback" not in r.stderr
     r = run(mode, "export_animation.py", blend, "--scene", "nope", "--output", str(tmp_path / "y.json"))
     assert r.returncode == 1 and "there is no scene named 'nope'" in r.stderr
+
+
+@pytest.mark.parametrize("option,where", [("--json", "missing/x.json"), ("--output", ".")])
+def test_an_output_that_cannot_be_written_is_named_not_called_a_bug(blend, tmp_path, option, where):
+    path = tmp_path / where
+    r = run("module", "render_method.py", blend, option, str(path), "--resolution", "32x18")
+    assert r.returncode == 1, r.stderr
+    assert f"lixel: error: cannot write '{path}': " in r.stderr and "bug" not in r.stderr, r.stderr

@@ -72,8 +72,8 @@ class LIXEL_OT_overlay_snapshot(LixelSceneOperator, bpy.types.Operator):
             path = os.path.join(bpy.path.abspath(self.directory), f"overlay_{name}.png")
             try:
                 renders.save_png(img, path, linear=False)
-            except RuntimeError as exc:
-                self.report({"ERROR"}, f"Lixel: cannot write '{path}': {exc}")
+            except OSError as exc:
+                self.report({"ERROR"}, f"Lixel: cannot write '{path}': {exc.strerror}")
                 return {"CANCELLED"}
             written.append(os.path.basename(path))
         self.report({"INFO"}, f"Lixel: saved {', '.join(written)} in {self.directory}")
