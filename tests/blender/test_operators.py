@@ -167,6 +167,33 @@ def test_texel_grid_frustum_and_sync(scene, mods):
     assert mods.nodes.TEXEL_MODIFIER not in ground.modifiers
 
 
+def test_texel_grid_leaves_objects_linked_from_a_library_and_says_so(scene, tmp_path):
+    """A modifier or material put on linked data is not saved with the file: the grid would vanish on reload."""
+    me = bpy.data.meshes.new("library block")
+    me.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
+    block = bpy.data.objects.new("library block", me)
+    bpy.data.libraries.write(str(tmp_path / "library.blend"), {block})
+    bpy.data.objects.remove(block)
+    bpy.data.meshes.remove(me)
+    with bpy.data.libraries.load(str(tmp_path / "library.blend"), link=True) as (_src, dst):
+        dst.objects = ["library block"]
+    linked = dst.objects[0]
+    try:
+        scene.collection.objects.link(linked)
+        ground = scene.objects["lixel_ops ground"]
+        _select_only(scene, [linked.name])
+        with pytest.raises(RuntimeError, match="'library block' is linked from library.blend: make it local"):
+            bpy.ops.lixel.texel_grid_add()
+        _select_only(scene, [ground.name, linked.name])
+        assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+        assert len(ground.modifiers) == 1 and len(linked.modifiers) == 0 and len(linked.data.materials) == 0
+        assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"}
+    finally:
+        library = linked.library
+        bpy.data.objects.remove(linked)
+        bpy.data.libraries.remove(library)
+
+
 def test_reset_settings_keeps_light_and_planes(scene):
     props = scene.lixel
     props.pcf_kernel = 5

@@ -120,6 +120,16 @@ class LIXEL_OT_texel_grid_add(LixelSceneOperator, bpy.types.Operator):
         if not meshes:
             self.report({"ERROR"}, "Lixel: no mesh selected: select the mesh objects that should show the texel grid")
             return {"CANCELLED"}
+        linked = [ob for ob in meshes if ob.library is not None or ob.data.library is not None]
+        if linked:  # what Lixel would put on linked data is not saved with the file
+            libraries = sorted({(ob.library or ob.data.library).name for ob in linked})
+            self.report({"WARNING"} if len(linked) < len(meshes) else {"ERROR"},
+                        f"Lixel: {', '.join(repr(ob.name) for ob in linked)} {'is' if len(linked) == 1 else 'are'} "
+                        f"linked from {', '.join(libraries)}: make it local (Object > Relations > Make Local) or a "
+                        f"library override to change its texel grid")
+            meshes = [ob for ob in meshes if ob not in linked]
+            if not meshes:
+                return {"CANCELLED"}
         if self.remove:
             n = sum(nodes.remove_texel_grid(ob) for ob in meshes)
             self.report({"INFO"}, f"Lixel: removed the texel grid from {n} object(s)")
