@@ -5,7 +5,9 @@ place, so the modifiers that use it keep working).
 The light matrices travel in a *matrix carrier*: the mesh object "Lixel Light
 Matrices" with one point per shadow map and the point attributes
 ``lixel_light_matrix`` (FLOAT4X4, world -> light clip) and ``lixel_map_size``
-(FLOAT2, texels). A modifier cannot take a Matrix input (shared notes §5), so
+(FLOAT2, texels), and ``lixel_map_unbounded`` (1 where the map's clip volume reaches
+through infinity, by ``warp.geometry.finite_clip_volume_corners``: the rule the
+overlays and the operators use, decided once in float64). A modifier cannot take a Matrix input (shared notes §5), so
 the node groups take the carrier *object* and sample the matrix from it; when
 the carrier's matrices change, every group using it follows.
 
@@ -21,12 +23,14 @@ the carrier's matrices change, every group using it follows.
   exactly in EEVEE and Cycles. Verified by rendering in all three engines
   (tests/blender/test_nodes.py).
 * **Lixel Frustum From Matrix** builds the clip volume of a map as a mesh: the
-  unit cube's corners through the inverse matrix, divided by w.
+  unit cube's corners through the inverse matrix, divided by w; nothing for a
+  volume through infinity.
 """
 import bpy
 import numpy as np
 
 from ..scene.owned import DEBUG_KEY, find_made, is_lixel_made, lixel_datablock, mark_made
+from ..warp.geometry import finite_clip_volume_corners
 
 TEXEL_GROUP = "Lixel Texel Grid"
 FRUSTUM_GROUP = "Lixel Frustum From Matrix"
@@ -35,6 +39,7 @@ CARRIER_NAME = "Lixel Light Matrices"
 DEBUG_COLLECTION = "Lixel Debug"
 MATRIX_ATTRIBUTE = "lixel_light_matrix"
 SIZE_ATTRIBUTE = "lixel_map_size"
+UNBOUNDED_ATTRIBUTE = "lixel_map_unbounded"
 XYW_ATTRIBUTE = "lixel_light_xyw"
 TEXEL_ATTRIBUTE = "lixel_texel"
 PARITY_COLOR_ATTRIBUTE = "lixel_texel_color"
@@ -42,7 +47,7 @@ TEXEL_MODIFIER = "Lixel Texel Grid"
 FRUSTUM_MODIFIER = "Lixel Frustum"
 VERSION_KEY = "lixel_version"
 TEXEL_GROUP_VERSION = 1
-FRUSTUM_GROUP_VERSION = 2
+FRUSTUM_GROUP_VERSION = 3
 MATERIAL_VERSION = 1
 
 
@@ -126,12 +131,12 @@ def _reset_tree(name, tree_type, version):
     return tree, tree
 
 
-def _carrier_matrix(b: _Builder, carrier_socket, index_socket):
-    """(matrix, map size) sampled from the carrier object's point ``index``."""
+def _carrier_matrix(b: _Builder, carrier_socket, index_socket, second=(SIZE_ATTRIBUTE, "FLOAT_VECTOR")):
+    """(matrix, ``second`` attribute: the map size) sampled from the carrier object's point ``index``."""
     info = b.node("GeometryNodeObjectInfo", transform_space="ORIGINAL")
     b.link(carrier_socket, _socket(info.inputs, "Object"))
     values = []
-    for attr, dtype in ((MATRIX_ATTRIBUTE, "FLOAT4X4"), (SIZE_ATTRIBUTE, "FLOAT_VECTOR")):
+    for attr, dtype in ((MATRIX_ATTRIBUTE, "FLOAT4X4"), second):
         named = b.node("GeometryNodeInputNamedAttribute", data_type=dtype)
         _socket(named.inputs, "Name").default_value = attr
         sample = b.node("GeometryNodeSampleIndex", data_type=dtype, domain="POINT")
@@ -221,8 +226,10 @@ def ensure_texel_grid_group():
 def ensure_frustum_group():
     """The "Lixel Frustum From Matrix" group: the clip volume of map ``Map Index``
     of the carrier, in the modified object's local space; nothing where that volume
-    reaches through infinity (a corner at homogeneous w <= 0, which the divide by w
-    would mirror into a box the map does not cover)."""
+    reaches through infinity (the carrier's ``lixel_map_unbounded``: a corner at w
+    <= 0, which the divide by w would mirror into a box the map does not cover, or
+    at a w so small that the box is its far reach, not its shape; and, where float32
+    evaluation puts a corner at w <= 0 all the same, nothing rather than a mirror)."""
     tree, current = _reset_tree(FRUSTUM_GROUP, "GeometryNodeTree", FRUSTUM_GROUP_VERSION)
     if tree is None:
         return current
@@ -233,7 +240,8 @@ def ensure_frustum_group():
     b = _Builder(tree)
     gin = b.node("NodeGroupInput")
     gout = b.node("NodeGroupOutput")
-    matrix, _size = _carrier_matrix(b, _socket(gin.outputs, "Light Matrices"), _socket(gin.outputs, "Map Index"))
+    matrix, unbounded = _carrier_matrix(b, _socket(gin.outputs, "Light Matrices"), _socket(gin.outputs, "Map Index"),
+                                        (UNBOUNDED_ATTRIBUTE, "FLOAT"))
     inv = b.node("FunctionNodeInvertMatrix")
     b.link(matrix, _socket(inv.inputs, "Matrix"))
     inverse = _socket(inv.outputs, "Matrix")
@@ -257,9 +265,12 @@ def ensure_frustum_group():
     behind = b.node("FunctionNodeCompare", data_type="FLOAT", operation="LESS_EQUAL")
     b.link(_socket(stat.outputs, "Min"), _socket(behind.inputs, "A"))
     _socket(behind.inputs, "B").default_value = 0.0
+    either = b.node("FunctionNodeBooleanMath", operation="OR")
+    b.link(_socket(behind.outputs, "Result"), either.inputs[0])
+    b.link(unbounded, either.inputs[1])  # 0 or 1; Blender converts a float to a boolean as > 0
     delete = b.node("GeometryNodeDeleteGeometry", domain="POINT")
     b.link(_socket(setpos.outputs, "Geometry"), _socket(delete.inputs, "Geometry"))
-    b.link(_socket(behind.outputs, "Result"), _socket(delete.inputs, "Selection"))
+    b.link(_socket(either.outputs, "Boolean"), _socket(delete.inputs, "Selection"))
     b.link(_socket(delete.outputs, "Geometry"), gout.inputs[0])
     tree[VERSION_KEY] = FRUSTUM_GROUP_VERSION
     return tree
@@ -337,13 +348,14 @@ def debug_object(scene, name, kind, data):
 
 
 def write_matrices(mesh, matrices, sizes) -> None:
-    """Put (N, 4, 4) row-major matrices and (N, 2) sizes on the carrier mesh's N points."""
+    """Put (N, 4, 4) row-major matrices, (N, 2) sizes and whether each clip volume reaches through infinity on the
+    carrier mesh's N points."""
     mats = np.asarray(matrices, dtype=np.float64).reshape(-1, 4, 4)
     n = len(mats)
     if len(mesh.vertices) != n:
         mesh.clear_geometry()
         mesh.vertices.add(n)
-    for name, dtype in ((MATRIX_ATTRIBUTE, "FLOAT4X4"), (SIZE_ATTRIBUTE, "FLOAT_VECTOR")):
+    for name, dtype in ((MATRIX_ATTRIBUTE, "FLOAT4X4"), (SIZE_ATTRIBUTE, "FLOAT_VECTOR"), (UNBOUNDED_ATTRIBUTE, "FLOAT")):
         attr = mesh.attributes.get(name)
         if attr is None or attr.data_type != dtype or attr.domain != "POINT":
             if attr is not None:
@@ -354,6 +366,8 @@ def write_matrices(mesh, matrices, sizes) -> None:
     sz = np.zeros((n, 3), dtype=np.float32)
     sz[:, :2] = np.asarray(sizes, dtype=np.float32).reshape(-1, 2)
     mesh.attributes[SIZE_ATTRIBUTE].data.foreach_set("vector", sz.ravel())
+    unbounded = [float(finite_clip_volume_corners(m) is None) for m in mats]
+    mesh.attributes[UNBOUNDED_ATTRIBUTE].data.foreach_set("value", np.array(unbounded, dtype=np.float32))
     mesh.update()
 
 

@@ -145,6 +145,57 @@ def test_frustum_from_matrix_draws_no_mirrored_box_for_a_volume_through_infinity
     assert len(evaluated_points(ob, ["position"])["position"]) == 8                # a bounded one is drawn again
 
 
+def test_a_corner_at_a_tiny_positive_w_is_through_infinity_as_for_the_overlays(scene, nodes, wg):
+    """One rule for the frustum object and the overlays (``geometry.finite_clip_volume_corners``): a corner whose w
+    is positive but below the relative epsilon is at infinity, so no box reaching 1e14 is drawn. Its w survives
+    float32 (the carrier's precision), so the group's own w <= 0 test does not see it."""
+    s, c = 1e8, 1.0 - 2.0 ** -20            # unprojected corners (s x, s y, s z, c z + 1): w = 2^-20 at z = -1
+    inverse = np.diag([s, s, s, 1.0])
+    inverse[3, 2] = c
+    matrix = np.linalg.inv(inverse)
+    h = wg.clip_volume_corners_h(matrix)
+    assert h[:, 3].min() > 0 and wg.finite_clip_volume_corners(matrix) is None
+    carrier = nodes.ensure_carrier(scene, _Setup(_Map(matrix, (512, 512))))
+    ob = nodes.add_frustum_object(scene, carrier, 0)
+    assert len(evaluated_points(ob, ["position"])["position"]) == 0
+
+
+def test_add_frustum_says_when_its_map_reaches_through_infinity(lixel, nodes, wg, capfd):
+    """The sun behind the camera: the cascade's far split's map reaches through infinity. The operator says its
+    object is empty exactly where the group draws nothing, and says nothing of the kind for a bounded map."""
+    from mathutils import Matrix, Vector
+    with active_scene("lixel_frustum_note", mesh=False) as sc:
+        for name, lo, hi in (("ground", (-50, -50, -0.1), (50, 50, 0)), ("post", (0, 0, 0), (1, 1, 3))):
+            me = bpy.data.meshes.new(name)
+            me.from_pydata([(x, y, z) for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])], [],
+                           [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)])
+            sc.collection.objects.link(bpy.data.objects.new(name, me))
+        sc.camera.matrix_world = Matrix(((1, 0, 0, 0), (0, 0.14834, -0.988936, -10), (0, 0.988936, 0.14834, 2),
+                                         (0, 0, 0, 1)))
+        sc.camera.data.sensor_fit, sc.camera.data.angle_y = "VERTICAL", math.radians(60)
+        sc.camera.data.clip_start, sc.camera.data.clip_end = 0.1, 70.0
+        sc.objects["lixel_frustum_note light"].rotation_euler = Vector((0.05, 0.9, -0.4)).to_track_quat("-Z", "Y").to_euler()
+        sc.lixel.initialised, sc.lixel.method = True, "cascade"
+        try:
+            assert bpy.ops.lixel.refresh() == {"FINISHED"}
+            live = importlib.import_module(f"{lixel.__name__}.addon.ui.live")
+            unbounded = [wg.finite_clip_volume_corners(m.matrix) is None for m in live.state(sc).setup.maps]
+            assert True in unbounded and False in unbounded
+            for i in (unbounded.index(True), unbounded.index(False)):
+                capfd.readouterr()
+                assert bpy.ops.lixel.frustum_add(map_index=i) == {"FINISHED"}
+                said = capfd.readouterr().out
+                ob = bpy.data.objects[f"Lixel Frustum (map {i})"]
+                assert ("empty for now: this map's volume reaches through infinity" in said) == unbounded[i], said
+                assert len(evaluated_points(ob, ["position"])["position"]) == (0 if unbounded[i] else 8)
+        finally:
+            made = importlib.import_module(f"{lixel.__name__}.addon.scene.owned").MADE_KEY
+            for data in (bpy.data.objects, bpy.data.meshes, bpy.data.collections, bpy.data.node_groups):
+                for idb in [i for i in data if made in i.keys()]:
+                    data.remove(idb)
+            live.clear()
+
+
 def test_groups_are_idempotent_and_versioned(scene, nodes):
     g1 = nodes.ensure_texel_grid_group()
     n_nodes = len(g1.nodes)
