@@ -271,7 +271,8 @@ def check_finite_geometry(geometry) -> None:
 
 def light_notes(light_obj) -> list[str]:
     """Warnings about a light Lixel renders but that may surprise: no strength,
-    an area light approximated by a spot."""
+    an area light approximated by a spot, a spot scaled unevenly (Blender
+    stretches its cone by the X and Y scale against the Z scale; Lixel's cone is round)."""
     notes = []
     data = getattr(light_obj, "data", None)
     if data is None:
@@ -283,6 +284,11 @@ def light_notes(light_obj) -> list[str]:
     if data.type == "AREA":
         notes.append(f"Area light '{light_obj.name}' is shadowed as a spot light at its centre (hard shadows, "
                      f"cone = its spread, at most 179°)")
+    sx, sy, sz = np.linalg.norm(_matrix(light_obj.matrix_world)[:3, :3], axis=0)
+    if data.type == "SPOT" and sz > 0 and not np.allclose((sx, sy), sz, rtol=1e-4, atol=0):
+        notes.append(f"Spot light '{light_obj.name}' is scaled unevenly (X {sx / sz:.3g}, Y {sy / sz:.3g} times its "
+                     f"Z): Blender stretches its cone into an ellipse, Lixel lights and shadows the round cone of its "
+                     f"Spot Size; give it an even scale (Object properties > Transform > Scale)")
     return notes
 
 

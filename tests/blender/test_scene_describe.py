@@ -323,3 +323,13 @@ def test_light_notes_say_what_renders_differently(describe, fresh_scene):
         "(Light properties > Power/Strength)"]
     assert describe.light_notes(area) == [
         "Area light 'Area' is shadowed as a spot light at its centre (hard shadows, cone = its spread, at most 179°)"]
+    spot = add_light(fresh_scene, "SPOT")
+    spot.scale = (-2.0, 2.0, 2.0)                         # even (a mirror is even): the cone Blender draws is round
+    bpy.context.view_layer.update()
+    assert describe.light_notes(spot) == []
+    spot.scale = (3.0, 1.0, 1.0)                          # Blender lights a cone 3 times as wide along X
+    bpy.context.view_layer.update()
+    assert describe.light_notes(spot) == [
+        "Spot light 'Spot' is scaled unevenly (X 3, Y 1 times its Z): Blender stretches its cone into an ellipse, "
+        "Lixel lights and shadows the round cone of its Spot Size; give it an even scale (Object properties > "
+        "Transform > Scale)"]
