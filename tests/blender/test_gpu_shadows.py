@@ -858,26 +858,45 @@ def test_a_mesh_bounds_solids_when_closed_with_normals_outwards(lx):
 def test_a_mesh_whose_vertices_moved_keeps_its_closed_parts_and_finds_its_volumes_again(lx, scene):
     """A viewport edit that moves vertices only re-reads the mesh with the
     same triangles: the new content takes the closed surface's parts from the
-    old, and the volumes are found again (a mirror turns it inside out)."""
+    old, and the volumes are found again (a mirror turns it inside out). While
+    it is being edited the mesh is drawn whole (no solid: right whatever the
+    edit did); the test runs once an update finds it unchanged (the edits stopped)."""
     ob = box(scene, "Solid", size=(1.0, 2.0, 3.0))
     dg = scene.view_layers[0].depsgraph
     dg.update()
     cache = lx.geometry.GeometryCache()
     first = next(iter(cache.update(dg).meshes.values()))
-    assert first.bounds_solids
+    assert first.bounds_solids, "a mesh read for the first time is tested at once"
+
+    def edited_then_settled():
+        ob.data.update()
+        dg.update()
+        edited = next(iter(cache.update(dg).meshes.values()))
+        assert not edited.settled and not edited.bounds_solids and "encloses_solids" not in edited.__dict__, \
+            "tested while being edited"
+        assert next(iter(cache.update(dg).meshes.values())) is edited and edited.settled
+        return edited
+
+    ob.data.vertices[0].co.z += 0.1
+    moved = edited_then_settled()
+    assert moved.bounds_solids, "still a solid once settled"
     for v in ob.data.vertices:
         v.co.x = -v.co.x
-    ob.data.update()
-    dg.update()
-    mirrored = next(iter(cache.update(dg).meshes.values()))
+    mirrored = edited_then_settled()
     assert mirrored is not first and np.array_equal(mirrored.triangles, first.triangles)
     assert mirrored.closed_parts is first.closed_parts, "the parts are not found again"
     assert not mirrored.bounds_solids, "inside out after the vertices moved"
     ob.data.polygons[0].flip()
+    flipped = edited_then_settled()
+    assert flipped.closed_parts is None and not flipped.bounds_solids, "new triangles: tested again, one face flipped"
+    at_once = lx.geometry.GeometryCache(defer_solids=False)
+    at_once.update(dg)
+    ob.data.polygons[0].flip()
+    for v in ob.data.vertices:
+        v.co.x = -v.co.x
     ob.data.update()
     dg.update()
-    flipped = next(iter(cache.update(dg).meshes.values()))
-    assert flipped.closed_parts is None and not flipped.bounds_solids, "new triangles: tested again, one face flipped"
+    assert next(iter(at_once.update(dg).meshes.values())).bounds_solids, "tested at once without deferring"
 
 
 def test_too_many_maps_is_a_clear_error(lx, scene):
