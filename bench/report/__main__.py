@@ -147,8 +147,13 @@ def main(argv=None) -> int:
         print("nothing was run; the last report is unchanged", file=sys.stderr)
         return 2
     out = Path(opts.out).resolve()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    partial = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        partial = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    except OSError as exc:
+        print(f"python -m bench.report: error: --out: cannot write in {out.parent}: {exc.strerror}", file=sys.stderr)
+        print("nothing was run; the last report is unchanged", file=sys.stderr)
+        return 2
     progress = Progress(plan(opts), GUESS_S)
     steps = len(progress.plan)
     progress.log(f"Lixel report: {len(opts.scenes)} scene(s) x {len(opts.methods)} method(s) x {len(opts.sizes)} "
@@ -158,6 +163,10 @@ def main(argv=None) -> int:
     result = None
     try:
         result = run(opts, progress)
+        if not any(m.get("status") == "ok" for scene in result["scenes"] for m in scene.get("methods", ())):
+            progress.log("nothing was measured: every scene or method failed (the reasons are above); "
+                         "the last report is unchanged")
+            return 1
         paths = document.write(result, partial, progress)
         publish(partial, out)
         if args.readme_pictures is not None:

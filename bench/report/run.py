@@ -16,12 +16,12 @@ from typing import Optional
 
 import numpy as np
 
+from addon.settings import MAX_MAP_SIZE  # the longest map side (warp.types.MAX_MAP_SIDE); __main__ reads it here
+
 from .progress import Progress, Step, quiet_blender
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLES = ROOT / "sample_blends"
-MAX_MAP_SIZE = 16384
-"""The largest texture side Blender's gpu module allocates here (shared notes §8.8)."""
 
 
 @dataclass

@@ -135,6 +135,18 @@ def test_bad_scene_or_method_is_refused_and_the_last_report_stays(report, bad):
     assert not list(out.parent.glob(".report.partial-*"))
 
 
+def test_a_run_that_measures_nothing_or_cannot_write_leaves_the_last_report(report, tmp_path):
+    out, _, _ = report
+    before = {p: p.stat().st_mtime_ns for p in out.rglob("*")}
+    proc = _run(["--methods", "uniform", "--sizes", "20000", "--peers", "none", "--no-overlays"], out, timeout=300)
+    assert proc.returncode == 1 and "nothing was measured" in proc.stdout + proc.stderr
+    (tmp_path / "a file").write_text("")
+    proc = _run(["--methods", "uniform"], tmp_path / "a file" / "report", timeout=120)
+    assert proc.returncode == 2 and "--out: cannot write in" in proc.stderr and "Traceback" not in proc.stderr
+    assert {p: p.stat().st_mtime_ns for p in out.rglob("*")} == before
+    assert not list(out.parent.glob(".report.partial-*"))
+
+
 def test_publish_replaces_only_the_reports_own_entries(tmp_path):
     from bench.report.__main__ import MANIFEST, publish
     out = tmp_path / "out"
