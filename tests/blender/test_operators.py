@@ -264,7 +264,7 @@ def test_overlay_on_in_a_scene_without_camera_says_why(lixel, mods):
 
 
 CHANGES_DATA = ("refresh", "toggle_overlay", "export_json", "reset_settings", "bake_debug", "texel_grid_add",
-                "frustum_add", "sync_matrices", "compare", "planes_from_selection", "plane_remove")
+                "frustum_add", "sync_matrices", "compare", "planes_from_selection", "plane_remove", "overlay_snapshot")
 
 
 def test_every_operator_that_changes_data_can_be_undone(lixel):

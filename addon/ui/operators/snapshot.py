@@ -25,7 +25,7 @@ class LIXEL_OT_overlay_snapshot(LixelSceneOperator, bpy.types.Operator):
 
     bl_idname = "lixel.overlay_snapshot"
     bl_label = "Save Overlay Snapshots"
-    bl_options = {"REGISTER"}
+    bl_options = {"REGISTER", "UNDO"}  # a scene's first snapshot writes its settings
 
     directory: StringProperty(name="Folder", subtype="DIR_PATH", description="Folder for the PNG files")
     width: IntProperty(name="Width", default=1280, min=64, max=8192, description="Picture width in pixels")
