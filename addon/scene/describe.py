@@ -315,13 +315,20 @@ def _lixel_light_property(scene):
 def pick_light(scene, depsgraph=None, active=None):
     """The light Lixel shadows: the scene's Lixel light (``scene.lixel.light``)
     if set, else the active object if it is a light, else the first sun, else
-    the first light of a supported type (lights by name, for determinism)."""
+    the first light of a supported type (lights by name, for determinism). Only
+    a light the scene shows in ``depsgraph`` (render or viewport) counts: a Lixel
+    light hidden there, or in another scene, lights nothing in Blender and is
+    refused by name."""
+    lights = _scene_lights(scene, depsgraph)
     chosen = _lixel_light_property(scene)
     if chosen is not None:
+        if chosen not in lights:
+            raise WarpError(f"The Lixel light '{chosen.name}' is not among the lights scene '{scene.name}' shows "
+                            f"(hidden, in an excluded collection or in another scene), so Blender lights nothing "
+                            f"with it: show it, or choose another light (Lixel panel > Light)")
         return chosen
-    if active is not None and active.type == "LIGHT" and active.name in scene.objects:
+    if active is not None and active.type == "LIGHT" and active in lights:
         return active
-    lights = _scene_lights(scene, depsgraph)
     for ob in lights:
         if ob.data.type == "SUN":
             return ob

@@ -90,6 +90,14 @@ def _ortho(sc):
     sc.camera.data.ortho_scale = 12.0
 
 
+def _lixel_light_elsewhere(sc):
+    """The light chosen as the Lixel light is moved to another scene: Blender lights nothing with it here."""
+    sc.lixel.light = _light(sc)
+    elsewhere = bpy.data.scenes.get("catalogue elsewhere") or bpy.data.scenes.new("catalogue elsewhere")
+    sc.collection.objects.unlink(_light(sc))
+    elsewhere.collection.objects.link(bpy.data.objects[f"{SCENE} light"])
+
+
 def _collisions(sc):
     """A datablock of the user's under every name Lixel uses, kept by a fake user."""
     for name in LIXEL_NAMES:
@@ -153,6 +161,8 @@ CASES = {
     "light_at_camera": Case(_light_at_camera, check="no_shadow_seen"),
     "scene_1e7_from_origin": Case(_far_away, check="as_at_the_origin"),
     "name_collisions": Case(_collisions, check="has_shadows"),
+    "lixel_light_in_another_scene": Case(_lixel_light_elsewhere, r"The Lixel light 'catalogue light' is not among "
+                                                                 r"the lights scene 'catalogue' shows .*choose another"),
 }
 
 
@@ -239,6 +249,10 @@ def catalogue_scene(lixel, mods):
         yield scene
         scene.lixel.show_body = False
         _clean_lixel_data(mods)
+        elsewhere = bpy.data.scenes.get("catalogue elsewhere")
+        if elsewhere is not None:
+            bpy.data.batch_remove([*elsewhere.objects, *(ob.data for ob in elsewhere.objects)])
+            bpy.data.scenes.remove(elsewhere)
     mods.live.clear()
 
 

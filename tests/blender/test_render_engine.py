@@ -182,6 +182,19 @@ def test_bad_input_ends_the_render_with_a_report(engine, scene, capfd, missing, 
     assert "Traceback" not in capfd.readouterr().err
 
 
+def test_a_lixel_light_hidden_from_renders_is_refused_by_name(engine, scene, capfd):
+    """Blender's engines light nothing with a light hidden from renders; the viewport still shows it."""
+    build(scene)
+    scene.lixel.light = sun = scene.objects["Sun"]
+    sun.hide_render = True
+    with pytest.raises(RuntimeError, match=r"The Lixel light 'Sun' is not among the lights scene 'lixel_test[.\d]*' "
+                                           r"shows \(hidden, in an excluded collection or in another scene\)"):
+        bpy.ops.render.render(scene=scene.name)
+    assert "Traceback" not in capfd.readouterr().err
+    sun.hide_render = False
+    assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+
+
 def test_no_gpu_context_is_reported(engine, scene, capfd, monkeypatch, lixel):
     build(scene)
     ctx = importlib.import_module(lixel.__name__ + ".addon.gpu.context")
