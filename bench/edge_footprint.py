@@ -25,8 +25,9 @@ A ratio near the method's width ratio in each class is the texel footprint at wo
 says nothing of edges that lie away from the points that set it.
 
 The counts are those of one phase of each map's texel grid against the pixels; which pixels an edge's
-staircase takes changes with it. ``--phases N`` renders each method N times, every map's window
-moved by a sub-texel offset (the same texels; the first phase unmoved, the others an R2 sequence,
+staircase takes changes with it. ``--phases N`` renders each method N times, every map's texel grid
+moved by a sub-texel offset (the same texels, a texel more on each side so that no point falls out of
+its map; the first phase unmoved, the others an R2 sequence,
 the same for every method; a plane map's lixels stay on their pixels), and prints the counts' mean and
 spread, the ratio of the means to uniform's and in how many phases the count is at most 0.8x uniform's at
 the same phase.
@@ -104,18 +105,24 @@ def phases(count: int) -> np.ndarray:
 
 
 def shifted(setup, offset):
-    """``setup`` with every map's window moved by ``offset`` texels: NDC x, y + 2·offset / size; not a plane map's
-    (a map with a region): its lixels are placed on the pixels (Chong-Gortler §2), so its grid has no free phase,
-    and moved it tests each pixel a fraction of a lixel away (gen3_03_spot plane_optimal 2048²: 74 wrong pixels
-    as computed, 74..442 over 8 phases with the plane map moved)."""
+    """``setup`` with every map's texel grid moved by ``offset`` texels (0..1 each way) and grown by one texel on
+    each side, so that the grid moves and the window still holds all it held: the same texels in the world, the map
+    ``size + 2`` texels, NDC x, y -> (x·size + 2·offset) / (size + 2). Moving the window alone opened gaps a fraction
+    of a texel wide between a point light's cube faces, and between a cascade's splits, that no map served
+    (point_low_in_view's cascade 2048², grid phase 7: 7 of its 66 wrong pixels). Not a plane map's (a map with a
+    region): its lixels are placed on the pixels (Chong-Gortler §2), so its grid has no free phase, and moved it
+    tests each pixel a fraction of a lixel away (gen3_03_spot plane_optimal 2048²: 74 wrong pixels as computed,
+    74..442 over 8 phases with the plane map moved)."""
     maps = []
     for m in setup.maps:
         if m.region is not None:
             maps.append(m)
             continue
+        size = np.asarray(m.size, dtype=np.float64)
         move = np.eye(4)
-        move[:2, 3] = 2.0 * np.asarray(offset, dtype=np.float64) / np.asarray(m.size, dtype=np.float64)
-        maps.append(dataclasses.replace(m, matrix=move @ m.matrix))
+        move[[0, 1], [0, 1]] = size / (size + 2.0)
+        move[:2, 3] = 2.0 * np.asarray(offset, dtype=np.float64) / (size + 2.0)
+        maps.append(dataclasses.replace(m, matrix=move @ m.matrix, size=tuple(int(s) + 2 for s in m.size)))
     return dataclasses.replace(setup, maps=maps)
 
 

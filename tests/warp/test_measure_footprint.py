@@ -144,7 +144,9 @@ def test_shadow_edge_normals_point_into_the_shadow_across_a_straight_edge(normal
     assert np.all(np.isnan(got[~valid])) and np.all(np.isnan(got[~dilate(edges, 1)]))
 
 
-def test_a_grid_phase_moves_every_texel_coordinate_by_the_offset_and_keeps_the_depth():
+def test_a_grid_phase_moves_every_texel_coordinate_by_the_offset_and_keeps_the_depth_and_the_window():
+    """The grid moves by the offset and grows a texel on each side (texel coordinates + 1 + offset in a map
+    2 texels larger), so every point the map held it still holds: no gap opens between cube faces or splits."""
     from bench.edge_footprint import phases, shifted
     offsets = phases(12)
     assert np.array_equal(offsets[0], [0.0, 0.0]) and np.all((offsets >= 0) & (offsets < 1))
@@ -152,14 +154,19 @@ def test_a_grid_phase_moves_every_texel_coordinate_by_the_offset_and_keeps_the_d
     t = math.radians(60)
     d = np.array([math.sin(t), 0.0, -math.cos(t)])
     m = ShadowMap(ortho_matrix(-10, 10, -10, 10, 1, 100) @ look_along(-50 * d, d, [0, 1, 0]), (500, 400))
-    moved = shifted(ShadowSetup([m], Diagnostics("uniform")), (0.25, 0.75)).maps[0]
     pts = np.c_[np.random.default_rng(1).uniform(-5, 5, (20, 3)), np.ones(20)]
+    corners = np.array([[x, y, z, 1.0] for x in (-1, 1) for y in (-1, 1) for z in (-0.5, 0.5)]) @ np.linalg.inv(m.matrix).T
+    corners /= corners[:, 3:]
 
-    def texel_and_depth(matrix):
+    def texel_and_depth(matrix, size):
         h = pts @ matrix.T
-        return (h[:, :2] / h[:, 3:] * 0.5 + 0.5) * [500, 400], h[:, 2] / h[:, 3]
-    (a, za), (b, zb) = texel_and_depth(m.matrix), texel_and_depth(moved.matrix)
-    assert np.allclose(b - a, [0.25, 0.75], atol=1e-9) and np.allclose(za, zb, atol=0)
+        return (h[:, :2] / h[:, 3:] * 0.5 + 0.5) * size, h[:, 2] / h[:, 3]
+    for offset in ((0.25, 0.75), (0.999, 0.0)):
+        moved = shifted(ShadowSetup([m], Diagnostics("uniform")), offset).maps[0]
+        assert moved.size == (502, 402)
+        (a, za), (b, zb) = texel_and_depth(m.matrix, [500, 400]), texel_and_depth(moved.matrix, [502, 402])
+        assert np.allclose(b - a, 1.0 + np.asarray(offset), atol=1e-9) and np.allclose(za, zb, atol=0)
+        assert moved.contains(corners[:, :3], tol=1e-9).all()
 
 
 def test_a_grid_phase_leaves_a_plane_maps_lixels_on_their_pixels():
