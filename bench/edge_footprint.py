@@ -16,6 +16,9 @@ the method and the map size changed) and sets each method's numbers against unif
   :data:`TURN_DEG` within :data:`CORNER_RADIUS` pixels: shadow corners, thin and small shadows),
   where both of the texel's directions count, and the mean σ_max there;
 * ``other``: the misclassified pixels elsewhere (away from true edges: depth, bias, coverage);
+* ``by map``: per map that serves true edge pixels, how many it serves, how many of them are wrong, and the
+  mean σ_max there: a cascade whose p95 halves uniform's may still have most of its wrong pixels in a split whose
+  texels are barely finer than uniform's;
 * ``grid angle``: the straight edges' mean angle to the nearest texel axis of their map, and how many lie within
   :data:`ALIGNED_DEG` of one. The staircase of an edge that runs nearly along a texel axis is long: whole runs
   of its pixels fall on one side of the true edge together, so the same |Jᵀn| gives more wrong pixels, and a
@@ -191,8 +194,22 @@ def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1) -
             rows.append({"scene": name, "method": method, "size": size, "wrong": by_phase[0], "phases": by_phase,
                          "straight": int((wrong & straight).sum()), "corners": int((wrong & near_corner).sum()),
                          "p95": footprint_stats(fp).p95, "across": _mean(across), "corner_smax": _mean(at_corners),
-                         "grid_angle": _mean(angle), "aligned": int(np.sum(angle <= ALIGNED_DEG))})
+                         "grid_angle": _mean(angle), "aligned": int(np.sum(angle <= ALIGNED_DEG)),
+                         "by_map": by_map(view, setup, result.map_index, edges & counted, wrong, gt)})
     return rows
+
+
+def by_map(view, setup, map_index, edges, wrong, gt) -> list[tuple]:
+    """Per map that serves a true edge pixel: (role, edge pixels it serves, wrong pixels among them, mean σ_max at
+    them): where the wrong pixels lie, and how fine the texels are there (the p95 may be set by other maps)."""
+    from addon.measure import setup_footprints
+    out = []
+    for i, m in enumerate(setup.maps):
+        mine = edges & (map_index == i)
+        if mine.any():
+            fp, _ = setup_footprints(view, setup, gt.points[mine], gt.normals[mine], np.full(int(mine.sum()), i))
+            out.append((m.role, int(mine.sum()), int((wrong & mine).sum()), _mean(fp)))
+    return out
 
 
 def table(rows: list[dict]) -> list[str]:
@@ -212,6 +229,8 @@ def table(rows: list[dict]) -> list[str]:
                      f"({ratio('corners'):.2f}x; σ_max {r['corner_smax']:.3f} px, {ratio('corner_smax'):.2f}x) "
                      f"+ other {other}; straight edges' grid angle {r['grid_angle']:.1f}°, {r['aligned']} "
                      f"within {ALIGNED_DEG:.0f}°")
+        lines.append(f"{'':>42}by map (edge pixels, wrong, mean σ_max there): " + "; ".join(
+            f"{role} {n}, {w}, {smax:.2f} px" for role, n, w, smax in r["by_map"]))
         if len(r["phases"]) > 1:
             v, uv = np.array(r["phases"]), np.array(u["phases"])
             lines.append(f"{'':>42}over {len(v)} grid phases: {v.mean():.1f} ± {v.std(ddof=1):.1f} wrong "
