@@ -283,9 +283,11 @@ class LixelRenderEngine(bpy.types.RenderEngine):
     def render(self, depsgraph):
         try:
             from ..gpu.context import ensure_gpu_context
+            from ..scene.describe import check_one_view
             from .heap import keep_frame_buffers
             keep_frame_buffers()  # the passes' buffers of one F12 serve the next
             ensure_gpu_context()
+            check_one_view(depsgraph.scene)
             warnings: list = []
             passes = enabled_passes(depsgraph.view_layer)
             read = frozenset({"combined"} | {row[5] for row in passes}).union(*(r for _, r in _watchers))

@@ -76,6 +76,21 @@ def _evaluated(obj, depsgraph):
         return obj
 
 
+def check_one_view(scene) -> None:
+    """WarpError naming the views when the scene renders with Stereoscopy other than one plain view: Lixel renders
+    the camera's own view, once, so a second view would come out empty (measured: the left eye of a stereo pair)
+    and a stereo eye would be the camera's view, not the eye's."""
+    r = scene.render
+    if not r.use_multiview:
+        return
+    stereo = r.views_format == "STEREO_3D"
+    views = [v.name for v in r.views if v.use and (not stereo or v.name in ("left", "right"))]
+    if stereo or len(views) > 1:
+        raise WarpError(f"Scene '{scene.name}' renders {'stereo 3D' if stereo else 'multi-view'} views "
+                        f"({', '.join(views)}): Lixel renders the camera's own view, once; turn Stereoscopy off "
+                        f"(Output properties > Stereoscopy)")
+
+
 def render_resolution(scene) -> tuple[int, int]:
     """The output size in pixels, with the resolution percentage applied
     (Blender's own rounding: ``resolution * percentage // 100``)."""

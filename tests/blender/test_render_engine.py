@@ -195,6 +195,24 @@ def test_a_lixel_light_hidden_from_renders_is_refused_by_name(engine, scene, cap
     assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
 
 
+@pytest.mark.parametrize("views_format", ["STEREO_3D", "MULTIVIEW"])
+def test_stereoscopy_is_refused_rather_than_one_eye_left_empty(engine, scene, capfd, views_format):
+    """Before, a stereo pair came out with an empty left eye and the camera's own view as the right eye."""
+    build(scene)
+    scene.render.use_multiview, scene.render.views_format = True, views_format
+    kind = "stereo 3D" if views_format == "STEREO_3D" else "multi-view"
+    with pytest.raises(RuntimeError, match=rf"Scene 'lixel_test[.\d]*' renders {kind} views \(left, right\): Lixel "
+                                           r"renders the camera's own view, once; turn Stereoscopy off"):
+        bpy.ops.render.render(scene=scene.name)
+    assert "Traceback" not in capfd.readouterr().err
+    scene.render.views["right"].use = False           # one view: a stereo eye is still not the camera's view
+    if views_format == "MULTIVIEW":
+        assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    else:
+        with pytest.raises(RuntimeError, match=r"renders stereo 3D views \(left\)"):
+            bpy.ops.render.render(scene=scene.name)
+
+
 def test_no_gpu_context_is_reported(engine, scene, capfd, monkeypatch, lixel):
     build(scene)
     ctx = importlib.import_module(lixel.__name__ + ".addon.gpu.context")
