@@ -26,7 +26,8 @@ apart near the far plane, and the camera pass resolves nothing."""
 LIGHT_TYPES = ("SUN", "POINT", "SPOT", "AREA")
 """Blender light types Lixel shadows (AREA is approximated, see describe_light)."""
 
-AREA_MAX_CONE = math.radians(179.0)
+MAX_CONE = math.radians(179.0)
+"""The widest cone Lixel shadows with one perspective map: area lights' spread and 180° spots are narrowed to it."""
 
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)
@@ -172,7 +173,7 @@ def describe_light(light_obj, depsgraph=None) -> Light:
     * SUN: ``direction`` = the object's world -Z.
     * POINT: ``position`` = the object's world location.
     * SPOT: position, direction (-Z) and ``spot_angle`` = ``spot_size`` (the
-      full cone angle).
+      full cone angle; Blender's 180° at most is narrowed to ``MAX_CONE``, 179°).
     * AREA: modelled as a SPOT at the light's centre facing its -Z with cone
       angle ``min(spread, 179°)``: hard shadows cast from the centre of the
       emitter (the soft penumbra of a finite emitter is not modelled). An area
@@ -209,11 +210,11 @@ def describe_light(light_obj, depsgraph=None) -> Light:
         return Light("SUN", direction=minus_z, color=color, energy=energy, name=name)
     if kind == "POINT":
         return Light("POINT", position=position, color=color, energy=energy, name=name)
-    if kind == "SPOT":
-        return Light("SPOT", position=position, direction=minus_z, spot_angle=float(data.spot_size),
+    if kind == "SPOT":  # Blender allows 180°, which no perspective map covers: 179°, as for an area light
+        return Light("SPOT", position=position, direction=minus_z, spot_angle=min(float(data.spot_size), MAX_CONE),
                      color=color, energy=energy, name=name)
     spread = float(getattr(data, "spread", math.pi))
-    angle = min(spread, AREA_MAX_CONE)
+    angle = min(spread, MAX_CONE)
     if angle <= 0:
         raise WarpError(f"Area light '{name}' has a spread of 0°: widen its spread (Light properties > Beam shape)")
     return Light("SPOT", position=position, direction=minus_z, spot_angle=angle, color=color, energy=energy, name=name)
@@ -299,6 +300,9 @@ def light_notes(light_obj) -> list[str]:
     if data.type == "AREA":
         notes.append(f"Area light '{light_obj.name}' is shadowed as a spot light at its centre (hard shadows, "
                      f"cone = its spread, at most 179°)")
+    if data.type == "SPOT" and data.spot_size > MAX_CONE:
+        notes.append(f"Spot light '{light_obj.name}' has a cone of {math.degrees(data.spot_size):.4g}°: Lixel lights "
+                     f"and shadows its 179° (no perspective map covers 180°); the rim beyond is unlit")
     sx, sy, sz = np.linalg.norm(_matrix(light_obj.matrix_world)[:3, :3], axis=0)
     if data.type == "SPOT" and sz > 0 and not np.allclose((sx, sy), sz, rtol=1e-4, atol=0):
         notes.append(f"Spot light '{light_obj.name}' is scaled unevenly (X {sx / sz:.3g}, Y {sy / sz:.3g} times its "

@@ -323,7 +323,12 @@ def test_light_notes_say_what_renders_differently(describe, fresh_scene):
         "(Light properties > Power/Strength)"]
     assert describe.light_notes(area) == [
         "Area light 'Area' is shadowed as a spot light at its centre (hard shadows, cone = its spread, at most 179°)"]
-    spot = add_light(fresh_scene, "SPOT")
+    spot = add_light(fresh_scene, "SPOT", spot_size=math.pi)   # Blender's widest spot: no perspective map covers it
+    assert describe.describe_light(spot).spot_angle == pytest.approx(math.radians(179.0))
+    assert describe.light_notes(spot) == [
+        "Spot light 'Spot' has a cone of 180°: Lixel lights and shadows its 179° (no perspective map covers 180°); "
+        "the rim beyond is unlit"]
+    spot.data.spot_size = math.radians(60.0)
     spot.scale = (-2.0, 2.0, 2.0)                         # even (a mirror is even): the cone Blender draws is round
     bpy.context.view_layer.update()
     assert describe.light_notes(spot) == []
