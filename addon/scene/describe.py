@@ -19,9 +19,10 @@ MAX_RESOLUTION = 16384
 """Largest render side Lixel accepts (the GPU's maximum texture size)."""
 
 MAX_CLIP_RATIO = float(2 ** 24)
-"""Largest clip end / clip start: beyond it a 32-bit float depth (the GPU's depth
+"""Largest clip end / clip start of a perspective camera: beyond it a 32-bit float depth (the GPU's depth
 buffers and the projection uploaded to it) cannot tell the clip range's ends
-apart near the far plane, and the camera pass resolves nothing."""
+apart near the far plane, and the camera pass resolves nothing. (An orthographic
+camera's depth is linear in the eye depth: its ratio does not matter.)"""
 
 LIGHT_TYPES = ("SUN", "POINT", "SPOT", "AREA")
 """Blender light types Lixel shadows (AREA is approximated, see describe_light)."""
@@ -135,7 +136,7 @@ def describe_view(camera_obj, depsgraph, scene) -> View:
     if not (0 < near < far < math.inf):
         raise WarpError(f"Camera '{camera_obj.name}' clips at start {near:g} and end {far:g}: the clip start must be "
                         f"positive and less than the clip end (Camera properties > Lens > Clip)")
-    if far / near > MAX_CLIP_RATIO:
+    if far / near > MAX_CLIP_RATIO and cam.type != "ORTHO":  # an orthographic depth is linear: any ratio resolves
         raise WarpError(f"Camera '{camera_obj.name}' clips from {near:g} to {far:g}, a range of 1:{far / near:.3g}, "
                         f"beyond what 32-bit float depth resolves (1:{MAX_CLIP_RATIO:,.0f}): raise the clip start or "
                         f"lower the clip end (Camera properties > Lens > Clip)")

@@ -158,6 +158,9 @@ CASES = {
                                           setattr(sc.camera.data, "clip_end", 1e9)),
                               r"Camera 'catalogue camera' clips from 1e-06 to 1e\+09, a range of 1:1e\+15, beyond what "
                               r"32-bit float depth resolves .*raise the clip start"),
+    "orthographic_near_1e-6_far_100": Case(lambda sc: (_ortho(sc), setattr(sc.camera.data, "clip_start", 1e-6),
+                                                       setattr(sc.camera.data, "clip_end", 100.0)),
+                                           check="covers_what_workbench_covers"),  # linear depth: any ratio resolves
     "light_at_camera": Case(_light_at_camera, check="no_shadow_seen"),
     "scene_1e7_from_origin": Case(_far_away, check="as_at_the_origin"),
     "name_collisions": Case(_collisions, check="has_shadows"),
