@@ -2,6 +2,7 @@
 
     python -m bench.edge_footprint --scenes forest_side_sun,stage_spot --sizes 2048
     python -m bench.edge_footprint --scenes stage_spot --methods cascade --sizes 1024,2048
+    python -m bench.edge_footprint --scenes floor_wall --methods uniform,cascade --sizes 1024,2048,4096 --ties 4
 
 Renders each scene like ``bench.rendered_error`` (the engine's path, ``LixelSettings`` defaults, only
 the method and the map size changed) and sets each method's numbers against uniform's:
@@ -16,6 +17,11 @@ the method and the map size changed) and sets each method's numbers against unif
   :data:`TURN_DEG` within :data:`CORNER_RADIUS` pixels: shadow corners, thin and small shadows),
   where both of the texel's directions count, and the mean σ_max there;
 * ``other``: the misclassified pixels elsewhere (away from true edges: depth, bias, coverage);
+* ``ties`` (``--ties S``): the true edge pixels whose centre the edge passes within a fraction of a pixel
+  (between 7 and 9 of the S x S rays of a ground truth cast S times finer are shadowed), and how many of each
+  method's wrong pixels are these: a map whose edge errs by more than that distance gets such a pixel wrong about
+  as often as a map with coarser texels, so where ties make most of the wrong pixels, the count stops following
+  the texel width;
 * ``by map``: per map that serves true edge pixels, how many it serves, how many of them are wrong, and the
   mean σ_max there: a cascade whose p95 halves uniform's may still have most of its wrong pixels in a split whose
   texels are barely finer than uniform's;
@@ -148,15 +154,33 @@ def grid_phase(offset):
         shared_warps().clear()
 
 
+def ties(name: str, view, light, edges: np.ndarray, supersample: int) -> np.ndarray:
+    """The ``edges`` pixels whose centre the true shadow edge passes close to: ``bench.report.ground_truth`` of
+    ``view`` at ``supersample`` times its resolution each way, and between 7/16 and 9/16 of each pixel's rays
+    shadowed (the same scene, whose bounds scale its rays' offsets)."""
+    import bpy
+    from addon.scene.describe import describe_scene
+    from addon.scene.geometry import GeometryCache
+    from bench.report import ground_truth as G
+    dg = bpy.context.evaluated_depsgraph_get()
+    _, _, bounds = describe_scene(bpy.context.scene, dg)
+    w, h = view.resolution
+    fine = G.ground_truth(dataclasses.replace(view, resolution=(w * supersample, h * supersample)), light,
+                          G.build_bvh(G.world_triangles(GeometryCache().update(dg))), bounds.scale())
+    shadowed = fine.shadow.reshape(h, supersample, w, supersample).mean(axis=(1, 3))
+    return edges & (np.abs(shadowed - 0.5) <= 1.0 / 16.0)
+
+
 def _mean(values) -> float:
     v = np.asarray(values, dtype=np.float64)
     v = v[np.isfinite(v)]
     return float(v.mean()) if len(v) else float("nan")
 
 
-def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1) -> list[dict]:
+def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1, supersample: int = 0) -> list[dict]:
     """One row per method and size: wrong pixels by class, the p95, the mean widths at straight edges and corners,
-    and the wrong pixels at each of ``phase_count`` grid phases (the first: the maps as computed)."""
+    the wrong pixels at each of ``phase_count`` grid phases (the first: the maps as computed) and, with
+    ``supersample``, at :func:`ties`."""
     from addon.measure import classify, footprint_stats, setup_footprints
     from addon.measure.errors import dilate, shadow_edges
     from addon.measure.footprint import per_serving_map, setup_across_edge_width, shadow_edge_normals
@@ -173,6 +197,7 @@ def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1) -
     corner = corners(edges, edge_n)
     near_corner = dilate(corner, 1)
     straight = edges & ~near_corner
+    tied = ties(name, view, light, edges, supersample) if supersample else None
     rows = []
     for method in methods:
         for size in sizes:
@@ -195,7 +220,9 @@ def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1) -
                          "straight": int((wrong & straight).sum()), "corners": int((wrong & near_corner).sum()),
                          "p95": footprint_stats(fp).p95, "across": _mean(across), "corner_smax": _mean(at_corners),
                          "grid_angle": _mean(angle), "aligned": int(np.sum(angle <= ALIGNED_DEG)),
-                         "by_map": by_map(view, setup, result.map_index, edges & counted, wrong, gt)})
+                         "by_map": by_map(view, setup, result.map_index, edges & counted, wrong, gt),
+                         "ties": None if tied is None else (int((wrong & tied).sum()), int((tied & counted).sum()),
+                                                            int((wrong & edges & ~tied).sum()))})
     return rows
 
 
@@ -229,6 +256,9 @@ def table(rows: list[dict]) -> list[str]:
                      f"({ratio('corners'):.2f}x; σ_max {r['corner_smax']:.3f} px, {ratio('corner_smax'):.2f}x) "
                      f"+ other {other}; straight edges' grid angle {r['grid_angle']:.1f}°, {r['aligned']} "
                      f"within {ALIGNED_DEG:.0f}°")
+        if r["ties"] is not None:
+            at, of, elsewhere = r["ties"]
+            lines.append(f"{'':>42}at ties {at} of {of} ({at / max(of, 1):.2f}); at other edge pixels {elsewhere}")
         lines.append(f"{'':>42}by map (edge pixels, wrong, mean σ_max there): " + "; ".join(
             f"{role} {n}, {w}, {smax:.2f} px" for role, n, w, smax in r["by_map"]))
         if len(r["phases"]) > 1:
@@ -247,6 +277,8 @@ def main(argv=None) -> int:
     ap.add_argument("--sizes", default="2048", help="comma-separated map sizes")
     ap.add_argument("--resolution", default="640x360", help="render size WxH")
     ap.add_argument("--phases", type=int, default=1, help="grid phases per method and size (1: as computed)")
+    ap.add_argument("--ties", type=int, default=0, metavar="S",
+                    help="also count the wrong pixels at ties, from a ground truth S times finer each way (0: off)")
     args = ap.parse_args(argv)
     from bench.rendered_error import _scratch_env
     _scratch_env()
@@ -259,7 +291,8 @@ def main(argv=None) -> int:
     resolution = tuple(int(v) for v in args.resolution.lower().split("x"))
     rows = []
     for name in args.scenes.split(","):
-        rows += measure_scene(name, methods, [int(s) for s in args.sizes.split(",")], resolution, args.phases)
+        rows += measure_scene(name, methods, [int(s) for s in args.sizes.split(",")], resolution, args.phases,
+                              args.ties)
     print("\n".join(table(rows)), flush=True)
     return 0
 
