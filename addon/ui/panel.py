@@ -122,7 +122,7 @@ def draw_planes(layout, props) -> None:
         op = row.operator("lixel.plane_remove", text="", icon="X")
         op.index = i
     if not len(props.planes):
-        box.label(text="None: plane_optimal then uses its fallback map only", icon="INFO")
+        box.label(text="None: plane_optimal takes the flat receiver top seen most", icon="INFO")
     row = box.row(align=True)
     row.operator("lixel.planes_from_selection", text="From Selection", icon="RESTRICT_SELECT_OFF")
     op = row.operator("lixel.planes_from_selection", text="Add Selection", icon="ADD")

@@ -11,7 +11,7 @@ from typing import Optional
 import numpy as np
 
 from .geometry import cross
-from .polyhedron import Plane, convex_polygon_on_plane  # noqa: F401  (scene/planes.py reads it here)
+from .polyhedron import Plane
 from .types import WarpError
 
 RANK_TOL = 1e-10

@@ -1,8 +1,9 @@
-"""addon.scene.planes: planes of interest from selected faces, from objects and
-detected automatically, on a small built scene (a floor, a wall, a table slab,
-a small cube and a camera); and that plane_optimal is exact on them."""
+"""addon.scene.planes and the operator that uses it: planes of interest from selected
+faces and from objects, on a small built scene (a floor, a wall, a table slab, a small
+cube and a camera); and that plane_optimal is exact on the plane the user picked."""
 import importlib
 import math
+from dataclasses import replace
 
 import bpy
 import numpy as np
@@ -116,33 +117,105 @@ def test_planes_from_objects(room, planes_mod):
     assert len(both) == 1
 
 
-def test_detect_planes_finds_the_floor_and_the_wall_not_the_small_faces(room, planes_mod, lixel):
-    sc, objs = room
-    describe = importlib.import_module(lixel.__name__ + ".addon.scene.describe")
-    dg = bpy.context.evaluated_depsgraph_get()
-    view = describe.describe_view(sc.camera, dg, sc)
-    found = planes_mod.detect_planes(dg, view)
-    assert 1 <= len(found) <= planes_mod.DETECT_MAX_PLANES
-    assert np.allclose(found[0].normal, [0, 0, 1]) and found[0].offset == pytest.approx(0.0, abs=1e-9)
-    cov = [planes_mod.image_coverage(p, view) for p in found]
-    assert all(c >= planes_mod.DETECT_MIN_COVERAGE for c in cov) and cov == sorted(cov, reverse=True)
-    assert any(abs(p.normal[1]) > 0.99 and abs(abs(p.offset) - 10) < 1e-6 for p in found)   # the wall
-    assert not any(abs(p.offset - 0.75) < 1e-6 for p in found)                                # the small table top
-    one = planes_mod.detect_planes(dg, view, max_planes=1)
-    assert len(one) == 1 and one[0].name == found[0].name and one[0].offset == found[0].offset
-    assert planes_mod.detect_planes(dg, view, min_coverage=0.99) == []
+def _select_only(names):
+    for ob in bpy.context.scene.objects:
+        ob.select_set(ob.name in names)
+    bpy.context.view_layer.objects.active = bpy.context.scene.objects[names[0]] if names else None
 
 
-def test_detected_planes_give_exact_plane_maps(room, planes_mod, lixel, warp):
+def _link_mesh(sc, objs, name, verts, faces, location=(0, 0, 0), scale=(1, 1, 1)):
+    me = bpy.data.meshes.new(name)
+    me.from_pydata([tuple(map(float, v)) for v in verts], [], faces)
+    me.update()
+    ob = bpy.data.objects.new(name, me)
+    sc.collection.objects.link(ob)
+    ob.location, ob.scale = location, scale
+    objs[name] = ob
+    bpy.context.view_layer.update()
+    return ob
+
+
+def _triangulated_grid(size, cuts, lift=lambda v: v):
+    """A square grid in local XY, each cell two triangles; ``lift`` maps the (N, 3) vertices."""
+    xs = np.linspace(-size / 2, size / 2, cuts + 1)
+    verts = lift(np.array([(x, y, 0.0) for y in xs for x in xs]))
+    at = lambda i, j: j * (cuts + 1) + i
+    tris = [t for j in range(cuts) for i in range(cuts)
+            for t in ((at(i, j), at(i + 1, j), at(i + 1, j + 1)), (at(i, j), at(i + 1, j + 1), at(i, j + 1)))]
+    return verts, tris
+
+
+def test_an_object_gives_its_largest_flat_surface_not_its_largest_polygon(room, lixel):
+    """A studio set in one mesh: a triangulated 10 m floor (200 triangles of 0.5 m²) and a
+    10 x 3 m backdrop quad. The floor is the surface shadows fall on; its largest polygon is
+    the backdrop."""
+    sc, objs = room
+    verts, tris = _triangulated_grid(10.0, 10)
+    backdrop = [(-5, 5, 0), (5, 5, 0), (5, 5, 3), (-5, 5, 3)]
+    _link_mesh(sc, objs, "Studio", list(verts) + backdrop, tris + [tuple(range(len(verts), len(verts) + 4))],
+               location=(0, 0, 0.25))
+    _select_only(["Studio"])
+    assert bpy.ops.lixel.planes_from_selection() == {"FINISHED"}
+    (plane,) = sc.lixel.planes
+    np.testing.assert_allclose(plane.normal, (0, 0, 1), atol=1e-6)
+    np.testing.assert_allclose(plane.point, (0, 0, 0.25), atol=1e-6)      # on the floor, in its middle
+    assert plane.source == "Studio (200 faces)"
+
+
+def test_a_flat_floor_is_one_plane_and_a_folded_one_two(room, lixel):
+    """The float32 vertices of a tilted 20 m floor of 20,000 triangles lying 2.8 km from the
+    origin (an imported survey) tilt its faces apart by up to 1.8e-4 rad: still one plane
+    (COPLANAR_ANGLE). A 0.1° fold is two."""
+    sc, objs = room
+    c, s_ = math.cos(0.3), math.sin(0.3)
+    tilt = lambda v: v @ np.array([[1, 0, 0], [0, c, s_], [0, -s_, c]])
+    _link_mesh(sc, objs, "Far", *_triangulated_grid(20.0, 100, lambda v: tilt(v) + (2000, 2000, 0)))
+    fold = math.radians(0.1)
+    folded = lambda v: np.where(v[:, 1:2] > 0, v @ np.array([[1, 0, 0], [0, math.cos(fold), math.sin(fold)],
+                                                             [0, -math.sin(fold), math.cos(fold)]]), v)
+    _link_mesh(sc, objs, "Folded", *_triangulated_grid(2.0, 4, folded))
+    found = {}
+    for name in ("Far", "Folded"):
+        _select_only([name])
+        bpy.ops.object.mode_set(mode="EDIT")
+        bpy.ops.mesh.select_all(action="SELECT")
+        try:
+            assert bpy.ops.lixel.planes_from_selection() == {"FINISHED"}
+        finally:
+            bpy.ops.object.mode_set(mode="OBJECT")
+        found[name] = [tuple(p.normal) for p in sc.lixel.planes]
+    assert len(found["Far"]) == 1
+    np.testing.assert_allclose(found["Far"][0], tilt(np.array([0.0, 0.0, 1.0])), atol=1e-6)
+    assert len(found["Folded"]) == 2
+
+
+def test_an_object_without_a_plane_is_refused_by_name_and_nothing_changes(room, lixel):
+    sc, objs = room
+    quad = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]
+    _select_only(["Floor"])
+    assert bpy.ops.lixel.planes_from_selection() == {"FINISHED"}
+    _link_mesh(sc, objs, "Squashed", quad, [(0, 1, 2, 3)], scale=(0, 1, 1))
+    broken = _link_mesh(sc, objs, "Broken", quad, [(0, 1, 2, 3)])
+    broken.data.vertices[2].co.x = float("nan")
+    for name in ("Squashed", "Broken"):
+        _select_only(["Floor", name])
+        with pytest.raises(RuntimeError, match=f"Lixel: {name}.* has no plane .*: fix its vertices"):
+            bpy.ops.lixel.planes_from_selection()
+        assert [p.source for p in sc.lixel.planes] == ["Floor (64 faces)"]
+
+
+def test_the_picked_floor_gives_an_exact_plane_map(room, lixel, warp):
+    """On the plane of interest every pixel maps to one lixel (Chong & Gortler §2), for the
+    plane the operator took from the selected floor."""
     sc, objs = room
     describe = importlib.import_module(lixel.__name__ + ".addon.scene.describe")
+    _select_only(["Floor"])
+    assert bpy.ops.lixel.planes_from_selection() == {"FINISHED"}
     dg = bpy.context.evaluated_depsgraph_get()
     view, light, bounds = describe.describe_scene(sc, dg)
-    found = planes_mod.detect_planes(dg, view)
-    opts = warp.WarpOptions(shadow_map_size=(1024, 1024), planes=planes_mod.as_warp_planes(found))
+    opts = replace(sc.lixel.to_settings().warp, shadow_map_size=(1024, 1024))
     setup = warp.compute("plane_optimal", view, light, bounds, opts)
-    roles = [m.role for m in setup.maps]
-    assert roles[:len(found)] == [f"plane:{i}" for i in range(len(found))] and roles[-1] == "fallback"
+    assert [m.role for m in setup.maps] == ["plane:0", "fallback"]
     floor_map = setup.maps[0]
     # a floor point's texel is its pixel shifted by whole texels (one lixel per pixel)
     pts = np.array([[0.5, -2.0, 0.0], [-3.0, 0.0, 0.0], [2.0, 4.0, 0.0]])

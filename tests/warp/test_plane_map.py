@@ -10,7 +10,8 @@ import pytest
 
 from addon.warp import EmptyBodyError, Light, SceneBounds, View, intersection_body
 from addon.warp.geometry import look_along
-from addon.warp.plane_map import convex_polygon_on_plane, default_plane, is_convex_polygon
+from addon.warp.plane_map import default_plane, is_convex_polygon
+from addon.warp.polyhedron import convex_polygon_on_plane
 from plane_optimal_helpers import default_plane as reference_default_plane
 
 
