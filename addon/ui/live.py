@@ -8,7 +8,9 @@ the overlay geometry only when the setup did. The timings of the last update
 are kept for the panel's readouts. Operators, the panel, the overlays, the
 depsgraph handler and the background scripts all go through here.
 
-The state is runtime only (never saved): it is dropped on file load.
+The state is runtime only (never saved): it is dropped on file load. It is
+keyed by the scene's ``session_uid`` (:func:`scene_key`), not its name: a rename
+keeps it, a new scene that takes a deleted one's name starts without one.
 """
 from __future__ import annotations
 
@@ -17,6 +19,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Optional
 
+import bpy
 import numpy as np
 
 from ..gpu.blas import one_blas_thread
@@ -97,12 +100,29 @@ class LiveState:
         return float(sum(self.timings.values()))
 
 
-_states: dict[str, LiveState] = {}
+_states: dict[int, LiveState] = {}
+
+
+def scene_key(scene) -> int:
+    """What identifies ``scene`` in this session: its ``session_uid`` (4.2 and 5.0),
+    kept across renames and undo steps and never given to another scene; a file
+    load makes new ones, and :func:`clear` drops the states then."""
+    return scene.session_uid
+
+
+def living_scene_keys() -> set:
+    """The keys of the scenes that exist now."""
+    return {scene_key(s) for s in bpy.data.scenes}
 
 
 def state(scene) -> Optional[LiveState]:
     """The scene's last state, or None if Lixel never computed for it."""
-    return _states.get(scene.name if not isinstance(scene, str) else scene)
+    return _states.get(scene_key(scene))
+
+
+def states() -> tuple:
+    """Every state held (deleted scenes' ones until the next :func:`update`)."""
+    return tuple(_states.values())
 
 
 def clear() -> None:
@@ -151,9 +171,12 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
     scene's (scripts); ``camera``/``light_obj`` override the scene's choice.
     Errors (no camera, no light, no mesh, empty B, and anything unexpected) are
     kept in ``state.error`` with a message for the user; they never raise."""
-    st = _states.get(scene.name)
+    for key in _states.keys() - living_scene_keys():   # deleted scenes
+        del _states[key]
+    st = _states.get(scene_key(scene))
     if st is None:
-        st = _states[scene.name] = LiveState(scene.name)
+        st = _states[scene_key(scene)] = LiveState(scene.name)
+    st.scene_name = scene.name
     todo = set(INPUTS) if changed is None else set(changed)
     if depsgraph is None:
         depsgraph = scene.view_layers[0].depsgraph

@@ -29,9 +29,9 @@ from . import live
 
 _handles: dict[str, object] = {}
 _batches: dict = {}
-"""(scene name, overlay, generation) -> GPU batches, rebuilt when the generation changes."""
+"""(scene key, overlay) -> (generation, GPU batches), rebuilt when the generation changes."""
 _receivers: dict = {}
-"""scene name -> (scene bounds, triangles (T,3,3), GPU batch or None) of the receivers for the texel/heatmap overlays."""
+"""scene key -> (scene bounds, triangles (T,3,3), GPU batch or None) of the receivers for the texel/heatmap overlays."""
 
 COLOURS = {
     "body_face": (1.0, 0.55, 0.1),
@@ -275,11 +275,22 @@ def classify_updates(scene, depsgraph) -> set:
     return changed
 
 
+def forget_deleted_scenes() -> None:
+    """Drop the GPU batches and pictures of scenes that no longer exist."""
+    if not (_batches or _receivers or _pip):
+        return
+    alive = live.living_scene_keys()
+    for cache in (_batches, _receivers, _pip):
+        for k in [k for k in cache if (k[0] if isinstance(k, tuple) else k) not in alive]:
+            del cache[k]
+
+
 @persistent
 @guarded_callback("updating Lixel after a scene change")
 def on_depsgraph_update(scene, depsgraph):
     """Recompute only what changed, for scenes Lixel already computed and that
     have live updates on (the cost goes to the panel's timing readout)."""
+    forget_deleted_scenes()
     props = getattr(scene, "lixel", None)
     if props is None or not props.live_update or live.state(scene) is None:
         return
@@ -347,8 +358,8 @@ def _point_batch(shader, points):
     return batch_for_shader(shader, "POINTS", {"pos": pos})
 
 
-def _cached(scene_name, key, generation, build):
-    k = (scene_name, key)
+def _cached(scene_key, key, generation, build):
+    k = (scene_key, key)
     hit = _batches.get(k)
     if hit is not None and hit[0] == generation:
         return hit[1]
@@ -418,7 +429,7 @@ def _draw_scene_overlays(scene, st, props, view_projection) -> None:
             _draw_receivers(scene, st, props, view_projection)
         shader.bind()
         if props.show_body and len(geometry["body_triangles"]):
-            batch = _cached(scene.name, "body_triangles", st.generation,
+            batch = _cached(live.scene_key(scene), "body_triangles", st.generation,
                             lambda: _tri_batch(shader, geometry["body_triangles"]))
             shader.uniform_float("color", (*COLOURS["body_face"], props.body_alpha))
             batch.draw(shader)
@@ -427,7 +438,7 @@ def _draw_scene_overlays(scene, st, props, view_projection) -> None:
         lines.uniform_float("viewportSize", tuple(float(v) for v in gpu.state.viewport_get()[2:]))
         lines.uniform_float("lineWidth", 2.0)
         for name, colour, segments in line_sets(props, geometry):
-            batch = _cached(scene.name, name, st.generation, lambda s=segments: _line_batch(lines, s))
+            batch = _cached(live.scene_key(scene), name, st.generation, lambda s=segments: _line_batch(lines, s))
             lines.uniform_float("color", COLOURS[colour])
             batch.draw(lines)
         if props.show_warp and geometry["points"]:
@@ -435,7 +446,7 @@ def _draw_scene_overlays(scene, st, props, view_projection) -> None:
             points.bind()
             gpu.state.point_size_set(8.0)
             pts = np.array(list(geometry["points"].values()))
-            batch = _cached(scene.name, "points", st.generation, lambda: _point_batch(points, pts))
+            batch = _cached(live.scene_key(scene), "points", st.generation, lambda: _point_batch(points, pts))
             points.uniform_float("color", COLOURS["point"])
             batch.draw(points)
             gpu.state.point_size_set(1.0)
@@ -465,10 +476,10 @@ def receiver_triangles(depsgraph) -> np.ndarray:
 def receiver_triangles_of(scene, st) -> np.ndarray:
     """The receiver triangles of ``scene`` (world, (T, 3, 3)), read again only
     when the state's scene bounds changed."""
-    hit = _receivers.get(scene.name)
+    hit = _receivers.get(live.scene_key(scene))
     if hit is None or hit[0] is not st.bounds:
         tris = receiver_triangles(bpy.context.evaluated_depsgraph_get())
-        _receivers[scene.name] = hit = (st.bounds, tris, None)
+        _receivers[live.scene_key(scene)] = hit = (st.bounds, tris, None)
     return hit[1]
 
 
@@ -490,14 +501,14 @@ def _draw_receivers(scene, st, props, view_projection):
     tris = receiver_triangles_of(scene, st)
     if not len(tris):
         return
-    bounds, _, batch = _receivers[scene.name]
+    bounds, _, batch = _receivers[live.scene_key(scene)]
     if batch is None:
         batch = batch_for_shader(shader, "TRIS", {"pos": tris.reshape(-1, 3).astype(np.float32)})
-        _receivers[scene.name] = (bounds, tris, batch)
+        _receivers[live.scene_key(scene)] = (bounds, tris, batch)
     maps = st.setup.maps[:MAX_SHADER_MAPS]
     shader.bind()
     shader.uniform_float("u_view_projection", mathutils.Matrix(np.asarray(view_projection, dtype=np.float64).tolist()))
-    shader.uniform_block("u_maps", _cached(scene.name, "maps", st.generation, lambda: _maps_block(maps)))
+    shader.uniform_block("u_maps", _cached(live.scene_key(scene), "maps", st.generation, lambda: _maps_block(maps)))
     shader.uniform_float("u_size", tuple(float(v) for v in maps[0].size))
     shader.uniform_int("u_count", len(maps))
     shader.uniform_float("u_alpha", RECEIVER_ALPHA)
@@ -541,7 +552,7 @@ def gpu_pipeline():
 
 
 _pip: dict = {}
-"""scene name -> (key, {"map"|"scene": GPUTexture}, its TargetPool) for the picture-in-picture overlays."""
+"""scene key -> (key, {"map"|"scene": GPUTexture}, its TargetPool) for the picture-in-picture overlays."""
 
 
 def _pip_textures(scene, st, props) -> dict:
@@ -550,13 +561,13 @@ def _pip_textures(scene, st, props) -> dict:
     from ..gpu.targets import TargetPool
     from . import renders
     key = (st.generation, props.map_pip_size, props.show_map, props.show_shadowed)
-    hit = _pip.get(scene.name)
+    hit = _pip.get(live.scene_key(scene))
     if hit is not None and hit[0] == key:
         return hit[1]
     pool = hit[2] if hit is not None else TargetPool()   # the scene's own targets: no other frame draws over them
     textures = renders.pip_textures(st, bpy.context.evaluated_depsgraph_get(), props.map_pip_size,
                                     props.show_map, props.show_shadowed, pool)
-    _pip[scene.name] = (key, textures, pool)
+    _pip[live.scene_key(scene)] = (key, textures, pool)
     return textures
 
 

@@ -56,7 +56,7 @@ def test_the_viewport_computes_and_draws_with_one_thread(monkeypatch, probe):
     monkeypatch.setattr(live, "LiveState", probe)
     monkeypatch.setattr(context, "ensure_gpu_context", probe)
     with pytest.raises(RuntimeError):
-        live.update(type("Scene", (), {"name": "lixel_blas_probe"})())
+        live.update(type("Scene", (), {"name": "lixel_blas_probe", "session_uid": -1})())
     with pytest.raises(RuntimeError):
         renders.pip_textures(None, None, 64, want_map=True, want_scene=False)
     assert probe.seen == [probe.one] * 2

@@ -103,3 +103,21 @@ def test_opening_a_file_with_overlays_on_restores_them(lixel, tmp_path):
     assert overlays.draw_handlers_active() == ("pixel", "view")
     bpy.ops.wm.open_mainfile(filepath=str(without), load_ui=False)
     assert overlays.draw_handlers_active() == ()
+
+
+def test_live_state_belongs_to_the_scene_not_its_name(lixel):
+    """A renamed scene keeps its state; a new scene that takes a deleted scene's
+    name starts with none (with live update off nothing would replace the old
+    one), and the deleted scene's state is dropped at the next update."""
+    live = importlib.import_module(f"{ADDON_MODULE}.addon.ui.live")
+    with active_scene("lixel_named") as scene:
+        scene.lixel.live_update = False
+        st = live.update(scene)
+        assert st.ok
+        scene.name = "lixel_renamed"
+        assert live.state(scene) is st
+    with active_scene("lixel_renamed", light=None) as newcomer:  # the old scene is deleted; its name is free
+        assert newcomer.name == "lixel_renamed"
+        assert live.state(newcomer) is None
+        assert not live.update(newcomer).ok  # no light: its own error, not the old scene's setup
+        assert st not in live.states()
