@@ -429,10 +429,16 @@ def add_texel_grid(ob, carrier, map_index: int = 0):
 
 
 def remove_texel_grid(ob) -> bool:
+    """Remove the texel-grid modifier from ``ob``; the material slot and colour
+    attribute names it put on the mesh go only with the last object of that mesh
+    that has the grid (another still shows it through them)."""
     mod = lixel_modifier(ob, TEXEL_MODIFIER)
     if mod is None:
         return False
     ob.modifiers.remove(mod)
+    if any(other.data == ob.data and lixel_modifier(other, TEXEL_MODIFIER) is not None
+           for other in bpy.data.objects if other != ob):
+        return True
     attrs = ob.data.attributes
     if attrs.active_color_name == PARITY_COLOR_ATTRIBUTE:
         attrs.active_color_name = ""

@@ -203,3 +203,34 @@ def test_files_from_before_the_mark_are_still_lixels(lixel, mods):
         finally:
             bpy.data.objects.remove(ob)
             bpy.data.node_groups.remove(tree)
+
+
+def test_the_texel_grid_on_a_shared_mesh_leaves_with_its_last_object(user_scene, mods):
+    """Two objects share a mesh that has the user's material: removing the grid from one leaves the other's
+    grid whole (the material slot and the colour attribute Workbench shows stay on the mesh); removing it from
+    the last takes off only what Lixel added."""
+    scene, _users = user_scene
+    cube = scene.objects["lixel_user_data cube"]
+    mesh = cube.data
+    paint = bpy.data.materials.new("my paint")
+    mesh.materials.append(paint)
+    twin = bpy.data.objects.new("my twin", mesh)
+    scene.collection.objects.link(twin)
+    try:
+        _select(scene, [cube.name, twin.name])
+        assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+        with_grid = ([m.name for m in mesh.materials], mesh.attributes.active_color_name)
+        grid_material = mods.owned.find_made(bpy.data.materials, mods.nodes.TEXEL_MATERIAL)
+        assert with_grid == (["my paint", grid_material.name], mods.nodes.PARITY_COLOR_ATTRIBUTE)
+        _select(scene, [cube.name])
+        assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"}
+        assert mods.nodes.lixel_modifier(cube, mods.nodes.TEXEL_MODIFIER) is None
+        assert mods.nodes.lixel_modifier(twin, mods.nodes.TEXEL_MODIFIER) is not None
+        assert ([m.name for m in mesh.materials], mesh.attributes.active_color_name) == with_grid
+        _select(scene, [twin.name])
+        assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"}
+        assert [m for m in mesh.materials] == [paint]
+        assert (mesh.attributes.active_color_name, mesh.attributes.default_color_name) == ("", "")
+    finally:
+        bpy.data.objects.remove(twin)
+        bpy.data.materials.remove(paint)
