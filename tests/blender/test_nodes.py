@@ -160,6 +160,25 @@ def test_a_corner_at_a_tiny_positive_w_is_through_infinity_as_for_the_overlays(s
     assert len(evaluated_points(ob, ["position"])["position"]) == 0
 
 
+def test_a_volume_bounded_in_float64_but_not_in_float32_is_said_to_be_empty(scene, nodes, wg, lixel):
+    """The rule says bounded (w = 2^-24 at |x, y, z| = 100 is above its relative epsilon), but the group's float32
+    inverse puts that corner at w <= 0 and draws nothing: Add Frustum's note says so, and why."""
+    frustum_note = importlib.import_module(f"{lixel.__name__}.addon.ui.operators.bake").frustum_note
+    s, c = 100.0, 1.0 - 2.0 ** -24
+    inverse = np.diag([s, s, s, 1.0])
+    inverse[3, 2] = c
+    matrix = np.linalg.inv(inverse)
+    assert wg.finite_clip_volume_corners(matrix) is not None
+    carrier = nodes.ensure_carrier(scene, _Setup(_Map(matrix, (512, 512))))
+    ob = nodes.add_frustum_object(scene, carrier, 0)
+    assert len(evaluated_points(ob, ["position"])["position"]) == 0
+    dg = bpy.context.evaluated_depsgraph_get()
+    assert "empty for now: a corner of this map's volume lies so near infinity" in frustum_note(ob, matrix, dg)
+    bounded = perspective_light(wg, (1.0, 2.0, 9.0), (0.0, 0.0, 0.0))
+    nodes.ensure_carrier(scene, _Setup(_Map(bounded, (512, 512))))
+    assert frustum_note(ob, bounded, bpy.context.evaluated_depsgraph_get()) == ""
+
+
 def test_add_frustum_says_when_its_map_reaches_through_infinity(lixel, nodes, wg, capfd):
     """The sun behind the camera: the cascade's far split's map reaches through infinity. The operator says its
     object is empty exactly where the group draws nothing, and says nothing of the kind for a bounded map."""

@@ -160,11 +160,21 @@ class LIXEL_OT_frustum_add(LixelSceneOperator, bpy.types.Operator):
             return {"CANCELLED"}
         carrier = nodes.ensure_carrier(context.scene, st.setup)
         ob = nodes.add_frustum_object(context.scene, carrier, self.map_index)
-        unbounded = finite_clip_volume_corners(st.setup.maps[self.map_index].matrix) is None
-        self.report({"INFO"}, f"Lixel: '{ob.name}' follows map {self.map_index}" + (
-            " (empty for now: this map's volume reaches through infinity; the light frustum overlay shows its part "
-            "around B)" if unbounded else ""))
+        note = frustum_note(ob, st.setup.maps[self.map_index].matrix, context.evaluated_depsgraph_get())
+        self.report({"INFO"}, f"Lixel: '{ob.name}' follows map {self.map_index}" + (f" ({note})" if note else ""))
         return {"FINISHED"}
+
+
+def frustum_note(ob, matrix, depsgraph) -> str:
+    """Why the frustum object ``ob`` of ``matrix`` is empty, or "" when its group drew the volume. Besides a volume
+    through infinity (``finite_clip_volume_corners``, float64), the group's float32 inverse can put a corner that is
+    barely in front of the light at w <= 0; it then draws nothing rather than a mirrored box."""
+    if len(ob.evaluated_get(depsgraph).data.vertices):
+        return ""
+    why = ("this map's volume reaches through infinity" if finite_clip_volume_corners(matrix) is None else
+           "a corner of this map's volume lies so near infinity that the node group's float32 arithmetic puts it "
+           "behind the light")
+    return f"empty for now: {why}; the light frustum overlay shows its part around B"
 
 
 class LIXEL_OT_sync_matrices(LixelSceneOperator, bpy.types.Operator):
