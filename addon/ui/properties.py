@@ -66,12 +66,29 @@ def _light_poll(self, obj):
     return obj.type == "LIGHT"
 
 
+PLANE_CORNERS = 8
+"""Corners a plane of interest's extent keeps (a larger hull is enclosed: plane_map.enclosing_polygon)."""
+
+
 class LixelPlane(bpy.types.PropertyGroup):
-    """A plane of interest for plane_optimal (Chong-Gortler §3): a point on it and its normal."""
+    """A plane of interest for plane_optimal (Chong-Gortler §3): a point on it, its normal and
+    the convex extent of the faces it was taken from (its first ``corners`` rows; 0: unbounded)."""
 
     point: FloatVectorProperty(name="Point", subtype="TRANSLATION", size=3, default=(0.0, 0.0, 0.0))
     normal: FloatVectorProperty(name="Normal", subtype="DIRECTION", size=3, default=(0.0, 0.0, 1.0))
     source: StringProperty(name="Source", description="What the plane was taken from")
+    extent: FloatVectorProperty(name="Extent", size=(PLANE_CORNERS, 3), default=[(0.0, 0.0, 0.0)] * PLANE_CORNERS,
+                                description="The corners of the convex polygon the plane's shadow map covers")
+    corners: IntProperty(name="Corners", default=0, min=0, max=PLANE_CORNERS,
+                         description="How many extent corners are set (0: the plane is unbounded)")
+
+    def extent_corners(self) -> tuple:
+        return tuple(tuple(c) for c in self.extent[:self.corners])
+
+    def set_extent(self, corners) -> None:
+        corners = [tuple(map(float, c)) for c in corners][:PLANE_CORNERS]
+        self.extent = corners + [(0.0, 0.0, 0.0)] * (PLANE_CORNERS - len(corners))
+        self.corners = len(corners)
 
 
 OVERLAYS = (
@@ -252,10 +269,12 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
             **{name: getattr(self, name) for name in CASCADE_SETTINGS})
 
     def planes_of_interest(self) -> tuple:
-        """((point, normal), ...) of the planes of interest; WarpError naming a bad one."""
-        planes = tuple((tuple(p.point), tuple(p.normal)) for p in self.planes)
-        for p, (point, normal) in zip(self.planes, planes):
-            if not all(math.isfinite(v) for v in point + normal) or not any(normal):
+        """((point, normal[, extent]), ...) of the planes of interest; WarpError naming a bad one."""
+        planes = tuple((tuple(p.point), tuple(p.normal)) + ((p.extent_corners(),) if p.corners else ())
+                       for p in self.planes)
+        for p, (point, normal, *extent) in zip(self.planes, planes):
+            corners = tuple(v for corner in p.extent_corners() for v in corner)
+            if not all(math.isfinite(v) for v in point + normal + corners) or not any(normal):
                 raise WarpError(f"Plane of interest '{p.source or 'unnamed'}' of scene '{self.id_data.name}' has a "
                                 f"non-finite point or a zero normal: remove it or take it again from the selection "
                                 f"(Lixel panel > Method > Planes of Interest)")
@@ -309,9 +328,10 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
             setattr(self, name, getattr(wo, name))
         if planes:
             self.planes.clear()
-            for point, normal in wo.planes:
+            for point, normal, *extent in wo.planes:
                 p = self.planes.add()
                 p.point, p.normal = point, normal
+                p.set_extent(extent[0] if extent and extent[0] is not None else ())
         for name in ("bias_mode", "constant_bias", "slope_bias", "normal_offset", "back_faces", "pcf_kernel",
                      "revectorize", "mdsm_depths", "mdsm_selection", "mdsm_neighbourhood", "eye_blur"):
             setattr(self, name, getattr(sh, name))

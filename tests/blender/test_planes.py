@@ -204,6 +204,29 @@ def test_an_object_without_a_plane_is_refused_by_name_and_nothing_changes(room, 
         assert [p.source for p in sc.lixel.planes] == ["Floor (64 faces)"]
 
 
+def test_a_picked_table_top_keeps_its_extent_so_its_map_covers_only_the_top(room, lixel, warp, planes_mod):
+    """Chong & Gortler §3: a plane of interest's map need only cover the part of the plane
+    that matters. Unbounded, the table top's plane cut the whole view at its height: a
+    642 x 261 map instead of 164 x 27."""
+    sc, objs = room
+    describe = importlib.import_module(lixel.__name__ + ".addon.scene.describe")
+    _select_only(["Table"])
+    assert bpy.ops.lixel.planes_from_selection() == {"FINISHED"}
+    (stored,) = sc.lixel.planes
+    corners = np.array(stored.extent[:stored.corners])
+    assert stored.corners == 4
+    np.testing.assert_allclose(corners.min(axis=0), (-1.0, 1.4, 0.75), atol=1e-6)
+    np.testing.assert_allclose(corners.max(axis=0), (1.0, 2.6, 0.75), atol=1e-6)
+    dg = bpy.context.evaluated_depsgraph_get()
+    view, light, bounds = describe.describe_scene(sc, dg)
+    opts = replace(sc.lixel.to_settings().warp, shadow_map_size=(1024, 1024))
+    picked = warp.compute("plane_optimal", view, light, bounds, opts).maps[0]
+    exact = planes_mod.planes_from_objects([objs["Table"]], dg)
+    expect = warp.compute("plane_optimal", view, light, bounds, replace(opts, planes=tuple(exact))).maps[0]
+    assert picked.size == expect.size and picked.size[0] * picked.size[1] < 1024 * 1024 / 100
+    np.testing.assert_allclose(picked.matrix, expect.matrix, rtol=1e-6, atol=1e-9)
+
+
 def test_the_picked_floor_gives_an_exact_plane_map(room, lixel, warp):
     """On the plane of interest every pixel maps to one lixel (Chong & Gortler §2), for the
     plane the operator took from the selected floor."""

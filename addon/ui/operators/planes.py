@@ -6,6 +6,8 @@ from bpy.props import BoolProperty, IntProperty
 from ...guard import guarded_operator
 from ...scene.owned import DEBUG_KEY
 from ...scene.planes import NoPlane, planes_from_objects, planes_from_selected_faces
+from ...warp.plane_map import enclosing_polygon
+from ..properties import PLANE_CORNERS
 from .common import LixelSceneOperator, initialise, scene_poll
 
 
@@ -45,6 +47,7 @@ class LIXEL_OT_planes_from_selection(LixelSceneOperator, bpy.types.Operator):
         for plane in planes:
             item = props.planes.add()   # a point on the faces: the middle of their extent's corners
             item.point, item.normal, item.source = tuple(plane.extent.mean(axis=0)), tuple(plane.normal), plane.name
+            item.set_extent(enclosing_polygon(plane.extent, plane.normal, PLANE_CORNERS))
         props.active_plane = len(props.planes) - 1
         msg = f"Lixel: {len(props.planes)} plane(s) of interest"
         if props.method != "plane_optimal":
