@@ -78,6 +78,21 @@ def _evaluated(obj, depsgraph):
         return obj
 
 
+def render_camera(scene):
+    """The camera Blender renders ``scene`` with: ``scene.camera``, or with multi-view (Output > Stereoscopy >
+    Multi-View) and one view, the scene's object named as that camera with the view's suffix in place of the
+    longest view suffix ending its name, where there is one (Blender's ``camera_multiview_advanced``; measured in
+    4.2.23 and 5.0.1: "Cam_L" with only the right view renders "Cam_R"). :func:`check_one_view` refuses the rest."""
+    cam, r = scene.camera, scene.render
+    used = [v for v in r.views if v.use]
+    if cam is None or not r.use_multiview or r.views_format != "MULTIVIEW" or len(used) != 1:
+        return cam
+    ends = [len(v.camera_suffix) for v in r.views if cam.name.endswith(v.camera_suffix)]
+    if not ends:
+        return cam
+    return scene.objects.get(cam.name[:len(cam.name) - max(ends)] + used[0].camera_suffix, cam)
+
+
 def check_one_view(scene) -> None:
     """WarpError naming the views when the scene renders with Stereoscopy other than one plain view: Lixel renders
     the camera's own view, once, so a second view would come out empty (measured: the left eye of a stereo pair)
@@ -414,7 +429,7 @@ def describe_scene(context_or_scene, depsgraph=None, camera=None, light=None,
             depsgraph = evaluated_depsgraph(scene, view_layer)
     active = view_layer.objects.active if view_layer is not None else None
 
-    cam = _resolve(camera) if camera is not None else scene.camera
+    cam = _resolve(camera) if camera is not None else render_camera(scene)
     view = describe_view(cam, depsgraph, scene)
     light_obj = _resolve(light) if light is not None else pick_light(scene, depsgraph, active)
     lit = describe_light(light_obj, depsgraph)

@@ -25,7 +25,7 @@ import numpy as np
 from ..gpu.blas import one_blas_thread
 from ..guard import user_message
 from ..scene.describe import (check_finite_geometry, describe_bounds, describe_light, describe_view, light_notes,
-                              pick_light)
+                              pick_light, render_camera)
 from ..scene.geometry import shared_cache
 from ..scene.owned import is_debug_object
 from ..settings import LixelSettings
@@ -194,7 +194,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         new_settings = settings if settings is not None else timed("settings", scene_settings, scene)
         view = st.view
         if "view" in todo or view is None:
-            view = timed("describe view", describe_view, camera if camera is not None else scene.camera,
+            view = timed("describe view", describe_view, camera if camera is not None else render_camera(scene),
                          depsgraph, scene)
         light = st.light
         if "light" in todo or light is None:

@@ -25,6 +25,7 @@ from bpy.app.handlers import persistent
 
 from ..gpu.layout import Member, Struct
 from ..guard import guarded_callback, user_message
+from ..scene.describe import render_camera
 from . import live
 
 _handles: dict[str, object] = {}
@@ -246,7 +247,7 @@ def classify_updates(scene, depsgraph) -> set:
     its data), 'light' (any light: the chosen one may change), 'bounds' (any
     other object or geometry), 'settings' (the scene itself)."""
     changed = set()
-    cam = scene.camera
+    cam = render_camera(scene)
     cam_data = cam.data if cam is not None else None
     for u in depsgraph.updates:
         idb = u.id

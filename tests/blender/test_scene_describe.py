@@ -338,3 +338,27 @@ def test_light_notes_say_what_renders_differently(describe, fresh_scene):
         "Spot light 'Spot' is scaled unevenly (X 3, Y 1 times its Z): Blender stretches its cone into an ellipse, "
         "Lixel lights and shadows the round cone of its Spot Size; give it an even scale (Object properties > "
         "Transform > Scale)"]
+
+
+@pytest.mark.parametrize("view_used, expected", [("right", "Cam_R"), ("left", "Cam_L")])
+def test_one_multiview_view_renders_with_its_own_camera_as_blender_does(describe, fresh_scene, view_used, expected):
+    """Measured with Workbench (4.2.23, 5.0.1): scene camera "Cam_L", multi-view with only the right view on
+    renders "Cam_R" (the camera's name with the view's suffix); Lixel describes that camera too."""
+    scene = fresh_scene
+    cams = {name: add_camera(scene, name, location=loc) for name, loc in (("Cam_R", (4, -6, 3)), ("Cam_L", (-4, -6, 3)))}
+    assert scene.camera == cams["Cam_L"]
+    _link(scene, bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN")))
+    me = bpy.data.meshes.new("quad")
+    me.from_pydata([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [], [(0, 1, 2, 3)])
+    _link(scene, bpy.data.objects.new("quad", me))
+    scene.render.use_multiview, scene.render.views_format = True, "MULTIVIEW"
+    for v in scene.render.views:
+        v.use = v.name == view_used
+    assert describe.render_camera(scene) == cams[expected]
+    view, _, _ = describe.describe_scene(scene)
+    np.testing.assert_allclose(view.camera_to_world[:3, 3], cams[expected].location, atol=1e-6)
+    cams["Cam_L"].name = "Cam"                            # no view's suffix ends its name: the scene camera
+    assert describe.render_camera(scene) == scene.camera
+    scene.render.views_format = "STEREO_3D"                # refused by check_one_view; the camera is the scene's
+    cams["Cam_L"].name = "Cam_L"
+    assert describe.render_camera(scene) == scene.camera
