@@ -285,6 +285,30 @@ def test_a_wider_layout_of_the_same_texels_shortens_a_texel_across_a_wall_nearly
     assert np.allclose(ratio, 1.0 / np.sqrt(2.0), rtol=0.02)
 
 
+
+def test_a_map_turned_to_grazing_receivers_lays_their_strips_on_a_texel_axis_where_2_to_1_shortens_their_texels():
+    """On a wall at cos α = 0.05 whose strip in the light's image (m = n × ℓ, the direction the projection along ℓ
+    keeps) lies at 30° to the texel axes, the map ``turned`` along the ``grazing`` receivers lays m's image on a
+    texel axis; the same texels laid out 2:1, coarse along m, then cut ds across the strip, and the footprint
+    ds/cos α (PSM §1.1), by √2."""
+    view, light, scene = example("outdoor_sun")
+    split = Trials(view, light, scene, dataclasses.replace(OPTIONS, cascade_warp="uniform")).split(6.0, 40.0, 0.0)
+    square = split.setup.maps[0]
+    x, y = (square.matrix[i, :3] / np.linalg.norm(square.matrix[i, :3]) for i in (0, 1))
+    m = math.cos(math.radians(30)) * x + math.sin(math.radians(30)) * y
+    across = np.cross(light.direction, m) / np.linalg.norm(np.cross(light.direction, m))
+    wall = np.sqrt(1.0 - 0.05 ** 2) * across + 0.05 * light.direction
+    points = split.body.visible_vertices
+    normals = np.tile(wall, (len(points), 1))
+    turn, = turned(square.matrix, split.body.vertices, (points, np.cross(normals, light.rays_to(points))))   # grazing's
+    image = turn[:2, :3] @ m
+    assert np.min(np.abs(image)) < 1e-9 * np.max(np.abs(image))
+    turned_square = dataclasses.replace(square, matrix=turn)
+    before = texel_footprint(view, turned_square, points, normals)
+    ratio = min((texel_footprint(view, dataclasses.replace(turned_square, size=size), points, normals) / before
+                 for size in stretched(square.size)), key=np.median)
+    assert np.allclose(ratio, 1.0 / np.sqrt(2.0), rtol=0.02)
+
 @pytest.mark.parametrize("config", configurations(), ids=config_ids())
 def test_each_map_of_a_per_map_cascade_holds_the_configured_texels(config):
     """Equal texels with the classic PSSM: each map w·h of ``shadow_map_size``, square or ``stretched`` (never past the
@@ -435,7 +459,7 @@ def test_the_receivers_footprint_is_the_judges(name):
     for method in ("uniform", "lispsm", "psm"):
         setup = compute(method, view, light, scene, OPTIONS)
         ours = footprints([setup], seen)[0]
-        judges = setup_texel_footprint(view, setup, seen[0], np.cross(seen[1][:, :, 0], seen[1][:, :, 1]))
+        judges = setup_texel_footprint(view, setup, seen[0], seen[1])
         finite = np.isfinite(judges)
         assert finite.mean() > 0.9
         assert np.allclose(ours[finite], judges[finite], rtol=1e-7), method

@@ -7,7 +7,6 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
-from dataclasses import dataclass, field
 from typing import Optional
 
 import numpy as np
@@ -16,7 +15,7 @@ from ..body import IntersectionBody, intersection_body
 from ..diagnostics import Diagnostics
 from ..partition.adaptive import max_error, minimax_splits
 from ..partition.budget import shared_sizes
-from ..partition.receivers import TAIL, footprint_p95, footprints, receivers, turned
+from ..partition.receivers import TAIL, footprint_p95, footprints, grazing, receivers, turned
 from ..partition.splits import practical_splits, split_region, split_view, tightened_depth_range
 from ..partition.stable import stable_depth_range, stable_spot_map, stable_sun_map
 from ..types import MAX_MAP_SIDE, EmptyBodyError, Light, SceneBounds, ShadowSetup, View, WarpError, WarpOptions
@@ -42,13 +41,18 @@ def stretched(size: tuple) -> list[tuple[int, int]]:
     return [s for s in laid if max(s) <= MAX_MAP_SIDE]
 
 
+def single(setup: ShadowSetup, **changed) -> ShadowSetup:
+    """``setup`` with the fields ``changed`` of its one map."""
+    return dataclasses.replace(setup, maps=[dataclasses.replace(setup.maps[0], **changed)])
+
+
 MAX_MAPS = 8
 """The most maps the shading pass reads (``addon.gpu.shaders.MAX_MAPS``)."""
 OVERLAP = 1e-4
 """Each split's B reaches this fraction of its depths past both ends (a floor at a split depth meets it in a volume)."""
 
 
-@dataclass
+@dataclasses.dataclass
 class Split:
     near: float                 # C_i
     far: float                  # C_(i+1)
@@ -58,12 +62,11 @@ class Split:
     warp: str = "uniform"
     setup: Optional[ShadowSetup] = None
     predicted_error: float = 0.0
-    tried: list = field(default_factory=list)   # (warp, setup) of each warp it tried
+    tried: list = dataclasses.field(default_factory=list)   # (warp, setup) of each warp it tried
 
 
 def split_setup(warp: str, view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
-    """A split's maps by ``warp`` (PSM without its λ guard: docs/papers.md, ``addon/warp/methods/cascade.py``), or a
-    stable sun or spot split's on its texel grid."""
+    """A split's maps by ``warp`` (PSM without its λ guard: docs/papers.md), or a stable sun or spot split's, snapped."""
     stable, size = options.cascade_stable and light.type != "POINT", options.shadow_map_size
     snapped = None if not stable else stable_sun_map(light, body, view, size) if light.is_directional \
         else stable_spot_map(light, body, size, options.max_frustum_angle)
@@ -78,7 +81,7 @@ def split_setup(warp: str, view: View, light: Light, body: IntersectionBody, opt
     return setup
 
 
-@dataclass
+@dataclasses.dataclass
 class Trials:
     """The splits one ``split_depths`` tries, each part (B_i, a warp's maps and their error, turns, footprints) made
     ``once``, kept by its depths: Lloyd's rounds and the split search meet most depth pairs again."""
@@ -88,7 +91,7 @@ class Trials:
     options: WarpOptions
     visible: Optional[VisibleRegion] = None
     seen: Optional[tuple] = None        # the ``receivers`` from C_0 on (None: their normals unknown)
-    made: dict = field(default_factory=dict)
+    made: dict = dataclasses.field(default_factory=dict)
 
     def once(self, key: tuple, make):
         """``make()``, called the first time ``key`` is asked for."""
@@ -132,16 +135,18 @@ class Trials:
 
     def candidates(self, split: Split, far: float, laid: bool = True) -> list:
         """(warp, setup, ``footprints`` at the receivers at eye depths [C_i, ``far``)) of each warp ``split`` tried
-        (Lloyd's pick first), then of each single map of those ``turned``, then (``laid``) of each ``stretched``."""
+        (Lloyd's pick first), each single map ``turned`` to B_i's hull and (``laid``) to its ``grazing`` ones, and
+        (``laid``) each of those ``stretched``."""
         maps = sorted(split.tried, key=lambda t: t[1] is not split.setup)
-        for w, m in maps[:len(split.tried)]:
-            turns = self.once(("turned", split.near, split.far + split.band, w), lambda: [] if len(m.maps) > 1
-                              else turned(m.maps[0].matrix, split.body.vertices))
-            maps += [(w, dataclasses.replace(m, maps=[dataclasses.replace(m.maps[0], matrix=t)])) for t in turns]
-        maps += [(w, dataclasses.replace(m, maps=[dataclasses.replace(m.maps[0], size=size)])) for w, m in maps
-                 if len(m.maps) == 1 and laid for size in stretched(m.maps[0].size)]
         depth = self.view.eye_depth(self.seen[0])
         seen = tuple(x[(depth >= split.near) & (depth < far)] for x in self.seen)
+        for w, m in [(w, m) for w, m in maps if len(m.maps) == 1]:
+            hull = self.once(("turned", split.near, split.far + split.band, w),
+                             lambda: turned(m.maps[0].matrix, split.body.vertices))
+            maps += [(w, single(m, matrix=t)) for t in hull + (turned(m.maps[0].matrix, split.body.vertices,
+                                                                      grazing(m, seen, self.light)) if laid else [])]
+        maps += [(w, single(m, size=size)) for w, m in maps if len(m.maps) == 1 and laid
+                 for size in stretched(m.maps[0].size)]
         return [(w, m, f) for (w, m), f in zip(maps, footprints([m for _, m in maps], seen) if maps else [])]
 
     def least_footprint(self, splits: list) -> tuple[list, list]:
@@ -165,8 +170,7 @@ class Trials:
         return splits, [c[k][2] for (_, c), k in zip(scored, pick)]
 
     def least(self, split: Split, far: float) -> np.ndarray:
-        """The footprints of ``split``'s square candidate of least p95 at the receivers at eye depths [C_i, ``far``)
-        (the split search's: the layouts come after it)."""
+        """The footprints of ``split``'s unlaid candidate of least p95 at the receivers at eye depths [C_i, ``far``)."""
         return self.once(("least", split.near, far, split.warp), lambda: min(
             [f for *_, f in self.candidates(split, far, False)], key=lambda f: footprint_p95([f]), default=np.zeros(0)))
 

@@ -17,7 +17,7 @@ SAMPLES = 2048
 
 
 def receivers(view: View, light: Light, region: VisibleRegion | None, near: float, far: float) -> tuple | None:
-    """(p, tangent bases T (N, 3, 2), G = D_view·T) of the ``region``'s ``surface`` samples with known ``normals``
+    """(p, n, tangent bases T (N, 3, 2), G = D_view·T) of the ``region``'s ``surface`` samples and their ``normals``
     at eye depths [near, far) that the light reaches (a spot's cone); None if there are none."""
     if region is None or region.normals is None:
         return None
@@ -29,14 +29,13 @@ def receivers(view: View, light: Light, region: VisibleRegion | None, near: floa
     p, n = p[k], n[k]
     t1 = np.cross(n, np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]]))
     tangent = np.stack([t1, np.cross(n, t1)], axis=2) / np.linalg.norm(t1, axis=1)[:, None, None]
-    return (p, tangent, raster_jacobian(view.world_to_clip, view.resolution, p) @ tangent) if len(p) else None
+    return (p, n, tangent, raster_jacobian(view.world_to_clip, view.resolution, p) @ tangent) if len(p) else None
 
 
 def footprints(setups: list, seen: tuple) -> list[np.ndarray]:
     """Screen pixels per texel σ_max(G·H⁻¹) of each of ``setups`` at the ``receivers`` ``seen``, H = D_map·T of the map
-    serving each (inf edge-on, NaN unserved): the judge's ``addon.measure.footprint`` (PSM §1.1), σ_max of a 2x2 by
-    its norm and det; every map of every setup at every receiver in one batch."""
-    p, tangent, g = seen
+    serving each (inf edge-on, NaN unserved): the judge's ``addon.measure.footprint`` (PSM §1.1), in one batch."""
+    p, _, tangent, g = seen
     maps = [m for s in setups for m in s.maps]
     h = raster_jacobian([m.matrix for m in maps], [m.size for m in maps], p) @ tangent          # (maps, N, 2, 2)
     j = g @ (np.swapaxes(h[..., ::-1, ::-1], -1, -2) * [[1.0, -1.0], [-1.0, 1.0]])    # G·H⁻¹·det H
@@ -47,6 +46,15 @@ def footprints(setups: list, seen: tuple) -> list[np.ndarray]:
     first = np.cumsum([0] + [len(s.maps) for s in setups])
     served = [s.map_index(p, None, 1e-6) if len(s.maps) > 1 else np.zeros(len(p), int) for s in setups]
     return [np.where(k >= 0, sigma[i + k, np.arange(len(p))], np.nan) for i, k in zip(first, served)]
+
+
+def grazing(setup: ShadowSetup, seen: tuple, light: Light, top: float = 90.0) -> tuple:
+    """(points, m = n × ℓ) of the receivers ``seen`` whose footprint in ``setup``'s single map is above its ``top``
+    percentile: m, kept by the projection along ℓ, is the length of each one's strip (docs/papers.md)."""
+    f = footprints([setup], seen)[0]
+    k = np.isfinite(f)
+    k &= f >= (np.percentile(f[k], top) if k.any() else np.inf)
+    return seen[0][k], np.cross(seen[1][k], light.rays_to(seen[0][k]))
 
 
 def det2(a: np.ndarray) -> np.ndarray:
@@ -62,9 +70,9 @@ def footprint_p95(footprints: list, band=(95.0,)) -> float:
     return float(np.exp(np.log(np.interp(np.multiply(band, (k - 1) / 100), np.arange(k), v[:k])).mean())) if k else 0.0
 
 
-def turned(matrix: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
-    """``matrix`` turned about its depth axis (about ℓ for a sun) to lay each edge of the points' image hull along a
-    texel axis, refitted to the points (Freeman & Shapira 1975; docs/papers.md, "The receivers' footprint")."""
+def turned(matrix: np.ndarray, points: np.ndarray, along: tuple | None = None) -> list[np.ndarray]:
+    """``matrix`` turned about its depth axis (about ℓ for a sun) to lay each edge of the points' image hull, or the
+    mean image of ``along``'s directions, along a texel axis, refitted to the points (Freeman & Shapira 1975)."""
     j = raster_jacobian(matrix, (2, 2), points.mean(axis=0)[None])[0]
     w, v = np.linalg.eigh(j @ j.T)
     metric = (v / np.sqrt(w)) @ v.T                                   # (J·Jᵀ)^(-1/2): NDC to lengths across ℓ
@@ -72,8 +80,12 @@ def turned(matrix: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
         xy = divided(transform_h(matrix, points))[:, :2] @ metric.T
     except WarpError:                                                 # an inverted map (w < 0 on B): left as it is
         return []
-    hull = convex_polygon_on_plane(np.c_[xy, np.zeros(len(xy))], (0.0, 0.0, 1.0), 1e-9 * float(np.ptp(xy)))
-    edges = np.zeros((0, 2)) if hull is None else (np.roll(hull, -1, axis=0) - hull)[:, :2]
-    turns = [np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]]) @ metric
-             for a in np.unique(np.round(np.mod(np.arctan2(edges[:, 1], edges[:, 0]), np.pi / 2), 3))]
+    if along is not None:
+        d = (raster_jacobian(matrix, (2, 2), along[0]) @ along[1][..., None])[..., 0] @ metric.T
+        angles = [np.angle(np.nansum(np.exp(4j * np.arctan2(d[:, 1], d[:, 0])))) / 4] if len(d) else []   # mod 90°
+    else:
+        hull = convex_polygon_on_plane(np.c_[xy, np.zeros(len(xy))], (0.0, 0.0, 1.0), 1e-9 * float(np.ptp(xy)))
+        edges = np.zeros((0, 2)) if hull is None else (np.roll(hull, -1, axis=0) - hull)[:, :2]
+        angles = np.unique(np.round(np.mod(np.arctan2(edges[:, 1], edges[:, 0]), np.pi / 2), 3))
+    turns = [np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]]) @ metric for a in angles]
     return [fit_to_unit_cube(np.vstack([t @ matrix[:2], matrix[2:]]), points) for t in turns]
