@@ -1,6 +1,6 @@
 """Lixel renders for the UI and the scripts, through the gpu pipeline's public
 ``addon.gpu.pipeline.render_shadows``: the shadowed scene and the shadow map
-picture-in-picture, the comparison mosaic of every method, PNG output.
+picture-in-picture, the comparison mosaic of every method, PNG output and image files read back.
 
 Images are float32 numpy (H, W, 4) with row 0 at the bottom (Blender's order).
 """
@@ -197,6 +197,24 @@ def to_image(name: str, rgba: np.ndarray, existing_ok: bool = True, linear: bool
     img.pixels.foreach_set(np.ascontiguousarray(rgba, dtype=np.float32).ravel())
     img.update()
     return img
+
+
+def image_pixels(image) -> np.ndarray:
+    """A Blender image's pixels as float32 (H, W, channels), row 0 at the bottom (Blender's order)."""
+    w, h = image.size
+    px = np.empty(w * h * image.channels, dtype=np.float32)
+    image.pixels.foreach_get(px)
+    return px.reshape(h, w, image.channels)
+
+
+def load_pixels(path) -> np.ndarray:
+    """The pixels of the image file at ``path`` (:func:`image_pixels`), read without leaving it in bpy.data."""
+    import bpy
+    image = bpy.data.images.load(str(path), check_existing=False)
+    try:
+        return image_pixels(image)
+    finally:
+        bpy.data.images.remove(image)
 
 
 def save_png(rgba: np.ndarray, path: str, name: Optional[str] = None, linear: bool = True) -> None:

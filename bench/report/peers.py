@@ -198,17 +198,12 @@ class PeerSession:
     def _read(self) -> np.ndarray:
         """The last Render Result as (H, W) luminance (saved to EXR outside any timing)."""
         import bpy
+        from addon.ui.renders import load_pixels
         path = os.path.join(self.tmp, "result.exr")
         bpy.data.images["Render Result"].save_render(path, scene=self.scene)
-        img = bpy.data.images.load(path, check_existing=False)
-        try:
-            w, h = img.size
-            px = np.empty(w * h * img.channels, dtype=np.float32)
-            img.pixels.foreach_get(px)
-        finally:
-            bpy.data.images.remove(img)
+        px = load_pixels(path)
         os.remove(path)
-        return _luminance(px.reshape(h, w, -1))
+        return _luminance(px)
 
     def reference(self) -> None:
         """The render without shadows (the ratio's denominator), then one render

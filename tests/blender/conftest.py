@@ -66,6 +66,13 @@ def lixel():
     disable_lixel()
 
 
+@pytest.fixture
+def load_pixels(lixel):
+    """The enabled extension's ``addon.ui.renders.load_pixels``: an image file's pixels, float32 (H, W, channels)."""
+    import importlib
+    return importlib.import_module(lixel.__name__ + ".addon.ui.renders").load_pixels
+
+
 def remove_objects_and_orphans(scene) -> None:
     """Remove the scene's objects and the data they leave without users."""
     obs = list(scene.objects)

@@ -246,7 +246,7 @@ EEVEE = "BLENDER_EEVEE" if bpy.app.version >= (5, 0, 0) else "BLENDER_EEVEE_NEXT
 
 
 @pytest.mark.parametrize("engine", ["BLENDER_WORKBENCH", "CYCLES", EEVEE])
-def test_texels_show_in_renders(scene, nodes, wg, engine, tmp_path):
+def test_texels_show_in_renders(scene, nodes, wg, engine, tmp_path, load_pixels):
     """A 4x4-texel map over the 10 m ground, seen from straight above by an
     orthographic camera framing the ground: the render is a 4x4 checker.
     (EEVEE's first render compiles its shaders: 5-30 s on llvmpipe.)"""
@@ -278,14 +278,11 @@ def test_texels_show_in_renders(scene, nodes, wg, engine, tmp_path):
         scene.display.shading.light = "FLAT"
     try:
         bpy.ops.render.render(write_still=True, scene=scene.name)
-        img = bpy.data.images.load(r.filepath)
-        px = np.empty(32 * 32 * 4, dtype=np.float32)
-        img.pixels.foreach_get(px)
-        bpy.data.images.remove(img)
+        px = load_pixels(r.filepath)
     finally:
         scene.world = None
         bpy.data.worlds.remove(world)
-    lum = px.reshape(32, 32, 4)[..., :3].mean(axis=2)
+    lum = px[..., :3].mean(axis=2)
     cells = np.array([[lum[8 * j + 3:8 * j + 5, 8 * i + 3:8 * i + 5].mean() for i in range(4)] for j in range(4)])
     parity = (np.add.outer(np.arange(4), np.arange(4)) % 2).astype(bool)
     a, b = cells[parity], cells[~parity]

@@ -54,7 +54,7 @@ def build(scene, with_light=True, with_mesh=True, with_camera=True):
         sun.data.energy = 3.0
 
 
-def test_render_writes_lixel_shadows(engine, scene, tmp_path):
+def test_render_writes_lixel_shadows(engine, scene, tmp_path, load_pixels):
     build(scene)
     scene.render.image_settings.file_format = "OPEN_EXR"
     scene.render.filepath = str(tmp_path / "frame.exr")
@@ -68,17 +68,11 @@ def test_render_writes_lixel_shadows(engine, scene, tmp_path):
     assert res.counts.casters_drawn == 2
     assert res.footprint_heatmap is None and res.shadow_map_preview is None, "debug passes are off by default"
     assert res.covered is None and res.world_position is None, "the engine reads back only its passes"
-    img = bpy.data.images.load(str(tmp_path / "frame.exr"))
-    try:
-        px = np.empty(img.size[0] * img.size[1] * img.channels, dtype=np.float32)
-        img.pixels.foreach_get(px)
-        np.testing.assert_allclose(px.reshape(64, 96, -1)[..., :3], res.combined[..., :3], atol=1e-5)
-    finally:
-        bpy.data.images.remove(img)
+    np.testing.assert_allclose(load_pixels(tmp_path / "frame.exr")[..., :3], res.combined[..., :3], atol=1e-5)
 
 
 @pytest.mark.parametrize("crop", [True, False])
-def test_a_render_border_gets_its_part_of_the_frame(engine, scene, tmp_path, capfd, crop):
+def test_a_render_border_gets_its_part_of_the_frame(engine, scene, tmp_path, capfd, crop, load_pixels):
     """Render Region (Output properties > Format): Blender's result holds only the border's pixels; the engine
     fills it with that part of the frame, cropped to it in the file or not."""
     build(scene)
@@ -91,15 +85,9 @@ def test_a_render_border_gets_its_part_of_the_frame(engine, scene, tmp_path, cap
         assert bpy.ops.render.render(write_still=True, scene=scene.name) == {"FINISHED"}
     assert "Traceback" not in capfd.readouterr().err
     x0, x1, y0, y1 = int(0.21 * 96), int(0.77 * 96), int(0.13 * 64), int(0.59 * 64)
-    img = bpy.data.images.load(str(tmp_path / "frame.exr"))
-    try:
-        w, h = img.size
-        px = np.empty(w * h * img.channels, dtype=np.float32)
-        img.pixels.foreach_get(px)
-    finally:
-        bpy.data.images.remove(img)
-    part = px.reshape(h, w, -1)[..., :3] if crop else px.reshape(h, w, -1)[y0:y1, x0:x1, :3]
-    assert (w, h) == ((x1 - x0, y1 - y0) if crop else (96, 64))
+    px = load_pixels(tmp_path / "frame.exr")
+    part = px[..., :3] if crop else px[y0:y1, x0:x1, :3]
+    assert px.shape[1::-1] == ((x1 - x0, y1 - y0) if crop else (96, 64))
     np.testing.assert_allclose(part, got[-1]["result"].combined[y0:y1, x0:x1, :3], atol=1e-5)
     assert part.max() > 0
 
@@ -271,7 +259,7 @@ bconf.disable_lixel()
 '''
 
 
-def test_saved_file_renders_in_a_fresh_process(engine, scene, tmp_path):
+def test_saved_file_renders_in_a_fresh_process(engine, scene, tmp_path, load_pixels):
     """What ``blender -b file.blend -E LIXEL -f 1`` does: open the file in a new
     process, pick the engine, render frame 1 and write it."""
     import os
@@ -294,14 +282,9 @@ def test_saved_file_renders_in_a_fresh_process(engine, scene, tmp_path):
     marker = [line.split() for line in proc.stdout.splitlines() if line.startswith("LIXEL_RENDERED")]
     assert marker and marker[0][1] == scene.name and float(marker[0][2]) > 0.01
     assert out.exists()
-    img = bpy.data.images.load(str(out))
-    try:
-        assert tuple(img.size) == (96, 64)
-        px = np.empty(96 * 64 * 4, dtype=np.float32)
-        img.pixels.foreach_get(px)
-        assert px.reshape(64, 96, 4)[..., :3].std() > 0.01  # an image, with shading and shadow
-    finally:
-        bpy.data.images.remove(img)
+    px = load_pixels(out)
+    assert px.shape[:2] == (64, 96)
+    assert px[..., :3].std() > 0.01  # an image, with shading and shadow
 
 
 def test_a_view_with_nothing_to_shadow_renders_with_a_warning(engine, scene, capfd):
