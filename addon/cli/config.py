@@ -6,7 +6,8 @@
                 "spot_angle_deg": 90},
      "boxes":  [{"min": [x,y,z], "max": [x,y,z]}, ...],
      "shadow_map_size": 1024,                    (an int, or [w, h])
-     "planes": [{"point": [...], "normal": [...]}],   (optional, plane_optimal)
+     "planes": [{"point": [...], "normal": [...],     (optional, plane_optimal)
+                 "extent": [[x,y,z], ...]}],      (optional: the plane's convex outline, >= 3 points)
      "options": {...}}                            (optional WarpOptions fields)
 
 An orthographic camera gives ``"orthographic": true`` and ``"ortho_height"``
@@ -36,7 +37,7 @@ KEYS = {
     "camera": ("matrix_world", "fov_y_deg", "aspect", "near", "far", "resolution", "orthographic", "ortho_height"),
     "light": ("type", "name", "direction", "position", "spot_angle_deg"),
     "box": ("min", "max"),
-    "plane": ("point", "normal"),
+    "plane": ("point", "normal", "extent"),
 }
 """The keys each object of the config may have."""
 LIGHT_KEYS = {"SUN": ("direction",), "POINT": ("position",), "SPOT": ("direction", "position", "spot_angle_deg")}
@@ -218,8 +219,18 @@ def parse_planes(planes) -> tuple:
         normal = _vector(_get(p, "normal", f"planes[{i}]"), f"planes[{i}].normal")
         if not np.any(normal):
             raise ConfigError(f"planes[{i}].normal: must not be zero")
-        out.append((point, normal / np.linalg.norm(normal)))
+        plane = (point, normal / np.linalg.norm(normal))
+        if "extent" in p:  # what the sidebar's Planes From Selection keeps: the map covers only that outline
+            plane += (_extent(p["extent"], f"planes[{i}].extent"),)
+        out.append(plane)
     return tuple(out)
+
+
+def _extent(value, field: str) -> np.ndarray:
+    """A plane's outline: at least 3 points [x, y, z] (projected onto the plane by ``PlaneOfInterest.through``)."""
+    if not isinstance(value, list) or len(value) < 3:
+        raise ConfigError(f"{field}: must be a list of at least 3 points [x, y, z] (the plane's convex outline)")
+    return np.array([_vector(v, f"{field}[{k}]", coordinates=True) for k, v in enumerate(value)])
 
 
 def _option(key: str, value, annotation: str):

@@ -218,6 +218,11 @@ MALFORMED = {
     "plane_without_normal": (_set(["planes"], [{"point": [0, 0, 0]}]), "planes[0].normal"),
     "plane_zero_normal": (_set(["planes"], [{"point": [0, 0, 0], "normal": [0, 0, 0]}]), "planes[0].normal"),
     "plane_not_an_object": (_set(["planes"], [[0, 0, 0]]), "planes[0]"),
+    "plane_extent_two_points": (_set(["planes"], [{"point": [0, 0, 0], "normal": [0, 0, 1],
+                                                   "extent": [[0, 0, 0], [1, 0, 0]]}]), "planes[0].extent"),
+    "plane_extent_nan": (_set(["planes"], [{"point": [0, 0, 0], "normal": [0, 0, 1],
+                                            "extent": [[0, 0, 0], [1, 0, 0], [0, float("nan"), 0]]}]),
+                         "planes[0].extent[2]"),
     # keys the format does not know, or that do not apply, are refused by name (issue 14)
     "light_energy": (_set(["light", "energy"], 3.0), "light.energy"),
     "camera_unknown_key": (_set(["camera", "lens_mm"], 50), "camera.lens_mm"),

@@ -80,6 +80,21 @@ def test_options_are_converted():
     assert np.array_equal(point, [0, 0, 0]) and np.allclose(normal, [0, 0, 1])
 
 
+def test_a_plane_extent_bounds_the_plane_map_as_planes_from_selection_does():
+    """A plane's "extent" (the outline the sidebar's Planes From Selection keeps) reaches the warp: the plane map
+    covers only that outline and leaves the rest of its texels to the fallback map."""
+    from addon.warp import compute
+    c = base()
+    c["planes"] = [{"point": [0, 0, 0], "normal": [0, 0, 1]}]
+    unbounded = compute("plane_optimal", *parse_config(c))
+    c["planes"][0]["extent"] = [[-3, -3, 0], [3, -3, 0], [3, 3, 0], [-3, 3, 0]]
+    table = compute("plane_optimal", *parse_config(c))
+    assert np.allclose(np.ptp(table.maps[0].region.polygon, axis=0), [6, 6, 0])
+    assert np.ptp(unbounded.maps[0].region.polygon, axis=0)[0] > 50
+    plane_texels = [m.size[0] * m.size[1] for s in (table, unbounded) for m in s.maps if m.role == "plane:0"]
+    assert plane_texels[0] < plane_texels[1] / 10
+
+
 def test_null_optional_options():
     c = base()
     c["options"] = {"lam": None, "visible_depth_range": None}
