@@ -36,8 +36,6 @@ plane: a normal off by COPLANAR_ANGLE misses a face across the object by that mu
 split the 2.8 km floor above into 5 planes)."""
 MAX_GROUPS = 32
 """Coplanar groups looked at per object (seeded by its largest faces first)."""
-HULL_CHUNK = 1024
-"""Points hulled at once: ``convex_polygon_on_plane`` first merges points pairwise (memory ~ n²)."""
 
 
 class NoPlane(ValueError):
@@ -118,21 +116,6 @@ def mesh_faces(obj, depsgraph=None, selected_only: bool = False) -> FaceSet | No
     return FaceSet(obj.name, centres[idx], normals[idx], areas[idx], pts, loop_v, starts[idx], counts[idx], size)
 
 
-def hull_on_plane(points: np.ndarray, normal: np.ndarray, tol: float) -> np.ndarray | None:
-    """``convex_polygon_on_plane`` of any number of points: the hull of the hulls of
-    lexicographically sorted chunks (a chunk without area keeps its two ends), while that
-    leaves fewer points (thousands of corners of a fine disc stay quadratic)."""
-    while len(points) > HULL_CHUNK:
-        points = points[np.lexsort(points.T[::-1])]
-        chunks = [points[i:i + HULL_CHUNK] for i in range(0, len(points), HULL_CHUNK)]
-        hulls = [convex_polygon_on_plane(c, normal, tol) for c in chunks]
-        fewer = np.concatenate([c[[0, -1]] if h is None else h for c, h in zip(chunks, hulls)])
-        if len(fewer) == len(points):
-            break
-        points = fewer
-    return convex_polygon_on_plane(points, normal, tol)
-
-
 def coplanar_groups(faces: FaceSet, max_groups: int = MAX_GROUPS) -> list[PlaneOfInterest]:
     """Faces merged into planes, largest total area first (ties: the most upward-facing):
     a group is every face whose normal is within COPLANAR_ANGLE of the group's largest
@@ -156,7 +139,7 @@ def coplanar_groups(faces: FaceSet, max_groups: int = MAX_GROUPS) -> list[PlaneO
         offset = float((c[ids] @ normal * np.abs(w)).sum() / np.abs(w).sum())
         pts = faces.face_points(ids)
         pts = pts - np.outer(pts @ normal - offset, normal)
-        extent = hull_on_plane(pts, normal, 1e-9 * faces.size)
+        extent = convex_polygon_on_plane(pts, normal, 1e-9 * faces.size)
         if extent is not None:
             name = f"{faces.name} ({len(ids)} face{'s' if len(ids) > 1 else ''})"
             groups.append((float(a[ids].sum()), PlaneOfInterest(normal, offset, extent, name)))
@@ -177,7 +160,7 @@ def merge_planes(planes: list[PlaneOfInterest], scale: float) -> list[PlaneOfInt
             if abs(p.normal @ q.normal) > cos and abs(way * p.offset - q.offset) <= COPLANAR_DISTANCE * scale:
                 pts = np.concatenate([p.extent, q.extent])
                 pts = pts - np.outer(pts @ q.normal - q.offset, q.normal)
-                ext = hull_on_plane(pts, q.normal, 1e-9 * scale)
+                ext = convex_polygon_on_plane(pts, q.normal, 1e-9 * scale)
                 out[i] = PlaneOfInterest(q.normal, q.offset, ext, f"{q.name} + {p.name}")
                 break
         else:

@@ -362,3 +362,18 @@ def test_facets_holding_the_light_grow_over_their_sides(light_h):
     planes = np.round(np.c_[h.normals, h.offsets], 9)
     assert len(np.unique(planes, axis=0)) == len(planes), "two facets in one plane"
     assert_holds_light_rays(p, light_h, hull.normals, hull.offsets)
+
+
+def test_merging_points_in_blocks_merges_as_comparing_every_pair(monkeypatch):
+    """unique_points compares rows in blocks, each against the points within reach in x (memory stays bounded for a
+    mesh outline of 20,000 corners): the same points come out whatever the block, chains of near points included."""
+    rng = np.random.default_rng(7)
+    tol = 1e-3
+    chains = np.cumsum(np.full((40, 3), [0.9e-3, 0.0, 0.0]), axis=0) + rng.integers(0, 3, (40, 3))
+    copies = np.repeat(rng.random((300, 3)), 3, axis=0) + rng.normal(0.0, 0.4e-3, (900, 3))
+    columns = np.c_[np.full(200, 0.5), rng.random((200, 2))]          # one x: a block's window holds them all
+    points = rng.permutation(np.concatenate([chains, copies, columns, copies[:50]]))
+    whole = polyhedron.unique_points(points, tol)
+    monkeypatch.setattr(polyhedron, "MERGE_PAIRS", 1)
+    assert np.array_equal(polyhedron.unique_points(points, tol), whole)
+    assert len(points) - 50 > len(whole) > 300
