@@ -175,7 +175,8 @@ def fit_warp(frame, light, bounds, options, method: str):
 
 @one_blas_thread()
 def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, settings: Optional[LixelSettings] = None,
-                     warnings: Optional[list] = None, read=None, timed: bool = True, targets=None) -> dict:
+                     warnings: Optional[list] = None, read=None, timed: bool = True, targets=None,
+                     camera=None) -> dict:
     """Describe, compute and render an evaluated scene (what the engine does);
     usable by scripts and operators. Needs a GPU context. Returns ``setup``,
     ``settings``, ``result`` (an ``addon.gpu.result.RenderResult``), ``scene``
@@ -191,10 +192,11 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     numpy's OpenBLAS at one thread (``addon.gpu.blas``). ``timed``: wait for the
     GPU after every stage so each stage's time is its own (the engine's F12
     waits once, at the read-back). ``targets``: the render targets (default:
-    the process-wide pool)."""
+    the process-wide pool). ``camera``: the camera the render starts from (default ``scene.camera``; the engine
+    passes its ``camera_override``, see ``render_camera``)."""
     from ..gpu.batches import shared_batches
     from ..gpu.pipeline import ShadowFrame
-    from ..scene.describe import check_finite_geometry, describe_scene, light_notes
+    from ..scene.describe import check_finite_geometry, describe_scene, light_notes, render_camera
     from ..scene.geometry import shared_cache
 
     scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
@@ -208,7 +210,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     shared_batches().prune(cache.meshes)
     timings["extraction"] = time.perf_counter() - t
     t = time.perf_counter()
-    view, light, bounds = describe_scene(scene, depsgraph, instances=geometry.instances)
+    view, light, bounds = describe_scene(scene, depsgraph, camera=render_camera(scene, camera),
+                                         instances=geometry.instances)
     timings["describe"] = time.perf_counter() - t
     frame = ShadowFrame(geometry, view, resolution or view.resolution, read=read, targets=targets, timed=timed)
     frame.camera_prepass()
@@ -291,7 +294,9 @@ class LixelRenderEngine(bpy.types.RenderEngine):
             warnings: list = []
             passes = enabled_passes(depsgraph.view_layer)
             read = frozenset({"combined"} | {row[5] for row in passes}).union(*(r for _, r in _watchers))
-            out = render_depsgraph(depsgraph, warnings=warnings, timed=False, read=read)
+            camera = self.camera_override   # (evaluated) the 3D view's Local Camera, or the scene's
+            out = render_depsgraph(depsgraph, warnings=warnings, timed=False, read=read,
+                                   camera=camera.original if camera is not None else None)
         except Exception as exc:  # noqa: BLE001 - the entry point's guard: a message, never a traceback
             self.report({"ERROR"}, f"Lixel: {user_message(exc, f'rendering scene {depsgraph.scene.name!r}')}")
             return

@@ -78,12 +78,14 @@ def _evaluated(obj, depsgraph):
         return obj
 
 
-def render_camera(scene):
-    """The camera Blender renders ``scene`` with: ``scene.camera``, or with multi-view (Output > Stereoscopy >
-    Multi-View) and one view, the scene's object named as that camera with the view's suffix in place of the
-    longest view suffix ending its name, where there is one (Blender's ``camera_multiview_advanced``; measured in
-    4.2.23 and 5.0.1: "Cam_L" with only the right view renders "Cam_R"). :func:`check_one_view` refuses the rest."""
-    cam, r = scene.camera, scene.render
+def render_camera(scene, camera=None):
+    """The camera Blender renders ``scene`` with: ``camera`` (a render's ``RenderEngine.camera_override``: the 3D
+    view's Local Camera for F12 there, the timeline marker's camera in an animation) or ``scene.camera``, or with
+    multi-view (Output > Stereoscopy > Multi-View) and one view, the scene's object named as that camera with the
+    view's suffix in place of the longest view suffix ending its name, where there is one (Blender's
+    ``camera_multiview_advanced``; measured in 4.2.23 and 5.0.1: "Cam_L" with only the right view renders "Cam_R").
+    :func:`check_one_view` refuses the rest."""
+    cam, r = camera or scene.camera, scene.render
     used = [v for v in r.views if v.use]
     if cam is None or not r.use_multiview or r.views_format != "MULTIVIEW" or len(used) != 1:
         return cam

@@ -352,3 +352,29 @@ def test_the_reports_frame_says_which_face_each_pixel_shows(engine, scene, lixel
     assert len(seen) > 1000 and np.all(np.isnan(fr.world_normal[~fr.covered]))
     axes = np.abs(seen).max(axis=1)                  # the ground and the box's faces are axis-aligned
     assert np.all(axes > math.cos(1e-3))
+
+
+def test_f12_in_a_3d_view_with_a_local_camera_renders_that_camera(engine, scene):
+    """View sidebar > View > Local Camera: F12 there renders with that camera, not the scene's (Blender's
+    ``camera_override``; Workbench, EEVEE and Cycles do so in 4.2 and 5.0). The 3D view of the module's own window
+    stands in for the user's."""
+    build(scene)
+    side = add(scene, "Side", bpy.data.cameras.new("Side"))
+    side.location = (7, 1, 5)
+    side.rotation_euler = (Vector((0, 0, 0)) - side.location).to_track_quat("-Z", "Y").to_euler()
+    win = bpy.context.window
+    area = next(a for a in win.screen.areas if a.type == "VIEW_3D")
+    space, region = area.spaces.active, next(r for r in area.regions if r.type == "WINDOW")
+    was = space.use_local_camera, space.camera
+    space.use_local_camera, space.camera = True, side
+    try:
+        with engine.watch_renders() as got, \
+                bpy.context.temp_override(window=win, area=area, region=region, space_data=space):
+            assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    finally:
+        space.use_local_camera, space.camera = was
+    assert scene.camera.name == "Cam"
+    scene.camera = side
+    with engine.watch_renders() as own:
+        assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    np.testing.assert_array_equal(got[-1]["result"].combined, own[-1]["result"].combined)
