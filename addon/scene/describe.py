@@ -12,6 +12,7 @@ from typing import Optional
 
 import numpy as np
 
+from ..warp import MAX_COORDINATE
 from ..warp.types import Light, SceneBounds, View, WarpError
 from .instances import InstanceSet, walk_instances  # noqa: F401 (re-exported)
 
@@ -275,10 +276,15 @@ def check_finite_instances(inst: InstanceSet) -> None:
         raise WarpError(f"Object '{_first_bad(inst, bad)}' has vertices with non-finite coordinates (NaN or infinity): "
                         f"fix or delete them (Edit Mode; Mesh > Clean Up)")
     with np.errstate(over="ignore", invalid="ignore"):
-        bad = ~np.isfinite(inst.world_boxes()).all(axis=(1, 2))
+        reach = np.abs(inst.world_boxes()).max(axis=(1, 2))
+    bad = ~np.isfinite(reach)
     if bad.any():
         raise WarpError(f"Object '{_first_bad(inst, bad)}' reaches beyond the range of floating-point numbers: "
                         f"scale it down or move it closer to the origin")
+    bad = (reach > MAX_COORDINATE) & (inst.casts | inst.receives)   # as the core would refuse "the scene's boxes"
+    if bad.any():
+        raise WarpError(f"Object '{_first_bad(inst, bad)}' reaches {reach[bad].max():.3g} from the origin, beyond the "
+                        f"{MAX_COORDINATE:.0e} Lixel can compute with: move it closer to the origin or scale it down")
     _finite_sets.add(inst)
 
 

@@ -296,6 +296,8 @@ def test_a_clip_range_beyond_float_precision_is_refused_by_name(describe, types_
     ("box", lambda ob: setattr(ob, "scale", (float("nan"), 1, 1)), r"Object 'Box' has a non-finite transform"),
     ("box", lambda ob: ob.data.vertices[0].co.__setitem__(0, float("inf")),
      r"Object 'Box' has vertices with non-finite coordinates"),
+    ("box", lambda ob: setattr(ob, "location", (0, -3e13, 0)),        # a typo in the N panel: named, not "the scene"
+     r"Object 'Box' reaches 3e\+13 from the origin, beyond the 1e\+12 Lixel can compute with: move it closer"),
 ])
 def test_degenerate_cameras_lights_and_objects_are_named(describe, types_mod, fresh_scene, what, change, pattern):
     cam = add_camera(fresh_scene)
