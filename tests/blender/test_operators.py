@@ -194,6 +194,40 @@ def test_texel_grid_leaves_objects_linked_from_a_library_and_says_so(scene, tmp_
         bpy.data.libraries.remove(library)
 
 
+def test_texel_grid_on_a_library_override_says_its_mesh_is_linked_and_how_to_free_it(scene, tmp_path):
+    """Object > Library Override > Make overrides the objects but keeps their meshes linked, where the grid's
+    material slot would go: the remedy named is making the mesh local (Make Local > Objects and Data), which
+    then takes the grid; "make a library override" would send the user round in a circle."""
+    me = bpy.data.meshes.new("override block")
+    me.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
+    coll = bpy.data.collections.new("override coll")
+    coll.objects.link(bpy.data.objects.new("override block", me))
+    bpy.data.libraries.write(str(tmp_path / "library.blend"), {coll})
+    bpy.data.objects.remove(coll.objects[0])
+    bpy.data.meshes.remove(me)
+    bpy.data.collections.remove(coll)
+    with bpy.data.libraries.load(str(tmp_path / "library.blend"), link=True) as (_src, dst):
+        dst.collections = ["override coll"]
+    library = dst.collections[0].library
+    override = dst.collections[0].override_hierarchy_create(scene, bpy.context.view_layer)
+    ob = override.objects[0]
+    try:
+        assert ob.override_library is not None and ob.data.library is library
+        _select_only(scene, [ob.name])
+        with pytest.raises(RuntimeError, match=r"'override block' is a library override whose mesh is linked from "
+                                               r"library.blend: make the mesh local \(Object > Relations > Make Local"):
+            bpy.ops.lixel.texel_grid_add()
+        assert bpy.ops.object.make_local(type="SELECT_OBDATA") == {"FINISHED"}
+        assert ob.data.library is None
+        assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"} and len(ob.modifiers) == 1
+    finally:
+        mesh = ob.data
+        bpy.data.objects.remove(ob)
+        bpy.data.meshes.remove(mesh)
+        bpy.data.collections.remove(override)
+        bpy.data.libraries.remove(library)
+
+
 def test_reset_settings_keeps_light_and_planes(scene):
     props = scene.lixel
     props.pcf_kernel = 5

@@ -104,6 +104,20 @@ class LIXEL_OT_bake_debug(LixelSceneOperator, bpy.types.Operator):
         return {"FINISHED"}
 
 
+def linked_note(linked: list) -> str:
+    """Why the texel grid leaves ``linked`` objects, and the remedy: a linked object can be made local or
+    overridden; a library override keeps its mesh linked (where the grid's material slot goes), so only making the
+    mesh local helps there."""
+    libraries = ", ".join(sorted({(ob.library or ob.data.library).name for ob in linked}))
+    names, verb = ", ".join(repr(ob.name) for ob in linked), "is" if len(linked) == 1 else "are"
+    if all(ob.library is None for ob in linked):
+        what = "a library override whose mesh is" if len(linked) == 1 else "library overrides whose meshes are"
+        return (f"{names} {verb} {what} linked from {libraries}: make the mesh local "
+                f"(Object > Relations > Make Local > Selected Objects and Data) to change its texel grid")
+    return (f"{names} {verb} linked from {libraries}: make it local (Object > Relations > Make Local > Selected "
+            f"Objects and Data) to change its texel grid")
+
+
 class LIXEL_OT_texel_grid_add(LixelSceneOperator, bpy.types.Operator):
     """Put the shadow-map texel grid on the selected meshes (a geometry-nodes modifier and material); the light matrices come from the "Lixel Light Matrices" object, updated now"""
 
@@ -122,11 +136,7 @@ class LIXEL_OT_texel_grid_add(LixelSceneOperator, bpy.types.Operator):
             return {"CANCELLED"}
         linked = [ob for ob in meshes if ob.library is not None or ob.data.library is not None]
         if linked:  # what Lixel would put on linked data is not saved with the file
-            libraries = sorted({(ob.library or ob.data.library).name for ob in linked})
-            self.report({"WARNING"} if len(linked) < len(meshes) else {"ERROR"},
-                        f"Lixel: {', '.join(repr(ob.name) for ob in linked)} {'is' if len(linked) == 1 else 'are'} "
-                        f"linked from {', '.join(libraries)}: make it local (Object > Relations > Make Local) or a "
-                        f"library override to change its texel grid")
+            self.report({"WARNING"} if len(linked) < len(meshes) else {"ERROR"}, f"Lixel: {linked_note(linked)}")
             meshes = [ob for ob in meshes if ob not in linked]
             if not meshes:
                 return {"CANCELLED"}
