@@ -11,7 +11,6 @@ from typing import Optional
 import numpy as np
 
 from .geometry import cross
-from .polyhedron import Plane
 from .types import WarpError
 
 RANK_TOL = 1e-10
@@ -179,16 +178,8 @@ def _unit_list(v: list) -> list:
     return [c / n for c in v] if n > 0 else v
 
 
-def clip_polygon(poly: np.ndarray, plane: Plane, tol: float = 0.0) -> np.ndarray:
-    """Sutherland-Hodgman: the part of a convex polygon with ``plane.distance <= 0``."""
-    if len(poly) == 0:
-        return poly
-    pts = _clip_loop(poly.tolist(), plane.normal.tolist(), float(plane.offset), tol)
-    return np.array(pts, dtype=np.float64).reshape(-1, 3)
-
-
 def _clip_loop(pts: list, normal, offset: float, tol: float) -> list:
-    """``clip_polygon`` of a polygon given as a list of (x, y, z), in plain floats."""
+    """Sutherland-Hodgman in plain floats: the part of the convex polygon ``pts`` with normal · x <= offset."""
     nx, ny, nz = normal
     d = [nx * x + ny * y + nz * z - offset for x, y, z in pts]
     if max(d) <= tol:                                        # (nothing beyond the tolerance: nothing cut)

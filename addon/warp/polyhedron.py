@@ -57,14 +57,6 @@ class OpenCut(ValueError):
     """A cut whose new boundary does not close into one loop (the clip falls back to vertex enumeration)."""
 
 
-@dataclass(frozen=True)
-class Plane:
-    """The half-space ``normal . x <= offset`` (normal of unit length)."""
-
-    normal: np.ndarray
-    offset: float
-
-
 @dataclass(frozen=True, eq=False)
 class ConvexPolytope:
     """A closed convex polytope: ``vertices`` (n, 3); per facet its unit outward normal, offset and vertex loop
