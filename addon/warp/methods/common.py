@@ -12,7 +12,7 @@ from ..diagnostics import Diagnostics
 from ..frame import LightFrame, body_light_angles, light_frames, world_sun_frame
 from ..geometry import point_runs
 from ..linear_depth import frame_depth_row
-from ..types import Light, ShadowMap, View, WarpOptions
+from ..types import Light, ShadowMap, ShadowSetup, View, WarpOptions
 
 SNAP_STEPS_PER_OCTAVE = 8
 """Texel snapping: a window's extent is one of this many sizes per doubling."""
@@ -22,9 +22,9 @@ NEAR_PLANE_NOTE = ("the light is inside B and a box reaches nearer to it than th
 """The "near plane" fallback's reason (``frame.LightFrame.near_clamped``)."""
 
 
-def body_diagnostics(method: str, view: View, light: Light, body: IntersectionBody, **fields) -> Diagnostics:
+def body_diagnostics(method: str, view: View, light: Light, body: IntersectionBody) -> Diagnostics:
     """``method``'s Diagnostics opened with B and its light-view angles θ, γ (``frame.body_light_angles``)."""
-    return Diagnostics(method, *body_light_angles(view, light, body), body_vertices=body.vertices, **fields)
+    return Diagnostics(method, *body_light_angles(view, light, body), body_vertices=body.vertices)
 
 
 def near_plane_notes(frames: list[LightFrame], prefix: str = "") -> list[tuple[str, str]]:
@@ -66,11 +66,13 @@ def snapped_window(lo: np.ndarray, hi: np.ndarray, size: tuple[int, int]) -> tup
     return lo, hi
 
 
-def uniform_maps(view: View, light: Light, body: IntersectionBody,
-                 options: WarpOptions) -> tuple[list[ShadowMap], list[LightFrame]]:
-    """The uniform method's maps and their light frames (PSM's fallback too)."""
+def uniform_setup(view: View, light: Light, body: IntersectionBody, options: WarpOptions,
+                  diag: Diagnostics) -> ShadowSetup:
+    """The uniform method's maps (PSM's fallback too), their near-plane notes and frames recorded in ``diag``."""
     if options.texel_snapping and light.is_directional:
         frames = [world_sun_frame(light, body)]      # a texel grid fixed in the world
     else:
         frames = light_frames(view, light, body, options)
-    return frame_maps(frames, options.shadow_map_size, options.texel_snapping, options.linear_z), frames
+    diag.fallbacks += near_plane_notes(frames)
+    diag.extra["frames"] = [f.role for f in frames]
+    return ShadowSetup(frame_maps(frames, options.shadow_map_size, options.texel_snapping, options.linear_z), diag)

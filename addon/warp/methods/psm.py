@@ -17,8 +17,8 @@ from ..geometry import finite_clip_volume_corners, translation
 from ..linear_depth import light_depth_row
 from ..post_perspective import PPSLight, VirtualCamera, nearest_visible_depth, pps_light_matrix, virtual_camera
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpOptions
-from .common import body_diagnostics, near_plane_notes, uniform_maps
-from .warp_frustum import WarpAxis, eye_depth_range, guard_lambda, half_fov_towards, light_at_eye, map_lambda
+from .common import body_diagnostics, uniform_setup
+from .warp_frustum import eye_depth_range, guard_lambda, light_at_eye, map_lambda
 
 COVER_TOLERANCE = 1e-6
 """Final check: every B vertex has |NDC| <= 1 + this (the fit pads by 1e-7)."""
@@ -53,18 +53,13 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
                                  "frustum in post-perspective space contains it; using the uniform cube faces")
     origin = view.position
     warp = psm_warp(view, light, body, options, nearest_visible_depth(view, light, body, options))
-    light_in_pps = warp.light_in_pps
-    if not light_in_pps.single_frustum:
+    if warp.relative is None:                                          # (§3: no single frustum from L' holds B')
         diag.extra.update(_pps_report(warp))
-        return _uniform_fallback(view, light, body, options, diag, "PPS light frustum",
-                                 f"light '{light.name}' touches B in post-perspective space (cone half-angle "
-                                 f"{math.degrees(light_in_pps.cone_half_angle):.4f} deg): no single frustum")
-    if warp.relative is None:
-        diag.extra.update(_pps_report(warp))
-        return _uniform_fallback(view, light, body, options, diag, "PPS light frustum",
-                                 f"light '{light.name}' needs a {math.degrees(2 * light_in_pps.cone_half_angle):.0f} "
-                                 f"deg frustum in post-perspective space (max "
-                                 f"{math.degrees(options.max_frustum_angle):.0f}); using the uniform map's cube faces")
+        half = math.degrees(warp.light_in_pps.cone_half_angle)
+        why = (f"touches B in post-perspective space (cone half-angle {half:.4f} deg): no single frustum"
+               if not warp.light_in_pps.single_frustum else f"needs a {2 * half:.0f} deg frustum in post-perspective "
+               f"space (max {math.degrees(options.max_frustum_angle):.0f}); using the uniform map's cube faces")
+        return _uniform_fallback(view, light, body, options, diag, "PPS light frustum", f"light '{light.name}' {why}")
     if options.lambda_guard == "all":
         warp, note = guarded_warp(view, light, body, options, warp, diag)
         if warp is None:
@@ -108,8 +103,7 @@ def guarded_warp(view: View, light: Light, body: IntersectionBody, options: Warp
     at, _ = light_at_eye(view, light, options, body, view.direction)
     if len(frames) != 1 or at is None:
         return warp, ""
-    ctx = eye_depth_range(view, body, options, diag)
-    ctx.phi = half_fov_towards(view, at.ell)
+    ctx = eye_depth_range(view, body, options, diag, at)
     axis, lam = map_lambda(warp.relative @ translation(-view.position), frames[0])
     guard, why = guard_lambda(lam, at.gamma, axis, ctx) if axis is not None else (lam, None)
     if not why:
@@ -157,8 +151,6 @@ def _pps_report(warp: PSMWarp) -> dict:
 def _uniform_fallback(view: View, light: Light, body: IntersectionBody, options: WarpOptions,
                       diag: Diagnostics, what: str, reason: str) -> ShadowSetup:
     diag.fallback(what, reason)
-    maps, frames = uniform_maps(view, light, body, options)
-    diag.fallbacks.extend(near_plane_notes(frames))
-    diag.extra["frames"] = [f.role for f in frames]
+    setup = uniform_setup(view, light, body, options, diag)
     diag.extra["psm_applied"] = False
-    return ShadowSetup(maps, diag)
+    return setup

@@ -4,11 +4,8 @@ from __future__ import annotations
 
 from ..body import IntersectionBody
 from ..types import Light, ShadowSetup, View, WarpOptions
-from .common import body_diagnostics, near_plane_notes, uniform_maps
+from .common import body_diagnostics, uniform_setup
 
 
 def uniform(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> ShadowSetup:
-    maps, frames = uniform_maps(view, light, body, options)
-    diag = body_diagnostics("uniform", view, light, body, fallbacks=near_plane_notes(frames))
-    diag.extra["frames"] = [f.role for f in frames]
-    return ShadowSetup(maps, diag)
+    return uniform_setup(view, light, body, options, body_diagnostics("uniform", view, light, body))

@@ -109,8 +109,7 @@ def light_at_eye(view: View, light: Light, options: WarpOptions, body: Intersect
         length = math.sqrt(across @ across)
         if length > 0:
             at.v_p = across / length
-            along = body.vertices @ at.v_p
-            at.body_extent = float(along.max() - along.min())
+            at.body_extent = float(np.ptp(body.vertices @ at.v_p))
     return at, ""
 
 
@@ -121,22 +120,23 @@ def _sin_between(v: np.ndarray, ell: np.ndarray) -> float:
     return math.sqrt(across @ across)
 
 
-def eye_depth_range(view: View, body: IntersectionBody, options: WarpOptions, diag: Diagnostics) -> WarpContext:
-    """z_n and z_n + Δz for Eq. 1 / GMNPR's (n, f): eye depths (docs/papers.md)."""
+def eye_depth_range(view: View, body: IntersectionBody, options: WarpOptions, diag: Diagnostics,
+                    at: Optional[LightAtEye] = None) -> WarpContext:
+    """z_n and z_n + Δz for Eq. 1 / GMNPR's (n, f): eye depths (docs/papers.md); given ``at``, GMNPR's φ towards it."""
     depths = view.eye_depth(body.visible_vertices)
-    z_n = max(view.near, float(depths.min()))
-    z_f = max(min(view.far, float(depths.max())), z_n)
+    nearest, farthest = float(depths.min()), float(depths.max())
     if options.delta_z == "visible":
         if options.visible_depth_range is None:
             diag.fallback("delta_z", "'visible' was asked for but no visible_depth_range was given; Δz from B")
         else:
-            a, b = (float(v) for v in options.visible_depth_range)
-            z_n = max(view.near, a)
-            z_f = max(min(view.far, b), z_n)
+            nearest, farthest = (float(v) for v in options.visible_depth_range)
+    z_n = max(view.near, nearest)
+    z_f = max(min(view.far, farthest), z_n)
+    phi = 0.0 if at is None else half_fov_towards(view, at.ell)
     if body.visible is None:
-        return WarpContext(z_n, z_f)
+        return WarpContext(z_n, z_f, phi=phi)
     visible = body.visible.samples(view)
-    return WarpContext(z_n, z_f, (*visible, view.eye_depth(visible[0])), body.visible.edge_weights())
+    return WarpContext(z_n, z_f, (*visible, view.eye_depth(visible[0])), body.visible.edge_weights(), phi)
 
 
 def half_fov_towards(view: View, light_dir) -> float:
@@ -175,7 +175,7 @@ def frame_geometries(at: LightAtEye, frames: list, to_light: np.ndarray, b_in_li
     if frames[0].directional:                                         # V_P in the world, the frame's own
         v_p = a[:, :1] * to_light[:, 0, :3] + a[:, 1:] * to_light[:, 1, :3]
         along = body.vertices @ v_p.T
-        extent_world, body_extent = extent, (along.max(axis=0) - along.min(axis=0)).tolist()
+        extent_world, body_extent = extent, np.ptp(along, axis=0).tolist()
     else:                                                             # perpendicular to the light ray at the eye
         v_p, body_extent, extent_world = [at.v_p] * len(frames), [at.body_extent] * len(frames), [0.0] * len(frames)
         if at.v_p is not None:
@@ -401,23 +401,17 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
     """The maps of one warp method: one warped map per light frame, ray-closed over B when several (``ray_closed``)."""
     diag = Diagnostics(name, body_vertices=body.vertices)
     frames = light_frames(view, light, body, options)
-    ctx = eye_depth_range(view, body, options, diag)
-    diag.extra["z_n"] = ctx.z_n
-    diag.extra["delta_z"] = ctx.delta_z
-    diag.extra["frames"] = [f.role for f in frames]
     middle = body.volume_centroid - view.position          # B's middle vector (Scherzer §4.4)
-    diag.extra["middle_vector"] = _unit_or_zero(middle)
-    middle = middle if options.middle_vector else None
     if view.orthographic:
         at, reason = None, "orthographic camera: no perspective aliasing to redistribute"
     else:
-        at, reason = light_at_eye(view, light, options, body, middle)
+        at, reason = light_at_eye(view, light, options, body, middle if options.middle_vector else None)
+    ctx = eye_depth_range(view, body, options, diag, at)
+    ctx.guard = options.lambda_guard in ("all", name)
+    diag.extra.update(z_n=ctx.z_n, delta_z=ctx.delta_z, frames=[f.role for f in frames],
+                      middle_vector=_unit_or_zero(middle))
     # GMNPR's φ: gmnpr and glpr use and report it, LiSPSM's Eq. 1 has no φ (the λ guard's model has).
-    guard_phi = half_fov_towards(view, at.ell) if at is not None else None
-    phi = guard_phi if name != "lispsm" else None
-    if guard_phi is not None:
-        ctx.phi = guard_phi
-    ctx.guard = options.lambda_guard == "all" or options.lambda_guard == name
+    phi = ctx.phi if at is not None and name != "lispsm" else None
     warps = frame_warps(frames, view, at, reason, rule, ctx, phi, options, body)
     warped = [w for w in warps if w.geo is not None]
     if len(frames) > 1 and warped:
@@ -427,34 +421,33 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
                 w.geo, w.matrix = None, frame_maps([w.frame], options.shadow_map_size)[0].matrix
                 w.notes.append((f"{w.frame.role}: uniform", closure))
     maps: list[ShadowMap] = []
-    reported = False
     for w in warps:
-        frame = w.frame
-        for note in w.notes:
-            diag.fallback(*note)
-        depth_row = None
-        if options.linear_z:
-            depth_row = frame_depth_row(frame, None if w.held is None else np.concatenate([frame.points, w.held]))
-        maps.append(ShadowMap(w.matrix, options.shadow_map_size, "LESS", frame.role, depth_row=depth_row))
-        if w.geo is None or reported:
-            continue
-        reported = True
-        geo = w.geo
-        diag.theta, diag.gamma = folded(geo.gamma), geo.gamma
-        if name == "lispsm":
-            diag.n_opt = _finite_or_none(w.p_n)
-            diag.extra["lambda"] = _finite_or_none(w.lam)
-        else:
-            diag.lam = _finite_or_none(w.lam)
-            diag.extra["n_opt"] = _finite_or_none(w.p_n)
-            diag.extra["phi"] = phi
-        diag.extra["warp_strength_mu"] = w.mu
-        diag.warp_frustum_corners = finite_clip_volume_corners(w.matrix)
-        diag.extra["v_p"] = geo.v_p_world if geo.v_p_world is not None else np.zeros(3)
-        diag.extra["projection_centre"] = projection_centre(frame, geo, w.lam_frame)
-    if not reported:                     # no warped map: the angles to the light's axis, as for a uniform map
+        diag.fallbacks += w.notes
+        held = None if w.held is None else np.concatenate([w.frame.points, w.held])
+        depth_row = frame_depth_row(w.frame, held) if options.linear_z else None
+        maps.append(ShadowMap(w.matrix, options.shadow_map_size, "LESS", w.frame.role, depth_row=depth_row))
+    first = next((w for w in warps if w.geo is not None), None)
+    if first is None:                    # no warped map: the angles to the light's axis, as for a uniform map
         diag.theta, diag.gamma = body_light_angles(view, light, body)
+    else:
+        report_warp(diag, name, first, phi)
     return ShadowSetup(maps, diag)
+
+
+def report_warp(diag: Diagnostics, name: str, w: FrameWarp, phi: Optional[float]) -> None:
+    """A warp method's diagnostics from its first warped map: θ, γ, n_opt and λ (``name``'s in the fields), μ, P's
+    corners, V_P and P's centre."""
+    geo = w.geo
+    diag.theta, diag.gamma = folded(geo.gamma), geo.gamma
+    if name == "lispsm":
+        diag.n_opt = _finite_or_none(w.p_n)
+        diag.extra["lambda"] = _finite_or_none(w.lam)
+    else:
+        diag.lam = _finite_or_none(w.lam)
+        diag.extra.update(n_opt=_finite_or_none(w.p_n), phi=phi)
+    diag.warp_frustum_corners = finite_clip_volume_corners(w.matrix)
+    diag.extra.update(warp_strength_mu=w.mu, v_p=geo.v_p_world if geo.v_p_world is not None else np.zeros(3),
+                      projection_centre=projection_centre(w.frame, geo, w.lam_frame))
 
 
 def ray_closed(matrices, body: IntersectionBody, light_position) -> list:
