@@ -134,7 +134,7 @@ class VisibleRegion:
         z_lo, z_hi = max(z_lo - pad, view.near), z_hi + pad       # (a flat region keeps a thickness)
         row = view.world_to_camera[2]                          # eye depth = -(row . [x, 1])
         planes = np.array([row, -row, *screen_sides(view, *self.screen)])
-        kn, ko = kdop_halfspaces(corners, view, light)
+        kn, ko = kdop_halfspaces(corners, view, light, pad)
         return (np.concatenate([planes[:, :3], kn]),
                 np.concatenate([-planes[:, 3] + [-z_lo, z_hi, 0, 0, 0, 0], ko]))
 
@@ -162,23 +162,22 @@ def unproject(view: View, x, y, depth) -> np.ndarray:
     return world[:, :3] / world[:, 3:]
 
 
-def eye_depth_from_ndc(view: View, z_ndc) -> np.ndarray:
-    """Eye depth of NDC depths ``z_ndc`` on the view axis."""
+def eye_depth_from_window(view: View, window_depth, ulps: int = 0) -> np.ndarray:
+    """Eye depth on the view axis of window depths (in [0, 1]), each moved by ``ulps`` of 1.0 (2^-24, float32 depth)."""
     p = view.projection
-    z = np.asarray(z_ndc, dtype=np.float64)
+    z = np.asarray(2.0 * np.clip(window_depth + ulps * 2.0 ** -24, 0.0, 1.0) - 1.0, dtype=np.float64)   # NDC depth
     return -(p[2, 3] - z * p[3, 3]) / (z * p[3, 2] - p[2, 2])
 
 
-def kdop_halfspaces(corners: np.ndarray, view: View, light: Light) -> tuple[np.ndarray, np.ndarray]:
+def kdop_halfspaces(corners: np.ndarray, view: View, light: Light, pad: float) -> tuple[np.ndarray, np.ndarray]:
     """A k-DOP of ``corners`` around the light (nearest and farthest planes across its depth direction ℓ, the
-    tightest planes parallel to ℓ or through the light), moved out by ``KDOP_PAD``."""
+    tightest planes parallel to ℓ or through the light), moved out by ``pad`` (``KDOP_PAD`` of angles)."""
     base = np.zeros(3) if light.is_directional else np.asarray(light.position, dtype=np.float64)
     rel = corners - base
     mid = np.asarray(light.direction, dtype=np.float64) if light.is_directional else rel.mean(axis=0)
     ell = mid / math.sqrt(mid @ mid) if mid @ mid > 0 else view.direction
     across = _across(ell, view)                                     # (K, 3)
     along, sideways = rel @ ell, rel @ across.T                     # (N,), (N, K)
-    pad = KDOP_PAD * (float(np.ptp(corners, axis=0).max()) or 1.0)
     normals = [ell[None], -ell[None]]
     offsets = [[along.max() + pad], [pad - along.min()]]
     dist = np.sqrt(np.einsum("ij,ij->i", rel, rel))
@@ -256,10 +255,10 @@ def region_from_window_tiles(view: View, near, far, counts, size: tuple[int, int
                              source: str = "depth pre-pass") -> VisibleRegion:
     """A region from each tile's least and greatest window depth and drawn pixel count
     of a (W, H) depth buffer; each padded by ``DEPTH_ULPS`` before conversion to eye depth."""
-    seen, pad = np.asarray(counts) > 0, DEPTH_ULPS * 2.0 ** -24
+    seen = np.asarray(counts) > 0
     with np.errstate(invalid="ignore", divide="ignore"):
-        near_eye = eye_depth_from_ndc(view, 2.0 * np.clip(np.asarray(near, np.float64) - pad, 0.0, 1.0) - 1.0)
-        far_eye = eye_depth_from_ndc(view, 2.0 * np.clip(np.asarray(far, np.float64) + pad, 0.0, 1.0) - 1.0)
+        near_eye = eye_depth_from_window(view, np.asarray(near, np.float64), -DEPTH_ULPS)
+        far_eye = eye_depth_from_window(view, np.asarray(far, np.float64), DEPTH_ULPS)
     return _region(view, np.where(seen, near_eye, np.inf), np.where(seen, far_eye, -np.inf), size, tile, source,
                    np.where(seen, counts, 0).astype(np.int64))
 
@@ -272,8 +271,7 @@ def surface_from_window_depth(view: View, window_depth: np.ndarray, per_pixel=No
     d = window_depth[k // 2::k, k // 2::k]
     rows, cols = np.nonzero(d < 1.0)
     x, y = (cols * k + k // 2 + 0.5) * (2.0 / w) - 1, (rows * k + k // 2 + 0.5) * (2.0 / h) - 1
-    ends = [np.clip(eye_depth_from_ndc(view, 2.0 * np.clip(d[rows, cols] + s * DEPTH_ULPS * 2.0 ** -24, 0.0, 1.0) - 1),
-                    view.near, view.far) for s in (-1, 1)]
+    ends = [np.clip(eye_depth_from_window(view, d[rows, cols], s * DEPTH_ULPS), view.near, view.far) for s in (-1, 1)]
     return np.stack([unproject(view, x, y, e) for e in ends], axis=1), \
         None if per_pixel is None else per_pixel[k // 2::k, k // 2::k][rows, cols]
 

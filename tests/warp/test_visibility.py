@@ -25,7 +25,7 @@ from addon.warp.geometry import clip_halfspaces, clip_volume_corners_h, ortho_ma
 from addon.measure.box_scene import ray_boxes
 from addon.warp.rays import ray_index
 from addon.warp.types import EmptyBodyError, View, WarpError
-from addon.warp.visibility import (BOX_SAMPLES, TileDepths, VisibleRegion, eye_depth_from_ndc, grid_may_meet,
+from addon.warp.visibility import (BOX_SAMPLES, TileDepths, VisibleRegion, eye_depth_from_window, grid_may_meet,
                                    region_from_window_depth, sample_rays, tile_edges, tile_reduce, unproject)
 from hard_cases import EMPTY_CASES, HARD_CASES, camera, point, sun, town
 
@@ -239,7 +239,7 @@ def test_window_depth_converts_to_the_eye_depths_it_came_from(ortho):
     z_ndc = (p[2, 2] * -eye + p[2, 3]) / (p[3, 2] * -eye + p[3, 3])
     window = ((z_ndc + 1) / 2).astype(np.float32)
     window[:16, :16] = 1.0                                      # nothing drawn in the first tile
-    assert np.allclose(eye_depth_from_ndc(view, z_ndc), eye)
+    assert np.allclose(eye_depth_from_window(view, (z_ndc + 1) / 2), eye)
     region = region_from_window_depth(view, window, tile=16)
     t = region.tiles
     assert not t.seen[0, 0] and t.seen.sum() == t.seen.size - 1
