@@ -93,11 +93,8 @@ def compute(method: str, view: View, light: Light, scene: SceneBounds, options: 
     options = options or WarpOptions()
     if body is None:
         body = focused_body(view, light, scene, options, visible)
-    with _warp_errors(f"The {method} light matrices"):
-        if method in SCENE_METHODS:         # the cascade builds one B per split from the scene
-            setup = METHODS[method](view, light, body, options, scene)
-        else:
-            setup = METHODS[method](view, light, body, options)
+    with _warp_errors(f"The {method} light matrices"):         # (the cascade builds one B per split from the scene)
+        setup = METHODS[method](view, light, body, options, *([scene] if method in SCENE_METHODS else []))
     if not all(np.isfinite(m.matrix).all() for m in setup.maps):
         raise WarpError(f"The {method} light matrices came out non-finite for this camera, light and scene: check "
                         f"the camera's clip range and the scene's size")
