@@ -204,10 +204,9 @@ def split_depths(view: View, light: Light, scene: SceneBounds, body: Intersectio
     if options.cascade_stable:      # B of the view frustum: the visible region's tiles jump as the camera moves
         body = intersection_body(view, light, scene)
     z_n, z_f = tightened_depth_range(view, light, body, options)
-    if options.cascade_stable:
-        z_n, z_f = stable_depth_range(z_f, view)
+    z_n, z_f = stable_depth_range(z_f, view) if options.cascade_stable else (z_n, z_f)
     depths = practical_splits(z_n, z_f, options.cascade_splits, options.cascade_lambda)
-    seen = receivers(view, light, body.visible, z_n, math.inf) if adaptive_splits(options) else None
+    seen = receivers(view, light, body.visible, z_n, math.inf, scene) if adaptive_splits(options) else None
     trials = Trials(view, light, scene, options, body.visible, seen)
     splits = trials.splits_at(depths)
     if not adaptive_splits(options):

@@ -7,21 +7,27 @@ from ..aliasing import raster_jacobian
 from ..fit import divided, fit_to_unit_cube
 from ..geometry import transform_h
 from ..polyhedron import convex_polygon_on_plane
-from ..types import Light, ShadowSetup, View, WarpError
-from ..visibility import VisibleRegion
+from ..types import Light, SceneBounds, ShadowSetup, View, WarpError
+from ..visibility import VisibleRegion, region_from_boxes
 
 TAIL = (93.0, 95.0, 97.0)
 """Percentiles about the judge's p95: for n ≈ 1,000 receivers ±2 % is about ±3 binomial σ, sqrt(0.95·0.05/n)."""
 SAMPLES = 2048
 """At most this many of a region's receivers (every k-th) score its splits: the engine's pre-pass gives up to 16,384."""
+RAYS = (64, 36)
+"""The receivers' rays (columns, rows) where the region is the scene boxes' 48x27 ray cast (docs/papers.md)."""
 
 
-def receivers(view: View, light: Light, region: VisibleRegion | None, near: float, far: float) -> tuple | None:
+def receivers(view: View, light: Light, region: VisibleRegion | None, near: float, far: float,
+              scene: SceneBounds | None = None) -> tuple | None:
     """(p, n, tangent bases T (N, 3, 2), G = D_view·T) of the ``region``'s ``surface`` samples and their ``normals``
-    at eye depths [near, far) that the light reaches (a spot's cone); None if there are none."""
+    at eye depths [near, far) that the light reaches (a spot's cone); None if there are none. The ``scene``'s boxes'
+    ray cast is cast again through ``RAYS``: at 48x27 a p95 at walls on 5 % of the image is left to chance."""
     if region is None or region.normals is None:
         return None
-    step = max(1, -(-len(region.normals) // SAMPLES))
+    cast = scene is not None and region.source == "scene boxes"
+    region = region_from_boxes(view, scene, RAYS) if cast else region
+    step = 1 if cast else max(1, -(-len(region.normals) // SAMPLES))
     p, n = region.surface[::step, 0], region.normals[::step]
     k = (view.eye_depth(p) >= near) & (view.eye_depth(p) < far)
     if light.type == "SPOT":

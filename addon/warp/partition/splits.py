@@ -41,10 +41,7 @@ def tightened_depth_range(view: View, light: Light, body: IntersectionBody,
 def split_view(view: View, near: float, far: float) -> View:
     """The camera with its clip range (the projection's depth row, OpenGL) set to [near, far]."""
     p = np.array(view.projection, dtype=np.float64)
-    if view.orthographic:
-        p[2, 2:] = -2.0 / (far - near), -(far + near) / (far - near)
-    else:
-        p[2, 2:] = -(far + near) / (far - near), -2.0 * far * near / (far - near)
+    p[2, 2:] = np.array([-2.0, -(far + near)] if view.orthographic else [-(far + near), -2.0 * far * near]) / (far - near)
     return View(view.camera_to_world, p, near, far, view.resolution, view.orthographic)
 
 
