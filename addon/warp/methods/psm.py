@@ -51,7 +51,6 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
         return _uniform_fallback(view, light, body, options, diag, "light inside B",
                                  f"light '{light.name}' is inside the region that must be covered: no single "
                                  "frustum in post-perspective space contains it; using the uniform cube faces")
-    origin = view.position
     warp = psm_warp(view, light, body, options, nearest_visible_depth(view, light, body, options))
     if warp.relative is None:                                          # (§3: no single frustum from L' holds B')
         diag.extra.update(_pps_report(warp))
@@ -67,14 +66,12 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
         if note:
             diag.fallback("main: λ guard", note)
     diag.extra.update(_pps_report(warp))
-    relative = warp.relative
-    shadow_map = ShadowMap(relative @ translation(-origin), options.shadow_map_size, "LESS", "main")
+    shadow_map = ShadowMap(warp.relative @ translation(-view.position), options.shadow_map_size, "LESS", "main")
     if not shadow_map.contains(body.vertices, COVER_TOLERANCE).all():
         return _uniform_fallback(view, light, body, options, diag, "PSM matrix",
                                  "the composed PSM matrix is not finite or does not cover B (numerically degenerate)")
-    diag.warp_frustum_corners = finite_clip_volume_corners(relative, origin)
-    diag.extra["psm_applied"] = True
-    diag.extra["frames"] = ["main"]
+    diag.warp_frustum_corners = finite_clip_volume_corners(warp.relative, view.position)
+    diag.extra.update(psm_applied=True, frames=["main"])
     if options.linear_z:
         shadow_map.depth_row = light_depth_row(light, body)
         if shadow_map.depth_row is None:

@@ -18,7 +18,7 @@ from ..frame import PARALLEL_BLEND, LightFrame, body_light_angles, light_frames,
 from ..geometry import finite_clip_volume_corners, homogeneous, point_runs, transform_h_runs
 from ..linear_depth import frame_depth_row
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
-from .common import NEAR_PLANE_NOTE, frame_maps
+from .common import frame_maps, near_plane_notes
 
 FADE_START = 2.0
 FADE_END = 4.0
@@ -361,7 +361,7 @@ def frame_warps(frames: list, view: View, at: Optional[LightAtEye], reason: str,
         else [reason] * len(frames)
     warps, warp = [], np.tile(np.eye(4), (len(frames), 1, 1))      # uniform where the warp is undefined
     for k, (frame, geo) in enumerate(zip(frames, geometries)):
-        w = FrameWarp(frame, [(f"{frame.role}: near plane", NEAR_PLANE_NOTE)] if frame.near_clamped else [])
+        w = FrameWarp(frame, near_plane_notes([frame]))
         warps.append(w)
         if isinstance(geo, str):
             w.notes.append((f"{frame.role}: uniform", geo))
