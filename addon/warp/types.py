@@ -153,10 +153,8 @@ class Light:
     def homogeneous_from(self, origin) -> list:
         """The light relative to ``origin``, homogeneous, as 4 floats: (x, y, z, 1), or (-direction, 0) for a sun."""
         if self.is_directional:
-            x, y, z = self.direction.tolist()
-            return [-x, -y, -z, 0.0]
-        (x, y, z), (ox, oy, oz) = self.position.tolist(), np.asarray(origin, dtype=np.float64).tolist()
-        return [x - ox, y - oy, z - oz, 1.0]
+            return [*(-self.direction).tolist(), 0.0]
+        return [*(self.position - np.asarray(origin, dtype=np.float64)).tolist(), 1.0]
 
     def rays_to(self, points) -> np.ndarray:
         """Unit light-travel directions arriving at (N, 3) points."""
@@ -305,15 +303,10 @@ class ShadowSetup:
 
 MAX_MAP_SIDE = 16384
 """The longest side of any shadow map, in texels: the GPU's largest texture (shared notes §8.8)."""
-CASCADE_WARPS = ("uniform", "psm", "lispsm", "gmnpr", "auto")
-"""What ``WarpOptions.cascade_warp`` may name: a split's warp, or "auto"."""
-FOCUS_MODES = ("visible", "view")
-"""``WarpOptions.focus``: B fitted to what the camera sees, or to the whole view frustum."""
-LAMBDA_GUARDS = ("all", "glpr", "off")
-"""``WarpOptions.lambda_guard``: the warps whose λ is kept no worse than the uniform map."""
-CHOICES = {"focus": FOCUS_MODES, "delta_z": ("body", "visible"), "lambda_guard": LAMBDA_GUARDS,
-           "plane_twist": ("auto", "on", "off"), "cascade_warp": CASCADE_WARPS, "cascade_budget": ("per_map", "shared")}
-"""The ``WarpOptions`` fields that name one of a few choices, and those choices."""
+CHOICES = {"focus": ("visible", "view"), "delta_z": ("body", "visible"), "lambda_guard": ("all", "glpr", "off"),
+           "plane_twist": ("auto", "on", "off"), "cascade_warp": ("uniform", "psm", "lispsm", "gmnpr", "auto"),
+           "cascade_budget": ("per_map", "shared")}
+"""The ``WarpOptions`` fields that name one of a few choices, and those choices (their meanings: ``WarpOptions``)."""
 
 
 @dataclass(frozen=True)
