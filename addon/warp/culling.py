@@ -127,6 +127,4 @@ class BoxIndex:
             least = np.minimum(least, boxes.compress(hit.ravel(), axis=1).min(axis=1, initial=np.inf))
         selected[-1, self.count - (len(selected) - 1) * k:] = False          # the last cluster's padding
         flat = selected.ravel()[: self.count]
-        if not flat.any():
-            return Selection(self, flat, None, selected)
-        return Selection(self, flat, np.array([least[:3], -least[3:]]), selected)
+        return Selection(self, flat, np.array([least[:3], -least[3:]]) if flat.any() else None, selected)

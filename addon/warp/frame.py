@@ -131,8 +131,7 @@ def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]
     if length < 1e-12:
         mid, length = SURROUND_AXIS.tolist(), 1.0
     axis = np.array([m / length for m in mid])
-    half = math.acos(min(max(float((dirs @ axis).min()), -1.0), 1.0))
-    return axis, half
+    return axis, math.acos(min(max(float((dirs @ axis).min()), -1.0), 1.0))
 
 
 def perspective_frame(apex, axis, up_hint, points, role, scale, floor: float | None = None,
@@ -162,9 +161,8 @@ def nearest_box_distance(body: IntersectionBody, apex) -> float:
     for selection in (body.culled.casters, body.culled.receivers):
         if selection.box is None:
             continue
-        bounds = selection.index.c_box_bounds.reshape(6, -1).compress(selection.by_cluster.ravel(), axis=1)
-        lo, hi = bounds[:3].T, -bounds[3:].T                   # (n, 3) each
-        gap = np.maximum(np.maximum(lo - apex, apex - hi), 0.0)
+        boxes = selection.boxes
+        gap = np.maximum(np.maximum(boxes[:, 0] - apex, apex - boxes[:, 1]), 0.0)
         nearest = min(nearest, float(np.sqrt(np.einsum("ij,ij->i", gap, gap)).min()))
     return nearest
 
@@ -176,10 +174,7 @@ def cube_near_floor(body: IntersectionBody, apex, hyperbolic: bool,
     ``widest_cos``."""
     least = 1e-6 * body.scale
     bound = 0.999 * widest_cos * nearest_box_distance(body, apex)
-    cuts_a_box = bound < least
-    if hyperbolic and math.isfinite(bound):
-        return max(bound, least), cuts_a_box
-    return least, cuts_a_box
+    return (max(bound, least) if hyperbolic and math.isfinite(bound) else least), bound < least
 
 
 def near_far(nearest: float, farthest: float, floor: float) -> tuple[float, float, bool]:

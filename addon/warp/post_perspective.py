@@ -258,10 +258,8 @@ def pps_light_matrix(light_h, points, max_half_angle: float = math.inf) -> PPSLi
     light = np.asarray(light_h, dtype=np.float64)
     light = light / math.sqrt(light @ light)
     l, w = light[:3], float(light[3])
-    if abs(w) <= DIRECTIONAL_TOLERANCE * max(math.sqrt(l @ l), 1e-300):
-        kind = "directional"
-    else:
-        kind = "point" if w > 0 else "inverted"
+    directional = abs(w) <= DIRECTIONAL_TOLERANCE * max(math.sqrt(l @ l), 1e-300)
+    kind = "directional" if directional else "point" if w > 0 else "inverted"
     b_in_pps = np.asarray(points, dtype=np.float64)
     rays = w * b_in_pps - l                                 # u(p), pointing away from the real light
     lengths = np.sqrt(np.einsum("ij,ij->i", rays, rays))

@@ -95,8 +95,7 @@ def ray_index(origins, directions, t_max, index: BoxIndex, selection: Selection 
         ends = np.cumsum(counts[slot[picked]])
         cut = 0
         while cut < len(picked):
-            stop = int(np.searchsorted(ends, (ends[cut - 1] if cut else 0) + CHUNK, side="right"))
-            stop = max(stop, cut + 1)
+            stop = max(int(np.searchsorted(ends, (ends[cut - 1] if cut else 0) + CHUNK, side="right")), cut + 1)
             r, c = ray[picked[cut:stop]], slot[picked[cut:stop]]
             cut = stop
             per = counts[c]

@@ -237,8 +237,7 @@ def _region(view: View, near, far, samples: tuple[int, int], tile: int, source: 
     seen = near <= far
     near = np.where(seen, np.clip(near, view.near, view.far), np.inf)
     far = np.where(seen, np.clip(far, view.near, view.far), -np.inf)
-    w, h = samples
-    return VisibleRegion(TileDepths(tile_edges(w, tile), tile_edges(h, tile), near, far, counts), source)
+    return VisibleRegion(TileDepths(*(tile_edges(n, tile) for n in samples), near, far, counts), source)
 
 
 def region_from_window_depth(view: View, window_depth: np.ndarray, tile: int = PIXEL_TILE,
@@ -247,8 +246,7 @@ def region_from_window_depth(view: View, window_depth: np.ndarray, tile: int = P
     d = np.asarray(window_depth)
     drawn = d < 1.0
     near, far = tile_reduce(d, np.where(drawn, d, -np.inf), tile)
-    h, w = d.shape
-    return region_from_window_tiles(view, near, far, tile_counts(drawn, tile), (w, h), tile, source)
+    return region_from_window_tiles(view, near, far, tile_counts(drawn, tile), d.shape[::-1], tile, source)
 
 
 def region_from_window_tiles(view: View, near, far, counts, size: tuple[int, int], tile: int = PIXEL_TILE,
@@ -316,8 +314,7 @@ def _region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int],
                                    samples)
     near, far = tile_reduce(_neighbours(np.pad(near_q, 1, constant_values=np.inf), np.minimum, 4),
                             _neighbours(np.pad(far_q, 1, constant_values=-np.inf), np.maximum, 4), tile)
-    box = box.reshape(ny + 2, nx + 2)
-    cells = box[1:-1, 1:-1]                                        # the cells' rays (the border's: their neighbours)
+    cells = box.reshape(ny + 2, nx + 2)[1:-1, 1:-1]                # the cells' rays (the border's: their neighbours)
     hit = np.flatnonzero(np.pad(cells >= 0, 1))                    # the surface: the cells' rays, not the border's
     return replace(_region(view, near, far, samples, tile, "scene boxes", tile_counts(cells >= 0, tile)),
                    surface=hits[hit][:, None].repeat(2, axis=1), normals=normals[hit])
