@@ -72,10 +72,6 @@ class PlaneOfInterest:
             raise WarpError(f"{name}: must be (point, normal) or (point, normal, extent)")
         return cls.through(*items, name=name)
 
-    @property
-    def point(self) -> np.ndarray:
-        return self.normal * self.offset
-
     def vector(self, origin=None) -> np.ndarray:
         """π = (n, -offset) for coordinates relative to ``origin``: π·(x - origin, 1) = 0 on P."""
         o = 0.0 if origin is None else float(self.normal @ np.asarray(origin, dtype=np.float64))
