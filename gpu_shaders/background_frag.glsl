@@ -1,10 +1,11 @@
 /* The shading pass's background: every target of the shading pass where no
  * receiver is seen (drawn on the far plane over the pre-pass depth, so it
  * reaches exactly the pixels the receivers leave; no target needs a clear).
- * u_background = the world colour with alpha 1 (the combined image), or
- * alpha 0 where the alpha holds the shadow (LIXEL_SHADOW_ALPHA: none here),
- * or 0 when the eye-space blur follows (the colour target then holds the
- * light). */
+ * u_background = the world colour with alpha 1 (the combined image; all 0
+ * with Film > Transparent), with alpha - 1 where the alpha holds the shadow
+ * (LIXEL_SHADOW_ALPHA: none here; finish() reads a negative alpha back as the
+ * combined image's alpha - 1), or 0 when the eye-space blur follows (the
+ * colour target then holds the light). */
 void main()
 {
   out_color = u_background;

@@ -1,8 +1,9 @@
 /* Compose after the eye-space blur (full screen, one fragment per pixel):
  * out_combined = ambient * albedo + direct * (1 - shadow) where a surface is
- * seen, the world colour behind (alpha 1). u_direct = the shading pass's
- * out_color under LIXEL_BLURRED (direct light, alpha = coverage); u_mask =
- * the blurred shadow (eye_blur_frag.glsl); u_ambient = (world colour, albedo).
+ * seen, u_background behind (the world colour, alpha 1; or 0 with Film >
+ * Transparent). u_direct = the shading pass's out_color under LIXEL_BLURRED
+ * (direct light, alpha = coverage); u_mask = the blurred shadow
+ * (eye_blur_frag.glsl); u_ambient = (world colour, albedo).
  * Without the blur the shading pass writes the combined image itself. */
 void main()
 {
@@ -10,5 +11,5 @@ void main()
   vec4 direct = texelFetch(u_direct, p, 0);
   float shadow = texelFetch(u_mask, p, 0).r;
   vec3 ambient = u_ambient.rgb;
-  out_combined = vec4(direct.a > 0.5 ? direct.rgb * (1.0 - shadow) + u_ambient.a * ambient : ambient, 1.0);
+  out_combined = direct.a > 0.5 ? vec4(direct.rgb * (1.0 - shadow) + u_ambient.a * ambient, 1.0) : u_background;
 }

@@ -82,9 +82,10 @@ def _draw_fullscreen(fb, size, shader) -> None:
         fullscreen_batch().draw(shader)
 
 
-def compose_pass(targets, size, direct, mask, ambient, albedo: float):
+def compose_pass(targets, size, direct, mask, ambient, albedo: float, behind=None):
     """The combined image (an RGBA32F target) after the eye-space blur, from the
-    shading pass's unshadowed light ``direct`` and the blurred shadow ``mask``.
+    shading pass's unshadowed light ``direct`` and the blurred shadow ``mask``;
+    ``behind`` (RGBA) where no surface is seen (default: ``ambient``, alpha 1).
     Returns its framebuffer."""
     combined = targets.texture("combined", size, "RGBA32F")
     fb = targets.framebuffer(colors=(combined,))
@@ -93,6 +94,7 @@ def compose_pass(targets, size, direct, mask, ambient, albedo: float):
     sh.uniform_sampler("u_direct", direct)
     sh.uniform_sampler("u_mask", mask)
     sh.uniform_float("u_ambient", (*(float(c) for c in ambient), float(albedo)))
+    sh.uniform_float("u_background", tuple(float(c) for c in behind) if behind is not None else (*ambient, 1.0))
     _draw_fullscreen(fb, size, sh)
     return fb
 

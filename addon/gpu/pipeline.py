@@ -532,14 +532,16 @@ class ShadowFrame:
         return [compose.read_depth(fb, tuple(int(v) for v in m.size)) for (_, fb), m in zip(maps, setup.maps)]
 
     def shade(self, light: Light, setup: ShadowSetup, shadow: ShadowSettings, albedo: float = DEFAULT_ALBEDO,
-              spot_blend: float = 0.0, ambient=DEFAULT_AMBIENT, read=None) -> None:
+              spot_blend: float = 0.0, ambient=DEFAULT_AMBIENT, read=None, transparent: bool = False) -> None:
         """The shading pass: one full-screen pass over the surface the pre-pass
         saw (each pixel shaded once; no second draw of the receivers), writing
         only the targets the images in ``read`` come from
         (the :meth:`finish` that follows takes the same ``read``): the
         combined image (the unshadowed light when the eye-space blur follows),
         the shadow, the footprint heatmap, (shadow, map index, texels per
-        pixel, eye depth), the surface seen (world position and normal)."""
+        pixel, eye depth), the surface seen (world position and normal).
+        Where no surface is seen the combined image holds ``ambient`` (the world colour), alpha 1, or
+        with ``transparent`` (Render properties > Film > Transparent) (0, 0, 0, 0)."""
         import gpu
         if self._depth is None:
             self.camera_prepass()
@@ -578,8 +580,11 @@ class ShadowFrame:
             gpu.state.depth_test_set("LESS_EQUAL")
             bg = shaders.background_shader(variant)
             bg.bind()
+            # Under LIXEL_SHADOW_ALPHA the alpha holds the shadow, 0 here; finish() reads alpha - 1 as the
+            # combined image's alpha - 1 where it is negative (-1: transparent).
+            behind = (0.0, 0.0, 0.0, 0.0) if transparent else (*ambient, 1.0)
             bg.uniform_float("u_background", (0.0, 0.0, 0.0, 0.0) if blurred else
-                             (*ambient, 0.0 if variant.shadow_alpha else 1.0))
+                             (*behind[:3], behind[3] - 1.0) if variant.shadow_alpha else behind)
             compose.fullscreen_batch().draw(bg)
             sh = shaders.shade_shader(variant)
             sh.bind()
@@ -592,7 +597,7 @@ class ShadowFrame:
             sh.uniform_sampler("u_surface", self._surface)
             compose.fullscreen_batch().draw(sh)
             gpu.state.depth_test_set("NONE")
-        self._shaded = dict(textures=textures, variant=variant, ambient=ambient, albedo=float(albedo),
+        self._shaded = dict(textures=textures, variant=variant, ambient=ambient, albedo=float(albedo), behind=behind,
                             eye_blur=float(shadow.eye_blur))
         self._stage("shading", t, fb, color=True)
 
@@ -604,7 +609,7 @@ class ShadowFrame:
             d_near, _ = compose.reduce_range(targets, tex["data"], size, channel=3, above=0.0)
             mask = compose.eye_blur_pass(targets, size, tex["data"], sh["eye_blur"],
                                          d_near if math.isfinite(d_near) else 1.0)
-            compose.compose_pass(targets, size, tex["color"], mask, sh["ambient"], sh["albedo"])
+            compose.compose_pass(targets, size, tex["color"], mask, sh["ambient"], sh["albedo"], sh["behind"])
             sh["blurred"] = (mask, targets.texture("combined", size, "RGBA32F"))
         return sh["blurred"]
 
@@ -655,10 +660,11 @@ class ShadowFrame:
         t = time.perf_counter()
         out = RenderResult()
         if variant.shadow_alpha and read & {"combined", "shadow_mask", "shadow_raw"}:
-            # One read of the colour target: its alpha is the shadow, the combined image's is 1.
+            # One read of the colour target: its alpha is the shadow (>= 0), or where nothing is seen, the
+            # combined image's alpha - 1 (see shade()); the combined image's alpha is 1 where a surface is.
             colour = self._read_target("color")
-            shadow = np.ascontiguousarray(colour[..., 3])
-            colour[..., 3] = 1.0
+            shadow = np.maximum(colour[..., 3], 0.0)
+            colour[..., 3] = 1.0 + np.minimum(colour[..., 3], 0.0)
             out.combined = colour if "combined" in read else None
             out.shadow_mask = shadow if "shadow_mask" in read else None
         else:

@@ -260,6 +260,7 @@ def compose_shader():
     info.sampler(0, "FLOAT_2D", "u_direct")
     info.sampler(1, "FLOAT_2D", "u_mask")
     info.push_constant("VEC4", "u_ambient")
+    info.push_constant("VEC4", "u_background")
     info.fragment_out(0, "VEC4", "out_combined")
     return _create(info, "compose")
 

@@ -245,7 +245,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     blend = float(getattr(light_obj.data, "spot_blend", 0.0)) if light_obj is not None and \
         light_obj.type == "LIGHT" and light_obj.data.type == "SPOT" else 0.0
     frame.draw_maps(setup, settings.shadow, body)
-    frame.shade(light, setup, settings.shadow, spot_blend=blend, ambient=_world_colour(scene))
+    frame.shade(light, setup, settings.shadow, spot_blend=blend, ambient=_world_colour(scene),
+                transparent=bool(scene.render.film_transparent))
     result = frame.finish()
     result.timings = {**timings, **result.timings}
     return {"setup": setup, "settings": settings, "result": result, "scene": scene.name, "method": method}

@@ -378,3 +378,32 @@ def test_f12_in_a_3d_view_with_a_local_camera_renders_that_camera(engine, scene)
     with engine.watch_renders() as own:
         assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
     np.testing.assert_array_equal(got[-1]["result"].combined, own[-1]["result"].combined)
+
+
+@pytest.mark.parametrize("passes", ["shadow", "none", "blurred"])
+def test_film_transparent_leaves_the_sky_transparent(engine, scene, passes):
+    """Render properties > Film > Transparent: where no surface is seen the combined image is (0, 0, 0, 0), as
+    Workbench, EEVEE and Cycles give it, for compositing over a plate; surfaces keep alpha 1 and their colour.
+    With the Shadow pass (whose values share the colour target's alpha), without it, and with the eye blur."""
+    build(scene)
+    scene.camera.location = (0, -7, 1.5)                     # a grazing view: ground below, sky above
+    scene.camera.rotation_euler = (Vector((0, 0, 1)) - scene.camera.location).to_track_quat("-Z", "Y").to_euler()
+    scene.view_layers[0].lixel_passes.shadow = passes != "none"
+    scene.lixel.eye_blur = 2.0 if passes == "blurred" else 0.0
+    try:
+        with engine.watch_renders(read={"covered"}) as got:
+            for transparent in (False, True):
+                scene.render.film_transparent = transparent
+                assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    finally:
+        scene.view_layers[0].lixel_passes.shadow = True
+        scene.lixel.eye_blur = 0.0
+    opaque, clear = (g["result"] for g in got)
+    covered = clear.covered
+    assert 0.2 < covered.mean() < 0.8
+    np.testing.assert_array_equal(clear.combined[~covered], 0.0)
+    np.testing.assert_array_equal(clear.combined[covered], opaque.combined[covered])
+    np.testing.assert_array_equal(opaque.combined[..., 3], 1.0)
+    if passes != "none":
+        np.testing.assert_array_equal(clear.shadow_mask, opaque.shadow_mask)
+        assert clear.shadow_mask.min() == 0.0 and clear.shadow_mask.max() > 0.5
