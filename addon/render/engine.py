@@ -176,7 +176,7 @@ def fit_warp(frame, light, bounds, options, method: str):
 @one_blas_thread()
 def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, settings: Optional[LixelSettings] = None,
                      warnings: Optional[list] = None, read=None, timed: bool = True, targets=None,
-                     camera=None) -> dict:
+                     camera=None, eye=None) -> dict:
     """Describe, compute and render an evaluated scene (what the engine does);
     usable by scripts and operators. Needs a GPU context. Returns ``setup``,
     ``settings``, ``result`` (an ``addon.gpu.result.RenderResult``), ``scene``
@@ -193,10 +193,11 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     GPU after every stage so each stage's time is its own (the engine's F12
     waits once, at the read-back). ``targets``: the render targets (default:
     the process-wide pool). ``camera``: the camera the render starts from (default ``scene.camera``; the engine
-    passes its ``camera_override``, see ``render_camera``)."""
+    passes its ``camera_override``, see ``render_camera``); ``eye``: (matrix, shift x) of one view of a multi-view
+    render (``describe.eye_view``)."""
     from ..gpu.batches import shared_batches
     from ..gpu.pipeline import ShadowFrame
-    from ..scene.describe import check_finite_geometry, describe_scene, light_notes, render_camera
+    from ..scene.describe import check_finite_geometry, describe_scene, eye_view, light_notes, render_camera
     from ..scene.geometry import shared_cache
 
     scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
@@ -210,8 +211,10 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     shared_batches().prune(cache.meshes)
     timings["extraction"] = time.perf_counter() - t
     t = time.perf_counter()
-    view, light, bounds = describe_scene(scene, depsgraph, camera=render_camera(scene, camera),
-                                         instances=geometry.instances)
+    camera = render_camera(scene, camera)
+    view, light, bounds = describe_scene(scene, depsgraph, camera=camera, instances=geometry.instances)
+    if eye is not None:
+        view = eye_view(view, camera, *eye)
     timings["describe"] = time.perf_counter() - t
     frame = ShadowFrame(geometry, view, resolution or view.resolution, read=read, targets=targets, timed=timed)
     frame.camera_prepass()
@@ -287,30 +290,47 @@ class LixelRenderEngine(bpy.types.RenderEngine):
     def render(self, depsgraph):
         try:
             from ..gpu.context import ensure_gpu_context
-            from ..scene.describe import check_one_view
+            from ..scene.describe import render_views
             from .heap import keep_frame_buffers
             keep_frame_buffers()  # the passes' buffers of one F12 serve the next
             ensure_gpu_context()
-            check_one_view(depsgraph.scene)
-            warnings: list = []
             passes = enabled_passes(depsgraph.view_layer)
             read = frozenset({"combined"} | {row[5] for row in passes}).union(*(r for _, r in _watchers))
-            camera = self.camera_override   # (evaluated) the 3D view's Local Camera, or the scene's
-            out = render_depsgraph(depsgraph, warnings=warnings, timed=False, read=read,
-                                   camera=camera.original if camera is not None else None)
+            views = render_views(depsgraph.scene) or [""]
         except Exception as exc:  # noqa: BLE001 - the entry point's guard: a message, never a traceback
             self.report({"ERROR"}, f"Lixel: {user_message(exc, f'rendering scene {depsgraph.scene.name!r}')}")
             return
+        for name, channels, chan_id, *_ in passes:
+            self.add_pass(name, channels, chan_id)
+        for view in views:   # Stereoscopy: each view (eye) with its own camera, as Cycles renders them
+            if not self._render_view(depsgraph, view, passes, read):
+                return
+
+    def _render_view(self, depsgraph, view: str, passes, read) -> bool:
+        """Render one view ("" without multi-view) into Blender's result; False (reported) when it cannot."""
+        try:
+            if view:
+                self.active_view_set(view)
+            camera = self.camera_override   # (evaluated) this view's camera: the 3D view's Local Camera, or the scene's
+            eye = None
+            if view and camera is not None:
+                eye = (np.array(self.camera_model_matrix(camera, use_spherical_stereo=False), dtype=np.float64),
+                       float(self.camera_shift_x(camera, use_spherical_stereo=False)))
+            warnings: list = []
+            out = render_depsgraph(depsgraph, warnings=warnings, timed=False, read=read,
+                                   camera=camera.original if camera is not None else None, eye=eye)
+        except Exception as exc:  # noqa: BLE001 - the entry point's guard: a message, never a traceback
+            what = f"rendering scene {depsgraph.scene.name!r}" + (f", view {view!r}" if view else "")
+            self.report({"ERROR"}, f"Lixel: {user_message(exc, what)}")
+            return False
         for msg in warnings:
             self.report({"WARNING"}, msg)
         for got, _ in _watchers:
-            got.append({**out, "warnings": tuple(warnings)})
+            got.append({**out, "warnings": tuple(warnings), "view": view})
         res = out["result"]
         t = time.perf_counter()
         x0, y0, x1, y1 = result_window(depsgraph.scene.render, *res.resolution)
-        for name, channels, chan_id, *_ in passes:
-            self.add_pass(name, channels, chan_id)
-        result = self.begin_result(0, 0, x1 - x0, y1 - y0)
+        result = self.begin_result(0, 0, x1 - x0, y1 - y0, view=view)
         layer = result.layers[0]
         _set_pass(layer, "Combined", res.combined[y0:y1, x0:x1])
         for name, *_, image in passes:
@@ -320,6 +340,7 @@ class LixelRenderEngine(bpy.types.RenderEngine):
         c = res.counts
         self.update_stats("Lixel", f"{out['method']}: {c.maps} map(s), {c.casters_drawn} casters drawn "
                                    f"({c.caster_triangles_drawn} tris), {c.casters_culled} culled")
+        return True
 
     def update_render_passes(self, scene=None, renderlayer=None):
         self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", "COLOR")

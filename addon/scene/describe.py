@@ -85,7 +85,7 @@ def render_camera(scene, camera=None):
     multi-view (Output > Stereoscopy > Multi-View) and one view, the scene's object named as that camera with the
     view's suffix in place of the longest view suffix ending its name, where there is one (Blender's
     ``camera_multiview_advanced``; measured in 4.2.23 and 5.0.1: "Cam_L" with only the right view renders "Cam_R").
-    :func:`check_one_view` refuses the rest."""
+    With several views the engine takes each view's camera from Blender (:func:`eye_view`)."""
     cam, r = camera or scene.camera, scene.render
     used = [v for v in r.views if v.use]
     if cam is None or not r.use_multiview or r.views_format != "MULTIVIEW" or len(used) != 1:
@@ -96,19 +96,33 @@ def render_camera(scene, camera=None):
     return scene.objects.get(cam.name[:len(cam.name) - max(ends)] + used[0].camera_suffix, cam)
 
 
-def check_one_view(scene) -> None:
-    """WarpError naming the views when the scene renders with Stereoscopy other than one plain view: Lixel renders
-    the camera's own view, once, so a second view would come out empty (measured: the left eye of a stereo pair)
-    and a stereo eye would be the camera's view, not the eye's."""
+def render_views(scene) -> list[str]:
+    """The views a render of ``scene`` makes (Output properties > Stereoscopy), as Blender's
+    ``BKE_scene_multiview_is_render_view_active`` counts them: none without multi-view (one plain render), else
+    each view switched on, of which Stereo 3D takes only "left" and "right"."""
     r = scene.render
     if not r.use_multiview:
-        return
+        return []
     stereo = r.views_format == "STEREO_3D"
-    views = [v.name for v in r.views if v.use and (not stereo or v.name in ("left", "right"))]
-    if stereo or len(views) > 1:
-        raise WarpError(f"Scene '{scene.name}' renders {'stereo 3D' if stereo else 'multi-view'} views "
-                        f"({', '.join(views)}): Lixel renders the camera's own view, once; turn Stereoscopy off "
-                        f"(Output properties > Stereoscopy)")
+    return [v.name for v in r.views if v.use and (not stereo or v.name in ("left", "right"))]
+
+
+def eye_view(view: View, camera_obj, model_matrix, shift_x: float) -> View:
+    """``view`` (:func:`describe_view` of ``camera_obj``) seen from one view of a multi-view render: Blender's own
+    matrix and horizontal lens shift for that view (``RenderEngine.camera_model_matrix`` and ``camera_shift_x``
+    after ``active_view_set``: a stereo eye is moved by half the interocular distance, turned in with Toe-in, and
+    shifted with Off-Axis convergence). The shift's change moves the projection's window as
+    ``BKE_camera_params_compute_viewplane`` does: one unit of shift is the sensor-fit size, which the window's
+    width 2 / P[0][0] holds sensor / lens times (perspective) or ortho_scale times (orthographic)."""
+    cam = camera_obj.data
+    projection = view.projection.copy()
+    if view.orthographic:
+        projection[0, 3] -= (shift_x - cam.shift_x) * projection[0, 0] * cam.ortho_scale
+    else:
+        sensor = cam.sensor_height if cam.sensor_fit == "VERTICAL" else cam.sensor_width
+        projection[0, 2] += (shift_x - cam.shift_x) * projection[0, 0] * sensor / cam.lens
+    return View(unscaled_camera_matrix(model_matrix, camera_obj.name), projection, view.near, view.far,
+                view.resolution, view.orthographic)
 
 
 def render_resolution(scene) -> tuple[int, int]:

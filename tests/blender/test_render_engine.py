@@ -7,7 +7,7 @@ from pathlib import Path
 import bpy
 import numpy as np
 import pytest
-from mathutils import Vector
+from mathutils import Matrix, Vector
 
 
 @pytest.fixture(scope="module")
@@ -183,22 +183,58 @@ def test_a_lixel_light_hidden_from_renders_is_refused_by_name(engine, scene, cap
     assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
 
 
-@pytest.mark.parametrize("views_format", ["STEREO_3D", "MULTIVIEW"])
-def test_stereoscopy_is_refused_rather_than_one_eye_left_empty(engine, scene, capfd, views_format):
-    """Before, a stereo pair came out with an empty left eye and the camera's own view as the right eye."""
+def _differing(a, b) -> float:
+    return float((np.abs(a - b).max(axis=-1) > 1e-3).mean())
+
+
+@pytest.mark.parametrize("camera_type, fit", [("PERSP", "AUTO"), ("PERSP", "VERTICAL"), ("ORTHO", "AUTO")])
+def test_each_stereo_eye_is_rendered_from_its_own_camera(engine, scene, tmp_path, camera_type, fit):
+    """Output properties > Stereoscopy > Stereo 3D: each eye is Blender's (``camera_model_matrix``,
+    ``camera_shift_x``). With the pivot at the centre and Off-Axis convergence, an eye is the camera moved half the
+    interocular distance along its X and shifted by (interocular / sensor width) (lens / convergence) / 2 towards
+    the other eye: each eye equals a plain render from a camera placed so, and both files are written. (Before, the
+    left eye came out empty; then stereo was refused.)"""
     build(scene)
-    scene.render.use_multiview, scene.render.views_format = True, views_format
-    kind = "stereo 3D" if views_format == "STEREO_3D" else "multi-view"
-    with pytest.raises(RuntimeError, match=rf"Scene 'lixel_test[.\d]*' renders {kind} views \(left, right\): Lixel "
-                                           r"renders the camera's own view, once; turn Stereoscopy off"):
-        bpy.ops.render.render(scene=scene.name)
-    assert "Traceback" not in capfd.readouterr().err
-    scene.render.views["right"].use = False           # one view: a stereo eye is still not the camera's view
-    if views_format == "MULTIVIEW":
+    cam = scene.camera
+    cam.data.type, cam.data.ortho_scale, cam.data.sensor_fit, cam.data.shift_x = camera_type, 9.0, fit, 0.1
+    st = cam.data.stereo
+    st.interocular_distance, st.convergence_distance, st.convergence_mode, st.pivot = 1.0, 8.0, "OFFAXIS", "CENTER"
+    r = scene.render
+    r.use_multiview, r.views_format, r.image_settings.views_format = True, "STEREO_3D", "INDIVIDUAL"
+    r.filepath = str(tmp_path / "eye_.png")
+    with engine.watch_renders() as got:
+        assert bpy.ops.render.render(scene=scene.name, write_still=True) == {"FINISHED"}
+    eyes = {g["view"]: g["result"].combined for g in got}
+    assert sorted(eyes) == ["left", "right"] and _differing(eyes["left"], eyes["right"]) > 0.01
+    assert (tmp_path / "eye__L.png").exists() and (tmp_path / "eye__R.png").exists()
+    r.use_multiview = False
+    for side, sign in (("left", 1), ("right", -1)):
+        eye = add(scene, f"Eye {side}", cam.data.copy())
+        eye.matrix_world = cam.matrix_world @ Matrix.Translation((-sign * 0.5, 0, 0))
+        eye.data.shift_x = 0.1 + sign * (1.0 / cam.data.sensor_width) * (cam.data.lens / 8.0) / 2
+        scene.camera = eye
+        with engine.watch_renders() as plain:
+            assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+        assert _differing(plain[-1]["result"].combined, eyes[side]) < 0.001   # (a pixel's float rounding)
+
+
+def test_multiview_renders_each_view_with_its_own_camera(engine, scene):
+    """Stereoscopy > Multi-View: each view renders the scene camera's name with its suffix (Cam_L, Cam_R)."""
+    build(scene)
+    scene.camera.name = "Cam_L"
+    right = add(scene, "Cam_R", scene.camera.data)
+    right.location = (3, -6, 6)
+    right.rotation_euler = (Vector((0, 0, 0)) - right.location).to_track_quat("-Z", "Y").to_euler()
+    scene.render.use_multiview, scene.render.views_format = True, "MULTIVIEW"
+    with engine.watch_renders() as got:
         assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
-    else:
-        with pytest.raises(RuntimeError, match=r"renders stereo 3D views \(left\)"):
-            bpy.ops.render.render(scene=scene.name)
+    views = {g["view"]: g["result"].combined for g in got}
+    scene.render.use_multiview = False
+    for view, cam in (("left", "Cam_L"), ("right", "Cam_R")):
+        scene.camera = scene.objects[cam]
+        with engine.watch_renders() as plain:
+            assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+        np.testing.assert_array_equal(plain[-1]["result"].combined, views[view])
 
 
 def test_no_gpu_context_is_reported(engine, scene, capfd, monkeypatch, lixel):

@@ -361,6 +361,6 @@ def test_one_multiview_view_renders_with_its_own_camera_as_blender_does(describe
     np.testing.assert_allclose(view.camera_to_world[:3, 3], cams[expected].location, atol=1e-6)
     cams["Cam_L"].name = "Cam"                            # no view's suffix ends its name: the scene camera
     assert describe.render_camera(scene) == scene.camera
-    scene.render.views_format = "STEREO_3D"                # refused by check_one_view; the camera is the scene's
+    scene.render.views_format = "STEREO_3D"                # (the engine takes each eye from Blender)
     cams["Cam_L"].name = "Cam_L"
     assert describe.render_camera(scene) == scene.camera
