@@ -330,7 +330,8 @@ class LixelRenderEngine(bpy.types.RenderEngine):
         res = out["result"]
         t = time.perf_counter()
         x0, y0, x1, y1 = result_window(depsgraph.scene.render, *res.resolution)
-        result = self.begin_result(0, 0, x1 - x0, y1 - y0, view=view)
+        # This view layer's part of the result (Blender calls render() once per view layer; "" is the first).
+        result = self.begin_result(0, 0, x1 - x0, y1 - y0, layer=depsgraph.view_layer.name, view=view)
         layer = result.layers[0]
         _set_pass(layer, "Combined", res.combined[y0:y1, x0:x1])
         for name, *_, image in passes:

@@ -443,3 +443,71 @@ def test_film_transparent_leaves_the_sky_transparent(engine, scene, passes):
     if passes != "none":
         np.testing.assert_array_equal(clear.shadow_mask, opaque.shadow_mask)
         assert clear.shadow_mask.min() == 0.0 and clear.shadow_mask.max() > 0.5
+
+
+def _exr_channels(path) -> dict:
+    """{channel name: (H, W) float32} of an uncompressed 32-bit float scan-line OpenEXR file, single- or multi-part
+    (Blender's multilayer files; bpy cannot read them back per layer). Layout (openexr.com, "OpenEXR File
+    Layout"): magic and version (bit 12: multi-part), each part's header (attributes: name, type, size, value; up to
+    an empty name), then each part's offsets of its scan lines, each line its part (multi-part), y, size and each
+    channel's row in the header's order."""
+    import struct
+    data = Path(path).read_bytes()
+    multi = bool(struct.unpack_from("<i", data, 4)[0] & 0x1000)
+    at, parts = 8, []
+    while True:
+        header = {}
+        while data[at]:
+            name, at = data[at:data.index(b"\0", at)].decode(), data.index(b"\0", at) + 1
+            at = data.index(b"\0", at) + 1
+            size, = struct.unpack_from("<i", data, at)
+            header[name], at = data[at + 4:at + 4 + size], at + 4 + size
+        parts.append(header)
+        at += 1
+        if not multi or not data[at]:
+            break
+    at += multi
+    out = {}
+    for header in parts:
+        channels, c = [], header["channels"]
+        while c[0]:
+            channels.append(c[:c.index(b"\0")].decode())
+            c = c[c.index(b"\0") + 1:]
+            assert struct.unpack_from("<i", c)[0] == 2 and header["compression"] == b"\0", "FLOAT, uncompressed"
+            c = c[16:]
+        x0, y0, x1, y1 = struct.unpack("<4i", header["dataWindow"])
+        w, h = x1 - x0 + 1, y1 - y0 + 1
+        offsets = struct.unpack_from(f"<{h}Q", data, at)
+        at += 8 * h
+        rows = np.stack([np.frombuffer(data, "<f4", w * len(channels), o + 8 + 4 * multi).reshape(len(channels), w)
+                         for o in offsets])
+        out.update({name: rows[::-1, i] for i, name in enumerate(channels)})   # row 0 at the bottom
+    return out
+
+
+def test_each_view_layer_gets_its_own_render(engine, scene, tmp_path):
+    """Blender renders every view layer switched on for rendering, calling the engine once for each: each must go
+    to its own layer of the result (a multilayer EXR for compositing). Before, every layer's image went to the
+    first layer, the last overwriting it, and the others stayed black."""
+    build(scene)
+    boxes = bpy.data.collections.new("Boxes")
+    scene.collection.children.link(boxes)
+    boxes.objects.link(scene.objects["Box"])
+    scene.collection.objects.unlink(scene.objects["Box"])
+    scene.view_layers.new("No Box").layer_collection.children["Boxes"].exclude = True
+    settings = scene.render.image_settings
+    if hasattr(settings, "media_type"):           # 5.0
+        settings.media_type = "MULTI_LAYER_IMAGE"
+    else:
+        settings.file_format = "OPEN_EXR_MULTILAYER"
+    settings.color_depth, settings.exr_codec = "32", "NONE"
+    scene.render.filepath = str(tmp_path / "layers.exr")
+    with engine.watch_renders() as got:
+        assert bpy.ops.render.render(scene=scene.name, write_still=True) == {"FINISHED"}
+    assert [g["result"].counts.casters_drawn for g in got] == [2, 1]
+    layers = _exr_channels(tmp_path / "layers.exr")
+    first = scene.view_layers[0].name
+    for name, g in zip((first, "No Box"), got):
+        np.testing.assert_allclose(layers[f"{name}.Combined.G"], g["result"].combined[..., 1], rtol=1e-6)
+        np.testing.assert_array_equal(layers[f"{name}.Shadow.X"], g["result"].shadow_mask)
+    assert layers[f"{first}.Shadow.X"].max() > 0.5 and layers["No Box.Shadow.X"].max() == 0.0
