@@ -231,7 +231,11 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         return b, setup
 
     t = time.perf_counter()
+    light_obj = bpy.data.objects.get(light.name)
     try:
+        if light_obj is not None and not getattr(light_obj.data, "use_shadow", True):
+            raise EmptyBodyError(f"light '{light.name}' casts no shadows, as in Blender's engines: its Shadow is off "
+                                 f"(Light properties > Shadow)")
         # The pre-pass, hence the visible region, is a function of the geometry and the view.
         body, setup = shared_warps().get((geometry, bounds), (method, view, light, settings.warp, frame.size), warp)
     except EmptyBodyError as exc:
@@ -242,7 +246,6 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         body = None
         setup = no_shadow_setup(method)
     timings["warp"] = time.perf_counter() - t - timings.get("visibility", 0.0)
-    light_obj = bpy.data.objects.get(light.name)
     if warnings is not None and light_obj is not None:
         warnings.extend(light_notes(light_obj))
     blend = float(getattr(light_obj.data, "spot_blend", 0.0)) if light_obj is not None and \

@@ -511,3 +511,20 @@ def test_each_view_layer_gets_its_own_render(engine, scene, tmp_path):
         np.testing.assert_allclose(layers[f"{name}.Combined.G"], g["result"].combined[..., 1], rtol=1e-6)
         np.testing.assert_array_equal(layers[f"{name}.Shadow.X"], g["result"].shadow_mask)
     assert layers[f"{first}.Shadow.X"].max() > 0.5 and layers["No Box.Shadow.X"].max() == 0.0
+
+
+def test_a_light_with_shadow_off_casts_none_as_in_blenders_engines(engine, scene, capfd):
+    """Light properties > Shadow off: EEVEE and Cycles light the scene with it but cast no shadow. Lixel did
+    shadow it; it now renders it unshadowed and says why."""
+    build(scene)
+    sun = scene.objects["Sun"]
+    with engine.watch_renders() as got:
+        for use_shadow in (False, True):
+            sun.data.use_shadow = use_shadow
+            assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    off, on = (g["result"] for g in got)
+    assert not off.shadow_mask.any() and on.shadow_mask.mean() > 0.01
+    lit = on.shadow_mask < 0.01
+    np.testing.assert_allclose(off.combined[lit], on.combined[lit], atol=1e-6)
+    assert (off.combined[~lit, :3] > on.combined[~lit, :3]).all()
+    assert "light 'Sun' casts no shadows, as in Blender's engines: its Shadow is off" in got[0]["warnings"][0]
