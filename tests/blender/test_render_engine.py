@@ -528,3 +528,17 @@ def test_a_light_with_shadow_off_casts_none_as_in_blenders_engines(engine, scene
     np.testing.assert_allclose(off.combined[lit], on.combined[lit], atol=1e-6)
     assert (off.combined[~lit, :3] > on.combined[~lit, :3]).all()
     assert "light 'Sun' casts no shadows, as in Blender's engines: its Shadow is off" in got[0]["warnings"][0]
+
+
+@pytest.mark.parametrize("clip_start, lost", [(1e-3, None), (3e-6, "7.16"), (1e-6, "4.56")])
+def test_a_clip_start_too_small_for_what_is_seen_is_named(engine, scene, clip_start, lost):
+    """Clip 1e-6 to 10 (a ratio Lixel accepts, below 2^24) rendered black with "the camera sees no shadow
+    receiver": 32-bit depth loses everything beyond 4.56 m. The render now says which camera and what to raise."""
+    build(scene)
+    scene.camera.data.clip_start, scene.camera.data.clip_end = clip_start, 10.0
+    with engine.watch_renders() as got:
+        assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    notes = [w for w in got[-1]["warnings"] if "32-bit depth" in w]
+    assert notes == ([] if lost is None else [
+        f"Lixel: Camera 'Cam' clips from {clip_start:g} to 10: 32-bit depth cannot tell surfaces farther than {lost} "
+        f"from its clip end, so they render as background; raise the clip start (Camera properties > Lens > Clip)"])
