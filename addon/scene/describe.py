@@ -76,6 +76,11 @@ def unscaled_camera_matrix(matrix, name: str) -> np.ndarray:
     return m
 
 
+def _a(noun: str) -> str:
+    """``noun`` with its indefinite article ("an empty", "a mesh")."""
+    return f"{'an' if noun[:1] in 'aeiou' else 'a'} {noun}"
+
+
 def _evaluated(obj, depsgraph):
     if depsgraph is None:
         return obj
@@ -179,7 +184,7 @@ def describe_view(camera_obj, depsgraph, scene) -> View:
     if camera_obj is None:
         raise WarpError(f"Scene '{scene.name}' has no camera: add a camera and make it active (Scene properties > Camera)")
     if camera_obj.type != "CAMERA":
-        raise WarpError(f"Object '{camera_obj.name}' is a {camera_obj.type.lower()}, not a camera: "
+        raise WarpError(f"Object '{camera_obj.name}' is {_a(camera_obj.type.lower())}, not a camera: "
                         f"choose a camera object as the scene camera (Scene properties > Camera)")
     cam = camera_obj.data
     if cam.type == "PANO":
@@ -241,7 +246,7 @@ def describe_light(light_obj, depsgraph=None) -> Light:
     if light_obj is None:
         raise WarpError("No light given: add a Sun, Point, Spot or Area light")
     if light_obj.type != "LIGHT":
-        raise WarpError(f"Object '{light_obj.name}' is a {light_obj.type.lower()}, not a light: "
+        raise WarpError(f"Object '{light_obj.name}' is {_a(light_obj.type.lower())}, not a light: "
                         f"choose a Sun, Point, Spot or Area light as the Lixel light")
     data = light_obj.data
     kind = data.type

@@ -171,6 +171,11 @@ def test_errors_name_the_object_and_the_fix(describe, types_mod, fresh_scene):
         describe.describe_scene(scene, light=box)
     with pytest.raises(types_mod.WarpError, match=r"Object 'Box' is a mesh, not a camera"):
         describe.describe_scene(scene, camera=box)
+    empty = bpy.data.objects.new("Empty", None)
+    scene.collection.objects.link(empty)
+    with pytest.raises(types_mod.WarpError, match=r"Object 'Empty' is an empty, not a camera"):
+        describe.describe_scene(scene, camera=empty)
+    bpy.data.objects.remove(empty)
     scene.render.resolution_percentage = 1
     scene.render.resolution_x = 50
     with pytest.raises(types_mod.WarpError, match=r"renders at 0x"):
