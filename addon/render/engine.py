@@ -198,7 +198,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     from ..gpu.batches import shared_batches
     from ..gpu.pipeline import ShadowFrame
     from ..scene.describe import (check_finite_geometry, describe_scene, eye_view, light_notes, lost_depth_note,
-                                  render_camera)
+                                  pick_light, render_camera)
     from ..scene.geometry import shared_cache
 
     scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
@@ -213,7 +213,9 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     timings["extraction"] = time.perf_counter() - t
     t = time.perf_counter()
     camera = render_camera(scene, camera)
-    view, light, bounds = describe_scene(scene, depsgraph, camera=camera, instances=geometry.instances)
+    # The light object itself, not looked up by name: a linked light may share its name with a local one.
+    light_obj = pick_light(scene, depsgraph, depsgraph.view_layer.objects.active)
+    view, light, bounds = describe_scene(scene, depsgraph, camera=camera, light=light_obj, instances=geometry.instances)
     if eye is not None:
         view = eye_view(view, camera, *eye)
     lost = lost_depth_note(view, bounds, camera.name)
@@ -235,9 +237,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         return b, setup
 
     t = time.perf_counter()
-    light_obj = bpy.data.objects.get(light.name)
     try:
-        if light_obj is not None and not getattr(light_obj.data, "use_shadow", True):
+        if not getattr(light_obj.data, "use_shadow", True):
             raise EmptyBodyError(f"light '{light.name}' casts no shadows, as in Blender's engines: its Shadow is off "
                                  f"(Light properties > Shadow)")
         # The pre-pass, hence the visible region, is a function of the geometry and the view.
@@ -250,10 +251,9 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         body = None
         setup = no_shadow_setup(method)
     timings["warp"] = time.perf_counter() - t - timings.get("visibility", 0.0)
-    if warnings is not None and light_obj is not None:
+    if warnings is not None:
         warnings.extend(light_notes(light_obj))
-    blend = float(getattr(light_obj.data, "spot_blend", 0.0)) if light_obj is not None and \
-        light_obj.type == "LIGHT" and light_obj.data.type == "SPOT" else 0.0
+    blend = float(light_obj.data.spot_blend) if light_obj.data.type == "SPOT" else 0.0
     frame.draw_maps(setup, settings.shadow, body)
     frame.shade(light, setup, settings.shadow, spot_blend=blend, ambient=_world_colour(scene),
                 transparent=bool(scene.render.film_transparent))

@@ -542,3 +542,35 @@ def test_a_clip_start_too_small_for_what_is_seen_is_named(engine, scene, clip_st
     assert notes == ([] if lost is None else [
         f"Lixel: Camera 'Cam' clips from {clip_start:g} to 10: 32-bit depth cannot tell surfaces farther than {lost} "
         f"from its clip end, so they render as background; raise the clip start (Camera properties > Lens > Clip)"])
+
+
+def test_a_linked_lixel_light_is_read_itself_not_a_local_light_of_its_name(engine, scene, tmp_path):
+    """A lighting rig linked from a library may hold a "Sun" while the file has its own "Sun". The engine looked
+    the Lixel light up by name and took the local one's settings: here its Shadow off, so no shadow at all."""
+    build(scene)
+    local = scene.objects["Sun"]
+    local.name = "Local"
+    rig = bpy.data.objects.new("Sun", bpy.data.lights.new("Rig Sun", "SUN"))
+    rig.rotation_euler = local.rotation_euler
+    bpy.data.libraries.write(str(tmp_path / "rig.blend"), {rig})
+    data = rig.data
+    bpy.data.objects.remove(rig)
+    bpy.data.lights.remove(data)
+    local.name = "Sun"
+    with bpy.data.libraries.load(str(tmp_path / "rig.blend"), link=True) as (_src, dst):
+        dst.objects = ["Sun"]
+    linked = dst.objects[0]
+    try:
+        scene.collection.objects.link(linked)
+        local.data.use_shadow, local.data.energy = False, 0.0
+        assert linked.name == local.name == "Sun" and linked.library is not None
+        scene.lixel.light = linked
+        with engine.watch_renders() as got:
+            assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+        assert got[-1]["result"].shadow_mask.mean() > 0.01
+        assert not any("Shadow is off" in w or "strength of 0" in w for w in got[-1]["warnings"])
+    finally:
+        scene.lixel.light = None
+        library = linked.library
+        bpy.data.objects.remove(linked)
+        bpy.data.libraries.remove(library)
