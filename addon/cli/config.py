@@ -221,16 +221,25 @@ def parse_planes(planes) -> tuple:
             raise ConfigError(f"planes[{i}].normal: must not be zero")
         plane = (point, normal / np.linalg.norm(normal))
         if "extent" in p:  # what the sidebar's Planes From Selection keeps: the map covers only that outline
-            plane += (_extent(p["extent"], f"planes[{i}].extent"),)
+            plane += (_extent(p["extent"], f"planes[{i}].extent", plane[1]),)
         out.append(plane)
     return tuple(out)
 
 
-def _extent(value, field: str) -> np.ndarray:
-    """A plane's outline: at least 3 points [x, y, z] (projected onto the plane by ``PlaneOfInterest.through``)."""
+def _extent(value, field: str, normal: np.ndarray) -> np.ndarray:
+    """A plane's outline: at least 3 points [x, y, z] (projected onto the plane by ``PlaneOfInterest.through``)
+    spanning an area there; points on one line would leave the plane no part to map, reported as "no visible
+    part"."""
     if not isinstance(value, list) or len(value) < 3:
         raise ConfigError(f"{field}: must be a list of at least 3 points [x, y, z] (the plane's convex outline)")
-    return np.array([_vector(v, f"{field}[{k}]", coordinates=True) for k, v in enumerate(value)])
+    points = np.array([_vector(v, f"{field}[{k}]", coordinates=True) for k, v in enumerate(value)])
+    on_plane = points - points.mean(axis=0)
+    on_plane -= np.outer(on_plane @ normal, normal)
+    spread = np.linalg.svd(on_plane, compute_uv=False)
+    if spread[1] <= 1e-9 * max(spread[0], 1e-300):
+        raise ConfigError(f"{field}: the points lie on one line or point of the plane, an outline with no area: "
+                          f"give the corners of the plane's outline")
+    return points
 
 
 def _option(key: str, value, annotation: str):

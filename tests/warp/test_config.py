@@ -95,6 +95,16 @@ def test_a_plane_extent_bounds_the_plane_map_as_planes_from_selection_does():
     assert plane_texels[0] < plane_texels[1] / 10
 
 
+@pytest.mark.parametrize("extent", [[[-3, 0, 0], [0, 0, 0], [3, 0, 0]], [[1, 1, 0]] * 3,
+                                    [[0, 0, 0], [0, 0, 4], [0, 0, -2]]], ids=["line", "point", "along_the_normal"])
+def test_an_extent_with_no_area_on_its_plane_is_refused_by_field(extent):
+    """Before, it was accepted and the plane then "has no visible part (behind the camera, outside the view, ...)"."""
+    c = base()
+    c["planes"] = [{"point": [0, 0, 0], "normal": [0, 0, 1], "extent": extent}]
+    with pytest.raises(ConfigError, match=r"^planes\[0\]\.extent: the points lie on one line or point of the plane"):
+        parse_config(c)
+
+
 def test_null_optional_options():
     c = base()
     c["options"] = {"lam": None, "visible_depth_range": None}
