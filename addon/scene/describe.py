@@ -253,7 +253,8 @@ def describe_light(light_obj, depsgraph=None) -> Light:
     if kind not in LIGHT_TYPES:
         raise WarpError(f"Light '{light_obj.name}' is of type {kind}, which Lixel cannot shadow: "
                         f"change it to Sun, Point, Spot or Area (Light properties)")
-    m = _matrix(_evaluated(light_obj, depsgraph).matrix_world)
+    m = _instance_matrix(light_obj, depsgraph)
+    m = _matrix(_evaluated(light_obj, depsgraph).matrix_world) if m is None else m
     if not _finite(m, None):
         raise WarpError(f"Light '{light_obj.name}' has a non-finite transform (NaN or infinity in its location, "
                         f"rotation or scale, or a parent's): fix its transform (Object properties > Transform)")
@@ -386,6 +387,27 @@ def _scene_lights(scene, depsgraph) -> list:
     return sorted(lights, key=lambda o: o.name)
 
 
+def _instanced_lights(depsgraph) -> list:
+    """Original light objects the depsgraph shows only as instances: a collection instance (File > Link of a
+    collection makes one: a linked lighting rig), by name."""
+    found: list = []
+    for inst in depsgraph.object_instances:
+        if inst.is_instance and inst.object.type == "LIGHT" and inst.object.original not in found:
+            found.append(inst.object.original)
+    return sorted(found, key=lambda o: o.name)
+
+
+def _instance_matrix(light_obj, depsgraph) -> Optional[np.ndarray]:
+    """The world matrix of a light the scene holds only through instances (its first instance's, as Blender lights
+    with each), or None for a light of the scene's own (its matrix_world)."""
+    if depsgraph is None or depsgraph.scene.objects.get(light_obj.name) == light_obj:
+        return None
+    for inst in depsgraph.object_instances:
+        if inst.is_instance and inst.object.original == light_obj:
+            return _matrix(inst.matrix_world)
+    return None
+
+
 def _lixel_light_property(scene):
     props = getattr(scene, "lixel", None)
     if props is None:
@@ -403,9 +425,13 @@ def pick_light(scene, depsgraph=None, active=None):
     the first light of a supported type (lights by name, for determinism). Only
     a light the scene shows in ``depsgraph`` (render or viewport) counts: a Lixel
     light hidden there, or in another scene, lights nothing in Blender and is
-    refused by name."""
+    refused by name. Lights shown only as instances (a linked lighting rig) count when the scene's own lights
+    do not answer."""
     lights = _scene_lights(scene, depsgraph)
     chosen = _lixel_light_property(scene)
+    if depsgraph is not None and (chosen not in lights if chosen is not None else
+                                  not any(ob.data.type in LIGHT_TYPES for ob in lights)):
+        lights += _instanced_lights(depsgraph)      # walked only when the scene's own lights do not answer
     if chosen is not None:
         if chosen not in lights:
             raise WarpError(f"The Lixel light '{chosen.name}' is not among the lights scene '{scene.name}' shows "

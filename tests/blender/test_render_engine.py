@@ -574,3 +574,35 @@ def test_a_linked_lixel_light_is_read_itself_not_a_local_light_of_its_name(engin
         library = linked.library
         bpy.data.objects.remove(linked)
         bpy.data.libraries.remove(library)
+
+
+@pytest.mark.parametrize("chosen", [False, True])
+def test_a_light_in_an_instanced_collection_lights_from_its_instance(engine, scene, chosen):
+    """File > Link of a collection (a lighting rig) makes a collection instance: its sun lights the scene in
+    EEVEE and Cycles, from the instance's transform. Lixel said "has no light" (or refused it as the chosen light);
+    it now shadows as from the same sun placed at the instance's world transform."""
+    build(scene)
+    sun = scene.objects["Sun"]
+    with engine.watch_renders() as direct:
+        sun.rotation_euler = (math.radians(20), 0, math.radians(-30))
+        assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    rig = bpy.data.collections.new("Rig")
+    rig.objects.link(sun)
+    scene.collection.objects.unlink(sun)
+    sun.rotation_euler = (math.radians(20), 0, 0)                     # Euler XYZ: Z(-30°) after X(20°)
+    instance = add(scene, "Rig instance", None)
+    instance.instance_type, instance.instance_collection = "COLLECTION", rig
+    instance.rotation_euler = (0, 0, math.radians(-30))
+    instance.location = (3, 2, 1)                                     # a sun: only its direction matters
+    scene.lixel.light = sun if chosen else None
+    try:
+        with engine.watch_renders() as got:
+            assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    finally:
+        scene.lixel.light = None
+        bpy.data.collections.remove(rig)
+        light = sun.data
+        bpy.data.objects.remove(sun)                                  # no longer in the scene: not the fixture's
+        bpy.data.lights.remove(light)
+    assert got and got[-1]["result"].shadow_mask.mean() > 0.01
+    np.testing.assert_allclose(got[-1]["result"].combined, direct[-1]["result"].combined, atol=1e-4)
