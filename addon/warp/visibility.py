@@ -291,9 +291,9 @@ def sample_rays(view: View, samples: tuple[int, int]) -> tuple[np.ndarray, np.nd
 def region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int] = BOX_SAMPLES,
                       tile: int = BOX_TILE) -> VisibleRegion:
     """The visible region of a box scene without a GPU: rays through a ``samples`` grid's cells and the image's border,
-    between each four the depths of every box that may show there (docs/papers.md); the last per scene is kept."""
+    between each four the depths of every box that may show there (docs/papers.md); the last per scene and grid is kept."""
     key = (view.camera_to_world.tobytes(), view.projection.tobytes(), view.near, view.far, samples, tile)
-    last = scene.cached("visible region", dict)
+    last = scene.cached(("visible region", samples, tile), dict)
     if last.get("key") != key:
         last.clear()
         last.update(key=key, region=_region_from_boxes(view, scene, samples, tile))
