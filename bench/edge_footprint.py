@@ -22,9 +22,13 @@ the method and the map size changed) and sets each method's numbers against unif
   method's wrong pixels are these: a map whose edge errs by more than that distance gets such a pixel wrong about
   as often as a map with coarser texels, so where ties make most of the wrong pixels, the count stops following
   the texel width;
-* ``by map``: per map that serves true edge pixels, how many it serves, how many of them are wrong, and the
-  mean σ_max there: a cascade whose p95 halves uniform's may still have most of its wrong pixels in a split whose
-  texels are barely finer than uniform's;
+* ``by map``: per map that serves true edge pixels (its role and texels w x h), how many it serves, how many of
+  them are wrong, and the mean σ_max there: a cascade whose p95 halves uniform's may still have most of its wrong
+  pixels in a split whose texels are barely finer than uniform's;
+* ``by grid angle``: the straight edge pixels per band of angle to their map's nearest texel axis
+  (:data:`ANGLE_BINS`), the wrong ones among them and the mean width across the edge there: where two maps' wrong
+  pixels per edge pixel differ at the same angle and width, neither the width nor the grid's angle explains it
+  (gen2_08_low_sun's turned 2:1 cascade maps, docs/papers.md "The receivers' footprint");
 * ``grid angle``: the straight edges' mean angle to the nearest texel axis of their map, and how many lie within
   :data:`ALIGNED_DEG` of one. The staircase of an edge that runs nearly along a texel axis is long: whole runs
   of its pixels fall on one side of the true edge together, so the same |Jᵀn| gives more wrong pixels, and a
@@ -62,6 +66,9 @@ TURN_DEG = 35.0
 """An edge pixel is at a corner when the edge normals within CORNER_RADIUS pixels turn by more than TURN_DEG."""
 ALIGNED_DEG = 10.0
 """A straight edge within this angle of a texel axis counts as aligned with its map's grid."""
+ANGLE_BINS = (0.0, 2.0, 5.0, 10.0, 20.0, 45.0)
+"""Degrees to the nearest texel axis by which the straight edge pixels are also counted, wrong or not, with their mean
+width across the edge: whether the wrong pixels per edge pixel follow that width alike at every angle."""
 
 
 def corners(edges: np.ndarray, normals: np.ndarray) -> np.ndarray:
@@ -220,10 +227,18 @@ def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1, s
                          "straight": int((wrong & straight).sum()), "corners": int((wrong & near_corner).sum()),
                          "p95": footprint_stats(fp).p95, "across": _mean(across), "corner_smax": _mean(at_corners),
                          "grid_angle": _mean(angle), "aligned": int(np.sum(angle <= ALIGNED_DEG)),
+                         "by_angle": by_angle(angle, wrong[straight], across),
                          "by_map": by_map(view, setup, result.map_index, edges & counted, wrong, gt),
                          "ties": None if tied is None else (int((wrong & tied).sum()), int((tied & counted).sum()),
                                                             int((wrong & edges & ~tied).sum()))})
     return rows
+
+
+def by_angle(angle: np.ndarray, wrong: np.ndarray, across: np.ndarray) -> list[tuple]:
+    """Per bin of ``ANGLE_BINS`` (the last closed): (straight edge pixels, wrong ones, mean width across there)."""
+    k = np.digitize(np.nan_to_num(angle, nan=-1.0), ANGLE_BINS[1:-1])
+    return [(int(np.sum(m)), int(np.sum(wrong & m)), _mean(across[m])) for m in (np.isfinite(angle) & (k == b)
+                                                                               for b in range(len(ANGLE_BINS) - 1))]
 
 
 def by_map(view, setup, map_index, edges, wrong, gt) -> list[tuple]:
@@ -235,7 +250,7 @@ def by_map(view, setup, map_index, edges, wrong, gt) -> list[tuple]:
         mine = edges & (map_index == i)
         if mine.any():
             fp, _ = setup_footprints(view, setup, gt.points[mine], gt.normals[mine], np.full(int(mine.sum()), i))
-            out.append((m.role, int(mine.sum()), int((wrong & mine).sum()), _mean(fp)))
+            out.append((f"{m.role} {m.size[0]}x{m.size[1]}", int(mine.sum()), int((wrong & mine).sum()), _mean(fp)))
     return out
 
 
@@ -259,6 +274,9 @@ def table(rows: list[dict]) -> list[str]:
         if r["ties"] is not None:
             at, of, elsewhere = r["ties"]
             lines.append(f"{'':>42}at ties {at} of {of} ({at / max(of, 1):.2f}); at other edge pixels {elsewhere}")
+        lines.append(f"{'':>42}by grid angle (straight edge pixels, wrong, mean width across): " + "; ".join(
+            f"{a:.0f}-{b:.0f}° {n}, {w}, {x:.2f} px" for (a, b), (n, w, x) in zip(zip(ANGLE_BINS, ANGLE_BINS[1:]),
+                                                                              r["by_angle"])))
         lines.append(f"{'':>42}by map (edge pixels, wrong, mean σ_max there): " + "; ".join(
             f"{role} {n}, {w}, {smax:.2f} px" for role, n, w, smax in r["by_map"]))
         if len(r["phases"]) > 1:
