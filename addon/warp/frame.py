@@ -21,6 +21,9 @@ PARALLEL_BLEND = math.sin(math.radians(1.0))
 
 FLIP_Z = np.diag([1.0, 1.0, -1.0, 1.0])
 
+NEAR_FLOOR = 1e-6
+"""A point light's maps (and plane maps' casters) reach no nearer to it than this fraction of the scene scale."""
+
 
 @dataclass(frozen=True)
 class LightFrame:
@@ -137,10 +140,10 @@ def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]
 def perspective_frame(apex, axis, up_hint, points, role, scale, floor: float | None = None,
                       cuts_a_box: bool = True) -> LightFrame:
     """A point light's perspective along ``axis`` from ``apex`` (rays become parallel to z), near at the nearest
-    point's depth clamped to ``floor``; ``cuts_a_box``: whether that clamp matters."""
+    point's depth clamped to ``floor`` (``NEAR_FLOOR`` x ``scale``); ``cuts_a_box``: whether that clamp matters."""
     view = look_along(apex, axis, up_hint)
     depth = (points - apex) @ -view[2, :3]                   # along the axis (the eye looks down -z)
-    floor = 1e-6 * scale if floor is None else floor
+    floor = NEAR_FLOOR * scale if floor is None else floor
     near, far, clamped = near_far(float(depth.min()), float(depth.max()), floor)
     if clamped:         # B from the floor on, and where the light's rays to it cross the floor (to all of B if none)
         ahead = depth >= floor
@@ -170,9 +173,9 @@ def nearest_box_distance(body: IntersectionBody, apex) -> float:
 def cube_near_floor(body: IntersectionBody, apex, hyperbolic: bool,
                     widest_cos: float = CUBE_FACE_COS) -> tuple[float, bool]:
     """The near distance of a point light's cube faces with the light on or in B, and whether it cuts a box that
-    matters: 1e-6 of the scene scale for linear depth (Scherzer §4.2), else the nearest box's distance times
+    matters: ``NEAR_FLOOR`` of the scene scale for linear depth (Scherzer §4.2), else the nearest box's distance times
     ``widest_cos``."""
-    least = 1e-6 * body.scale
+    least = NEAR_FLOOR * body.scale
     bound = 0.999 * widest_cos * nearest_box_distance(body, apex)
     return (max(bound, least) if hyperbolic and math.isfinite(bound) else least), bound < least
 

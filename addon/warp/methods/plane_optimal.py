@@ -10,7 +10,7 @@ import numpy as np
 from ..body import IntersectionBody
 from ..diagnostics import Diagnostics
 from ..fit import window_matrix
-from ..frame import light_frames
+from ..frame import NEAR_FLOOR, light_frames
 from ..geometry import cross, homogeneous, translation
 from ..linear_depth import fitted_row
 from ..plane_map import (FLAT_RATIO, PlaneOfInterest, clip_to_polygon, corner_ray_points, default_plane,
@@ -28,9 +28,6 @@ MAX_MAPS = 8
 maps beyond what this leaves next to the fallback maps are left out, smallest first."""
 REGION_TOLERANCE = 1e-6
 """A point belongs to a plane's region within this fraction of the scene scale (at least 100x the body tolerance)."""
-NEAR_FRACTION = 1e-6
-"""A point light inside B: casters nearer than this fraction of the scene scale
-to the light's height are left out of a plane map (as ``frame.perspective_frame``)."""
 TWIST_GAIN = 0.99
 """plane_twist='auto' twists when the rotated rectangle is below this fraction
 of the unrotated one and the budget forces fewer lixels than pixels."""
@@ -245,7 +242,7 @@ def scaled_to_view_w(m: np.ndarray, view: View, centre: np.ndarray, origin: np.n
 def casters_of(polygon: np.ndarray, outwards: np.ndarray, grown: np.ndarray, height: np.ndarray, l_h: np.ndarray,
                tol: float, body: IntersectionBody, origin: np.ndarray) -> tuple[np.ndarray, bool]:
     """B ∩ C, the points of B on the needed rays (§2, Fig. 5-6), C the cone (a prism for a sun) from the light
-    over the region; the flag: a point light inside B, casters within NEAR_FRACTION of its height left out."""
+    over the region; the flag: a point light inside B, casters within ``frame.NEAR_FLOOR`` of its height left out."""
     corners = polygon + tol * (2 + min(steepest_incidence(grown, height, l_h), 1e12)) * outwards
     normals, offsets = cone_facets(corners, height, l_h, tol)
     b_poly = body.polytope_from(origin)
@@ -257,7 +254,7 @@ def casters_of(polygon: np.ndarray, outwards: np.ndarray, grown: np.ndarray, hei
     if points is None or not len(points):
         return np.zeros((0, 3)), False
     if l_h[3] != 0:
-        top = float(height @ l_h) / l_h[3] - NEAR_FRACTION * body.scale
+        top = float(height @ l_h) / l_h[3] - NEAR_FLOOR * body.scale
         if float((points @ height[:3]).max()) + height[3] > top:
             part = b_poly.clip(np.vstack([normals, height[:3]]), np.append(offsets, top - height[3]))
             return (np.zeros((0, 3)) if part is None else part.vertices), True
