@@ -86,10 +86,9 @@ class LightHull(NamedTuple):
         n, sun = len(p.vertices), self.light[3] == 0
         # Vertex ids: P's, then n + v for P's vertex v raised to the cap (a sun) or n for the light.
         silhouette = {(s.a, s.c) for s in self.sides}
-        loops, ring = [], {}
-        for g in self.kept:
-            loop = p.loops[g]
-            loops.append(_grow_over_sides(loop, silhouette, n, sun, ring) if g in self.holding else loop)
+        ring: dict = {}                  # a sun's cap edges (raised vertex -> next), from the sides and grown facets
+        loops = [_grow_over_sides(p.loops[g], silhouette, n, sun, ring) if g in self.holding else p.loops[g]
+                 for g in self.kept]
         for s in self.sides:
             if s.kept not in self.holding:
                 loops.append([s.c, s.a, n + s.a, n + s.c] if sun else [s.c, s.a, n])
