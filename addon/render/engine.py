@@ -309,12 +309,14 @@ class LixelRenderEngine(bpy.types.RenderEngine):
             return
         for name, channels, chan_id, *_ in passes:
             self.add_pass(name, channels, chan_id)
+        reported: set = set()
         for view in views:   # Stereoscopy: each view (eye) with its own camera, as Cycles renders them
-            if not self._render_view(depsgraph, view, passes, read):
+            if not self._render_view(depsgraph, view, passes, read, reported):
                 return
 
-    def _render_view(self, depsgraph, view: str, passes, read) -> bool:
-        """Render one view ("" without multi-view) into Blender's result; False (reported) when it cannot."""
+    def _render_view(self, depsgraph, view: str, passes, read, reported: set) -> bool:
+        """Render one view ("" without multi-view) into Blender's result; False (reported) when it cannot. A
+        warning already in ``reported`` (an earlier view's) is not reported again."""
         try:
             if view:
                 self.active_view_set(view)
@@ -331,7 +333,9 @@ class LixelRenderEngine(bpy.types.RenderEngine):
             self.report({"ERROR"}, f"Lixel: {user_message(exc, what)}")
             return False
         for msg in warnings:
-            self.report({"WARNING"}, msg)
+            if msg not in reported:
+                self.report({"WARNING"}, msg)
+                reported.add(msg)
         for got, _ in _watchers:
             got.append({**out, "warnings": tuple(warnings), "view": view})
         res = out["result"]

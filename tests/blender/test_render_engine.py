@@ -218,6 +218,18 @@ def test_each_stereo_eye_is_rendered_from_its_own_camera(engine, scene, tmp_path
         assert _differing(plain[-1]["result"].combined, eyes[side]) < 0.001   # (a pixel's float rounding)
 
 
+def test_a_stereo_render_says_each_warning_once(engine, scene, capfd):
+    build(scene)
+    scene.objects["Sun"].data.energy = 0.0
+    scene.render.use_multiview, scene.render.views_format = True, "STEREO_3D"
+    capfd.readouterr()
+    with engine.watch_renders() as got:
+        assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    out = capfd.readouterr()
+    assert len(got) == 2 and all("has a strength of 0" in g["warnings"][0] for g in got)
+    assert (out.out + out.err).count("has a strength of 0") == 1
+
+
 def test_multiview_renders_each_view_with_its_own_camera(engine, scene):
     """Stereoscopy > Multi-View: each view renders the scene camera's name with its suffix (Cam_L, Cam_R)."""
     build(scene)
