@@ -662,9 +662,16 @@ class ShadowFrame:
         if variant.shadow_alpha and read & {"combined", "shadow_mask", "shadow_raw"}:
             # One read of the colour target: its alpha is the shadow (>= 0), or where nothing is seen, the
             # combined image's alpha - 1 (see shade()); the combined image's alpha is 1 where a surface is.
+            # Only a transparent film has alphas below 0: an opaque one's frame skips two passes over the image.
             colour = self._read_target("color")
-            shadow = np.maximum(colour[..., 3], 0.0)
-            colour[..., 3] = 1.0 + np.minimum(colour[..., 3], 0.0)
+            alpha = colour[..., 3]
+            if self._shaded["behind"][3] < 1.0:
+                shadow = np.maximum(alpha, 0.0)
+                np.minimum(alpha, 0.0, out=alpha)
+                alpha += 1.0
+            else:
+                shadow = np.ascontiguousarray(alpha)
+                alpha[...] = 1.0
             out.combined = colour if "combined" in read else None
             out.shadow_mask = shadow if "shadow_mask" in read else None
         else:
