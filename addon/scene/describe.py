@@ -13,6 +13,7 @@ from typing import Optional
 import numpy as np
 
 from ..warp import MAX_COORDINATE
+from ..warp.polyhedron import box_corners
 from ..warp.types import Light, SceneBounds, View, WarpError
 from .instances import InstanceSet, walk_instances  # noqa: F401 (re-exported)
 
@@ -144,9 +145,7 @@ def lost_depth_note(view: View, bounds: SceneBounds, camera_name: str) -> Option
     lost = n * f / (n + DEPTH_STEP * (f - n))
     if view.orthographic or f - lost < 0.01 * (f - n) or len(bounds.receivers) == 0:
         return None
-    corners = bounds.receivers[:, [[0, 0, 0], [1, 1, 1], [0, 0, 1], [1, 1, 0], [0, 1, 0], [1, 0, 1], [0, 1, 1],
-                                   [1, 0, 0]], [0, 1, 2]]                           # (N, 8, 3)
-    farthest = float(-(corners @ view.world_to_camera[2, :3] + view.world_to_camera[2, 3]).min())   # looks down -z
+    farthest = float(view.eye_depth(box_corners(bounds.receivers[:, 0], bounds.receivers[:, 1])).max())
     if farthest <= lost:
         return None
     return (f"Camera '{camera_name}' clips from {n:g} to {f:g}: 32-bit depth cannot tell surfaces farther than "
