@@ -16,22 +16,10 @@ from typing import Optional
 import numpy as np
 
 from ..warp.body import RELATIVE_TOLERANCE
-from ..warp.geometry import UNIT_CUBE_CORNERS, clip_halfspaces, finite_clip_volume_corners, normalize
-from ..warp.polyhedron import ConvexPolytope, unit_halfspaces
+from ..warp.geometry import clip_halfspaces, finite_clip_volume_corners, normalize
+from ..warp.polyhedron import HEXAHEDRON_EDGES, ConvexPolytope, unit_halfspaces
 from ..warp.types import Light, ShadowSetup, View
 
-HEXAHEDRON_EDGES = np.array(
-    [(0, 1), (2, 3), (4, 5), (6, 7),   # x edges
-     (0, 2), (1, 3), (4, 6), (5, 7),   # y edges
-     (0, 4), (1, 5), (2, 6), (3, 7)],  # z edges (near -> far)
-    dtype=np.int64)
-"""The 12 edges of a hexahedron whose corners are ordered like ``UNIT_CUBE_CORNERS``."""
-
-assert all(np.sum(UNIT_CUBE_CORNERS[a] != UNIT_CUBE_CORNERS[b]) == 1 for a, b in HEXAHEDRON_EDGES)
-
-HEXAHEDRON_QUADS = np.array([(0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5)],
-                            dtype=np.int64)
-"""The 6 faces (outward) of such a hexahedron, as in ``warp.polyhedron.hexahedron_faces``."""
 
 EXTRA_PROJECTION_CENTRE = ("projection_centre", "projection_center", "eye", "warp_eye")
 EXTRA_V_P = ("v_p", "V_P", "warp_direction", "view_dir_projected")

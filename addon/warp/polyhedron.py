@@ -29,6 +29,10 @@ HEXAHEDRON_LOOPS = ((0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 
 """The six quads of a hexahedron whose corners are ordered like ``geometry.UNIT_CUBE_CORNERS`` (near face first, x
 fastest, then y): near, far, bottom, top, left, right, counter-clockwise seen from outside for a box."""
 
+HEXAHEDRON_EDGES = np.array([(loop[i - 1], loop[i]) for loop in HEXAHEDRON_LOOPS[:2] for i in range(4)]
+                            + [(i, i + 4) for i in range(4)])
+"""The 12 edges of such a hexahedron as pairs of corners: the near and far loops', then near to far."""
+
 BOX_NORMALS = np.concatenate([-np.eye(3), np.eye(3)])
 """The outward normals of a box's facets -x, -y, -z, +x, +y, +z (offsets -lo, hi: ``box_offsets``)."""
 
@@ -49,7 +53,7 @@ def box_offsets(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
 def box_edges(lo: np.ndarray, hi: np.ndarray) -> "Edges":
     """The 12 edges of boxes [lo, hi] ((..., 3) each) as segments (..., 12)."""
     corners = box_corners(lo, hi)
-    start, end = corners[..., _HEX_EDGES[:, 0], :], corners[..., _HEX_EDGES[:, 1], :]
+    start, end = corners[..., HEXAHEDRON_EDGES[:, 0], :], corners[..., HEXAHEDRON_EDGES[:, 1], :]
     return Edges(start, end - start, np.ones(start.shape[:-1]))
 
 
@@ -621,6 +625,3 @@ def _rows(rows: list) -> np.ndarray:
 _HEX_QUADS = np.array(HEXAHEDRON_LOOPS)
 _HEX_DIAGONAL_STARTS, _HEX_DIAGONAL_ENDS = _HEX_QUADS[:, :2], _HEX_QUADS[:, 2:]
 _HEX_REVERSED = tuple(loop[::-1] for loop in HEXAHEDRON_LOOPS)
-_HEX_EDGES = np.array([(loop[i - 1], loop[i]) for loop in HEXAHEDRON_LOOPS[:2] for i in range(4)]
-                      + [(i, i + 4) for i in range(4)])
-"""The 12 edges of a hexahedron with UNIT_CUBE_CORNERS ordering."""

@@ -10,7 +10,7 @@ import numpy as np
 
 from .culling import BoxIndex
 from .geometry import clip_halfspaces, perpendicular
-from .polyhedron import box_corners
+from .polyhedron import HEXAHEDRON_EDGES, box_corners
 from .rays import ray_index, slab_intervals
 from .types import EmptyBodyError, Light, SceneBounds, View, WarpOptions
 
@@ -349,14 +349,15 @@ def _box_depths_in_squares(view: View, boxes, low, high) -> tuple[np.ndarray, np
     which, corner = np.nonzero((value <= tol[:, None, None]).all(axis=2))
     pairs, depths = [which], [depth[which, corner]]
     # Box edges crossing a side, at t = v_a / (v_a - v_b) from corner a to b (values and depth are affine along it).
-    va, vb = value[:, _EDGES[:, 0]], value[:, _EDGES[:, 1]]                                    # (S, 12, 4)
+    ea, eb = HEXAHEDRON_EDGES.T
+    va, vb = value[:, ea], value[:, eb]                                                        # (S, 12, 4)
     with np.errstate(divide="ignore", invalid="ignore"):
         t = va / (va - vb)
     which, edge, side = np.nonzero((t >= 0) & (t <= 1))                   # (an edge in a side's plane: NaN, dropped)
     t = t[which, edge, side]
     a, b = va[which, edge], vb[which, edge]
     inside = (a + t[:, None] * (b - a) <= tol[which, None]).all(axis=1)
-    da, db = depth[which, _EDGES[edge, 0]], depth[which, _EDGES[edge, 1]]
+    da, db = depth[which, ea[edge]], depth[which, eb[edge]]
     pairs.append(which[inside])
     depths.append((da + t * (db - da))[inside])
     # The pyramid's corner rays through the box from the eye (whole lines for an orthographic view's prism): at
@@ -383,10 +384,6 @@ def _box_depths_in_squares(view: View, boxes, low, high) -> tuple[np.ndarray, np
     np.maximum.at(most, pairs[k], depths[k])
     unseen = (least > view.far) | (most < view.near)                     # wholly beyond the far or short of the near plane
     return np.where(unseen, np.inf, least), np.where(unseen, -np.inf, most)
-
-
-_EDGES = np.array([[a, b] for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1])
-"""The 12 edges of a box as pairs of its corners (``box_corners`` order): corners differing in one axis."""
 
 
 def _box_depths(view: View, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -440,7 +437,8 @@ def _ndc_rectangles(view: View, boxes) -> list:
     s = view.eye_depth(corners).reshape(-1, 8) - view.near
     keep = s >= 0
     cut = np.flatnonzero(~keep.all(axis=1))      # reaching before the near plane: its edges' crossings of it too
-    sa, sb, ha, hb = s[cut][:, _EDGES[:, 0]], s[cut][:, _EDGES[:, 1]], h[cut][:, _EDGES[:, 0]], h[cut][:, _EDGES[:, 1]]
+    ea, eb = HEXAHEDRON_EDGES.T
+    sa, sb, ha, hb = s[cut][:, ea], s[cut][:, eb], h[cut][:, ea], h[cut][:, eb]
     with np.errstate(divide="ignore", invalid="ignore"):
         cross = ha + (sa / (sa - sb))[..., None] * (hb - ha)
     p, k = np.concatenate([h[cut], cross], axis=1), np.concatenate([keep[cut], (sa < 0) != (sb < 0)], axis=1)

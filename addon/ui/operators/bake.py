@@ -8,8 +8,8 @@ from bpy.props import BoolProperty, IntProperty
 from ...guard import guarded_operator
 from ...scene.owned import DEBUG_KEY, is_lixel_made
 from ...warp.geometry import finite_clip_volume_corners
+from ...warp.polyhedron import hexahedron_faces
 from .. import nodes
-from ..overlay_geometry import HEXAHEDRON_QUADS
 from .common import LixelSceneOperator
 
 BAKED = "baked"
@@ -51,12 +51,12 @@ def baked_items(st) -> list:
     """(object name, kind, 'faces'|'edges', data) for everything bake makes."""
     g = st.geometry
     items = [("Lixel B", "body", "faces", st.body.faces),
-             ("Lixel View Frustum", "view_frustum", "faces", [g["view_corners"][q] for q in HEXAHEDRON_QUADS])]
+             ("Lixel View Frustum", "view_frustum", "faces", hexahedron_faces(g["view_corners"]))]
     for i, faces in enumerate(g["light_faces"]):
         if faces:
             items.append((f"Lixel Light Frustum {i} ({st.setup.maps[i].role})", "light_frustum", "faces", faces))
     if g["warp_corners"] is not None:
-        items.append(("Lixel Warp Frustum P", "warp_frustum", "faces", [g["warp_corners"][q] for q in HEXAHEDRON_QUADS]))
+        items.append(("Lixel Warp Frustum P", "warp_frustum", "faces", hexahedron_faces(g["warp_corners"])))
     for key, seg in g["vectors"].items():
         items.append((f"Lixel {key}", key, "edges", seg[None]))
     return items
