@@ -47,9 +47,11 @@ def test_a_seen_share_is_the_share_of_the_camera_rays_that_end_on_the_top():
 
 
 def test_a_plane_map_is_made_only_when_what_it_makes_exact_outweighs_what_the_fallback_loses():
-    # errors even over the pixels and as wide as a texel: (1 - share)·√(T / (T - texels)) of uniform's are left
-    assert worth_its_texels(0.5, 50, 100) and not worth_its_texels(0.2, 50, 100)
-    assert worth_its_texels(None, 99, 100)                          # the share unknown: the paper's budget
+    # errors even over the pixels and as wide as a texel: (1 - σ)·√(T / (T - texels)) of uniform's are left, σ the
+    # share made exact: all of it at one lixel per pixel, none below
+    assert worth_its_texels(0.5, 1.0, 50, 100) and not worth_its_texels(0.2, 1.0, 50, 100)
+    assert not worth_its_texels(0.99, 0.95, 1, 100)
+    assert worth_its_texels(None, 0.5, 99, 100)                     # the share unknown: the paper's budget
     sc, view, light = _board()
     body = focused_body(view, light, sc)
     small, large = (compute("plane_optimal", view, light, sc, WarpOptions(shadow_map_size=(n, n)), body=body)
@@ -104,3 +106,29 @@ def test_a_tops_share_counts_each_sample_whose_depths_meet_it_inside_its_rectang
         mid = surface.mean(axis=1)
         inside = ((mid[:, :2] >= lo[:2] - TOL) & (mid[:, :2] <= hi[:2] + TOL)).all(axis=1)
         assert shares[i] == (meets & inside).mean()
+
+
+GROUND = np.array([[-30.0, -30.0, -1.0], [30.0, 30.0, 0.0]])
+POSTS = np.array([[[x - 0.2, y - 0.2, 0.0], [x + 0.2, y + 0.2, 1.5]] for x in (-3.0, 0.0, 3.0) for y in (2.0, 5.0)])
+
+
+def test_the_default_plane_gets_a_map_only_where_one_lixel_per_pixel_fits():
+    """A ground filling 98 % of the view needs 232k texels at one lixel per pixel; 512² at the default budget gives
+    s = 0.92. Below one lixel per pixel no lixel samples a pixel's own point (Chong-Gortler §2's exactness is the
+    identity of the two lattices), and such a map renders worse than the uniform one (docs/papers.md): the fallback
+    takes the whole budget, and says why. A plane the user gives keeps the paper's budget."""
+    sc = SceneBounds.from_boxes(np.array([GROUND, *POSTS]))
+    view, light = camera((0.0, -4.0, 6.0), (0.0, 3.0, 0.0), fov_deg=60.0), sun_at(50.0, 30.0)
+    body = focused_body(view, light, sc)
+
+    def run(n, **kw):
+        return compute("plane_optimal", view, light, sc, WarpOptions(shadow_map_size=(n, n), **kw), body=body)
+
+    small, large = run(512), run(1024)
+    assert [m.role for m in small.maps] == ["fallback"] and small.maps[0].size == (512, 512)
+    assert "0.919 lixels per pixel" in dict(small.diagnostics.fallbacks)["plane:0"]
+    assert [m.role for m in large.maps] == ["plane:0", "fallback"]
+    assert large.diagnostics.extra["budget"]["lixels_per_pixel"] == 1.0
+    given = run(512, planes=(((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)),))
+    assert [m.role for m in given.maps] == ["plane:0", "fallback"]
+    assert given.diagnostics.extra["budget"]["lixels_per_pixel"] == pytest.approx(0.919, abs=1e-3)

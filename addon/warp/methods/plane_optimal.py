@@ -68,8 +68,10 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
         jobs = sorted(ranked[:max(room, 0)], key=lambda j: j.index)
     total = options.shadow_map_size[0] * options.shadow_map_size[1]
     s = share_budget(jobs, options.plane_budget * total, options.plane_twist)
-    if jobs and not worth_its_texels(share, sum(_texels(j.rect) for j in jobs), len(frames) * total):
-        diag.fallback("plane:0", f"{jobs[0].plane.name}: {share:.1%} of the seen pixels, not worth its map's texels")
+    if jobs and not worth_its_texels(share, s, sum(_texels(j.rect) for j in jobs), len(frames) * total):
+        diag.fallback("plane:0", f"{jobs[0].plane.name}: {share:.1%} of the seen pixels, not worth its map's texels"
+                                 + ("" if s >= 1.0 else f" ({s:.3g} lixels per pixel: below one its lixels sample no "
+                                                        f"pixel's own point)"))
         jobs = []
     maps = [light_map(j, s, origin, tol, options) for j in jobs]
     used = sum(m.size[0] * m.size[1] for m in maps)
@@ -112,10 +114,12 @@ def planes_of_interest(options: WarpOptions, body: IntersectionBody, tol: float,
     return [plane], share
 
 
-def worth_its_texels(share: float | None, texels: int, budget: float) -> bool:
-    """Whether a map making its ``share`` of the seen pixels exact is worth ``texels`` of the fallbacks' ``budget``:
-    errors even over pixels and texel-wide leave (1 - share)·√(budget / (budget - texels)) of uniform's (None: yes)."""
-    return share is None or (1.0 - share) ** 2 <= 1.0 - texels / budget
+def worth_its_texels(share: float | None, s: float, texels: int, budget: float) -> bool:
+    """Whether a map at ``s`` lixels per pixel over its ``share`` of the seen pixels is worth ``texels`` of the
+    fallbacks' ``budget``: errors even over pixels and texel-wide leave (1 - σ)·√(budget / (budget - texels)) of
+    uniform's, σ the share it makes exact: all of it at one lixel per pixel (§2), none below (None: yes)."""
+    exact = share if s >= 1.0 else 0.0
+    return share is None or (1.0 - exact) ** 2 <= 1.0 - texels / budget
 
 
 def _no_default_plane(receiver_boxes, seen: bool) -> str:
@@ -383,7 +387,8 @@ def light_map(job: PlaneMap, s: float, origin: np.ndarray, tol: float, options: 
     # Linear depth (Scherzer §4.2): 1 at the fit points' lowest height (farthest from the light), -1 at the highest.
     depth_row = fitted_row(-job.height, job.fit_h[:, :3]) @ translation(-origin) if options.linear_z else None
     region = Region(job.plane.normal.copy(), float(job.plane.offset), job.polygon + origin, tol)
-    return ShadowMap(world, (wm, hm), "LESS", f"plane:{job.index}", region=region, depth_row=depth_row)
+    return ShadowMap(world, (wm, hm), "LESS", f"plane:{job.index}", region=region, depth_row=depth_row,
+                     samples_pixels=s == 1.0 and job.twist == 0.0)
 
 
 def _fallback_size(texels: float, options: WarpOptions) -> tuple[int, int]:
