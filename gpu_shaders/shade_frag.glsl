@@ -577,11 +577,10 @@ float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
   }
 #endif
 #ifdef LIXEL_REGIONS
-  /* A plane map at one lixel per pixel samples each pixel's own point of its
+  /* A plane map (a map with a region) samples each pixel's own point of its
    * plane (Chong-Gortler §2): the test of that one lixel is the exact shadow
-   * there, and the k x k taps would only blur it over k pixels. Below one
-   * lixel per pixel (or twisted) no lixel is a pixel's point: filtered. */
-  if (lixel.maps[m].extra.z > 0.5) {
+   * there, and the k x k taps would only blur it over k pixels. */
+  if (lixel.maps[m].range.w > 0.5) {
     ivec2 own = ivec2(floor(tc));
     vec2 p = (vec2(own) + 0.5) * to_ndc - 1.0;
     shadow = lixel_test(m, own, lixel_refs(rcv, plane, vec4(p.x), vec4(p.y), bias, greater).x, greater);

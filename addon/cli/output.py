@@ -30,8 +30,6 @@ def map_json(m: ShadowMap) -> dict:
         out["depth_row"] = np.asarray(m.depth_row).tolist()
     if m.blend_band > 0:
         out["blend_band"] = float(m.blend_band)
-    if m.samples_pixels:
-        out["samples_pixels"] = True
     return out
 
 

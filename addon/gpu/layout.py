@@ -132,8 +132,7 @@ LIXEL_MAP = Struct("LixelMap", (
     Member("info", "vec4", "(width, height, greater (0/1), linear z (0/1))"),
     Member("range", "vec4", "(min eye depth, max eye depth, has range (0/1), region vertex count)"),
     Member("plane", "vec4", "region plane (normal.xyz, offset)"),
-    Member("extra", "vec4", "(region tolerance, blend band: eye depth past range.y the map still holds, "
-                            "texel centres the pixel centres (0/1), 0)"),
+    Member("extra", "vec4", "(region tolerance, blend band: eye depth past range.y the map still holds, 0, 0)"),
     Member("polygon", "vec4", "region polygon vertices (xyz, 1)", MAX_POLYGON),
 ), doc="One per ShadowMap of the setup, in selection order (addon.warp.types.ShadowSetup).")
 

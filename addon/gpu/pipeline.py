@@ -329,7 +329,6 @@ def shade_block(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSett
             normal = np.asarray(m.region.normal, dtype=np.float64)
             bm.plane[:] = (*normal, m.region.offset - normal @ o)
             bm.extra[0] = m.region.tolerance
-            bm.extra[2] = 1.0 if m.samples_pixels else 0.0      # its one texel is the pixel's exact shadow
             bm.polygon[:len(poly), :3] = poly - o
             bm.polygon[:len(poly), 3] = 1.0
     return b.float32()

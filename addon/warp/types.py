@@ -234,8 +234,7 @@ class Region:
 class ShadowMap:
     """One shadow map: world -> light clip ``matrix``, texel ``size``, ``depth_test``, ``role`` ("main", "cube+X",
     "plane:0", "fallback", ...); optionally the ``view_depth_range`` and ``region`` it serves, its linear
-    ``depth_row`` r (z_ndc = r · [x, y, z, 1], Scherzer §4.2), a cascade's ``blend_band``, and whether its texel
-    centres are the viewer's pixel centres (``samples_pixels``: a plane map at one lixel per pixel, Chong-Gortler §2)."""
+    ``depth_row`` r (z_ndc = r · [x, y, z, 1], Scherzer §4.2) and a cascade's ``blend_band``."""
 
     matrix: np.ndarray
     size: tuple[int, int]
@@ -245,7 +244,6 @@ class ShadowMap:
     region: Optional[Region] = None
     depth_row: Optional[np.ndarray] = None
     blend_band: float = 0.0
-    samples_pixels: bool = False
 
     def clip(self, points) -> np.ndarray:
         return transform_h(self.matrix, points)

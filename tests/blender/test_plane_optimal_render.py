@@ -86,26 +86,6 @@ def test_every_pixel_of_the_plane_samples_its_own_point(lx, scene, map_size, pcf
     assert fallback[0] * fallback[1] >= map_size * map_size - m.size[0] * m.size[1] - 2 * map_size
 
 
-@pytest.mark.parametrize("map_size", [128, 1024])
-def test_below_one_lixel_per_pixel_the_plane_map_is_filtered_like_any_map(lx, scene, map_size):
-    """A plane the user gives keeps the paper's budget below one lixel per pixel (s < 1, §2), but then no lixel
-    is a pixel's own point and its one lixel's test is no longer the exact shadow: the shading filters it like any
-    map (bilinear PCF 2: fractions across the shadows' edges), where at one lixel per pixel each plane pixel reads
-    its own lixel (only 0 or 1)."""
-    poles_scene(scene)
-    options = lx.warp.WarpOptions(shadow_map_size=(map_size, map_size), planes=(((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)),))
-    out, view, lt, setup, dg = render(lx, scene, "plane_optimal", map_size, shadow={"pcf_kernel": 2},
-                                      warp_options=options)
-    assert setup.maps[0].role == "plane:0" and setup.maps[0].samples_pixels == (lixels_per_pixel(setup) == 1.0)
-    on_plane = np.asarray(out.covered) & (np.asarray(out.map_index) == 0)
-    raw = np.asarray(out.shadow_raw)[on_plane]
-    between = int(((raw > 0.01) & (raw < 0.99)).sum())
-    if map_size == 128:
-        assert lixels_per_pixel(setup) < 0.7 and between > 200
-    else:
-        assert lixels_per_pixel(setup) == 1.0 and between == 0
-
-
 @pytest.mark.parametrize("kind,linear_z", [("SUN", False), ("SUN", True), ("POINT", True)])
 def test_a_box_standing_on_the_plane_shadows_it_to_its_foot(lx, scene, kind, linear_z):
     """No light leaks between a caster and the plane it stands on: every plane

@@ -387,8 +387,7 @@ def light_map(job: PlaneMap, s: float, origin: np.ndarray, tol: float, options: 
     # Linear depth (Scherzer §4.2): 1 at the fit points' lowest height (farthest from the light), -1 at the highest.
     depth_row = fitted_row(-job.height, job.fit_h[:, :3]) @ translation(-origin) if options.linear_z else None
     region = Region(job.plane.normal.copy(), float(job.plane.offset), job.polygon + origin, tol)
-    return ShadowMap(world, (wm, hm), "LESS", f"plane:{job.index}", region=region, depth_row=depth_row,
-                     samples_pixels=s == 1.0 and job.twist == 0.0)
+    return ShadowMap(world, (wm, hm), "LESS", f"plane:{job.index}", region=region, depth_row=depth_row)
 
 
 def _fallback_size(texels: float, options: WarpOptions) -> tuple[int, int]:
