@@ -176,6 +176,9 @@ vec3 lixel_row(mat4 m, int r)
 /* The pre-pass normal's direction error in radians (its 14/15-bit packing
  * and the float32 screen derivatives it comes from; prepass_frag.glsl). */
 #define LIXEL_NORMAL_ERROR 1e-4
+/* A point within this many lixels of a plane map's lixel centre is that
+ * lixel's own point (float32 rounding, 2e-3 measured; one lixel per pixel). */
+#define LIXEL_ON_LIXEL 0.0625
 
 /* Whether map i stores its linear depth row, and whether its depth test is
  * GREATER: constants where every map agrees (LIXEL_MAPS_*), so that only one
@@ -577,10 +580,13 @@ float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
   }
 #endif
 #ifdef LIXEL_REGIONS
-  /* A plane map (a map with a region) samples each pixel's own point of its
-   * plane (Chong-Gortler §2): the test of that one lixel is the exact shadow
-   * there, and the k x k taps would only blur it over k pixels. */
-  if (lixel.maps[m].range.w > 0.5) {
+  /* A plane map (a map with a region) at one lixel per pixel samples each
+   * pixel's own point of its plane (Chong-Gortler §2): the test of that one
+   * lixel is the exact shadow there, and the k x k taps would only blur it
+   * over k pixels. Below one lixel per pixel (s < 1) the points fall between
+   * lixels, and the taps reconstruct the shadow as in any map. */
+  vec2 off_centre = abs(fract(tc) - 0.5);
+  if (lixel.maps[m].range.w > 0.5 && max(off_centre.x, off_centre.y) <= LIXEL_ON_LIXEL) {
     ivec2 own = ivec2(floor(tc));
     vec2 p = (vec2(own) + 0.5) * to_ndc - 1.0;
     shadow = lixel_test(m, own, lixel_refs(rcv, plane, vec4(p.x), vec4(p.y), bias, greater).x, greater);
