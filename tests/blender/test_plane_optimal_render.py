@@ -45,10 +45,13 @@ def contact_scene(scene, kind="SUN"):
     return sun
 
 
-def plane_pixels(lx, scene, map_size, **shadow):
-    """Render with plane_optimal; the plane map's pixels with their rendered
-    and ray-cast shadows, the world points and the setup."""
-    out, view, lt, setup, dg = render(lx, scene, "plane_optimal", map_size, shadow=shadow or None)
+def plane_pixels(lx, scene, map_size, planes=(), **shadow):
+    """Render with plane_optimal (the ``planes`` given, else its default plane);
+    the plane map's pixels with their rendered and ray-cast shadows, the world
+    points and the setup."""
+    options = lx.warp.WarpOptions(shadow_map_size=(map_size, map_size), planes=planes)
+    out, view, lt, setup, dg = render(lx, scene, "plane_optimal", map_size, shadow=shadow or None,
+                                      warp_options=options)
     index = np.asarray(out.map_index)
     roles = [m.role for m in setup.maps]
     assert roles[0] == "plane:0", setup.diagnostics.fallbacks
@@ -138,15 +141,17 @@ def _distance_to_box(world):
 
 @pytest.mark.parametrize("map_size", [128, 160, 192])
 def test_below_one_lixel_per_pixel_the_filter_reconstructs_the_plane(lx, scene, map_size):
-    """Below one lixel per pixel (the paper's s < 1) the plane's points fall
-    between lixels, so no lixel's test is a pixel's exact shadow: the PCF
-    kernel reconstructs the shadow between them as in any map, and fewer plane
-    pixels are wrong with the default bilinear PCF 2 than with the nearest
-    lixel (PCF 1). Where a point lies on its lixel's centre (one lixel per
-    pixel) the lixel is read unfiltered (above)."""
+    """Below one lixel per pixel (the paper's s < 1: a plane the user gives
+    keeps the paper's budget; the default plane then gets no map) the plane's
+    points fall between lixels, so no lixel's test is a pixel's exact shadow:
+    the PCF kernel reconstructs the shadow between them as in any map, and
+    fewer plane pixels are wrong with the default bilinear PCF 2 than with the
+    nearest lixel (PCF 1). Where a point lies on its lixel's centre (one lixel
+    per pixel) the lixel is read unfiltered (above)."""
     contact_scene(scene)
-    got, truth, points, _, setup = plane_pixels(lx, scene, map_size, pcf_kernel=2)
-    nearest, _, _, _, _ = plane_pixels(lx, scene, map_size, pcf_kernel=1)
+    ground = (((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)),)
+    got, truth, points, _, setup = plane_pixels(lx, scene, map_size, planes=ground, pcf_kernel=2)
+    nearest, _, _, _, _ = plane_pixels(lx, scene, map_size, planes=ground, pcf_kernel=1)
     assert lixels_per_pixel(setup) < 1.0
     filtered, unfiltered = int((got != truth).sum()), int((nearest != truth).sum())
     assert filtered < unfiltered, f"PCF 2 {filtered} vs nearest lixel {unfiltered} of {len(points)} plane pixels wrong"
