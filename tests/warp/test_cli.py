@@ -299,7 +299,8 @@ def test_malformed_config_in_a_real_process(name):
     ("null", "config: must be a JSON object"),
     ("\"camera\"", "config: must be a JSON object"),
     ("[" * 100000 + "]" * 100000, "config"),
-], ids=["empty", "unclosed", "list", "null", "string", "deeply_nested"])
+    ('{"shadow_map_size": ' + "9" * 5000 + "}", "config: not valid JSON"),
+], ids=["empty", "unclosed", "list", "null", "string", "deeply_nested", "number_beyond_pythons_digit_limit"])
 def test_not_a_config_at_all(text, expect):
     r = run_cli("--method", "all", "-", stdin=text)
     assert r.returncode == 2 and "Traceback" not in r.stderr
