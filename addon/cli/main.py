@@ -67,7 +67,7 @@ def _main(argv=None) -> int:
     except UnicodeDecodeError:
         return _error(f"config: {args.config} is not UTF-8 text")
     try:
-        config = json.loads(text)
+        config = json.loads(text.removeprefix("\ufeff"))   # a byte order mark (Windows editors save one)
     except RecursionError:
         return _error("config: nested too deeply")
     except json.JSONDecodeError as exc:
