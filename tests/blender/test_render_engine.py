@@ -618,3 +618,38 @@ def test_a_light_in_an_instanced_collection_lights_from_its_instance(engine, sce
         bpy.data.lights.remove(light)
     assert got and got[-1]["result"].shadow_mask.mean() > 0.01
     np.testing.assert_allclose(got[-1]["result"].combined, direct[-1]["result"].combined, atol=1e-4)
+
+
+@pytest.mark.parametrize("how", ["object", "collection"])
+def test_a_holdout_is_named_not_silently_rendered_opaque(engine, scene, how):
+    """Object properties > Visibility > Holdout, or a collection's Holdout in the view layer: Cycles renders the
+    object as (0, 0, 0, 0) with Film Transparent on or off (measured in 5.0.1) and keeps its shadows; Lixel draws it
+    shaded and opaque, which it now says, naming the object, instead of handing back a render the compositor
+    cannot cut. An object that is no holdout is not named."""
+    build(scene)
+    box = scene.objects["Box"]
+    held = bpy.data.collections.new("Held")
+    try:
+        scene.collection.children.link(held)
+        scene.view_layers[0].update()                                 # its layer collection, for the view layer
+        layer = scene.view_layers[0].layer_collection.children[held.name]
+        if how == "object":
+            box.is_holdout = True
+        else:
+            scene.collection.objects.unlink(box)
+            held.objects.link(box)
+            layer.holdout = True
+        with engine.watch_renders() as got:
+            assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+        notes = [w for w in got[-1]["warnings"] if "holdout" in w.lower()]
+        assert len(notes) == 1 and "'Box'" in notes[0] and "Ground" not in notes[0], notes
+        assert got[-1]["result"].shadow_mask.max() > 0.5              # its shadow is kept, as in Cycles
+        box.is_holdout = layer.holdout = False
+        with engine.watch_renders() as got:
+            assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+        assert not [w for w in got[-1]["warnings"] if "holdout" in w.lower()]
+    finally:
+        for ob in list(held.objects):                                 # back in the scene, which the fixture clears
+            held.objects.unlink(ob)
+            scene.collection.objects.link(ob)
+        bpy.data.collections.remove(held)
