@@ -215,7 +215,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     camera = render_camera(scene, camera)
     # The light object itself, not looked up by name: a linked light may share its name with a local one.
     light_obj = pick_light(scene, depsgraph, depsgraph.view_layer.objects.active)
-    view, light, bounds = describe_scene(scene, depsgraph, camera=camera, light=light_obj, instances=geometry.instances)
+    view, light, bounds = describe_scene(scene, depsgraph, camera=camera, light=light_obj, instances=geometry.instances,
+                                         need_receivers=False)
     if eye is not None:
         view = eye_view(view, camera, *eye)
     if warnings is not None:
@@ -238,6 +239,9 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
 
     t = time.perf_counter()
     try:
+        if len(bounds.receivers) == 0:   # everything hidden (an animation's frame, say): the world, as Blender's engines
+            raise EmptyBodyError(f"scene '{scene.name}' has no visible mesh, curve or text objects, so the frame "
+                                 f"shows only the world background")
         if not getattr(light_obj.data, "use_shadow", True):
             raise EmptyBodyError(f"light '{light.name}' casts no shadows, as in Blender's engines: its Shadow is off "
                                  f"(Light properties > Shadow)")

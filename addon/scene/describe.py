@@ -496,7 +496,8 @@ def _resolve(obj_or_name):
 
 
 def describe_scene(context_or_scene, depsgraph=None, camera=None, light=None,
-                   instances: Optional[InstanceSet] = None) -> tuple[View, Light, SceneBounds]:
+                   instances: Optional[InstanceSet] = None, need_receivers: bool = True
+                   ) -> tuple[View, Light, SceneBounds]:
     """(View, Light, SceneBounds) of a scene, ready for ``warp.compute``.
 
     ``context_or_scene``: a ``bpy.types.Context`` (its scene, evaluated
@@ -504,7 +505,8 @@ def describe_scene(context_or_scene, depsgraph=None, camera=None, light=None,
     ``depsgraph``: the evaluated depsgraph (a render engine passes its own);
     for a bare scene it defaults to the view layer's depsgraph, evaluated.
     ``camera``/``light``: objects (or names) overriding the scene camera and
-    :func:`pick_light`'s choice.
+    :func:`pick_light`'s choice. ``need_receivers``: a scene the camera can see nothing of (no visible mesh, curve
+    or text object) raises WarpError; False: its bounds have no receivers (a render shows the world background).
     """
     import bpy
 
@@ -526,7 +528,7 @@ def describe_scene(context_or_scene, depsgraph=None, camera=None, light=None,
     light_obj = _resolve(light) if light is not None else pick_light(scene, depsgraph, active)
     lit = describe_light(light_obj, depsgraph)
     bounds = describe_bounds(depsgraph, instances)
-    if len(bounds.receivers) == 0:
+    if need_receivers and len(bounds.receivers) == 0:
         raise WarpError(f"Scene '{scene.name}' has no visible mesh, curve or text objects: "
                         f"add geometry to cast and receive shadows")
     return view, lit, bounds

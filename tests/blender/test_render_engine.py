@@ -161,13 +161,41 @@ def test_second_render_uploads_nothing(engine, scene):
 
 @pytest.mark.parametrize("missing,message", [
     ("light", r"Lixel: Scene 'lixel_test[.\d]*' has no light: add a Sun, Point, Spot or Area light"),
-    ("mesh", r"Lixel: Scene 'lixel_test[.\d]*' has no visible mesh"),
 ])
 def test_bad_input_ends_the_render_with_a_report(engine, scene, capfd, missing, message):
     build(scene, with_light=missing != "light", with_mesh=missing != "mesh")
     with pytest.raises(RuntimeError, match=message):
         bpy.ops.render.render(scene=scene.name)
     assert "Traceback" not in capfd.readouterr().err
+
+
+def test_a_frame_with_nothing_visible_shows_the_world_and_the_animation_goes_on(engine, scene, tmp_path):
+    """Objects keyed hidden from renders for a frame (a cut, a title): Blender's engines render the world there.
+    Lixel refused the frame ("no visible mesh"), which ended an animation render at it: frames 2 and 3 of 3 were
+    never written. It now renders the world background with a warning, and the animation goes on."""
+    build(scene)
+    scene.world = bpy.data.worlds.new("lixel_test sky")
+    scene.world.color = (0.2, 0.3, 0.4)
+    for ob in (scene.objects["Ground"], scene.objects["Box"]):
+        for frame, hidden in ((1, False), (2, True), (3, False)):
+            ob.hide_render = hidden
+            ob.keyframe_insert("hide_render", frame=frame)
+    scene.frame_start, scene.frame_end = 1, 3
+    scene.render.filepath = str(tmp_path / "frame_")
+    scene.render.image_settings.file_format = "PNG"
+    try:
+        with engine.watch_renders() as got:
+            assert bpy.ops.render.render(animation=True, scene=scene.name) == {"FINISHED"}
+    finally:
+        bpy.data.worlds.remove(scene.world)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["frame_0001.png", "frame_0002.png", "frame_0003.png"]
+    first, empty, last = (g["result"] for g in got)
+    np.testing.assert_allclose(empty.combined.reshape(-1, 4), [[0.2, 0.3, 0.4, 1.0]] * empty.combined[..., 0].size,
+                               rtol=1e-6)
+    assert not empty.shadow_mask.any() and last.shadow_mask.max() > 0.5
+    np.testing.assert_array_equal(first.combined, last.combined)
+    assert got[1]["warnings"] == ("Lixel: no shadows in this view (scene '" + scene.name + "' has no visible mesh, "
+                                  "curve or text objects, so the frame shows only the world background)",)
 
 
 def test_a_lixel_light_hidden_from_renders_is_refused_by_name(engine, scene, capfd):
