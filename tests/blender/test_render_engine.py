@@ -681,3 +681,22 @@ def test_a_holdout_is_named_not_silently_rendered_opaque(engine, scene, how):
             held.objects.unlink(ob)
             scene.collection.objects.link(ob)
         bpy.data.collections.remove(held)
+
+
+@pytest.mark.parametrize("what, attr", [("Light Linking", "receiver_collection"),
+                                        ("Shadow Linking", "blocker_collection")])
+def test_light_or_shadow_linking_is_named_not_silently_ignored(engine, scene, what, attr):
+    """Object properties > Shading > Light/Shadow Linking (Blender 4.0+) limits what a light lights or which
+    objects shadow it, in Cycles. Lixel lights and shadows everything; it now says so, naming the light."""
+    build(scene)
+    linked = bpy.data.collections.new("lixel_test linked")
+    try:
+        setattr(scene.objects["Sun"].light_linking, attr, linked)
+        with engine.watch_renders() as got:
+            assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    finally:
+        bpy.data.collections.remove(linked)
+    assert [w for w in got[-1]["warnings"] if "Linking" in w] == [
+        f"Light 'Sun' has {what} to collection 'lixel_test linked': Lixel does not follow it and "
+        f"{'lights every object' if attr == 'receiver_collection' else 'casts shadows from every caster'} "
+        f"(Object properties > Shading > {what})"]
