@@ -29,6 +29,18 @@ PACKAGE = "lixel"
 already enabled Lixel as an extension."""
 
 
+FRAMES = (-1048574, 1048574)
+"""Blender's frames (MINAFRAME..MAXFRAME, 4.2 and 5.0): ``Scene.frame_set`` moves a frame beyond them to the
+nearest end without a word."""
+
+
+def check_frames(parser: argparse.ArgumentParser, option: str, text, *frames: int) -> None:
+    """Usage error (exit 2) when a frame of ``option`` lies outside Blender's :data:`FRAMES`."""
+    lo, hi = FRAMES
+    if any(not lo <= f <= hi for f in frames):
+        parser.error(f"{option} {text}: Blender's frames run from {lo} to {hi}")
+
+
 class ScriptError(Exception):
     """A problem with the scene, reported as ``lixel: error: ...`` (exit status 1)."""
 

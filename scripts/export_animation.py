@@ -36,6 +36,7 @@ def frame_range(p, text, scene):
         p.error(f"--frames {text!r}: use START:END or START:END:STEP with whole numbers")
     if len(parts) not in (2, 3) or (len(parts) == 3 and parts[2] < 1) or parts[1] < parts[0]:
         p.error(f"--frames {text!r}: use START:END[:STEP] with START <= END and STEP >= 1")
+    ls.check_frames(p, "--frames", repr(text), parts[0], parts[1])
     return range(parts[0], parts[1] + 1, parts[2] if len(parts) == 3 else 1)
 
 

@@ -43,6 +43,8 @@ def main(argv=None):
     p = parser()
     args = ls.parse(p, argv)
     resolution = parse_resolution(p, args.resolution)
+    if args.frame is not None:
+        ls.check_frames(p, "--frame", args.frame, args.frame)
     if not args.list_methods and not (args.output or args.json or args.shadow_output or args.map_output):
         p.error("nothing to write: give --output (and/or --json, --shadow-output, --map-output)")
     with ls.Session(args) as s:

@@ -67,11 +67,13 @@ def _main(argv=None) -> int:
     except UnicodeDecodeError:
         return _error(f"config: {args.config} is not UTF-8 text")
     try:
-        config = json.loads(text)
+        config = json.loads(text.removeprefix("\ufeff"))   # a byte order mark (Windows editors save one)
     except RecursionError:
         return _error("config: nested too deeply")
     except json.JSONDecodeError as exc:
         return _error(f"config: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})")
+    except ValueError as exc:   # an integer longer than Python converts (4300 digits)
+        return _error(f"config: not valid JSON ({exc})")
     try:
         view, light, scene, options = parse_config(config)
     except WarpError as exc:

@@ -197,8 +197,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     render (``describe.eye_view``)."""
     from ..gpu.batches import shared_batches
     from ..gpu.pipeline import ShadowFrame
-    from ..scene.describe import (check_finite_geometry, describe_scene, eye_view, light_notes, lost_depth_note,
-                                  pick_light, render_camera)
+    from ..scene.describe import (check_finite_geometry, describe_scene, eye_view, holdout_note, light_notes,
+                                  lost_depth_note, pick_light, render_camera)
     from ..scene.geometry import shared_cache
 
     scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
@@ -215,12 +215,13 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     camera = render_camera(scene, camera)
     # The light object itself, not looked up by name: a linked light may share its name with a local one.
     light_obj = pick_light(scene, depsgraph, depsgraph.view_layer.objects.active)
-    view, light, bounds = describe_scene(scene, depsgraph, camera=camera, light=light_obj, instances=geometry.instances)
+    view, light, bounds = describe_scene(scene, depsgraph, camera=camera, light=light_obj, instances=geometry.instances,
+                                         need_receivers=False)
     if eye is not None:
         view = eye_view(view, camera, *eye)
-    lost = lost_depth_note(view, bounds, camera.name)
-    if lost and warnings is not None:
-        warnings.append(f"Lixel: {lost}")
+    if warnings is not None:
+        warnings.extend(f"Lixel: {note}" for note in (lost_depth_note(view, bounds, camera.name),
+                                                       holdout_note(scene, depsgraph)) if note)
     timings["describe"] = time.perf_counter() - t
     frame = ShadowFrame(geometry, view, resolution or view.resolution, read=read, targets=targets, timed=timed)
     frame.camera_prepass()
@@ -238,6 +239,9 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
 
     t = time.perf_counter()
     try:
+        if len(bounds.receivers) == 0:   # everything hidden (an animation's frame, say): the world, as Blender's engines
+            raise EmptyBodyError(f"scene '{scene.name}' has no visible mesh, curve or text objects, so the frame "
+                                 f"shows only the world background")
         if not getattr(light_obj.data, "use_shadow", True):
             raise EmptyBodyError(f"light '{light.name}' casts no shadows, as in Blender's engines: its Shadow is off "
                                  f"(Light properties > Shadow)")

@@ -15,7 +15,7 @@ import numpy as np
 from ..warp import MAX_COORDINATE
 from ..warp.polyhedron import box_corners
 from ..warp.types import Light, SceneBounds, View, WarpError
-from .instances import InstanceSet, walk_instances  # noqa: F401 (re-exported)
+from .instances import GEOMETRY_TYPES, InstanceSet, walk_instances  # noqa: F401 (re-exported)
 
 MAX_RESOLUTION = 16384
 """Largest render side Lixel accepts (the GPU's maximum texture size)."""
@@ -353,8 +353,8 @@ def check_finite_geometry(geometry) -> None:
 
 def light_notes(light_obj) -> list[str]:
     """Warnings about a light Lixel renders but that may surprise: no strength,
-    an area light approximated by a spot, a spot scaled unevenly (Blender
-    stretches its cone by the X and Y scale against the Z scale; Lixel's cone is round)."""
+    an area light approximated by a spot, light or shadow linking (which Lixel does not follow), a spot scaled
+    unevenly (Blender stretches its cone by the X and Y scale against the Z scale; Lixel's cone is round)."""
     notes = []
     data = getattr(light_obj, "data", None)
     if data is None:
@@ -369,12 +369,36 @@ def light_notes(light_obj) -> list[str]:
     if data.type == "SPOT" and data.spot_size > MAX_CONE:
         notes.append(f"Spot light '{light_obj.name}' has a cone of {math.degrees(data.spot_size):.4g}°: Lixel lights "
                      f"and shadows its 179° (no perspective map covers 180°); the rim beyond is unlit")
+    linking = getattr(light_obj, "light_linking", None)      # Object properties > Shading (Blender 4.0+)
+    for what, attr in (("Light Linking", "receiver_collection"), ("Shadow Linking", "blocker_collection")):
+        coll = getattr(linking, attr, None)
+        if coll is not None:
+            does = "lights every object" if attr == "receiver_collection" else "casts shadows from every caster"
+            notes.append(f"Light '{light_obj.name}' has {what} to collection '{coll.name}': Lixel does not follow "
+                         f"it and {does} (Object properties > Shading > {what})")
     sx, sy, sz = np.linalg.norm(_matrix(light_obj.matrix_world)[:3, :3], axis=0)
     if data.type == "SPOT" and sz > 0 and not np.allclose((sx, sy), sz, rtol=1e-4, atol=0):
         notes.append(f"Spot light '{light_obj.name}' is scaled unevenly (X {sx / sz:.3g}, Y {sy / sz:.3g} times its "
                      f"Z): Blender stretches its cone into an ellipse, Lixel lights and shadows the round cone of its "
                      f"Spot Size; give it an even scale (Object properties > Transform > Scale)")
     return notes
+
+
+def holdout_note(scene, depsgraph) -> Optional[str]:
+    """A warning naming the objects a render of ``depsgraph`` holds out (Object properties > Visibility > Holdout, or
+    a collection's Holdout in the view layer; Blender's ``Object.holdout_get``, which Cycles reads): Cycles renders
+    them (0, 0, 0, 0), with Film Transparent on or off, and keeps their shadows (measured in 5.0.1); Lixel draws
+    them shaded and opaque."""
+    view_layer = scene.view_layers.get(depsgraph.view_layer.name)
+    held = sorted(ob.original.name for ob in depsgraph.objects
+                  if ob.type in GEOMETRY_TYPES and ob.original.holdout_get(view_layer=view_layer))
+    if not held:
+        return None
+    names = ", ".join(f"'{n}'" for n in held[:3]) + (f" and {len(held) - 3} more" if len(held) > 3 else "")
+    return (f"{'Objects' if len(held) > 1 else 'Object'} {names} {'are holdouts' if len(held) > 1 else 'is a holdout'}"
+            f": Lixel renders {'them' if len(held) > 1 else 'it'} shaded and opaque (Cycles and EEVEE leave a "
+            f"transparent hole); to cut {'them' if len(held) > 1 else 'it'} out, render with Cycles or EEVEE, or use "
+            f"an object index mask in the compositor")
 
 
 def _scene_lights(scene, depsgraph) -> list:
@@ -479,7 +503,8 @@ def _resolve(obj_or_name):
 
 
 def describe_scene(context_or_scene, depsgraph=None, camera=None, light=None,
-                   instances: Optional[InstanceSet] = None) -> tuple[View, Light, SceneBounds]:
+                   instances: Optional[InstanceSet] = None, need_receivers: bool = True
+                   ) -> tuple[View, Light, SceneBounds]:
     """(View, Light, SceneBounds) of a scene, ready for ``warp.compute``.
 
     ``context_or_scene``: a ``bpy.types.Context`` (its scene, evaluated
@@ -487,7 +512,8 @@ def describe_scene(context_or_scene, depsgraph=None, camera=None, light=None,
     ``depsgraph``: the evaluated depsgraph (a render engine passes its own);
     for a bare scene it defaults to the view layer's depsgraph, evaluated.
     ``camera``/``light``: objects (or names) overriding the scene camera and
-    :func:`pick_light`'s choice.
+    :func:`pick_light`'s choice. ``need_receivers``: a scene the camera can see nothing of (no visible mesh, curve
+    or text object) raises WarpError; False: its bounds have no receivers (a render shows the world background).
     """
     import bpy
 
@@ -509,7 +535,7 @@ def describe_scene(context_or_scene, depsgraph=None, camera=None, light=None,
     light_obj = _resolve(light) if light is not None else pick_light(scene, depsgraph, active)
     lit = describe_light(light_obj, depsgraph)
     bounds = describe_bounds(depsgraph, instances)
-    if len(bounds.receivers) == 0:
+    if need_receivers and len(bounds.receivers) == 0:
         raise WarpError(f"Scene '{scene.name}' has no visible mesh, curve or text objects: "
                         f"add geometry to cast and receive shadows")
     return view, lit, bounds

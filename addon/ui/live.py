@@ -91,6 +91,8 @@ class LiveState:
     recomputed: tuple = ()
     generation: int = 0
     """Bumped whenever the setup or geometry changes (overlays rebuild GPU batches on change)."""
+    camera_name: str = ""
+    """The 3D view's Local Camera the state follows (:func:`follow`); "": the scene's camera (``render_camera``)."""
 
     @property
     def ok(self) -> bool:
@@ -118,6 +120,37 @@ def living_scene_keys() -> set:
 def state(scene) -> Optional[LiveState]:
     """The scene's last state, or None if Lixel never computed for it."""
     return _states.get(scene_key(scene))
+
+
+def local_camera(context):
+    """The Local Camera of the context's 3D view (View sidebar > View > Local Camera), which F12 there renders
+    with (``RenderEngine.camera_override``), or None."""
+    space = getattr(context, "space_data", None)
+    if space is None or space.type != "VIEW_3D" or not space.use_local_camera:
+        return None
+    return space.camera
+
+
+def follow(scene, camera) -> bool:
+    """Make the scene's state follow ``camera`` (a 3D view's :func:`local_camera`; None: the scene's camera), as
+    the view it is drawn or operated in renders. True when that changed the camera (its view needs describing
+    again). Two 3D views of one scene with different cameras make each draw describe its view again."""
+    st = _states.get(scene_key(scene))
+    if st is None:
+        st = _states[scene_key(scene)] = LiveState(scene.name)
+    name = camera.name if camera is not None else ""
+    if name == st.camera_name:
+        return False
+    st.camera_name = name
+    return True
+
+
+def followed_camera(scene):
+    """The camera the scene's state describes: the Local Camera it follows (:func:`follow`) while the scene holds
+    it, else the scene's (``render_camera``)."""
+    st = _states.get(scene_key(scene))
+    camera = scene.objects.get(st.camera_name) if st is not None and st.camera_name else None
+    return camera if camera is not None and camera.type == "CAMERA" else render_camera(scene)
 
 
 def states() -> tuple:
@@ -194,7 +227,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         new_settings = settings if settings is not None else timed("settings", scene_settings, scene)
         view = st.view
         if "view" in todo or view is None:
-            view = timed("describe view", describe_view, camera if camera is not None else render_camera(scene),
+            view = timed("describe view", describe_view, camera if camera is not None else followed_camera(scene),
                          depsgraph, scene)
         light = st.light
         if "light" in todo or light is None:

@@ -25,7 +25,6 @@ from bpy.app.handlers import persistent
 
 from ..gpu.layout import Member, Struct
 from ..guard import guarded_callback, user_message
-from ..scene.describe import render_camera
 from . import live
 
 _handles: dict[str, object] = {}
@@ -247,7 +246,7 @@ def classify_updates(scene, depsgraph) -> set:
     its data), 'light' (any light: the chosen one may change), 'bounds' (any
     other object or geometry), 'settings' (the scene itself)."""
     changed = set()
-    cam = render_camera(scene)
+    cam = live.followed_camera(scene)
     cam_data = cam.data if cam is not None else None
     for u in depsgraph.updates:
         idb = u.id
@@ -336,8 +335,10 @@ def _scene_state():
     if scene is None or not wanted(scene):
         return None, None
     st = live.state(scene)
-    if st is None:
-        st = live.update(scene, bpy.context.evaluated_depsgraph_get(), active=bpy.context.view_layer.objects.active)
+    moved = live.follow(scene, live.local_camera(bpy.context))     # this view's Local Camera, as its F12 renders
+    if st is None or moved:
+        st = live.update(scene, bpy.context.evaluated_depsgraph_get(), changed=None if st is None else {"view"},
+                         active=bpy.context.view_layer.objects.active)
     return scene, st
 
 

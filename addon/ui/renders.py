@@ -179,13 +179,15 @@ def compare_renders(st: LiveState, depsgraph, rows: list, longest: int = 320) ->
     return mosaic(images, columns=min(3, len(images)), labels=labels), names
 
 
-def to_image(name: str, rgba: np.ndarray, existing_ok: bool = True, linear: bool = True):
+def to_image(name: str, rgba: np.ndarray, existing_ok: bool = True, linear: bool = True, keep: bool = False):
     """Lixel's Image datablock ``name`` holding ``rgba`` (the one Lixel made before
     is reused or, at another size or kind, replaced; a user's image of that name
     is never touched). ``existing_ok=False``: always a new image. ``linear``: the
     values are scene-linear (a float image, shown and saved through the view
     transform); False: they are display colours already (an 8-bit sRGB image,
-    saved as they are), as the viewport overlays draw them."""
+    saved as they are), as the viewport overlays draw them. ``keep``: the image stays in the saved file and in
+    undo steps: packed (OpenEXR or PNG) with a fake user, as a generated image's pixels live only in memory and an
+    image nobody uses is not saved."""
     import bpy
     h, w = rgba.shape[:2]
     img = find_made(bpy.data.images, name) if existing_ok else None
@@ -196,6 +198,10 @@ def to_image(name: str, rgba: np.ndarray, existing_ok: bool = True, linear: bool
         img = mark_made(bpy.data.images.new(name, w, h, alpha=True, float_buffer=linear), name)
     img.pixels.foreach_set(np.ascontiguousarray(rgba, dtype=np.float32).ravel())
     img.update()
+    if keep:
+        img.file_format = "OPEN_EXR" if linear else "PNG"
+        img.pack()
+        img.use_fake_user = True
     return img
 
 

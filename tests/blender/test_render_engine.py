@@ -161,13 +161,41 @@ def test_second_render_uploads_nothing(engine, scene):
 
 @pytest.mark.parametrize("missing,message", [
     ("light", r"Lixel: Scene 'lixel_test[.\d]*' has no light: add a Sun, Point, Spot or Area light"),
-    ("mesh", r"Lixel: Scene 'lixel_test[.\d]*' has no visible mesh"),
 ])
 def test_bad_input_ends_the_render_with_a_report(engine, scene, capfd, missing, message):
     build(scene, with_light=missing != "light", with_mesh=missing != "mesh")
     with pytest.raises(RuntimeError, match=message):
         bpy.ops.render.render(scene=scene.name)
     assert "Traceback" not in capfd.readouterr().err
+
+
+def test_a_frame_with_nothing_visible_shows_the_world_and_the_animation_goes_on(engine, scene, tmp_path):
+    """Objects keyed hidden from renders for a frame (a cut, a title): Blender's engines render the world there.
+    Lixel refused the frame ("no visible mesh"), which ended an animation render at it: frames 2 and 3 of 3 were
+    never written. It now renders the world background with a warning, and the animation goes on."""
+    build(scene)
+    scene.world = bpy.data.worlds.new("lixel_test sky")
+    scene.world.color = (0.2, 0.3, 0.4)
+    for ob in (scene.objects["Ground"], scene.objects["Box"]):
+        for frame, hidden in ((1, False), (2, True), (3, False)):
+            ob.hide_render = hidden
+            ob.keyframe_insert("hide_render", frame=frame)
+    scene.frame_start, scene.frame_end = 1, 3
+    scene.render.filepath = str(tmp_path / "frame_")
+    scene.render.image_settings.file_format = "PNG"
+    try:
+        with engine.watch_renders() as got:
+            assert bpy.ops.render.render(animation=True, scene=scene.name) == {"FINISHED"}
+    finally:
+        bpy.data.worlds.remove(scene.world)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["frame_0001.png", "frame_0002.png", "frame_0003.png"]
+    first, empty, last = (g["result"] for g in got)
+    np.testing.assert_allclose(empty.combined.reshape(-1, 4), [[0.2, 0.3, 0.4, 1.0]] * empty.combined[..., 0].size,
+                               rtol=1e-6)
+    assert not empty.shadow_mask.any() and last.shadow_mask.max() > 0.5
+    np.testing.assert_array_equal(first.combined, last.combined)
+    assert got[1]["warnings"] == ("Lixel: no shadows in this view (scene '" + scene.name + "' has no visible mesh, "
+                                  "curve or text objects, so the frame shows only the world background)",)
 
 
 def test_a_lixel_light_hidden_from_renders_is_refused_by_name(engine, scene, capfd):
@@ -618,3 +646,57 @@ def test_a_light_in_an_instanced_collection_lights_from_its_instance(engine, sce
         bpy.data.lights.remove(light)
     assert got and got[-1]["result"].shadow_mask.mean() > 0.01
     np.testing.assert_allclose(got[-1]["result"].combined, direct[-1]["result"].combined, atol=1e-4)
+
+
+@pytest.mark.parametrize("how", ["object", "collection"])
+def test_a_holdout_is_named_not_silently_rendered_opaque(engine, scene, how):
+    """Object properties > Visibility > Holdout, or a collection's Holdout in the view layer: Cycles renders the
+    object as (0, 0, 0, 0) with Film Transparent on or off (measured in 5.0.1) and keeps its shadows; Lixel draws it
+    shaded and opaque, which it now says, naming the object, instead of handing back a render the compositor
+    cannot cut. An object that is no holdout is not named."""
+    build(scene)
+    box = scene.objects["Box"]
+    held = bpy.data.collections.new("Held")
+    try:
+        scene.collection.children.link(held)
+        scene.view_layers[0].update()                                 # its layer collection, for the view layer
+        layer = scene.view_layers[0].layer_collection.children[held.name]
+        if how == "object":
+            box.is_holdout = True
+        else:
+            scene.collection.objects.unlink(box)
+            held.objects.link(box)
+            layer.holdout = True
+        with engine.watch_renders() as got:
+            assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+        notes = [w for w in got[-1]["warnings"] if "holdout" in w.lower()]
+        assert len(notes) == 1 and "'Box'" in notes[0] and "Ground" not in notes[0], notes
+        assert got[-1]["result"].shadow_mask.max() > 0.5              # its shadow is kept, as in Cycles
+        box.is_holdout = layer.holdout = False
+        with engine.watch_renders() as got:
+            assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+        assert not [w for w in got[-1]["warnings"] if "holdout" in w.lower()]
+    finally:
+        for ob in list(held.objects):                                 # back in the scene, which the fixture clears
+            held.objects.unlink(ob)
+            scene.collection.objects.link(ob)
+        bpy.data.collections.remove(held)
+
+
+@pytest.mark.parametrize("what, attr", [("Light Linking", "receiver_collection"),
+                                        ("Shadow Linking", "blocker_collection")])
+def test_light_or_shadow_linking_is_named_not_silently_ignored(engine, scene, what, attr):
+    """Object properties > Shading > Light/Shadow Linking (Blender 4.0+) limits what a light lights or which
+    objects shadow it, in Cycles. Lixel lights and shadows everything; it now says so, naming the light."""
+    build(scene)
+    linked = bpy.data.collections.new("lixel_test linked")
+    try:
+        setattr(scene.objects["Sun"].light_linking, attr, linked)
+        with engine.watch_renders() as got:
+            assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    finally:
+        bpy.data.collections.remove(linked)
+    assert [w for w in got[-1]["warnings"] if "Linking" in w] == [
+        f"Light 'Sun' has {what} to collection 'lixel_test linked': Lixel does not follow it and "
+        f"{'lights every object' if attr == 'receiver_collection' else 'casts shadows from every caster'} "
+        f"(Object properties > Shading > {what})"]

@@ -130,6 +130,8 @@ BAD = [
     ("render_method.py", [], "nothing to write"),
     ("export_animation.py", ["--output", "x.json", "--frames", "5:1"], "START <= END"),
     ("export_animation.py", ["--frames", "1:2"], "--output"),
+    ("render_method.py", ["--output", "x.png", "--frame", "99999999999"], "Blender's frames run from -1048574 to"),
+    ("export_animation.py", ["--output", "x.json", "--frames", "1048570:1048580"], "Blender's frames run from"),
     ("compare_methods.py", ["--output-dir", "d", "--methods", "uniform,bogus"], "unknown bogus"),
     ("compare_methods.py", ["--output-dir", "d", "--bogus-flag"], "unrecognized arguments"),
 ]

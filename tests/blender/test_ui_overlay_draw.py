@@ -6,6 +6,7 @@ import importlib
 import os
 
 import bpy
+import mathutils
 import numpy as np
 import pytest
 
@@ -146,3 +147,42 @@ def test_picture_in_picture_is_drawn_bottom_right(m):
         assert xs.max() == w - 21 and xs.min() == w - 20 - 64
         assert ys.min() == m.overlays.PIP_BOTTOM and ys.max() == m.overlays.PIP_BOTTOM + 63
         assert img[drawn][:, :3].std() > 0.05  # the map's picture, not a flat colour
+
+
+def test_the_overlays_of_a_3d_view_with_a_local_camera_show_that_camera(m):
+    """View sidebar > View > Local Camera: F12 in that 3D view renders its camera (test_render_engine), and the
+    overlays drawn there, the operators run from it and the live updates now follow that camera too, not the
+    scene's. The module's own window's 3D view stands in for the user's."""
+    with active_scene("lixel_local_camera") as scene:
+        scene.lixel.show_body = True
+        side = bpy.data.objects.new("lixel_local_camera side", bpy.data.cameras.new("lixel_local_camera side"))
+        scene.collection.objects.link(side)
+        side.location = (-6, -7, 5)
+        side.rotation_euler = (mathutils.Vector((0, 0, 0)) - side.location).to_track_quat("-Z", "Y").to_euler()
+        bpy.context.view_layer.update()
+        win = bpy.context.window
+        area = next(a for a in win.screen.areas if a.type == "VIEW_3D")
+        space, region = area.spaces.active, next(r for r in area.regions if r.type == "WINDOW")
+        was = space.use_local_camera, space.camera
+
+        def position(st):
+            return tuple(np.round(st.view.camera_to_world[:3, 3], 5))
+
+        try:
+            space.use_local_camera, space.camera = True, side
+            with bpy.context.temp_override(window=win, area=area, region=region, space_data=space):
+                _, st = m.overlays._scene_state()                          # what the view's draw callbacks draw
+                assert st.ok and position(st) == (-6, -7, 5)
+                side.location.x = -5                                        # a live update follows the local camera
+                bpy.context.view_layer.update()
+                m.overlays.on_depsgraph_update(scene, bpy.context.evaluated_depsgraph_get())
+                assert position(m.live.state(scene)) == (-5, -7, 5)
+                assert bpy.ops.lixel.refresh() == {"FINISHED"}             # as does an operator run from the view
+                assert position(m.live.state(scene)) == (-5, -7, 5)
+                space.use_local_camera = False
+                _, st = m.overlays._scene_state()
+                assert position(st) == tuple(np.round(scene.camera.location, 5))
+        finally:
+            space.use_local_camera, space.camera = was
+            scene.lixel.show_body = False
+            m.overlays.sync_handlers()

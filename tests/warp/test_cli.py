@@ -299,11 +299,28 @@ def test_malformed_config_in_a_real_process(name):
     ("null", "config: must be a JSON object"),
     ("\"camera\"", "config: must be a JSON object"),
     ("[" * 100000 + "]" * 100000, "config"),
-], ids=["empty", "unclosed", "list", "null", "string", "deeply_nested"])
+    ('{"shadow_map_size": ' + "9" * 5000 + "}", "config: not valid JSON"),
+], ids=["empty", "unclosed", "list", "null", "string", "deeply_nested", "number_beyond_pythons_digit_limit"])
 def test_not_a_config_at_all(text, expect):
     r = run_cli("--method", "all", "-", stdin=text)
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1 and expect in r.stderr
+
+
+@pytest.mark.parametrize("stdin", [False, True], ids=["file", "stdin"])
+def test_a_config_saved_with_a_byte_order_mark_reads_as_without(tmp_path, stdin):
+    """Windows editors (Notepad, PowerShell's Out-File) save UTF-8 with a byte order mark: the config is the same."""
+    example = ROOT / "examples" / "outdoor_sun.json"
+    text = example.read_text(encoding="utf-8")
+    plain = run_cli("--method", "uniform", str(example))
+    if stdin:
+        r = run_cli("--method", "uniform", "-", stdin="\ufeff" + text)
+    else:
+        path = tmp_path / "bom.json"
+        path.write_bytes(b"\xef\xbb\xbf" + text.encode("utf-8"))
+        r = run_cli("--method", "uniform", str(path))
+    assert r.returncode == 0, r.stderr
+    assert r.stdout == plain.stdout
 
 
 def test_unreadable_files(tmp_path):

@@ -24,7 +24,8 @@ def current_state(op, context, force: bool = False):
     Reports the error and returns None when something is missing."""
     scene = context.scene
     st = live.state(scene)
-    if force or st is None or st.error:
+    moved = live.follow(scene, live.local_camera(context))     # the 3D view's Local Camera, as its F12 renders
+    if force or moved or st is None or st.error:
         depsgraph = context.evaluated_depsgraph_get()
         try:
             st = live.update(scene, depsgraph, active=active_object(context))

@@ -91,7 +91,7 @@ class LIXEL_OT_compare(LixelSceneOperator, bpy.types.Operator):
             try:
                 picture, names = renders.compare_renders(st, context.evaluated_depsgraph_get(), rows,
                                                          longest=self.longest_side)
-                img = renders.to_image(COMPARISON_IMAGE, picture)
+                img = renders.to_image(COMPARISON_IMAGE, picture, keep=True)
                 note = (f"\n\nImage '{img.name}': the camera view rendered with each method, left to right "
                         f"and top to bottom: {', '.join(names)}.")
             except (WarpError, ValueError) as exc:
