@@ -3,6 +3,7 @@
     python -m bench.edge_footprint --scenes forest_side_sun,stage_spot --sizes 2048
     python -m bench.edge_footprint --scenes stage_spot --methods cascade --sizes 1024,2048
     python -m bench.edge_footprint --scenes floor_wall --methods uniform,cascade --sizes 1024,2048,4096 --ties 4
+    python -m bench.edge_footprint --scenes floor_wall --methods uniform,cascade --ties 4 --pcf 1   # PCF 2's gain
 
 Renders each scene like ``bench.rendered_error`` (the engine's path, ``LixelSettings`` defaults, only
 the method and the map size changed) and sets each method's numbers against uniform's:
@@ -23,7 +24,7 @@ the method and the map size changed) and sets each method's numbers against unif
   as often as a map with coarser texels, so where ties make most of the wrong pixels, the count stops following
   the texel width;
 * ``by map``: per map that serves true edge pixels (its role and texels w x h), how many it serves, how many of
-  them are wrong, and the mean σ_max there: a cascade whose p95 halves uniform's may still have most of its wrong
+  them are wrong, and the mean σ_max there (with ``--ties``, also the ties it serves and gets wrong): a cascade whose p95 halves uniform's may still have most of its wrong
   pixels in a split whose texels are barely finer than uniform's;
 * ``by grid angle``: the straight edge pixels per band of angle to their map's nearest texel axis
   (:data:`ANGLE_BINS`), the wrong ones among them and the mean width across the edge there: where two maps' wrong
@@ -104,11 +105,14 @@ def grid_angle(view, shadow_map, points, normals, edge_normals) -> np.ndarray:
     return out
 
 
-def method_settings(method: str, size: int):
-    """``bench.rendered_error.default_settings``; ``cascade:<warp>`` fixes the cascade's ``cascade_warp``."""
+def method_settings(method: str, size: int, pcf: int = 0):
+    """``bench.rendered_error.default_settings``; ``cascade:<warp>`` fixes the cascade's ``cascade_warp``; ``pcf``
+    (0: the default) the PCF kernel, to tell what PCF 2's bilinear taps gain on each map over PCF 1."""
     from bench.rendered_error import default_settings
     name, _, warp = method.partition(":")
     settings = default_settings(name, size)
+    settings = settings if not pcf else dataclasses.replace(
+        settings, shadow=dataclasses.replace(settings.shadow, pcf_kernel=pcf))
     return settings if not warp else dataclasses.replace(
         settings, warp=dataclasses.replace(settings.warp, cascade_warp=warp))
 
@@ -184,7 +188,8 @@ def _mean(values) -> float:
     return float(v.mean()) if len(v) else float("nan")
 
 
-def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1, supersample: int = 0) -> list[dict]:
+def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1, supersample: int = 0,
+                  pcf: int = 0) -> list[dict]:
     """One row per method and size: wrong pixels by class, the p95, the mean widths at straight edges and corners,
     the wrong pixels at each of ``phase_count`` grid phases (the first: the maps as computed) and, with
     ``supersample``, at :func:`ties`."""
@@ -208,7 +213,7 @@ def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1, s
     rows = []
     for method in methods:
         for size in sizes:
-            settings = method_settings(method, size)
+            settings = method_settings(method, size, pcf)
             last = render_depsgraph(dg, resolution, settings=settings, read=READ)
             setup, result = last["setup"], last["result"]
             shadow, counted = result.shadow_raw >= 0.5, comparable_mask(gt, result)
@@ -228,7 +233,7 @@ def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1, s
                          "p95": footprint_stats(fp).p95, "across": _mean(across), "corner_smax": _mean(at_corners),
                          "grid_angle": _mean(angle), "aligned": int(np.sum(angle <= ALIGNED_DEG)),
                          "by_angle": by_angle(angle, wrong[straight], across),
-                         "by_map": by_map(view, setup, result.map_index, edges & counted, wrong, gt),
+                         "by_map": by_map(view, setup, result.map_index, edges & counted, wrong, gt, tied),
                          "ties": None if tied is None else (int((wrong & tied).sum()), int((tied & counted).sum()),
                                                             int((wrong & edges & ~tied).sum()))})
     return rows
@@ -241,16 +246,18 @@ def by_angle(angle: np.ndarray, wrong: np.ndarray, across: np.ndarray) -> list[t
                                                                                for b in range(len(ANGLE_BINS) - 1))]
 
 
-def by_map(view, setup, map_index, edges, wrong, gt) -> list[tuple]:
+def by_map(view, setup, map_index, edges, wrong, gt, tied=None) -> list[tuple]:
     """Per map that serves a true edge pixel: (role, edge pixels it serves, wrong pixels among them, mean σ_max at
-    them): where the wrong pixels lie, and how fine the texels are there (the p95 may be set by other maps)."""
+    them, and with ``tied`` the :func:`ties` it serves and the wrong ones among them, else None): where the wrong
+    pixels lie, and how fine the texels are there (the p95 may be set by other maps)."""
     from addon.measure import setup_footprints
     out = []
     for i, m in enumerate(setup.maps):
         mine = edges & (map_index == i)
         if mine.any():
             fp, _ = setup_footprints(view, setup, gt.points[mine], gt.normals[mine], np.full(int(mine.sum()), i))
-            out.append((f"{m.role} {m.size[0]}x{m.size[1]}", int(mine.sum()), int((wrong & mine).sum()), _mean(fp)))
+            out.append((f"{m.role} {m.size[0]}x{m.size[1]}", int(mine.sum()), int((wrong & mine).sum()), _mean(fp),
+                        None if tied is None else (int((tied & mine).sum()), int((tied & wrong & mine).sum()))))
     return out
 
 
@@ -278,7 +285,8 @@ def table(rows: list[dict]) -> list[str]:
             f"{a:.0f}-{b:.0f}° {n}, {w}, {x:.2f} px" for (a, b), (n, w, x) in zip(zip(ANGLE_BINS, ANGLE_BINS[1:]),
                                                                               r["by_angle"])))
         lines.append(f"{'':>42}by map (edge pixels, wrong, mean σ_max there): " + "; ".join(
-            f"{role} {n}, {w}, {smax:.2f} px" for role, n, w, smax in r["by_map"]))
+            f"{role} {n}, {w}, {smax:.2f} px" + (f", ties {t[1]} of {t[0]}" if t else "")
+            for role, n, w, smax, t in r["by_map"]))
         if len(r["phases"]) > 1:
             v, uv = np.array(r["phases"]), np.array(u["phases"])
             lines.append(f"{'':>42}over {len(v)} grid phases: {v.mean():.1f} ± {v.std(ddof=1):.1f} wrong "
@@ -297,6 +305,7 @@ def main(argv=None) -> int:
     ap.add_argument("--phases", type=int, default=1, help="grid phases per method and size (1: as computed)")
     ap.add_argument("--ties", type=int, default=0, metavar="S",
                     help="also count the wrong pixels at ties, from a ground truth S times finer each way (0: off)")
+    ap.add_argument("--pcf", type=int, default=0, metavar="K", help="render with a K x K PCF kernel (0: the default)")
     args = ap.parse_args(argv)
     from bench.rendered_error import _scratch_env
     _scratch_env()
@@ -310,7 +319,7 @@ def main(argv=None) -> int:
     rows = []
     for name in args.scenes.split(","):
         rows += measure_scene(name, methods, [int(s) for s in args.sizes.split(",")], resolution, args.phases,
-                              args.ties)
+                              args.ties, args.pcf)
     print("\n".join(table(rows)), flush=True)
     return 0
 
