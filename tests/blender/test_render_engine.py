@@ -542,6 +542,26 @@ def test_film_transparent_leaves_the_sky_transparent(engine, scene, passes):
         assert clear.shadow_mask.min() == 0.0 and clear.shadow_mask.max() > 0.5
 
 
+@pytest.mark.parametrize("transparent", [False, True])
+@pytest.mark.parametrize("width,height,percent", [(96, 64, 2), (100, 100, 2), (96, 64, 100)])
+def test_the_shadow_pass_is_the_shadow_at_any_size(engine, scene, width, height, percent, transparent):
+    """A 1x1-pixel render (96x64 at 2 %, a thumbnail or a test render) gave a Shadow pass of 1 on a lit pixel: the
+    pass and the combined image's alpha share the colour target's alpha channel, and at one pixel the pass was a view
+    of the alpha that the combined image's alpha 1 then overwrote. The pass is the shading's shadow at every size."""
+    build(scene)
+    scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = width, height, percent
+    scene.render.film_transparent = transparent
+    scene.lixel.eye_blur = 0.0
+    with engine.watch_renders(read={"covered", "shadow_raw"}) as got:
+        assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    res = got[-1]["result"]
+    assert res.shadow_mask.shape == (height * percent // 100, width * percent // 100) and res.covered.all()
+    np.testing.assert_array_equal(res.shadow_mask, res.shadow_raw)
+    np.testing.assert_array_equal(res.combined[..., 3], 1.0)
+    if percent == 100:
+        assert res.shadow_mask.max() > 0.5 and res.shadow_mask.min() == 0.0
+
+
 def _exr_channels(path) -> dict:
     """{channel name: (H, W) float32} of an uncompressed 32-bit float scan-line OpenEXR file, single- or multi-part
     (Blender's multilayer files; bpy cannot read them back per layer). Layout (openexr.com, "OpenEXR File
