@@ -160,6 +160,34 @@ def test_second_render_uploads_nothing(engine, scene):
     assert not np.array_equal(setups[2].maps[0].matrix, setups[0].maps[0].matrix)
 
 
+def _render_under_a_sky(engine, scene, **render_kw) -> list:
+    """The watched renders (with "covered") of ``bpy.ops.render.render(**render_kw)`` under a world coloured
+    (0.2, 0.3, 0.4)."""
+    scene.world = bpy.data.worlds.new("lixel_test sky")
+    scene.world.color = (0.2, 0.3, 0.4)
+    try:
+        with engine.watch_renders(read={"covered", "shadow_mask", "combined"}) as got:
+            assert bpy.ops.render.render(scene=scene.name, **render_kw) == {"FINISHED"}
+    finally:
+        bpy.data.worlds.remove(scene.world)
+    return got
+
+
+def _render_frames_1_to_3_hiding_on_2(engine, scene, objects, tmp_path) -> list:
+    """Frames 1..3 rendered as an animation under that sky, ``objects`` keyed hidden from renders on frame 2; all
+    three files written."""
+    for ob in objects:
+        for frame, hidden in ((1, False), (2, True), (3, False)):
+            ob.hide_render = hidden
+            ob.keyframe_insert("hide_render", frame=frame)
+    scene.frame_start, scene.frame_end = 1, 3
+    scene.render.filepath = str(tmp_path / "frame_")
+    scene.render.image_settings.file_format = "PNG"
+    got = _render_under_a_sky(engine, scene, animation=True)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["frame_0001.png", "frame_0002.png", "frame_0003.png"]
+    return got
+
+
 def _lit_by_the_world_alone(result, world):
     """No direct light and no shadow: each surface the camera sees is the world colour times the albedo (0.8,
     Blender's default grey), the rest the world colour."""
@@ -173,13 +201,7 @@ def test_a_scene_with_no_light_is_lit_by_the_world_alone(engine, scene, capfd):
     """Blender's engines light a scene with no light by its world; Lixel refused it ("has no light"). The panel and
     operators still say so (test_audit_catalogue); a render shows the world's light with that warning."""
     build(scene, with_light=False)
-    scene.world = bpy.data.worlds.new("lixel_test sky")
-    scene.world.color = (0.2, 0.3, 0.4)
-    try:
-        with engine.watch_renders(read={"covered", "shadow_mask", "combined"}) as got:
-            assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
-    finally:
-        bpy.data.worlds.remove(scene.world)
+    got = _render_under_a_sky(engine, scene)
     assert "Traceback" not in capfd.readouterr().err
     _lit_by_the_world_alone(got[-1]["result"], (0.2, 0.3, 0.4))
     assert got[-1]["warnings"] == (f"Lixel: no shadows in this view (Scene '{scene.name}' has no light: add a Sun, "
@@ -192,21 +214,7 @@ def test_a_light_keyed_hidden_for_a_frame_leaves_it_lit_by_the_world_and_the_ani
     world alone. Lixel refused it ("has no light"), which ended an animation render there: frames 2 and 3 of 3 were
     never written. Frame 2 now shows the world's light, unshadowed, with a warning, and the animation goes on."""
     build(scene)
-    scene.world = bpy.data.worlds.new("lixel_test sky")
-    scene.world.color = (0.2, 0.3, 0.4)
-    sun = scene.objects["Sun"]
-    for frame, hidden in ((1, False), (2, True), (3, False)):
-        sun.hide_render = hidden
-        sun.keyframe_insert("hide_render", frame=frame)
-    scene.frame_start, scene.frame_end = 1, 3
-    scene.render.filepath = str(tmp_path / "frame_")
-    scene.render.image_settings.file_format = "PNG"
-    try:
-        with engine.watch_renders(read={"covered", "shadow_mask", "combined"}) as got:
-            assert bpy.ops.render.render(animation=True, scene=scene.name) == {"FINISHED"}
-    finally:
-        bpy.data.worlds.remove(scene.world)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["frame_0001.png", "frame_0002.png", "frame_0003.png"]
+    got = _render_frames_1_to_3_hiding_on_2(engine, scene, [scene.objects["Sun"]], tmp_path)
     first, dark, last = (g["result"] for g in got)
     _lit_by_the_world_alone(dark, (0.2, 0.3, 0.4))
     assert last.shadow_mask.max() > 0.5 and (last.combined[..., :3] > dark.combined[..., :3] + 0.1).any()
@@ -220,21 +228,7 @@ def test_a_frame_with_nothing_visible_shows_the_world_and_the_animation_goes_on(
     Lixel refused the frame ("no visible mesh"), which ended an animation render at it: frames 2 and 3 of 3 were
     never written. It now renders the world background with a warning, and the animation goes on."""
     build(scene)
-    scene.world = bpy.data.worlds.new("lixel_test sky")
-    scene.world.color = (0.2, 0.3, 0.4)
-    for ob in (scene.objects["Ground"], scene.objects["Box"]):
-        for frame, hidden in ((1, False), (2, True), (3, False)):
-            ob.hide_render = hidden
-            ob.keyframe_insert("hide_render", frame=frame)
-    scene.frame_start, scene.frame_end = 1, 3
-    scene.render.filepath = str(tmp_path / "frame_")
-    scene.render.image_settings.file_format = "PNG"
-    try:
-        with engine.watch_renders() as got:
-            assert bpy.ops.render.render(animation=True, scene=scene.name) == {"FINISHED"}
-    finally:
-        bpy.data.worlds.remove(scene.world)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["frame_0001.png", "frame_0002.png", "frame_0003.png"]
+    got = _render_frames_1_to_3_hiding_on_2(engine, scene, [scene.objects["Ground"], scene.objects["Box"]], tmp_path)
     first, empty, last = (g["result"] for g in got)
     np.testing.assert_allclose(empty.combined.reshape(-1, 4), [[0.2, 0.3, 0.4, 1.0]] * empty.combined[..., 0].size,
                                rtol=1e-6)
@@ -250,13 +244,7 @@ def test_a_lixel_light_hidden_from_renders_is_named_and_lights_nothing(engine, s
     build(scene)
     scene.lixel.light = sun = scene.objects["Sun"]
     sun.hide_render = True
-    scene.world = bpy.data.worlds.new("lixel_test sky")
-    scene.world.color = (0.2, 0.3, 0.4)
-    try:
-        with engine.watch_renders(read={"covered", "shadow_mask", "combined"}) as got:
-            assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
-    finally:
-        bpy.data.worlds.remove(scene.world)
+    got = _render_under_a_sky(engine, scene)
     assert "Traceback" not in capfd.readouterr().err
     _lit_by_the_world_alone(got[-1]["result"], (0.2, 0.3, 0.4))
     assert re.fullmatch(r"Lixel: no shadows in this view \(The Lixel light 'Sun' is not among the lights scene "
