@@ -454,7 +454,7 @@ def pick_light(scene, depsgraph=None, active=None):
     a light the scene shows in ``depsgraph`` (render or viewport) counts: a Lixel
     light hidden there, or in another scene, lights nothing in Blender and is
     refused by name. Lights shown only as instances (a linked lighting rig) count when the scene's own lights
-    do not answer."""
+    do not answer. No light shown, or the Lixel light hidden: :class:`NoLightError`."""
     lights = _scene_lights(scene, depsgraph)
     chosen = _lixel_light_property(scene)
     if depsgraph is not None and (chosen not in lights if chosen is not None else
@@ -463,8 +463,8 @@ def pick_light(scene, depsgraph=None, active=None):
     if chosen is not None:
         if chosen not in lights:
             raise NoLightError(f"The Lixel light '{chosen.name}' is not among the lights scene '{scene.name}' shows "
-                            f"(hidden, in an excluded collection or in another scene), so Blender lights nothing "
-                            f"with it: show it, or choose another light (Lixel panel > Light)")
+                               f"(hidden, in an excluded collection or in another scene), so Blender lights nothing "
+                               f"with it: show it, or choose another light (Lixel panel > Light)")
         return chosen
     if active is not None and active.type == "LIGHT" and active in lights:
         return active
