@@ -670,7 +670,7 @@ class ShadowFrame:
                 np.minimum(alpha, 0.0, out=alpha)
                 alpha += 1.0
             else:
-                shadow = np.ascontiguousarray(alpha)
+                shadow = alpha.copy()   # not ascontiguousarray: a 1x1 alpha view is "contiguous" and would be shared
                 alpha[...] = 1.0
             out.combined = colour if "combined" in read else None
             out.shadow_mask = shadow if "shadow_mask" in read else None

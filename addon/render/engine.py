@@ -36,7 +36,7 @@ from ..scene.owned import is_debug_object
 from ..settings import LixelSettings
 from ..warp import compute, focused_body
 from ..warp.methods import METHODS, reads_surface
-from ..warp.types import Diagnostics, EmptyBodyError, ShadowMap, ShadowSetup, WarpError
+from ..warp.types import Diagnostics, EmptyBodyError, Light, ShadowMap, ShadowSetup, WarpError
 from .warp_cache import shared_warps
 
 log = logging.getLogger(__name__)
@@ -197,8 +197,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     render (``describe.eye_view``)."""
     from ..gpu.batches import shared_batches
     from ..gpu.pipeline import ShadowFrame
-    from ..scene.describe import (check_finite_geometry, describe_scene, eye_view, holdout_note, light_notes,
-                                  lost_depth_note, pick_light, render_camera)
+    from ..scene.describe import (NoLightError, check_finite_geometry, describe_scene, eye_view, holdout_note,
+                                  light_notes, lost_depth_note, pick_light, render_camera)
     from ..scene.geometry import shared_cache
 
     scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
@@ -214,9 +214,14 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     t = time.perf_counter()
     camera = render_camera(scene, camera)
     # The light object itself, not looked up by name: a linked light may share its name with a local one.
-    light_obj = pick_light(scene, depsgraph, depsgraph.view_layer.objects.active)
+    try:
+        light_obj, unlit = pick_light(scene, depsgraph, depsgraph.view_layer.objects.active), None
+    except NoLightError as exc:   # every light hidden (an animation's frame, say): the world's light alone
+        light_obj, unlit = None, exc
     view, light, bounds = describe_scene(scene, depsgraph, camera=camera, light=light_obj, instances=geometry.instances,
-                                         need_receivers=False)
+                                         need_receivers=False, need_light=light_obj is not None)
+    if light is None:   # no direct light: the shading's ambient term alone, as Blender's engines light such a frame
+        light = Light("SUN", direction=view.direction, energy=0.0, name="no light")
     if eye is not None:
         view = eye_view(view, camera, *eye)
     if warnings is not None:
@@ -242,6 +247,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         if len(bounds.receivers) == 0:   # everything hidden (an animation's frame, say): the world, as Blender's engines
             raise EmptyBodyError(f"scene '{scene.name}' has no visible mesh, curve or text objects, so the frame "
                                  f"shows only the world background")
+        if unlit is not None:
+            raise EmptyBodyError(f"{unlit}; the frame is lit by the world alone")
         if not getattr(light_obj.data, "use_shadow", True):
             raise EmptyBodyError(f"light '{light.name}' casts no shadows, as in Blender's engines: its Shadow is off "
                                  f"(Light properties > Shadow)")
@@ -257,7 +264,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     timings["warp"] = time.perf_counter() - t - timings.get("visibility", 0.0)
     if warnings is not None:
         warnings.extend(light_notes(light_obj))
-    blend = float(light_obj.data.spot_blend) if light_obj.data.type == "SPOT" else 0.0
+    blend = float(light_obj.data.spot_blend) if light_obj is not None and light_obj.data.type == "SPOT" else 0.0
     frame.draw_maps(setup, settings.shadow, body)
     frame.shade(light, setup, settings.shadow, spot_blend=blend, ambient=_world_colour(scene),
                 transparent=bool(scene.render.film_transparent))

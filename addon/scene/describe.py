@@ -442,6 +442,11 @@ def _lixel_light_property(scene):
     return value
 
 
+class NoLightError(WarpError):
+    """The scene shows no light Lixel could shadow (none, or the Lixel light hidden): Blender's engines light such a
+    frame by the world alone, and so does the LIXEL engine (``describe_scene(need_light=False)``)."""
+
+
 def pick_light(scene, depsgraph=None, active=None):
     """The light Lixel shadows: the scene's Lixel light (``scene.lixel.light``)
     if set, else the active object if it is a light, else the first sun, else
@@ -449,7 +454,7 @@ def pick_light(scene, depsgraph=None, active=None):
     a light the scene shows in ``depsgraph`` (render or viewport) counts: a Lixel
     light hidden there, or in another scene, lights nothing in Blender and is
     refused by name. Lights shown only as instances (a linked lighting rig) count when the scene's own lights
-    do not answer."""
+    do not answer. No light shown, or the Lixel light hidden: :class:`NoLightError`."""
     lights = _scene_lights(scene, depsgraph)
     chosen = _lixel_light_property(scene)
     if depsgraph is not None and (chosen not in lights if chosen is not None else
@@ -457,9 +462,9 @@ def pick_light(scene, depsgraph=None, active=None):
         lights += _instanced_lights(depsgraph)      # walked only when the scene's own lights do not answer
     if chosen is not None:
         if chosen not in lights:
-            raise WarpError(f"The Lixel light '{chosen.name}' is not among the lights scene '{scene.name}' shows "
-                            f"(hidden, in an excluded collection or in another scene), so Blender lights nothing "
-                            f"with it: show it, or choose another light (Lixel panel > Light)")
+            raise NoLightError(f"The Lixel light '{chosen.name}' is not among the lights scene '{scene.name}' shows "
+                               f"(hidden, in an excluded collection or in another scene), so Blender lights nothing "
+                               f"with it: show it, or choose another light (Lixel panel > Light)")
         return chosen
     if active is not None and active.type == "LIGHT" and active in lights:
         return active
@@ -473,7 +478,7 @@ def pick_light(scene, depsgraph=None, active=None):
         kinds = ", ".join(sorted({o.data.type for o in lights}))
         raise WarpError(f"Scene '{scene.name}' has no light Lixel can shadow (found {kinds}): "
                         f"add a Sun, Point, Spot or Area light")
-    raise WarpError(f"Scene '{scene.name}' has no light: add a Sun, Point, Spot or Area light (Add > Light)")
+    raise NoLightError(f"Scene '{scene.name}' has no light: add a Sun, Point, Spot or Area light (Add > Light)")
 
 
 def evaluated_depsgraph(scene, view_layer=None):
@@ -503,8 +508,8 @@ def _resolve(obj_or_name):
 
 
 def describe_scene(context_or_scene, depsgraph=None, camera=None, light=None,
-                   instances: Optional[InstanceSet] = None, need_receivers: bool = True
-                   ) -> tuple[View, Light, SceneBounds]:
+                   instances: Optional[InstanceSet] = None, need_receivers: bool = True, need_light: bool = True
+                   ) -> tuple[View, Optional[Light], SceneBounds]:
     """(View, Light, SceneBounds) of a scene, ready for ``warp.compute``.
 
     ``context_or_scene``: a ``bpy.types.Context`` (its scene, evaluated
@@ -514,6 +519,8 @@ def describe_scene(context_or_scene, depsgraph=None, camera=None, light=None,
     ``camera``/``light``: objects (or names) overriding the scene camera and
     :func:`pick_light`'s choice. ``need_receivers``: a scene the camera can see nothing of (no visible mesh, curve
     or text object) raises WarpError; False: its bounds have no receivers (a render shows the world background).
+    ``need_light``: a scene that shows no light raises :class:`NoLightError`; False: the Light is None (a render
+    shows the world's light alone).
     """
     import bpy
 
@@ -532,8 +539,13 @@ def describe_scene(context_or_scene, depsgraph=None, camera=None, light=None,
 
     cam = _resolve(camera) if camera is not None else render_camera(scene)
     view = describe_view(cam, depsgraph, scene)
-    light_obj = _resolve(light) if light is not None else pick_light(scene, depsgraph, active)
-    lit = describe_light(light_obj, depsgraph)
+    try:
+        light_obj = _resolve(light) if light is not None else pick_light(scene, depsgraph, active)
+    except NoLightError:
+        if need_light:
+            raise
+        light_obj = None
+    lit = describe_light(light_obj, depsgraph) if light_obj is not None else None
     bounds = describe_bounds(depsgraph, instances)
     if need_receivers and len(bounds.receivers) == 0:
         raise WarpError(f"Scene '{scene.name}' has no visible mesh, curve or text objects: "

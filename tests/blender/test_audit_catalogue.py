@@ -130,7 +130,8 @@ CASES = {
     "no_camera": Case(lambda sc: bpy.data.objects.remove(sc.camera), r"Scene 'catalogue' has no camera: add a camera",
                       engine_refused=r"Cannot render, no camera"),
     "no_light": Case(lambda sc: bpy.data.objects.remove(_light(sc)),
-                     r"Scene 'catalogue' has no light: add a Sun, Point, Spot or Area light"),
+                     r"Scene 'catalogue' has no light: add a Sun, Point, Spot or Area light",
+                     engine_refused="", check="world_light_only"),
     "area_light": Case(lambda sc: setattr(_light(sc).data, "type", "AREA"), check="area_is_its_spot"),
     "zero_strength_light": Case(lambda sc: setattr(_light(sc).data, "energy", 0.0), check="no_direct_light"),
     "nan_camera": Case(lambda sc: setattr(sc.camera, "location", (float("nan"), 0, 4)),
@@ -166,7 +167,8 @@ CASES = {
     "scene_1e7_from_origin": Case(_far_away, check="as_at_the_origin"),
     "name_collisions": Case(_collisions, check="has_shadows"),
     "lixel_light_in_another_scene": Case(_lixel_light_elsewhere, r"The Lixel light 'catalogue light' is not among "
-                                                                 r"the lights scene 'catalogue' shows .*choose another"),
+                                                                 r"the lights scene 'catalogue' shows .*choose another",
+                                                 engine_refused="", check="world_light_only"),
 }
 
 
@@ -388,12 +390,19 @@ def world_only(_mods, _scene, result, warnings, _tmp):
     assert not result.covered.any() and not result.shadow_mask.any()
 
 
+def world_light_only(_mods, _scene, result, warnings, _tmp):
+    """No light shown: the world's light alone, unshadowed, as Blender's engines light it (an animation goes on)."""
+    assert "the frame is lit by the world alone" in warnings
+    assert result.covered.mean() > 0.3 and not result.shadow_mask.any()
+
+
 def has_shadows(_mods, _scene, result, _warnings, _tmp):
     assert result.covered.mean() > 0.3 and (result.shadow_mask[result.covered] > 0.5).mean() > 0.01
 
 
 CHECKS = {f.__name__: f for f in (area_is_its_spot, no_direct_light, as_at_2048, covers_what_workbench_covers,
-                                  no_shadow_seen, as_at_the_origin, has_shadows, world_only)}
+                                  no_shadow_seen, as_at_the_origin, has_shadows, world_only,
+                                  world_light_only)}
 assert {c.check for c in CASES.values() if c.check} <= set(CHECKS)
 
 

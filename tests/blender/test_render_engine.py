@@ -2,6 +2,7 @@
 ``blender -b file.blend -E LIXEL -f 1`` run)."""
 import importlib
 import math
+import re
 from pathlib import Path
 
 import bpy
@@ -159,14 +160,67 @@ def test_second_render_uploads_nothing(engine, scene):
     assert not np.array_equal(setups[2].maps[0].matrix, setups[0].maps[0].matrix)
 
 
-@pytest.mark.parametrize("missing,message", [
-    ("light", r"Lixel: Scene 'lixel_test[.\d]*' has no light: add a Sun, Point, Spot or Area light"),
-])
-def test_bad_input_ends_the_render_with_a_report(engine, scene, capfd, missing, message):
-    build(scene, with_light=missing != "light", with_mesh=missing != "mesh")
-    with pytest.raises(RuntimeError, match=message):
-        bpy.ops.render.render(scene=scene.name)
+def _render_under_a_sky(engine, scene, **render_kw) -> list:
+    """The watched renders (with "covered") of ``bpy.ops.render.render(**render_kw)`` under a world coloured
+    (0.2, 0.3, 0.4)."""
+    scene.world = bpy.data.worlds.new("lixel_test sky")
+    scene.world.color = (0.2, 0.3, 0.4)
+    try:
+        with engine.watch_renders(read={"covered", "shadow_mask", "combined"}) as got:
+            assert bpy.ops.render.render(scene=scene.name, **render_kw) == {"FINISHED"}
+    finally:
+        bpy.data.worlds.remove(scene.world)
+    return got
+
+
+def _render_frames_1_to_3_hiding_on_2(engine, scene, objects, tmp_path) -> list:
+    """Frames 1..3 rendered as an animation under that sky, ``objects`` keyed hidden from renders on frame 2; all
+    three files written."""
+    for ob in objects:
+        for frame, hidden in ((1, False), (2, True), (3, False)):
+            ob.hide_render = hidden
+            ob.keyframe_insert("hide_render", frame=frame)
+    scene.frame_start, scene.frame_end = 1, 3
+    scene.render.filepath = str(tmp_path / "frame_")
+    scene.render.image_settings.file_format = "PNG"
+    got = _render_under_a_sky(engine, scene, animation=True)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["frame_0001.png", "frame_0002.png", "frame_0003.png"]
+    return got
+
+
+def _lit_by_the_world_alone(result, world):
+    """No direct light and no shadow: each surface the camera sees is the world colour times the albedo (0.8,
+    Blender's default grey), the rest the world colour."""
+    covered = result.covered
+    assert covered.mean() > 0.3 and not result.shadow_mask.any()
+    expected = np.where(covered[..., None], [*(0.8 * np.asarray(world)), 1.0], [*world, 1.0])
+    np.testing.assert_allclose(result.combined, expected, rtol=1e-5)
+
+
+def test_a_scene_with_no_light_is_lit_by_the_world_alone(engine, scene, capfd):
+    """Blender's engines light a scene with no light by its world; Lixel refused it ("has no light"). The panel and
+    operators still say so (test_audit_catalogue); a render shows the world's light with that warning."""
+    build(scene, with_light=False)
+    got = _render_under_a_sky(engine, scene)
     assert "Traceback" not in capfd.readouterr().err
+    _lit_by_the_world_alone(got[-1]["result"], (0.2, 0.3, 0.4))
+    assert got[-1]["warnings"] == (f"Lixel: no shadows in this view (Scene '{scene.name}' has no light: add a Sun, "
+                                   f"Point, Spot or Area light (Add > Light); the frame is lit by the world alone)",)
+
+
+def test_a_light_keyed_hidden_for_a_frame_leaves_it_lit_by_the_world_and_the_animation_goes_on(engine, scene,
+                                                                                              tmp_path):
+    """The only light keyed hidden from renders on frame 2 (a blackout): Blender's engines light that frame by the
+    world alone. Lixel refused it ("has no light"), which ended an animation render there: frames 2 and 3 of 3 were
+    never written. Frame 2 now shows the world's light, unshadowed, with a warning, and the animation goes on."""
+    build(scene)
+    got = _render_frames_1_to_3_hiding_on_2(engine, scene, [scene.objects["Sun"]], tmp_path)
+    first, dark, last = (g["result"] for g in got)
+    _lit_by_the_world_alone(dark, (0.2, 0.3, 0.4))
+    assert last.shadow_mask.max() > 0.5 and (last.combined[..., :3] > dark.combined[..., :3] + 0.1).any()
+    np.testing.assert_array_equal(first.combined, last.combined)
+    assert got[1]["warnings"] == (f"Lixel: no shadows in this view (Scene '{scene.name}' has no light: add a Sun, "
+                                  f"Point, Spot or Area light (Add > Light); the frame is lit by the world alone)",)
 
 
 def test_a_frame_with_nothing_visible_shows_the_world_and_the_animation_goes_on(engine, scene, tmp_path):
@@ -174,21 +228,7 @@ def test_a_frame_with_nothing_visible_shows_the_world_and_the_animation_goes_on(
     Lixel refused the frame ("no visible mesh"), which ended an animation render at it: frames 2 and 3 of 3 were
     never written. It now renders the world background with a warning, and the animation goes on."""
     build(scene)
-    scene.world = bpy.data.worlds.new("lixel_test sky")
-    scene.world.color = (0.2, 0.3, 0.4)
-    for ob in (scene.objects["Ground"], scene.objects["Box"]):
-        for frame, hidden in ((1, False), (2, True), (3, False)):
-            ob.hide_render = hidden
-            ob.keyframe_insert("hide_render", frame=frame)
-    scene.frame_start, scene.frame_end = 1, 3
-    scene.render.filepath = str(tmp_path / "frame_")
-    scene.render.image_settings.file_format = "PNG"
-    try:
-        with engine.watch_renders() as got:
-            assert bpy.ops.render.render(animation=True, scene=scene.name) == {"FINISHED"}
-    finally:
-        bpy.data.worlds.remove(scene.world)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["frame_0001.png", "frame_0002.png", "frame_0003.png"]
+    got = _render_frames_1_to_3_hiding_on_2(engine, scene, [scene.objects["Ground"], scene.objects["Box"]], tmp_path)
     first, empty, last = (g["result"] for g in got)
     np.testing.assert_allclose(empty.combined.reshape(-1, 4), [[0.2, 0.3, 0.4, 1.0]] * empty.combined[..., 0].size,
                                rtol=1e-6)
@@ -198,17 +238,22 @@ def test_a_frame_with_nothing_visible_shows_the_world_and_the_animation_goes_on(
                                   "curve or text objects, so the frame shows only the world background)",)
 
 
-def test_a_lixel_light_hidden_from_renders_is_refused_by_name(engine, scene, capfd):
-    """Blender's engines light nothing with a light hidden from renders; the viewport still shows it."""
+def test_a_lixel_light_hidden_from_renders_is_named_and_lights_nothing(engine, scene, capfd):
+    """Blender's engines light nothing with a light hidden from renders (the viewport still shows it): the render
+    shows the world's light alone and names the light (it was refused, ending an animation render)."""
     build(scene)
     scene.lixel.light = sun = scene.objects["Sun"]
     sun.hide_render = True
-    with pytest.raises(RuntimeError, match=r"The Lixel light 'Sun' is not among the lights scene 'lixel_test[.\d]*' "
-                                           r"shows \(hidden, in an excluded collection or in another scene\)"):
-        bpy.ops.render.render(scene=scene.name)
+    got = _render_under_a_sky(engine, scene)
     assert "Traceback" not in capfd.readouterr().err
+    _lit_by_the_world_alone(got[-1]["result"], (0.2, 0.3, 0.4))
+    assert re.fullmatch(r"Lixel: no shadows in this view \(The Lixel light 'Sun' is not among the lights scene "
+                        r"'lixel_test[.\d]*' shows \(hidden, in an excluded collection or in another scene\).*; the "
+                        r"frame is lit by the world alone\)", got[-1]["warnings"][0])
     sun.hide_render = False
-    assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    with engine.watch_renders() as got:
+        assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    assert got[-1]["result"].shadow_mask.max() > 0.5 and not got[-1]["warnings"]
 
 
 def _differing(a, b) -> float:
@@ -483,6 +528,26 @@ def test_film_transparent_leaves_the_sky_transparent(engine, scene, passes):
     if passes != "none":
         np.testing.assert_array_equal(clear.shadow_mask, opaque.shadow_mask)
         assert clear.shadow_mask.min() == 0.0 and clear.shadow_mask.max() > 0.5
+
+
+@pytest.mark.parametrize("transparent", [False, True])
+@pytest.mark.parametrize("width,height,percent", [(96, 64, 2), (100, 100, 2), (96, 64, 100)])
+def test_the_shadow_pass_is_the_shadow_at_any_size(engine, scene, width, height, percent, transparent):
+    """A 1x1-pixel render (96x64 at 2 %, a thumbnail or a test render) gave a Shadow pass of 1 on a lit pixel: the
+    pass and the combined image's alpha share the colour target's alpha channel, and at one pixel the pass was a view
+    of the alpha that the combined image's alpha 1 then overwrote. The pass is the shading's shadow at every size."""
+    build(scene)
+    scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = width, height, percent
+    scene.render.film_transparent = transparent
+    scene.lixel.eye_blur = 0.0
+    with engine.watch_renders(read={"covered", "shadow_raw"}) as got:
+        assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    res = got[-1]["result"]
+    assert res.shadow_mask.shape == (height * percent // 100, width * percent // 100) and res.covered.all()
+    np.testing.assert_array_equal(res.shadow_mask, res.shadow_raw)
+    np.testing.assert_array_equal(res.combined[..., 3], 1.0)
+    if percent == 100:
+        assert res.shadow_mask.max() > 0.5 and res.shadow_mask.min() == 0.0
 
 
 def _exr_channels(path) -> dict:
