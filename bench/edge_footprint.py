@@ -24,8 +24,9 @@ the method and the map size changed) and sets each method's numbers against unif
   as often as a map with coarser texels, so where ties make most of the wrong pixels, the count stops following
   the texel width;
 * ``by map``: per map that serves true edge pixels (its role and texels w x h), how many it serves, how many of
-  them are wrong, and the mean σ_max there (with ``--ties``, also the ties it serves and gets wrong): a cascade whose p95 halves uniform's may still have most of its wrong
-  pixels in a split whose texels are barely finer than uniform's;
+  them are wrong, and the mean σ_max there (with ``--ties``, also the ties it serves and gets wrong): a cascade
+  whose p95 halves uniform's may still have most of its wrong pixels in a split whose texels are barely finer
+  than uniform's;
 * ``by grid angle``: the straight edge pixels per band of angle to their map's nearest texel axis
   (:data:`ANGLE_BINS`), the wrong ones among them and the mean width across the edge there: where two maps' wrong
   pixels per edge pixel differ at the same angle and width, neither the width nor the grid's angle explains it
