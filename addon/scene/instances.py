@@ -258,6 +258,8 @@ def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Instanc
     """
     keys, names, casts, receives, holdouts = [], [], [], [], []
     held, held_by = holdout_test(depsgraph), {}
+    if not any(held(ob) for ob in depsgraph.objects):   # (an instance is held out by a real object, its instancer)
+        held = None                                     # nothing held out: no work per instance
     mats = np.empty((256, 4, 4), dtype=np.float64)
     accepted: dict = {}   # key -> None (dropped) or its object-space box
     generated: dict = {}
@@ -284,6 +286,9 @@ def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Instanc
         names.append(ob.name if not inst.is_instance or inst.parent is None else f"{inst.parent.name}/{ob.name}")
         casts.append(bool(getattr(ob, "visible_shadow", True)))
         receives.append(bool(getattr(ob, "visible_camera", True)))
+        if held is None:
+            holdouts.append(False)
+            continue
         owner = inst.parent if inst.is_instance and inst.parent is not None else ob
         pointer = owner.original.as_pointer()
         if pointer not in held_by:
