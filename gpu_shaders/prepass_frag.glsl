@@ -14,7 +14,9 @@
  * from the normal is extrapolated to the PCF taps, and an error of 5e-4 rad
  * (12-bit coordinates) showed as acne at 4096² with a bilinear kernel. The
  * colour target is not cleared: where the depth says nothing was drawn it
- * holds stale values, which no pass reads. */
+ * holds stale values, which no pass reads. A held-out receiver (LIXEL_HOLDOUT:
+ * addon/scene/instances.py holdout_test) also sets bit 31, the sign, which the
+ * unpacking ignores: the shading pass reads a negative code as a holdout. */
 vec2 lixel_octahedral(vec3 n)
 {
   n /= abs(n.x) + abs(n.y) + abs(n.z);
@@ -32,5 +34,9 @@ void main()
    * towards the viewer). */
   vec2 o = lixel_octahedral(cross(dFdx(v_world), dFdy(v_world)));
   uvec2 q = uvec2(floor(clamp(o * 0.5 + 0.5, 0.0, 1.0) * vec2(16383.0, 32767.0) + 0.5));
+#ifdef LIXEL_HOLDOUT
+  out_surface = vec4(v_world, uintBitsToFloat(0xC0000000u | (q.x << 15) | q.y));
+#else
   out_surface = vec4(v_world, uintBitsToFloat(0x40000000u | (q.x << 15) | q.y));
+#endif
 }

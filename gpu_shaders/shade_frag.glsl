@@ -73,6 +73,12 @@
  *   out_data      = (shadow, map index or -1, texels per pixel, eye depth), LIXEL_DATA
  *   out_world     = (world position, the pre-pass's packed normal), LIXEL_WORLD
  *                   (which surface the pixel shows: result.unpack_normals)
+ * A held-out surface (LIXEL_HOLDOUT: the pre-pass's packed normal negative)
+ * is not shaded: out_color = (0, 0, 0, 0), the transparent hole Cycles leaves
+ * with Film Transparent on or off, its alpha -1 where the alpha holds the
+ * shadow or the light (ShadowFrame.finish and compose_frag.glsl read it as 0,
+ * with no shadow), and the other targets as where nothing is seen, but for
+ * out_data's eye depth, negated (the eye blur's radius still counts it).
  * Pixels no surface covers get background_frag.glsl's values (the world
  * colour in out_color, with no shadow; zero elsewhere, black in out_footprint).
  * Positions are relative to the frame's origin; the uniform block `lixel` is
@@ -601,6 +607,25 @@ void main()
    * where it saw one (a full-screen triangle on the far plane, GREATER). */
   ivec2 px = ivec2(gl_FragCoord.xy);
   vec4 surface = texelFetch(u_surface, px, 0);
+#ifdef LIXEL_HOLDOUT
+  if (surface.w < 0.0) {
+#  if defined(LIXEL_SHADOW_ALPHA) || defined(LIXEL_BLURRED)
+    out_color = vec4(0.0, 0.0, 0.0, -1.0);
+#  else
+    out_color = vec4(0.0);
+#  endif
+#  ifdef LIXEL_FOOTPRINT
+    out_footprint = vec4(0.0, 0.0, 0.0, 1.0);
+#  endif
+#  ifdef LIXEL_DATA
+    out_data = vec4(0.0, 0.0, 0.0, dot(lixel.eye_row, vec4(surface.xyz, 1.0)));   /* - eye depth */
+#  endif
+#  ifdef LIXEL_WORLD
+    out_world = vec4(0.0);
+#  endif
+    return;
+  }
+#endif
   vec3 P = surface.xyz;
   vec3 N = lixel_unoctahedral(lixel_unpack_normal(surface.w));
   float eye_depth = -dot(lixel.eye_row, vec4(P, 1.0));

@@ -390,6 +390,9 @@ class ShadowFrame:
         self.receivers: Optional[DrawList] = None
         self.solids: Optional[DrawList] = None
         """The receivers the pre-pass draws as solids (their back faces culled); ``receivers`` the others."""
+        self.held: list = []
+        """The held-out receivers the pre-pass draws, marked as such (solids, others): none in a scene without
+        holdouts, whose receivers are all in ``solids`` and ``receivers``."""
         self.map_solids: list = []
         """Per map, the casters it draws as solids (their faces turned from the light culled); none with
         back-face rendering, which culls the faces towards the light of every caster."""
@@ -405,6 +408,11 @@ class ShadowFrame:
         self._shaded = None
 
     # ------------------------------------------------------------ steps
+
+    @property
+    def holds_out(self) -> bool:
+        """Whether the pre-pass drew a held-out receiver (then the shading pass looks for them)."""
+        return any(d.instance_count for d in self.held)
 
     def _stage(self, name: str, t0: float, fb=None, color: bool = False) -> None:
         if self.timed and fb is not None:
@@ -438,7 +446,10 @@ class ShadowFrame:
         which the shading pass shades; the back faces of solids seen from
         outside (:func:`seen_from_outside`: ``solids``, the others
         ``receivers``) are culled, as their front faces hide them: the same
-        surface, ~1/3 less work on llvmpipe (docs/performance.md). Returns the
+        surface, ~1/3 less work on llvmpipe (docs/performance.md). Held-out
+        receivers (``InstanceSet.holdouts``) are drawn after the others with
+        ``prepass_shader(holdout=True)``, which marks their pixels: they hide what
+        is behind them, and the shading pass leaves a transparent hole. Returns the
         camera depth texture (window depth, row 0 at the bottom; the visible
         region is read from it)."""
         import gpu
@@ -449,10 +460,16 @@ class ShadowFrame:
         n, o = _view_planes(view)
         mask = self._select("receivers", n, o, 1e-9 * max(view.far, 1.0))
         solid = self._solids(mask, view.world_to_clip)
+        if self.geometry.instances.any_holdout:      # the held-out receivers are drawn apart, marked
+            held = self.geometry.instances.holdouts
+            self.held = [self.scene.draw_list("held-out solid receivers", solid & held, eye=view.position),
+                         self.scene.draw_list("held-out receivers", mask & ~solid & held, eye=view.position)]
+            solid, mask = solid & ~held, mask & ~held
         self.solids = self.scene.draw_list("solid receivers", solid, eye=view.position)
         self.receivers = self.scene.draw_list("receivers", mask & ~solid, eye=view.position)
-        self.counts.receivers_drawn = self.receivers.instance_count + self.solids.instance_count
-        self.counts.receiver_triangles_drawn = self.receivers.triangle_count + self.solids.triangle_count
+        drawn = [self.receivers, self.solids, *self.held]
+        self.counts.receivers_drawn = sum(d.instance_count for d in drawn)
+        self.counts.receiver_triangles_drawn = sum(d.triangle_count for d in drawn)
         self._view_proj = _gl_matrix(relative(view.world_to_clip, self.origin))
         self._stage("cull", t)
         t = time.perf_counter()
@@ -469,8 +486,15 @@ class ShadowFrame:
             pre.bind()
             pre.uniform_float("u_view_proj", self._view_proj)
             r = self.view.world_to_camera[:3, :3]
-            self.scene.draw(pre, self.solids, cull="BACK", flip=bool(np.dot(np.cross(r[0], r[1]), r[2]) < 0))
+            flip = bool(np.dot(np.cross(r[0], r[1]), r[2]) < 0)
+            self.scene.draw(pre, self.solids, cull="BACK", flip=flip)
             self.scene.draw(pre, self.receivers)
+            if self.holds_out:
+                held = shaders.prepass_shader(holdout=True)
+                held.bind()
+                held.uniform_float("u_view_proj", self._view_proj)
+                self.scene.draw(held, self.held[0], cull="BACK", flip=flip)
+                self.scene.draw(held, self.held[1])
             gpu.state.depth_mask_set(False)
             gpu.state.depth_test_set("NONE")
         self._surface = surface
@@ -541,7 +565,10 @@ class ShadowFrame:
         the shadow, the footprint heatmap, (shadow, map index, texels per
         pixel, eye depth), the surface seen (world position and normal).
         Where no surface is seen the combined image holds ``ambient`` (the world colour), alpha 1, or
-        with ``transparent`` (Render properties > Film > Transparent) (0, 0, 0, 0)."""
+        with ``transparent`` (Render properties > Film > Transparent) (0, 0, 0, 0). Where a held-out surface is
+        seen the combined image is (0, 0, 0, 0) either way, as in Cycles, and every other image holds what it holds
+        where nothing is seen (so do Cycles' passes, measured in 4.2.23 and 5.0.1: its Depth there is 1e10 as behind
+        everything, its Normal, Object Index and Diffuse Direct 0)."""
         import gpu
         if self._depth is None:
             self.camera_prepass()
@@ -559,6 +586,7 @@ class ShadowFrame:
             blends=any(m.blend_band > 0 and m.view_depth_range is not None for m in setup.maps), blurred=blurred,
             shadow_alpha=not blurred and bool(read & {"shadow_mask", "shadow_raw"}),
             footprint="footprint_heatmap" in read, data=needs_data(read) or blurred, world=world,
+            holdout=self.holds_out,
             linear_z=shaders.agreed(m.depth_row is not None for m in setup.maps),
             greater=shaders.agreed(m.depth_test == "GREATER" for m in setup.maps))
         ambient = tuple(float(c) for c in ambient)
@@ -607,6 +635,9 @@ class ShadowFrame:
         if "blurred" not in sh:
             size, targets, tex = self.size, self.targets, sh["textures"]
             d_near, _ = compose.reduce_range(targets, tex["data"], size, channel=3, above=0.0)
+            if sh["variant"].holdout:   # held-out surfaces (their eye depth negated) count for the blur's radius,
+                _, held = compose.reduce_range(targets, tex["data"], size, channel=3, below=0.0)
+                d_near = min(d_near, -held)          # so a holdout changes no pixel beyond the blur's reach of it
             mask = compose.eye_blur_pass(targets, size, tex["data"], sh["eye_blur"],
                                          d_near if math.isfinite(d_near) else 1.0)
             compose.compose_pass(targets, size, tex["color"], mask, sh["ambient"], sh["albedo"], sh["behind"])
@@ -662,10 +693,11 @@ class ShadowFrame:
         if variant.shadow_alpha and read & {"combined", "shadow_mask", "shadow_raw"}:
             # One read of the colour target: its alpha is the shadow (>= 0), or where nothing is seen, the
             # combined image's alpha - 1 (see shade()); the combined image's alpha is 1 where a surface is.
-            # Only a transparent film has alphas below 0: an opaque one's frame skips two passes over the image.
+            # Only a transparent film or a holdout has alphas below 0 (-1: a held-out surface's); an opaque film's
+            # frame without holdouts skips two passes over the image.
             colour = self._read_target("color")
             alpha = colour[..., 3]
-            if self._shaded["behind"][3] < 1.0:
+            if self._shaded["behind"][3] < 1.0 or variant.holdout:
                 shadow = np.maximum(alpha, 0.0)
                 np.minimum(alpha, 0.0, out=alpha)
                 alpha += 1.0

@@ -2,6 +2,11 @@
 ``bpy.ops.render.render()`` render the scene's camera view shaded with Lixel's
 warped shadow maps.
 
+Holdouts (Object properties > Visibility > Holdout, or a collection's Holdout in the view layer) render as Cycles
+renders them: a transparent hole, (0, 0, 0, 0) in Combined with Film Transparent on or off, empty in the other passes
+(no shadow, black footprint), that still hides what is behind it and still casts its shadow
+(``addon.scene.instances.holdout_test``; ``ShadowFrame.shade``).
+
 Passes: Combined, and per view layer (View Layer properties > Lixel Passes,
 ``view_layer.lixel_passes``) "Shadow" (0 lit .. 1 fully shadowed; on by
 default), "Footprint" (the shadow-map texel footprint heatmap, see
@@ -197,8 +202,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     render (``describe.eye_view``)."""
     from ..gpu.batches import shared_batches
     from ..gpu.pipeline import ShadowFrame
-    from ..scene.describe import (NoLightError, check_finite_geometry, describe_scene, eye_view, holdout_note,
-                                  light_notes, lost_depth_note, pick_light, render_camera)
+    from ..scene.describe import (NoLightError, check_finite_geometry, describe_scene, eye_view, light_notes,
+                                  lost_depth_note, pick_light, render_camera)
     from ..scene.geometry import shared_cache
 
     scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
@@ -224,9 +229,9 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         light = Light("SUN", direction=view.direction, energy=0.0, name="no light")
     if eye is not None:
         view = eye_view(view, camera, *eye)
-    if warnings is not None:
-        warnings.extend(f"Lixel: {note}" for note in (lost_depth_note(view, bounds, camera.name),
-                                                       holdout_note(scene, depsgraph)) if note)
+    note = lost_depth_note(view, bounds, camera.name)
+    if warnings is not None and note:
+        warnings.append(f"Lixel: {note}")
     timings["describe"] = time.perf_counter() - t
     frame = ShadowFrame(geometry, view, resolution or view.resolution, read=read, targets=targets, timed=timed)
     frame.camera_prepass()

@@ -384,23 +384,6 @@ def light_notes(light_obj) -> list[str]:
     return notes
 
 
-def holdout_note(scene, depsgraph) -> Optional[str]:
-    """A warning naming the objects a render of ``depsgraph`` holds out (Object properties > Visibility > Holdout, or
-    a collection's Holdout in the view layer; Blender's ``Object.holdout_get``, which Cycles reads): Cycles renders
-    them (0, 0, 0, 0), with Film Transparent on or off, and keeps their shadows (measured in 5.0.1); Lixel draws
-    them shaded and opaque."""
-    view_layer = scene.view_layers.get(depsgraph.view_layer.name)
-    held = sorted(ob.original.name for ob in depsgraph.objects
-                  if ob.type in GEOMETRY_TYPES and ob.original.holdout_get(view_layer=view_layer))
-    if not held:
-        return None
-    names = ", ".join(f"'{n}'" for n in held[:3]) + (f" and {len(held) - 3} more" if len(held) > 3 else "")
-    return (f"{'Objects' if len(held) > 1 else 'Object'} {names} {'are holdouts' if len(held) > 1 else 'is a holdout'}"
-            f": Lixel renders {'them' if len(held) > 1 else 'it'} shaded and opaque (Cycles and EEVEE leave a "
-            f"transparent hole); to cut {'them' if len(held) > 1 else 'it'} out, render with Cycles or EEVEE, or use "
-            f"an object index mask in the compositor")
-
-
 def _scene_lights(scene, depsgraph) -> list:
     """Original light objects visible to this depsgraph (render or viewport), by name."""
     if depsgraph is not None:

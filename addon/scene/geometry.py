@@ -161,8 +161,8 @@ class SceneGeometry:
     def from_arrays(cls, parts) -> "SceneGeometry":
         """Geometry without bpy objects (tests, benchmarks): ``parts`` is a list of
         ``(name, positions (V,3), triangles (T,3), matrices (N,4,4) or None,
-        casts=True)`` tuples; each part becomes one mesh drawn once per matrix."""
-        meshes, keys, mats, boxes, casts = {}, [], [], {}, []
+        casts=True, holdout=False)`` tuples; each part becomes one mesh drawn once per matrix."""
+        meshes, keys, mats, boxes, casts, holdouts = {}, [], [], {}, [], []
         for part in parts:
             name, pos, tris, m = part[:4]
             cast = part[4] if len(part) > 4 else True
@@ -175,8 +175,9 @@ class SceneGeometry:
             keys += [key] * len(m)
             mats.append(m)
             casts += [bool(cast)] * len(m)
+            holdouts += [bool(part[5]) if len(part) > 5 else False] * len(m)
         inst = InstanceSet.from_lists(keys, np.concatenate(mats) if mats else np.zeros((0, 4, 4)), boxes, casts,
-                                      np.ones(len(keys), dtype=bool))
+                                      np.ones(len(keys), dtype=bool), holdouts=holdouts)
         return cls(inst, meshes)
 
 

@@ -90,6 +90,8 @@ class InstanceSet:
     ``key_boxes[k]`` is key ``k``'s object-space bounding box ``[[min],
     [max]]``; ``casts[i]`` whether it casts shadows (``visible_shadow``),
     ``receives[i]`` whether the camera sees it (``visible_camera``);
+    ``holdouts[i]`` whether the view layer holds it out (:func:`holdout_test`: drawn as a transparent hole that
+    still hides what is behind it and still casts its shadow);
     ``owners[owner_ids[i]]`` names its object (for messages).
 
     A set is never changed once made: what is derived from it (world boxes,
@@ -103,13 +105,14 @@ class InstanceSet:
     key_boxes: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 3)))
     casts: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     receives: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    holdouts: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     owners: list = field(default_factory=list)
     owner_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     @classmethod
-    def from_lists(cls, keys: list, matrices, boxes: dict, casts, receives, names: Optional[list] = None
-                   ) -> "InstanceSet":
-        """A set from per-instance keys (with ``boxes[key]`` each key's local box)."""
+    def from_lists(cls, keys: list, matrices, boxes: dict, casts, receives, names: Optional[list] = None,
+                   holdouts=None) -> "InstanceSet":
+        """A set from per-instance keys (with ``boxes[key]`` each key's local box); ``holdouts`` default none."""
         key_list: list = []
         index: dict = {}
         ids = np.fromiter((index.setdefault(k, len(index)) for k in keys), dtype=np.int64, count=len(keys))
@@ -122,6 +125,7 @@ class InstanceSet:
                    matrices=np.asarray(matrices, dtype=np.float64).reshape(-1, 4, 4),
                    key_boxes=np.array([boxes[k] for k in key_list], dtype=np.float64).reshape(-1, 2, 3),
                    casts=np.asarray(casts, dtype=bool), receives=np.asarray(receives, dtype=bool),
+                   holdouts=np.zeros(len(keys), dtype=bool) if holdouts is None else np.asarray(holdouts, dtype=bool),
                    owners=list(owner_index), owner_ids=owner_ids)
 
     def __len__(self) -> int:
@@ -172,6 +176,11 @@ class InstanceSet:
         return np.flatnonzero(self.receives)
 
     @cached_property
+    def any_holdout(self) -> bool:
+        """Whether any instance is held out (a frame without holdouts draws as it did before they were supported)."""
+        return bool(self.holdouts.any())
+
+    @cached_property
     def mirrored(self) -> np.ndarray:
         """Whether each matrix mirrors (negative determinant: winding flips)."""
         return np.linalg.det(self.matrices[:, :3, :3]) < 0
@@ -183,6 +192,7 @@ class InstanceSet:
         return (other is not None and self.key_list == other.key_list
                 and np.array_equal(self.key_ids, other.key_ids)
                 and np.array_equal(self.casts, other.casts) and np.array_equal(self.receives, other.receives)
+                and np.array_equal(self.holdouts, other.holdouts)
                 and np.array_equal(self.matrices, other.matrices)
                 and np.array_equal(self.key_boxes, other.key_boxes))
 
@@ -213,6 +223,32 @@ def _mesh_box(mesh) -> tuple:
     return pos.min(axis=0).astype(np.float64), pos.max(axis=0).astype(np.float64)
 
 
+def _held_layer_collections(layer) -> bool:
+    """Whether ``layer`` (a LayerCollection) or one of its children holds out (View Layer > Holdout)."""
+    return any(lc.holdout or _held_layer_collections(lc) for lc in layer.children)
+
+
+def holdout_test(depsgraph) -> Callable:
+    """``held(ob) -> bool``: whether the render of ``depsgraph`` holds out the evaluated object ``ob`` (Object
+    properties > Visibility > Holdout, or a collection's Holdout in the view layer), as Blender's
+    ``Object.holdout_get`` answers it for the view layer, which Cycles reads. An instance takes its instancer's
+    answer (measured with Cycles in 4.2.23 and 5.0.1: a collection instance or geometry-nodes instances of a held-out
+    instancer are held out; a held-out object instanced by a plain instancer, or a collection held out in the view
+    layer and instanced elsewhere, is not). Without any collection held out an object's own flag answers (one
+    attribute; ``holdout_get`` needs the original object and a look-up in the view layer)."""
+    scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
+    view_layer = scene.view_layers.get(depsgraph.view_layer.name)
+    if view_layer is None or not _held_layer_collections(view_layer.layer_collection):
+        return lambda ob: bool(getattr(ob, "is_holdout", False))
+
+    def held(ob) -> bool:
+        try:
+            return bool(ob.original.holdout_get(view_layer=view_layer))
+        except (RuntimeError, ReferenceError):   # not in the view layer: nothing of the layer holds it out
+            return bool(getattr(ob, "is_holdout", False))
+    return held
+
+
 def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> InstanceSet:
     """Walk the evaluated scene once (``depsgraph.object_instances``).
 
@@ -220,7 +256,10 @@ def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Instanc
     met, while the evaluated object is still valid; it may return False to
     drop every instance of that key (e.g. a mesh with no faces).
     """
-    keys, names, casts, receives = [], [], [], []
+    keys, names, casts, receives, holdouts = [], [], [], [], []
+    held, held_by = holdout_test(depsgraph), {}
+    if not any(held(ob) for ob in depsgraph.objects):   # (an instance is held out by a real object, its instancer)
+        held = None                                     # nothing held out: no work per instance
     mats = np.empty((256, 4, 4), dtype=np.float64)
     accepted: dict = {}   # key -> None (dropped) or its object-space box
     generated: dict = {}
@@ -247,9 +286,17 @@ def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Instanc
         names.append(ob.name if not inst.is_instance or inst.parent is None else f"{inst.parent.name}/{ob.name}")
         casts.append(bool(getattr(ob, "visible_shadow", True)))
         receives.append(bool(getattr(ob, "visible_camera", True)))
+        if held is None:
+            holdouts.append(False)
+            continue
+        owner = inst.parent if inst.is_instance and inst.parent is not None else ob
+        pointer = owner.original.as_pointer()
+        if pointer not in held_by:
+            held_by[pointer] = held(owner)
+        holdouts.append(held_by[pointer])
     if not keys:
         return InstanceSet()
-    return InstanceSet.from_lists(keys, mats[:n], accepted, casts, receives, names)
+    return InstanceSet.from_lists(keys, mats[:n], accepted, casts, receives, names, holdouts)
 
 
 class _NeedsWalk(Exception):
@@ -285,6 +332,7 @@ class _Reader:
         self.owners: list = []
         self.sources: list = []       # raw arrays: (world,) or (world, column-major transforms, reference index)
         self.chunks: list = []        # (key id, flags, owner id, source index, reference or None, local or None)
+        self.held = holdout_test(depsgraph)
 
     def key_id(self, key, ob, mesh=None) -> Optional[int]:
         k = self.accepted.get(key, -1)
@@ -312,7 +360,8 @@ class _Reader:
             k = self.key_id(object_key(ob), ob)
             if k is not None:
                 self.sources.append((world,))
-                self.chunks.append((k, _flags(ob), self.owner(ob.name), len(self.sources) - 1, None, None))
+                self.chunks.append((k, _flags(ob) + (self.held(ob),), self.owner(ob.name), len(self.sources) - 1,
+                                    None, None))
         if ob.type in INSTANCER_TYPES and _has_nodes(ob):
             self.instances_of(ob.evaluated_geometry(), ob, world)
 
@@ -354,9 +403,11 @@ class _Reader:
         refs = gs.instance_references()
         self.sources.append((world, flat, ref_index))
         source = len(self.sources) - 1
+        held = self.held(instancer)              # instances are held out with their instancer (holdout_test)
         for r, ref in enumerate(refs):
             for k, local, flags, name in self.leaves(ref, instancer):
-                self.chunks.append((k, flags, self.owner(name), source, r if len(refs) > 1 else None, local))
+                self.chunks.append((k, flags + (held,), self.owner(name), source, r if len(refs) > 1 else None,
+                                    local))
 
     def same_as(self, previous: Optional["InstanceSet"]) -> bool:
         """Whether this read gives exactly ``previous`` (same keys, boxes, chunks and raw arrays)."""
@@ -401,10 +452,11 @@ class _Reader:
             owners.append(owner)
         counts = ids
         key_ids = np.repeat(np.array([c[0] for c in self.chunks], dtype=np.int64), counts)
-        flags = np.array(flags, dtype=bool).reshape(-1, 2)
+        flags = np.array(flags, dtype=bool).reshape(-1, 3)
         out = InstanceSet(key_list=self.key_list, key_ids=key_ids, matrices=np.concatenate(mats).reshape(-1, 4, 4),
                           key_boxes=np.array(self.boxes, dtype=np.float64).reshape(-1, 2, 3),
                           casts=np.repeat(flags[:, 0], counts), receives=np.repeat(flags[:, 1], counts),
+                          holdouts=np.repeat(flags[:, 2], counts),
                           owners=self.owners, owner_ids=np.repeat(np.array(owners, dtype=np.int64), counts))
         out._source = (self.key_list, self.chunks, self.sources)
         return out
