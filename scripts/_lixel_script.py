@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import copy
 import importlib
 import importlib.util
 import os
@@ -195,7 +196,9 @@ class Session:
         return settings
 
     def state(self, scene, settings):
-        """The live state for the scene (camera/light from the arguments); ScriptError on failure."""
+        """The live state for the scene (camera/light from the arguments), as a copy of its own: Lixel's live
+        update (``depsgraph_update_post``, which a render's GPU start or a frame change sets off) recomputes the
+        scene's stored state with the scene's own settings, camera and light. ScriptError on failure."""
         live = self.module("addon.ui.live")
         camera, light = self.objects(scene)
         depsgraph = self.bpy.context.evaluated_depsgraph_get()
@@ -203,7 +206,7 @@ class Session:
                          active=self.bpy.context.view_layer.objects.active)
         if st.error:
             raise ScriptError(st.error)
-        return st
+        return copy.copy(st)
 
 
 def _import_checkout():

@@ -44,7 +44,7 @@ def blend(tmp_path_factory, lixel):
     return path
 
 
-def run(mode, script, blend_path, *args, timeout=240):
+def run(mode, script, blend_path, *args, timeout=240, cwd=ROOT):
     env = dict(os.environ)
     scratch = Path(blend_path).parent if blend_path else Path(tempfile.gettempdir())
     env.setdefault("XDG_CACHE_HOME", str(scratch / "xdg"))
@@ -54,7 +54,7 @@ def run(mode, script, blend_path, *args, timeout=240):
         cmd = [sys.executable, script_path] + ([str(blend_path)] if blend_path else []) + list(args)
     else:
         cmd = [sys.executable, "-c", BLENDER_MODE, str(blend_path), script_path] + list(args)
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env, cwd=str(ROOT))
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env, cwd=str(cwd))
 
 
 MODES = ["module", "blender"]
@@ -103,6 +103,27 @@ def test_render_method_writes_pictures_and_json(mode, blend, tmp_path, load_pixe
     assert 0 < shadowed.sum() < shadowed.size  # the cube's shadow is there, not everything
     assert png.stat().st_size > 0
 
+
+def test_render_method_draws_the_method_it_was_asked_for(blend, tmp_path, load_pixels):
+    """The scene's own method is lispsm: ``--method uniform`` must render (and name) uniform's shadows, not the
+    scene's, even though Lixel's live update recomputes the scene's own setup when the render starts."""
+    masks = {}
+    for method in ("uniform", "lispsm"):
+        mask = tmp_path / f"{method}.png"
+        r = run("module", "render_method.py", blend, "--method", method, "--resolution", "96x54", "--size", "64",
+                "--shadow-output", str(mask))
+        assert r.returncode == 0, r.stderr
+        assert f"lixel: {method}: " in r.stdout, r.stdout
+        masks[method] = load_pixels(mask)[..., 0] > 0.5
+    assert (masks["uniform"] != masks["lispsm"]).sum() > 10
+
+
+def test_a_picture_named_without_a_folder_goes_to_the_working_directory(blend, tmp_path):
+    """``--output out.png`` (the usage line's own example): Blender 5.0 cannot save an image to a bare file name."""
+    r = run("module", "render_method.py", blend, "--resolution", "32x18", "--output", "out.png",
+            "--shadow-output", "./mask.png", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "out.png").stat().st_size > 0 and (tmp_path / "mask.png").stat().st_size > 0
 
 @pytest.mark.parametrize("mode", MODES)
 def test_compare_methods_numbers_only(mode, blend, tmp_path):
