@@ -194,6 +194,38 @@ def test_texel_grid_leaves_objects_linked_from_a_library_and_says_so(scene, tmp_
         bpy.data.libraries.remove(library)
 
 
+WRITES_SCENE = [("reset_settings", {}), ("bake_debug", {}), ("frustum_add", {}), ("sync_matrices", {}),
+                ("texel_grid_add", {}), ("planes_from_selection", {}), ("plane_remove", {})]
+
+
+def test_a_scene_linked_from_a_library_is_read_only_to_the_operators_that_change_it(lixel, tmp_path):
+    """A linked scene cannot keep what an operator writes (and Blender refuses to link objects into it): the
+    operators that change it say so by name, with the library, instead of reporting a bug or changing settings
+    that would silently revert on reload; those that only read it still work."""
+    with active_scene("lixel_library_scene") as sc:
+        sc.lixel.method, sc.lixel.initialised = "uniform", True
+        sc.lixel.planes.add().source = "kept"
+        bpy.data.libraries.write(str(tmp_path / "scenes.blend"), {sc})
+    with bpy.data.libraries.load(str(tmp_path / "scenes.blend"), link=True) as (_src, dst):
+        dst.scenes = ["lixel_library_scene"]
+    linked = dst.scenes[0]
+    n_objects = len(bpy.data.objects)
+    try:
+        with bpy.context.temp_override(scene=linked, view_layer=linked.view_layers[0]):
+            for op, kw in WRITES_SCENE:
+                with pytest.raises(RuntimeError, match="Scene 'lixel_library_scene' is linked from scenes.blend and "
+                                                       "cannot be changed here: make it local") as err:
+                    getattr(bpy.ops.lixel, op)(**kw)
+                assert "a bug in Lixel" not in str(err.value)
+            assert bpy.ops.lixel.refresh() == {"FINISHED"}
+            assert bpy.ops.lixel.export_json(filepath=str(tmp_path / "linked.json")) == {"FINISHED"}
+        assert linked.lixel.method == "uniform" and [p.source for p in linked.lixel.planes] == ["kept"]
+        assert len(bpy.data.objects) == n_objects and "Lixel Debug" not in bpy.data.collections
+    finally:
+        library = linked.library
+        bpy.data.scenes.remove(linked)
+        bpy.data.libraries.remove(library)
+
 def test_texel_grid_on_a_library_override_says_its_mesh_is_linked_and_how_to_free_it(scene, tmp_path):
     """Object > Library Override > Make overrides the objects but keeps their meshes linked, where the grid's
     material slot would go: the remedy named is making the mesh local (Make Local > Objects and Data), which

@@ -93,6 +93,7 @@ class LIXEL_OT_bake_debug(LixelSceneOperator, bpy.types.Operator):
     bl_idname = "lixel.bake_debug"
     bl_label = "Bake Debug Geometry"
     bl_options = {"REGISTER", "UNDO"}
+    changes_scene = True
 
     @guarded_operator
     def execute(self, context):
@@ -124,6 +125,7 @@ class LIXEL_OT_texel_grid_add(LixelSceneOperator, bpy.types.Operator):
     bl_idname = "lixel.texel_grid_add"
     bl_label = "Add Texel Grid"
     bl_options = {"REGISTER", "UNDO"}
+    changes_scene = True
 
     map_index: IntProperty(name="Map", default=0, min=0, description="Which shadow map's texels to show")
     remove: BoolProperty(name="Remove", default=False, description="Remove the texel grid instead")
@@ -160,6 +162,7 @@ class LIXEL_OT_frustum_add(LixelSceneOperator, bpy.types.Operator):
     bl_idname = "lixel.frustum_add"
     bl_label = "Add Frustum From Matrix"
     bl_options = {"REGISTER", "UNDO"}
+    changes_scene = True
 
     map_index: IntProperty(name="Map", default=0, min=0)
 
@@ -193,6 +196,7 @@ class LIXEL_OT_sync_matrices(LixelSceneOperator, bpy.types.Operator):
     bl_idname = "lixel.sync_matrices"
     bl_label = "Sync Light Matrices"
     bl_options = {"REGISTER", "UNDO"}
+    changes_scene = True
 
     @guarded_operator
     def execute(self, context):
