@@ -308,6 +308,14 @@ def test_missing_input_is_reported_clearly(lixel, missing, pattern, op, kw):
         assert sc.lixel.planes is not None
 
 
+def test_a_camera_that_sees_nothing_to_shadow_is_named_with_what_to_do(scene):
+    """A camera turned to the sky: the report names the camera and the light and says what to change, instead of
+    the core's bare "the camera sees no shadow receiver (scene boxes)"."""
+    scene.objects["lixel_ops camera"].rotation_euler = (3.14159, 0.0, 0.0)    # looking straight up
+    with pytest.raises(RuntimeError, match=r"Camera 'lixel_ops camera' and light 'lixel_ops light' leave Lixel "
+                                           r"nothing to shadow: the camera sees no shadow receiver .*; aim the camera"):
+        bpy.ops.lixel.refresh()
+
 def test_texel_grid_without_mesh_or_camera(lixel):
     with active_scene("lixel_missing_grid", camera=False) as sc:
         _select_only(sc, [])
