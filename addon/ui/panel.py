@@ -82,7 +82,7 @@ class LIXEL_PT_main(LixelPanel, bpy.types.Panel):
             col.label(text=f"Using: {st.light_name}" if st is not None and st.light_name else
                       "Using: the active light, else the first sun", icon="INFO")
         col.prop(props, "method")
-        if scene.camera is None:
+        if scene.camera is None and live.local_camera(context) is None:
             col.label(text="The scene has no camera: add one and make it active", icon="ERROR")
         row = layout.row(align=True)
         row.operator("lixel.refresh", icon="FILE_REFRESH")

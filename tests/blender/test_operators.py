@@ -124,6 +124,28 @@ def test_compare_lists_and_renders_every_method(scene, mods):
     bpy.data.images.remove(img)
 
 
+def test_compare_from_a_3d_view_with_a_local_camera_names_that_camera(scene, mods):
+    """View sidebar > View > Local Camera, with or without a scene camera: Compare runs on the view's camera and
+    its text names that camera (it named the scene's, and failed as a bug where the scene has none)."""
+    side = bpy.data.objects.new("lixel_ops side", bpy.data.cameras.new("lixel_ops side"))
+    scene.collection.objects.link(side)
+    side.location = (-6, -7, 5)
+    side.rotation_euler = (-side.location).to_track_quat("-Z", "Y").to_euler()
+    win = bpy.context.window
+    area = next(a for a in win.screen.areas if a.type == "VIEW_3D")
+    space, region = area.spaces.active, next(r for r in area.regions if r.type == "WINDOW")
+    was = space.use_local_camera, space.camera
+    try:
+        space.use_local_camera, space.camera = True, side
+        for scene_camera in (scene.camera, None):
+            scene.camera = scene_camera
+            with bpy.context.temp_override(window=win, area=area, region=region, space_data=space):
+                assert bpy.ops.lixel.compare(longest_side=16) == {"FINISHED"}
+            assert "camera 'lixel_ops side'" in bpy.data.texts["Lixel Comparison"].as_string().splitlines()[0]
+    finally:
+        space.use_local_camera, space.camera = was
+        mods.live.follow(scene, None)
+
 def test_planes_from_selected_objects_and_faces(scene):
     ground = scene.objects["lixel_ops ground"]
     ground.location.z = 0.25

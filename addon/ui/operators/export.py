@@ -99,7 +99,8 @@ class LIXEL_OT_compare(LixelSceneOperator, bpy.types.Operator):
                 self.report({"WARNING"}, f"Lixel: no comparison render: {exc}")
         text, _ = lixel_datablock(bpy.data.texts, COMPARISON_TEXT)
         text.clear()
-        text.write(f"Lixel comparison, scene '{context.scene.name}', camera '{context.scene.camera.name}', "
+        camera = live.followed_camera(context.scene)            # the 3D view's Local Camera, else the scene's
+        text.write(f"Lixel comparison, scene '{context.scene.name}', camera '{camera.name}', "
                    f"light '{st.light_name}', {len(METHODS)} method(s)\n"
                    "texel px = screen pixels one shadow-map texel spans, on surfaces in view facing halfway between "
                    "camera and light (≤ 1: no perspective aliasing)\n\n" + table + note + "\n")
