@@ -136,6 +136,20 @@ def test_compare_methods_numbers_only(mode, blend, tmp_path):
     assert "uniform" in r.stdout and "lispsm" in r.stdout
 
 
+def test_compare_methods_names_the_camera_it_was_given(lixel, tmp_path):
+    path = tmp_path / "two cameras.blend"
+    with active_scene("two_cameras") as scene:
+        side = bpy.data.objects.new("two_cameras side", scene.camera.data.copy())
+        scene.collection.objects.link(side)
+        side.matrix_world = scene.camera.matrix_world
+        side.location.x -= 1.0
+        bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    out = tmp_path / "cmp"
+    r = run("module", "compare_methods.py", path, "--output-dir", str(out), "--no-render", "--methods", "uniform",
+            "--camera", "two_cameras side")
+    assert r.returncode == 0, r.stderr
+    assert json.loads((out / "comparison.json").read_text())["camera"] == "two_cameras side"
+
 def test_compare_methods_renders_each(blend, tmp_path):
     out = tmp_path / "cmp"
     r = run("module", "compare_methods.py", blend, "--output-dir", str(out), "--longest", "32",
