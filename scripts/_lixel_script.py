@@ -251,13 +251,19 @@ def run(main) -> None:
     except ScriptError as exc:
         print(f"lixel: error: {exc}", file=sys.stderr)
         code = 1
-    except OSError as exc:  # an output the script cannot write: the path and why, not a bug report
-        print(f"lixel: error: cannot write '{exc.filename}': {exc.strerror or exc}", file=sys.stderr)
+    except BrokenPipeError:  # ``--output - | head``: the reader stopped early and has what it wanted
+        code = 1
+    except OSError as exc:  # an output the script cannot write: the path (or standard output) and why, not a bug
+        where = f"'{exc.filename}'" if exc.filename is not None else "the output"
+        print(f"lixel: error: cannot write {where}: {exc.strerror or exc}", file=sys.stderr)
         code = 1
     except Exception as exc:  # noqa: BLE001 - the script's guard: WarpError's message, or one line for a bug
         print(f"lixel: error: {_user_message(exc, f'running {Path(main.__code__.co_filename).name}')}",
               file=sys.stderr)
         code = 1
-    sys.stdout.flush()
-    sys.stderr.flush()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except OSError:     # a closed pipe or a full disk, already said
+            pass
     os._exit(code or 0)

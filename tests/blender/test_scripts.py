@@ -88,6 +88,30 @@ def test_export_animation_to_stdout_is_json_only(blend):
     assert "Read blend" in r.stderr or "Read" not in r.stdout
 
 
+def _run_to(stdout, script, blend_path, *args):
+    """``run("module", ...)`` with standard output going to ``stdout`` (a file descriptor or file)."""
+    env = dict(os.environ)
+    env.setdefault("XDG_CACHE_HOME", str(Path(blend_path).parent / "xdg"))
+    env.setdefault("BLENDER_USER_RESOURCES", str(Path(blend_path).parent / "user"))
+    return subprocess.run([sys.executable, str(SCRIPTS / script), str(blend_path), *args], stdout=stdout,
+                          stderr=subprocess.PIPE, text=True, timeout=240, env=env, cwd=str(ROOT))
+
+
+def test_export_animation_to_a_reader_that_stops_early_or_a_full_disk(blend):
+    """``--output - | head`` ends quietly; a full disk is named as the output, not as a file called 'None'."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)                                   # a reader that has already stopped
+    try:
+        r = _run_to(write_end, "export_animation.py", blend, "--output", "-", "--frames", "1:2")
+    finally:
+        os.close(write_end)
+    assert r.returncode == 1 and "lixel: error" not in r.stderr and "Traceback" not in r.stderr, r.stderr
+    if os.path.exists("/dev/full"):
+        with open("/dev/full", "w") as full:
+            r = _run_to(full, "export_animation.py", blend, "--output", "-", "--frames", "1:2")
+        assert r.returncode == 1 and "lixel: error: cannot write the output: No space left on device" in r.stderr, \
+            r.stderr
+
 @pytest.mark.parametrize("mode", MODES)
 def test_render_method_writes_pictures_and_json(mode, blend, tmp_path, load_pixels):
     png, mask, js = tmp_path / "r.png", tmp_path / "mask.png", tmp_path / "r.json"
