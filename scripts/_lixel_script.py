@@ -69,9 +69,16 @@ def base_parser(prog: str, description: str) -> argparse.ArgumentParser:
     return p
 
 
+BLENDER_PYTHON_OPTIONS = ("--python", "-P")
+"""How Blender's command line names the script it runs: a command line holding one is Blender's own."""
+
+
 def parse(parser: argparse.ArgumentParser, argv=None):
     """Parse and check the arguments; errors print usage and exit 2."""
     args_list, inside = script_args(argv)
+    if not inside and any(a in BLENDER_PYTHON_OPTIONS for a in args_list):
+        parser.error("Blender passes a script only the arguments after '--': blender -b FILE.blend --python "
+                     f"scripts/{parser.prog} -- [options]")
     args = parser.parse_args(args_list)
     if args.blend is None and not inside:
         parser.error("the .blend file is required (python scripts/X.py FILE.blend ...)")

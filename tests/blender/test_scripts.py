@@ -204,6 +204,16 @@ def test_bad_arguments_print_usage_and_fail(mode, blend, tmp_path, script, args,
     assert "usage:" in r.stderr and message in r.stderr
 
 
+def test_blenders_command_line_without_the_double_dash_says_where_the_arguments_go(blend, tmp_path):
+    """``blender -b FILE --python scripts/X.py --output x.png`` (no ``--``): the script sees Blender's own options."""
+    argv_setter = BLENDER_MODE.replace('"--python", script, "--"]', '"--python", script]')
+    out = tmp_path / "x.png"
+    r = subprocess.run([sys.executable, "-c", argv_setter, str(blend), str(SCRIPTS / "render_method.py"),
+                        "--output", str(out)], capture_output=True, text=True, timeout=240, cwd=str(ROOT))
+    assert r.returncode == 2, r.stderr
+    assert "only the arguments after '--': blender -b FILE.blend --python scripts/render_method.py -- " in r.stderr
+    assert not out.exists()
+
 def test_missing_blend_file(tmp_path):
     r = run("module", "render_method.py", None, "--output", "x.png")
     assert r.returncode == 2 and "the .blend file is required" in r.stderr
