@@ -149,6 +149,19 @@ def test_a_picture_named_without_a_folder_goes_to_the_working_directory(blend, t
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "out.png").stat().st_size > 0 and (tmp_path / "mask.png").stat().st_size > 0
 
+def test_a_resolution_of_another_shape_is_framed_as_blender_frames_it_not_stretched(blend, tmp_path, load_pixels):
+    """The scene renders 640x360 with the sensor fitted automatically (to the wider side): at 96x96 Blender keeps
+    the horizontal field of view and shows more above and below, so the middle 54 rows are the 96x54 picture."""
+    pictures = {}
+    for size in ("96x54", "96x96"):
+        png = tmp_path / f"{size}.png"
+        r = run("module", "render_method.py", blend, "--resolution", size, "--output", str(png))
+        assert r.returncode == 0, r.stderr
+        pictures[size] = load_pixels(png)[..., :3]
+    assert pictures["96x96"].shape[:2] == (96, 96)
+    same = np.isclose(pictures["96x96"][21:75], pictures["96x54"], atol=0.02).all(axis=-1)
+    assert same.mean() > 0.99, same.mean()
+
 @pytest.mark.parametrize("mode", MODES)
 def test_compare_methods_numbers_only(mode, blend, tmp_path):
     out = tmp_path / "cmp"
