@@ -52,15 +52,16 @@ class LIXEL_OT_export_json(LixelSceneOperator, bpy.types.Operator, ExportHelper)
         if st is None:
             return {"CANCELLED"}
         doc = export_document(st, self.all_methods)
+        path = bpy.path.abspath(self.filepath)      # "//name.json": beside the .blend file, as Blender's paths are
         try:
-            with open(self.filepath, "w", encoding="utf-8") as fh:
+            with open(path, "w", encoding="utf-8") as fh:
                 json.dump(doc, fh, indent=2 if self.indent else None)
                 fh.write("\n")
         except OSError as exc:
-            self.report({"ERROR"}, f"Lixel: cannot write '{self.filepath}': {exc.strerror}")
+            self.report({"ERROR"}, f"Lixel: cannot write '{path}': {exc.strerror}")
             return {"CANCELLED"}
         what = "every method" if self.all_methods else f"{len(st.setup.maps)} map(s) of {st.method_used}"
-        self.report({"INFO"}, f"Lixel: exported {what} to {self.filepath}")
+        self.report({"INFO"}, f"Lixel: exported {what} to {path}")
         return {"FINISHED"}
 
 
