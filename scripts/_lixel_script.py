@@ -123,6 +123,10 @@ def data_stdout(reserve: bool = True):
         os.close(saved)
 
 
+OUTPUT_OPTIONS = ("output", "json", "shadow_output", "map_output", "output_dir")
+"""The scripts' options that name files or folders to write."""
+
+
 class Session:
     """Opens the file, registers Lixel if Blender has not, and always unregisters."""
 
@@ -149,6 +153,10 @@ class Session:
                                       f"Blender cannot be read by an older one)") from None
             elif not bpy.data.filepath:
                 raise ScriptError("no .blend file is loaded: pass one (blender -b FILE.blend --python ...)")
+            for name in OUTPUT_OPTIONS:   # "//out.png": beside the .blend file, as in Blender (the OS reads "/out.png")
+                path = getattr(self.args, name, None)
+                if isinstance(path, str) and path.startswith("//"):
+                    setattr(self.args, name, bpy.path.abspath(path))
         except BaseException:
             self.__exit__(None, None, None)
             raise

@@ -173,6 +173,21 @@ def test_compare_methods_numbers_only(mode, blend, tmp_path):
     assert "uniform" in r.stdout and "lispsm" in r.stdout
 
 
+@pytest.mark.parametrize("mode", MODES)
+def test_a_blend_relative_output_is_written_beside_the_blend_file(mode, blend):
+    """"//name" is Blender's "beside the .blend file" (as in ``blender -o //render_``): the JSON went to the file
+    system's root, the picture beside the file."""
+    names = [f"relative {mode}.json", f"relative {mode}.png"]
+    try:
+        r = run(mode, "render_method.py", blend, "--resolution", "16x9", "--json", f"//{names[0]}",
+                "--output", f"//{names[1]}")
+        assert r.returncode == 0, r.stderr
+        assert all((Path(blend).parent / name).stat().st_size > 0 for name in names)
+    finally:
+        for name in names:
+            for where in (Path(blend).parent, Path("/")):
+                (where / name).unlink(missing_ok=True)
+
 def test_compare_methods_names_the_camera_it_was_given(lixel, tmp_path):
     path = tmp_path / "two cameras.blend"
     with active_scene("two_cameras") as scene:
