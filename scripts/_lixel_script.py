@@ -157,6 +157,10 @@ class Session:
                 path = getattr(self.args, name, None)
                 if isinstance(path, str) and path.startswith("//"):
                     setattr(self.args, name, bpy.path.abspath(path))
+                    path = getattr(self.args, name)
+                if isinstance(path, str) and os.path.exists(path) and os.path.samefile(path, bpy.data.filepath):
+                    raise ScriptError(f"--{name.replace('_', '-')} {path} is the .blend file being read: writing "
+                                      f"there would destroy it; choose another name")
         except BaseException:
             self.__exit__(None, None, None)
             raise

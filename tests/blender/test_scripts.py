@@ -188,6 +188,15 @@ def test_a_blend_relative_output_is_written_beside_the_blend_file(mode, blend):
             for where in (Path(blend).parent, Path("/")):
                 (where / name).unlink(missing_ok=True)
 
+@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize("option", ["--output", "--json"])
+def test_an_output_naming_the_blend_file_itself_is_refused_and_the_file_kept(mode, blend, option):
+    """A slip of the shell (``--output scene.blend``) must not turn the user's .blend file into a picture."""
+    before = Path(blend).read_bytes()
+    r = run(mode, "render_method.py", blend, "--resolution", "16x9", option, str(blend))
+    assert r.returncode == 1 and f"lixel: error: {option} {blend} is the .blend file being read" in r.stderr, r.stderr
+    assert Path(blend).read_bytes() == before
+
 def test_compare_methods_names_the_camera_it_was_given(lixel, tmp_path):
     path = tmp_path / "two cameras.blend"
     with active_scene("two_cameras") as scene:
