@@ -40,6 +40,10 @@ LINE_CHARS = 42
 """Characters of a message line that fit the sidebar at its default width."""
 
 
+READOUT_CHARS = 32
+"""A readout value longer than this is wrapped below its label instead of sharing the label's row."""
+
+
 def wrapped_label(layout, text: str, icon: str) -> None:
     """``text`` in full as lines of at most :data:`LINE_CHARS` (Blender cuts a long label off at the panel's
     edge), ``icon`` on the first."""
@@ -185,6 +189,10 @@ class LIXEL_PT_readouts(LixelPanel, bpy.types.Panel):
             return
         col = layout.column(align=True)
         for label, value in live.readouts(st):
+            if len(value) > READOUT_CHARS:          # a sentence (an error, a fallback's reason): wrapped, full width
+                col.label(text=label)
+                wrapped_label(col, value, "BLANK1")
+                continue
             row = col.row()
             split = row.split(factor=0.4)
             split.label(text=label)

@@ -133,3 +133,20 @@ def test_a_warning_too_long_for_one_line_is_shown_in_full(lixel, panel):
             shown.append(labels[first + len(shown)])
         assert " ".join(shown) == note
         assert max(len(t) for t in shown) <= SIDEBAR_CHARS
+
+
+def test_a_readout_that_is_a_sentence_is_shown_in_full(lixel, panel):
+    """The Readouts panel repeats an error (and a fallback's reason) as a value: wrapped to the sidebar too."""
+    live = importlib.import_module(f"{lixel.__name__}.addon.ui.live")
+    with active_scene("lixel_panel_readouts") as scene:
+        scene.camera.rotation_euler = (3.14159, 0.0, 0.0)      # looking at the sky: an error
+        with pytest.raises(RuntimeError):
+            bpy.ops.lixel.refresh()
+        error = " ".join(live.state(scene).error.split())
+        log = []
+        fake = type("Fake", (), {})()
+        fake.layout = StandInLayout(log)
+        panel.LIXEL_PT_readouts.draw(fake, bpy.context)
+        labels = [t for kind, t in log if kind == "label" and t]
+        assert error in " ".join(labels)
+        assert max(len(t) for t in labels) <= SIDEBAR_CHARS
