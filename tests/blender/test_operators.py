@@ -8,7 +8,7 @@ import bpy
 import numpy as np
 import pytest
 
-from ui_scenes import active_scene
+from ui_scenes import active_scene, look_at
 
 
 @pytest.fixture(scope="module")
@@ -21,6 +21,7 @@ def mods(lixel):
     m.warp = importlib.import_module(f"{lixel.__name__}.addon.warp")
     m.describe = importlib.import_module(f"{lixel.__name__}.addon.scene.describe")
     m.cli = importlib.import_module(f"{lixel.__name__}.addon.cli")
+    m.owned = importlib.import_module(f"{lixel.__name__}.addon.scene.owned")
     return m
 
 
@@ -189,6 +190,50 @@ def test_planes_without_selection_is_a_clear_error(scene):
     with pytest.raises(RuntimeError, match="no mesh selected"):
         bpy.ops.lixel.planes_from_selection()
 
+
+def _mesh_points(mesh) -> np.ndarray:
+    co = np.empty(len(mesh.vertices) * 3)
+    mesh.vertices.foreach_get("co", co)
+    return co.reshape(-1, 3)
+
+
+def _carried_matrices(carrier, mods) -> np.ndarray:
+    return np.array([np.array(d.value, dtype=np.float64) for d in
+                     carrier.data.attributes[mods.nodes.MATRIX_ATTRIBUTE].data])
+
+
+def _shown_debug(scene, mods, kind):
+    """The Lixel debug object of ``kind`` the scene shows (in a Lixel debug collection it holds)."""
+    return next(ob for coll in scene.collection.children if coll.name.startswith(mods.nodes.DEBUG_COLLECTION)
+                for ob in coll.objects if ob.get(mods.owned.DEBUG_KEY) == kind)
+
+
+def test_each_scene_keeps_its_own_debug_objects_and_light_matrices(lixel, mods):
+    """Two shots in one file, each with its own camera: baking or syncing in the second leaves what the first
+    shows (its baked B, the matrices its texel grid follows) as the first's setup made it. One shared "Lixel
+    Debug" collection made the second bake rewrite the first's B, and the second sync its texel grid."""
+    with active_scene("lixel_shot_a") as shot_a:
+        assert bpy.ops.lixel.bake_debug() == {"FINISHED"}
+        assert bpy.ops.lixel.sync_matrices() == {"FINISHED"}
+        body_a, carrier_a = _shown_debug(shot_a, mods, "baked:body"), _shown_debug(shot_a, mods, "carrier")
+        before = _mesh_points(body_a.data).copy(), _carried_matrices(carrier_a, mods)
+        with active_scene("lixel_shot_b") as shot_b:
+            shot_b.camera.location = (-8.0, 3.0, 6.0)
+            look_at(shot_b.camera, (0, 0, 0))
+            bpy.context.view_layer.update()
+            assert bpy.ops.lixel.bake_debug() == {"FINISHED"}
+            assert bpy.ops.lixel.sync_matrices() == {"FINISHED"}
+            body_b, carrier_b = _shown_debug(shot_b, mods, "baked:body"), _shown_debug(shot_b, mods, "carrier")
+            assert not np.allclose(_mesh_points(body_b.data).mean(0), before[0].mean(0))
+            assert not np.allclose(_carried_matrices(carrier_b, mods), before[1])
+        assert _shown_debug(shot_a, mods, "baked:body") == body_a
+        np.testing.assert_array_equal(_mesh_points(body_a.data), before[0])
+        np.testing.assert_array_equal(_carried_matrices(carrier_a, mods), before[1])
+    for coll in [c for c in bpy.data.collections if c.name.startswith(mods.nodes.DEBUG_COLLECTION)
+                 and mods.owned.is_lixel_made(c)]:
+        for ob in list(coll.objects):
+            bpy.data.objects.remove(ob)
+        bpy.data.collections.remove(coll)
 
 def test_texel_grid_frustum_and_sync(scene, mods):
     ground = scene.objects["lixel_ops ground"]
