@@ -79,7 +79,7 @@ def main(argv=None):
             if args.map_output and res.shadow_maps:
                 renders.save_png(renders.depth_to_rgba(res.shadow_maps[0]), args.map_output)
             t = res.timings
-            print(f"lixel: {st.method_used}: {len(st.setup.maps)} map(s), "
+            print(f"lixel: {st.method_used}: {len(st.setup.maps)} map(s) of light '{st.light_name}', "
                   f"{sum(t.values()) * 1000:.0f} ms render ({', '.join(f'{k} {v * 1000:.0f}' for k, v in t.items())})")
         return 0
 

@@ -137,7 +137,7 @@ def test_render_method_draws_the_method_it_was_asked_for(blend, tmp_path, load_p
         r = run("module", "render_method.py", blend, "--method", method, "--resolution", "96x54", "--size", "64",
                 "--shadow-output", str(mask))
         assert r.returncode == 0, r.stderr
-        assert f"lixel: {method}: " in r.stdout, r.stdout
+        assert f"lixel: {method}: 1 map(s) of light 'tiny light', " in r.stdout, r.stdout  # which of a scene's lights
         masks[method] = load_pixels(mask)[..., 0] > 0.5
     assert (masks["uniform"] != masks["lispsm"]).sum() > 10
 
