@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import copy
 import importlib
 import importlib.util
 import os
@@ -68,9 +69,16 @@ def base_parser(prog: str, description: str) -> argparse.ArgumentParser:
     return p
 
 
+BLENDER_PYTHON_OPTIONS = ("--python", "-P")
+"""How Blender's command line names the script it runs: a command line holding one is Blender's own."""
+
+
 def parse(parser: argparse.ArgumentParser, argv=None):
     """Parse and check the arguments; errors print usage and exit 2."""
     args_list, inside = script_args(argv)
+    if not inside and any(a in BLENDER_PYTHON_OPTIONS for a in args_list):
+        parser.error("Blender passes a script only the arguments after '--': blender -b FILE.blend --python "
+                     f"scripts/{parser.prog} -- [options]")
     args = parser.parse_args(args_list)
     if args.blend is None and not inside:
         parser.error("the .blend file is required (python scripts/X.py FILE.blend ...)")
@@ -115,6 +123,10 @@ def data_stdout(reserve: bool = True):
         os.close(saved)
 
 
+OUTPUT_OPTIONS = ("output", "json", "shadow_output", "map_output", "output_dir")
+"""The scripts' options that name files or folders to write."""
+
+
 class Session:
     """Opens the file, registers Lixel if Blender has not, and always unregisters."""
 
@@ -141,6 +153,14 @@ class Session:
                                       f"Blender cannot be read by an older one)") from None
             elif not bpy.data.filepath:
                 raise ScriptError("no .blend file is loaded: pass one (blender -b FILE.blend --python ...)")
+            for name in OUTPUT_OPTIONS:   # "//out.png": beside the .blend file, as in Blender (the OS reads "/out.png")
+                path = getattr(self.args, name, None)
+                if isinstance(path, str) and path.startswith("//"):
+                    setattr(self.args, name, bpy.path.abspath(path))
+                    path = getattr(self.args, name)
+                if isinstance(path, str) and os.path.exists(path) and os.path.samefile(path, bpy.data.filepath):
+                    raise ScriptError(f"--{name.replace('_', '-')} {path} is the .blend file being read: writing "
+                                      f"there would destroy it; choose another name")
         except BaseException:
             self.__exit__(None, None, None)
             raise
@@ -195,7 +215,9 @@ class Session:
         return settings
 
     def state(self, scene, settings):
-        """The live state for the scene (camera/light from the arguments); ScriptError on failure."""
+        """The live state for the scene (camera/light from the arguments), as a copy of its own: Lixel's live
+        update (``depsgraph_update_post``, which a render's GPU start or a frame change sets off) recomputes the
+        scene's stored state with the scene's own settings, camera and light. ScriptError on failure."""
         live = self.module("addon.ui.live")
         camera, light = self.objects(scene)
         depsgraph = self.bpy.context.evaluated_depsgraph_get()
@@ -203,7 +225,7 @@ class Session:
                          active=self.bpy.context.view_layer.objects.active)
         if st.error:
             raise ScriptError(st.error)
-        return st
+        return copy.copy(st)
 
 
 def _import_checkout():
@@ -248,13 +270,19 @@ def run(main) -> None:
     except ScriptError as exc:
         print(f"lixel: error: {exc}", file=sys.stderr)
         code = 1
-    except OSError as exc:  # an output the script cannot write: the path and why, not a bug report
-        print(f"lixel: error: cannot write '{exc.filename}': {exc.strerror or exc}", file=sys.stderr)
+    except BrokenPipeError:  # ``--output - | head``: the reader stopped early and has what it wanted
+        code = 1
+    except OSError as exc:  # an output the script cannot write: the path (or standard output) and why, not a bug
+        where = f"'{exc.filename}'" if exc.filename is not None else "the output"
+        print(f"lixel: error: cannot write {where}: {exc.strerror or exc}", file=sys.stderr)
         code = 1
     except Exception as exc:  # noqa: BLE001 - the script's guard: WarpError's message, or one line for a bug
         print(f"lixel: error: {_user_message(exc, f'running {Path(main.__code__.co_filename).name}')}",
               file=sys.stderr)
         code = 1
-    sys.stdout.flush()
-    sys.stderr.flush()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except OSError:     # a closed pipe or a full disk, already said
+            pass
     os._exit(code or 0)

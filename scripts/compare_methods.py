@@ -43,7 +43,8 @@ def main(argv=None):
         rows = live.compare_methods(st, methods)
         print(live.comparison_table(rows))
         os.makedirs(args.output_dir, exist_ok=True)
-        doc = {"scene": scene.name, "camera": (scene.camera.name if scene.camera else None), "light": st.light_name,
+        camera = s.objects(scene)[0] or s.module("addon.scene.describe").render_camera(scene)
+        doc = {"scene": scene.name, "camera": camera.name, "light": st.light_name,
                "methods": {}}
         for row in rows:
             entry = {k: v for k, v in row.items() if k not in ("setup", "method")}

@@ -21,7 +21,8 @@ def parser():
     p.add_argument("--shadow-output", help="PNG file for the shadow mask (white = shadowed)")
     p.add_argument("--map-output", help="PNG file for the first shadow map's depth")
     p.add_argument("--json", help="write the setup (matrices + diagnostics, the CLI's format) to this file")
-    p.add_argument("--resolution", help="WxH pixels (default: the scene's render size)")
+    p.add_argument("--resolution", help="WxH pixels, framed as Blender frames that output size (default: the "
+                                        "scene's render size)")
     p.add_argument("--frame", type=int, help="frame to render (default: the current frame)")
     p.add_argument("--list-methods", action="store_true", help="print the available methods and exit")
     return p
@@ -55,6 +56,9 @@ def main(argv=None):
         if args.method is not None and args.method not in methods:
             p.error(f"--method {args.method!r}: choose one of {', '.join(methods)}")
         scene = s.scene()
+        if resolution is not None:  # rendered as Blender renders that output size (never saved)
+            scene.render.resolution_x, scene.render.resolution_y = resolution
+            scene.render.resolution_percentage = 100
         if args.frame is not None:
             scene.frame_set(args.frame)
         st = s.state(scene, s.settings(scene, args.method))
@@ -65,7 +69,7 @@ def main(argv=None):
                 json.dump(s.module("addon.cli.output").setup_json(st.setup), fh, indent=2)
         if args.output or args.shadow_output or args.map_output:
             renders = s.module("addon.ui.renders")
-            res = renders.render_state(st, s.bpy.context.evaluated_depsgraph_get(), resolution or st.view.resolution)
+            res = renders.render_state(st, s.bpy.context.evaluated_depsgraph_get(), st.view.resolution)
             if args.output:
                 renders.save_png(res.combined, args.output)
             if args.shadow_output:
@@ -75,7 +79,7 @@ def main(argv=None):
             if args.map_output and res.shadow_maps:
                 renders.save_png(renders.depth_to_rgba(res.shadow_maps[0]), args.map_output)
             t = res.timings
-            print(f"lixel: {st.method_used}: {len(st.setup.maps)} map(s), "
+            print(f"lixel: {st.method_used}: {len(st.setup.maps)} map(s) of light '{st.light_name}', "
                   f"{sum(t.values()) * 1000:.0f} ms render ({', '.join(f'{k} {v * 1000:.0f}' for k, v in t.items())})")
         return 0
 

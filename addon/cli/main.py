@@ -5,7 +5,8 @@ field and exits with status 2. An empty intersection body is reported in the
 output (no maps, ``diagnostics.empty_body`` says why, plus a note on stderr),
 not crashed on. An unexpected exception (a bug) is one line on stderr too
 (``LIXEL_DEBUG=1`` prints the traceback); with ``--method all`` the other
-methods' results are still printed.
+methods' results are still printed. Output that cannot be written (a full disk) is one line too; a reader that
+stops early (``| head``) ends the command quietly, with status 1.
 """
 from __future__ import annotations
 
@@ -97,7 +98,14 @@ def _main(argv=None) -> int:
         out = results[args.method]
         if "error" in out["diagnostics"]:
             return _error(f"{args.method}: {out['diagnostics']['error']}", 1)
-    json.dump(out, sys.stdout, indent=args.indent)
-    sys.stdout.write("\n")
+    try:
+        json.dump(out, sys.stdout, indent=args.indent)
+        sys.stdout.write("\n")
+        sys.stdout.flush()
+    except OSError as exc:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())   # nothing left for the flush at exit
+        if isinstance(exc, BrokenPipeError):    # the reader stopped early (| head): it has what it wanted
+            return 1
+        return _error(f"cannot write the output: {exc.strerror or exc}", 1)
     return 0
 

@@ -48,7 +48,8 @@ def is_lixel_made(idb) -> bool:
     return any(k in keys for k in LEGACY_KEYS)
 
 
-def _made_as(idb, name: str) -> bool:
+def made_as(idb, name: str) -> bool:
+    """True when ``idb`` is the datablock Lixel made under ``name`` (files from before the mark: named so)."""
     made = idb.get(MADE_KEY)
     return is_lixel_made(idb) and (made == name if made is not None else idb.name == name)
 
@@ -57,7 +58,7 @@ def find_made(datablocks, name: str):
     """The datablock of ``datablocks`` (a ``bpy.data`` collection) that Lixel made
     under ``name``, or None. A user's datablock of that name is never returned."""
     idb = datablocks.get(name)
-    if idb is not None and getattr(idb, "library", None) is None and _made_as(idb, name):
+    if idb is not None and getattr(idb, "library", None) is None and made_as(idb, name):
         return idb
     for idb in datablocks:
         if idb.get(MADE_KEY) == name and getattr(idb, "library", None) is None and is_lixel_made(idb):

@@ -30,7 +30,7 @@ from ..scene.geometry import shared_cache
 from ..scene.owned import is_debug_object
 from ..settings import LixelSettings
 from ..warp import METHODS, compute, focused_body
-from ..warp.types import WarpError
+from ..warp.types import EmptyBodyError, WarpError
 from .overlay_geometry import footprint_estimate, overlay_geometry
 
 log = logging.getLogger(__name__)
@@ -262,7 +262,13 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         geometry = timed("overlay geometry", overlay_geometry, view, setup, body.faces)
         recomputed.append("overlays")
         footprint = timed("footprint", footprint_estimate, setup, view, light, _r_sample(body))
-    except Exception as exc:  # noqa: BLE001 - WarpError (EmptyBodyError included) or a bug: a message either way
+    except EmptyBodyError as exc:   # the core's words ("the camera sees no shadow receiver"), with names and a remedy
+        st.body = None
+        cam = camera if camera is not None else followed_camera(scene)
+        return _fail(st, f"Camera '{getattr(cam, 'name', '')}' and light '{st.light_name}' leave Lixel nothing to "
+                         f"shadow: {exc}; aim the camera (or the light) at the objects that receive shadows",
+                     timings)
+    except Exception as exc:  # noqa: BLE001 - WarpError or a bug: a message either way
         st.body = None
         return _fail(st, user_message(exc, f"computing Lixel's setup for scene '{scene.name}'"), timings)
     note = "; ".join(n for n in (note, *st.light_notes) if n)

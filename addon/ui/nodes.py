@@ -29,7 +29,7 @@ the carrier's matrices change, every group using it follows.
 import bpy
 import numpy as np
 
-from ..scene.owned import DEBUG_KEY, find_made, is_lixel_made, lixel_datablock, mark_made
+from ..scene.owned import DEBUG_KEY, find_made, is_lixel_made, lixel_datablock, made_as, mark_made
 from ..warp.geometry import finite_clip_volume_corners
 
 TEXEL_GROUP = "Lixel Texel Grid"
@@ -312,31 +312,46 @@ def ensure_texel_material():
 # --- the matrix carrier and the objects using the groups --------------------------------------------------------
 
 def debug_collection(scene):
-    """Lixel's "Lixel Debug" collection, linked to the scene (created if needed;
-    a user's collection of that name is left alone)."""
-    coll, _ = lixel_datablock(bpy.data.collections, DEBUG_COLLECTION)
-    if coll not in tuple(scene.collection.children):
-        scene.collection.children.link(coll)
+    """``scene``'s "Lixel Debug" collection: the one Lixel made that the scene holds, else one Lixel made that no
+    scene holds, else a new one, linked to the scene. Each scene has its own (a second scene's is "Lixel
+    Debug.001"), so baking or syncing in one never rewrites what another shows. A user's collection of that name
+    is left alone."""
+    for coll in scene.collection.children:
+        if coll.library is None and made_as(coll, DEBUG_COLLECTION):
+            return coll
+    held = {c.name for s in bpy.data.scenes for c in s.collection.children}
+    coll = next((c for c in bpy.data.collections if c.library is None and c.name not in held
+                 and made_as(c, DEBUG_COLLECTION)), None)
+    if coll is None:
+        coll = mark_made(bpy.data.collections.new(DEBUG_COLLECTION), DEBUG_COLLECTION)
+    scene.collection.children.link(coll)
     return coll
 
 
-def lixel_mesh(name):
-    """The mesh for Lixel's object ``name``: the one it shows when Lixel made it and nothing else shows it (a copy
-    the user keeps may share it), else a new one. Never a user's mesh, whatever its name."""
-    mesh = getattr(find_made(bpy.data.objects, name), "data", None)
+def scene_debug_object(scene, name: str):
+    """The object Lixel made as ``name`` in ``scene``'s debug collection, or None."""
+    return next((ob for ob in debug_collection(scene).objects if made_as(ob, name)), None)
+
+
+def lixel_mesh(name, scene):
+    """The mesh for ``scene``'s Lixel object ``name``: the one it shows when Lixel made it and nothing else shows
+    it (a copy the user keeps may share it), else a new one. Never a user's mesh, whatever its name."""
+    mesh = getattr(scene_debug_object(scene, name), "data", None)
     if mesh is not None and mesh.users == 1 and is_lixel_made(mesh):
         return mesh
     return mark_made(bpy.data.meshes.new(name), name)
 
 
 def debug_object(scene, name, kind, data):
-    """Lixel's debug object ``name`` in the debug collection, given ``data`` (reused
+    """``scene``'s debug object ``name`` in its debug collection, given ``data`` (reused
     if Lixel made it before: re-baking replaces the data, never duplicates the
-    object). A user's object of that name is left alone: Lixel's takes the next
+    object). A user's object of that name, or another scene's, is left alone: this one takes the next
     free name."""
     coll = debug_collection(scene)
-    ob, made_now = lixel_datablock(bpy.data.objects, name, data)
-    if not made_now and ob.data is not data:
+    ob = scene_debug_object(scene, name)
+    if ob is None:
+        ob = mark_made(bpy.data.objects.new(name, data), name)
+    elif ob.data is not data:
         old = ob.data
         ob.data = data
         if old is not None and old.users == 0 and is_lixel_made(old):
@@ -373,7 +388,7 @@ def write_matrices(mesh, matrices, sizes) -> None:
 
 def ensure_carrier(scene, setup):
     """The matrix carrier object holding ``setup``'s maps (updated in place)."""
-    mesh = lixel_mesh(CARRIER_NAME)
+    mesh = lixel_mesh(CARRIER_NAME, scene)
     write_matrices(mesh, [m.matrix for m in setup.maps], [m.size for m in setup.maps])
     ob = debug_object(scene, CARRIER_NAME, "carrier", mesh)
     ob.hide_render = True
@@ -456,7 +471,7 @@ def add_frustum_object(scene, carrier, map_index: int = 0):
     """A debug object whose mesh is map ``map_index``'s clip volume, following the carrier."""
     group = ensure_frustum_group()
     name = f"Lixel Frustum (map {map_index})"
-    ob = debug_object(scene, name, "frustum_nodes", lixel_mesh(name))
+    ob = debug_object(scene, name, "frustum_nodes", lixel_mesh(name, scene))
     mod = _matrix_modifier(ob, FRUSTUM_MODIFIER, group, carrier, map_index)
     ob.display_type = "WIRE"
     ob.update_tag()

@@ -36,6 +36,22 @@ def method_parameters(method: str, light_type: str = "") -> tuple[str, ...]:
     return tuple(names)
 
 
+LINE_CHARS = 42
+"""Characters of a message line that fit the sidebar at its default width."""
+
+
+READOUT_CHARS = 32
+"""A readout value longer than this is wrapped below its label instead of sharing the label's row."""
+
+
+def wrapped_label(layout, text: str, icon: str) -> None:
+    """``text`` in full as lines of at most :data:`LINE_CHARS` (Blender cuts a long label off at the panel's
+    edge), ``icon`` on the first."""
+    lines = textwrap.wrap(" ".join(text.split()), LINE_CHARS, break_long_words=False, break_on_hyphens=False)
+    for i, line in enumerate(lines or [""]):
+        layout.label(text=line, icon=icon if i == 0 else "BLANK1")
+
+
 def split_layout(layout):
     """``layout`` with properties in split rows, without animation decorators."""
     layout.use_property_split, layout.use_property_decorate = True, False
@@ -70,19 +86,16 @@ class LIXEL_PT_main(LixelPanel, bpy.types.Panel):
             col.label(text=f"Using: {st.light_name}" if st is not None and st.light_name else
                       "Using: the active light, else the first sun", icon="INFO")
         col.prop(props, "method")
-        if scene.camera is None:
+        if scene.camera is None and live.local_camera(context) is None:
             col.label(text="The scene has no camera: add one and make it active", icon="ERROR")
         row = layout.row(align=True)
         row.operator("lixel.refresh", icon="FILE_REFRESH")
         row.prop(props, "live_update", text="", icon="REC" if props.live_update else "PAUSE", toggle=True)
         st = live.state(scene)
         if st is not None and st.error:
-            box = layout.box()
-            for i, line in enumerate(textwrap.wrap(" ".join(st.error.split()), 42, break_long_words=False,
-                                                   break_on_hyphens=False) or [""]):
-                box.label(text=line, icon="ERROR" if i == 0 else "BLANK1")
+            wrapped_label(layout.box(), st.error, "ERROR")
         elif st is not None and st.note:
-            layout.label(text=st.note, icon="INFO")
+            wrapped_label(layout.column(align=True), st.note, "INFO")
         if not props.initialised:
             box = layout.box()
             box.label(text="Not set up: renders with the preference defaults", icon="PREFERENCES")
@@ -176,6 +189,10 @@ class LIXEL_PT_readouts(LixelPanel, bpy.types.Panel):
             return
         col = layout.column(align=True)
         for label, value in live.readouts(st):
+            if len(value) > READOUT_CHARS:          # a sentence (an error, a fallback's reason): wrapped, full width
+                col.label(text=label)
+                wrapped_label(col, value, "BLANK1")
+                continue
             row = col.row()
             split = row.split(factor=0.4)
             split.label(text=label)

@@ -225,11 +225,14 @@ def load_pixels(path) -> np.ndarray:
 
 def save_png(rgba: np.ndarray, path: str, name: Optional[str] = None, linear: bool = True) -> None:
     """Write an image (row 0 at the bottom) to a PNG file; ``linear`` as in :func:`to_image`. OSError (naming
-    ``path``) when it cannot be written."""
+    ``path``) when it cannot be written. A relative ``path`` is the working directory's (Blender 5.0 cannot save to a
+    bare file name such as "out.png": it fails to make its empty folder); "//" paths stay the .blend file's."""
+    import os
+
     import bpy
     img = to_image(name or "Lixel output", rgba, existing_ok=False, linear=linear)
     try:
-        img.filepath_raw = str(path)
+        img.filepath_raw = str(path) if str(path).startswith("//") else os.path.abspath(path)
         img.file_format = "PNG"
         img.save()
     except RuntimeError as exc:  # Blender's "Error: Could not write image: <why>" (or "internal error, see console")

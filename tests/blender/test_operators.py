@@ -8,7 +8,7 @@ import bpy
 import numpy as np
 import pytest
 
-from ui_scenes import active_scene
+from ui_scenes import active_scene, look_at
 
 
 @pytest.fixture(scope="module")
@@ -21,6 +21,7 @@ def mods(lixel):
     m.warp = importlib.import_module(f"{lixel.__name__}.addon.warp")
     m.describe = importlib.import_module(f"{lixel.__name__}.addon.scene.describe")
     m.cli = importlib.import_module(f"{lixel.__name__}.addon.cli")
+    m.owned = importlib.import_module(f"{lixel.__name__}.addon.scene.owned")
     return m
 
 
@@ -103,6 +104,20 @@ def test_export_reports_an_unwritable_path(scene, tmp_path):
         bpy.ops.lixel.export_json(filepath=str(tmp_path / "missing_dir" / "x.json"))
 
 
+def test_export_to_a_blend_relative_path_writes_beside_the_blend_file(lixel, tmp_path):
+    """"//setup.json" is Blender's way to say "beside the .blend file"; it was opened as "/setup.json", the root of
+    the file system."""
+    before = tmp_path / "before.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(before), copy=True)
+    (tmp_path / "project").mkdir()
+    try:
+        with active_scene("lixel_relative"):
+            bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "project" / "shot.blend"))
+            assert bpy.ops.lixel.export_json(filepath="//setup.json") == {"FINISHED"}
+        assert set(json.loads((tmp_path / "project" / "setup.json").read_text())) == {"maps", "diagnostics"}
+    finally:
+        bpy.ops.wm.open_mainfile(filepath=str(before), load_ui=False)
+
 def test_compare_lists_and_renders_every_method(scene, mods):
     assert bpy.ops.lixel.compare(longest_side=64) == {"FINISHED"}
     text = bpy.data.texts["Lixel Comparison"].as_string()
@@ -123,6 +138,28 @@ def test_compare_lists_and_renders_every_method(scene, mods):
     bpy.data.texts.remove(bpy.data.texts["Lixel Comparison"])
     bpy.data.images.remove(img)
 
+
+def test_compare_from_a_3d_view_with_a_local_camera_names_that_camera(scene, mods):
+    """View sidebar > View > Local Camera, with or without a scene camera: Compare runs on the view's camera and
+    its text names that camera (it named the scene's, and failed as a bug where the scene has none)."""
+    side = bpy.data.objects.new("lixel_ops side", bpy.data.cameras.new("lixel_ops side"))
+    scene.collection.objects.link(side)
+    side.location = (-6, -7, 5)
+    side.rotation_euler = (-side.location).to_track_quat("-Z", "Y").to_euler()
+    win = bpy.context.window
+    area = next(a for a in win.screen.areas if a.type == "VIEW_3D")
+    space, region = area.spaces.active, next(r for r in area.regions if r.type == "WINDOW")
+    was = space.use_local_camera, space.camera
+    try:
+        space.use_local_camera, space.camera = True, side
+        for scene_camera in (scene.camera, None):
+            scene.camera = scene_camera
+            with bpy.context.temp_override(window=win, area=area, region=region, space_data=space):
+                assert bpy.ops.lixel.compare(longest_side=16) == {"FINISHED"}
+            assert "camera 'lixel_ops side'" in bpy.data.texts["Lixel Comparison"].as_string().splitlines()[0]
+    finally:
+        space.use_local_camera, space.camera = was
+        mods.live.follow(scene, None)
 
 def test_planes_from_selected_objects_and_faces(scene):
     ground = scene.objects["lixel_ops ground"]
@@ -153,6 +190,50 @@ def test_planes_without_selection_is_a_clear_error(scene):
     with pytest.raises(RuntimeError, match="no mesh selected"):
         bpy.ops.lixel.planes_from_selection()
 
+
+def _mesh_points(mesh) -> np.ndarray:
+    co = np.empty(len(mesh.vertices) * 3)
+    mesh.vertices.foreach_get("co", co)
+    return co.reshape(-1, 3)
+
+
+def _carried_matrices(carrier, mods) -> np.ndarray:
+    return np.array([np.array(d.value, dtype=np.float64) for d in
+                     carrier.data.attributes[mods.nodes.MATRIX_ATTRIBUTE].data])
+
+
+def _shown_debug(scene, mods, kind):
+    """The Lixel debug object of ``kind`` the scene shows (in a Lixel debug collection it holds)."""
+    return next(ob for coll in scene.collection.children if coll.name.startswith(mods.nodes.DEBUG_COLLECTION)
+                for ob in coll.objects if ob.get(mods.owned.DEBUG_KEY) == kind)
+
+
+def test_each_scene_keeps_its_own_debug_objects_and_light_matrices(lixel, mods):
+    """Two shots in one file, each with its own camera: baking or syncing in the second leaves what the first
+    shows (its baked B, the matrices its texel grid follows) as the first's setup made it. One shared "Lixel
+    Debug" collection made the second bake rewrite the first's B, and the second sync its texel grid."""
+    with active_scene("lixel_shot_a") as shot_a:
+        assert bpy.ops.lixel.bake_debug() == {"FINISHED"}
+        assert bpy.ops.lixel.sync_matrices() == {"FINISHED"}
+        body_a, carrier_a = _shown_debug(shot_a, mods, "baked:body"), _shown_debug(shot_a, mods, "carrier")
+        before = _mesh_points(body_a.data).copy(), _carried_matrices(carrier_a, mods)
+        with active_scene("lixel_shot_b") as shot_b:
+            shot_b.camera.location = (-8.0, 3.0, 6.0)
+            look_at(shot_b.camera, (0, 0, 0))
+            bpy.context.view_layer.update()
+            assert bpy.ops.lixel.bake_debug() == {"FINISHED"}
+            assert bpy.ops.lixel.sync_matrices() == {"FINISHED"}
+            body_b, carrier_b = _shown_debug(shot_b, mods, "baked:body"), _shown_debug(shot_b, mods, "carrier")
+            assert not np.allclose(_mesh_points(body_b.data).mean(0), before[0].mean(0))
+            assert not np.allclose(_carried_matrices(carrier_b, mods), before[1])
+        assert _shown_debug(shot_a, mods, "baked:body") == body_a
+        np.testing.assert_array_equal(_mesh_points(body_a.data), before[0])
+        np.testing.assert_array_equal(_carried_matrices(carrier_a, mods), before[1])
+    for coll in [c for c in bpy.data.collections if c.name.startswith(mods.nodes.DEBUG_COLLECTION)
+                 and mods.owned.is_lixel_made(c)]:
+        for ob in list(coll.objects):
+            bpy.data.objects.remove(ob)
+        bpy.data.collections.remove(coll)
 
 def test_texel_grid_frustum_and_sync(scene, mods):
     ground = scene.objects["lixel_ops ground"]
@@ -193,6 +274,38 @@ def test_texel_grid_leaves_objects_linked_from_a_library_and_says_so(scene, tmp_
         bpy.data.objects.remove(linked)
         bpy.data.libraries.remove(library)
 
+
+WRITES_SCENE = [("reset_settings", {}), ("bake_debug", {}), ("frustum_add", {}), ("sync_matrices", {}),
+                ("texel_grid_add", {}), ("planes_from_selection", {}), ("plane_remove", {})]
+
+
+def test_a_scene_linked_from_a_library_is_read_only_to_the_operators_that_change_it(lixel, tmp_path):
+    """A linked scene cannot keep what an operator writes (and Blender refuses to link objects into it): the
+    operators that change it say so by name, with the library, instead of reporting a bug or changing settings
+    that would silently revert on reload; those that only read it still work."""
+    with active_scene("lixel_library_scene") as sc:
+        sc.lixel.method, sc.lixel.initialised = "uniform", True
+        sc.lixel.planes.add().source = "kept"
+        bpy.data.libraries.write(str(tmp_path / "scenes.blend"), {sc})
+    with bpy.data.libraries.load(str(tmp_path / "scenes.blend"), link=True) as (_src, dst):
+        dst.scenes = ["lixel_library_scene"]
+    linked = dst.scenes[0]
+    n_objects = len(bpy.data.objects)
+    try:
+        with bpy.context.temp_override(scene=linked, view_layer=linked.view_layers[0]):
+            for op, kw in WRITES_SCENE:
+                with pytest.raises(RuntimeError, match="Scene 'lixel_library_scene' is linked from scenes.blend and "
+                                                       "cannot be changed here: make it local") as err:
+                    getattr(bpy.ops.lixel, op)(**kw)
+                assert "a bug in Lixel" not in str(err.value)
+            assert bpy.ops.lixel.refresh() == {"FINISHED"}
+            assert bpy.ops.lixel.export_json(filepath=str(tmp_path / "linked.json")) == {"FINISHED"}
+        assert linked.lixel.method == "uniform" and [p.source for p in linked.lixel.planes] == ["kept"]
+        assert len(bpy.data.objects) == n_objects and "Lixel Debug" not in bpy.data.collections
+    finally:
+        library = linked.library
+        bpy.data.scenes.remove(linked)
+        bpy.data.libraries.remove(library)
 
 def test_texel_grid_on_a_library_override_says_its_mesh_is_linked_and_how_to_free_it(scene, tmp_path):
     """Object > Library Override > Make overrides the objects but keeps their meshes linked, where the grid's
@@ -275,6 +388,14 @@ def test_missing_input_is_reported_clearly(lixel, missing, pattern, op, kw):
         assert "Lixel Debug" not in bpy.data.collections
         assert sc.lixel.planes is not None
 
+
+def test_a_camera_that_sees_nothing_to_shadow_is_named_with_what_to_do(scene):
+    """A camera turned to the sky: the report names the camera and the light and says what to change, instead of
+    the core's bare "the camera sees no shadow receiver (scene boxes)"."""
+    scene.objects["lixel_ops camera"].rotation_euler = (3.14159, 0.0, 0.0)    # looking straight up
+    with pytest.raises(RuntimeError, match=r"Camera 'lixel_ops camera' and light 'lixel_ops light' leave Lixel "
+                                           r"nothing to shadow: the camera sees no shadow receiver .*; aim the camera"):
+        bpy.ops.lixel.refresh()
 
 def test_texel_grid_without_mesh_or_camera(lixel):
     with active_scene("lixel_missing_grid", camera=False) as sc:

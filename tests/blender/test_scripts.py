@@ -44,7 +44,7 @@ def blend(tmp_path_factory, lixel):
     return path
 
 
-def run(mode, script, blend_path, *args, timeout=240):
+def run(mode, script, blend_path, *args, timeout=240, cwd=ROOT):
     env = dict(os.environ)
     scratch = Path(blend_path).parent if blend_path else Path(tempfile.gettempdir())
     env.setdefault("XDG_CACHE_HOME", str(scratch / "xdg"))
@@ -54,7 +54,7 @@ def run(mode, script, blend_path, *args, timeout=240):
         cmd = [sys.executable, script_path] + ([str(blend_path)] if blend_path else []) + list(args)
     else:
         cmd = [sys.executable, "-c", BLENDER_MODE, str(blend_path), script_path] + list(args)
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env, cwd=str(ROOT))
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env, cwd=str(cwd))
 
 
 MODES = ["module", "blender"]
@@ -88,6 +88,30 @@ def test_export_animation_to_stdout_is_json_only(blend):
     assert "Read blend" in r.stderr or "Read" not in r.stdout
 
 
+def _run_to(stdout, script, blend_path, *args):
+    """``run("module", ...)`` with standard output going to ``stdout`` (a file descriptor or file)."""
+    env = dict(os.environ)
+    env.setdefault("XDG_CACHE_HOME", str(Path(blend_path).parent / "xdg"))
+    env.setdefault("BLENDER_USER_RESOURCES", str(Path(blend_path).parent / "user"))
+    return subprocess.run([sys.executable, str(SCRIPTS / script), str(blend_path), *args], stdout=stdout,
+                          stderr=subprocess.PIPE, text=True, timeout=240, env=env, cwd=str(ROOT))
+
+
+def test_export_animation_to_a_reader_that_stops_early_or_a_full_disk(blend):
+    """``--output - | head`` ends quietly; a full disk is named as the output, not as a file called 'None'."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)                                   # a reader that has already stopped
+    try:
+        r = _run_to(write_end, "export_animation.py", blend, "--output", "-", "--frames", "1:2")
+    finally:
+        os.close(write_end)
+    assert r.returncode == 1 and "lixel: error" not in r.stderr and "Traceback" not in r.stderr, r.stderr
+    if os.path.exists("/dev/full"):
+        with open("/dev/full", "w") as full:
+            r = _run_to(full, "export_animation.py", blend, "--output", "-", "--frames", "1:2")
+        assert r.returncode == 1 and "lixel: error: cannot write the output: No space left on device" in r.stderr, \
+            r.stderr
+
 @pytest.mark.parametrize("mode", MODES)
 def test_render_method_writes_pictures_and_json(mode, blend, tmp_path, load_pixels):
     png, mask, js = tmp_path / "r.png", tmp_path / "mask.png", tmp_path / "r.json"
@@ -104,6 +128,40 @@ def test_render_method_writes_pictures_and_json(mode, blend, tmp_path, load_pixe
     assert png.stat().st_size > 0
 
 
+def test_render_method_draws_the_method_it_was_asked_for(blend, tmp_path, load_pixels):
+    """The scene's own method is lispsm: ``--method uniform`` must render (and name) uniform's shadows, not the
+    scene's, even though Lixel's live update recomputes the scene's own setup when the render starts."""
+    masks = {}
+    for method in ("uniform", "lispsm"):
+        mask = tmp_path / f"{method}.png"
+        r = run("module", "render_method.py", blend, "--method", method, "--resolution", "96x54", "--size", "64",
+                "--shadow-output", str(mask))
+        assert r.returncode == 0, r.stderr
+        assert f"lixel: {method}: 1 map(s) of light 'tiny light', " in r.stdout, r.stdout  # which of a scene's lights
+        masks[method] = load_pixels(mask)[..., 0] > 0.5
+    assert (masks["uniform"] != masks["lispsm"]).sum() > 10
+
+
+def test_a_picture_named_without_a_folder_goes_to_the_working_directory(blend, tmp_path):
+    """``--output out.png`` (the usage line's own example): Blender 5.0 cannot save an image to a bare file name."""
+    r = run("module", "render_method.py", blend, "--resolution", "32x18", "--output", "out.png",
+            "--shadow-output", "./mask.png", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "out.png").stat().st_size > 0 and (tmp_path / "mask.png").stat().st_size > 0
+
+def test_a_resolution_of_another_shape_is_framed_as_blender_frames_it_not_stretched(blend, tmp_path, load_pixels):
+    """The scene renders 640x360 with the sensor fitted automatically (to the wider side): at 96x96 Blender keeps
+    the horizontal field of view and shows more above and below, so the middle 54 rows are the 96x54 picture."""
+    pictures = {}
+    for size in ("96x54", "96x96"):
+        png = tmp_path / f"{size}.png"
+        r = run("module", "render_method.py", blend, "--resolution", size, "--output", str(png))
+        assert r.returncode == 0, r.stderr
+        pictures[size] = load_pixels(png)[..., :3]
+    assert pictures["96x96"].shape[:2] == (96, 96)
+    same = np.isclose(pictures["96x96"][21:75], pictures["96x54"], atol=0.02).all(axis=-1)
+    assert same.mean() > 0.99, same.mean()
+
 @pytest.mark.parametrize("mode", MODES)
 def test_compare_methods_numbers_only(mode, blend, tmp_path):
     out = tmp_path / "cmp"
@@ -114,6 +172,44 @@ def test_compare_methods_numbers_only(mode, blend, tmp_path):
     assert doc["methods"]["lispsm"]["n_opt"] > 0
     assert "uniform" in r.stdout and "lispsm" in r.stdout
 
+
+@pytest.mark.parametrize("mode", MODES)
+def test_a_blend_relative_output_is_written_beside_the_blend_file(mode, blend):
+    """"//name" is Blender's "beside the .blend file" (as in ``blender -o //render_``): the JSON went to the file
+    system's root, the picture beside the file."""
+    names = [f"relative {mode}.json", f"relative {mode}.png"]
+    try:
+        r = run(mode, "render_method.py", blend, "--resolution", "16x9", "--json", f"//{names[0]}",
+                "--output", f"//{names[1]}")
+        assert r.returncode == 0, r.stderr
+        assert all((Path(blend).parent / name).stat().st_size > 0 for name in names)
+    finally:
+        for name in names:
+            for where in (Path(blend).parent, Path("/")):
+                (where / name).unlink(missing_ok=True)
+
+@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize("option", ["--output", "--json"])
+def test_an_output_naming_the_blend_file_itself_is_refused_and_the_file_kept(mode, blend, option):
+    """A slip of the shell (``--output scene.blend``) must not turn the user's .blend file into a picture."""
+    before = Path(blend).read_bytes()
+    r = run(mode, "render_method.py", blend, "--resolution", "16x9", option, str(blend))
+    assert r.returncode == 1 and f"lixel: error: {option} {blend} is the .blend file being read" in r.stderr, r.stderr
+    assert Path(blend).read_bytes() == before
+
+def test_compare_methods_names_the_camera_it_was_given(lixel, tmp_path):
+    path = tmp_path / "two cameras.blend"
+    with active_scene("two_cameras") as scene:
+        side = bpy.data.objects.new("two_cameras side", scene.camera.data.copy())
+        scene.collection.objects.link(side)
+        side.matrix_world = scene.camera.matrix_world
+        side.location.x -= 1.0
+        bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    out = tmp_path / "cmp"
+    r = run("module", "compare_methods.py", path, "--output-dir", str(out), "--no-render", "--methods", "uniform",
+            "--camera", "two_cameras side")
+    assert r.returncode == 0, r.stderr
+    assert json.loads((out / "comparison.json").read_text())["camera"] == "two_cameras side"
 
 def test_compare_methods_renders_each(blend, tmp_path):
     out = tmp_path / "cmp"
@@ -144,6 +240,16 @@ def test_bad_arguments_print_usage_and_fail(mode, blend, tmp_path, script, args,
     assert r.returncode == 2, (r.returncode, r.stderr)
     assert "usage:" in r.stderr and message in r.stderr
 
+
+def test_blenders_command_line_without_the_double_dash_says_where_the_arguments_go(blend, tmp_path):
+    """``blender -b FILE --python scripts/X.py --output x.png`` (no ``--``): the script sees Blender's own options."""
+    argv_setter = BLENDER_MODE.replace('"--python", script, "--"]', '"--python", script]')
+    out = tmp_path / "x.png"
+    r = subprocess.run([sys.executable, "-c", argv_setter, str(blend), str(SCRIPTS / "render_method.py"),
+                        "--output", str(out)], capture_output=True, text=True, timeout=240, cwd=str(ROOT))
+    assert r.returncode == 2, r.stderr
+    assert "only the arguments after '--': blender -b FILE.blend --python scripts/render_method.py -- " in r.stderr
+    assert not out.exists()
 
 def test_missing_blend_file(tmp_path):
     r = run("module", "render_method.py", None, "--output", "x.png")

@@ -112,3 +112,41 @@ def test_panel_shows_the_error_of_a_scene_without_camera(lixel, panel):
             bpy.ops.lixel.refresh()
         labels = [t for kind, t in draw_all(panel, bpy.context) if kind == "label"]
         assert any("no camera" in t for t in labels)
+
+
+SIDEBAR_CHARS = 42
+"""Characters of a label the sidebar shows whole at its default width."""
+
+
+def test_a_warning_too_long_for_one_line_is_shown_in_full(lixel, panel):
+    """An area light's note is a sentence: Blender cuts a label off at the sidebar's edge, so the panel wraps it
+    into lines that fit, as it wraps an error."""
+    live = importlib.import_module(f"{lixel.__name__}.addon.ui.live")
+    with active_scene("lixel_panel_note", light="AREA") as scene:
+        bpy.ops.lixel.refresh()
+        note = " ".join(live.state(scene).note.split())
+        assert note.startswith("Area light") and len(note) > SIDEBAR_CHARS
+        labels = [t for kind, t in draw_all(panel, bpy.context) if kind == "label"]
+        first = next(i for i, t in enumerate(labels) if t and note.startswith(t))
+        shown = labels[first:first + 1]
+        while len(" ".join(shown)) < len(note):
+            shown.append(labels[first + len(shown)])
+        assert " ".join(shown) == note
+        assert max(len(t) for t in shown) <= SIDEBAR_CHARS
+
+
+def test_a_readout_that_is_a_sentence_is_shown_in_full(lixel, panel):
+    """The Readouts panel repeats an error (and a fallback's reason) as a value: wrapped to the sidebar too."""
+    live = importlib.import_module(f"{lixel.__name__}.addon.ui.live")
+    with active_scene("lixel_panel_readouts") as scene:
+        scene.camera.rotation_euler = (3.14159, 0.0, 0.0)      # looking at the sky: an error
+        with pytest.raises(RuntimeError):
+            bpy.ops.lixel.refresh()
+        error = " ".join(live.state(scene).error.split())
+        log = []
+        fake = type("Fake", (), {})()
+        fake.layout = StandInLayout(log)
+        panel.LIXEL_PT_readouts.draw(fake, bpy.context)
+        labels = [t for kind, t in log if kind == "label" and t]
+        assert error in " ".join(labels)
+        assert max(len(t) for t in labels) <= SIDEBAR_CHARS

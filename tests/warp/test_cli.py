@@ -334,6 +334,33 @@ def test_unreadable_files(tmp_path):
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr
 
 
+
+def _cli_command(*args):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    env.pop("LIXEL_DEBUG", None)
+    return [PLAIN_PYTHON, "-m", "addon.warp", *args], env
+
+
+def test_a_reader_that_stops_early_gets_no_traceback():
+    """``python -m addon.warp ... | head``: the reader closes the pipe; the command ends without a traceback."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)                                   # a reader that has already stopped
+    cmd, env = _cli_command("--method", "all", str(EXAMPLES[0]))
+    try:
+        r = subprocess.run(cmd, stdout=write_end, stderr=subprocess.PIPE, text=True, cwd=ROOT, env=env, timeout=120)
+    finally:
+        os.close(write_end)
+    assert r.returncode == 1 and r.stderr == "", r.stderr
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
+def test_output_to_a_full_disk_is_one_line_naming_it():
+    cmd, env = _cli_command("--method", "uniform", str(EXAMPLES[0]))
+    with open("/dev/full", "w") as full:
+        r = subprocess.run(cmd, stdout=full, stderr=subprocess.PIPE, text=True, cwd=ROOT, env=env, timeout=120)
+    assert r.returncode == 1 and r.stderr == "lixel: error: cannot write the output: No space left on device\n", \
+        r.stderr
+
 def test_unknown_method():
     r = run_cli("--method", "nope", str(EXAMPLES[0]))
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "--method" in r.stderr

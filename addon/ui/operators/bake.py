@@ -15,10 +15,10 @@ from .common import LixelSceneOperator
 BAKED = "baked"
 
 
-def mesh_from_polygons(name, polygons):
-    """Lixel's mesh ``name`` (new or emptied) from convex polygons, vertices shared
+def mesh_from_polygons(name, polygons, scene):
+    """``scene``'s Lixel mesh ``name`` (new or emptied) from convex polygons, vertices shared
     where polygons meet."""
-    mesh = nodes.lixel_mesh(name)
+    mesh = nodes.lixel_mesh(name, scene)
     mesh.clear_geometry()
     verts, index, faces = [], {}, []
     for poly in polygons:
@@ -35,9 +35,9 @@ def mesh_from_polygons(name, polygons):
     return mesh
 
 
-def mesh_from_segments(name, segments):
-    """Lixel's mesh ``name`` (new or emptied) holding line segments."""
-    mesh = nodes.lixel_mesh(name)
+def mesh_from_segments(name, segments, scene):
+    """``scene``'s Lixel mesh ``name`` (new or emptied) holding line segments."""
+    mesh = nodes.lixel_mesh(name, scene)
     mesh.clear_geometry()
     seg = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 3)
     verts = [tuple(p) for p in seg.reshape(-1, 3)]
@@ -67,7 +67,7 @@ def bake(scene, st) -> list:
     longer has (e.g. fewer maps). Returns the objects."""
     made = []
     for name, kind, what, data in baked_items(st):
-        mesh = mesh_from_polygons(name, data) if what == "faces" else mesh_from_segments(name, data)
+        mesh = mesh_from_polygons(name, data, scene) if what == "faces" else mesh_from_segments(name, data, scene)
         ob = nodes.debug_object(scene, name, f"{BAKED}:{kind}", mesh)
         ob.display_type = "SOLID" if kind == "body" else "WIRE"
         if kind == "body":
@@ -93,6 +93,7 @@ class LIXEL_OT_bake_debug(LixelSceneOperator, bpy.types.Operator):
     bl_idname = "lixel.bake_debug"
     bl_label = "Bake Debug Geometry"
     bl_options = {"REGISTER", "UNDO"}
+    changes_scene = True
 
     @guarded_operator
     def execute(self, context):
@@ -124,6 +125,7 @@ class LIXEL_OT_texel_grid_add(LixelSceneOperator, bpy.types.Operator):
     bl_idname = "lixel.texel_grid_add"
     bl_label = "Add Texel Grid"
     bl_options = {"REGISTER", "UNDO"}
+    changes_scene = True
 
     map_index: IntProperty(name="Map", default=0, min=0, description="Which shadow map's texels to show")
     remove: BoolProperty(name="Remove", default=False, description="Remove the texel grid instead")
@@ -160,6 +162,7 @@ class LIXEL_OT_frustum_add(LixelSceneOperator, bpy.types.Operator):
     bl_idname = "lixel.frustum_add"
     bl_label = "Add Frustum From Matrix"
     bl_options = {"REGISTER", "UNDO"}
+    changes_scene = True
 
     map_index: IntProperty(name="Map", default=0, min=0)
 
@@ -193,6 +196,7 @@ class LIXEL_OT_sync_matrices(LixelSceneOperator, bpy.types.Operator):
     bl_idname = "lixel.sync_matrices"
     bl_label = "Sync Light Matrices"
     bl_options = {"REGISTER", "UNDO"}
+    changes_scene = True
 
     @guarded_operator
     def execute(self, context):

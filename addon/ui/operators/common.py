@@ -14,6 +14,21 @@ def scene_poll(cls, context) -> bool:
     return True
 
 
+def editable_scene_poll(cls, context) -> bool:
+    """:func:`scene_poll`, and the scene is the file's own: a scene linked from a library is read-only (what an
+    operator added to it could not be saved, and Blender refuses to link objects into its collections)."""
+    if not scene_poll(cls, context):
+        return False
+    library = context.scene.library
+    if library is not None:
+        if hasattr(cls, "poll_message_set"):
+            cls.poll_message_set(f"Scene '{context.scene.name}' is linked from {library.name} and cannot be changed "
+                                 f"here: make it local (Outliner, Blender File view: right-click it > Make Local) "
+                                 f"or change it in {library.name}")
+        return False
+    return True
+
+
 def active_object(context):
     view_layer = getattr(context, "view_layer", None)
     return view_layer.objects.active if view_layer is not None else None
@@ -47,11 +62,14 @@ def initialise(context) -> None:
 class LixelSceneOperator:
     """Mixin for operators on the context scene's Lixel setup: ``poll`` needs a
     scene with Lixel settings, ``fresh_state`` recomputes the setup or reports
-    what is missing (and returns None)."""
+    what is missing (and returns None). ``changes_scene``: the operator writes the scene's settings or adds to it,
+    so it needs a scene of the file's own (:func:`editable_scene_poll`)."""
+
+    changes_scene = False
 
     @classmethod
     def poll(cls, context):
-        return scene_poll(cls, context)
+        return editable_scene_poll(cls, context) if cls.changes_scene else scene_poll(cls, context)
 
     def fresh_state(self, context, map_index: int | None = None):
         """The recomputed state; None, reported, when something is missing or the setup has no map ``map_index``."""

@@ -52,15 +52,16 @@ class LIXEL_OT_export_json(LixelSceneOperator, bpy.types.Operator, ExportHelper)
         if st is None:
             return {"CANCELLED"}
         doc = export_document(st, self.all_methods)
+        path = bpy.path.abspath(self.filepath)      # "//name.json": beside the .blend file, as Blender's paths are
         try:
-            with open(self.filepath, "w", encoding="utf-8") as fh:
+            with open(path, "w", encoding="utf-8") as fh:
                 json.dump(doc, fh, indent=2 if self.indent else None)
                 fh.write("\n")
         except OSError as exc:
-            self.report({"ERROR"}, f"Lixel: cannot write '{self.filepath}': {exc.strerror}")
+            self.report({"ERROR"}, f"Lixel: cannot write '{path}': {exc.strerror}")
             return {"CANCELLED"}
         what = "every method" if self.all_methods else f"{len(st.setup.maps)} map(s) of {st.method_used}"
-        self.report({"INFO"}, f"Lixel: exported {what} to {self.filepath}")
+        self.report({"INFO"}, f"Lixel: exported {what} to {path}")
         return {"FINISHED"}
 
 
@@ -99,7 +100,8 @@ class LIXEL_OT_compare(LixelSceneOperator, bpy.types.Operator):
                 self.report({"WARNING"}, f"Lixel: no comparison render: {exc}")
         text, _ = lixel_datablock(bpy.data.texts, COMPARISON_TEXT)
         text.clear()
-        text.write(f"Lixel comparison, scene '{context.scene.name}', camera '{context.scene.camera.name}', "
+        camera = live.followed_camera(context.scene)            # the 3D view's Local Camera, else the scene's
+        text.write(f"Lixel comparison, scene '{context.scene.name}', camera '{camera.name}', "
                    f"light '{st.light_name}', {len(METHODS)} method(s)\n"
                    "texel px = screen pixels one shadow-map texel spans, on surfaces in view facing halfway between "
                    "camera and light (≤ 1: no perspective aliasing)\n\n" + table + note + "\n")

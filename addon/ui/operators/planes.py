@@ -8,7 +8,7 @@ from ...scene.owned import DEBUG_KEY
 from ...scene.planes import NoPlane, planes_from_objects, planes_from_selected_faces
 from ...warp.plane_map import enclosing_polygon
 from ..properties import PLANE_CORNERS
-from .common import LixelSceneOperator, initialise, scene_poll
+from .common import LixelSceneOperator, editable_scene_poll, initialise
 
 
 def selection_planes(context) -> list:
@@ -25,6 +25,7 @@ class LIXEL_OT_planes_from_selection(LixelSceneOperator, bpy.types.Operator):
     bl_idname = "lixel.planes_from_selection"
     bl_label = "Planes From Selection"
     bl_options = {"REGISTER", "UNDO"}
+    changes_scene = True
 
     append: BoolProperty(name="Append", default=False, description="Add to the existing planes instead of replacing them")
 
@@ -67,7 +68,7 @@ class LIXEL_OT_plane_remove(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return scene_poll(cls, context) and len(context.scene.lixel.planes) > 0
+        return editable_scene_poll(cls, context) and len(context.scene.lixel.planes) > 0
 
     @guarded_operator
     def execute(self, context):

@@ -34,6 +34,7 @@ class LIXEL_OT_reset_settings(LixelSceneOperator, bpy.types.Operator):
     bl_idname = "lixel.reset_settings"
     bl_label = "Reset to Preferences"
     bl_options = {"REGISTER", "UNDO"}
+    changes_scene = True
 
     @guarded_operator
     def execute(self, context):
