@@ -352,17 +352,20 @@ def check_finite_geometry(geometry) -> None:
 
 
 def light_notes(light_obj) -> list[str]:
-    """Warnings about a light Lixel renders but that may surprise: no strength,
-    an area light approximated by a spot, light or shadow linking (which Lixel does not follow), a spot scaled
-    unevenly (Blender stretches its cone by the X and Y scale against the Z scale; Lixel's cone is round)."""
+    """Warnings about a light Lixel renders but that may surprise: no strength, or a negative one (which Cycles and
+    Lixel subtract), an area light approximated by a spot, light or shadow linking (which Lixel does not follow), a
+    spot scaled unevenly (Blender stretches its cone by the X and Y scale against the Z scale; Lixel's cone is round)."""
     notes = []
     data = getattr(light_obj, "data", None)
     if data is None:
         return notes
     energy = float(getattr(data, "energy", 1.0))
-    if energy <= 0:
-        notes.append(f"Light '{light_obj.name}' has a strength of {energy:g}: it lights nothing, so its shadows show "
+    if energy == 0:
+        notes.append(f"Light '{light_obj.name}' has a strength of 0: it lights nothing, so its shadows show "
                      f"only in the Shadow pass (Light properties > Power/Strength)")
+    elif energy < 0:     # Cycles subtracts such a light (measured in 5.0.1: a sun of -1 darkens the world's 0.40 to 0.12)
+        notes.append(f"Light '{light_obj.name}' has a negative strength ({energy:g}): it takes light away, as in "
+                     f"Cycles, so its shadows are the brighter places (Light properties > Power/Strength)")
     if data.type == "AREA":
         notes.append(f"Area light '{light_obj.name}' is shadowed as a spot light at its centre (hard shadows, "
                      f"cone = its spread, at most 179°)")

@@ -328,6 +328,10 @@ def test_light_notes_say_what_renders_differently(describe, fresh_scene):
     assert describe.light_notes(sun) == [
         "Light 'Sun' has a strength of 0: it lights nothing, so its shadows show only in the Shadow pass "
         "(Light properties > Power/Strength)"]
+    sun.data.energy = -2.0          # Cycles subtracts a negative light: it does not light nothing
+    assert describe.light_notes(sun) == [
+        "Light 'Sun' has a negative strength (-2): it takes light away, as in Cycles, so its shadows are the "
+        "brighter places (Light properties > Power/Strength)"]
     assert describe.light_notes(area) == [
         "Area light 'Area' is shadowed as a spot light at its centre (hard shadows, cone = its spread, at most 179°)"]
     spot = add_light(fresh_scene, "SPOT", spot_size=math.pi)   # Blender's widest spot: no perspective map covers it
