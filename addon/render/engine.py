@@ -202,7 +202,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     render (``describe.eye_view``)."""
     from ..gpu.batches import shared_batches
     from ..gpu.pipeline import ShadowFrame
-    from ..scene.describe import (NoLightError, check_finite_geometry, describe_scene, eye_view, light_notes,
+    from ..scene.describe import (NO_FACES, NoLightError, check_finite_geometry, describe_scene, eye_view, light_notes,
                                   lost_depth_note, pick_light, render_camera)
     from ..scene.geometry import shared_cache
 
@@ -250,8 +250,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     t = time.perf_counter()
     try:
         if len(bounds.receivers) == 0:   # everything hidden (an animation's frame, say): the world, as Blender's engines
-            raise EmptyBodyError(f"scene '{scene.name}' has no visible mesh, curve or text objects, so the frame "
-                                 f"shows only the world background")
+            raise EmptyBodyError(f"scene '{scene.name}' {NO_FACES}, so the frame shows only the world background")
         if unlit is not None:
             raise EmptyBodyError(f"{unlit}; the frame is lit by the world alone")
         if not getattr(light_obj.data, "use_shadow", True):

@@ -351,6 +351,10 @@ def check_finite_geometry(geometry) -> None:
         _finite_meshes[id(mesh)] = mesh
 
 
+NO_FACES = "has no visible faces (no mesh, curve or text object with faces)"
+"""What a scene lacks where nothing can receive a shadow: an object of only edges or points shades nothing."""
+
+
 def light_notes(light_obj) -> list[str]:
     """Warnings about a light Lixel renders but that may surprise: no strength, or a negative one (which Cycles and
     Lixel subtract), an area light approximated by a spot, light or shadow linking (which Lixel does not follow), a
@@ -503,7 +507,7 @@ def describe_scene(context_or_scene, depsgraph=None, camera=None, light=None,
     ``depsgraph``: the evaluated depsgraph (a render engine passes its own);
     for a bare scene it defaults to the view layer's depsgraph, evaluated.
     ``camera``/``light``: objects (or names) overriding the scene camera and
-    :func:`pick_light`'s choice. ``need_receivers``: a scene the camera can see nothing of (no visible mesh, curve
+    :func:`pick_light`'s choice. ``need_receivers``: a scene the camera can see nothing of (no visible faces: mesh, curve
     or text object) raises WarpError; False: its bounds have no receivers (a render shows the world background).
     ``need_light``: a scene that shows no light raises :class:`NoLightError`; False: the Light is None (a render
     shows the world's light alone).
@@ -534,6 +538,5 @@ def describe_scene(context_or_scene, depsgraph=None, camera=None, light=None,
     lit = describe_light(light_obj, depsgraph) if light_obj is not None else None
     bounds = describe_bounds(depsgraph, instances)
     if need_receivers and len(bounds.receivers) == 0:
-        raise WarpError(f"Scene '{scene.name}' has no visible mesh, curve or text objects: "
-                        f"add geometry to cast and receive shadows")
+        raise WarpError(f"Scene '{scene.name}' {NO_FACES}: add geometry to cast and receive shadows")
     return view, lit, bounds

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..gpu.blas import one_blas_thread
 from ..guard import user_message
-from ..scene.describe import (check_finite_geometry, describe_bounds, describe_light, describe_view, light_notes,
+from ..scene.describe import (NO_FACES, check_finite_geometry, describe_bounds, describe_light, describe_view, light_notes,
                               pick_light, render_camera)
 from ..scene.geometry import shared_cache
 from ..scene.owned import is_debug_object
@@ -238,8 +238,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         if "bounds" in todo or bounds is None:
             bounds = timed("describe bounds", scene_bounds, depsgraph)
             if len(bounds.receivers) == 0:
-                raise WarpError(f"Scene '{scene.name}' has no visible mesh, curve or text objects: "
-                                f"add geometry to cast and receive shadows")
+                raise WarpError(f"Scene '{scene.name}' {NO_FACES}: add geometry to cast and receive shadows")
     except Exception as exc:  # noqa: BLE001 - every caller gets the message in state.error
         return _fail(st, user_message(exc, f"describing scene '{scene.name}'"), timings)
 

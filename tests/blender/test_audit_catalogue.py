@@ -148,7 +148,7 @@ CASES = {
                             r"Object 'catalogue ground' has vertices with non-finite coordinates \(NaN or infinity\)"),
     "empty_scene": Case(lambda sc: [bpy.data.objects.remove(ob) for ob in list(sc.objects)],
                         r"Scene 'catalogue' has no camera", engine_refused=r"Cannot render, no camera"),
-    "mesh_with_no_faces": Case(_no_faces, r"Scene 'catalogue' has no visible mesh, curve or text objects: add",
+    "mesh_with_no_faces": Case(_no_faces, r"Scene 'catalogue' has no visible faces \(no mesh, curve or text object with faces\): add",
                                engine_refused="", check="world_only"),
     "map_size_0": Case(lambda sc: setattr(sc.lixel, "shadow_map_size", (0, 0)),
                        r"Scene 'catalogue' has a shadow map size of 0x0, out of range: use 16\.\.16384"),

@@ -375,7 +375,7 @@ NEEDS_SETUP = [
 @pytest.mark.parametrize("missing,pattern", [
     ("camera", "no camera"),
     ("light", "no light"),
-    ("mesh", "no visible mesh"),
+    ("mesh", "no visible faces"),
 ])
 @pytest.mark.parametrize("op,kw", NEEDS_SETUP)
 def test_missing_input_is_reported_clearly(lixel, missing, pattern, op, kw):

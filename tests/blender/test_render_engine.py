@@ -225,7 +225,7 @@ def test_a_light_keyed_hidden_for_a_frame_leaves_it_lit_by_the_world_and_the_ani
 
 def test_a_frame_with_nothing_visible_shows_the_world_and_the_animation_goes_on(engine, scene, tmp_path):
     """Objects keyed hidden from renders for a frame (a cut, a title): Blender's engines render the world there.
-    Lixel refused the frame ("no visible mesh"), which ended an animation render at it: frames 2 and 3 of 3 were
+    Lixel refused the frame ("no visible mesh, curve or text objects"), which ended an animation render at it: frames 2 and 3 of 3 were
     never written. It now renders the world background with a warning, and the animation goes on."""
     build(scene)
     got = _render_frames_1_to_3_hiding_on_2(engine, scene, [scene.objects["Ground"], scene.objects["Box"]], tmp_path)
@@ -234,8 +234,8 @@ def test_a_frame_with_nothing_visible_shows_the_world_and_the_animation_goes_on(
                                rtol=1e-6)
     assert not empty.shadow_mask.any() and last.shadow_mask.max() > 0.5
     np.testing.assert_array_equal(first.combined, last.combined)
-    assert got[1]["warnings"] == ("Lixel: no shadows in this view (scene '" + scene.name + "' has no visible mesh, "
-                                  "curve or text objects, so the frame shows only the world background)",)
+    assert got[1]["warnings"] == ("Lixel: no shadows in this view (scene '" + scene.name + "' has no visible faces "
+                                  "(no mesh, curve or text object with faces), so the frame shows only the world background)",)
 
 
 def test_a_lixel_light_hidden_from_renders_is_named_and_lights_nothing(engine, scene, capfd):

@@ -189,7 +189,7 @@ def test_errors_name_the_object_and_the_fix(describe, types_mod, fresh_scene):
 def test_empty_scene_is_reported(describe, types_mod, fresh_scene):
     add_camera(fresh_scene)
     add_light(fresh_scene, "SUN")
-    with pytest.raises(types_mod.WarpError, match=r"no visible mesh"):
+    with pytest.raises(types_mod.WarpError, match=r"no visible faces"):
         describe.describe_scene(fresh_scene)
 
 
