@@ -1036,6 +1036,35 @@ def test_with_an_include_only_the_included_objects_are_lit_or_cast(engine, scene
 
 
 @pytest.mark.parametrize("attr", ["receiver_collection", "blocker_collection"])
+def test_the_viewport_picture_follows_light_and_shadow_linking(engine, scene, lixel, attr):
+    """The 3D view's picture (``addon/ui/renders.py`` ``pip_textures``) is drawn as the engine draws: the box
+    excluded from the Sun's receivers is not lit by it (its pixels get the world's light alone, the others stay
+    as they were); excluded from its blockers, its shadow is gone."""
+    renders = importlib.import_module(lixel.__name__ + ".addon.ui.renders")
+    live = importlib.import_module(lixel.__name__ + ".addon.ui.live")
+    describe = importlib.import_module(lixel.__name__ + ".addon.scene.describe")
+    build(scene)
+    scene.lixel.eye_blur = 0.0
+
+    def picture():
+        dg = describe.evaluated_depsgraph(scene)
+        return renders.pip_images(live.update(scene, dg), dg, 96, False, True)["scene"]
+    plain = picture()
+    coll = _link(scene, attr, {scene.objects["Box"]: "EXCLUDE"})
+    try:
+        linked = picture()
+    finally:
+        _unlink(coll)
+    changed = np.any(linked != plain, axis=-1)
+    assert changed.sum() > 100
+    if attr == "receiver_collection":      # darker: the world's light alone
+        assert (linked[changed][:, :3] < plain[changed][:, :3]).all()
+        assert np.ptp(linked[changed][:, :3], axis=0).max() == 0.0
+    else:                                  # lighter: its shadow gone
+        assert (linked[changed][:, :3] > plain[changed][:, :3]).all()
+
+
+@pytest.mark.parametrize("attr", ["receiver_collection", "blocker_collection"])
 @pytest.mark.parametrize("linked", ["instancer", "instanced object"])
 @pytest.mark.parametrize("kind", ["collection", "nodes"])
 def test_an_instance_follows_its_instancer_and_a_collection_instance_its_own_object_too(engine, scene, kind,
