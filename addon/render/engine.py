@@ -210,7 +210,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     from ..scene.describe import (NoLightError, check_finite_geometry, describe_scene, eye_view, light_notes,
                                   lost_depth_note, pick_light, render_camera)
     from ..scene.geometry import shared_cache
-    from ..scene.linking import light_links
+    from ..scene.linking import light_links, linking_note
 
     scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
     settings = settings or scene_settings(scene)
@@ -240,6 +240,9 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         warnings.append(f"Lixel: {note}")
     timings["describe"] = time.perf_counter() - t
     links = light_links(light_obj, geometry.instances)   # Light/Shadow Linking: what it lights, what blocks it
+    note = linking_note(light_obj, geometry.instances)
+    if warnings is not None and note:
+        warnings.append(f"Lixel: {note}")
     frame = ShadowFrame(geometry, view, resolution or view.resolution, read=read, targets=targets, timed=timed,
                         lit=links.lit, blocks=links.blocks)
     frame.camera_prepass()

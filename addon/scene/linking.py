@@ -53,18 +53,36 @@ def members(collection, linkers: np.ndarray) -> np.ndarray:
     object's entry is read first, then its instancer's."""
     states = link_states(collection)
     include = "INCLUDE" in states.values()
-    state = [states.get(own) or states.get(parent) for parent, own in linkers.tolist()]
-    if include:
-        return np.fromiter((s == "INCLUDE" for s in state), dtype=bool, count=len(state))
-    return np.fromiter((s != "EXCLUDE" for s in state), dtype=bool, count=len(state))
+    rows, inverse = np.unique(linkers, axis=0, return_inverse=True)     # (few deciders, many instances)
+    state = [states.get(own) or states.get(parent) for parent, own in rows.tolist()]
+    member = np.array([(s == "INCLUDE") if include else (s != "EXCLUDE") for s in state], dtype=bool)
+    return member[inverse.reshape(-1)]
+
+
+def _collections(light_obj) -> tuple:
+    linking = getattr(light_obj, "light_linking", None)
+    return getattr(linking, "receiver_collection", None), getattr(linking, "blocker_collection", None)
+
+
+def linking_note(light_obj, instances) -> Optional[str]:
+    """A warning where ``light_obj`` has linking that :func:`light_links` cannot follow: the readers recorded no
+    ``linkers`` because no light object of the scene has linking (the light is itself an instance, say of a
+    linked collection, which ``instances.light_linked`` does not look into)."""
+    receivers, blockers = _collections(light_obj)
+    if (receivers is None and blockers is None) or len(instances.linkers) == len(instances):
+        return None
+    what = " and ".join(f"{kind} to collection '{c.name}'" for kind, c in
+                        (("Light Linking", receivers), ("Shadow Linking", blockers)) if c is not None)
+    return (f"Light '{light_obj.name}' has {what} but is an instance (of a collection instance): Lixel does not "
+            f"follow it and lights and shadows every object; make it a real object (Object > Apply > Make "
+            f"Instances Real) to have its linking followed")
 
 
 def light_links(light_obj, instances) -> LightLinks:
     """The masks of ``light_obj``'s Light Linking (``lit``) and Shadow Linking (``blocks``) over ``instances``;
-    none where it has no such collection (nothing to follow: a frame draws as without linking)."""
-    linking = getattr(light_obj, "light_linking", None)
-    receivers = getattr(linking, "receiver_collection", None)
-    blockers = getattr(linking, "blocker_collection", None)
+    none where it has no such collection (nothing to follow: a frame draws as without linking), or where the
+    readers recorded no ``linkers`` (see :func:`linking_note`)."""
+    receivers, blockers = _collections(light_obj)
     if (receivers is None and blockers is None) or len(instances.linkers) != len(instances):
         return LightLinks()
     return LightLinks(lit=None if receivers is None else members(receivers, instances.linkers),

@@ -1035,6 +1035,37 @@ def test_with_an_include_only_the_included_objects_are_lit_or_cast(engine, scene
                                   np.broadcast_to(_world_lit(ref), (on_ground.sum(), 3)))
 
 
+def test_the_linking_of_an_instanced_light_is_named_not_silently_ignored(engine, scene):
+    """A light that is itself an instance (of a collection instance: a linked lighting rig) is the one case whose
+    linking Lixel does not follow (its readers look for linking on the scene's light objects only): it lights and
+    shadows every object, and says so, naming the light, the collection and what to do."""
+    build(scene)
+    sun = scene.objects["Sun"]
+    rig = bpy.data.collections.new("Rig")
+    rig.objects.link(sun)
+    scene.collection.objects.unlink(sun)
+    instance = add(scene, "Rig instance", None)
+    instance.instance_type, instance.instance_collection = "COLLECTION", rig
+    coll = bpy.data.collections.new("lixel_test linking")
+    coll.objects.link(scene.objects["Box"])
+    coll.collection_objects[0].light_linking.link_state = "EXCLUDE"
+    sun.light_linking.blocker_collection = coll
+    try:
+        with engine.watch_renders() as got:
+            assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    finally:
+        bpy.data.collections.remove(coll)
+        bpy.data.collections.remove(rig)
+        light = sun.data
+        bpy.data.objects.remove(sun)                                  # no longer in the scene: not the fixture's
+        bpy.data.lights.remove(light)
+    assert [w for w in got[-1]["warnings"] if "Linking" in w] == [
+        "Lixel: Light 'Sun' has Shadow Linking to collection 'lixel_test linking' but is an instance (of a "
+        "collection instance): Lixel does not follow it and lights and shadows every object; make it a real object "
+        "(Object > Apply > Make Instances Real) to have its linking followed"]
+    assert got[-1]["result"].shadow_mask.max() > 0.9
+
+
 @pytest.mark.parametrize("attr", ["receiver_collection", "blocker_collection"])
 def test_the_viewport_picture_follows_light_and_shadow_linking(engine, scene, lixel, attr):
     """The 3D view's picture (``addon/ui/renders.py`` ``pip_textures``) is drawn as the engine draws: the box
