@@ -832,6 +832,25 @@ def _instancer(scene, kind: str, instanced):
     return host
 
 
+def _remove_instancer(host, instanced) -> None:
+    """Undo :func:`_instancer` (the host goes with the scene)."""
+    if host.instance_type == "COLLECTION":
+        bpy.data.collections.remove(host.instance_collection)
+    else:
+        tree = host.modifiers[0].node_group
+        host.modifiers.clear()
+        bpy.data.node_groups.remove(tree)
+    mesh = instanced.data
+    bpy.data.objects.remove(instanced)
+    bpy.data.meshes.remove(mesh)
+
+
+def _instanced_pixels(world_position) -> np.ndarray:
+    """Pixels showing the 0.9 cube :func:`_instancer` places."""
+    p = world_position
+    return np.all((p >= np.array([-0.05, -2.65, 1.15]) - 1e-3) & (p <= np.array([0.85, -1.75, 2.05]) + 1e-3), axis=-1)
+
+
 @pytest.mark.parametrize("held", ["instancer", "instanced object"])
 @pytest.mark.parametrize("kind", ["collection", "nodes"])
 def test_an_instance_is_held_out_with_its_instancer(engine, scene, kind, held):
@@ -848,17 +867,8 @@ def test_an_instance_is_held_out_with_its_instancer(engine, scene, kind, held):
         cut = _render(engine, scene, read={"covered"})
     finally:
         instanced.is_holdout = host.is_holdout = False
-        if kind == "collection":
-            bpy.data.collections.remove(host.instance_collection)
-        else:
-            tree = host.modifiers[0].node_group
-            host.modifiers.clear()
-            bpy.data.node_groups.remove(tree)
-        mesh = instanced.data
-        bpy.data.objects.remove(instanced)
-        bpy.data.meshes.remove(mesh)
-    p = plain["result"].world_position
-    hole = np.all((p >= np.array([-0.05, -2.65, 1.15]) - 1e-3) & (p <= np.array([0.85, -1.75, 2.05]) + 1e-3), axis=-1)
+        _remove_instancer(host, instanced)
+    hole = _instanced_pixels(plain["result"].world_position)
     assert hole.sum() > 100
     res = cut["result"]
     if held == "instancer":
@@ -932,6 +942,17 @@ def _unlink(coll) -> None:
     bpy.data.collections.remove(coll)
 
 
+def _with_and_without(engine, scene, attr: str, states: dict, child: dict = ()) -> tuple:
+    """(render without linking, render with :func:`_link`'s collection), reading the combined image, the shadow
+    and the surface seen."""
+    plain = _render(engine, scene, read={"combined", "shadow_mask", "world_position"})
+    coll = _link(scene, attr, states, child)
+    try:
+        return plain, _render(engine, scene, read={"combined", "shadow_mask", "world_position"})
+    finally:
+        _unlink(coll)
+
+
 def _world_lit(res) -> float:
     """The combined image's value where the sun's light is fully shadowed (the world's light alone)."""
     shadowed = res.combined[res.shadow_mask >= 1.0][:, :3]
@@ -952,12 +973,7 @@ def test_an_object_excluded_from_the_lights_receivers_is_not_lit_by_it_but_still
     scene.lixel.eye_blur = 2.0 if passes == "blurred" else 0.0
     box = scene.objects["Box"]
     try:
-        plain = _render(engine, scene, read={"combined", "shadow_mask", "world_position"})
-        coll = _link(scene, "receiver_collection", {box: "EXCLUDE"})
-        try:
-            linked = _render(engine, scene, read={"combined", "shadow_mask", "world_position"})
-        finally:
-            _unlink(coll)
+        plain, linked = _with_and_without(engine, scene, "receiver_collection", {box: "EXCLUDE"})
     finally:
         scene.lixel.eye_blur = 0.0
     res, ref = linked["result"], plain["result"]
@@ -985,12 +1001,7 @@ def test_a_blocker_excluded_from_shadow_linking_casts_no_shadow_of_that_light(en
     out. (Here it is the only caster: no shadow is left.)"""
     build(scene)
     box = scene.objects["Box"]
-    plain = _render(engine, scene, read={"combined", "shadow_mask", "world_position"})
-    coll = _link(scene, "blocker_collection", {box: "EXCLUDE"})
-    try:
-        linked = _render(engine, scene, read={"combined", "shadow_mask", "world_position"})
-    finally:
-        _unlink(coll)
+    plain, linked = _with_and_without(engine, scene, "blocker_collection", {box: "EXCLUDE"})
     res, ref = linked["result"], plain["result"]
     assert (ref.shadow_mask > 0.9).sum() > 100
     assert res.shadow_mask.max() < 0.01
@@ -1010,16 +1021,11 @@ def test_with_an_include_only_the_included_objects_are_lit_or_cast(engine, scene
     shadow is cast."""
     build(scene)
     box, ground = scene.objects["Box"], scene.objects["Ground"]
-    plain = _render(engine, scene, read={"combined", "shadow_mask", "world_position"})
     included, excluded = (box, {ground: "EXCLUDE"}) if attr == "receiver_collection" else (ground, {})
     if how == "object":
-        coll = _link(scene, attr, {included: "INCLUDE", **excluded})
+        plain, linked = _with_and_without(engine, scene, attr, {included: "INCLUDE", **excluded})
     else:
-        coll = _link(scene, attr, excluded, child={"INCLUDE": [included]})
-    try:
-        linked = _render(engine, scene, read={"combined", "shadow_mask", "world_position"})
-    finally:
-        _unlink(coll)
+        plain, linked = _with_and_without(engine, scene, attr, excluded, child={"INCLUDE": [included]})
     res, ref = linked["result"], plain["result"]
     if attr == "blocker_collection":
         assert (ref.shadow_mask > 0.9).sum() > 100
@@ -1107,26 +1113,12 @@ def test_an_instance_follows_its_instancer_and_a_collection_instance_its_own_obj
     build(scene)
     instanced = bpy.data.objects.new("Linked", cube_mesh("Linked", 0.9, 0.0))
     host = _instancer(scene, kind, instanced)
-    coll = None
     try:
-        plain = _render(engine, scene, read={"combined", "shadow_mask", "world_position"})
-        coll = _link(scene, attr, {host if linked == "instancer" else instanced: "EXCLUDE"})
-        got = _render(engine, scene, read={"combined", "shadow_mask", "world_position"})
+        plain, got = _with_and_without(engine, scene, attr, {host if linked == "instancer" else instanced: "EXCLUDE"})
     finally:
-        if coll is not None:
-            _unlink(coll)
-        if kind == "collection":
-            bpy.data.collections.remove(host.instance_collection)
-        else:
-            tree = host.modifiers[0].node_group
-            host.modifiers.clear()
-            bpy.data.node_groups.remove(tree)
-        mesh = instanced.data
-        bpy.data.objects.remove(instanced)
-        bpy.data.meshes.remove(mesh)
+        _remove_instancer(host, instanced)
     res, ref = got["result"], plain["result"]
-    p = ref.world_position
-    seen = np.all((p >= np.array([-0.05, -2.65, 1.15]) - 1e-3) & (p <= np.array([0.85, -1.75, 2.05]) + 1e-3), axis=-1)
+    seen = _instanced_pixels(ref.world_position)
     assert seen.sum() > 100
     if linked == "instanced object" and kind == "nodes":        # its own entry does not count
         np.testing.assert_array_equal(res.combined, ref.combined)
