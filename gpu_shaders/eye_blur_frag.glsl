@@ -4,6 +4,8 @@
  * aliasing is large on screen) are blurred most and distant detail is kept.
  * Only seen pixels contribute (u_data = the shading pass's out_data: shadow
  * in r, eye depth in a: positive where a surface is seen, 0 where nothing is).
+ * A surface the light does not light (Light Linking: shadow -1,
+ * shade_frag.glsl) has no shadow and lends none to its neighbours.
  * The radius is rounded half to even, like numpy's rint. */
 void main()
 {
@@ -11,7 +13,7 @@ void main()
   ivec2 size = textureSize(u_data, 0);
   vec4 here = texelFetch(u_data, p, 0);
   float radius = u_blur.x, d_near = u_blur.y;
-  bool covered = here.a > 0.0;
+  bool covered = here.a > 0.0 && here.r >= 0.0;
   int r = covered ? int(roundEven(radius * d_near / max(here.a, d_near))) : 0;
   float shadow = covered ? here.r : 0.0;
   if (r > 0) {
@@ -21,7 +23,7 @@ void main()
         ivec2 q = p + ivec2(dx, dy);
         if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
         vec4 v = texelFetch(u_data, q, 0);
-        if (v.a > 0.0) {
+        if (v.a > 0.0 && v.r >= 0.0) {
           num += v.r;
           den += 1.0;
         }

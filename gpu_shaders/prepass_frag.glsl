@@ -16,7 +16,11 @@
  * colour target is not cleared: where the depth says nothing was drawn it
  * holds stale values, which no pass reads. A held-out receiver (LIXEL_HOLDOUT:
  * addon/scene/instances.py holdout_test) also sets bit 31, the sign, which the
- * unpacking ignores: the shading pass reads a negative code as a holdout. */
+ * unpacking ignores: the shading pass reads a negative code as a holdout. A
+ * receiver the light does not light (LIXEL_UNLIT: Light Linking,
+ * addon/scene/linking.py) sets bit 29 instead of bit 30 (the exponent stays
+ * that of a normal finite float, 2^-63..2^0 rather than 2^1..2^64; setting
+ * both could make it an infinity or NaN), which the unpacking ignores too. */
 vec2 lixel_octahedral(vec3 n)
 {
   n /= abs(n.x) + abs(n.y) + abs(n.z);
@@ -34,9 +38,13 @@ void main()
    * towards the viewer). */
   vec2 o = lixel_octahedral(cross(dFdx(v_world), dFdy(v_world)));
   uvec2 q = uvec2(floor(clamp(o * 0.5 + 0.5, 0.0, 1.0) * vec2(16383.0, 32767.0) + 0.5));
-#ifdef LIXEL_HOLDOUT
-  out_surface = vec4(v_world, uintBitsToFloat(0xC0000000u | (q.x << 15) | q.y));
+#ifdef LIXEL_UNLIT
+  uint marks = 0x20000000u;
 #else
-  out_surface = vec4(v_world, uintBitsToFloat(0x40000000u | (q.x << 15) | q.y));
+  uint marks = 0x40000000u;
 #endif
+#ifdef LIXEL_HOLDOUT
+  marks |= 0x80000000u;
+#endif
+  out_surface = vec4(v_world, uintBitsToFloat(marks | (q.x << 15) | q.y));
 }

@@ -79,6 +79,10 @@
  * shadow or the light (ShadowFrame.finish and compose_frag.glsl read it as 0,
  * with no shadow), and the other targets as where nothing is seen, but for
  * out_data's eye depth, negated (the eye blur's radius still counts it).
+ * A surface the light does not light (LIXEL_UNLIT: Light Linking, bit 30 of
+ * the packed normal clear, prepass_frag.glsl) gets the ambient term alone and no shadow (as in Cycles,
+ * where such an object gets no direct light from it, so nothing to shadow);
+ * out_data's shadow is -1 there, which the eye blur neither blurs nor spreads.
  * Pixels no surface covers get background_frag.glsl's values (the world
  * colour in out_color, with no shadow; zero elsewhere, black in out_footprint).
  * Positions are relative to the frame's origin; the uniform block `lixel` is
@@ -676,8 +680,13 @@ void main()
   irradiance *= blend > 0.0 ? smoothstep(0.0, 1.0, x / blend) : step(0.0, x);
 #  endif
 #endif
+#ifdef LIXEL_UNLIT
+  bool lit = (floatBitsToUint(surface.w) & 0x40000000u) != 0u;
+#else
+  const bool lit = true;
+#endif
   float shadow = 0.0;
-  if (index >= 0) {
+  if (index >= 0 && lit) {
     shadow = lixel_shadow(m, P, N, L, hsel);
 #ifdef LIXEL_BLENDS
     /* A cascade's seam (addon/warp/methods/cascade.py): a map whose blend band
@@ -695,7 +704,7 @@ void main()
 #endif
   }
 
-  float ndl = max(dot(N, L), 0.0);
+  float ndl = lit ? max(dot(N, L), 0.0) : 0.0;
   vec3 direct = lixel.light_color.rgb * (irradiance * ndl * lixel.light_color.w / LIXEL_PI);
 
 #ifdef LIXEL_BLURRED
@@ -710,7 +719,7 @@ void main()
   out_footprint = lixel_footprint_colour(texels_per_pixel);
 #endif
 #ifdef LIXEL_DATA
-  out_data = vec4(shadow, float(index), texels_per_pixel, eye_depth);
+  out_data = vec4(lit ? shadow : -1.0, float(index), texels_per_pixel, eye_depth);   /* -1: unlit */
 #endif
 #ifdef LIXEL_WORLD
   out_world = vec4(P, surface.w);

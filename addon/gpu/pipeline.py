@@ -365,12 +365,16 @@ class ShadowFrame:
     :class:`RenderResult` images the frame is for (what :meth:`shade` draws and
     :meth:`finish` reads back by default); ``scene``: the :class:`GPUScene`
     (default the process-wide one); ``targets``: the render targets (default
-    the process-wide pool).
+    the process-wide pool); ``lit``, ``blocks``: see ``self.lit``.
     """
 
     def __init__(self, geometry, view: View, resolution: Optional[tuple[int, int]] = None, *, read=ANALYSIS,
-                 scene: Optional[GPUScene] = None, targets: Optional[TargetPool] = None, timed: bool = True):
+                 scene: Optional[GPUScene] = None, targets: Optional[TargetPool] = None, timed: bool = True,
+                 lit: Optional[np.ndarray] = None, blocks: Optional[np.ndarray] = None):
         self.geometry = geometry
+        self.lit, self.blocks = lit, blocks
+        """The light's Light Linking and Shadow Linking, per instance (``addon.scene.linking.LightLinks``; None:
+        all): the pre-pass marks the receivers it does not light, the maps draw only the casters that block it."""
         self.view = view
         self.read = check_read(read)
         w, h = resolution or view.resolution
@@ -390,9 +394,10 @@ class ShadowFrame:
         self.receivers: Optional[DrawList] = None
         self.solids: Optional[DrawList] = None
         """The receivers the pre-pass draws as solids (their back faces culled); ``receivers`` the others."""
-        self.held: list = []
-        """The held-out receivers the pre-pass draws, marked as such (solids, others): none in a scene without
-        holdouts, whose receivers are all in ``solids`` and ``receivers``."""
+        self.marked: list = []
+        """The receivers the pre-pass draws marked, per mark: (holdout, unlit, solids, others): the held-out ones,
+        then the ones the light does not light (Light Linking); none in a scene without either, whose receivers
+        are all in ``solids`` and ``receivers``."""
         self.map_solids: list = []
         """Per map, the casters it draws as solids (their faces turned from the light culled); none with
         back-face rendering, which culls the faces towards the light of every caster."""
@@ -412,7 +417,12 @@ class ShadowFrame:
     @property
     def holds_out(self) -> bool:
         """Whether the pre-pass drew a held-out receiver (then the shading pass looks for them)."""
-        return any(d.instance_count for d in self.held)
+        return any(d.instance_count for held, _, *drawn in self.marked if held for d in drawn)
+
+    @property
+    def leaves_unlit(self) -> bool:
+        """Whether the pre-pass drew a receiver the light does not light (then the shading pass looks for them)."""
+        return any(d.instance_count for _, unlit, *drawn in self.marked if unlit for d in drawn)
 
     def _stage(self, name: str, t0: float, fb=None, color: bool = False) -> None:
         if self.timed and fb is not None:
@@ -430,7 +440,10 @@ class ShadowFrame:
             sel = BoxIndex.of(inst.bounds, which).select(normals, offsets, tol)
             mask[inst.caster_ids if which == "casters" else inst.receiver_ids] = sel.mask
             return mask
-        return self.scene.selection((which, normals.tobytes(), offsets.tobytes(), float(tol)), select)
+        mask = self.scene.selection((which, normals.tobytes(), offsets.tobytes(), float(tol)), select)
+        if which == "casters" and self.blocks is not None:   # Shadow Linking: only the light's blockers
+            return mask & self.blocks
+        return mask
 
     def _solids(self, mask: np.ndarray, matrix, greater: bool = False) -> np.ndarray:
         """The instances of ``mask`` that the view of clip matrix ``matrix``
@@ -449,7 +462,10 @@ class ShadowFrame:
         surface, ~1/3 less work on llvmpipe (docs/performance.md). Held-out
         receivers (``InstanceSet.holdouts``) are drawn after the others with
         ``prepass_shader(holdout=True)``, which marks their pixels: they hide what
-        is behind them, and the shading pass leaves a transparent hole. Returns the
+        is behind them, and the shading pass leaves a transparent hole. So are the
+        receivers the light does not light (Light Linking, ``self.lit``) with
+        ``prepass_shader(unlit=True)``: the shading pass gives them no light and no
+        shadow of it. Returns the
         camera depth texture (window depth, row 0 at the bottom; the visible
         region is read from it)."""
         import gpu
@@ -460,14 +476,20 @@ class ShadowFrame:
         n, o = _view_planes(view)
         mask = self._select("receivers", n, o, 1e-9 * max(view.far, 1.0))
         solid = self._solids(mask, view.world_to_clip)
-        if self.geometry.instances.any_holdout:      # the held-out receivers are drawn apart, marked
-            held = self.geometry.instances.holdouts
-            self.held = [self.scene.draw_list("held-out solid receivers", solid & held, eye=view.position),
-                         self.scene.draw_list("held-out receivers", mask & ~solid & held, eye=view.position)]
-            solid, mask = solid & ~held, mask & ~held
+        inst, marks = self.geometry.instances, []   # the marked receivers are drawn apart
+        if inst.any_holdout:
+            marks.append((True, False, "held-out", inst.holdouts))
+        if self.lit is not None and not self.lit.all():   # (a held-out one is a hole, lit or not)
+            marks.append((False, True, "unlit", ~self.lit & ~inst.holdouts if inst.any_holdout else ~self.lit))
+        self.marked = []
+        for held, unlit, name, marked in marks:
+            self.marked.append((held, unlit, self.scene.draw_list(f"{name} solid receivers", solid & marked,
+                                                                  eye=view.position),
+                                self.scene.draw_list(f"{name} receivers", mask & ~solid & marked, eye=view.position)))
+            solid, mask = solid & ~marked, mask & ~marked
         self.solids = self.scene.draw_list("solid receivers", solid, eye=view.position)
         self.receivers = self.scene.draw_list("receivers", mask & ~solid, eye=view.position)
-        drawn = [self.receivers, self.solids, *self.held]
+        drawn = [self.receivers, self.solids, *(d for _, _, *pair in self.marked for d in pair)]
         self.counts.receivers_drawn = sum(d.instance_count for d in drawn)
         self.counts.receiver_triangles_drawn = sum(d.triangle_count for d in drawn)
         self._view_proj = _gl_matrix(relative(view.world_to_clip, self.origin))
@@ -489,12 +511,13 @@ class ShadowFrame:
             flip = bool(np.dot(np.cross(r[0], r[1]), r[2]) < 0)
             self.scene.draw(pre, self.solids, cull="BACK", flip=flip)
             self.scene.draw(pre, self.receivers)
-            if self.holds_out:
-                held = shaders.prepass_shader(holdout=True)
-                held.bind()
-                held.uniform_float("u_view_proj", self._view_proj)
-                self.scene.draw(held, self.held[0], cull="BACK", flip=flip)
-                self.scene.draw(held, self.held[1])
+            for held, unlit, solids, others in self.marked:
+                if solids.instance_count or others.instance_count:
+                    marking = shaders.prepass_shader(holdout=held, unlit=unlit)
+                    marking.bind()
+                    marking.uniform_float("u_view_proj", self._view_proj)
+                    self.scene.draw(marking, solids, cull="BACK", flip=flip)
+                    self.scene.draw(marking, others)
             gpu.state.depth_mask_set(False)
             gpu.state.depth_test_set("NONE")
         self._surface = surface
@@ -586,7 +609,7 @@ class ShadowFrame:
             blends=any(m.blend_band > 0 and m.view_depth_range is not None for m in setup.maps), blurred=blurred,
             shadow_alpha=not blurred and bool(read & {"shadow_mask", "shadow_raw"}),
             footprint="footprint_heatmap" in read, data=needs_data(read) or blurred, world=world,
-            holdout=self.holds_out,
+            holdout=self.holds_out, unlit=self.leaves_unlit,
             linear_z=shaders.agreed(m.depth_row is not None for m in setup.maps),
             greater=shaders.agreed(m.depth_test == "GREATER" for m in setup.maps))
         ambient = tuple(float(c) for c in ambient)
@@ -721,7 +744,8 @@ class ShadowFrame:
             if "covered" in read:
                 out.covered = covered
             if "shadow_raw" in read:
-                out.shadow_raw = np.where(covered, data[..., 0], 0.0).astype(np.float32)
+                shadow_raw = np.maximum(data[..., 0], 0.0)     # (-1 where the light does not light the surface)
+                out.shadow_raw = np.where(covered, shadow_raw, 0.0).astype(np.float32)
             if "eye_depth" in read:
                 out.eye_depth = np.where(covered, data[..., 3], np.inf).astype(np.float32)
             if "map_index" in read:

@@ -118,6 +118,9 @@ class ShadeVariant:
     """Also write the world position."""
     holdout: bool = False
     """Some receiver drawn is held out: its pixels get the (0, 0, 0, 0) of a transparent hole (LIXEL_HOLDOUT)."""
+    unlit: bool = False
+    """Some receiver drawn is not lit by the light (Light Linking): its pixels get no light and no shadow of it
+    (LIXEL_UNLIT)."""
     linear_z: Optional[bool] = None
     """Every map stores its linear depth row (True), none does (False), or they
     differ (None: read per map, both sides evaluated); see :func:`agreed`."""
@@ -170,14 +173,17 @@ def _camera_info(name: str, fragment: str):
 
 
 @functools.lru_cache(maxsize=None)
-def prepass_shader(holdout: bool = False):
+def prepass_shader(holdout: bool = False, unlit: bool = False):
     """The camera's pre-pass: depth, and the surface seen (position, and the
     normal packed beside it in one target) for the shading pass
     (``prepass_frag.glsl``); ``holdout``: for held-out receivers, whose packed
-    normal gets its sign bit set (LIXEL_HOLDOUT)."""
-    info = _camera_info("prepass_holdout" if holdout else "prepass", "prepass_frag.glsl")
+    normal gets its sign bit set (LIXEL_HOLDOUT); ``unlit``: for receivers the
+    light does not light (Light Linking), bit 29 instead of 30 (LIXEL_UNLIT)."""
+    info = _camera_info("prepass" + "_holdout" * holdout + "_unlit" * unlit, "prepass_frag.glsl")
     if holdout:
         info.define("LIXEL_HOLDOUT")
+    if unlit:
+        info.define("LIXEL_UNLIT")
     info.fragment_out(0, "VEC4", "out_surface")
     return _create(info, "camera pre-pass")
 
@@ -203,7 +209,7 @@ def _shade_info(variant: ShadeVariant):
         info.define("LIXEL_MDSM", str(int(v.mdsm)))
     info.define("LIXEL_BIAS", str(BIAS_CODES[v.bias]))
     flags = {"LIXEL_REGIONS": v.regions, "LIXEL_RANGES": v.ranges, "LIXEL_BLENDS": v.blends,
-             "LIXEL_BLURRED": v.blurred, "LIXEL_HOLDOUT": v.holdout,
+             "LIXEL_BLURRED": v.blurred, "LIXEL_HOLDOUT": v.holdout, "LIXEL_UNLIT": v.unlit,
              "LIXEL_REVECTORIZE": v.revectorize and v.pcf == 2 and v.mdsm == 1, **v.flags}
     for name, on in flags.items():
         if on:

@@ -7,6 +7,11 @@ renders them: a transparent hole, (0, 0, 0, 0) in Combined with Film Transparent
 (no shadow, black footprint), that still hides what is behind it and still casts its shadow
 (``addon.scene.instances.holdout_test``; ``ShadowFrame.shade``).
 
+Light Linking and Shadow Linking of the light it renders (Object properties > Shading) are followed as Cycles follows
+them: an object the light does not light gets the world's light alone and no shadow of it in the Shadow pass, but
+still hides what is behind it and casts the shadow; an object Shadow Linking leaves out casts none of that light's
+(``addon.scene.linking``). The warp is still fitted to every caster, those left out included.
+
 Passes: Combined, and per view layer (View Layer properties > Lixel Passes,
 ``view_layer.lixel_passes``) "Shadow" (0 lit .. 1 fully shadowed; on by
 default), "Footprint" (the shadow-map texel footprint heatmap, see
@@ -205,6 +210,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     from ..scene.describe import (NO_FACES, NoLightError, check_finite_geometry, describe_scene, eye_view, light_notes,
                                   lost_depth_note, pick_light, render_camera)
     from ..scene.geometry import shared_cache
+    from ..scene.linking import light_links, linking_note
 
     scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
     settings = settings or scene_settings(scene)
@@ -233,7 +239,12 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     if warnings is not None and note:
         warnings.append(f"Lixel: {note}")
     timings["describe"] = time.perf_counter() - t
-    frame = ShadowFrame(geometry, view, resolution or view.resolution, read=read, targets=targets, timed=timed)
+    links = light_links(light_obj, geometry.instances)   # Light/Shadow Linking: what it lights, what blocks it
+    note = linking_note(light_obj, geometry.instances)
+    if warnings is not None and note:
+        warnings.append(f"Lixel: {note}")
+    frame = ShadowFrame(geometry, view, resolution or view.resolution, read=read, targets=targets, timed=timed,
+                        lit=links.lit, blocks=links.blocks)
     frame.camera_prepass()
     method = settings.method
     if method not in METHODS:

@@ -357,8 +357,8 @@ NO_FACES = "has no visible faces (no mesh, curve or text object with faces)"
 
 def light_notes(light_obj) -> list[str]:
     """Warnings about a light Lixel renders but that may surprise: no strength, or a negative one (which Cycles and
-    Lixel subtract), an area light approximated by a spot, light or shadow linking (which Lixel does not follow), a
-    spot scaled unevenly (Blender stretches its cone by the X and Y scale against the Z scale; Lixel's cone is round)."""
+    Lixel subtract), an area light approximated by a spot, a spot scaled unevenly (Blender stretches its cone by the
+    X and Y scale against the Z scale; Lixel's cone is round)."""
     notes = []
     data = getattr(light_obj, "data", None)
     if data is None:
@@ -376,13 +376,6 @@ def light_notes(light_obj) -> list[str]:
     if data.type == "SPOT" and data.spot_size > MAX_CONE:
         notes.append(f"Spot light '{light_obj.name}' has a cone of {math.degrees(data.spot_size):.4g}°: Lixel lights "
                      f"and shadows its 179° (no perspective map covers 180°); the rim beyond is unlit")
-    linking = getattr(light_obj, "light_linking", None)      # Object properties > Shading (Blender 4.0+)
-    for what, attr in (("Light Linking", "receiver_collection"), ("Shadow Linking", "blocker_collection")):
-        coll = getattr(linking, attr, None)
-        if coll is not None:
-            does = "lights every object" if attr == "receiver_collection" else "casts shadows from every caster"
-            notes.append(f"Light '{light_obj.name}' has {what} to collection '{coll.name}': Lixel does not follow "
-                         f"it and {does} (Object properties > Shading > {what})")
     sx, sy, sz = np.linalg.norm(_matrix(light_obj.matrix_world)[:3, :3], axis=0)
     if data.type == "SPOT" and sz > 0 and not np.allclose((sx, sy), sz, rtol=1e-4, atol=0):
         notes.append(f"Spot light '{light_obj.name}' is scaled unevenly (X {sx / sz:.3g}, Y {sy / sz:.3g} times its "

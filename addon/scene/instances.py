@@ -92,7 +92,10 @@ class InstanceSet:
     ``receives[i]`` whether the camera sees it (``visible_camera``);
     ``holdouts[i]`` whether the view layer holds it out (:func:`holdout_test`: drawn as a transparent hole that
     still hides what is behind it and still casts its shadow);
-    ``owners[owner_ids[i]]`` names its object (for messages).
+    ``owners[owner_ids[i]]`` names its object (for messages);
+    ``linkers[i]`` the original objects whose membership of a light's Light/Shadow Linking collection decides
+    whether that light lights it and is blocked by it (:mod:`.linking`): (its instancer or 0, its own object or 0)
+    as ``as_pointer()`` values, recorded only where a light in the scene has linking (else no rows).
 
     A set is never changed once made: what is derived from it (world boxes,
     the :class:`SceneBounds` with its culling index) is computed once, and a
@@ -106,13 +109,15 @@ class InstanceSet:
     casts: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     receives: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     holdouts: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    linkers: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     owners: list = field(default_factory=list)
     owner_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     @classmethod
     def from_lists(cls, keys: list, matrices, boxes: dict, casts, receives, names: Optional[list] = None,
-                   holdouts=None) -> "InstanceSet":
-        """A set from per-instance keys (with ``boxes[key]`` each key's local box); ``holdouts`` default none."""
+                   holdouts=None, linkers=None) -> "InstanceSet":
+        """A set from per-instance keys (with ``boxes[key]`` each key's local box); ``holdouts`` default none,
+        ``linkers`` none recorded."""
         key_list: list = []
         index: dict = {}
         ids = np.fromiter((index.setdefault(k, len(index)) for k in keys), dtype=np.int64, count=len(keys))
@@ -126,6 +131,8 @@ class InstanceSet:
                    key_boxes=np.array([boxes[k] for k in key_list], dtype=np.float64).reshape(-1, 2, 3),
                    casts=np.asarray(casts, dtype=bool), receives=np.asarray(receives, dtype=bool),
                    holdouts=np.zeros(len(keys), dtype=bool) if holdouts is None else np.asarray(holdouts, dtype=bool),
+                   linkers=np.zeros((0, 2), dtype=np.int64) if linkers is None else
+                   np.asarray(linkers, dtype=np.int64).reshape(-1, 2),
                    owners=list(owner_index), owner_ids=owner_ids)
 
     def __len__(self) -> int:
@@ -192,7 +199,7 @@ class InstanceSet:
         return (other is not None and self.key_list == other.key_list
                 and np.array_equal(self.key_ids, other.key_ids)
                 and np.array_equal(self.casts, other.casts) and np.array_equal(self.receives, other.receives)
-                and np.array_equal(self.holdouts, other.holdouts)
+                and np.array_equal(self.holdouts, other.holdouts) and np.array_equal(self.linkers, other.linkers)
                 and np.array_equal(self.matrices, other.matrices)
                 and np.array_equal(self.key_boxes, other.key_boxes))
 
@@ -249,6 +256,30 @@ def holdout_test(depsgraph) -> Callable:
     return held
 
 
+def light_linked(depsgraph) -> bool:
+    """Whether a light of ``depsgraph`` has Light or Shadow Linking (Object properties > Shading, Blender 4.0+):
+    only then do the readers record each instance's ``linkers`` (one pass over the objects, no work per instance)."""
+    for ob in depsgraph.objects:
+        if ob.type == "LIGHT":
+            links = getattr(ob, "light_linking", None)
+            if links is not None and (links.receiver_collection is not None or links.blocker_collection is not None):
+                return True
+    return False
+
+
+def linkers_of(inst, ob) -> tuple[int, int]:
+    """An instance's ``InstanceSet.linkers`` row: a real object is linked as itself; an instance of a real object
+    that a collection instance (or dupli-verts/faces) makes is linked as itself and, where it is not in the
+    collection, as its instancer; anything else an instancer makes (geometry nodes, particles) as its instancer
+    alone (measured with Cycles in 4.2.23 and 5.0.1: geometry-nodes instances of an object in the collection do not
+    follow that object's state)."""
+    parent = inst.parent if inst.is_instance else None
+    if parent is None:
+        return 0, ob.original.as_pointer()
+    own = ob.original.as_pointer() if parent.instance_type in ("COLLECTION", "VERTS", "FACES") else 0
+    return parent.original.as_pointer(), own
+
+
 def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> InstanceSet:
     """Walk the evaluated scene once (``depsgraph.object_instances``).
 
@@ -260,6 +291,7 @@ def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Instanc
     held, held_by = holdout_test(depsgraph), {}
     if not any(held(ob) for ob in depsgraph.objects):   # (an instance is held out by a real object, its instancer)
         held = None                                     # nothing held out: no work per instance
+    linkers = [] if light_linked(depsgraph) else None
     mats = np.empty((256, 4, 4), dtype=np.float64)
     accepted: dict = {}   # key -> None (dropped) or its object-space box
     generated: dict = {}
@@ -286,6 +318,8 @@ def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Instanc
         names.append(ob.name if not inst.is_instance or inst.parent is None else f"{inst.parent.name}/{ob.name}")
         casts.append(bool(getattr(ob, "visible_shadow", True)))
         receives.append(bool(getattr(ob, "visible_camera", True)))
+        if linkers is not None:
+            linkers.append(linkers_of(inst, ob))
         if held is None:
             holdouts.append(False)
             continue
@@ -296,7 +330,7 @@ def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Instanc
         holdouts.append(held_by[pointer])
     if not keys:
         return InstanceSet()
-    return InstanceSet.from_lists(keys, mats[:n], accepted, casts, receives, names, holdouts)
+    return InstanceSet.from_lists(keys, mats[:n], accepted, casts, receives, names, holdouts, linkers)
 
 
 class _NeedsWalk(Exception):
@@ -331,8 +365,9 @@ class _Reader:
         self.generated: dict = {}
         self.owners: list = []
         self.sources: list = []       # raw arrays: (world,) or (world, column-major transforms, reference index)
-        self.chunks: list = []        # (key id, flags, owner id, source index, reference or None, local or None)
-        self.held = holdout_test(depsgraph)
+        self.chunks: list = []        # (key id, flags, owner id, source index, reference or None, local or None,
+        self.held = holdout_test(depsgraph)   #  linkers or None: see linkers_of)
+        self.linked = light_linked(depsgraph)
 
     def key_id(self, key, ob, mesh=None) -> Optional[int]:
         k = self.accepted.get(key, -1)
@@ -361,7 +396,7 @@ class _Reader:
             if k is not None:
                 self.sources.append((world,))
                 self.chunks.append((k, _flags(ob) + (self.held(ob),), self.owner(ob.name), len(self.sources) - 1,
-                                    None, None))
+                                    None, None, (0, ob.original.as_pointer()) if self.linked else None))
         if ob.type in INSTANCER_TYPES and _has_nodes(ob):
             self.instances_of(ob.evaluated_geometry(), ob, world)
 
@@ -404,10 +439,11 @@ class _Reader:
         self.sources.append((world, flat, ref_index))
         source = len(self.sources) - 1
         held = self.held(instancer)              # instances are held out with their instancer (holdout_test)
+        linkers = (instancer.original.as_pointer(), 0) if self.linked else None   # and linked as it (linkers_of)
         for r, ref in enumerate(refs):
             for k, local, flags, name in self.leaves(ref, instancer):
                 self.chunks.append((k, flags + (held,), self.owner(name), source, r if len(refs) > 1 else None,
-                                    local))
+                                    local, linkers))
 
     def same_as(self, previous: Optional["InstanceSet"]) -> bool:
         """Whether this read gives exactly ``previous`` (same keys, boxes, chunks and raw arrays)."""
@@ -419,7 +455,7 @@ class _Reader:
                 not np.array_equal(np.array(self.boxes, dtype=np.float64).reshape(-1, 2, 3), previous.key_boxes):
             return False                    # (a mesh edited in place keeps its key but not its box)
         for a, b in zip(chunks, self.chunks):
-            if a[:2] != b[:2] or a[3:5] != b[3:5] or not _same_local(a[5], b[5]):
+            if a[:2] != b[:2] or a[3:5] != b[3:5] or not _same_local(a[5], b[5]) or a[6] != b[6]:
                 return False
         return all(len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b))
                    for a, b in zip(sources, self.sources))
@@ -431,7 +467,7 @@ class _Reader:
             return InstanceSet()
         ids, mats, flags, owners = [], [], [], []
         transforms: dict = {}
-        for k, flag, owner, source, reference, local in self.chunks:
+        for k, flag, owner, source, reference, local, _ in self.chunks:
             src = self.sources[source]
             world = src[0]
             if len(src) == 1:
@@ -457,6 +493,8 @@ class _Reader:
                           key_boxes=np.array(self.boxes, dtype=np.float64).reshape(-1, 2, 3),
                           casts=np.repeat(flags[:, 0], counts), receives=np.repeat(flags[:, 1], counts),
                           holdouts=np.repeat(flags[:, 2], counts),
+                          linkers=np.repeat(np.array([c[6] for c in self.chunks], dtype=np.int64).reshape(-1, 2),
+                                            counts, axis=0) if self.linked else np.zeros((0, 2), dtype=np.int64),
                           owners=self.owners, owner_ids=np.repeat(np.array(owners, dtype=np.int64), counts))
         out._source = (self.key_list, self.chunks, self.sources)
         return out

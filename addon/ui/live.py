@@ -78,6 +78,8 @@ class LiveState:
     light: object = None
     light_name: str = ""
     light_notes: tuple = ()
+    light_pointer: int = 0
+    """The light object's ``as_pointer()`` (its Light/Shadow Linking, for the picture: ``renders.pip_textures``)."""
     bounds: object = None
     settings: Optional[LixelSettings] = None
     method_used: str = ""
@@ -233,7 +235,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         if "light" in todo or light is None:
             lob = light_obj if light_obj is not None else pick_light(scene, depsgraph, active)
             light = timed("describe light", describe_light, lob, depsgraph)
-            st.light_name, st.light_notes = lob.name, light_notes(lob)
+            st.light_name, st.light_notes, st.light_pointer = lob.name, light_notes(lob), lob.as_pointer()
         bounds = st.bounds
         if "bounds" in todo or bounds is None:
             bounds = timed("describe bounds", scene_bounds, depsgraph)

@@ -135,12 +135,18 @@ def pip_textures(st: LiveState, depsgraph, longest: int, want_map: bool, want_sc
     from ..gpu import compose
     from ..gpu.context import ensure_gpu_context
     from ..gpu.pipeline import ShadowFrame
+    from ..scene.linking import LightLinks, light_links
     out = {}
     if not (want_map or want_scene):
         return out
     ensure_gpu_context()
-    frame = ShadowFrame(scene_geometry(depsgraph), st.view, fit_resolution(st.view.resolution, longest),
-                        read={"combined"}, targets=targets)
+    geometry, links = scene_geometry(depsgraph), LightLinks()
+    if len(geometry.instances.linkers):     # a light has Light/Shadow Linking: follow the picture's light's
+        lob = next((ob.original for ob in depsgraph.objects
+                    if ob.type == "LIGHT" and ob.original.as_pointer() == st.light_pointer), None)
+        links = light_links(lob, geometry.instances)
+    frame = ShadowFrame(geometry, st.view, fit_resolution(st.view.resolution, longest),
+                        read={"combined"}, targets=targets, lit=links.lit, blocks=links.blocks)
     frame.camera_prepass()
     frame.draw_maps(st.setup, st.settings.shadow, st.body)
     if want_scene:

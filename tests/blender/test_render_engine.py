@@ -832,6 +832,25 @@ def _instancer(scene, kind: str, instanced):
     return host
 
 
+def _remove_instancer(host, instanced) -> None:
+    """Undo :func:`_instancer` (the host goes with the scene)."""
+    if host.instance_type == "COLLECTION":
+        bpy.data.collections.remove(host.instance_collection)
+    else:
+        tree = host.modifiers[0].node_group
+        host.modifiers.clear()
+        bpy.data.node_groups.remove(tree)
+    mesh = instanced.data
+    bpy.data.objects.remove(instanced)
+    bpy.data.meshes.remove(mesh)
+
+
+def _instanced_pixels(world_position) -> np.ndarray:
+    """Pixels showing the 0.9 cube :func:`_instancer` places."""
+    p = world_position
+    return np.all((p >= np.array([-0.05, -2.65, 1.15]) - 1e-3) & (p <= np.array([0.85, -1.75, 2.05]) + 1e-3), axis=-1)
+
+
 @pytest.mark.parametrize("held", ["instancer", "instanced object"])
 @pytest.mark.parametrize("kind", ["collection", "nodes"])
 def test_an_instance_is_held_out_with_its_instancer(engine, scene, kind, held):
@@ -848,17 +867,8 @@ def test_an_instance_is_held_out_with_its_instancer(engine, scene, kind, held):
         cut = _render(engine, scene, read={"covered"})
     finally:
         instanced.is_holdout = host.is_holdout = False
-        if kind == "collection":
-            bpy.data.collections.remove(host.instance_collection)
-        else:
-            tree = host.modifiers[0].node_group
-            host.modifiers.clear()
-            bpy.data.node_groups.remove(tree)
-        mesh = instanced.data
-        bpy.data.objects.remove(instanced)
-        bpy.data.meshes.remove(mesh)
-    p = plain["result"].world_position
-    hole = np.all((p >= np.array([-0.05, -2.65, 1.15]) - 1e-3) & (p <= np.array([0.85, -1.75, 2.05]) + 1e-3), axis=-1)
+        _remove_instancer(host, instanced)
+    hole = _instanced_pixels(plain["result"].world_position)
     assert hole.sum() > 100
     res = cut["result"]
     if held == "instancer":
@@ -908,20 +918,214 @@ def test_the_viewport_picture_shows_a_holdout_as_a_hole(engine, scene, lixel):
     np.testing.assert_array_equal(cut[changed], 0.0)
 
 
-@pytest.mark.parametrize("what, attr", [("Light Linking", "receiver_collection"),
-                                        ("Shadow Linking", "blocker_collection")])
-def test_light_or_shadow_linking_is_named_not_silently_ignored(engine, scene, what, attr):
-    """Object properties > Shading > Light/Shadow Linking (Blender 4.0+) limits what a light lights or which
-    objects shadow it, in Cycles. Lixel lights and shadows everything; it now says so, naming the light."""
-    build(scene)
-    linked = bpy.data.collections.new("lixel_test linked")
+def _link(scene, attr: str, states: dict, child: dict = ()):
+    """A collection set as the Sun's ``attr`` ("receiver_collection": Light Linking, "blocker_collection": Shadow
+    Linking) holding the objects of ``states`` ({object: "INCLUDE" | "EXCLUDE"}) and a child collection per entry
+    of ``child`` ({state: [objects]})."""
+    coll = bpy.data.collections.new("lixel_test linking")
+    for ob, state in states.items():
+        coll.objects.link(ob)
+        coll.collection_objects[len(coll.objects) - 1].light_linking.link_state = state
+    for state, obs in dict(child).items():
+        sub = bpy.data.collections.new(f"lixel_test linking {state.lower()}")
+        coll.children.link(sub)
+        for ob in obs:
+            sub.objects.link(ob)
+        coll.collection_children[len(coll.children) - 1].light_linking.link_state = state
+    setattr(scene.objects["Sun"].light_linking, attr, coll)
+    return coll
+
+
+def _unlink(coll) -> None:
+    for sub in list(coll.children):
+        bpy.data.collections.remove(sub)
+    bpy.data.collections.remove(coll)
+
+
+def _with_and_without(engine, scene, attr: str, states: dict, child: dict = ()) -> tuple:
+    """(render without linking, render with :func:`_link`'s collection), reading the combined image, the shadow
+    and the surface seen."""
+    plain = _render(engine, scene, read={"combined", "shadow_mask", "world_position"})
+    coll = _link(scene, attr, states, child)
     try:
-        setattr(scene.objects["Sun"].light_linking, attr, linked)
+        return plain, _render(engine, scene, read={"combined", "shadow_mask", "world_position"})
+    finally:
+        _unlink(coll)
+
+
+def _world_lit(res) -> float:
+    """The combined image's value where the sun's light is fully shadowed (the world's light alone)."""
+    shadowed = res.combined[res.shadow_mask >= 1.0][:, :3]
+    assert len(shadowed) > 20 and np.ptp(shadowed, axis=0).max() == 0.0
+    return shadowed[0]
+
+
+@pytest.mark.parametrize("passes", ["shadow", "blurred"])
+def test_an_object_excluded_from_the_lights_receivers_is_not_lit_by_it_but_still_casts_its_shadow(
+        engine, scene, passes):
+    """Light Linking (Object properties > Shading) with only Excluded objects: Cycles lights every object but
+    those; an excluded object gets the world's light alone, still hides what is behind it and still casts the
+    light's shadow (measured in 4.2.23 and 5.0.1). So does Lixel, with no shadow of that light on it in the Shadow
+    pass (it gets none of its light to shadow); every other pixel is the render without linking, bit for bit (with
+    the eye blur, the pixels beyond its reach of the object). No warning: Lixel does what Cycles does."""
+    build(scene)
+    world_lit = _world_lit(_render(engine, scene, read={"combined", "shadow_mask"})["result"])
+    scene.lixel.eye_blur = 2.0 if passes == "blurred" else 0.0
+    box = scene.objects["Box"]
+    try:
+        plain, linked = _with_and_without(engine, scene, "receiver_collection", {box: "EXCLUDE"})
+    finally:
+        scene.lixel.eye_blur = 0.0
+    res, ref = linked["result"], plain["result"]
+    seen = _inside(ref.world_position, box)
+    assert seen.sum() > 100
+    np.testing.assert_array_equal(_inside(res.world_position, box), seen)      # it still hides what is behind it
+    assert not [w for w in linked["warnings"] if "Linking" in w]
+    away = ~seen
+    if passes == "blurred":     # beyond the blur's reach of it (2 px at the nearest surface)
+        for _ in range(3):
+            away[1:] &= away[:-1]; away[:-1] &= away[1:]; away[:, 1:] &= away[:, :-1]; away[:, :-1] &= away[:, 1:]
+    np.testing.assert_array_equal(res.combined[away], ref.combined[away])      # its shadow on the ground, kept
+    np.testing.assert_array_equal(res.shadow_mask[away], ref.shadow_mask[away])
+    if passes == "shadow":
+        assert (ref.shadow_mask[away] > 0.9).sum() > 100
+    np.testing.assert_array_equal(res.shadow_mask[seen], 0.0)
+    np.testing.assert_allclose(res.combined[seen][:, :3], np.broadcast_to(world_lit, (seen.sum(), 3)),
+                               atol=1e-6 if passes == "blurred" else 0.0)
+    assert (ref.combined[seen][:, :3] > world_lit + 0.05).all(axis=-1).sum() > 50, "lit without linking"
+
+
+def test_a_blocker_excluded_from_shadow_linking_casts_no_shadow_of_that_light(engine, scene):
+    """Shadow Linking with only Excluded objects: Cycles lets every object but those cast the light's shadow; an
+    excluded object is still lit as before (measured in 4.2.23 and 5.0.1). So does Lixel: the light's maps leave it
+    out. (Here it is the only caster: no shadow is left.)"""
+    build(scene)
+    box = scene.objects["Box"]
+    plain, linked = _with_and_without(engine, scene, "blocker_collection", {box: "EXCLUDE"})
+    res, ref = linked["result"], plain["result"]
+    assert (ref.shadow_mask > 0.9).sum() > 100
+    assert res.shadow_mask.max() < 0.01
+    assert res.counts.casters_drawn < ref.counts.casters_drawn
+    seen = _inside(ref.world_position, box)
+    np.testing.assert_allclose(res.combined[seen], ref.combined[seen], atol=1e-6)   # lit as before
+    assert not [w for w in linked["warnings"] if "Linking" in w]
+
+
+@pytest.mark.parametrize("how", ["object", "child collection"])
+@pytest.mark.parametrize("attr", ["receiver_collection", "blocker_collection"])
+def test_with_an_include_only_the_included_objects_are_lit_or_cast(engine, scene, attr, how):
+    """With any Included entry, Cycles lights (Light Linking) or lets cast (Shadow Linking) only the Included
+    objects, whatever else is Excluded; a child collection's state is its objects' (measured in 4.2.23 and 5.0.1).
+    Light Linking with the box Included and the ground Excluded lights the box alone (the ground gets the world's
+    light, and no shadow in the Shadow pass); Shadow Linking with the ground alone Included leaves the box out: no
+    shadow is cast."""
+    build(scene)
+    box, ground = scene.objects["Box"], scene.objects["Ground"]
+    included, excluded = (box, {ground: "EXCLUDE"}) if attr == "receiver_collection" else (ground, {})
+    if how == "object":
+        plain, linked = _with_and_without(engine, scene, attr, {included: "INCLUDE", **excluded})
+    else:
+        plain, linked = _with_and_without(engine, scene, attr, excluded, child={"INCLUDE": [included]})
+    res, ref = linked["result"], plain["result"]
+    if attr == "blocker_collection":
+        assert (ref.shadow_mask > 0.9).sum() > 100
+        assert res.shadow_mask.max() < 0.01
+        return
+    on_box = _inside(ref.world_position, box)
+    on_ground = ~on_box & res.covered if res.covered is not None else ~on_box & (ref.world_position[..., 2] < 1e-3)
+    on_ground &= np.abs(ref.world_position[..., 2]) < 1e-3
+    assert on_ground.sum() > 500
+    np.testing.assert_array_equal(res.combined[on_box], ref.combined[on_box])
+    np.testing.assert_array_equal(res.shadow_mask[on_ground], 0.0)
+    np.testing.assert_array_equal(res.combined[on_ground][:, :3],
+                                  np.broadcast_to(_world_lit(ref), (on_ground.sum(), 3)))
+
+
+def test_the_linking_of_an_instanced_light_is_named_not_silently_ignored(engine, scene):
+    """A light that is itself an instance (of a collection instance: a linked lighting rig) is the one case whose
+    linking Lixel does not follow (its readers look for linking on the scene's light objects only): it lights and
+    shadows every object, and says so, naming the light, the collection and what to do."""
+    build(scene)
+    sun = scene.objects["Sun"]
+    rig = bpy.data.collections.new("Rig")
+    rig.objects.link(sun)
+    scene.collection.objects.unlink(sun)
+    instance = add(scene, "Rig instance", None)
+    instance.instance_type, instance.instance_collection = "COLLECTION", rig
+    coll = bpy.data.collections.new("lixel_test linking")
+    coll.objects.link(scene.objects["Box"])
+    coll.collection_objects[0].light_linking.link_state = "EXCLUDE"
+    sun.light_linking.blocker_collection = coll
+    try:
         with engine.watch_renders() as got:
             assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
     finally:
-        bpy.data.collections.remove(linked)
+        bpy.data.collections.remove(coll)
+        bpy.data.collections.remove(rig)
+        light = sun.data
+        bpy.data.objects.remove(sun)                                  # no longer in the scene: not the fixture's
+        bpy.data.lights.remove(light)
     assert [w for w in got[-1]["warnings"] if "Linking" in w] == [
-        f"Light 'Sun' has {what} to collection 'lixel_test linked': Lixel does not follow it and "
-        f"{'lights every object' if attr == 'receiver_collection' else 'casts shadows from every caster'} "
-        f"(Object properties > Shading > {what})"]
+        "Lixel: Light 'Sun' has Shadow Linking to collection 'lixel_test linking' but is an instance (of a "
+        "collection instance): Lixel does not follow it and lights and shadows every object; make it a real object "
+        "(Object > Apply > Make Instances Real) to have its linking followed"]
+    assert got[-1]["result"].shadow_mask.max() > 0.9
+
+
+@pytest.mark.parametrize("attr", ["receiver_collection", "blocker_collection"])
+def test_the_viewport_picture_follows_light_and_shadow_linking(engine, scene, lixel, attr):
+    """The 3D view's picture (``addon/ui/renders.py`` ``pip_textures``) is drawn as the engine draws: the box
+    excluded from the Sun's receivers is not lit by it (its pixels get the world's light alone, the others stay
+    as they were); excluded from its blockers, its shadow is gone."""
+    renders = importlib.import_module(lixel.__name__ + ".addon.ui.renders")
+    live = importlib.import_module(lixel.__name__ + ".addon.ui.live")
+    describe = importlib.import_module(lixel.__name__ + ".addon.scene.describe")
+    build(scene)
+    scene.lixel.eye_blur = 0.0
+
+    def picture():
+        dg = describe.evaluated_depsgraph(scene)
+        return renders.pip_images(live.update(scene, dg), dg, 96, False, True)["scene"]
+    plain = picture()
+    coll = _link(scene, attr, {scene.objects["Box"]: "EXCLUDE"})
+    try:
+        linked = picture()
+    finally:
+        _unlink(coll)
+    changed = np.any(linked != plain, axis=-1)
+    assert changed.sum() > 100
+    if attr == "receiver_collection":      # darker: the world's light alone
+        assert (linked[changed][:, :3] < plain[changed][:, :3]).all()
+        assert np.ptp(linked[changed][:, :3], axis=0).max() == 0.0
+    else:                                  # lighter: its shadow gone
+        assert (linked[changed][:, :3] > plain[changed][:, :3]).all()
+
+
+@pytest.mark.parametrize("attr", ["receiver_collection", "blocker_collection"])
+@pytest.mark.parametrize("linked", ["instancer", "instanced object"])
+@pytest.mark.parametrize("kind", ["collection", "nodes"])
+def test_an_instance_follows_its_instancer_and_a_collection_instance_its_own_object_too(engine, scene, kind,
+                                                                                          linked, attr):
+    """Cycles (4.2.23 and 5.0.1) excludes an instance from the light's Light or Shadow Linking when its instancer is
+    excluded: an empty instancing a collection, or an object whose geometry nodes make instances; an instance of a
+    collection instance is also excluded when its own object is, geometry-nodes instances are not. Lixel follows
+    Cycles, through both of its readers of instances (the walk, and in 4.3+ the array reader)."""
+    build(scene)
+    instanced = bpy.data.objects.new("Linked", cube_mesh("Linked", 0.9, 0.0))
+    host = _instancer(scene, kind, instanced)
+    try:
+        plain, got = _with_and_without(engine, scene, attr, {host if linked == "instancer" else instanced: "EXCLUDE"})
+    finally:
+        _remove_instancer(host, instanced)
+    res, ref = got["result"], plain["result"]
+    seen = _instanced_pixels(ref.world_position)
+    assert seen.sum() > 100
+    if linked == "instanced object" and kind == "nodes":        # its own entry does not count
+        np.testing.assert_array_equal(res.combined, ref.combined)
+        np.testing.assert_array_equal(res.shadow_mask, ref.shadow_mask)
+    elif attr == "receiver_collection":                        # not lit by the sun, the rest as before
+        np.testing.assert_array_equal(res.combined[seen][:, :3], np.broadcast_to(_world_lit(ref), (seen.sum(), 3)))
+        np.testing.assert_array_equal(res.combined[~seen], ref.combined[~seen])
+    else:                                                      # its shadow is gone, it is lit as before
+        assert (res.shadow_mask > 0.5).sum() < (ref.shadow_mask > 0.5).sum() - 20
+        np.testing.assert_array_equal(res.combined[seen], ref.combined[seen])
