@@ -24,8 +24,8 @@ import numpy as np
 
 from ..gpu.blas import one_blas_thread
 from ..guard import user_message
-from ..scene.describe import (NO_FACES, check_finite_geometry, describe_bounds, describe_light, describe_view, light_notes,
-                              pick_light, render_camera)
+from ..scene.describe import (NO_FACES, check_finite_geometry, describe_bounds, describe_light, describe_view,
+                              light_notes, pick_light, render_camera)
 from ..scene.geometry import shared_cache
 from ..scene.owned import is_debug_object
 from ..settings import LixelSettings
