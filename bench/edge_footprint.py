@@ -74,7 +74,8 @@ width across the edge: whether the wrong pixels per edge pixel follow that width
 
 
 def corners(edges: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    """The edge pixels where the true edge turns (see :data:`TURN_DEG`); ``normals`` from ``shadow_edge_normals``."""
+    """The edge pixels where the true edge turns (see :data:`TURN_DEG`); ``normals`` from ``shadow_edge_normals``
+    at radius 1."""
     h, w = edges.shape
     r = CORNER_RADIUS
     n = np.where(edges[..., None], np.nan_to_num(normals), 0.0)
@@ -205,9 +206,10 @@ def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1, s
 
     dg, geometry, view, light, gt, _ = scene_with_truth(name, resolution)
     lit = lit_facing(gt, light)
-    edge_n = shadow_edge_normals(gt.shadow, gt.valid)
-    edges = shadow_edges(gt.shadow, gt.valid) & np.isfinite(edge_n[..., 0])
-    corner = corners(edges, edge_n)
+    turning = shadow_edge_normals(gt.shadow, gt.valid, 1)          # Sobel: turns within CORNER_RADIUS
+    edge_n = shadow_edge_normals(gt.shadow, gt.valid)              # straight edges' normals within a degree or two
+    edges = shadow_edges(gt.shadow, gt.valid) & np.isfinite(turning[..., 0]) & np.isfinite(edge_n[..., 0])
+    corner = corners(edges, turning)
     near_corner = dilate(corner, 1)
     straight = edges & ~near_corner
     tied = ties(name, view, light, edges, supersample) if supersample else None
