@@ -172,7 +172,8 @@ def shadow_edge_normals(truth, valid, radius: int = EDGE_NORMAL_RADIUS) -> np.nd
         r = int(radius)
         pad_t, pad_v = np.pad(t, r), np.pad(v, r).astype(np.float64)
         count, shadowed, gx, gy, ox, oy = (np.zeros((h, w)) for _ in range(6))
-        for dy, dx in [(dy, dx) for dy in range(-r, r + 1) for dx in range(-r, r + 1) if dx * dx + dy * dy <= r * r + r]:
+        disc = [(dy, dx) for dy in range(-r, r + 1) for dx in range(-r, r + 1) if dx * dx + dy * dy <= r * r + r]
+        for dy, dx in disc:
             vq = pad_v[r + dy:r + dy + h, r + dx:r + dx + w]
             sq = vq * pad_t[r + dy:r + dy + h, r + dx:r + dx + w]
             count += vq
