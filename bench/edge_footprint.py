@@ -12,8 +12,10 @@ the method and the map size changed) and sets each method's numbers against unif
   the number the "warping wins" criterion reads;
 * ``straight``: the misclassified pixels at straight true shadow edges and the mean there of
   ``addon.measure.footprint.setup_across_edge_width``, |Jᵀn|, the screen pixels one texel spans
-  across the edge. A map puts each edge on its texel grid, so the pixels between the true edge and
-  the texel staircase, |Jᵀn| per pixel of edge to first order, are what it gets wrong;
+  across the edge (n from ``shadow_edge_normals`` at its default radius: a Sobel normal misread
+  gen2_08_low_sun's widths by up to 2x where texels are long on the ground). A map puts each edge on
+  its texel grid, so the pixels between the true edge and the texel staircase, |Jᵀn| per pixel of
+  edge to first order, are what it gets wrong;
 * ``corners``: the misclassified pixels within a pixel of a corner (the edge turns by more than
   :data:`TURN_DEG` within :data:`CORNER_RADIUS` pixels: shadow corners, thin and small shadows),
   where both of the texel's directions count, and the mean σ_max there;
@@ -28,9 +30,13 @@ the method and the map size changed) and sets each method's numbers against unif
   whose p95 halves uniform's may still have most of its wrong pixels in a split whose texels are barely finer
   than uniform's;
 * ``by grid angle``: the straight edge pixels per band of angle to their map's nearest texel axis
-  (:data:`ANGLE_BINS`), the wrong ones among them and the mean width across the edge there: where two maps' wrong
-  pixels per edge pixel differ at the same angle and width, neither the width nor the grid's angle explains it
-  (gen2_08_low_sun's turned 2:1 cascade maps, docs/papers.md "The receivers' footprint");
+  (:data:`ANGLE_BINS`), the wrong ones among them and the mean width across the edge there. The bilinear
+  contour of PCF 2 errs across an edge by E|δ| = 0.25 texel on a grid along it, 0.16-0.19 at 20-45° (a
+  half-plane's taps), so a map's wrong pixels follow Σ |Jᵀn|·E|δ(angle)| over the edge pixels: 0.64-0.70 x that
+  sum for uniform, uniform with 2x the texels and the cascade with and without its turns and 2:1 layouts on
+  gen2_08_low_sun, 16 phases (docs/papers.md "The receivers' footprint", session 12). Compare bands of two maps
+  only on the same pixels: a band holds different edges in different maps, and the edges with many ties in it
+  decide its rate (gen3_04_point_behind_camera's cascade 20-45° band: at its own pixels uniform errs as often);
 * ``grid angle``: the straight edges' mean angle to the nearest texel axis of their map, and how many lie within
   :data:`ALIGNED_DEG` of one. The staircase of an edge that runs nearly along a texel axis is long: whole runs
   of its pixels fall on one side of the true edge together, so the same |Jᵀn| gives more wrong pixels, and a
@@ -74,7 +80,8 @@ width across the edge: whether the wrong pixels per edge pixel follow that width
 
 
 def corners(edges: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    """The edge pixels where the true edge turns (see :data:`TURN_DEG`); ``normals`` from ``shadow_edge_normals``."""
+    """The edge pixels where the true edge turns (see :data:`TURN_DEG`); ``normals`` from ``shadow_edge_normals``
+    at radius 1."""
     h, w = edges.shape
     r = CORNER_RADIUS
     n = np.where(edges[..., None], np.nan_to_num(normals), 0.0)
@@ -205,9 +212,10 @@ def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1, s
 
     dg, geometry, view, light, gt, _ = scene_with_truth(name, resolution)
     lit = lit_facing(gt, light)
-    edge_n = shadow_edge_normals(gt.shadow, gt.valid)
-    edges = shadow_edges(gt.shadow, gt.valid) & np.isfinite(edge_n[..., 0])
-    corner = corners(edges, edge_n)
+    turning = shadow_edge_normals(gt.shadow, gt.valid, 1)          # Sobel: turns within CORNER_RADIUS
+    edge_n = shadow_edge_normals(gt.shadow, gt.valid)              # straight edges' normals within a degree or two
+    edges = shadow_edges(gt.shadow, gt.valid) & np.isfinite(turning[..., 0]) & np.isfinite(edge_n[..., 0])
+    corner = corners(edges, turning)
     near_corner = dilate(corner, 1)
     straight = edges & ~near_corner
     tied = ties(name, view, light, edges, supersample) if supersample else None

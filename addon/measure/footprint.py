@@ -145,23 +145,49 @@ def perspective_footprints(view, light, setup, points, map_index=None) -> np.nda
                            map_index=map_index)
 
 
-def shadow_edge_normals(truth, valid) -> np.ndarray:
+EDGE_NORMAL_RADIUS = 4
+"""The pixels within this radius of an edge pixel (a disc) give its edge's normal (:func:`shadow_edge_normals`)."""
+
+
+def shadow_edge_normals(truth, valid, radius: int = EDGE_NORMAL_RADIUS) -> np.ndarray:
     """(H, W, 2) unit normals on screen (x right, y up: row 0 at the bottom) of the true shadow edges, pointing into
-    the shadow: the Sobel gradient of the shadow image, an invalid neighbour counted as the pixel's own state;
-    NaN where the gradient vanishes or the pixel is not valid."""
+    the shadow: the gradient of the shadow image over the valid pixels of a disc of ``radius`` pixels about each pixel
+    (Σ (s_q − s̄)(q − p), s̄ their mean), or with ``radius`` 1 its 3 x 3 Sobel gradient (an invalid neighbour counted
+    as the pixel's own state), which turns with the edge within two pixels (``bench.edge_footprint``'s corners) but
+    is exact at 0°, 45° and 90° only: on straight edges elsewhere it errs by 6° (median), against 1.2° at radius 4,
+    and where a texel is long on the receiver |Jᵀn| (:func:`across_edge_width`) swings with it: gen2_08_low_sun's
+    uniform 2048² read 0.72 px across its straight edges by Sobel, 0.36 at radius 4 and 0.33 from the edges fitted
+    in a ground truth 4 x 4 times finer. NaN where the gradient vanishes or the pixel is not valid."""
     t = np.asarray(truth, dtype=np.float64)
     v = np.asarray(valid, dtype=bool)
     h, w = t.shape
-    pad_t, pad_v = np.pad(t, 1), np.pad(v, 1)
+    if radius == 1:
+        pad_t, pad_v = np.pad(t, 1), np.pad(v, 1)
 
-    def at(dy, dx):
-        return np.where(pad_v[1 + dy:1 + dy + h, 1 + dx:1 + dx + w], pad_t[1 + dy:1 + dy + h, 1 + dx:1 + dx + w], t)
-    gx = at(-1, 1) + 2 * at(0, 1) + at(1, 1) - at(-1, -1) - 2 * at(0, -1) - at(1, -1)
-    gy = at(1, -1) + 2 * at(1, 0) + at(1, 1) - at(-1, -1) - 2 * at(-1, 0) - at(-1, 1)
+        def at(dy, dx):
+            return np.where(pad_v[1 + dy:1 + dy + h, 1 + dx:1 + dx + w], pad_t[1 + dy:1 + dy + h, 1 + dx:1 + dx + w], t)
+        gx = at(-1, 1) + 2 * at(0, 1) + at(1, 1) - at(-1, -1) - 2 * at(0, -1) - at(1, -1)
+        gy = at(1, -1) + 2 * at(1, 0) + at(1, 1) - at(-1, -1) - 2 * at(-1, 0) - at(-1, 1)
+    else:
+        r = int(radius)
+        pad_t, pad_v = np.pad(t, r), np.pad(v, r).astype(np.float64)
+        count, shadowed, gx, gy, ox, oy = (np.zeros((h, w)) for _ in range(6))
+        disc = [(dy, dx) for dy in range(-r, r + 1) for dx in range(-r, r + 1) if dx * dx + dy * dy <= r * r + r]
+        for dy, dx in disc:
+            vq = pad_v[r + dy:r + dy + h, r + dx:r + dx + w]
+            sq = vq * pad_t[r + dy:r + dy + h, r + dx:r + dx + w]
+            count += vq
+            shadowed += sq
+            gx += dx * sq
+            gy += dy * sq
+            ox += dx * vq
+            oy += dy * vq
+        mean = shadowed / np.maximum(count, 1.0)
+        gx, gy = gx - mean * ox, gy - mean * oy
     length = np.hypot(gx, gy)
     with np.errstate(divide="ignore", invalid="ignore"):
         out = np.stack([gx, gy], axis=-1) / length[..., None]
-    out[~v | (length == 0)] = np.nan
+    out[~v | (length <= 1e-9)] = np.nan
     return out
 
 

@@ -624,6 +624,54 @@ def test_revectorized_pcf2_puts_a_straight_edge_on_its_line_not_on_the_texel_sta
     assert 0 < wrong[False] and wrong[True] <= 0.5 * wrong[False], wrong
 
 
+def ideal_pcf2(shadow_map, points, bvh, above=0.05):
+    """PCF 2 at world ``points`` on the ground (z = 0) recomputed from ``shadow_map``'s texels: each of the 2 x 2 taps
+    a ray cast from its texel centre on the map's near plane, shadowed where it meets something ``above`` the ground
+    first, weighed bilinearly as shade_frag.glsl weighs it."""
+    m = np.asarray(shadow_map.matrix, dtype=np.float64)
+    inv, size = np.linalg.inv(m), np.asarray(shadow_map.size)
+    h = np.c_[points, np.ones(len(points))] @ m.T
+    look = (h[:, :2] / h[:, 3:] * 0.5 + 0.5) * size - 0.5
+    base, f = np.floor(look).astype(int), look - np.floor(look)
+    out = np.zeros(len(points))
+    for dx, dy in ((0, 0), (1, 0), (0, 1), (1, 1)):
+        texel = np.clip(base + (dx, dy), 0, size - 1)
+        ndc = (texel + 0.5) / size * 2.0 - 1.0
+        near, far = (np.c_[ndc, np.full(len(ndc), z), np.ones(len(ndc))] @ inv.T for z in (-1.0, 1.0))
+        near, far = near[:, :3] / near[:, 3:], far[:, :3] / far[:, 3:]
+        hits = [bvh.ray_cast(Vector(a.tolist()), Vector((b - a).tolist()), float(np.linalg.norm(b - a)))[0]
+                for a, b in zip(near, far)]
+        shadowed = np.array([hit is not None and hit.z > above for hit in hits])
+        out += (f[:, 0] if dx else 1.0 - f[:, 0]) * (f[:, 1] if dy else 1.0 - f[:, 1]) * shadowed
+    return out
+
+
+@pytest.mark.parametrize("turn, aspect", [(0.0, 1.0), (30.0, 1.0), (30.0, 2.0), (0.0, 0.5), (75.0, 2.0)])
+def test_a_turned_or_2_to_1_map_renders_the_pcf2_its_texels_give(lx, scene, turn, aspect):
+    """A map turned about the light's axis and laid out w:h = 2:1 (a cascade's) is drawn and read as a square one: at
+    every ground pixel the rendered PCF 2 is the bilinear filter of its 2 x 2 texels, each ray-cast from its centre
+    (a map read with its sides swapped, or texel centres half a texel off in x or y, misses this at the edge)."""
+    edge_ramp_scene(scene, 20.0)
+    dg = scene.view_layers[0].depsgraph
+    dg.update()
+    view, lt, bounds = lx.describe.describe_scene(scene, dg)
+    plain = lx.warp.compute("uniform", view, lt, bounds, lx.warp.WarpOptions(shadow_map_size=(RAMP_MAP, RAMP_MAP)))
+    c, s = math.cos(math.radians(turn)), math.sin(math.radians(turn))
+    grow = abs(c) + abs(s)                         # the turned window holds the plain one, at the same texel density
+    turned = np.eye(4)
+    turned[:2, :2] = np.array([[c, s], [-s, c]]) / grow
+    size = (round(RAMP_MAP * grow * math.sqrt(aspect)), round(RAMP_MAP * grow / math.sqrt(aspect)))
+    setup = lx.types.ShadowSetup([replace(plain.maps[0], matrix=turned @ plain.maps[0].matrix, size=size)],
+                                 plain.diagnostics)
+    out, *_ = render(lx, scene, setup=setup, shadow=dict(pcf_kernel=2))
+    ground = out.covered & (np.abs(out.world_position[..., 2]) < 1e-3)
+    ys, xs = np.nonzero(ground)
+    want = ideal_pcf2(setup.maps[0], out.world_position[ys, xs].astype(np.float64), bvh_of(dg))
+    got = out.shadow_raw[ys, xs]
+    assert np.sum((want > 0.0) & (want < 1.0)) > 500, "the edge must cross many texels"
+    assert np.mean(np.abs(got - want) > 0.02) < 0.002 and np.mean(np.abs(got - want)) < 0.002
+
+
 def test_multi_map_selection_matches_shadow_setup(lx, scene):
     """Three hand-made maps: a plane map with a region, a map limited to an eye-depth
     range, and a fallback. The shader picks the same map as ShadowSetup.map_index."""
