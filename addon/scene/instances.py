@@ -169,8 +169,8 @@ class InstanceSet:
         from ..warp.types import SceneBounds
         boxes = self.world_boxes()
         if self.casts.all() and self.receives.all():
-            return SceneBounds(boxes, boxes)
-        return SceneBounds(boxes[self.casts], boxes[self.receives])
+            return SceneBounds(boxes, boxes, solid=False)
+        return SceneBounds(boxes[self.casts], boxes[self.receives], solid=False)
 
     @cached_property
     def caster_ids(self) -> np.ndarray:

@@ -167,10 +167,13 @@ class Light:
 
 @dataclass(frozen=True)
 class SceneBounds:
-    """World boxes ``[[min x, y, z], [max x, y, z]]``: ``casters`` and ``receivers``."""
+    """World boxes ``[[min x, y, z], [max x, y, z]]``: ``casters`` and ``receivers``. ``solid``: each box is its
+    object (box scenes: a ray meeting it sees its face there); False: each bounds an object that need not fill it (a
+    Blender object's bounds), and a ray meeting it may see through it."""
 
     casters: np.ndarray
     receivers: np.ndarray
+    solid: bool = True
 
     def __post_init__(self):
         for name in ("casters", "receivers"):

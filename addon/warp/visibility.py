@@ -308,6 +308,8 @@ def _region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int],
     t, box = ray_index(origins, dirs, length, index, selection, grid_may_meet(view, index, samples))
     hits = origins + np.where(np.isfinite(t), t, 0.0)[:, None] * dirs
     face, normals = _faces(scene.receivers, hits, box)
+    if not scene.solid:              # a box's face hides nothing behind it: every square as at a silhouette, no surface
+        face = np.full_like(face, -1)
     # What the square between each four neighbouring rays shows; each cell, the squares within a ray spacing of its own
     # four (padding, as the warps were tuned on).
     near_q, far_q = _square_depths(view, scene.receivers, selection.mask, face.reshape(ny + 2, nx + 2), origins, hits,
@@ -316,8 +318,8 @@ def _region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int],
                             _neighbours(np.pad(far_q, 1, constant_values=-np.inf), np.maximum, 4), tile)
     cells = box.reshape(ny + 2, nx + 2)[1:-1, 1:-1]                # the cells' rays (the border's: their neighbours)
     hit = np.flatnonzero(np.pad(cells >= 0, 1))                    # the surface: the cells' rays, not the border's
-    return replace(_region(view, near, far, samples, tile, "scene boxes", tile_counts(cells >= 0, tile)),
-                   surface=hits[hit][:, None].repeat(2, axis=1), normals=normals[hit])
+    region = _region(view, near, far, samples, tile, "scene boxes", tile_counts(cells >= 0, tile))
+    return replace(region, surface=hits[hit][:, None].repeat(2, axis=1), normals=normals[hit]) if scene.solid else region
 
 
 def grid_may_meet(view: View, index: BoxIndex, samples) -> np.ndarray:

@@ -116,6 +116,23 @@ def test_ground_seen_past_a_box_in_the_image_corner_beyond_the_outermost_ray_is_
     assert region_from_boxes(view, scene).contains(view, pts).all()
 
 
+def test_a_blender_objects_box_hides_nothing_behind_it():
+    """A Blender object's bounds need not be filled (chess pieces spread over a board, a hollow building): the ground
+    seen through the empty parts of such a box is held. A box scene's box is solid: there the box hides the ground,
+    and its faces are the receivers' surface."""
+    view = camera([0.0, 0.0, 3.0], forward=[0.0, math.cos(0.3), -math.sin(0.3)])
+    ground = [[-50.0, -50.0, -0.1], [50.0, 200.0, 0.0]]
+    pieces = [[-5.0, 4.0, 0.0], [5.0, 8.0, 4.0]]                   # the bounds of a few pieces in the view's middle
+    scene = SceneBounds(np.array([ground, pieces]), np.array([ground, pieces]), solid=False)
+    through, _ = visible_points(view, SceneBounds.from_boxes(np.array([ground])), (480, 270))
+    behind = view.eye_depth(through) > 8.0
+    assert behind.sum() > 1000                                     # ground seen past the far side of the pieces
+    region = region_from_boxes(view, scene)
+    assert region.contains(view, through).all() and region.surface is None
+    solid = region_from_boxes(view, SceneBounds.from_boxes(scene.receivers))
+    assert not solid.contains(view, through[behind]).all() and solid.surface is not None
+
+
 def test_what_shows_through_a_gap_narrower_than_the_ray_spacing_is_held():
     """Two walls fill the view above the ground but for a slit between two columns of rays, a fifth of their spacing
     wide: no ray passes it, yet the ground and a far wall 50 m behind show through it (a silhouette: the rays either side hit
