@@ -180,9 +180,9 @@ def test_a_volume_bounded_in_float64_but_not_in_float32_is_said_to_be_empty(scen
 
 
 def test_add_frustum_says_when_its_map_reaches_through_infinity(lixel, nodes, wg, capfd):
-    """The sun behind the camera: the cascade's far split's map reaches through infinity. The operator says its
+    """A point light behind the camera: a split of the cascade warps its map through infinity. The operator says its
     object is empty exactly where the group draws nothing, and says nothing of the kind for a bounded map."""
-    from mathutils import Matrix, Vector
+    from mathutils import Matrix
     with active_scene("lixel_frustum_note", mesh=False) as sc:
         for name, lo, hi in (("ground", (-50, -50, -0.1), (50, 50, 0)), ("post", (0, 0, 0), (1, 1, 3))):
             me = bpy.data.meshes.new(name)
@@ -193,7 +193,8 @@ def test_add_frustum_says_when_its_map_reaches_through_infinity(lixel, nodes, wg
                                          (0, 0, 0, 1)))
         sc.camera.data.sensor_fit, sc.camera.data.angle_y = "VERTICAL", math.radians(60)
         sc.camera.data.clip_start, sc.camera.data.clip_end = 0.1, 70.0
-        sc.objects["lixel_frustum_note light"].rotation_euler = Vector((0.05, 0.9, -0.4)).to_track_quat("-Z", "Y").to_euler()
+        light = sc.objects["lixel_frustum_note light"]
+        light.data.type, light.location = "POINT", (-3.0, -12.0, 3.0)
         sc.lixel.initialised, sc.lixel.method = True, "cascade"
         try:
             assert bpy.ops.lixel.refresh() == {"FINISHED"}
