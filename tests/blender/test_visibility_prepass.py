@@ -6,6 +6,7 @@ what the shading pass shades.
 """
 import importlib
 import math
+from contextlib import contextmanager
 from pathlib import Path
 
 import bpy
@@ -182,17 +183,27 @@ def test_the_prepass_surface_samples_carry_their_faces_normals(mods, fresh_scene
     assert (np.abs(n[:, 2]) > 1 - 1e-6).sum() > 0.5 * len(n)
 
 
-def test_on_the_terrain_view_z_n_comes_from_the_depth_prepass(mods):
-    """The terrain sample: nothing is visible nearer than about 128 m, with the
-    camera's near plane at 1 m. z_n follows what is seen (issue 12's diagnosis)."""
-    path = ROOT / "sample_blends" / "terrain.blend"
-    with bpy.data.libraries.load(str(path)) as (src, dst):
+@contextmanager
+def sample_scene(name: str):
+    """The sample scene ``name`` (sample_blends/) appended, at 320x180 and its first frame; removed after."""
+    with bpy.data.libraries.load(str(ROOT / "sample_blends" / f"{name}.blend")) as (src, dst):
         dst.scenes = list(src.scenes)
     scene = dst.scenes[0]
     try:
         scene.render.resolution_x, scene.render.resolution_y = 320, 180
         scene.render.resolution_percentage = 100
         scene.frame_set(scene.frame_start)
+        yield scene
+    finally:
+        for s in dst.scenes:
+            remove_objects_and_orphans(s)
+            bpy.data.scenes.remove(s)
+
+
+def test_on_the_terrain_view_z_n_comes_from_the_depth_prepass(mods):
+    """The terrain sample: nothing is visible nearer than about 128 m, with the
+    camera's near plane at 1 m. z_n follows what is seen (issue 12's diagnosis)."""
+    with sample_scene("terrain") as scene:
         last = render(mods, scene, "glpr")
         d = last["setup"].diagnostics
         assert d.extra["focus"] == "depth pre-pass"
@@ -201,10 +212,6 @@ def test_on_the_terrain_view_z_n_comes_from_the_depth_prepass(mods):
         assert cam.clip_start <= 1.0
         # GLPR's own λ at these depths over-warps: the guard acts and says so
         assert any(what.endswith("λ guard") for what, _ in d.fallbacks)
-    finally:
-        for s in dst.scenes:
-            remove_objects_and_orphans(s)
-            bpy.data.scenes.remove(s)
 
 
 def test_the_gpu_tile_reduction_equals_the_read_back_one(mods, fresh_scene):
@@ -269,14 +276,7 @@ def test_without_a_prepass_the_boxes_region_holds_every_point_the_engine_shades(
     """The panel, its overlays and the scripts fit B without a pre-pass, to a ray cast against the objects' boxes.
     A Blender object need not fill its box (chess's pieces, telephoto's town), so the region must not stop at a box's
     face: before, it ended at 3.5 m of chess's 20 m, and a cascade's far split lost its shadows there."""
-    path = ROOT / "sample_blends" / f"{name}.blend"
-    with bpy.data.libraries.load(str(path)) as (src, dst):
-        dst.scenes = list(src.scenes)
-    scene = dst.scenes[0]
-    try:
-        scene.render.resolution_x, scene.render.resolution_y = 320, 180
-        scene.render.resolution_percentage = 100
-        scene.frame_set(scene.frame_start)
+    with sample_scene(name) as scene:
         dg = scene.view_layers[0].depsgraph
         mods.context.ensure_gpu_context()
         out = mods.engine.render_depsgraph(dg, read={"world_position", "covered"})["result"]
@@ -284,7 +284,3 @@ def test_without_a_prepass_the_boxes_region_holds_every_point_the_engine_shades(
         points = out.world_position[out.covered]
         assert len(points) > 1000
         assert mods.warp.region_from_boxes(view, bounds).contains(view, points, tol=1e-5).all()
-    finally:
-        for s in dst.scenes:
-            remove_objects_and_orphans(s)
-            bpy.data.scenes.remove(s)
