@@ -15,7 +15,7 @@ from ..body import IntersectionBody, intersection_body
 from ..diagnostics import Diagnostics
 from ..partition.adaptive import max_error, minimax_splits
 from ..partition.budget import shared_sizes
-from ..partition.receivers import TAIL, footprint_p95, footprints, grazing, receivers, turned
+from ..partition.receivers import TAIL, footprint_p95, footprint_p95s, footprints, grazing, receivers, turned
 from ..partition.splits import practical_splits, split_region, split_view, tightened_depth_range
 from ..partition.stable import stable_depth_range, stable_spot_map, stable_sun_map
 from ..types import MAX_MAP_SIDE, EmptyBodyError, Light, SceneBounds, ShadowSetup, View, WarpError, WarpOptions
@@ -159,9 +159,11 @@ class Trials:
         def error(picks: list) -> float:
             return footprint_p95([c[k][2] for (_, c), k in zip(scored, picks)])
 
+        top = [[-np.sort(-f[np.isfinite(f)]) for *_, f in c] for _, c in scored]     # the values each p95 ranks
         lloyds, pick = [0] * len(scored), [0] * len(scored)
         for i in [*range(len(scored))] * 2:
-            pick[i] = min(range(len(scored[i][1])), key=lambda k: error(pick[:i] + [k] + pick[i + 1:]))
+            others = [t[k] for j, (t, k) in enumerate(zip(top, pick)) if j != i]
+            pick[i] = int(np.argmin(footprint_p95s(others, top[i])))
         if not (scored and error(pick) < (1.0 - MARGIN) * error(lloyds)):
             pick = lloyds
         for (s, c), k in zip(scored, pick):
