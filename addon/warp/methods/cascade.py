@@ -147,6 +147,10 @@ class Trials:
                                                                       grazing(m, seen, self.light)) if laid else [])]
         maps += [(w, single(m, size=size)) for w, m in maps if len(m.maps) == 1 and laid
                  for size in stretched(m.maps[0].size)]
+        unique = {}                                   # (a later copy of a map never wins: the first least wins)
+        for w, m in maps:
+            unique.setdefault(tuple((p.matrix.tobytes(), tuple(p.size)) for p in m.maps), (w, m))
+        maps = list(unique.values())
         return [(w, m, f) for (w, m), f in zip(maps, footprints([m for _, m in maps], seen) if maps else [])]
 
     def least_footprint(self, splits: list) -> tuple[list, list]:
@@ -159,11 +163,10 @@ class Trials:
         def error(picks: list) -> float:
             return footprint_p95([c[k][2] for (_, c), k in zip(scored, picks)])
 
-        top = [[-np.sort(-f[np.isfinite(f)]) for *_, f in c] for _, c in scored]     # the values each p95 ranks
         lloyds, pick = [0] * len(scored), [0] * len(scored)
         for i in [*range(len(scored))] * 2:
-            others = [t[k] for j, (t, k) in enumerate(zip(top, pick)) if j != i]
-            pick[i] = int(np.argmin(footprint_p95s(others, top[i])))
+            others = [c[k][2] for j, ((_, c), k) in enumerate(zip(scored, pick)) if j != i]
+            pick[i] = int(np.argmin(footprint_p95s(others, [f for *_, f in scored[i][1]])))
         if not (scored and error(pick) < (1.0 - MARGIN) * error(lloyds)):
             pick = lloyds
         for (s, c), k in zip(scored, pick):
@@ -173,8 +176,10 @@ class Trials:
 
     def least(self, split: Split, far: float) -> np.ndarray:
         """The footprints of ``split``'s unlaid candidate of least p95 at the receivers at eye depths [C_i, ``far``)."""
-        return self.once(("least", split.near, far, split.warp), lambda: min(
-            [f for *_, f in self.candidates(split, far, False)], key=lambda f: footprint_p95([f]), default=np.zeros(0)))
+        def least() -> np.ndarray:
+            fs = [f for *_, f in self.candidates(split, far, False)]
+            return fs[int(np.argmin(footprint_p95s([], fs)))] if fs else np.zeros(0)
+        return self.once(("least", split.near, far, split.warp), least)
 
     def searched_depths(self, start: np.ndarray, warps: list) -> np.ndarray:
         """``start`` after ``SWEEPS`` coordinate sweeps of the inner ones over ``FRACTIONS`` of their neighbours'
