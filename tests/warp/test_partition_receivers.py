@@ -12,7 +12,9 @@ import numpy as np
 
 from addon.cli.config import parse_config
 from addon.measure.box_scene import visible_points
-from addon.warp.partition.receivers import RAYS, receivers
+from addon.warp import WarpOptions, compute
+from addon.warp.methods.cascade import single, stretched
+from addon.warp.partition.receivers import RAYS, footprint_p95, footprint_p95s, footprints, receivers
 from addon.warp.visibility import BOX_SAMPLES, region_from_boxes
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -45,3 +47,30 @@ def test_any_other_region_gives_its_own_samples_and_none_without_normals():
     assert np.array_equal(seen[0], region.surface[:, 0]) and np.array_equal(seen[1], region.normals)
     assert receivers(view, light, dataclasses.replace(region_from_boxes(view, scene), normals=None), view.near,
                      math.inf, scene) is None
+
+
+def test_the_p95_of_each_union_at_once_is_the_p95_of_that_union():
+    """``footprint_p95s`` (the cascade's descent scores every candidate of a split in one batch) gives, bit for bit,
+    ``footprint_p95`` of the fixed splits' footprints joined with each candidate's: edge-on (inf) and unserved (NaN)
+    left out, ties, a part or every part without a finite value."""
+    rng = np.random.default_rng(5)
+    for trial in range(300):
+        def part(n):
+            f = rng.lognormal(size=n) if trial % 3 else np.round(rng.lognormal(size=n), 1) + 0.1     # ties
+            f[rng.random(n) < 0.05], f[rng.random(n) < 0.05] = np.inf, np.nan
+            return f
+        fixed = [part(int(rng.integers(0, 700 if trial % 2 else 3))) for _ in range(int(rng.integers(0, 4)))]
+        choices = [part(int(rng.integers(0, 500 if trial % 5 else 3))) for _ in range(int(rng.integers(1, 20)))]
+        assert footprint_p95s(fixed, choices).tolist() == [footprint_p95(fixed + [c]) for c in choices]
+
+
+def test_footprints_in_one_batch_are_each_setups_own():
+    """A map laid out anew (same matrix, another size) shares the raster Jacobian's matrix part with its original in
+    ``footprints``' batch: each setup's footprints equal those it has alone."""
+    view, light, scene = example("outdoor_sun")
+    seen = receivers(view, light, region_from_boxes(view, scene), view.near, math.inf, scene)
+    setup = compute("uniform", view, light, scene, WarpOptions(shadow_map_size=(1024, 1024), focus="view"))
+    setups = [single(setup, size=s) for s in [(1024, 1024), *stretched((1024, 1024))]] + [setup]
+    alone = [footprints([s], seen)[0] for s in setups]
+    assert all(np.array_equal(a, b, equal_nan=True) for a, b in zip(footprints(setups, seen), alone))
+    assert not np.allclose(alone[0], alone[1], equal_nan=True)
