@@ -21,6 +21,7 @@ import cProfile
 import dataclasses
 import io
 import json
+import os
 import pickle
 import pstats
 import statistics
@@ -125,8 +126,7 @@ def main(argv=None) -> int:
         sys.path.insert(0, str(ROOT))
     if args.load:
         cases = pickle.loads(args.load.read_bytes())
-        cases = {k: cases[k] for k in args.scenes.split(",") if k in cases} if args.scenes != ",".join(SCENES) \
-            else cases
+        cases = {k: v for k, v in cases.items() if k in args.scenes.split(",") or args.scenes == ",".join(SCENES)}
     else:
         cases = capture(args.scenes.split(","), args.size)
         if args.save:
@@ -150,5 +150,4 @@ def main(argv=None) -> int:
 if __name__ == "__main__":
     code = main()
     sys.stdout.flush()
-    import os
-    os._exit(code)  # Blender 4.2/4.5 may crash or hang at interpreter exit
+    os._exit(code)          # (bpy: Blender 4.2/4.5 may crash or hang at interpreter exit)
