@@ -482,6 +482,21 @@ def test_a_turned_map_holds_its_body_and_projects_along_the_light(name):
         assert np.allclose(a[:, :2], b[:, :2], atol=1e-9)
 
 
+@pytest.mark.parametrize("name", ["orthographic_camera", "sun_on_horizon", "spot_at_camera"])
+def test_a_splits_candidates_hold_each_map_once_lloyds_pick_first(name):
+    """A later copy of a candidate (maps equal byte for byte: an orthographic camera's warps are all the uniform map)
+    has the same footprints, so it never wins the first least: the candidates leave it out."""
+    view, light, scene = HARD_CASES[name]
+    region = region_from_boxes(view, scene)
+    trials = Trials(view, light, scene, OPTIONS, region, receivers(view, light, region, view.near, math.inf, scene))
+    split = trials.split(2.0, 8.0, 0.0)
+    maps = [tuple((m.matrix.tobytes(), tuple(m.size)) for m in setup.maps) for _, setup in split.tried]
+    candidates = trials.candidates(split, split.far)
+    keys = [tuple((m.matrix.tobytes(), tuple(m.size)) for m in setup.maps) for _, setup, _ in candidates]
+    assert len(set(maps)) < len(maps) and candidates[0][1] is split.setup
+    assert len(set(keys)) == len(keys) and set(maps) <= set(keys)
+
+
 def receivers_p95(view, setup, region, band=(95.0,)):
     """The p95 (or over ``band``) of the footprints at the ray cast's receivers, as the judge measures them (each
     receiver in the map serving it)."""
