@@ -209,7 +209,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     from ..gpu.batches import shared_batches
     from ..gpu.pipeline import ShadowFrame
     from ..scene.describe import (NO_FACES, NoLightError, check_finite_geometry, describe_scene, evaluated, eye_view,
-                                  light_notes, lost_depth_note, pick_light, render_camera)
+                                  light_notes, lost_depth_note, motion_blur_note, pick_light, render_camera)
     from ..scene.geometry import shared_cache
     from ..scene.linking import light_links, linking_note
 
@@ -236,9 +236,9 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         light = Light("SUN", direction=view.direction, energy=0.0, name="no light")
     if eye is not None:
         view = eye_view(view, camera, *eye, depsgraph=depsgraph)
-    note = lost_depth_note(view, bounds, camera.name)
-    if warnings is not None and note:
-        warnings.append(f"Lixel: {note}")
+    for note in (lost_depth_note(view, bounds, camera.name), motion_blur_note(scene)):
+        if warnings is not None and note:
+            warnings.append(f"Lixel: {note}")
     timings["describe"] = time.perf_counter() - t
     links = light_links(light_obj, geometry.instances)   # Light/Shadow Linking: what it lights, what blocks it
     note = linking_note(light_obj, geometry.instances)

@@ -156,6 +156,15 @@ def lost_depth_note(view: View, bounds: SceneBounds, camera_name: str) -> Option
             f"{lost:.3g} from its clip end, so they render as background; raise the clip start (Camera properties > Lens > Clip)")
 
 
+def motion_blur_note(scene) -> Optional[str]:
+    """A warning where ``scene`` asks for motion blur (Render properties > Motion Blur, set with Cycles or EEVEE,
+    which blur what moves over the shutter around each frame): Lixel renders the frame's one instant."""
+    if not scene.render.use_motion_blur:
+        return None
+    return (f"Scene '{scene.name}' has Motion Blur on: Lixel renders each frame at its one instant, unblurred (switch "
+            f"Motion Blur off in Render properties with Cycles or EEVEE, or render there for blur)")
+
+
 def render_resolution(scene) -> tuple[int, int]:
     """The output size in pixels, with the resolution percentage applied
     (Blender's own rounding: ``resolution * percentage // 100``)."""

@@ -68,3 +68,19 @@ def test_each_frame_of_an_animation_render_has_that_frames_light_camera_and_worl
         for image in ("combined", "shadow_mask", "covered"):
             np.testing.assert_array_equal(getattr(a["result"], image), getattr(b["result"], image),
                                           err_msg=f"frame {frame}: {image}")
+
+
+def test_motion_blur_asked_for_is_named_not_silently_left_out(engine, scene):
+    """Motion Blur switched on (with Cycles or EEVEE, whose panel sets it) blurs what moves there; Lixel rendered the
+    frame's one instant without a word. It still does, and says so."""
+    _animate(scene)
+    scene.render.use_motion_blur = True
+    with engine.watch_renders() as got:
+        assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    assert (f"Lixel: Scene '{scene.name}' has Motion Blur on: Lixel renders each frame at its one instant, unblurred "
+            f"(switch Motion Blur off in Render properties with Cycles or EEVEE, or render there for blur)"
+            ) in got[-1]["warnings"]
+    scene.render.use_motion_blur = False
+    with engine.watch_renders() as got:
+        assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    assert not any("Motion Blur" in w for w in got[-1]["warnings"])
