@@ -30,6 +30,10 @@ def parser():
     return p
 
 
+MIN_SIDE = 4
+"""The smallest render side Blender takes (``RenderSettings.resolution_x``'s minimum, 4.2 and 5.0)."""
+
+
 def parse_resolution(p, text):
     if text is None:
         return None
@@ -37,8 +41,8 @@ def parse_resolution(p, text):
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
         p.error(f"--resolution {text!r}: use WxH, e.g. 640x360")
-    if not (1 <= w <= 16384 and 1 <= h <= 16384):
-        p.error(f"--resolution {text}: each side must be 1..16384 pixels")
+    if not (MIN_SIDE <= w <= 16384 and MIN_SIDE <= h <= 16384):   # Blender raises a smaller side to 4 unasked
+        p.error(f"--resolution {text}: each side must be {MIN_SIDE}..16384 pixels")
     return w, h
 
 

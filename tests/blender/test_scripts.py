@@ -245,6 +245,7 @@ BAD = [
     ("render_method.py", ["--method", "nope", "--output", "x.png"], "choose one of"),
     ("render_method.py", ["--output", "x.png", "--size", "100000"], "out of range"),
     ("render_method.py", ["--output", "x.png", "--resolution", "big"], "WxH"),
+    ("render_method.py", ["--output", "x.png", "--resolution", "1x1"], "each side must be 4..16384 pixels"),
     ("render_method.py", [], "nothing to write"),
     ("export_animation.py", ["--output", "x.json", "--frames", "5:1"], "START <= END"),
     ("export_animation.py", ["--frames", "1:2"], "--output"),
