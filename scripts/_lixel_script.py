@@ -216,7 +216,7 @@ class Session:
 
     def state(self, scene, settings):
         """The live state for the scene (camera/light from the arguments), as a copy of its own: Lixel's live
-        update (``depsgraph_update_post``, which a render's GPU start or a frame change sets off) recomputes the
+        update (``depsgraph_update_post``, which a render's GPU start sets off, and ``frame_change_post``) recomputes the
         scene's stored state with the scene's own settings, camera and light. ScriptError on failure."""
         live = self.module("addon.ui.live")
         camera, light = self.objects(scene)

@@ -374,13 +374,13 @@ def lights_surfaces(light_obj) -> bool:
     """Whether ``light_obj`` lights Lixel's surfaces, which are all diffuse: its Ray Visibility > Diffuse (Object
     properties > Visibility) is on. With it off, Cycles and EEVEE light no diffuse surface with it (measured in 4.2.23
     and 5.0.1, a sun-lit ground and box: the picture's mean 0.58 -> 0.05 in Cycles, 0.55 -> 0.05 in EEVEE, the
-    world's light alone). (EEVEE also scales it by the light's Diffuse factor, which Cycles ignores: Lixel does too.)"""
+    world's light alone). EEVEE also scales it by the light's Diffuse factor, which Cycles and Lixel ignore."""
     return bool(getattr(light_obj, "visible_diffuse", True))
 
 
 def light_notes(light_obj, depsgraph=None) -> list[str]:
-    """Warnings about a light Lixel renders but that may surprise: no strength, or a negative one (which Cycles and
-    Lixel subtract), an area light approximated by a spot, a spot scaled unevenly (Blender stretches its cone by the
+    """Warnings about a light Lixel renders but that may surprise: one that lights no surface (:func:`lights_surfaces`),
+    no strength, or a negative one (which Cycles and Lixel subtract), an area light approximated by a spot, a spot scaled unevenly (Blender stretches its cone by the
     X and Y scale against the Z scale; Lixel's cone is round), as ``depsgraph`` evaluates it (:func:`evaluated`)."""
     notes = []
     light_obj = evaluated(light_obj, depsgraph) if light_obj is not None else None
