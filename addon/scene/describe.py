@@ -379,9 +379,10 @@ def lights_surfaces(light_obj) -> bool:
 
 
 def light_notes(light_obj, depsgraph=None) -> list[str]:
-    """Warnings about a light Lixel renders but that may surprise: one that lights no surface (:func:`lights_surfaces`),
-    no strength, or a negative one (which Cycles and Lixel subtract), an area light approximated by a spot, a spot scaled unevenly (Blender stretches its cone by the
-    X and Y scale against the Z scale; Lixel's cone is round), as ``depsgraph`` evaluates it (:func:`evaluated`)."""
+    """Warnings about a light Lixel renders but that may surprise: one that lights no surface
+    (:func:`lights_surfaces`), no strength, or a negative one (which Cycles and Lixel subtract), an area light
+    approximated by a spot, a spot scaled unevenly (Blender stretches its cone by the X and Y scale against the Z
+    scale; Lixel's cone is round), as ``depsgraph`` evaluates it (:func:`evaluated`)."""
     notes = []
     light_obj = evaluated(light_obj, depsgraph) if light_obj is not None else None
     data = getattr(light_obj, "data", None)
