@@ -632,6 +632,9 @@ void main()
 #endif
   vec3 P = surface.xyz;
   vec3 N = lixel_unoctahedral(lixel_unpack_normal(surface.w));
+  /* The pre-pass's normal (screen derivatives) faces the viewer, unless the camera is mirrored (scaled negatively,
+   * itself or by a parent): then it faces away, and the side seen, which Blender's engines light, is -N. */
+  N = lixel.view_dir.w < 0.0 ? -N : N;
   float eye_depth = -dot(lixel.eye_row, vec4(P, 1.0));
 
   /* The first map that serves P. */
