@@ -364,7 +364,7 @@ bool lixel_serves(int i, vec3 P, float eye_depth, out vec4 h)
 vec2 lixel_unpack_normal(float code)
 {
   uint v = floatBitsToUint(code);
-  return vec2(float((v >> 15) & 16383u), float(v & 32767u)) * (2.0 / vec2(16383.0, 32767.0)) - 1.0;
+  return (vec2(float((v >> 15) & 16383u), float(v & 32767u)) - vec2(8191.0, 16383.0)) / vec2(8191.0, 16383.0);
 }
 
 vec3 lixel_unoctahedral(vec2 p)
