@@ -187,8 +187,8 @@ def cases() -> dict[str, Case]:
     for base in ("city_side_sun", "floor_wall"):
         out.append(Case(f"{base}_offset_1e5", base, offset((1e5, -1e5, 0.0)), base, f"{base} moved 1e5 m in x and y"))
     out += [
-        Case("city_near_1e-4_far_1e3", "city_side_sun", clip(1e-4, 1e3), "city_side_sun",
-             "near 1e-4 m, far 1e3 m (1:1e7, within float32 depth)"),
+        *(Case(f"city_near_{near:g}_far_1e3", "city_side_sun", clip(near, 1e3), "city_side_sun",
+               f"near {near:g} m, far 1e3 m (1:{1e3 / near:.0e}, within float32 depth)") for near in (1e-2, 1e-3, 1e-4)),
         *(Case(f"city_near_1e-4_far_{far:g}", "city_side_sun", clip(1e-4, far), None,
                f"near 1e-4 m, far {far:g} m: beyond float32 depth, refused by name", "Camera 'Camera' clips from")
           for far in (1e4, 1e5)),
