@@ -58,8 +58,9 @@ def bias_vector(shadow: ShadowSettings) -> tuple[float, float, float, float]:
 
 def relative(matrix: np.ndarray, origin) -> np.ndarray:
     """A world -> clip matrix for coordinates relative to ``origin``
-    (``M @ translation(origin)``). The GPU works in float32 around the camera,
-    so scenes far from the world origin keep their precision."""
+    (``M @ translation(origin)``). The GPU works in float32 around the scene's
+    drawing origin (``batches.drawing_origin``), so scenes far from the world
+    origin keep their precision."""
     return np.asarray(matrix, dtype=np.float64) @ translation(origin)
 
 

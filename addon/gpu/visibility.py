@@ -23,6 +23,7 @@ from ..warp.geometry import raster_position
 from ..warp.visibility import (PIXEL_TILE, VisibleRegion, region_from_window_depth, region_from_window_tiles,
                                surface_from_window_depth)
 from . import compose
+from .result import unpack_normals
 
 
 def region_from_frame(frame, tile: int = PIXEL_TILE, source: str = "depth pre-pass",
@@ -48,19 +49,8 @@ def region_from_frame(frame, tile: int = PIXEL_TILE, source: str = "depth pre-pa
         window = window if not on_gpu else compose.read_depth(frame.targets.framebuffer(depth=depth), frame.size)
         seen = frame.targets.framebuffer(colors=(frame.targets.texture("surface", frame.size, "RGBA32F"),))
         points, codes = surface_from_window_depth(frame.view, window, compose.read_color(seen, 0, frame.size)[..., 3])
-        region = replace(region, surface=points, normals=unpacked_normals(codes))
+        region = replace(region, surface=points, normals=unpack_normals(codes))
     return region, time.perf_counter() - t
-
-
-def unpacked_normals(codes: np.ndarray) -> np.ndarray:
-    """(N, 3) unit normals from the pre-pass's packed octahedral codes (``prepass_frag.glsl``; as
-    ``lixel_unpack_normal`` and ``lixel_unoctahedral`` in ``shade_frag.glsl``: Cigolle et al., JCGT 2014)."""
-    v = np.ascontiguousarray(codes, dtype=np.float32).view(np.uint32)
-    p = (np.stack([(v >> 15) & 16383, v & 32767], axis=-1) - np.array([8191.0, 16383.0])) / np.array([8191.0, 16383.0])
-    n = np.concatenate([p, 1.0 - np.abs(p).sum(axis=-1, keepdims=True)], axis=-1)
-    t = np.maximum(-n[..., 2:], 0.0)
-    n[..., :2] += np.where(n[..., :2] >= 0.0, -t, t)
-    return n / np.linalg.norm(n, axis=-1, keepdims=True)
 
 
 EDGE_MAP = 512

@@ -1004,7 +1004,7 @@ def test_mdsm_on_every_map_of_a_multi_map_setup(lx, scene, selection):
 
 def test_far_from_the_origin_shadows_keep_their_precision(lx, scene):
     """The whole scene moved 1000 km away (float32 spacing there: 6 cm): the GPU
-    works relative to the camera, so the shadows still agree with ray casting."""
+    works relative to the scene's drawing origin, so the shadows still agree with ray casting."""
     shadow_scene(scene, "SUN")
     for ob in scene.objects:
         ob.location.x += 1.0e6
