@@ -28,7 +28,9 @@ the method and the map size changed) and sets each method's numbers against unif
 * ``by map``: per map that serves true edge pixels (its role and texels w x h), how many it serves, how many of
   them are wrong, and the mean σ_max there (with ``--ties``, also the ties it serves and gets wrong): a cascade
   whose p95 halves uniform's may still have most of its wrong pixels in a split whose texels are barely finer
-  than uniform's;
+  than uniform's; and against uniform on those same pixels: each map's wrong pixels and uniform's there (means over
+  the phases) and the width across the edges there in each (floor_wall's cascade at 2048², 16 phases: splits 0-2
+  0.43-0.73x uniform's wrong pixels on their pixels, split 3 0.94x at 0.99x uniform's width: 23 of its 52);
 * ``by grid angle``: the straight edge pixels per band of angle to their map's nearest texel axis
   (:data:`ANGLE_BINS`), the wrong ones among them and the mean width across the edge there. The bilinear
   contour of PCF 2 errs across an edge by E|δ| = 0.25 texel on a grid along it, 0.16-0.19 at 20-45° (a
@@ -232,11 +234,12 @@ def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1, s
             across = setup_across_edge_width(view, setup, gt.points[straight], gt.normals[straight], edge_n[straight])
             angle = per_serving_map(view, setup, gt.points[straight], lambda m, p, n, e: grid_angle(view, m, p, n, e),
                                     gt.normals[straight], edge_n[straight])
-            by_phase = [classify(shadow, gt.shadow, counted, 2).errors]
+            by_phase, wrong_by_phase = [classify(shadow, gt.shadow, counted, 2).errors], [wrong]
             for offset in phases(phase_count)[1:]:
                 with grid_phase(offset):
                     moved = render_depsgraph(dg, resolution, settings=settings, read=READ)["result"]
                 by_phase.append(classify(moved.shadow_raw >= 0.5, gt.shadow, comparable_mask(gt, moved), 2).errors)
+                wrong_by_phase.append(comparable_mask(gt, moved) & ((moved.shadow_raw >= 0.5) != gt.shadow))
             rows.append({"scene": name, "method": method, "size": size, "wrong": by_phase[0], "phases": by_phase,
                          "straight": int((wrong & straight).sum()), "corners": int((wrong & near_corner).sum()),
                          "p95": footprint_stats(fp).p95, "across": _mean(across), "corner_smax": _mean(at_corners),
@@ -244,8 +247,26 @@ def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1, s
                          "by_angle": by_angle(angle, wrong[straight], across),
                          "by_map": by_map(view, setup, result.map_index, edges & counted, wrong, gt, tied),
                          "ties": None if tied is None else (int((wrong & tied).sum()), int((tied & counted).sum()),
-                                                            int((wrong & edges & ~tied).sum()))})
+                                                            int((wrong & edges & ~tied).sum())),
+                         "setup": setup, "served": [edges & counted & (result.map_index == i)
+                                                    for i in range(len(setup.maps))], "wrong_by_phase": wrong_by_phase})
+    for r in rows:
+        u = next(u for u in rows if u["method"] == "uniform" and u["size"] == r["size"])
+        r["against_uniform"] = [against_uniform(view, gt, edge_n, px, r, u) if px.any() else None for px in r["served"]]
     return rows
+
+
+def against_uniform(view, gt, edge_n, pixels, row, uniform) -> tuple:
+    """At the true edge pixels one of ``row``'s maps serves (as computed): its wrong pixels there and uniform's, each
+    the mean over the grid phases, and the mean width across the straight edges there, its own and uniform's: whether
+    that map's texels gain on uniform's where its own edges are (a cascade's far split may hold most of the wrong
+    pixels at uniform's width: floor_wall's split 3, docs/papers.md)."""
+    from addon.measure.footprint import setup_across_edge_width
+    p, n, e = gt.points[pixels], gt.normals[pixels], edge_n[pixels]
+    return (float(np.mean([w[pixels].sum() for w in row["wrong_by_phase"]])),
+            float(np.mean([w[pixels].sum() for w in uniform["wrong_by_phase"]])),
+            _mean(setup_across_edge_width(view, row["setup"], p, n, e)),
+            _mean(setup_across_edge_width(view, uniform["setup"], p, n, e)))
 
 
 def by_angle(angle: np.ndarray, wrong: np.ndarray, across: np.ndarray) -> list[tuple]:
@@ -296,6 +317,12 @@ def table(rows: list[dict]) -> list[str]:
         lines.append(f"{'':>42}by map (edge pixels, wrong, mean σ_max there): " + "; ".join(
             f"{role} {n}, {w}, {smax:.2f} px" + (f", ties {t[1]} of {t[0]}" if t else "")
             for role, n, w, smax, t in r["by_map"]))
+        if r["method"] != "uniform":
+            lines.append(f"{'':>42}by map against uniform at the edge pixels it serves (wrong, uniform's wrong there, "
+                         f"mean over phases; width across, uniform's there): " + "; ".join(
+                             f"{role} {a[0]:.1f}, {a[1]:.1f} ({a[0] / max(a[1], 1e-9):.2f}x); {a[2]:.3f}, {a[3]:.3f} px "
+                             f"({a[2] / a[3]:.2f}x)" for (role, *_), a in zip(
+                                 [m for m in r["by_map"]], [a for a in r["against_uniform"] if a is not None])))
         if len(r["phases"]) > 1:
             v, uv = np.array(r["phases"]), np.array(u["phases"])
             lines.append(f"{'':>42}over {len(v)} grid phases: {v.mean():.1f} ± {v.std(ddof=1):.1f} wrong "

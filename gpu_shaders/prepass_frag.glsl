@@ -9,7 +9,11 @@
  * bits, stored as the bits of one float: bits 0-14 and 15-28, bit 30 set and
  * bit 29 clear, so its exponent is 128..191 (a finite normal float, no bit
  * pattern a GPU could flush or canonicalise); the normal's direction is then
- * within about 1e-4 rad (lixel_unpack_normal in shade_frag.glsl undoes it).
+ * within about 1e-4 rad (lixel_unpack_normal in shade_frag.glsl undoes it),
+ * and exact on an axis: the codes 0, 8191, 16382 (0, 16383, 32766) are -1, 0
+ * and 1, so a floor or a box's face keeps its normal (2^14 - 1 steps put 0
+ * between two codes, 6e-5 rad off: a point light 1 mm above a floor meets it
+ * at 1e-4 rad).
  * That matters where the light grazes a receiver: the receiver plane built
  * from the normal is extrapolated to the PCF taps, and an error of 5e-4 rad
  * (12-bit coordinates) showed as acne at 4096² with a bilinear kernel. The
@@ -37,7 +41,7 @@ void main()
    * octahedral map divides by the L1 norm, and the shading turns the normal
    * towards the viewer). */
   vec2 o = lixel_octahedral(cross(dFdx(v_world), dFdy(v_world)));
-  uvec2 q = uvec2(floor(clamp(o * 0.5 + 0.5, 0.0, 1.0) * vec2(16383.0, 32767.0) + 0.5));
+  uvec2 q = uvec2(floor((clamp(o, -1.0, 1.0) + 1.0) * vec2(8191.0, 16383.0) + 0.5));
 #ifdef LIXEL_UNLIT
   uint marks = 0x20000000u;
 #else

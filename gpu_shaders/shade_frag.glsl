@@ -186,6 +186,9 @@ vec3 lixel_row(mat4 m, int r)
 /* The pre-pass normal's direction error in radians (its 14/15-bit packing
  * and the float32 screen derivatives it comes from; prepass_frag.glsl). */
 #define LIXEL_NORMAL_ERROR 1e-4
+/* The narrowest texel the bias is measured in, a fraction of the distance
+ * from the frame's origin (16 float32 steps: lixel_receiver). */
+#define LIXEL_FLOAT_WIDTH 1e-6
 /* A point within this many lixels of a plane map's lixel centre is that
  * lixel's own point (float32 rounding, 2e-3 measured; one lixel per pixel). */
 #define LIXEL_ON_LIXEL 0.0625
@@ -257,6 +260,12 @@ LixelReceiver lixel_receiver(int i, vec3 P, vec3 N, vec3 L, vec4 h, vec2 size, b
    * sides, so a long thin texel of a warped or plane map does not lift the
    * bias to its long side), and that width as stored depth along the ray. */
   r.width = 2.0 * inversesqrt(sqrt(size.x * size.x * dot(gx, gx) * size.y * size.y * dot(gy, gy)));
+  /* No narrower than float32 resolves P: P and the maps' depths are
+   * interpolated in float32 from vertices relative to the frame's origin,
+   * about as far from it as P or the camera, so both err by some 2^-24 of
+   * that distance; a texel finer than that (an orthographic view 2e-5 m
+   * wide 10 m from the origin) would bias by less than the error: acne. */
+  r.width = max(r.width, LIXEL_FLOAT_WIDTH * max(length(P), length(lixel.camera.xyz)));
   r.texel = r.width * abs(dot(gz, L));
   r.z = linear ? dot(lixel.maps[i].depth_row, vec4(P, 1.0)) : ndc.z;
   r.det = 0.0;
@@ -364,7 +373,7 @@ bool lixel_serves(int i, vec3 P, float eye_depth, out vec4 h)
 vec2 lixel_unpack_normal(float code)
 {
   uint v = floatBitsToUint(code);
-  return vec2(float((v >> 15) & 16383u), float(v & 32767u)) * (2.0 / vec2(16383.0, 32767.0)) - 1.0;
+  return (vec2(float((v >> 15) & 16383u), float(v & 32767u)) - vec2(8191.0, 16383.0)) / vec2(8191.0, 16383.0);
 }
 
 vec3 lixel_unoctahedral(vec2 p)
@@ -632,6 +641,9 @@ void main()
 #endif
   vec3 P = surface.xyz;
   vec3 N = lixel_unoctahedral(lixel_unpack_normal(surface.w));
+  /* The pre-pass's normal (screen derivatives) faces the viewer, unless the camera is mirrored (scaled negatively,
+   * itself or by a parent): then it faces away, and the side seen, which Blender's engines light, is -N. */
+  N = lixel.view_dir.w < 0.0 ? -N : N;
   float eye_depth = -dot(lixel.eye_row, vec4(P, 1.0));
 
   /* The first map that serves P. */

@@ -216,8 +216,9 @@ class Session:
 
     def state(self, scene, settings):
         """The live state for the scene (camera/light from the arguments), as a copy of its own: Lixel's live
-        update (``depsgraph_update_post``, which a render's GPU start or a frame change sets off) recomputes the
-        scene's stored state with the scene's own settings, camera and light. ScriptError on failure."""
+        update (``depsgraph_update_post``, which a render's GPU start sets off, and ``frame_change_post``)
+        recomputes the scene's stored state with the scene's own settings, camera and light. ScriptError on
+        failure."""
         live = self.module("addon.ui.live")
         camera, light = self.objects(scene)
         depsgraph = self.bpy.context.evaluated_depsgraph_get()

@@ -70,7 +70,7 @@ def main(argv=None):
                 vp, notes = snapshot.observer_view_projection(st.geometry, st.view, w / h)
             img = snapshot.draw_snapshot(scene, st, snapshot.OverlayFlags.of(overlays[view]), vp, (w, h))
             path = os.path.join(args.output_dir, f"overlay_{view}.png")
-            renders.save_png(img, path, linear=False)  # the overlays draw display colours
+            renders.save_image(img, path, linear=False)  # the overlays draw display colours
             print(f"wrote {path} ({st.method_used}, {len(st.setup.maps)} map(s), {', '.join(overlays[view])})")
             for note in notes:
                 print(f"  note: {note}")

@@ -3,8 +3,9 @@
     blender -b scene.blend --python scripts/render_method.py -- --method lispsm --output out.png
     python scripts/render_method.py scene.blend --method lispsm --output out.png [--json setup.json]
 
-Writes the shaded picture (PNG), optionally the shadow mask and the first
-shadow map as PNGs and the setup (matrices + diagnostics, the CLI's JSON).
+Writes the shaded picture, optionally the shadow mask and the first shadow map, each in the format its file
+name's ending names (PNG, OpenEXR, JPEG or TIFF; PNG without one), and the setup (matrices + diagnostics, the
+CLI's JSON).
 """
 import json
 import os
@@ -17,15 +18,20 @@ import _lixel_script as ls  # noqa: E402
 def parser():
     p = ls.base_parser("render_method.py", "Render the camera view with Lixel's warped shadow maps.")
     p.add_argument("--method", help="the warp method (default: the scene's); see --list-methods")
-    p.add_argument("--output", "-o", help="PNG file for the shaded picture")
-    p.add_argument("--shadow-output", help="PNG file for the shadow mask (white = shadowed)")
-    p.add_argument("--map-output", help="PNG file for the first shadow map's depth")
+    p.add_argument("--output", "-o", help="picture file for the shaded picture (.png, .exr, .jpg or .tif: the "
+                                          "format its ending names; .exr keeps values above 1)")
+    p.add_argument("--shadow-output", help="picture file for the shadow mask (white = shadowed)")
+    p.add_argument("--map-output", help="picture file for the first shadow map's depth")
     p.add_argument("--json", help="write the setup (matrices + diagnostics, the CLI's format) to this file")
     p.add_argument("--resolution", help="WxH pixels, framed as Blender frames that output size (default: the "
                                         "scene's render size)")
     p.add_argument("--frame", type=int, help="frame to render (default: the current frame)")
     p.add_argument("--list-methods", action="store_true", help="print the available methods and exit")
     return p
+
+
+MIN_SIDE = 4
+"""The smallest render side Blender takes (``RenderSettings.resolution_x``'s minimum, 4.2 and 5.0)."""
 
 
 def parse_resolution(p, text):
@@ -35,8 +41,8 @@ def parse_resolution(p, text):
         w, h = (int(v) for v in text.lower().split("x"))
     except ValueError:
         p.error(f"--resolution {text!r}: use WxH, e.g. 640x360")
-    if not (1 <= w <= 16384 and 1 <= h <= 16384):
-        p.error(f"--resolution {text}: each side must be 1..16384 pixels")
+    if not (MIN_SIDE <= w <= 16384 and MIN_SIDE <= h <= 16384):   # Blender raises a smaller side to 4 unasked
+        p.error(f"--resolution {text}: each side must be {MIN_SIDE}..16384 pixels")
     return w, h
 
 
@@ -55,6 +61,10 @@ def main(argv=None):
             return 0
         if args.method is not None and args.method not in methods:
             p.error(f"--method {args.method!r}: choose one of {', '.join(methods)}")
+        renders = s.module("addon.ui.renders")
+        for path in (args.output, args.shadow_output, args.map_output):
+            if path:
+                renders.image_format(path)   # an ending Lixel does not write: said before rendering
         scene = s.scene()
         if resolution is not None:  # rendered as Blender renders that output size (never saved)
             scene.render.resolution_x, scene.render.resolution_y = resolution
@@ -68,16 +78,15 @@ def main(argv=None):
             with open(args.json, "w", encoding="utf-8") as fh:
                 json.dump(s.module("addon.cli.output").setup_json(st.setup), fh, indent=2)
         if args.output or args.shadow_output or args.map_output:
-            renders = s.module("addon.ui.renders")
             res = renders.render_state(st, s.bpy.context.evaluated_depsgraph_get(), st.view.resolution)
             if args.output:
-                renders.save_png(res.combined, args.output)
+                renders.save_image(res.combined, args.output)
             if args.shadow_output:
                 import numpy as np
                 m = np.asarray(res.shadow_mask, dtype=np.float32)
-                renders.save_png(np.dstack([m, m, m, np.ones_like(m)]), args.shadow_output)
+                renders.save_image(np.dstack([m, m, m, np.ones_like(m)]), args.shadow_output)
             if args.map_output and res.shadow_maps:
-                renders.save_png(renders.depth_to_rgba(res.shadow_maps[0]), args.map_output)
+                renders.save_image(renders.depth_to_rgba(res.shadow_maps[0]), args.map_output)
             t = res.timings
             print(f"lixel: {st.method_used}: {len(st.setup.maps)} map(s) of light '{st.light_name}', "
                   f"{sum(t.values()) * 1000:.0f} ms render ({', '.join(f'{k} {v * 1000:.0f}' for k, v in t.items())})")

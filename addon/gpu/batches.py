@@ -133,6 +133,28 @@ class _Grouping:
         self.groups = [(instances.key_list[c // 2], bool(c % 2), int(key_triangles[c // 2])) for c in first]
 
 
+COMPACT_REACH = 1.0e4
+"""How far from the centre of a scene's boxes they may reach for that centre to be the point the GPU draws relative
+to: float32 steps there are at most COMPACT_REACH / 2^24 = 0.6 mm (:func:`drawing_origin`)."""
+
+
+def drawing_origin(boxes: np.ndarray) -> np.ndarray:
+    """The point the GPU draws a scene's (N, 2, 3) world ``boxes`` relative to, in float32: the centre of the boxes
+    where they all lie within :data:`COMPACT_REACH` of it, else per axis the median of the boxes' centres (of the
+    two middle ones, the one nearer the world origin). That point stays with the bulk of the scene, so a scene far
+    from the world origin keeps its precision and an object far from the rest (a moon, a stray vertex) costs the
+    rest none: the centre lies half way to it, where float32 steps are up to its distance / 2^24 (a cube 1e7 m away
+    drew the scene near the world origin in 0.5 m steps; 1e9 m away, collapsed it into one point)."""
+    low, high = boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)
+    if np.all(high - low <= 2 * COMPACT_REACH):
+        return (low + high) / 2
+    centres = (boxes[:, 0] + boxes[:, 1]) / 2
+    n = len(centres)
+    middle = np.partition(centres, [(n - 1) // 2, n // 2], axis=0)
+    low, high = middle[(n - 1) // 2], middle[n // 2]
+    return np.where(np.abs(low) <= np.abs(high), low, high)
+
+
 class _UploadedSet:
     """The GPU side of one InstanceSet: its matrices, its grouping, its passes' draw lists."""
 
@@ -147,8 +169,7 @@ class _UploadedSet:
         n = len(inst)
         if n == 0:
             return
-        boxes = inst.world_boxes()
-        self.origin = (boxes[:, 0].min(axis=0) + boxes[:, 1].max(axis=0)) / 2
+        self.origin = drawing_origin(inst.world_boxes())
         mats = inst.matrices.copy()
         mats[:, :3, 3] -= self.origin                      # relative in float64, then float32
         rows = -(-n // INSTANCES_PER_ROW)
@@ -169,7 +190,7 @@ class GPUScene:
     """The GPU side of a :class:`~addon.scene.geometry.SceneGeometry`.
 
     ``sync(geometry)`` uploads the instance matrices when the instance set is
-    a new one, relative to ``origin`` (the centre of the scene's boxes: the
+    a new one, relative to ``origin`` (:func:`drawing_origin`, with the bulk of the scene's boxes: the
     GPU works in float32, so scenes far from the world origin keep their
     precision; every matrix a pass uses is made relative to the same point).
     The last few instance sets stay uploaded, so the render engine's and the

@@ -138,7 +138,7 @@ LIXEL_MAP = Struct("LixelMap", (
 
 LIXEL_SHADE = Struct("LixelShade", (
     Member("camera", "vec4", "(position.xyz, orthographic (0/1))"),
-    Member("view_dir", "vec4", "(camera forward.xyz, 0)"),
+    Member("view_dir", "vec4", "(camera forward.xyz, -1 for a mirrored camera else 1)"),
     Member("eye_row", "vec4", "row 2 of world -> camera (eye depth = -dot(eye_row, [P, 1]))"),
     Member("light_pos", "vec4", "(position.xyz, type: 0 sun, 1 point, 2 spot)"),
     Member("light_dir", "vec4", "(travel direction.xyz, cos of the spot's half angle)"),

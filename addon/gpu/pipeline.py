@@ -298,7 +298,8 @@ def shade_block(view: View, light: Light, setup: ShadowSetup, shadow: ShadowSett
     resolution = view.resolution if resolution is None else resolution
     b = LIXEL_SHADE.block()
     b.camera[:] = (*(view.position - o), 1.0 if view.orthographic else 0.0)
-    b.view_dir[:3] = view.direction
+    mirrored = np.linalg.det(view.camera_to_world[:3, :3]) < 0       # a negatively scaled camera: shade_frag.glsl
+    b.view_dir[:] = (*view.direction, -1.0 if mirrored else 1.0)
     b.eye_row[:] = relative_row(view.world_to_camera[2], o)
     kind = {"SUN": 0.0, "POINT": 1.0, "SPOT": 2.0}[light.type]
     b.light_pos[:] = (*((light.position - o) if light.position is not None else (0, 0, 0)), kind)

@@ -105,7 +105,7 @@ def unpack_normals(codes) -> np.ndarray:
     """(..., 3) unit normals from the pre-pass's packed floats (``prepass_frag.glsl``: octahedral coordinates in
     14 and 15 bits of one float; ``lixel_unpack_normal`` and ``lixel_unoctahedral`` in ``shade_frag.glsl``)."""
     bits = np.ascontiguousarray(codes, dtype=np.float32).view(np.uint32)
-    p = np.stack([(bits >> 15) & 16383, bits & 32767], axis=-1) * (2.0 / np.array([16383.0, 32767.0])) - 1.0
+    p = (np.stack([(bits >> 15) & 16383, bits & 32767], axis=-1) - np.array([8191.0, 16383.0])) / np.array([8191.0, 16383.0])
     n = np.concatenate([p, 1.0 - np.abs(p).sum(axis=-1, keepdims=True)], axis=-1)
     fold = np.maximum(-n[..., 2:], 0.0)
     n[..., :2] -= np.copysign(fold, n[..., :2])

@@ -56,7 +56,7 @@ def unpacked_normals(codes: np.ndarray) -> np.ndarray:
     """(N, 3) unit normals from the pre-pass's packed octahedral codes (``prepass_frag.glsl``; as
     ``lixel_unpack_normal`` and ``lixel_unoctahedral`` in ``shade_frag.glsl``: Cigolle et al., JCGT 2014)."""
     v = np.ascontiguousarray(codes, dtype=np.float32).view(np.uint32)
-    p = np.stack([(v >> 15) & 16383, v & 32767], axis=-1) * (2.0 / np.array([16383.0, 32767.0])) - 1.0
+    p = (np.stack([(v >> 15) & 16383, v & 32767], axis=-1) - np.array([8191.0, 16383.0])) / np.array([8191.0, 16383.0])
     n = np.concatenate([p, 1.0 - np.abs(p).sum(axis=-1, keepdims=True)], axis=-1)
     t = np.maximum(-n[..., 2:], 0.0)
     n[..., :2] += np.where(n[..., :2] >= 0.0, -t, t)

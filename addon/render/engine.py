@@ -156,8 +156,9 @@ def no_shadow_setup(method: str) -> ShadowSetup:
     return ShadowSetup([ShadowMap(none, (1, 1), role="none")], Diagnostics(method))
 
 
-def _world_colour(scene) -> tuple:
-    world = scene.world
+def _world_colour(depsgraph) -> tuple:
+    """The world colour of the depsgraph's evaluated scene (an animation render's frame's, not the original's)."""
+    world = depsgraph.scene_eval.world
     if world is None:
         return (0.0, 0.0, 0.0)
     return tuple(float(c) for c in world.color)
@@ -207,8 +208,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     render (``describe.eye_view``)."""
     from ..gpu.batches import shared_batches
     from ..gpu.pipeline import ShadowFrame
-    from ..scene.describe import (NO_FACES, NoLightError, check_finite_geometry, describe_scene, eye_view, light_notes,
-                                  lost_depth_note, pick_light, render_camera)
+    from ..scene.describe import (NO_FACES, NoLightError, check_finite_geometry, describe_scene, evaluated, eye_view,
+                                  light_notes, lost_depth_note, motion_blur_note, pick_light, render_camera)
     from ..scene.geometry import shared_cache
     from ..scene.linking import light_links, linking_note
 
@@ -234,10 +235,10 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     if light is None:   # no direct light: the shading's ambient term alone, as Blender's engines light such a frame
         light = Light("SUN", direction=view.direction, energy=0.0, name="no light")
     if eye is not None:
-        view = eye_view(view, camera, *eye)
-    note = lost_depth_note(view, bounds, camera.name)
-    if warnings is not None and note:
-        warnings.append(f"Lixel: {note}")
+        view = eye_view(view, camera, *eye, depsgraph=depsgraph)
+    for note in (lost_depth_note(view, bounds, camera.name), motion_blur_note(scene)):
+        if warnings is not None and note:
+            warnings.append(f"Lixel: {note}")
     timings["describe"] = time.perf_counter() - t
     links = light_links(light_obj, geometry.instances)   # Light/Shadow Linking: what it lights, what blocks it
     note = linking_note(light_obj, geometry.instances)
@@ -264,7 +265,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
             raise EmptyBodyError(f"scene '{scene.name}' {NO_FACES}, so the frame shows only the world background")
         if unlit is not None:
             raise EmptyBodyError(f"{unlit}; the frame is lit by the world alone")
-        if not getattr(light_obj.data, "use_shadow", True):
+        if not getattr(evaluated(light_obj, depsgraph).data, "use_shadow", True):
             raise EmptyBodyError(f"light '{light.name}' casts no shadows, as in Blender's engines: its Shadow is off "
                                  f"(Light properties > Shadow)")
         # The pre-pass, hence the visible region, is a function of the geometry and the view.
@@ -278,10 +279,11 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         setup = no_shadow_setup(method)
     timings["warp"] = time.perf_counter() - t - timings.get("visibility", 0.0)
     if warnings is not None:
-        warnings.extend(light_notes(light_obj))
-    blend = float(light_obj.data.spot_blend) if light_obj is not None and light_obj.data.type == "SPOT" else 0.0
+        warnings.extend(light_notes(light_obj, depsgraph))
+    light_data = evaluated(light_obj, depsgraph).data if light_obj is not None else None   # this frame's
+    blend = float(light_data.spot_blend) if light_data is not None and light_data.type == "SPOT" else 0.0
     frame.draw_maps(setup, settings.shadow, body)
-    frame.shade(light, setup, settings.shadow, spot_blend=blend, ambient=_world_colour(scene),
+    frame.shade(light, setup, settings.shadow, spot_blend=blend, ambient=_world_colour(depsgraph),
                 transparent=bool(scene.render.film_transparent))
     result = frame.finish()
     result.timings = {**timings, **result.timings}

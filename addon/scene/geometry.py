@@ -251,9 +251,9 @@ def read_mesh(mesh, known: tuple = ()) -> tuple[np.ndarray, Optional[np.ndarray]
 
 
 def read_object(ob_eval, known: tuple = ()) -> Optional[tuple[np.ndarray, Optional[np.ndarray], tuple]]:
-    """Triangles of an evaluated object (mesh, curve, text, metaball), or None
+    """Triangles of an evaluated object (mesh, curve, text, metaball; a mesh in Edit Mode), or None
     if it has no faces (``known``: see :func:`read_mesh`)."""
-    if ob_eval.type == "MESH":
+    if ob_eval.type == "MESH" and not ob_eval.data.is_editmode:   # in Edit Mode: to_mesh (instances.shows_no_faces)
         mesh = ob_eval.data
         return read_mesh(mesh, known) if len(mesh.polygons) else None
     try:

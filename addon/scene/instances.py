@@ -36,6 +36,14 @@ INSTANCER_TYPES = GEOMETRY_TYPES | {"CURVES", "POINTCLOUD", "VOLUME"}
 """Object types a geometry-nodes modifier can make instances on."""
 
 
+def shows_no_faces(ob) -> bool:
+    """Whether the evaluated object ``ob`` is a mesh with no faces to draw (a node tree that outputs only instances,
+    a mesh of edges). A mesh in Edit Mode is read through ``Object.to_mesh()`` (``geometry.read_object``): its
+    evaluated mesh wraps the edit mesh, whose faces (none without modifiers) and positions (none with them) the
+    Python API does not show."""
+    return ob.type == "MESH" and not ob.data.is_editmode and len(ob.data.polygons) == 0
+
+
 def _id_key(idb) -> str:
     lib = getattr(idb, "library", None)
     return f"{idb.name}@{lib.filepath}" if lib is not None else idb.name
@@ -302,7 +310,7 @@ def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Instanc
             continue
         if not inst.is_instance and not inst.show_self:
             continue  # an instancer that hides itself (e.g. a particle emitter)
-        if ob.type == "MESH" and len(ob.data.polygons) == 0:
+        if shows_no_faces(ob):
             continue  # nothing to draw (e.g. a node tree that outputs only instances)
         key = geometry_key(inst, ob, generated)
         if key not in accepted:
@@ -391,7 +399,7 @@ class _Reader:
         if ob.instance_type != "NONE" or len(getattr(ob, "particle_systems", ())):
             raise _NeedsWalk(f"{ob.name} makes instances the walk reads")
         world = np.array(ob.matrix_world, dtype=np.float64)
-        if ob.type in GEOMETRY_TYPES and not (ob.type == "MESH" and len(ob.data.polygons) == 0):
+        if ob.type in GEOMETRY_TYPES and not shows_no_faces(ob):
             k = self.key_id(object_key(ob), ob)
             if k is not None:
                 self.sources.append((world,))
@@ -408,7 +416,7 @@ class _Reader:
             if ob.instance_type != "NONE" or (ob.type in INSTANCER_TYPES and _has_nodes(ob)
                                                 and ob.evaluated_geometry().instances_pointcloud() is not None):
                 raise _NeedsWalk(f"instanced object {ob.name} makes instances itself")
-            if ob.type not in GEOMETRY_TYPES or (ob.type == "MESH" and len(ob.data.polygons) == 0):
+            if ob.type not in GEOMETRY_TYPES or shows_no_faces(ob):
                 return []
             k = self.key_id(object_key(ob), ob)
             return [] if k is None else [(k, None, _flags(ob), ob.name)]

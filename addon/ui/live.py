@@ -253,7 +253,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         if "light" in todo or light is None:
             lob = light_obj if light_obj is not None else pick_light(scene, depsgraph, active)
             light = timed("describe light", describe_light, lob, depsgraph)
-            st.light_name, st.light_notes, st.light_pointer = lob.name, light_notes(lob), lob.as_pointer()
+            st.light_name, st.light_notes, st.light_pointer = lob.name, light_notes(lob, depsgraph), lob.as_pointer()
         bounds = st.bounds
         if "bounds" in todo or bounds is None:
             bounds = timed("describe bounds", scene_bounds, depsgraph)

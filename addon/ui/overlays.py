@@ -9,7 +9,9 @@ the live state current.
   last is switched off, on file load (``load_pre``) and on unregister.
 * ``depsgraph_update_post`` classifies what changed (camera, light, other
   objects, settings) and calls :func:`live.update` with only that, then tags
-  the 3D views for redraw.
+  the 3D views for redraw; ``frame_change_post`` does the same for what a frame
+  change animated (Blender announces a frame change with it alone), except an
+  animation render's own frames.
 
 What is drawn comes from :mod:`.overlay_geometry` (pure numpy, tested in
 background mode); this module only uploads it. Shaders: the built-in
@@ -308,6 +310,16 @@ def on_depsgraph_update(scene, depsgraph):
 
 
 @persistent
+@guarded_callback("updating Lixel after a frame change")
+def on_frame_change(scene, depsgraph=None):
+    """The timeline moved (scrubbing, playback, ``frame_set``): what the frame animated is in ``depsgraph.updates``,
+    and no ``depsgraph_update_post`` follows. An animation render's frames (a RENDER depsgraph) are not the
+    viewport's and leave its state alone."""
+    if depsgraph is not None and depsgraph.mode == "VIEWPORT":
+        on_depsgraph_update(scene, depsgraph)
+
+
+@persistent
 @guarded_callback("clearing Lixel's state before a file load")
 def on_load_pre(*_args):
     """A file is being loaded: drop the draw handlers, batches and live state
@@ -326,8 +338,8 @@ def on_load_post(*_args):
     sync_handlers()
 
 
-APP_HANDLERS = (("depsgraph_update_post", on_depsgraph_update), ("load_pre", on_load_pre),
-                ("load_post", on_load_post))
+APP_HANDLERS = (("depsgraph_update_post", on_depsgraph_update), ("frame_change_post", on_frame_change),
+                ("load_pre", on_load_pre), ("load_post", on_load_post))
 
 
 # --- drawing ---------------------------------------------------------------------------------------------------

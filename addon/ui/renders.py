@@ -229,17 +229,34 @@ def load_pixels(path) -> np.ndarray:
         bpy.data.images.remove(image)
 
 
-def save_png(rgba: np.ndarray, path: str, name: Optional[str] = None, linear: bool = True) -> None:
-    """Write an image (row 0 at the bottom) to a PNG file; ``linear`` as in :func:`to_image`. OSError (naming
+IMAGE_FORMATS = {".png": "PNG", ".exr": "OPEN_EXR", ".jpg": "JPEG", ".jpeg": "JPEG", ".tif": "TIFF", ".tiff": "TIFF"}
+"""The picture a file name's ending asks for, as Blender's ``Image.file_format`` (a name without one: PNG)."""
+
+
+def image_format(path: str) -> str:
+    """The :data:`IMAGE_FORMATS` entry of ``path``'s ending (PNG without one); OSError (naming ``path``) for an
+    ending Lixel does not write: a picture saved in another format under it would not open as what it says."""
+    import os
+    suffix = os.path.splitext(str(path))[1].lower()
+    if suffix and suffix not in IMAGE_FORMATS:
+        raise OSError(0, f"Lixel writes {', '.join(IMAGE_FORMATS)} pictures, not {suffix}: end the name with one "
+                         f"of those", str(path))
+    return IMAGE_FORMATS.get(suffix, "PNG")
+
+
+def save_image(rgba: np.ndarray, path: str, name: Optional[str] = None, linear: bool = True) -> None:
+    """Write an image (row 0 at the bottom) to a file in the format its ending names (:func:`image_format`: an
+    OpenEXR keeps scene-linear values above 1); ``linear`` as in :func:`to_image`. OSError (naming
     ``path``) when it cannot be written. A relative ``path`` is the working directory's (Blender 5.0 cannot save to a
     bare file name such as "out.png": it fails to make its empty folder); "//" paths stay the .blend file's."""
     import os
 
     import bpy
+    file_format = image_format(path)
     img = to_image(name or "Lixel output", rgba, existing_ok=False, linear=linear)
     try:
         img.filepath_raw = str(path) if str(path).startswith("//") else os.path.abspath(path)
-        img.file_format = "PNG"
+        img.file_format = file_format
         img.save()
     except RuntimeError as exc:  # Blender's "Error: Could not write image: <why>" (or "internal error, see console")
         why = str(exc).strip().splitlines()[0].partition("Could not write image: ")[2]

@@ -49,6 +49,8 @@ class IntersectionBody:
     culled: Culled
     visible: VisibleRegion | None = None
     """The visible region (:mod:`.visibility`) R was focused on; None: R spans the view frustum."""
+    cube_axis: np.ndarray | None = None
+    """A light's cube axis on B (``frame.point_frames``; None: B's cone axis): a cascade's splits take the whole B's."""
 
     @property
     def focus(self) -> str:

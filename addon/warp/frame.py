@@ -209,18 +209,21 @@ _FACE_TURNS = np.array([[[sign if j == row else 0.0 for j in range(3)] for row, 
 
 def point_frames(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> list[LightFrame]:
     """One perspective frame when B fits a frustum narrower than ``max_frustum_angle``, else one per cube face B
-    reaches, the cube aligned with the cone axis (a known discontinuity in the number of maps)."""
+    reaches, the cube aligned with the cone axis or ``body.cube_axis`` (a known discontinuity in the number of maps)."""
+    def up_across(axis):
+        up = image_up(view.direction, view.up, axis)
+        return up if up.any() else perpendicular(axis)
     apex = light.position
     axis, half = light_cone(body.vertices, apex)
-    up = image_up(view.direction, view.up, axis)
-    up = up if up.any() else perpendicular(axis)
+    up = up_across(axis)
     inside = body.contains(apex[None], -10.0 * body.tolerance)[0]                  # (strictly inside B)
     if 2 * half <= options.max_frustum_angle and not inside:
         floor, cuts_a_box = None, True
         if body.contains(apex[None])[0]:                                              # (on B)
             floor, cuts_a_box = cube_near_floor(body, apex, not options.linear_z, math.cos(half))
         return [perspective_frame(apex, axis, up, body.vertices, "main", body.scale, floor, cuts_a_box)]
-    basis = cube_basis(axis, up)
+    axis = axis if body.cube_axis is None else body.cube_axis
+    basis = cube_basis(axis, up_across(axis))
     near_floor, cuts_a_box = cube_near_floor(body, apex, not options.linear_z)
     turns = _FACE_TURNS @ basis                              # (6, 3, 3): each face's eye rows x, y, -forward
     views = np.tile(np.eye(4), (6, 1, 1))                    # each face's view: those rows through the apex

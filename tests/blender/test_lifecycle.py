@@ -59,7 +59,7 @@ def test_fifty_register_unregister_cycles_leave_nothing(lixel):
             mods, classes = registered_state()
             assert all(c.is_registered for c in classes)
             assert hasattr(bpy.types.Scene, "lixel")
-            assert len(lixel_callables_in_app_handlers()) == 3
+            assert len(lixel_callables_in_app_handlers()) == 4   # depsgraph update, frame change, load pre/post
             if i % 10 == 0:  # switch overlays on, so draw handlers and live state exist when unregistering
                 bpy.context.scene.lixel.show_body = bpy.context.scene.lixel.show_frusta = False
                 assert bpy.ops.lixel.toggle_overlay(overlay="show_body") == {"FINISHED"}

@@ -149,6 +149,28 @@ def test_a_picture_named_without_a_folder_goes_to_the_working_directory(blend, t
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "out.png").stat().st_size > 0 and (tmp_path / "mask.png").stat().st_size > 0
 
+def test_each_picture_is_written_in_the_format_its_name_ends_with(blend, tmp_path, load_pixels):
+    """``--output r.exr`` wrote PNG data under the .exr name (the values above 1 clipped), which no EXR reader
+    opens; every picture is now the format its ending names (PNG without one), and an ending Lixel does not
+    write is refused before rendering, the file not made."""
+    names = {"exr": "r.exr", "jpg": "mask.JPG", "tif": "map.tiff", "png": "plain"}
+    r = run("module", "render_method.py", blend, "--resolution", "48x27", "--output", str(tmp_path / names["exr"]),
+            "--shadow-output", str(tmp_path / names["jpg"]), "--map-output", str(tmp_path / names["tif"]))
+    assert r.returncode == 0, r.stderr
+    r = run("module", "render_method.py", blend, "--resolution", "48x27", "--output", str(tmp_path / names["png"]))
+    assert r.returncode == 0, r.stderr
+    magic = {"exr": b"\x76\x2f\x31\x01", "jpg": b"\xff\xd8\xff", "tif": b"II*\x00", "png": b"\x89PNG"}
+    for kind, name in names.items():
+        head = (tmp_path / name).read_bytes()[:4]
+        assert head.startswith(magic[kind]) or (kind == "tif" and head == b"MM\x00*"), (name, head)
+    assert load_pixels(tmp_path / names["exr"])[..., :3].max() > 1.0     # scene-linear, not clipped
+    bad = tmp_path / "r.xyz"
+    r = run("module", "render_method.py", blend, "--resolution", "48x27", "--output", str(bad))
+    assert r.returncode == 1 and not bad.exists()
+    assert (f"lixel: error: cannot write '{bad}': Lixel writes .png, .exr, .jpg, .jpeg, .tif, .tiff pictures, not "
+            f".xyz: end the name with one of those") in r.stderr and "lispsm:" not in r.stdout, r.stderr
+
+
 def test_a_resolution_of_another_shape_is_framed_as_blender_frames_it_not_stretched(blend, tmp_path, load_pixels):
     """The scene renders 640x360 with the sensor fitted automatically (to the wider side): at 96x96 Blender keeps
     the horizontal field of view and shows more above and below, so the middle 54 rows are the 96x54 picture."""
@@ -223,6 +245,7 @@ BAD = [
     ("render_method.py", ["--method", "nope", "--output", "x.png"], "choose one of"),
     ("render_method.py", ["--output", "x.png", "--size", "100000"], "out of range"),
     ("render_method.py", ["--output", "x.png", "--resolution", "big"], "WxH"),
+    ("render_method.py", ["--output", "x.png", "--resolution", "1x1"], "each side must be 4..16384 pixels"),
     ("render_method.py", [], "nothing to write"),
     ("export_animation.py", ["--output", "x.json", "--frames", "5:1"], "START <= END"),
     ("export_animation.py", ["--frames", "1:2"], "--output"),

@@ -86,7 +86,7 @@ def test_texel_checker_and_heatmap_on_receivers(m):
         vp = observer(m)
         img = draw(m, scene, st, vp, show_texels=True)
         if DEBUG_PNG:
-            m.renders.save_png(img, DEBUG_PNG)
+            m.renders.save_image(img, DEBUG_PNG)
         drawn = img[..., 3] > 0
         assert drawn.mean() > 0.1
         # drawn at alpha 0.85 over black: a light texel reads ~0.8, a dark one ~0.1; "no map" has alpha ~0.2

@@ -71,7 +71,7 @@ class LIXEL_OT_overlay_snapshot(LixelSceneOperator, bpy.types.Operator):
             img = snapshot.draw_snapshot(context.scene, st, snapshot.OverlayFlags.of(names), view_projection, size)
             path = os.path.join(bpy.path.abspath(self.directory), f"overlay_{name}.png")
             try:
-                renders.save_png(img, path, linear=False)
+                renders.save_image(img, path, linear=False)
             except OSError as exc:
                 self.report({"ERROR"}, f"Lixel: cannot write '{path}': {exc.strerror}")
                 return {"CANCELLED"}

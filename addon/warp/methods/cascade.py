@@ -13,6 +13,7 @@ import numpy as np
 
 from ..body import IntersectionBody, intersection_body
 from ..diagnostics import Diagnostics
+from ..frame import light_cone
 from ..partition.adaptive import max_error, minimax_splits
 from ..partition.budget import shared_sizes
 from ..partition.receivers import TAIL, footprint_p95, footprint_p95s, footprints, grazing, receivers, turned
@@ -92,6 +93,7 @@ class Trials:
     visible: Optional[VisibleRegion] = None
     seen: Optional[tuple] = None        # the ``receivers`` from C_0 on (None: their normals unknown)
     made: dict = dataclasses.field(default_factory=dict)
+    cube_axis: Optional[np.ndarray] = None   # every split's B's (the whole B's: docs/papers.md, "One cube")
 
     def once(self, key: tuple, make):
         """``make()``, called the first time ``key`` is asked for."""
@@ -107,7 +109,8 @@ class Trials:
         if seen is not None and seen.is_empty:
             return clipped, None
         try:
-            return clipped, intersection_body(clipped, self.light, self.scene, seen)
+            return clipped, dataclasses.replace(intersection_body(clipped, self.light, self.scene, seen),
+                                                cube_axis=self.cube_axis)
         except EmptyBodyError:
             return clipped, None
 
@@ -214,7 +217,8 @@ def split_depths(view: View, light: Light, scene: SceneBounds, body: Intersectio
     z_n, z_f = stable_depth_range(z_f, view) if options.cascade_stable else (z_n, z_f)
     depths = practical_splits(z_n, z_f, options.cascade_splits, options.cascade_lambda)
     seen = receivers(view, light, body.visible, z_n, math.inf, scene) if adaptive_splits(options) else None
-    trials = Trials(view, light, scene, options, body.visible, seen)
+    trials = Trials(view, light, scene, options, body.visible, seen,
+                    cube_axis=None if light.is_directional else light_cone(body.vertices, light.position)[0])
     splits = trials.splits_at(depths)
     if not adaptive_splits(options):
         return depths, splits, "practical"
