@@ -100,6 +100,27 @@ def test_a_change_while_a_refinement_is_armed_rearms_the_one_timer(m):
         assert not m.live.refinement_pending()
 
 
+def test_scrubbing_an_animated_camera_takes_the_lambda_splits_and_refines(m):
+    """frame_change_post (scrubbing, playback, ``frame_set``) goes the handler's way: λ splits, then the refinement."""
+    with active_scene("lixel_drag_scrub") as scene:
+        scene.lixel.method = "cascade"
+        cam = scene.camera
+        cam.keyframe_insert("location", frame=1)
+        cam.location.x += 1.0
+        cam.keyframe_insert("location", frame=10)
+        scene.frame_set(1)
+        m.live.update(scene, bpy.context.evaluated_depsgraph_get())
+        for frame in (3, 6, 10):
+            scene.frame_set(frame)
+            st = m.live.state(scene)
+            assert st.provisional and "setup" in st.recomputed and m.live.refinement_pending()
+        assert m.live.refine_after_rest() is None and not m.live.state(scene).provisional
+        shown = computed(m.live.state(scene))
+        m.live.clear()
+        assert_identical(shown, computed(m.live.update(scene, bpy.context.evaluated_depsgraph_get())))
+        cam.animation_data_clear()
+
+
 def test_operators_and_scripts_during_a_drag_get_the_full_result(m, tmp_path):
     with active_scene("lixel_drag_ops") as scene:
         scene.lixel.method = "cascade"
