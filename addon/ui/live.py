@@ -9,8 +9,8 @@ are kept for the panel's readouts. Operators, the panel, the overlays, the
 depsgraph handler and the background scripts all go through here.
 
 While the view moves (``moving=True``: the depsgraph and frame-change handlers), a cascade whose split depths
-would be searched (``adaptive_splits``: ~90 % of its cost, 230-650 ms a change on the sample scenes) takes the
-PSSM λ splits instead (``cascade_adaptive`` off, everything else as the settings say; 27-46 ms) and is marked
+would be searched (``adaptive_splits``: most of its cost) takes the PSSM λ splits instead (``cascade_adaptive``
+off, everything else as the settings say; ``bench.live_drag``: 108-139 -> 49-83 ms a change of view) and is marked
 ``provisional``; :func:`refine_when_resting` arms one timer, re-armed by each change, that recomputes it with the
 user's settings once the view has rested :data:`REST_S` (:func:`refine`), as Blender's viewport refines when the
 view rests. Every other caller (operators, scripts, the engine's own path) gets the full result: an update that is
