@@ -303,7 +303,9 @@ def on_depsgraph_update(scene, depsgraph):
         active = depsgraph.view_layer.objects.active
     except (AttributeError, ReferenceError):
         active = None
-    live.update(scene, depsgraph, changed=changed, active=active)
+    st = live.update(scene, depsgraph, changed=changed, active=active, moving=True)
+    if st.provisional:      # a cascade with the λ splits: the adaptive ones once the view rests
+        live.refine_when_resting(tag_redraw)
     tag_redraw()
 
 

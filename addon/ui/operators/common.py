@@ -40,7 +40,7 @@ def current_state(op, context, force: bool = False):
     scene = context.scene
     st = live.state(scene)
     moved = live.follow(scene, live.local_camera(context))     # the 3D view's Local Camera, as its F12 renders
-    if force or moved or st is None or st.error:
+    if force or moved or st is None or st.error or st.provisional:   # a moving view's cascade: the full one
         depsgraph = context.evaluated_depsgraph_get()
         try:
             st = live.update(scene, depsgraph, active=active_object(context))
