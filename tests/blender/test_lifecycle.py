@@ -32,7 +32,7 @@ def lixel_functions(modules):
 def registered_state():
     root = sys.modules[ADDON_MODULE]
     names = ("addon.ui.properties", "addon.ui.preferences", "addon.ui.operators", "addon.ui.panel", "addon.ui.overlays",
-             "addon.render.engine")
+             "addon.ui.live", "addon.render.engine")
     mods = [importlib.import_module(f"{root.__name__}.{n}") for n in names]
     classes = [c for m in mods for c in getattr(m, "classes", ())]
     return mods, classes
@@ -66,6 +66,9 @@ def test_fifty_register_unregister_cycles_leave_nothing(lixel):
                 assert bpy.ops.lixel.toggle_overlay(overlay="show_frusta") == {"FINISHED"}
                 overlays = next(m for m in mods if m.__name__.endswith("overlays"))
                 assert overlays.draw_handlers_active() == ("pixel", "view")
+                live = next(m for m in mods if m.__name__.endswith(".live"))
+                live.refine_when_resting()                      # a drag's refinement still pending
+                assert live.refinement_pending()
             disable_lixel()
             try:
                 assert_clean(mods, classes)
