@@ -50,11 +50,12 @@ def _linked_from(socket):
 
 
 def _value(socket) -> tuple:
-    """A colour or float input as RGB: its own value, or a linked RGB or Value node's."""
+    """A colour or float input as RGB: its own value, or a linked RGB or Value node's (a Value into a colour is
+    grey; an RGB into a float is Blender's luminance conversion, which Lixel does not model: not a constant here)."""
     out = _linked_from(socket)
     if out is None:
         value = socket.default_value
-    elif out.node.type in ("RGB", "VALUE") and not out.node.mute:
+    elif (out.node.type == "VALUE" or (out.node.type == "RGB" and socket.type == "RGBA")) and not out.node.mute:
         value = out.default_value
     else:
         raise _NotConstant(out.node)

@@ -211,3 +211,23 @@ def test_each_frame_of_an_animation_is_lit_by_that_frames_background(engine, sce
     np.testing.assert_allclose(plane[0], ALBEDO * np.float32([0.1, 0.1, 0.1]), rtol=1e-5)
     np.testing.assert_allclose(plane[2], ALBEDO * np.float32([0.1, 0.2, 0.4]), rtol=1e-5)
     assert np.all(plane[0][1:] < plane[1][1:]) and np.all(plane[1][1:] < plane[2][1:])
+
+
+def test_what_lixel_cannot_evaluate_is_named_not_guessed(world_light, scene):
+    """An RGB node into the Strength (Blender converts it by luminance), a Light Path trick, a muted Background:
+    each is named, and the world's viewport colour lights instead."""
+    world = _new_world(scene)
+    node, tree = background(world), world.node_tree
+    rgb = tree.nodes.new("ShaderNodeRGB")
+    tree.links.new(rgb.outputs[0], node.inputs["Strength"])
+    assert world_light(world).note.startswith(f"World 'lixel_test world' lights with its {rgb.bl_label} node '{rgb.name}'")
+    tree.links.remove(node.inputs["Strength"].links[0])
+    assert world_light(world).note is None
+    node.mute = True
+    assert world_light(world).note.startswith(f"World 'lixel_test world' lights with its Background node "
+                                              f"'{node.name}' (muted)")
+    node.mute = False
+    path = tree.nodes.new("ShaderNodeLightPath")
+    tree.links.new(path.outputs["Is Camera Ray"], node.inputs["Strength"])
+    assert world_light(world).note.startswith(f"World 'lixel_test world' lights with its Light Path node")
+    assert world_light(world).colour == tuple(float(c) for c in world.color)
