@@ -231,3 +231,16 @@ def test_what_lixel_cannot_evaluate_is_named_not_guessed(world_light, scene):
     tree.links.new(path.outputs["Is Camera Ray"], node.inputs["Strength"])
     assert world_light(world).note.startswith(f"World 'lixel_test world' lights with its Light Path node")
     assert world_light(world).colour == tuple(float(c) for c in world.color)
+
+
+def test_film_transparent_keeps_the_worlds_light_on_surfaces(engine, scene, tmp_path, load_pixels):
+    """Film > Transparent (measured in Cycles, 4.2.23 and 5.0.1): the plane is still lit by the world, the sky behind
+    it is transparent black."""
+    scene.world = sky_world("lixel_test world", (0.2, 0.3, 0.4), 2.0)
+    scene.render.film_transparent = True
+    scene.render.image_settings.color_mode = "RGBA"
+    cycles = _cycles(scene, tmp_path, load_pixels)
+    got = _lixel(engine, scene)["result"].combined
+    for where in (PLANE, SKY):
+        np.testing.assert_allclose(got[where].mean(axis=(0, 1)), cycles[where].mean(axis=(0, 1)), rtol=0.02, atol=2e-3)
+    np.testing.assert_allclose(got[SKY], 0.0)
