@@ -156,14 +156,6 @@ def no_shadow_setup(method: str) -> ShadowSetup:
     return ShadowSetup([ShadowMap(none, (1, 1), role="none")], Diagnostics(method))
 
 
-def _world_colour(depsgraph) -> tuple:
-    """The world colour of the depsgraph's evaluated scene (an animation render's frame's, not the original's)."""
-    world = depsgraph.scene_eval.world
-    if world is None:
-        return (0.0, 0.0, 0.0)
-    return tuple(float(c) for c in world.color)
-
-
 def fit_warp(frame, light, bounds, options, method: str):
     """B and the warp for ``frame`` (a ``ShadowFrame`` whose view is the
     camera's): B fitted to what the frame's pre-pass saw when ``options.focus``
@@ -212,6 +204,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
                                   light_notes, lost_depth_note, motion_blur_note, pick_light, render_camera)
     from ..scene.geometry import shared_cache
     from ..scene.linking import light_links, linking_note
+    from ..scene.world import world_light
 
     scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
     settings = settings or scene_settings(scene)
@@ -236,7 +229,9 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         light = Light("SUN", direction=view.direction, energy=0.0, name="no light")
     if eye is not None:
         view = eye_view(view, camera, *eye, depsgraph=depsgraph)
-    for note in (lost_depth_note(view, bounds, camera.name), motion_blur_note(scene)):
+    # The world as Cycles lights it, of the evaluated scene (an animation render's frame's, not the original's).
+    world = world_light(depsgraph.scene_eval.world)
+    for note in (lost_depth_note(view, bounds, camera.name), motion_blur_note(scene), world.note):
         if warnings is not None and note:
             warnings.append(f"Lixel: {note}")
     timings["describe"] = time.perf_counter() - t
@@ -283,7 +278,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     light_data = evaluated(light_obj, depsgraph).data if light_obj is not None else None   # this frame's
     blend = float(light_data.spot_blend) if light_data is not None and light_data.type == "SPOT" else 0.0
     frame.draw_maps(setup, settings.shadow, body)
-    frame.shade(light, setup, settings.shadow, spot_blend=blend, ambient=_world_colour(depsgraph),
+    frame.shade(light, setup, settings.shadow, spot_blend=blend, ambient=world.colour,
                 transparent=bool(scene.render.film_transparent))
     result = frame.finish()
     result.timings = {**timings, **result.timings}

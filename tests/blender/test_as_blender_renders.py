@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from ui_scenes import build, cube_mesh
+from worlds import background, sky_world
 
 
 @pytest.fixture(scope="module")
@@ -21,10 +22,9 @@ def engine(lixel):
 
 @pytest.fixture
 def scene(fresh_scene):
-    """An empty scene rendered by Lixel under a grey world (its colour for the test to set or key)."""
+    """An empty scene rendered by Lixel under a grey sky (its Background's colour for the test to set or key)."""
     fresh_scene.render.engine = "LIXEL"
-    fresh_scene.world = bpy.data.worlds.new("lixel_test sky")
-    fresh_scene.world.color = (0.1, 0.1, 0.1)
+    fresh_scene.world = sky_world("lixel_test sky", (0.1, 0.1, 0.1))
     yield fresh_scene
     bpy.data.worlds.remove(fresh_scene.world)
 
@@ -58,7 +58,8 @@ def _animate(scene):
     _key(spot.data, "spot_size", {1: math.radians(40), 3: math.radians(110)})
     _key(spot.data, "spot_blend", {1: 0.0, 3: 0.8})
     _key(scene.camera.data, "clip_end", {1: 60.0, 3: 9.0})
-    _key(scene.world, "color", {1: (0.05, 0.05, 0.05), 3: (0.1, 0.2, 0.4)})
+    _key(background(scene.world).inputs["Color"], "default_value",
+         {1: (0.05, 0.05, 0.05, 1.0), 3: (0.1, 0.2, 0.4, 1.0)})
     scene.frame_start, scene.frame_end = 1, 3
 
 

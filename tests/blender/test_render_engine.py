@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 from mathutils import Matrix, Vector
 
+from worlds import sky_world
+
 
 @pytest.fixture(scope="module")
 def engine(lixel):
@@ -161,10 +163,9 @@ def test_second_render_uploads_nothing(engine, scene):
 
 
 def _render_under_a_sky(engine, scene, **render_kw) -> list:
-    """The watched renders (with "covered") of ``bpy.ops.render.render(**render_kw)`` under a world coloured
-    (0.2, 0.3, 0.4)."""
-    scene.world = bpy.data.worlds.new("lixel_test sky")
-    scene.world.color = (0.2, 0.3, 0.4)
+    """The watched renders (with "covered") of ``bpy.ops.render.render(**render_kw)`` under a sky of (0.2, 0.3, 0.4)
+    (its Background node's colour, the world Cycles renders in 4.2 and 5.0)."""
+    scene.world = sky_world("lixel_test sky", (0.2, 0.3, 0.4))
     try:
         with engine.watch_renders(read={"covered", "shadow_mask", "combined"}) as got:
             assert bpy.ops.render.render(scene=scene.name, **render_kw) == {"FINISHED"}
