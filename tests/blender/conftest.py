@@ -66,6 +66,13 @@ def lixel():
     disable_lixel()
 
 
+@pytest.fixture(scope="module")
+def engine(lixel):
+    """The enabled extension's render engine module (``addon.render.engine``)."""
+    import importlib
+    return importlib.import_module(lixel.__name__ + ".addon.render.engine")
+
+
 @pytest.fixture
 def load_pixels(lixel):
     """The enabled extension's ``addon.ui.renders.load_pixels``: an image file's pixels, float32 (H, W, channels)."""

@@ -4,7 +4,6 @@ objects stay at the frame shown before the render started); a scene with an obje
 whose Ray Visibility > Diffuse is off (Cycles and EEVEE, measured in 4.2.23 and 5.0.1: it lights no diffuse
 surface, the picture's mean 0.58 -> 0.05); a mirrored camera (Cycles renders the mirror image); and Motion Blur,
 which Lixel does not render, is named."""
-import importlib
 import math
 
 import bpy
@@ -13,11 +12,6 @@ import pytest
 
 from ui_scenes import build, cube_mesh
 from worlds import background, sky_world
-
-
-@pytest.fixture(scope="module")
-def engine(lixel):
-    return importlib.import_module(lixel.__name__ + ".addon.render.engine")
 
 
 @pytest.fixture

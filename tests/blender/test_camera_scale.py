@@ -2,7 +2,6 @@
 covers is what Workbench covers, for perspective and orthographic cameras and
 shifted lenses, whatever the camera object's scale; a panoramic camera is
 refused by name at any scale."""
-import importlib
 import math
 
 import bpy
@@ -14,11 +13,6 @@ W, H = 64, 48
 MISMATCH = 0.02
 """Fraction of pixels allowed to differ: silhouette edges, where Workbench's
 antialiasing and Lixel's single sample split a pixel differently."""
-
-
-@pytest.fixture(scope="module")
-def engine(lixel):
-    return importlib.import_module(lixel.__name__ + ".addon.render.engine")
 
 
 def _mesh(name, verts, faces):

@@ -13,11 +13,6 @@ from mathutils import Matrix, Vector
 from worlds import sky_world
 
 
-@pytest.fixture(scope="module")
-def engine(lixel):
-    return importlib.import_module(lixel.__name__ + ".addon.render.engine")
-
-
 @pytest.fixture
 def scene(fresh_scene):
     fresh_scene.render.engine = "LIXEL"

@@ -16,11 +16,6 @@ SKY = np.s_[0:4, 0:4]          # outside it: the world background
 
 
 @pytest.fixture(scope="module")
-def engine(lixel):
-    return importlib.import_module(lixel.__name__ + ".addon.render.engine")
-
-
-@pytest.fixture(scope="module")
 def world_light(lixel):
     return importlib.import_module(lixel.__name__ + ".addon.scene.world").world_light
 
