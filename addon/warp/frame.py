@@ -14,7 +14,7 @@ from .aliasing import folded
 from .body import IntersectionBody
 from .polyhedron import SNAP, ConvexPolytope, Edges, section_points
 from .geometry import across, cross, depth_coefficients, dot3, homogeneous, look_along, normalize, perpendicular
-from .types import Light, View, WarpOptions
+from .types import Light, View, WarpError, WarpOptions
 
 PARALLEL_BLEND = math.sin(math.radians(1.0))
 """Below this |projected view direction| the camera's up vector takes over."""
@@ -214,6 +214,10 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
         up = image_up(view.direction, view.up, axis)
         return up if up.any() else perpendicular(axis)
     apex = light.position
+    floor, reach = NEAR_FLOOR * body.scale, float(np.linalg.norm(body.vertices - apex, axis=1).max())
+    if floor >= reach:             # (the scale is the boxes' meeting the view: one far larger swallows the view)
+        raise WarpError(f"Light '{light.name}': the boxes in view span {body.scale:.3g}, so its maps start {floor:.3g} "
+                        f"from it, beyond all it lights in view ({reach:.3g}): trim boxes far larger than the view")
     axis, half = light_cone(body.vertices, apex)
     up = up_across(axis)
     inside = body.contains(apex[None], -10.0 * body.tolerance)[0]                  # (strictly inside B)

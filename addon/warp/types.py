@@ -22,8 +22,7 @@ class EmptyBodyError(WarpError):
 
 
 MAX_CLIP_RATIO = float(2 ** 24)
-"""Largest clip end / start of a perspective camera: beyond it 32-bit float depth (the GPU's) cannot tell the range's
-far part apart. (An orthographic depth is linear: any ratio resolves.)"""
+"""Largest clip end / start of a perspective camera that the GPU's 32-bit float depth resolves (orthographic: any)."""
 
 
 def clip_range_beyond_depth(near: float, far: float, orthographic: bool) -> str:

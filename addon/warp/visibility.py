@@ -237,8 +237,7 @@ def tile_edges(samples: int, tile: int) -> np.ndarray:
 def _region(view: View, near, far, samples: tuple[int, int], tile: int, source: str, counts=None) -> VisibleRegion:
     """A region from tile intervals over ``samples`` = (columns, rows) cells, clamped to the clip range."""
     seen = near <= far
-    near = np.where(seen, np.clip(near, view.near, view.far), np.inf)
-    far = np.where(seen, np.clip(far, view.near, view.far), -np.inf)
+    near, far = (np.where(seen, np.clip(a, view.near, view.far), fill) for a, fill in ((near, np.inf), (far, -np.inf)))
     return VisibleRegion(TileDepths(*(tile_edges(n, tile) for n in samples), near, far, counts), source)
 
 
@@ -394,9 +393,7 @@ def _box_depths(view: View, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each (M, 2, 3) box's least and greatest eye depth (over its corners)."""
     row = -view.world_to_camera[2]                          # eye depth = row . [x, 1]
     pos, neg = np.maximum(row[:3], 0.0), np.minimum(row[:3], 0.0)
-    lo = boxes[:, 0] @ pos + boxes[:, 1] @ neg + row[3]
-    hi = boxes[:, 1] @ pos + boxes[:, 0] @ neg + row[3]
-    return lo, hi
+    return boxes[:, 0] @ pos + boxes[:, 1] @ neg + row[3], boxes[:, 1] @ pos + boxes[:, 0] @ neg + row[3]
 
 
 def _square_depths(view: View, boxes, selected, face, origins, hits, samples) -> tuple[np.ndarray, np.ndarray]:
@@ -419,10 +416,9 @@ def _square_depths(view: View, boxes, selected, face, origins, hits, samples) ->
     face_far, nearest, columns = np.where(one_face, far, np.inf).ravel(), _box_depths(view, boxes)[0], samples[0] + 1
     for part in np.split(np.arange(len(ids)), np.searchsorted(count, np.arange(PAIRS, count[-1:].sum(), PAIRS))):
         which, q = _rect_cells(*(r[part] for r in ranges), columns)         # (PAIRS at a time: bounded memory)
-        which = ids[part][which]
         # Beside a face: a box nearer than its farthest corner, meeting the rays' hull, not the face's own box.
-        keep = nearest[which] < face_far[q]
-        which, q = which[keep], q[keep]
+        keep = nearest[ids[part][which]] < face_far[q]
+        which, q = ids[part][which[keep]], q[keep]
         keep = (boxes[which, 0] <= front_hi[q]).all(axis=1) & (boxes[which, 1] >= front_lo[q]).all(axis=1) & \
             ~(one_face.ravel()[q] & (which == face[1:, 1:].ravel()[q] // 6))
         b, q = boxes[which[keep]], q[keep]
