@@ -214,10 +214,6 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
         up = image_up(view.direction, view.up, axis)
         return up if up.any() else perpendicular(axis)
     apex = light.position
-    floor, reach = NEAR_FLOOR * body.scale, float(np.linalg.norm(body.vertices - apex, axis=1).max())
-    if floor >= reach:             # (the scale is the boxes' meeting the view: one far larger swallows the view)
-        raise WarpError(f"Light '{light.name}': the boxes in view span {body.scale:.3g}, so its maps start {floor:.3g} "
-                        f"from it, beyond all it lights in view ({reach:.3g}): trim boxes far larger than the view")
     axis, half = light_cone(body.vertices, apex)
     up = up_across(axis)
     inside = body.contains(apex[None], -10.0 * body.tolerance)[0]                  # (strictly inside B)
@@ -249,6 +245,9 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
             farthest = float((part @ forward).max())
         to_light = perspective_of(views[f], *near_far(nearest, farthest, near_floor)[:2])
         frames.append(LightFrame(to_light, part + apex, "cube" + CUBE_FACES[f][0], False, clamped and cuts_a_box))
+    if not frames:         # (the floor is of the scale of the boxes meeting the view: one far larger swallows the view)
+        raise WarpError(f"Light '{light.name}': the boxes in view span {body.scale:.3g}, so its maps start "
+                        f"{near_floor:.3g} from it, beyond all it lights in view: trim boxes far larger than the view")
     return frames
 
 
