@@ -25,7 +25,7 @@ import numpy as np
 
 from ..warp import MAX_COORDINATE
 from ..warp.geometry import ortho_matrix
-from ..warp.types import MAX_MAP_SIDE, Light, SceneBounds, View, WarpError, WarpOptions
+from ..warp.types import MAX_MAP_SIDE, Light, SceneBounds, View, WarpError, WarpOptions, clip_range_beyond_depth
 
 
 class ConfigError(WarpError):
@@ -142,6 +142,8 @@ def parse_view(cam: dict) -> View:
     ortho = _get(cam, "orthographic", "camera", False)
     if not isinstance(ortho, bool):
         raise ConfigError(f"camera.orthographic: must be true or false (got {ortho!r})")
+    if why := clip_range_beyond_depth(near, far, ortho):      # (the Blender path's rule: addon.scene.describe)
+        raise ConfigError(f"camera.far: the camera {why}: raise camera.near or lower camera.far")
     unused, wanted = ("fov_y_deg", "ortho_height") if ortho else ("ortho_height", "fov_y_deg")
     if unused in cam:
         raise ConfigError(f"camera.{unused}: a{'n orthographic' if ortho else ' perspective'} camera does not take "

@@ -14,7 +14,7 @@ from .aliasing import folded
 from .body import IntersectionBody
 from .polyhedron import SNAP, ConvexPolytope, Edges, section_points
 from .geometry import across, cross, depth_coefficients, dot3, homogeneous, look_along, normalize, perpendicular
-from .types import Light, View, WarpOptions
+from .types import Light, View, WarpError, WarpOptions
 
 PARALLEL_BLEND = math.sin(math.radians(1.0))
 """Below this |projected view direction| the camera's up vector takes over."""
@@ -245,6 +245,9 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
             farthest = float((part @ forward).max())
         to_light = perspective_of(views[f], *near_far(nearest, farthest, near_floor)[:2])
         frames.append(LightFrame(to_light, part + apex, "cube" + CUBE_FACES[f][0], False, clamped and cuts_a_box))
+    if not frames:         # (the floor is of the scale of the boxes meeting the view: one far larger swallows the view)
+        raise WarpError(f"Light '{light.name}': the boxes in view span {body.scale:.3g}, so its maps start "
+                        f"{near_floor:.3g} from it, beyond all it lights in view: trim boxes far larger than the view")
     return frames
 
 

@@ -21,6 +21,16 @@ class EmptyBodyError(WarpError):
     """The intersection body B is empty: nothing visible can be shadowed."""
 
 
+MAX_CLIP_RATIO = float(2 ** 24)
+"""Largest clip end / start of a perspective camera that the GPU's 32-bit float depth resolves (orthographic: any)."""
+
+
+def clip_range_beyond_depth(near: float, far: float, orthographic: bool) -> str:
+    """Why a camera clipping from ``near`` to ``far`` is beyond :data:`MAX_CLIP_RATIO` ("" when it is not)."""
+    return "" if orthographic or far / near <= MAX_CLIP_RATIO else (f"clips from {near:g} to {far:g}, a range of "
+            f"1:{far / near:.3g}, beyond what 32-bit float depth resolves (1:{MAX_CLIP_RATIO:,.0f})")
+
+
 def _mat4(m, name) -> np.ndarray:
     a = np.asarray(m, dtype=np.float64)
     if a.shape != (4, 4) or not np.all(np.isfinite(a)):

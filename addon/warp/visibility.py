@@ -27,6 +27,8 @@ DEPTH_ULPS = 16
 """Ulps of 1.0 (2^-24 each, float32 depth) padded on each tile's window depth, then taken to eye depth."""
 DEEP_BOX = 0.1
 """A box deeper than this fraction of its least eye depth adds its depths in a square, not all (:func:`_square_depths`)."""
+PAIRS = 1 << 14
+"""(square, box) pairs :func:`_square_depths` takes at a time (about 64 MB at most for the deepest boxes)."""
 KDOP_DIRECTIONS = 8
 """Directions across the light in which the k-DOP bounds the tiles (every 180°/8)."""
 KDOP_PAD = 1e-3
@@ -235,8 +237,7 @@ def tile_edges(samples: int, tile: int) -> np.ndarray:
 def _region(view: View, near, far, samples: tuple[int, int], tile: int, source: str, counts=None) -> VisibleRegion:
     """A region from tile intervals over ``samples`` = (columns, rows) cells, clamped to the clip range."""
     seen = near <= far
-    near = np.where(seen, np.clip(near, view.near, view.far), np.inf)
-    far = np.where(seen, np.clip(far, view.near, view.far), -np.inf)
+    near, far = (np.where(seen, np.clip(a, view.near, view.far), fill) for a, fill in ((near, np.inf), (far, -np.inf)))
     return VisibleRegion(TileDepths(*(tile_edges(n, tile) for n in samples), near, far, counts), source)
 
 
@@ -392,9 +393,7 @@ def _box_depths(view: View, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each (M, 2, 3) box's least and greatest eye depth (over its corners)."""
     row = -view.world_to_camera[2]                          # eye depth = row . [x, 1]
     pos, neg = np.maximum(row[:3], 0.0), np.minimum(row[:3], 0.0)
-    lo = boxes[:, 0] @ pos + boxes[:, 1] @ neg + row[3]
-    hi = boxes[:, 1] @ pos + boxes[:, 0] @ neg + row[3]
-    return lo, hi
+    return boxes[:, 0] @ pos + boxes[:, 1] @ neg + row[3], boxes[:, 1] @ pos + boxes[:, 0] @ neg + row[3]
 
 
 def _square_depths(view: View, boxes, selected, face, origins, hits, samples) -> tuple[np.ndarray, np.ndarray]:
@@ -413,21 +412,23 @@ def _square_depths(view: View, boxes, selected, face, origins, hits, samples) ->
     ranges = []                                   # each box's image as a rectangle of squares
     for e, n, (lo, hi) in zip((xs, ys), samples, _ndc_rectangles(view, boxes[ids])):
         ranges += [np.maximum(np.searchsorted(e, lo, "right") - 1, 0), np.minimum(np.searchsorted(e, hi) - 1, n)]
-    which, q = _rect_cells(*ranges, samples[0] + 1)
-    which = ids[which]
-    # Beside a face: a box nearer than its farthest corner, meeting the rays' hull, not the face's own box.
-    keep = _box_depths(view, boxes)[0][which] < np.where(one_face, far, np.inf).ravel()[q]
-    which, q = which[keep], q[keep]
-    keep = (boxes[which, 0] <= front_hi[q]).all(axis=1) & (boxes[which, 1] >= front_lo[q]).all(axis=1) & \
-        ~(one_face.ravel()[q] & (which == face[1:, 1:].ravel()[q] // 6))
-    b, q = boxes[which[keep]], q[keep]
-    least, most = _box_depths(view, b)
-    deep = most - least > DEEP_BOX * np.maximum(least, view.near)
-    col, row = q[deep] % (samples[0] + 1), q[deep] // (samples[0] + 1)
-    least[deep], most[deep] = _box_depths_in_squares(view, b[deep], np.stack([xs[col], ys[row]], axis=1),
-                                                     np.stack([xs[col + 1], ys[row + 1]], axis=1))
-    np.minimum.at(near.reshape(-1), q, least)
-    np.maximum.at(far.reshape(-1), q, np.where(one_face.ravel()[q], -np.inf, most))
+    count = np.cumsum(np.maximum(ranges[1] - ranges[0] + 1, 0) * np.maximum(ranges[3] - ranges[2] + 1, 0))
+    face_far, nearest, columns = np.where(one_face, far, np.inf).ravel(), _box_depths(view, boxes)[0], samples[0] + 1
+    for part in np.split(np.arange(len(ids)), np.searchsorted(count, np.arange(PAIRS, count[-1:].sum(), PAIRS))):
+        which, q = _rect_cells(*(r[part] for r in ranges), columns)         # (PAIRS at a time: bounded memory)
+        # Beside a face: a box nearer than its farthest corner, meeting the rays' hull, not the face's own box.
+        keep = nearest[ids[part][which]] < face_far[q]
+        which, q = ids[part][which[keep]], q[keep]
+        keep = (boxes[which, 0] <= front_hi[q]).all(axis=1) & (boxes[which, 1] >= front_lo[q]).all(axis=1) & \
+            ~(one_face.ravel()[q] & (which == face[1:, 1:].ravel()[q] // 6))
+        b, q = boxes[which[keep]], q[keep]
+        least, most = _box_depths(view, b)
+        deep = most - least > DEEP_BOX * np.maximum(least, view.near)
+        col, row = q[deep] % columns, q[deep] // columns
+        least[deep], most[deep] = _box_depths_in_squares(view, b[deep], np.stack([xs[col], ys[row]], axis=1),
+                                                         np.stack([xs[col + 1], ys[row + 1]], axis=1))
+        np.minimum.at(near.reshape(-1), q, least)
+        np.maximum.at(far.reshape(-1), q, np.where(one_face.ravel()[q], -np.inf, most))
     return near, far
 
 

@@ -415,7 +415,8 @@ CLI_CASES = {
                                                                         c["camera"]["matrix_world"][:3]] +
                                                         [[0, 0, 0, 1]]), 2, "camera.matrix_world: "),
     "NaN box": (lambda c: c["boxes"][0].__setitem__("max", [1, float("nan"), 1]), 2, "boxes[0].max: "),
-    "near 1e-6 far 1e9": (lambda c: c["camera"].update(near=1e-6, far=1e9), 0, ""),
+    "near 1e-6 far 1e9": (lambda c: c["camera"].update(near=1e-6, far=1e9), 2, "camera.far: "),   # (as Blender's)
+    "near 1e-6 far 16": (lambda c: c["camera"].update(near=1e-6, far=16), 0, ""),        # (1:1.6e7, within 1:2^24)
     "a light at the camera": (lambda c: c.__setitem__("light", {"type": "POINT", "position": [
         row[3] for row in c["camera"]["matrix_world"][:3]]}), 0, ""),
     "a scene 1e7 from the origin": (lambda c: _shift_config(c, 1e7), 0, ""),

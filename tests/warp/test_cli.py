@@ -245,6 +245,8 @@ MALFORMED = {
     "fov_1e-300": (_set(["camera", "fov_y_deg"], 1e-300), "camera"),
     "box_1e300": (_set(["boxes", 1, "max"], [1, 1, 1e300]), "boxes[1].max"),
     "point_position_1e300": (_set(["light"], {"type": "POINT", "position": [0, 1e300, 1]}), "light.position"),
+    # a perspective clip range beyond 32-bit float depth: refused as the Blender path refuses it, not "empty body"
+    "clip_range_1e13": (_set(["camera", "far"], 1e12), "camera.far"),
 }
 
 
@@ -278,6 +280,30 @@ def test_malformed_config_gets_one_line_naming_the_field(name, tmp_path, capsys)
         code = main(["--method", method, str(path)])
         out = capsys.readouterr()
         check_one_line(code, out.out, out.err, field)
+
+
+def test_clip_range_is_refused_beyond_what_float32_depth_resolves(tmp_path, capsys):
+    """The rule of the Blender path (``MAX_CLIP_RATIO``, 1:2^24): up to it a perspective camera gets its maps, beyond
+    it one line naming camera.far and what to do (a 1:1e12 range silently printed no maps, "empty body"); an
+    orthographic camera's depth is linear, so any range computes."""
+    from addon.cli import main
+    from addon.warp.types import MAX_CLIP_RATIO
+    path = tmp_path / "config.json"
+    for far_over_near, ortho, ok in ((MAX_CLIP_RATIO, False, True), (MAX_CLIP_RATIO * 1.001, False, False),
+                                     (1e12, False, False), (1e12, True, True)):
+        config = base_config()
+        config["camera"]["far"] = config["camera"]["near"] * far_over_near
+        if ortho:
+            config["camera"].update(orthographic=True, ortho_height=40.0)
+            del config["camera"]["fov_y_deg"]
+        path.write_text(json.dumps(config))
+        code = main(["--method", "lispsm", str(path)])
+        out = capsys.readouterr()
+        if ok:
+            assert code == 0 and json.loads(out.out)["maps"], (far_over_near, ortho, out.err)
+        else:
+            check_one_line(code, out.out, out.err, "camera.far")
+            assert "raise camera.near or lower camera.far" in out.err
 
 
 SUBPROCESS_SAMPLE = ["camera_missing", "matrix_nan", "matrix_projective_row", "fov_string", "near_beyond_far",
