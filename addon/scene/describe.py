@@ -14,17 +14,11 @@ import numpy as np
 
 from ..warp import MAX_COORDINATE
 from ..warp.polyhedron import box_corners
-from ..warp.types import Light, SceneBounds, View, WarpError
+from ..warp.types import Light, SceneBounds, View, WarpError, clip_range_beyond_depth
 from .instances import GEOMETRY_TYPES, InstanceSet, walk_instances  # noqa: F401 (re-exported)
 
 MAX_RESOLUTION = 16384
 """Largest render side Lixel accepts (the GPU's maximum texture size)."""
-
-MAX_CLIP_RATIO = float(2 ** 24)
-"""Largest clip end / clip start of a perspective camera: beyond it a 32-bit float depth (the GPU's depth
-buffers and the projection uploaded to it) cannot tell the clip range's ends
-apart near the far plane, and the camera pass resolves nothing. (An orthographic
-camera's depth is linear in the eye depth: its ratio does not matter.)"""
 
 DEPTH_STEP = 2.0 ** -23
 """The depth difference from the far plane below which a perspective camera's 32-bit float depth (z / w, computed
@@ -209,10 +203,9 @@ def describe_view(camera_obj, depsgraph, scene) -> View:
     if not (0 < near < far < math.inf):
         raise WarpError(f"Camera '{camera_obj.name}' clips at start {near:g} and end {far:g}: the clip start must be "
                         f"positive and less than the clip end (Camera properties > Lens > Clip)")
-    if far / near > MAX_CLIP_RATIO and cam.type != "ORTHO":  # an orthographic depth is linear: any ratio resolves
-        raise WarpError(f"Camera '{camera_obj.name}' clips from {near:g} to {far:g}, a range of 1:{far / near:.3g}, "
-                        f"beyond what 32-bit float depth resolves (1:{MAX_CLIP_RATIO:,.0f}): raise the clip start or "
-                        f"lower the clip end (Camera properties > Lens > Clip)")
+    if why := clip_range_beyond_depth(near, far, cam.type == "ORTHO"):   # orthographic depth is linear: any ratio
+        raise WarpError(f"Camera '{camera_obj.name}' {why}: raise the clip start or lower the clip end "
+                        f"(Camera properties > Lens > Clip)")
     camera_to_world = unscaled_camera_matrix(ob_eval.matrix_world, camera_obj.name)
     projection = _matrix(ob_eval.calc_matrix_camera(depsgraph, x=w, y=h,
                                                     scale_x=float(r.pixel_aspect_x), scale_y=float(r.pixel_aspect_y)))

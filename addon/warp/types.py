@@ -22,7 +22,8 @@ class EmptyBodyError(WarpError):
 
 
 MAX_CLIP_RATIO = float(2 ** 24)
-"""Largest clip end / start of a perspective camera that the GPU's 32-bit float depth resolves (orthographic: any)."""
+"""Largest clip end / start of a perspective camera: beyond it 32-bit float depth (the GPU's depth buffers and the
+projection uploaded to it) cannot tell the clip range's ends apart near the far plane (orthographic depth is linear)."""
 
 
 def clip_range_beyond_depth(near: float, far: float, orthographic: bool) -> str:
