@@ -28,7 +28,7 @@ import time
 import numpy as np
 
 from addon.warp import intersection_body, region_from_boxes
-from addon.warp.visibility import region_from_window_depth
+from addon.warp.visibility import BOX_SAMPLES, BOX_TILE, region_from_window_depth
 from bench.warp_speed import LIGHTS, city_boxes, city_scene, street_view
 
 SIZES = ((640, 360), (1280, 720), (1920, 1080))
@@ -54,7 +54,7 @@ def moved(view):
 
 def fresh_region(view, scene):
     """``region_from_boxes`` without the scene's cache of its last region."""
-    scene.cached("visible region", dict).clear()
+    scene.cached(("visible region", BOX_SAMPLES, BOX_TILE), dict).clear()      # region_from_boxes' own key
     return region_from_boxes(moved(view), scene)
 
 
