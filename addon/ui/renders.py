@@ -28,7 +28,23 @@ def render_state(st: LiveState, depsgraph, resolution, setup=None, settings=None
     geometry = geometry if geometry is not None else scene_geometry(depsgraph)
     return render_shadows(st.view, st.light, setup if setup is not None else st.setup, geometry,
                           settings if settings is not None else st.settings, tuple(int(v) for v in resolution),
-                          body=st.body, read=read)
+                          body=st.body, read=read, **lighting(st, depsgraph))
+
+
+def state_light(st: LiveState, depsgraph):
+    """The evaluated object of the state's light (None where it is gone)."""
+    return next((ob for ob in depsgraph.objects if ob.type == "LIGHT" and ob.original.as_pointer() == st.light_pointer),
+                None)
+
+
+def lighting(st: LiveState, depsgraph) -> dict:
+    """What F12 gives the shading pass besides the light (``addon.render.engine``): the world's light as Cycles
+    renders it (``scene.world.world_light``) and the spot's blend, so that pictures lit from the live state (scripts,
+    the 3D view's picture) are lit as renders of the same frame."""
+    from ..scene.world import world_light
+    lob = state_light(st, depsgraph)
+    blend = float(lob.data.spot_blend) if lob is not None and lob.data.type == "SPOT" else 0.0
+    return dict(ambient=world_light(depsgraph.scene_eval.world).colour, spot_blend=blend)
 
 
 def fit_resolution(resolution, longest: int) -> tuple[int, int]:
@@ -142,15 +158,14 @@ def pip_textures(st: LiveState, depsgraph, longest: int, want_map: bool, want_sc
     ensure_gpu_context()
     geometry, links = scene_geometry(depsgraph), LightLinks()
     if len(geometry.instances.linkers):     # a light has Light/Shadow Linking: follow the picture's light's
-        lob = next((ob.original for ob in depsgraph.objects
-                    if ob.type == "LIGHT" and ob.original.as_pointer() == st.light_pointer), None)
-        links = light_links(lob, geometry.instances)
+        lob = state_light(st, depsgraph)
+        links = light_links(lob.original if lob is not None else None, geometry.instances)
     frame = ShadowFrame(geometry, st.view, fit_resolution(st.view.resolution, longest),
                         read={"combined"}, targets=targets, lit=links.lit, blocks=links.blocks)
     frame.camera_prepass()
     frame.draw_maps(st.setup, st.settings.shadow, st.body)
     if want_scene:
-        frame.shade(st.light, st.setup, st.settings.shadow)
+        frame.shade(st.light, st.setup, st.settings.shadow, **lighting(st, depsgraph))
         out["scene"] = frame.combined_texture()
     if want_map:
         out["map"] = compose.map_picture(frame.targets, "map_picture", frame.maps[0][0], st.setup.maps[0].size, longest)

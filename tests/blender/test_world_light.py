@@ -239,3 +239,29 @@ def test_film_transparent_keeps_the_worlds_light_on_surfaces(engine, scene, tmp_
     for where in (PLANE, SKY):
         np.testing.assert_allclose(got[where].mean(axis=(0, 1)), cycles[where].mean(axis=(0, 1)), rtol=0.02, atol=2e-3)
     np.testing.assert_allclose(got[SKY], 0.0)
+
+
+def test_pictures_from_the_live_state_are_lit_by_the_world_as_f12_is(lixel, engine, scene):
+    """``render_method.py``'s and the 3D view's pictures (``renders.render_state``, ``pip_images``) take the world's
+    light and the spot's blend as F12 does. Before, they lit every scene with a fixed 0.05 grey and no blend: under a
+    Background of (0.2, 0.3, 0.4) x 2 the sky and the shadowed plane came out 0.05 where F12 showed 0.4 / 0.6 / 0.8."""
+    live = importlib.import_module(lixel.__name__ + ".addon.ui.live")
+    renders = importlib.import_module(lixel.__name__ + ".addon.ui.renders")
+    scene.world = sky_world("lixel_test world", (0.2, 0.3, 0.4), 2.0)
+    spot = bpy.data.objects.new("lixel_test spot", bpy.data.lights.new("lixel_test spot", "SPOT"))
+    spot.data.spot_size, spot.data.spot_blend, spot.data.energy = 1.2, 0.6, 500.0
+    spot.location = (0.3, 0.2, 3.0)
+    scene.collection.objects.link(spot)
+    f12 = _lixel(engine, scene)["result"].combined
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    live.clear()
+    st = live.update(scene, depsgraph)
+    assert not st.error, st.error
+    picture = renders.render_state(st, depsgraph, (SIZE, SIZE), read={"combined"}).combined
+    np.testing.assert_allclose(picture[SKY][..., :3], np.broadcast_to(np.float32([0.4, 0.6, 0.8]), (4, 4, 3)),
+                               rtol=1e-5)
+    np.testing.assert_allclose(picture[..., :3], f12[..., :3], rtol=1e-4, atol=1e-5)
+    pip = renders.pip_images(st, depsgraph, SIZE, want_map=False, want_scene=True)["scene"]
+    np.testing.assert_allclose(pip[SKY][..., :3], picture[SKY][..., :3], rtol=1e-5)
+    live.clear()
+    bpy.data.objects.remove(spot)
