@@ -204,7 +204,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
                                   light_notes, lost_depth_note, motion_blur_note, pick_light, render_camera)
     from ..scene.geometry import shared_cache
     from ..scene.linking import light_links, linking_note
-    from ..scene.world import world_light
+    from ..scene.world import world_light, world_shading
 
     scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
     settings = settings or scene_settings(scene)
@@ -231,6 +231,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         view = eye_view(view, camera, *eye, depsgraph=depsgraph)
     # The world as Cycles lights it, of the evaluated scene (an animation render's frame's, not the original's).
     world = world_light(depsgraph.scene_eval.world)
+    seen = world_shading(depsgraph.scene_eval.world, world)   # as its Ray Visibility lets Cycles see it
     for note in (lost_depth_note(view, bounds, camera.name), motion_blur_note(scene), world.note):
         if warnings is not None and note:
             warnings.append(f"Lixel: {note}")
@@ -278,7 +279,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     light_data = evaluated(light_obj, depsgraph).data if light_obj is not None else None   # this frame's
     blend = float(light_data.spot_blend) if light_data is not None and light_data.type == "SPOT" else 0.0
     frame.draw_maps(setup, settings.shadow, body)
-    frame.shade(light, setup, settings.shadow, spot_blend=blend, ambient=world.colour,
+    frame.shade(light, setup, settings.shadow, spot_blend=blend, ambient=seen.ambient, background=seen.background,
                 transparent=bool(scene.render.film_transparent))
     result = frame.finish()
     result.timings = {**timings, **result.timings}

@@ -39,12 +39,13 @@ def state_light(st: LiveState, depsgraph):
 
 def lighting(st: LiveState, depsgraph) -> dict:
     """What F12 gives the shading pass besides the light (``addon.render.engine``): the world's light as Cycles
-    renders it (``scene.world.world_light``) and the spot's blend, so that pictures lit from the live state (scripts,
-    the 3D view's picture) are lit as renders of the same frame."""
-    from ..scene.world import world_light
+    renders it (``scene.world.world_shading``: its light on surfaces and behind them) and the spot's blend, so that
+    pictures lit from the live state (scripts, the 3D view's picture) are lit as renders of the same frame."""
+    from ..scene.world import world_shading
     lob = state_light(st, depsgraph)
     blend = float(lob.data.spot_blend) if lob is not None and lob.data.type == "SPOT" else 0.0
-    return dict(ambient=world_light(depsgraph.scene_eval.world).colour, spot_blend=blend)
+    ambient, background = world_shading(depsgraph.scene_eval.world)
+    return dict(ambient=ambient, background=background, spot_blend=blend)
 
 
 def fit_resolution(resolution, longest: int) -> tuple[int, int]:
