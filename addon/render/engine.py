@@ -2,10 +2,11 @@
 ``bpy.ops.render.render()`` render the scene's camera view shaded with Lixel's
 warped shadow maps.
 
-Holdouts (Object properties > Visibility > Holdout, or a collection's Holdout in the view layer) render as Cycles
-renders them: a transparent hole, (0, 0, 0, 0) in Combined with Film Transparent on or off, empty in the other passes
-(no shadow, black footprint), that still hides what is behind it and still casts its shadow
-(``addon.scene.instances.holdout_test``; ``ShadowFrame.shade``).
+Holdouts (Object properties > Visibility > Holdout, a collection's Holdout in the view layer, or a surface whose
+materials are all a Holdout shader: ``addon.scene.materials``) render as Cycles renders them: a transparent hole, (0,
+0, 0, 0) in Combined with Film Transparent on or off, empty in the other passes (no shadow, black footprint), that
+still hides what is behind it and still casts its shadow (``addon.scene.instances.holdout_test``;
+``ShadowFrame.shade``).
 
 Light Linking and Shadow Linking of the light it renders (Object properties > Shading) are followed as Cycles follows
 them: an object the light does not light gets the world's light alone and no shadow of it in the Shadow pass, but
@@ -204,6 +205,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
                                   light_notes, lost_depth_note, motion_blur_note, pick_light, render_camera)
     from ..scene.geometry import shared_cache
     from ..scene.linking import light_links, linking_note
+    from ..scene.materials import material_holdout_note
     from ..scene.world import world_light, world_shading
 
     scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
@@ -232,7 +234,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     # The world as Cycles lights it, of the evaluated scene (an animation render's frame's, not the original's).
     world = world_light(depsgraph.scene_eval.world)
     seen = world_shading(depsgraph.scene_eval.world, world)   # as its Ray Visibility lets Cycles see it
-    for note in (lost_depth_note(view, bounds, camera.name), motion_blur_note(scene), world.note):
+    for note in (lost_depth_note(view, bounds, camera.name), motion_blur_note(scene), world.note,
+                 material_holdout_note(depsgraph)):
         if warnings is not None and note:
             warnings.append(f"Lixel: {note}")
     timings["describe"] = time.perf_counter() - t

@@ -245,7 +245,8 @@ def _held_layer_collections(layer) -> bool:
 
 def holdout_test(depsgraph) -> Callable:
     """``held(ob) -> bool``: whether the render of ``depsgraph`` holds out the evaluated object ``ob`` (Object
-    properties > Visibility > Holdout, or a collection's Holdout in the view layer), as Blender's
+    properties > Visibility > Holdout, or a collection's Holdout in the view layer; a surface whose materials are all
+    a Holdout shader is held out too, per geometry: :mod:`.materials`), as Blender's
     ``Object.holdout_get`` answers it for the view layer, which Cycles reads. An instance takes its instancer's
     answer (measured with Cycles in 4.2.23 and 5.0.1: a collection instance or geometry-nodes instances of a held-out
     instancer are held out; a held-out object instanced by a plain instancer, or a collection held out in the view
@@ -295,8 +296,10 @@ def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Instanc
     met, while the evaluated object is still valid; it may return False to
     drop every instance of that key (e.g. a mesh with no faces).
     """
+    from .materials import any_holdout_material, surface_held_out
     keys, names, casts, receives, holdouts = [], [], [], [], []
     held, held_by = holdout_test(depsgraph), {}
+    surfaces = {} if any_holdout_material() else None   # key -> whether its materials hold it out
     if not any(held(ob) for ob in depsgraph.objects):   # (an instance is held out by a real object, its instancer)
         held = None                                     # nothing held out: no work per instance
     linkers = [] if light_linked(depsgraph) else None
@@ -328,14 +331,17 @@ def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Instanc
         receives.append(bool(getattr(ob, "visible_camera", True)))
         if linkers is not None:
             linkers.append(linkers_of(inst, ob))
+        if surfaces is not None and key not in surfaces:
+            surfaces[key] = surface_held_out(ob)
+        surface = surfaces is not None and surfaces[key]
         if held is None:
-            holdouts.append(False)
+            holdouts.append(surface)
             continue
         owner = inst.parent if inst.is_instance and inst.parent is not None else ob
         pointer = owner.original.as_pointer()
         if pointer not in held_by:
             held_by[pointer] = held(owner)
-        holdouts.append(held_by[pointer])
+        holdouts.append(held_by[pointer] or surface)
     if not keys:
         return InstanceSet()
     return InstanceSet.from_lists(keys, mats[:n], accepted, casts, receives, names, holdouts, linkers)
@@ -376,6 +382,13 @@ class _Reader:
         self.chunks: list = []        # (key id, flags, owner id, source index, reference or None, local or None,
         self.held = holdout_test(depsgraph)   #  linkers or None: see linkers_of)
         self.linked = light_linked(depsgraph)
+        from .materials import any_holdout_material
+        self.surfaces = any_holdout_material()
+
+    def surface_held(self, ob, mesh=None) -> bool:
+        """Whether ``ob``'s materials (``mesh``'s, for geometry-nodes geometry) hold its surface out."""
+        from .materials import surface_held_out
+        return self.surfaces and surface_held_out(ob, mesh)
 
     def key_id(self, key, ob, mesh=None) -> Optional[int]:
         k = self.accepted.get(key, -1)
@@ -403,13 +416,15 @@ class _Reader:
             k = self.key_id(object_key(ob), ob)
             if k is not None:
                 self.sources.append((world,))
-                self.chunks.append((k, _flags(ob) + (self.held(ob),), self.owner(ob.name), len(self.sources) - 1,
+                self.chunks.append((k, _flags(ob) + (self.held(ob) or self.surface_held(ob),), self.owner(ob.name),
+                                    len(self.sources) - 1,
                                     None, None, (0, ob.original.as_pointer()) if self.linked else None))
         if ob.type in INSTANCER_TYPES and _has_nodes(ob):
             self.instances_of(ob.evaluated_geometry(), ob, world)
 
     def leaves(self, ref, instancer) -> list:
-        """What one instance reference draws: [(key id, local matrix or None, flags, owner)]."""
+        """What one instance reference draws: [(key id, local matrix or None, flags, owner)]; flags: (casts,
+        seen by the camera, held out by its materials)."""
         import bpy
         if isinstance(ref, bpy.types.Object):
             ob = ref.evaluated_get(self.depsgraph) if not ref.is_evaluated else ref
@@ -419,7 +434,7 @@ class _Reader:
             if ob.type not in GEOMETRY_TYPES or shows_no_faces(ob):
                 return []
             k = self.key_id(object_key(ob), ob)
-            return [] if k is None else [(k, None, _flags(ob), ob.name)]
+            return [] if k is None else [(k, None, _flags(ob) + (self.surface_held(ob),), ob.name)]
         if not isinstance(ref, bpy.types.GeometrySet):
             raise _NeedsWalk(f"{instancer.name} instances a {type(ref).__name__}")
         out = []
@@ -427,7 +442,8 @@ class _Reader:
         if mesh is not None and len(mesh.polygons):
             k = self.key_id(generated_key(instancer, mesh, self.generated), instancer, mesh)
             if k is not None:
-                out.append((k, None, _flags(instancer), f"{instancer.name}/{mesh.name}"))
+                out.append((k, None, _flags(instancer) + (self.surface_held(instancer, mesh),),
+                            f"{instancer.name}/{mesh.name}"))
         nested = ref.instances_pointcloud()
         if nested is not None and len(nested.points):
             flat, ref_index = _instance_arrays(nested)
@@ -450,8 +466,8 @@ class _Reader:
         linkers = (instancer.original.as_pointer(), 0) if self.linked else None   # and linked as it (linkers_of)
         for r, ref in enumerate(refs):
             for k, local, flags, name in self.leaves(ref, instancer):
-                self.chunks.append((k, flags + (held,), self.owner(name), source, r if len(refs) > 1 else None,
-                                    local, linkers))
+                self.chunks.append((k, flags[:2] + (held or flags[2],), self.owner(name), source,
+                                    r if len(refs) > 1 else None, local, linkers))
 
     def same_as(self, previous: Optional["InstanceSet"]) -> bool:
         """Whether this read gives exactly ``previous`` (same keys, boxes, chunks and raw arrays)."""
