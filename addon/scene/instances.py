@@ -238,9 +238,28 @@ def _mesh_box(mesh) -> tuple:
     return pos.min(axis=0).astype(np.float64), pos.max(axis=0).astype(np.float64)
 
 
-def _held_layer_collections(layer) -> bool:
-    """Whether ``layer`` (a LayerCollection) or one of its children holds out (View Layer > Holdout)."""
-    return any(lc.holdout or _held_layer_collections(lc) for lc in layer.children)
+def _flagged_layer_collections(layer, flag: str) -> bool:
+    """Whether ``layer`` (a LayerCollection) or one of its children has ``flag`` on (View Layer > Holdout or
+    Indirect Only)."""
+    return any(getattr(lc, flag) or _flagged_layer_collections(lc, flag) for lc in layer.children)
+
+
+def _layer_test(depsgraph, flag: str, own: Callable) -> Optional[Callable]:
+    """``test(ob) -> bool``: the view layer's answer for ``flag`` (Blender's ``Object.<flag>_get``, which needs the
+    original object and a look-up in the view layer), or ``own(ob)`` where no collection of the layer has the flag
+    (None where ``own`` is None: nothing has it, no work per object)."""
+    scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
+    view_layer = scene.view_layers.get(depsgraph.view_layer.name)
+    if view_layer is None or not _flagged_layer_collections(view_layer.layer_collection, flag):
+        return own
+    own = own or (lambda ob: False)
+
+    def test(ob) -> bool:
+        try:
+            return bool(getattr(ob.original, f"{flag}_get")(view_layer=view_layer))
+        except (RuntimeError, ReferenceError):   # not in the view layer: nothing of the layer flags it
+            return own(ob)
+    return test
 
 
 def holdout_test(depsgraph) -> Callable:
@@ -250,19 +269,34 @@ def holdout_test(depsgraph) -> Callable:
     ``Object.holdout_get`` answers it for the view layer, which Cycles reads. An instance takes its instancer's
     answer (measured with Cycles in 4.2.23 and 5.0.1: a collection instance or geometry-nodes instances of a held-out
     instancer are held out; a held-out object instanced by a plain instancer, or a collection held out in the view
-    layer and instanced elsewhere, is not). Without any collection held out an object's own flag answers (one
-    attribute; ``holdout_get`` needs the original object and a look-up in the view layer)."""
-    scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
-    view_layer = scene.view_layers.get(depsgraph.view_layer.name)
-    if view_layer is None or not _held_layer_collections(view_layer.layer_collection):
-        return lambda ob: bool(getattr(ob, "is_holdout", False))
+    layer and instanced elsewhere, is not). Without any collection held out an object's own flag answers."""
+    return _layer_test(depsgraph, "holdout", lambda ob: bool(getattr(ob, "is_holdout", False)))
 
-    def held(ob) -> bool:
-        try:
-            return bool(ob.original.holdout_get(view_layer=view_layer))
-        except (RuntimeError, ReferenceError):   # not in the view layer: nothing of the layer holds it out
-            return bool(getattr(ob, "is_holdout", False))
-    return held
+
+def indirect_only_test(depsgraph) -> Optional[Callable]:
+    """``indirect(ob) -> bool``: whether ``ob`` is in a collection the view layer renders Indirect Only, which Cycles
+    hides from the camera alone (measured in 4.2.23 and 5.0.1: such a cube's pixels render as with its Ray
+    Visibility > Camera off, the ground behind it shadowed by it); an instance takes its instancer's answer, as for
+    holdouts. None where no collection of the view layer is Indirect Only."""
+    return _layer_test(depsgraph, "indirect_only", None)
+
+
+def _seen(ob, parent, indirect, indirect_by: dict) -> tuple[bool, bool]:
+    """(casts, seen by the camera) of an instance of ``ob`` made by ``parent`` (None for a real object): Cycles
+    ANDs an instancer's Ray Visibility with its instances' own ("visibility is inherited"; measured in 4.2.23 and
+    5.0.1: Shadow or Camera off on an empty instancing a collection, or on a geometry-nodes instancer, acts as on
+    the instanced object), and hides an Indirect Only instancer's instances from the camera (``indirect``)."""
+    casts, camera = _flags(ob)
+    if parent is not None:
+        p_casts, p_camera = _flags(parent)
+        casts, camera = casts and p_casts, camera and p_camera
+    if camera and indirect is not None:
+        owner = parent if parent is not None else ob
+        pointer = owner.original.as_pointer()
+        if pointer not in indirect_by:
+            indirect_by[pointer] = indirect(owner)
+        camera = not indirect_by[pointer]
+    return casts, camera
 
 
 def light_linked(depsgraph) -> bool:
@@ -299,6 +333,7 @@ def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Instanc
     from .materials import any_holdout_material, surface_held_out
     keys, names, casts, receives, holdouts = [], [], [], [], []
     held, held_by = holdout_test(depsgraph), {}
+    indirect, indirect_by = indirect_only_test(depsgraph), {}
     surfaces = {} if any_holdout_material() else None   # key -> whether its materials hold it out
     if not any(held(ob) for ob in depsgraph.objects):   # (an instance is held out by a real object, its instancer)
         held = None                                     # nothing held out: no work per instance
@@ -327,8 +362,9 @@ def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Instanc
         n += 1
         keys.append(key)
         names.append(ob.name if not inst.is_instance or inst.parent is None else f"{inst.parent.name}/{ob.name}")
-        casts.append(bool(getattr(ob, "visible_shadow", True)))
-        receives.append(bool(getattr(ob, "visible_camera", True)))
+        shadow, camera = _seen(ob, inst.parent if inst.is_instance else None, indirect, indirect_by)
+        casts.append(shadow)
+        receives.append(camera)
         if linkers is not None:
             linkers.append(linkers_of(inst, ob))
         if surfaces is not None and key not in surfaces:
@@ -381,6 +417,7 @@ class _Reader:
         self.sources: list = []       # raw arrays: (world,) or (world, column-major transforms, reference index)
         self.chunks: list = []        # (key id, flags, owner id, source index, reference or None, local or None,
         self.held = holdout_test(depsgraph)   #  linkers or None: see linkers_of)
+        self.indirect, self.indirect_by = indirect_only_test(depsgraph), {}
         self.linked = light_linked(depsgraph)
         from .materials import any_holdout_material
         self.surfaces = any_holdout_material()
@@ -416,7 +453,8 @@ class _Reader:
             k = self.key_id(object_key(ob), ob)
             if k is not None:
                 self.sources.append((world,))
-                self.chunks.append((k, _flags(ob) + (self.held(ob) or self.surface_held(ob),), self.owner(ob.name),
+                seen = _seen(ob, None, self.indirect, self.indirect_by)
+                self.chunks.append((k, seen + (self.held(ob) or self.surface_held(ob),), self.owner(ob.name),
                                     len(self.sources) - 1,
                                     None, None, (0, ob.original.as_pointer()) if self.linked else None))
         if ob.type in INSTANCER_TYPES and _has_nodes(ob):
@@ -463,11 +501,12 @@ class _Reader:
         self.sources.append((world, flat, ref_index))
         source = len(self.sources) - 1
         held = self.held(instancer)              # instances are held out with their instancer (holdout_test)
+        casts, camera = _seen(instancer, None, self.indirect, self.indirect_by)   # seen as it lets them (_seen)
         linkers = (instancer.original.as_pointer(), 0) if self.linked else None   # and linked as it (linkers_of)
         for r, ref in enumerate(refs):
             for k, local, flags, name in self.leaves(ref, instancer):
-                self.chunks.append((k, flags[:2] + (held or flags[2],), self.owner(name), source,
-                                    r if len(refs) > 1 else None, local, linkers))
+                self.chunks.append((k, (flags[0] and casts, flags[1] and camera, held or flags[2]), self.owner(name),
+                                    source, r if len(refs) > 1 else None, local, linkers))
 
     def same_as(self, previous: Optional["InstanceSet"]) -> bool:
         """Whether this read gives exactly ``previous`` (same keys, boxes, chunks and raw arrays)."""
