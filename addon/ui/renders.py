@@ -270,13 +270,25 @@ def save_image(rgba: np.ndarray, path: str, name: Optional[str] = None, linear: 
     import bpy
     file_format = image_format(path)
     img = to_image(name or "Lixel output", rgba, existing_ok=False, linear=linear)
+    settings = None
     try:
         img.filepath_raw = str(path) if str(path).startswith("//") else os.path.abspath(path)
         img.file_format = file_format
-        img.save()
+        if file_format == "OPEN_EXR" and linear:
+            # Image.save() does not write scene-linear values to OpenEXR (measured: 4.2.23 writes them sRGB-encoded,
+            # 0.25 -> 0.537 and 2.0 -> 1.353; 5.0.1 wherever alpha < 1, 0.25 -> 0.589 at alpha 0.5); save_render
+            # with OpenEXR settings writes them as they are, in both. Its settings come from a scene of its own.
+            settings = bpy.data.scenes.new("Lixel output settings")
+            fmt = settings.render.image_settings
+            fmt.file_format, fmt.color_mode, fmt.color_depth = "OPEN_EXR", "RGBA", "32"
+            img.save_render(bpy.path.abspath(img.filepath_raw), scene=settings)
+        else:
+            img.save()
     except RuntimeError as exc:  # Blender's "Error: Could not write image: <why>" (or "internal error, see console")
         why = str(exc).strip().splitlines()[0].partition("Could not write image: ")[2]
         raise OSError(0, why if why and "internal error" not in why else "the image cannot be written there",
                       str(path)) from None
     finally:
         bpy.data.images.remove(img)
+        if settings is not None:
+            bpy.data.scenes.remove(settings)
