@@ -159,6 +159,34 @@ def motion_blur_note(scene) -> Optional[str]:
             f"Motion Blur off in Render properties with Cycles or EEVEE, or render there for blur)")
 
 
+UNDRAWN_TYPES = {"CURVES": "hair curves", "POINTCLOUD": "a point cloud", "VOLUME": "a volume"}
+"""Object types Cycles renders (strands, points, a volume that shadows) and Lixel does not draw."""
+
+
+def unmodelled_objects_note(depsgraph) -> Optional[str]:
+    """A warning naming the first object of the frame Lixel renders otherwise than Cycles, and how many more there
+    are: a Shadow Catcher (Object properties > Visibility > Mask; Cycles shows the background there with the shadows
+    on it, measured in 5.0.1: the unshadowed catcher 0.40 / 0.60 / 0.80 under a sky of that colour, transparent with
+    Film Transparent, where Lixel lit it as any surface, 0.83 / 0.99 / 1.15), or an object of a type Lixel does not
+    draw (:data:`UNDRAWN_TYPES`: it casts no shadow and is not seen)."""
+    found = []
+    for ob in depsgraph.objects:
+        if ob.type in UNDRAWN_TYPES:
+            data = ob.data
+            if len(getattr(data, "curves", getattr(data, "points", ()))) or (ob.type == "VOLUME" and len(data.grids)):
+                found.append((ob.name, f"is {UNDRAWN_TYPES[ob.type]}, which Lixel does not draw: it casts no shadow "
+                                       f"and is not seen (Lixel draws meshes, curves, surfaces, metaballs and text); "
+                                       f"convert it to a mesh (Object > Convert > Mesh) for its shadow"))
+        elif getattr(ob, "is_shadow_catcher", False) and ob.type in GEOMETRY_TYPES:
+            found.append((ob.name, "is a Shadow Catcher (Object properties > Visibility > Mask), which Lixel renders as "
+                                   "an ordinary surface, not as the background with the shadows on it; switch it off, "
+                                   "or render with Cycles for the catcher"))
+    if not found:
+        return None
+    more = f" (and {len(found) - 1} more such object(s))" if len(found) > 1 else ""
+    return f"object '{found[0][0]}' {found[0][1]}{more}"
+
+
 def render_resolution(scene) -> tuple[int, int]:
     """The output size in pixels, with the resolution percentage applied
     (Blender's own rounding: ``resolution * percentage // 100``)."""
