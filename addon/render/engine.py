@@ -203,7 +203,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     from ..gpu.pipeline import ShadowFrame
     from ..scene.describe import (NO_FACES, NoLightError, check_finite_geometry, describe_scene, evaluated, eye_view,
                                   light_notes, lost_depth_note, motion_blur_note, pick_light, render_camera,
-                                  unmodelled_objects_note)
+                                  other_lights_note, unmodelled_objects_note)
     from ..scene.geometry import shared_cache
     from ..scene.linking import light_links, linking_note
     from ..scene.materials import material_holdout_note
@@ -236,7 +236,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     world = world_light(depsgraph.scene_eval.world)
     seen = world_shading(depsgraph.scene_eval.world, world)   # as its Ray Visibility lets Cycles see it
     for note in (lost_depth_note(view, bounds, camera.name), motion_blur_note(scene), world.note,
-                 material_holdout_note(depsgraph), unmodelled_objects_note(depsgraph)):
+                 material_holdout_note(depsgraph), unmodelled_objects_note(depsgraph),
+                 other_lights_note(light_obj, depsgraph, scene.name)):
         if warnings is not None and note:
             warnings.append(f"Lixel: {note}")
     timings["describe"] = time.perf_counter() - t

@@ -434,6 +434,22 @@ def light_notes(light_obj, depsgraph=None) -> list[str]:
     return notes
 
 
+def other_lights_note(light_obj, depsgraph, scene_name: str) -> Optional[str]:
+    """A warning naming the lights of the frame besides ``light_obj`` that would light it in Cycles and EEVEE (shown
+    in ``depsgraph``, a strength other than 0, Diffuse on): Lixel renders one light, so they light nothing here.
+    (Before, a 5000 W point light beside the sun changed no pixel and nothing was said.)"""
+    chosen = light_obj.original if light_obj is not None else None
+    others = sorted({ob.name for ob in depsgraph.objects if ob.type == "LIGHT" and ob.original != chosen
+                     and float(getattr(ob.data, "energy", 1.0)) != 0 and lights_surfaces(ob)})
+    if not others or chosen is None:
+        return None
+    which = f"light '{others[0]}' lights" if len(others) == 1 else \
+        f"lights '{others[0]}' and {len(others) - 1} more light"
+    return (f"Scene '{scene_name}' has more lights than the one Lixel renders ('{chosen.name}'): {which} nothing "
+            f"here, as if off; choose the light Lixel renders in the Lixel panel > Light, or render with Cycles or "
+            f"EEVEE for them all")
+
+
 def _scene_lights(scene, depsgraph) -> list:
     """Original light objects visible to this depsgraph (render or viewport), by name."""
     if depsgraph is not None:
