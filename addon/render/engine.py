@@ -215,7 +215,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     timings = {}
     t = time.perf_counter()
     cache = shared_cache()
-    geometry = cache.update(depsgraph, exclude=is_debug_object)
+    surfaces = getattr(depsgraph.view_layer, "use_solid", True)   # View Layer > Filter > Surfaces: none drawn when off
+    geometry = cache.update(depsgraph, exclude=is_debug_object if surfaces else _everything)
     check_finite_geometry(geometry)
     shared_batches().prune(cache.meshes)
     timings["extraction"] = time.perf_counter() - t
@@ -234,7 +235,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         view = eye_view(view, camera, *eye, depsgraph=depsgraph)
     # The world as Cycles lights it, of the evaluated scene (an animation render's frame's, not the original's).
     world = world_light(depsgraph.scene_eval.world)
-    seen = world_shading(depsgraph.scene_eval.world, world)   # as its Ray Visibility lets Cycles see it
+    seen = world_shading(depsgraph.scene_eval.world, world, depsgraph.view_layer)   # as Cycles sees it
     for note in (lost_depth_note(view, bounds, camera.name), motion_blur_note(scene), world.note,
                  material_holdout_note(depsgraph), unmodelled_objects_note(depsgraph),
                  other_lights_note(light_obj, depsgraph, scene.name)):
@@ -262,6 +263,9 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
 
     t = time.perf_counter()
     try:
+        if not surfaces:
+            raise EmptyBodyError(f"view layer '{depsgraph.view_layer.name}' has Surfaces off (View Layer properties > "
+                                 f"Filter), so as in Cycles the frame shows only the world background")
         if len(bounds.receivers) == 0:   # everything hidden (an animation's frame, say): the world, as Blender's engines
             raise EmptyBodyError(f"scene '{scene.name}' {NO_FACES}, so the frame shows only the world background")
         if unlit is not None:
@@ -289,6 +293,11 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     result = frame.finish()
     result.timings = {**timings, **result.timings}
     return {"setup": setup, "settings": settings, "result": result, "scene": scene.name, "method": method}
+
+
+def _everything(ob) -> bool:
+    """An ``exclude`` for ``GeometryCache.update`` that leaves every object out (a view layer without surfaces)."""
+    return True
 
 
 def result_window(render, w: int, h: int) -> tuple[int, int, int, int]:

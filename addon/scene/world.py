@@ -44,10 +44,14 @@ class WorldShading(NamedTuple):
     background: tuple
 
 
-def world_shading(world, light: Optional[WorldLight] = None) -> WorldShading:
+def world_shading(world, light: Optional[WorldLight] = None, view_layer=None) -> WorldShading:
     """``light`` (default :func:`world_light` of ``world``) as the world's Ray Visibility lets Cycles see it (see the
     module's measurements): black behind the scene where Camera is off, no light on surfaces where Diffuse is off
-    (Lixel's surfaces are all diffuse; Glossy, Transmission and Volume Scatter light none of them)."""
+    (Lixel's surfaces are all diffuse; Glossy, Transmission and Volume Scatter light none of them). A ``view_layer``
+    with View Layer properties > Filter > Environment off has no world at all (Cycles, measured in 4.2.23 and 5.0.1:
+    the plane and the sky both black)."""
+    if view_layer is not None and not getattr(view_layer, "use_sky", True):
+        return WorldShading(BLACK, BLACK)
     colour = (light or world_light(world)).colour
     rays = getattr(world, "cycles_visibility", None)
     return WorldShading(colour if rays is None or rays.diffuse else BLACK,

@@ -44,7 +44,7 @@ def lighting(st: LiveState, depsgraph) -> dict:
     from ..scene.world import world_shading
     lob = state_light(st, depsgraph)
     blend = float(lob.data.spot_blend) if lob is not None and lob.data.type == "SPOT" else 0.0
-    ambient, background = world_shading(depsgraph.scene_eval.world)
+    ambient, background = world_shading(depsgraph.scene_eval.world, view_layer=depsgraph.view_layer)
     return dict(ambient=ambient, background=background, spot_blend=blend)
 
 

@@ -57,3 +57,26 @@ def test_the_live_states_pictures_follow_it_too(lixel, engine, scene):
     np.testing.assert_allclose(picture[..., :3], f12[..., :3], rtol=1e-4, atol=1e-5)
     live.clear()
     bpy.data.objects.remove(sun)
+
+
+@pytest.mark.parametrize("switch", ["use_sky", "use_solid"], ids=["Environment", "Surfaces"])
+def test_a_view_layers_filter_is_followed_as_cycles_follows_it(switch, engine, scene, tmp_path, load_pixels):
+    """View Layer properties > Filter, one switch off, the Background (0.2, 0.3, 0.4) x 2: Cycles (measured in 4.2.23
+    and 5.0.1) renders without Environment no world at all (the plane and the sky black) and without Surfaces the
+    sky alone (0.4 / 0.6 / 0.8 over the plane too). Lixel lit the plane and showed the sky either way."""
+    scene.world = sky_world("lixel_test world", (0.2, 0.3, 0.4), 2.0)
+    layer = scene.view_layers[0]
+    setattr(layer, switch, False)
+    try:
+        cycles = _cycles(scene, tmp_path, load_pixels)
+        scene.render.engine = "LIXEL"
+        with engine.watch_renders(read={"combined"}) as got:
+            assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
+    finally:
+        setattr(layer, switch, True)
+    for where in (PLANE, SKY):
+        np.testing.assert_allclose(got[-1]["result"].combined[where].mean(axis=(0, 1)), cycles[where].mean(axis=(0, 1)),
+                                   rtol=0.02, atol=2e-3)
+    if switch == "use_solid":
+        assert (f"Lixel: no shadows in this view (view layer '{layer.name}' has Surfaces off (View Layer properties > "
+                f"Filter), so as in Cycles the frame shows only the world background)") in got[-1]["warnings"]
