@@ -134,6 +134,7 @@ class Session:
         self.args = args
         self.package = None
         self.registered = False
+        self.shown: list = []     # (setter, value before) of what show_as_rendered changed, undone on exit
 
     def __enter__(self):
         import bpy
@@ -167,6 +168,10 @@ class Session:
         return self
 
     def __exit__(self, *exc):
+        for undo, value in reversed(self.shown):
+            with contextlib.suppress(ReferenceError, RuntimeError, AttributeError):
+                undo(value)
+        self.shown.clear()
         if self.registered:
             self.package.unregister()
             self.registered = False
@@ -214,6 +219,41 @@ class Session:
             settings = replace(settings, warp=replace(settings.warp, shadow_map_size=(self.args.size, self.args.size)))
         return settings
 
+    def show_as_rendered(self, scene) -> None:
+        """Make the depsgraph the scripts read (the 3D view's: a script has no other) hold what the scene's renders
+        hold: every object and collection visible in the viewport exactly where it renders (Restrict Render,
+        ``hide_render``; an object hidden in the viewport, by its eye or its monitor, still renders). Without this
+        ``render_method.py`` drew a cube hidden from renders, which F12 leaves out, and left out one hidden in the
+        viewport, which F12 draws. Undone when the session ends: nothing of the file changes. (Modifiers' render
+        levels and other render-only evaluation are not followed: the viewport's are used.)"""
+        if self.shown:
+            return
+        bpy = self.bpy
+        view_layer = self.bpy.context.view_layer
+
+        def change(owner, attr, value):
+            old = getattr(owner, attr)
+            if old != value:
+                setattr(owner, attr, value)
+                self.shown.append((lambda v, o=owner, a=attr: setattr(o, a, v), old))
+
+        def layers(lc):
+            yield lc
+            for child in lc.children:
+                yield from layers(child)
+        for coll in bpy.data.collections:
+            with contextlib.suppress(AttributeError):   # a linked (read-only) datablock keeps its viewport flag
+                change(coll, "hide_viewport", coll.hide_render)
+        for lc in layers(view_layer.layer_collection):
+            change(lc, "hide_viewport", False)
+        for ob in bpy.data.objects:
+            with contextlib.suppress(AttributeError):
+                change(ob, "hide_viewport", ob.hide_render)
+            with contextlib.suppress(RuntimeError):   # not in this view layer
+                if ob.hide_get(view_layer=view_layer):
+                    ob.hide_set(False, view_layer=view_layer)
+                    self.shown.append((lambda v, o=ob: o.hide_set(v, view_layer=view_layer), True))
+
     def state(self, scene, settings):
         """The live state for the scene (camera/light from the arguments), as a copy of its own: Lixel's live
         update (``depsgraph_update_post``, which a render's GPU start sets off, and ``frame_change_post``)
@@ -221,6 +261,7 @@ class Session:
         failure."""
         live = self.module("addon.ui.live")
         camera, light = self.objects(scene)
+        self.show_as_rendered(scene)
         depsgraph = self.bpy.context.evaluated_depsgraph_get()
         st = live.update(scene, depsgraph, settings=settings, camera=camera, light_obj=light, changed=None,
                          active=self.bpy.context.view_layer.objects.active)

@@ -581,7 +581,8 @@ class ShadowFrame:
         return [compose.read_depth(fb, tuple(int(v) for v in m.size)) for (_, fb), m in zip(maps, setup.maps)]
 
     def shade(self, light: Light, setup: ShadowSetup, shadow: ShadowSettings, albedo: float = DEFAULT_ALBEDO,
-              spot_blend: float = 0.0, ambient=DEFAULT_AMBIENT, read=None, transparent: bool = False) -> None:
+              spot_blend: float = 0.0, ambient=DEFAULT_AMBIENT, read=None, transparent: bool = False,
+              background=None) -> None:
         """The shading pass: one full-screen pass over the surface the pre-pass
         saw (each pixel shaded once; no second draw of the receivers), writing
         only the targets the images in ``read`` come from
@@ -589,8 +590,8 @@ class ShadowFrame:
         combined image (the unshadowed light when the eye-space blur follows),
         the shadow, the footprint heatmap, (shadow, map index, texels per
         pixel, eye depth), the surface seen (world position and normal).
-        Where no surface is seen the combined image holds ``ambient`` (the world colour), alpha 1, or
-        with ``transparent`` (Render properties > Film > Transparent) (0, 0, 0, 0). Where a held-out surface is
+        Where no surface is seen the combined image holds ``background`` (default ``ambient``, the world colour),
+        alpha 1, or with ``transparent`` (Render properties > Film > Transparent) (0, 0, 0, 0). Where a held-out surface is
         seen the combined image is (0, 0, 0, 0) either way, as in Cycles, and every other image holds what it holds
         where nothing is seen (so do Cycles' passes, measured in 4.2.23 and 5.0.1: its Depth there is 1e10 as behind
         everything, its Normal, Object Index and Diffuse Direct 0)."""
@@ -635,7 +636,7 @@ class ShadowFrame:
             bg.bind()
             # Under LIXEL_SHADOW_ALPHA the alpha holds the shadow, 0 here; finish() reads alpha - 1 as the
             # combined image's alpha - 1 where it is negative (-1: transparent).
-            behind = (0.0, 0.0, 0.0, 0.0) if transparent else (*ambient, 1.0)
+            behind = (0.0, 0.0, 0.0, 0.0) if transparent else (*(ambient if background is None else background), 1.0)
             bg.uniform_float("u_background", (0.0, 0.0, 0.0, 0.0) if blurred else
                              (*behind[:3], behind[3] - 1.0) if variant.shadow_alpha else behind)
             compose.fullscreen_batch().draw(bg)
@@ -798,7 +799,7 @@ def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, setti
                    resolution: Optional[tuple[int, int]] = None, *, body=None,
                    scene: Optional[GPUScene] = None, targets: Optional[TargetPool] = None,
                    ambient=DEFAULT_AMBIENT, albedo: float = DEFAULT_ALBEDO,
-                   spot_blend: float = 0.0, read=ANALYSIS) -> RenderResult:
+                   spot_blend: float = 0.0, read=ANALYSIS, background=None) -> RenderResult:
     """Render ``geometry`` from ``view`` with the shadow maps of ``setup``: a
     whole :class:`ShadowFrame` in one call.
 
@@ -812,7 +813,8 @@ def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, setti
     ``view.resolution``. ``body``: the intersection body if already computed
     (it culls casters); computed from the geometry's bounds otherwise.
     ``scene``/``targets``: see :class:`ShadowFrame`.
-    ``ambient``: world colour; ``albedo``: surface grey; ``spot_blend``: a spot
+    ``ambient``: world colour; ``background``: seen where no surface is (default ``ambient``); ``albedo``: surface
+    grey; ``spot_blend``: a spot
     light's Blender ``spot_blend`` (softness of the cone edge, 0 = hard).
     ``read``: the :class:`RenderResult` images to read back (default
     ``result.ANALYSIS``; ``result.EVERYTHING`` adds the world position, the
@@ -833,5 +835,5 @@ def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, setti
             body = None
     frame.camera_prepass()
     frame.draw_maps(setup, shadow, body)
-    frame.shade(light, setup, shadow, albedo, spot_blend, ambient)
+    frame.shade(light, setup, shadow, albedo, spot_blend, ambient, background=background)
     return frame.finish()

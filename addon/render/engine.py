@@ -2,10 +2,11 @@
 ``bpy.ops.render.render()`` render the scene's camera view shaded with Lixel's
 warped shadow maps.
 
-Holdouts (Object properties > Visibility > Holdout, or a collection's Holdout in the view layer) render as Cycles
-renders them: a transparent hole, (0, 0, 0, 0) in Combined with Film Transparent on or off, empty in the other passes
-(no shadow, black footprint), that still hides what is behind it and still casts its shadow
-(``addon.scene.instances.holdout_test``; ``ShadowFrame.shade``).
+Holdouts (Object properties > Visibility > Holdout, a collection's Holdout in the view layer, or a surface whose
+materials are all a Holdout shader: ``addon.scene.materials``) render as Cycles renders them: a transparent hole, (0,
+0, 0, 0) in Combined with Film Transparent on or off, empty in the other passes (no shadow, black footprint), that
+still hides what is behind it and still casts its shadow (``addon.scene.instances.holdout_test``;
+``ShadowFrame.shade``).
 
 Light Linking and Shadow Linking of the light it renders (Object properties > Shading) are followed as Cycles follows
 them: an object the light does not light gets the world's light alone and no shadow of it in the Shadow pass, but
@@ -201,10 +202,12 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     from ..gpu.batches import shared_batches
     from ..gpu.pipeline import ShadowFrame
     from ..scene.describe import (NO_FACES, NoLightError, check_finite_geometry, describe_scene, evaluated, eye_view,
-                                  light_notes, lost_depth_note, motion_blur_note, pick_light, render_camera)
+                                  light_notes, lost_depth_note, motion_blur_note, pick_light, render_camera,
+                                  other_lights_note, unmodelled_objects_note)
     from ..scene.geometry import shared_cache
     from ..scene.linking import light_links, linking_note
-    from ..scene.world import world_light
+    from ..scene.materials import material_holdout_note
+    from ..scene.world import world_light, world_shading
 
     scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
     settings = settings or scene_settings(scene)
@@ -212,7 +215,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     timings = {}
     t = time.perf_counter()
     cache = shared_cache()
-    geometry = cache.update(depsgraph, exclude=is_debug_object)
+    surfaces = getattr(depsgraph.view_layer, "use_solid", True)   # View Layer > Filter > Surfaces: none drawn when off
+    geometry = cache.update(depsgraph, exclude=is_debug_object if surfaces else _everything)
     check_finite_geometry(geometry)
     shared_batches().prune(cache.meshes)
     timings["extraction"] = time.perf_counter() - t
@@ -231,7 +235,10 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
         view = eye_view(view, camera, *eye, depsgraph=depsgraph)
     # The world as Cycles lights it, of the evaluated scene (an animation render's frame's, not the original's).
     world = world_light(depsgraph.scene_eval.world)
-    for note in (lost_depth_note(view, bounds, camera.name), motion_blur_note(scene), world.note):
+    seen = world_shading(depsgraph.scene_eval.world, world, depsgraph.view_layer)   # as Cycles sees it
+    for note in (lost_depth_note(view, bounds, camera.name), motion_blur_note(scene), world.note,
+                 material_holdout_note(depsgraph), unmodelled_objects_note(depsgraph),
+                 other_lights_note(light_obj, depsgraph, scene.name)):
         if warnings is not None and note:
             warnings.append(f"Lixel: {note}")
     timings["describe"] = time.perf_counter() - t
@@ -256,6 +263,9 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
 
     t = time.perf_counter()
     try:
+        if not surfaces:
+            raise EmptyBodyError(f"view layer '{depsgraph.view_layer.name}' has Surfaces off (View Layer properties > "
+                                 f"Filter), so as in Cycles the frame shows only the world background")
         if len(bounds.receivers) == 0:   # everything hidden (an animation's frame, say): the world, as Blender's engines
             raise EmptyBodyError(f"scene '{scene.name}' {NO_FACES}, so the frame shows only the world background")
         if unlit is not None:
@@ -278,11 +288,16 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     light_data = evaluated(light_obj, depsgraph).data if light_obj is not None else None   # this frame's
     blend = float(light_data.spot_blend) if light_data is not None and light_data.type == "SPOT" else 0.0
     frame.draw_maps(setup, settings.shadow, body)
-    frame.shade(light, setup, settings.shadow, spot_blend=blend, ambient=world.colour,
+    frame.shade(light, setup, settings.shadow, spot_blend=blend, ambient=seen.ambient, background=seen.background,
                 transparent=bool(scene.render.film_transparent))
     result = frame.finish()
     result.timings = {**timings, **result.timings}
     return {"setup": setup, "settings": settings, "result": result, "scene": scene.name, "method": method}
+
+
+def _everything(ob) -> bool:
+    """An ``exclude`` for ``GeometryCache.update`` that leaves every object out (a view layer without surfaces)."""
+    return True
 
 
 def result_window(render, w: int, h: int) -> tuple[int, int, int, int]:

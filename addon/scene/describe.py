@@ -159,6 +159,34 @@ def motion_blur_note(scene) -> Optional[str]:
             f"Motion Blur off in Render properties with Cycles or EEVEE, or render there for blur)")
 
 
+UNDRAWN_TYPES = {"CURVES": "hair curves", "POINTCLOUD": "a point cloud", "VOLUME": "a volume"}
+"""Object types Cycles renders (strands, points, a volume that shadows) and Lixel does not draw."""
+
+
+def unmodelled_objects_note(depsgraph) -> Optional[str]:
+    """A warning naming the first object of the frame Lixel renders otherwise than Cycles, and how many more there
+    are: a Shadow Catcher (Object properties > Visibility > Mask; Cycles shows the background there with the shadows
+    on it, measured in 5.0.1: the unshadowed catcher 0.40 / 0.60 / 0.80 under a sky of that colour, transparent with
+    Film Transparent, where Lixel lit it as any surface, 0.83 / 0.99 / 1.15), or an object of a type Lixel does not
+    draw (:data:`UNDRAWN_TYPES`: it casts no shadow and is not seen)."""
+    found = []
+    for ob in depsgraph.objects:
+        if ob.type in UNDRAWN_TYPES:
+            data = ob.data
+            if len(getattr(data, "curves", getattr(data, "points", ()))) or (ob.type == "VOLUME" and len(data.grids)):
+                found.append((ob.name, f"is {UNDRAWN_TYPES[ob.type]}, which Lixel does not draw: it casts no shadow "
+                                       f"and is not seen (Lixel draws meshes, curves, surfaces, metaballs and text); "
+                                       f"convert it to a mesh (Object > Convert > Mesh) for its shadow"))
+        elif getattr(ob, "is_shadow_catcher", False) and ob.type in GEOMETRY_TYPES:
+            found.append((ob.name, "is a Shadow Catcher (Object properties > Visibility > Mask), which Lixel renders as "
+                                   "an ordinary surface, not as the background with the shadows on it; switch it off, "
+                                   "or render with Cycles for the catcher"))
+    if not found:
+        return None
+    more = f" (and {len(found) - 1} more such object(s))" if len(found) > 1 else ""
+    return f"object '{found[0][0]}' {found[0][1]}{more}"
+
+
 def render_resolution(scene) -> tuple[int, int]:
     """The output size in pixels, with the resolution percentage applied
     (Blender's own rounding: ``resolution * percentage // 100``)."""
@@ -404,6 +432,22 @@ def light_notes(light_obj, depsgraph=None) -> list[str]:
                      f"Z): Blender stretches its cone into an ellipse, Lixel lights and shadows the round cone of its "
                      f"Spot Size; give it an even scale (Object properties > Transform > Scale)")
     return notes
+
+
+def other_lights_note(light_obj, depsgraph, scene_name: str) -> Optional[str]:
+    """A warning naming the lights of the frame besides ``light_obj`` that would light it in Cycles and EEVEE (shown
+    in ``depsgraph``, a strength other than 0, Diffuse on): Lixel renders one light, so they light nothing here.
+    (Before, a 5000 W point light beside the sun changed no pixel and nothing was said.)"""
+    chosen = light_obj.original if light_obj is not None else None
+    others = sorted({ob.name for ob in depsgraph.objects if ob.type == "LIGHT" and ob.original != chosen
+                     and float(getattr(ob.data, "energy", 1.0)) != 0 and lights_surfaces(ob)})
+    if not others or chosen is None:
+        return None
+    which = f"light '{others[0]}' lights" if len(others) == 1 else \
+        f"lights '{others[0]}' and {len(others) - 1} more light"
+    return (f"Scene '{scene_name}' has more lights than the one Lixel renders ('{chosen.name}'): {which} nothing "
+            f"here, as if off; choose the light Lixel renders in the Lixel panel > Light, or render with Cycles or "
+            f"EEVEE for them all")
 
 
 def _scene_lights(scene, depsgraph) -> list:

@@ -238,30 +238,65 @@ def _mesh_box(mesh) -> tuple:
     return pos.min(axis=0).astype(np.float64), pos.max(axis=0).astype(np.float64)
 
 
-def _held_layer_collections(layer) -> bool:
-    """Whether ``layer`` (a LayerCollection) or one of its children holds out (View Layer > Holdout)."""
-    return any(lc.holdout or _held_layer_collections(lc) for lc in layer.children)
+def _flagged_layer_collections(layer, flag: str) -> bool:
+    """Whether ``layer`` (a LayerCollection) or one of its children has ``flag`` on (View Layer > Holdout or
+    Indirect Only)."""
+    return any(getattr(lc, flag) or _flagged_layer_collections(lc, flag) for lc in layer.children)
+
+
+def _layer_test(depsgraph, flag: str, own: Callable) -> Optional[Callable]:
+    """``test(ob) -> bool``: the view layer's answer for ``flag`` (Blender's ``Object.<flag>_get``, which needs the
+    original object and a look-up in the view layer), or ``own(ob)`` where no collection of the layer has the flag
+    (None where ``own`` is None: nothing has it, no work per object)."""
+    scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
+    view_layer = scene.view_layers.get(depsgraph.view_layer.name)
+    if view_layer is None or not _flagged_layer_collections(view_layer.layer_collection, flag):
+        return own
+    own = own or (lambda ob: False)
+
+    def test(ob) -> bool:
+        try:
+            return bool(getattr(ob.original, f"{flag}_get")(view_layer=view_layer))
+        except (RuntimeError, ReferenceError):   # not in the view layer: nothing of the layer flags it
+            return own(ob)
+    return test
 
 
 def holdout_test(depsgraph) -> Callable:
     """``held(ob) -> bool``: whether the render of ``depsgraph`` holds out the evaluated object ``ob`` (Object
-    properties > Visibility > Holdout, or a collection's Holdout in the view layer), as Blender's
+    properties > Visibility > Holdout, or a collection's Holdout in the view layer; a surface whose materials are all
+    a Holdout shader is held out too, per geometry: :mod:`.materials`), as Blender's
     ``Object.holdout_get`` answers it for the view layer, which Cycles reads. An instance takes its instancer's
     answer (measured with Cycles in 4.2.23 and 5.0.1: a collection instance or geometry-nodes instances of a held-out
     instancer are held out; a held-out object instanced by a plain instancer, or a collection held out in the view
-    layer and instanced elsewhere, is not). Without any collection held out an object's own flag answers (one
-    attribute; ``holdout_get`` needs the original object and a look-up in the view layer)."""
-    scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
-    view_layer = scene.view_layers.get(depsgraph.view_layer.name)
-    if view_layer is None or not _held_layer_collections(view_layer.layer_collection):
-        return lambda ob: bool(getattr(ob, "is_holdout", False))
+    layer and instanced elsewhere, is not). Without any collection held out an object's own flag answers."""
+    return _layer_test(depsgraph, "holdout", lambda ob: bool(getattr(ob, "is_holdout", False)))
 
-    def held(ob) -> bool:
-        try:
-            return bool(ob.original.holdout_get(view_layer=view_layer))
-        except (RuntimeError, ReferenceError):   # not in the view layer: nothing of the layer holds it out
-            return bool(getattr(ob, "is_holdout", False))
-    return held
+
+def indirect_only_test(depsgraph) -> Optional[Callable]:
+    """``indirect(ob) -> bool``: whether ``ob`` is in a collection the view layer renders Indirect Only, which Cycles
+    hides from the camera alone (measured in 4.2.23 and 5.0.1: such a cube's pixels render as with its Ray
+    Visibility > Camera off, the ground behind it shadowed by it); an instance takes its instancer's answer, as for
+    holdouts. None where no collection of the view layer is Indirect Only."""
+    return _layer_test(depsgraph, "indirect_only", None)
+
+
+def _seen(ob, parent, indirect, indirect_by: dict) -> tuple[bool, bool]:
+    """(casts, seen by the camera) of an instance of ``ob`` made by ``parent`` (None for a real object): Cycles
+    ANDs an instancer's Ray Visibility with its instances' own ("visibility is inherited"; measured in 4.2.23 and
+    5.0.1: Shadow or Camera off on an empty instancing a collection, or on a geometry-nodes instancer, acts as on
+    the instanced object), and hides an Indirect Only instancer's instances from the camera (``indirect``)."""
+    casts, camera = _flags(ob)
+    if parent is not None:
+        p_casts, p_camera = _flags(parent)
+        casts, camera = casts and p_casts, camera and p_camera
+    if camera and indirect is not None:
+        owner = parent if parent is not None else ob
+        pointer = owner.original.as_pointer()
+        if pointer not in indirect_by:
+            indirect_by[pointer] = indirect(owner)
+        camera = not indirect_by[pointer]
+    return casts, camera
 
 
 def light_linked(depsgraph) -> bool:
@@ -295,8 +330,11 @@ def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Instanc
     met, while the evaluated object is still valid; it may return False to
     drop every instance of that key (e.g. a mesh with no faces).
     """
+    from .materials import any_holdout_material, surface_held_out
     keys, names, casts, receives, holdouts = [], [], [], [], []
     held, held_by = holdout_test(depsgraph), {}
+    indirect, indirect_by = indirect_only_test(depsgraph), {}
+    surfaces = {} if any_holdout_material() else None   # key -> whether its materials hold it out
     if not any(held(ob) for ob in depsgraph.objects):   # (an instance is held out by a real object, its instancer)
         held = None                                     # nothing held out: no work per instance
     linkers = [] if light_linked(depsgraph) else None
@@ -324,18 +362,22 @@ def walk_instances(depsgraph, on_geometry: Optional[Callable] = None) -> Instanc
         n += 1
         keys.append(key)
         names.append(ob.name if not inst.is_instance or inst.parent is None else f"{inst.parent.name}/{ob.name}")
-        casts.append(bool(getattr(ob, "visible_shadow", True)))
-        receives.append(bool(getattr(ob, "visible_camera", True)))
+        shadow, camera = _seen(ob, inst.parent if inst.is_instance else None, indirect, indirect_by)
+        casts.append(shadow)
+        receives.append(camera)
         if linkers is not None:
             linkers.append(linkers_of(inst, ob))
+        if surfaces is not None and key not in surfaces:
+            surfaces[key] = surface_held_out(ob)
+        surface = surfaces is not None and surfaces[key]
         if held is None:
-            holdouts.append(False)
+            holdouts.append(surface)
             continue
         owner = inst.parent if inst.is_instance and inst.parent is not None else ob
         pointer = owner.original.as_pointer()
         if pointer not in held_by:
             held_by[pointer] = held(owner)
-        holdouts.append(held_by[pointer])
+        holdouts.append(held_by[pointer] or surface)
     if not keys:
         return InstanceSet()
     return InstanceSet.from_lists(keys, mats[:n], accepted, casts, receives, names, holdouts, linkers)
@@ -375,7 +417,15 @@ class _Reader:
         self.sources: list = []       # raw arrays: (world,) or (world, column-major transforms, reference index)
         self.chunks: list = []        # (key id, flags, owner id, source index, reference or None, local or None,
         self.held = holdout_test(depsgraph)   #  linkers or None: see linkers_of)
+        self.indirect, self.indirect_by = indirect_only_test(depsgraph), {}
         self.linked = light_linked(depsgraph)
+        from .materials import any_holdout_material
+        self.surfaces = any_holdout_material()
+
+    def surface_held(self, ob, mesh=None) -> bool:
+        """Whether ``ob``'s materials (``mesh``'s, for geometry-nodes geometry) hold its surface out."""
+        from .materials import surface_held_out
+        return self.surfaces and surface_held_out(ob, mesh)
 
     def key_id(self, key, ob, mesh=None) -> Optional[int]:
         k = self.accepted.get(key, -1)
@@ -403,13 +453,16 @@ class _Reader:
             k = self.key_id(object_key(ob), ob)
             if k is not None:
                 self.sources.append((world,))
-                self.chunks.append((k, _flags(ob) + (self.held(ob),), self.owner(ob.name), len(self.sources) - 1,
+                seen = _seen(ob, None, self.indirect, self.indirect_by)
+                self.chunks.append((k, seen + (self.held(ob) or self.surface_held(ob),), self.owner(ob.name),
+                                    len(self.sources) - 1,
                                     None, None, (0, ob.original.as_pointer()) if self.linked else None))
         if ob.type in INSTANCER_TYPES and _has_nodes(ob):
             self.instances_of(ob.evaluated_geometry(), ob, world)
 
     def leaves(self, ref, instancer) -> list:
-        """What one instance reference draws: [(key id, local matrix or None, flags, owner)]."""
+        """What one instance reference draws: [(key id, local matrix or None, flags, owner)]; flags: (casts,
+        seen by the camera, held out by its materials)."""
         import bpy
         if isinstance(ref, bpy.types.Object):
             ob = ref.evaluated_get(self.depsgraph) if not ref.is_evaluated else ref
@@ -419,7 +472,7 @@ class _Reader:
             if ob.type not in GEOMETRY_TYPES or shows_no_faces(ob):
                 return []
             k = self.key_id(object_key(ob), ob)
-            return [] if k is None else [(k, None, _flags(ob), ob.name)]
+            return [] if k is None else [(k, None, _flags(ob) + (self.surface_held(ob),), ob.name)]
         if not isinstance(ref, bpy.types.GeometrySet):
             raise _NeedsWalk(f"{instancer.name} instances a {type(ref).__name__}")
         out = []
@@ -427,7 +480,8 @@ class _Reader:
         if mesh is not None and len(mesh.polygons):
             k = self.key_id(generated_key(instancer, mesh, self.generated), instancer, mesh)
             if k is not None:
-                out.append((k, None, _flags(instancer), f"{instancer.name}/{mesh.name}"))
+                out.append((k, None, _flags(instancer) + (self.surface_held(instancer, mesh),),
+                            f"{instancer.name}/{mesh.name}"))
         nested = ref.instances_pointcloud()
         if nested is not None and len(nested.points):
             flat, ref_index = _instance_arrays(nested)
@@ -447,11 +501,12 @@ class _Reader:
         self.sources.append((world, flat, ref_index))
         source = len(self.sources) - 1
         held = self.held(instancer)              # instances are held out with their instancer (holdout_test)
+        casts, camera = _seen(instancer, None, self.indirect, self.indirect_by)   # seen as it lets them (_seen)
         linkers = (instancer.original.as_pointer(), 0) if self.linked else None   # and linked as it (linkers_of)
         for r, ref in enumerate(refs):
             for k, local, flags, name in self.leaves(ref, instancer):
-                self.chunks.append((k, flags + (held,), self.owner(name), source, r if len(refs) > 1 else None,
-                                    local, linkers))
+                self.chunks.append((k, (flags[0] and casts, flags[1] and camera, held or flags[2]), self.owner(name),
+                                    source, r if len(refs) > 1 else None, local, linkers))
 
     def same_as(self, previous: Optional["InstanceSet"]) -> bool:
         """Whether this read gives exactly ``previous`` (same keys, boxes, chunks and raw arrays)."""

@@ -16,6 +16,10 @@ both read the values below, in 5.0.1 and in 4.2.23 alike):
 * a Sky Texture into the Background: the plane 12.1 / 10.5 / 9.2 (the sun), the sky behind it 0.01-0.04; an
   Environment Texture without an image: magenta (1, 0, 1). Not a constant: Lixel says so (:func:`world_light`).
 * Film Transparent: the plane still lit by the world, the background alpha 0 (the engine's ``transparent``).
+* World properties > Ray Visibility (``world.cycles_visibility``), a Background (0.2, 0.3, 0.4) x 2, with and
+  without a sun of 2: Camera off, the sky behind the plane black (0, 0, 0), alpha 1, the plane lit as before (0.32 /
+  0.48 / 0.64 by the world alone); Diffuse off, the sky as before (0.4 / 0.6 / 0.8) and the plane lit by the sun
+  alone (0.51 grey; black without the sun). Lixel's surfaces are all diffuse: :func:`world_shading`.
 """
 from __future__ import annotations
 
@@ -31,6 +35,27 @@ class WorldLight(NamedTuple):
     ``note``: a warning where that is not the world Cycles renders (None where it is)."""
     colour: tuple
     note: Optional[str]
+
+
+class WorldShading(NamedTuple):
+    """What the world gives the shading pass: ``ambient`` lights every (diffuse) surface, ``background`` is seen
+    where no surface is; linear RGB each."""
+    ambient: tuple
+    background: tuple
+
+
+def world_shading(world, light: Optional[WorldLight] = None, view_layer=None) -> WorldShading:
+    """``light`` (default :func:`world_light` of ``world``) as the world's Ray Visibility lets Cycles see it (see the
+    module's measurements): black behind the scene where Camera is off, no light on surfaces where Diffuse is off
+    (Lixel's surfaces are all diffuse; Glossy, Transmission and Volume Scatter light none of them). A ``view_layer``
+    with View Layer properties > Filter > Environment off has no world at all (Cycles, measured in 4.2.23 and 5.0.1:
+    the plane and the sky both black)."""
+    if view_layer is not None and not getattr(view_layer, "use_sky", True):
+        return WorldShading(BLACK, BLACK)
+    colour = (light or world_light(world)).colour
+    rays = getattr(world, "cycles_visibility", None)
+    return WorldShading(colour if rays is None or rays.diffuse else BLACK,
+                        colour if rays is None or rays.camera else BLACK)
 
 
 class _NotConstant(Exception):

@@ -39,12 +39,13 @@ def state_light(st: LiveState, depsgraph):
 
 def lighting(st: LiveState, depsgraph) -> dict:
     """What F12 gives the shading pass besides the light (``addon.render.engine``): the world's light as Cycles
-    renders it (``scene.world.world_light``) and the spot's blend, so that pictures lit from the live state (scripts,
-    the 3D view's picture) are lit as renders of the same frame."""
-    from ..scene.world import world_light
+    renders it (``scene.world.world_shading``: its light on surfaces and behind them) and the spot's blend, so that
+    pictures lit from the live state (scripts, the 3D view's picture) are lit as renders of the same frame."""
+    from ..scene.world import world_shading
     lob = state_light(st, depsgraph)
     blend = float(lob.data.spot_blend) if lob is not None and lob.data.type == "SPOT" else 0.0
-    return dict(ambient=world_light(depsgraph.scene_eval.world).colour, spot_blend=blend)
+    ambient, background = world_shading(depsgraph.scene_eval.world, view_layer=depsgraph.view_layer)
+    return dict(ambient=ambient, background=background, spot_blend=blend)
 
 
 def fit_resolution(resolution, longest: int) -> tuple[int, int]:
@@ -269,13 +270,25 @@ def save_image(rgba: np.ndarray, path: str, name: Optional[str] = None, linear: 
     import bpy
     file_format = image_format(path)
     img = to_image(name or "Lixel output", rgba, existing_ok=False, linear=linear)
+    settings = None
     try:
         img.filepath_raw = str(path) if str(path).startswith("//") else os.path.abspath(path)
         img.file_format = file_format
-        img.save()
+        if file_format == "OPEN_EXR" and linear:
+            # Image.save() does not write scene-linear values to OpenEXR (measured: 4.2.23 writes them sRGB-encoded,
+            # 0.25 -> 0.537 and 2.0 -> 1.353; 5.0.1 wherever alpha < 1, 0.25 -> 0.589 at alpha 0.5); save_render
+            # with OpenEXR settings writes them as they are, in both. Its settings come from a scene of its own.
+            settings = bpy.data.scenes.new("Lixel output settings")
+            fmt = settings.render.image_settings
+            fmt.file_format, fmt.color_mode, fmt.color_depth = "OPEN_EXR", "RGBA", "32"
+            img.save_render(bpy.path.abspath(img.filepath_raw), scene=settings)
+        else:
+            img.save()
     except RuntimeError as exc:  # Blender's "Error: Could not write image: <why>" (or "internal error, see console")
         why = str(exc).strip().splitlines()[0].partition("Could not write image: ")[2]
         raise OSError(0, why if why and "internal error" not in why else "the image cannot be written there",
                       str(path)) from None
     finally:
         bpy.data.images.remove(img)
+        if settings is not None:
+            bpy.data.scenes.remove(settings)

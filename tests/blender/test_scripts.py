@@ -297,3 +297,43 @@ def test_an_output_that_cannot_be_written_is_named_not_called_a_bug(blend, tmp_p
     r = run("module", "render_method.py", blend, option, str(path), "--resolution", "32x18")
     assert r.returncode == 1, r.stderr
     assert f"lixel: error: cannot write '{path}': " in r.stderr and "bug" not in r.stderr, r.stderr
+
+
+def test_an_exr_picture_holds_the_scene_linear_values_themselves(lixel, tmp_path, load_pixels):
+    """``renders.save_image`` to .exr writes the values it is given: Image.save() wrote them sRGB-encoded in 4.2.23
+    (0.25 -> 0.537, 2.0 -> 1.353: render_method --output r.exr's ground 2.32 read back 1.44) and changed those
+    under alpha < 1 in 5.0.1 (0.25 -> 0.589 at alpha 0.5)."""
+    import importlib
+    renders = importlib.import_module(lixel.__name__ + ".addon.ui.renders")
+    rgba = np.zeros((4, 6, 4), dtype=np.float32)
+    rgba[..., 0], rgba[..., 1], rgba[..., 2] = 0.25, 0.5, 2.0
+    rgba[..., 3] = np.where(np.arange(6) % 2, 0.5, 1.0)
+    renders.save_image(rgba, str(tmp_path / "r.exr"))
+    np.testing.assert_array_equal(load_pixels(tmp_path / "r.exr"), rgba)
+    assert not [s for s in bpy.data.scenes if s.name.startswith("Lixel")]
+
+
+@pytest.mark.parametrize("hidden", ["from renders", "in the viewport", "by its eye"])
+def test_render_method_renders_what_f12_renders(hidden, lixel, tmp_path, load_pixels):
+    """A cube hidden from renders (Restrict Render) or hidden in the viewport (its monitor or its eye): the script's
+    picture equals F12's (Lixel engine), where it drew what the 3D view shows (the cube hidden from renders and its
+    shadow there, the one hidden in the viewport gone)."""
+    path = tmp_path / "hidden.blend"
+    with active_scene("tiny") as scene:
+        cube = scene.objects["tiny cube"]
+        if hidden == "from renders":
+            cube.hide_render = True
+        elif hidden == "in the viewport":
+            cube.hide_viewport = True
+        else:
+            cube.hide_set(True)
+        r = scene.render
+        r.resolution_x, r.resolution_y, r.resolution_percentage, r.engine = 96, 54, 100, "LIXEL"
+        r.image_settings.file_format, r.filepath = "OPEN_EXR", str(tmp_path / "f12.exr")
+        bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+        assert bpy.ops.render.render(write_still=True, scene=scene.name) == {"FINISHED"}
+    for mode in MODES:
+        out = tmp_path / f"{mode}.exr"
+        got = run(mode, "render_method.py", path, "--scene", "tiny", "--output", str(out))
+        assert got.returncode == 0, got.stderr
+        np.testing.assert_allclose(load_pixels(out), load_pixels(tmp_path / "f12.exr"), atol=1e-4)
