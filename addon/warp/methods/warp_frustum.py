@@ -289,17 +289,35 @@ def guard_lambda(lam: float, gamma: float, axis: WarpAxis, ctx: WarpContext, sca
         points, weights, depth = ctx.visible
         delta = _along_across(homogeneous(points), axis)[0]
         body = None if body_h is None else _along_across(body_h, axis, float(np.dot(axis.eye[:2], axis.b)))
-        bounds["its aliasing over the visible pixels (its texels' side along V_P or their longer side, L2 over them) "
-               "would be worse than the uniform map's"] = lambda_no_worse_on_average(delta, weights, body) * scale
         edges = ctx.edges if ctx.edges is not None and ctx.edges.sum() > 0 else None     # (part 7: where errors can be)
+        average, on_screen = _guard_bounds(delta, weights, depth, body, edges)
+        bounds["its aliasing over the visible pixels (its texels' side along V_P or their longer side, L2 over them) "
+               "would be worse than the uniform map's"] = average * scale
         bounds["its texels would be larger on screen, on average over the visible "
-               + ("pixels" if edges is None else "shadow edges")] = lambda_least_on_screen(
-            delta, weights if edges is None else edges, depth, body) * scale
+               + ("pixels" if edges is None else "shadow edges")] = on_screen * scale
     why, guard = max(bounds.items(), key=lambda item: item[1])
     if not guard > lam:
         return lam, None
     return guard, (f"λ raised from {lam:.4g} to {guard:.4g}" + (" (the uniform map)" if guard == math.inf else "")
                    + f": below it {why} (θ = {math.degrees(theta):.1f}°, φ = {math.degrees(ctx.phi):.1f}°)")
+
+
+_GUARD_BOUNDS: dict = {}
+"""The λ guard's bounds of the last frames by their inputs' bytes: a split's lispsm and gmnpr ask for the same."""
+
+
+def _guard_bounds(*arrays) -> tuple[float, float]:
+    """``lambda_no_worse_on_average`` and ``lambda_least_on_screen`` (over the edges where known) of (δ, weights,
+    depths, B across, edges), once per input (16 kept: a point light's 6 faces)."""
+    key = tuple(a if a is None else (np.shape(a), np.asarray(a, dtype=np.float64).tobytes()) for a in arrays)
+    if (got := _GUARD_BOUNDS.get(key)) is None:
+        delta, weights, depth, body, edges = arrays
+        got = (lambda_no_worse_on_average(delta, weights, body),
+               lambda_least_on_screen(delta, weights if edges is None else edges, depth, body))
+        if len(_GUARD_BOUNDS) >= 16:
+            _GUARD_BOUNDS.clear()
+        _GUARD_BOUNDS[key] = got
+    return got
 
 
 def _along_across(points_h: np.ndarray, axis: WarpAxis, q_0: float = 0.0) -> np.ndarray:
