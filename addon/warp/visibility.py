@@ -350,8 +350,7 @@ def _box_depths_in_squares(view: View, boxes, xs, ys, col, row) -> tuple[np.ndar
     value = np.einsum("sci,sji->scj", corners, sides[:, :, :3]) + sides[:, None, :, 3]           # (S, 8, 4)
     depth = view.eye_depth(corners).reshape(-1, 8)
     tol = 1e-9 * np.abs(value).max(axis=(1, 2))
-    within = value <= tol[:, None, None]
-    which, corner = np.nonzero(within[..., 0] & within[..., 1] & within[..., 2] & within[..., 3])
+    which, corner = np.nonzero((value <= tol[:, None, None]).all(axis=2))
     pairs, depths = [which], [depth[which, corner]]
     # Box edges crossing a side, at t = v_a / (v_a - v_b) from corner a to b (values and depth are affine along it);
     # none of an edge whose ends are beyond another side by 2 tol (its points too, by far more than rounding).
@@ -364,8 +363,7 @@ def _box_depths_in_squares(view: View, boxes, xs, ys, col, row) -> tuple[np.ndar
     which, edge, side = np.nonzero(crossing)                              # (an edge in a side's plane: NaN, dropped)
     t, k = t[which, edge, side], which * 12 + edge
     a, b = va.reshape(-1, 4)[k], vb.reshape(-1, 4)[k]
-    inside = a + t[:, None] * (b - a) <= tol[which, None]
-    inside = inside[:, 0] & inside[:, 1] & inside[:, 2] & inside[:, 3]
+    inside = (a + t[:, None] * (b - a) <= tol[which, None]).all(axis=1)
     da, db = depth[which, ea[edge]], depth[which, eb[edge]]
     pairs.append(which[inside])
     depths.append((da + t * (db - da))[inside])
