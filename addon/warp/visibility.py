@@ -353,16 +353,15 @@ def _box_depths_in_squares(view: View, boxes, xs, ys, col, row) -> tuple[np.ndar
     which, corner = np.nonzero((value <= tol[:, None, None]).all(axis=2))
     pairs, depths = [which], [depth[which, corner]]
     # Box edges crossing a side, at t = v_a / (v_a - v_b) from corner a to b (values and depth are affine along it);
-    # none of an edge whose ends are beyond another side by 2 tol (its points too, by far more than rounding).
+    # none of an edge whose ends are beyond one side by 2 tol (its points too, by far more than rounding).
     ea, eb = HEXAHEDRON_EDGES.T
-    va, vb = value[:, ea], value[:, eb]                                                        # (S, 12, 4)
-    beyond = (va > 2 * tol[:, None, None]) & (vb > 2 * tol[:, None, None])
+    beyond = value > 2 * tol[:, None, None]
+    which, edge = np.nonzero(~(beyond[:, ea] & beyond[:, eb]).any(axis=2))
+    va, vb = value[which, ea[edge]], value[which, eb[edge]]                                  # (K, 4)
     with np.errstate(divide="ignore", invalid="ignore"):
         t = va / (va - vb)
-    crossing = (t >= 0) & (t <= 1) & ~(beyond[..., 0] | beyond[..., 1] | beyond[..., 2] | beyond[..., 3])[..., None]
-    which, edge, side = np.nonzero(crossing)                              # (an edge in a side's plane: NaN, dropped)
-    t, k = t[which, edge, side], which * 12 + edge
-    a, b = va.reshape(-1, 4)[k], vb.reshape(-1, 4)[k]
+    k, side = np.nonzero((t >= 0) & (t <= 1))                           # (an edge in a side's plane: NaN, dropped)
+    which, edge, t, a, b = which[k], edge[k], t[k, side], va[k], vb[k]
     inside = (a + t[:, None] * (b - a) <= tol[which, None]).all(axis=1)
     da, db = depth[which, ea[edge]], depth[which, eb[edge]]
     pairs.append(which[inside])
