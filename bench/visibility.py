@@ -9,6 +9,11 @@ Milliseconds per call, best and median over ``repeat`` rounds, interleaved:
   ``bench.warp_speed``'s city of 100, 2,000 and 10,000 boxes; every call gets
   a new View (the per-scene cache of the last region never hits);
 * ``B`` unfocused against ``B`` focused on that region (the k-DOP cut of V);
+* ``region_from_boxes`` on the 2,000-box city as a Blender scene gives it
+  (``solid=False``: object bounds, every square at a silhouette, so every deep
+  box is cut to each square it covers: the live viewport's case), and on 750
+  long boxes seen end-on (``tests/warp/test_limits.py``: the CLI's worst case,
+  hundreds of deep boxes per square);
 * ``region_from_window_depth`` - the tile reduction of a depth buffer read
   back from the pre-pass, at 640x360, 1280x720 and 1920x1080 (synthetic depth);
 * with ``--gpu`` (needs the ``bpy`` module; llvmpipe here): the engine's
@@ -30,6 +35,7 @@ import numpy as np
 from addon.warp import intersection_body, region_from_boxes
 from addon.warp.visibility import BOX_SAMPLES, BOX_TILE, region_from_window_depth
 from bench.warp_speed import LIGHTS, city_boxes, city_scene, street_view
+from tests.warp.test_limits import cloud_seen_end_on
 
 SIZES = ((640, 360), (1280, 720), (1920, 1080))
 
@@ -70,6 +76,11 @@ def warp_part(repeat: int) -> dict:
             f"B focused, {n} boxes": lambda: intersection_body(moved(view), light, scene, region),
         }
         out.update(timed_ms(fns, repeat))
+    city = city_scene(2000)
+    cases = {"2000 boxes as object bounds": (view, dataclasses.replace(city, solid=False)),
+             "750 boxes end-on": cloud_seen_end_on(750)}
+    out.update(timed_ms({f"region_from_boxes, {name}": lambda v=v, s=s: fresh_region(v, s)
+                         for name, (v, s) in cases.items()}, repeat))
     rng = np.random.default_rng(0)
     for w, h in SIZES:
         depth = rng.uniform(0.9, 0.9999, size=(h, w)).astype(np.float32)

@@ -7,21 +7,21 @@ import numpy as np
 from .culling import BoxIndex, Selection
 
 
-def slab_intervals(origins, inverse_directions, lo, hi, hit_axis: bool = False):
-    """Where rays (origins, 1 / directions) enter and leave boxes [lo, hi] (broadcast), and with ``hit_axis`` the
-    axis of the face ``first_hits`` meets (from inside, the one left by); a ray in a slab's plane is inside it."""
-    with np.errstate(invalid="ignore"):
-        t1 = (lo - origins) * inverse_directions
-        t2 = (hi - origins) * inverse_directions
-    near, far = np.minimum(t1, t2), np.maximum(t1, t2)
-    # Per axis, not a reduction over the short last axis (numpy is slow there).
-    x, y, z = near[..., 0], near[..., 1], near[..., 2]
-    enter = np.fmax(np.fmax(x, y), z)
-    leave = np.fmin(np.fmin(far[..., 0], far[..., 1]), far[..., 2])
+def slab_intervals(origins, inverse_directions, lo, hi, hit_axis: bool = False, axis: int = -1):
+    """Where rays (origins, 1 / directions) enter and leave boxes [lo, hi] (broadcast, coordinates along ``axis``), and
+    with ``hit_axis`` the axis of the face ``first_hits`` meets (from inside, the one left by); a ray in a slab's plane
+    is inside it. Axis by axis, not a reduction over a short axis (numpy is slow there)."""
+    near, far = [], []
+    for o, inv, a, b in zip(*(np.moveaxis(np.asarray(v), axis, 0) for v in (origins, inverse_directions, lo, hi))):
+        with np.errstate(invalid="ignore"):
+            t1, t2 = (a - o) * inv, (b - o) * inv
+        near.append(np.minimum(t1, t2))
+        far.append(np.maximum(t1, t2))
+    enter, leave = np.fmax(np.fmax(near[0], near[1]), near[2]), np.fmin(np.fmin(far[0], far[1]), far[2])
     if not hit_axis:
         return enter, leave
-    entered = np.where(x == enter, 0, np.where(y == enter, 1, 2))
-    left = np.where(far[..., 0] == leave, 0, np.where(far[..., 1] == leave, 1, 2))
+    entered = np.where(near[0] == enter, 0, np.where(near[1] == enter, 1, 2))
+    left = np.where(far[0] == leave, 0, np.where(far[1] == leave, 1, 2))
     return enter, leave, np.where(enter >= 0, entered, left)
 
 
@@ -34,20 +34,6 @@ def first_hits(enter, leave, t_max) -> np.ndarray:
 
 CHUNK = 1 << 14
 """(ray, cluster) or (ray, box) pairs tested at once: temporaries stay small enough for the cache."""
-
-
-def _pair_intervals(o, inv, lo, hi, rays, boxes) -> tuple[np.ndarray, np.ndarray]:
-    """``slab_intervals`` of ray ``rays[i]`` against box ``boxes[i]``: (3, R) origins, inverses, (3, M) corners."""
-    enter = leave = None
-    for axis in range(3):
-        oa, ia = o[axis, rays], inv[axis, rays]
-        with np.errstate(invalid="ignore"):
-            t1 = (lo[axis, boxes] - oa) * ia
-            t2 = (hi[axis, boxes] - oa) * ia
-        near, far = np.minimum(t1, t2), np.maximum(t1, t2)
-        enter = near if enter is None else np.fmax(enter, near)
-        leave = far if leave is None else np.fmin(leave, far)
-    return enter, leave
 
 
 def ray_index(origins, directions, t_max, index: BoxIndex, selection: Selection | None = None,
@@ -77,7 +63,7 @@ def ray_index(origins, directions, t_max, index: BoxIndex, selection: Selection 
     found = [(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))]
     for first in range(0, len(pair_rays), CHUNK):
         rr, cc = pair_rays[first:first + CHUNK], pair_clusters[first:first + CHUNK]
-        enter, leave = _pair_intervals(o, inv, c_lo, c_hi, rr, cc)
+        enter, leave = slab_intervals(o.take(rr, 1), inv.take(rr, 1), c_lo.take(cc, 1), c_hi.take(cc, 1), axis=0)
         near = np.maximum(enter, 0.0)
         meet = (enter <= leave) & (leave >= 0) & (near <= t_max[rr])
         found.append((rr[meet], cc[meet], near[meet]))
@@ -101,7 +87,8 @@ def ray_index(origins, directions, t_max, index: BoxIndex, selection: Selection 
             per = counts[c]
             pair_ray = np.repeat(r, per)
             box = np.repeat(starts[c] - np.cumsum(per) + per, per) + np.arange(per.sum())
-            e, l = _pair_intervals(o, inv, box_lo, box_hi, pair_ray, box)
+            e, l = slab_intervals(o.take(pair_ray, 1), inv.take(pair_ray, 1), box_lo.take(box, 1), box_hi.take(box, 1),
+                                  axis=0)
             t = first_hits(e, l, t_max[pair_ray])
             # The pairs come ray by ray (``ray`` is sorted): each ray's nearest over its run.
             run = np.flatnonzero(np.diff(pair_ray, prepend=-1))

@@ -341,34 +341,38 @@ def _faces(boxes, hits, box) -> tuple[np.ndarray, np.ndarray]:
     return np.where(box >= 0, 6 * box + face, -1), np.eye(3)[face % 3] * (2.0 * (face // 3) - 1.0)[:, None]
 
 
-def _box_depths_in_squares(view: View, boxes, low, high) -> tuple[np.ndarray, np.ndarray]:
-    """The least and greatest eye depth over box_i ∩ the pyramid of the NDC square [low_i, high_i] (inf, -inf: none),
-    over its vertices: the box's corners inside, its edges' crossings of the sides, the corner rays' crossings of it."""
-    sides = screen_sides(view, low[:, 0, None], high[:, 0, None], low[:, 1, None], high[:, 1, None])   # (S, 4, 4)
+def _box_depths_in_squares(view: View, boxes, xs, ys, col, row) -> tuple[np.ndarray, np.ndarray]:
+    """The least and greatest eye depth over box_i ∩ the pyramid of the NDC square [xs[col_i], xs[col_i + 1]] x
+    [ys[row_i], ys[row_i + 1]] (inf, -inf: none), over its vertices: the box's corners inside, its edges' crossings of
+    the sides, the corner rays' crossings of it."""
+    sides = screen_sides(view, xs[col, None], xs[col + 1, None], ys[row, None], ys[row + 1, None])      # (S, 4, 4)
     corners = box_corners(boxes[:, 0], boxes[:, 1])                                              # (S, 8, 3)
     value = np.einsum("sci,sji->scj", corners, sides[:, :, :3]) + sides[:, None, :, 3]           # (S, 8, 4)
     depth = view.eye_depth(corners).reshape(-1, 8)
     tol = 1e-9 * np.abs(value).max(axis=(1, 2))
     which, corner = np.nonzero((value <= tol[:, None, None]).all(axis=2))
     pairs, depths = [which], [depth[which, corner]]
-    # Box edges crossing a side, at t = v_a / (v_a - v_b) from corner a to b (values and depth are affine along it).
+    # Box edges crossing a side, at t = v_a / (v_a - v_b) from corner a to b (values and depth are affine along it);
+    # none of an edge whose ends are beyond one side by 2 tol (its points too, by far more than rounding).
     ea, eb = HEXAHEDRON_EDGES.T
-    va, vb = value[:, ea], value[:, eb]                                                        # (S, 12, 4)
+    beyond = value > 2 * tol[:, None, None]
+    which, edge = np.nonzero(~(beyond[:, ea] & beyond[:, eb]).any(axis=2))
+    va, vb = value[which, ea[edge]], value[which, eb[edge]]                                  # (K, 4)
     with np.errstate(divide="ignore", invalid="ignore"):
         t = va / (va - vb)
-    which, edge, side = np.nonzero((t >= 0) & (t <= 1))                   # (an edge in a side's plane: NaN, dropped)
-    t = t[which, edge, side]
-    a, b = va[which, edge], vb[which, edge]
+    k, side = np.nonzero((t >= 0) & (t <= 1))                           # (an edge in a side's plane: NaN, dropped)
+    which, edge, t, a, b = which[k], edge[k], t[k, side], va[k], vb[k]
     inside = (a + t[:, None] * (b - a) <= tol[which, None]).all(axis=1)
     da, db = depth[which, ea[edge]], depth[which, eb[edge]]
     pairs.append(which[inside])
     depths.append((da + t * (db - da))[inside])
     # The pyramid's corner rays through the box from the eye (whole lines for an orthographic view's prism): at
-    # a >= first from their near plane's point (1 at the far plane), depth affine along them.
-    cx = np.stack([low[:, 0], high[:, 0], low[:, 0], high[:, 0]], axis=1).ravel()
-    cy = np.stack([low[:, 1], low[:, 1], high[:, 1], high[:, 1]], axis=1).ravel()
-    start = unproject(view, cx, cy, np.full(len(cx), view.near))
-    ray = unproject(view, cx, cy, np.full(len(cx), view.far)) - start
+    # a >= first from their near plane's point (1 at the far plane), depth affine along them; each ray once.
+    gx, gy = np.meshgrid(xs, ys)
+    start = unproject(view, gx, gy, np.full(gx.size, view.near))
+    ray = unproject(view, gx, gy, np.full(gx.size, view.far)) - start
+    ray_of = ((row[:, None] + [0, 0, 1, 1]) * len(xs) + col[:, None] + [0, 1, 0, 1]).ravel()
+    start, ray = start[ray_of], ray[ray_of]
     bb = np.repeat(boxes, 4, axis=0)
     with np.errstate(divide="ignore"):
         enter, leave = slab_intervals(start, 1.0 / ray, bb[:, 0], bb[:, 1])
@@ -424,9 +428,7 @@ def _square_depths(view: View, boxes, selected, face, origins, hits, samples) ->
         b, q = boxes[which[keep]], q[keep]
         least, most = _box_depths(view, b)
         deep = most - least > DEEP_BOX * np.maximum(least, view.near)
-        col, row = q[deep] % columns, q[deep] // columns
-        least[deep], most[deep] = _box_depths_in_squares(view, b[deep], np.stack([xs[col], ys[row]], axis=1),
-                                                         np.stack([xs[col + 1], ys[row + 1]], axis=1))
+        least[deep], most[deep] = _box_depths_in_squares(view, b[deep], xs, ys, q[deep] % columns, q[deep] // columns)
         np.minimum.at(near.reshape(-1), q, least)
         np.maximum.at(far.reshape(-1), q, np.where(one_face.ravel()[q], -np.inf, most))
     return near, far

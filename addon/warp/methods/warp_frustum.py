@@ -276,6 +276,10 @@ def rule_glpr(g: FrameGeometry, ctx: WarpContext, phi: float, options: WarpOptio
     return _forced(options) or lambda_glpr(folded(g.gamma), ctx.z_n, ctx.z_f, phi)
 
 
+_GUARD_BOUNDS: dict = {}
+"""``guard_lambda``'s two costly bounds of the last frames, by their inputs' bytes."""
+
+
 def guard_lambda(lam: float, gamma: float, axis: WarpAxis, ctx: WarpContext, scale: float = 1.0,
                  body_h: Optional[np.ndarray] = None) -> tuple[float, Optional[str]]:
     """``lam`` raised to the least λ at which the warp is no worse than the uniform map (docs/papers.md, "The λ
@@ -289,12 +293,19 @@ def guard_lambda(lam: float, gamma: float, axis: WarpAxis, ctx: WarpContext, sca
         points, weights, depth = ctx.visible
         delta = _along_across(homogeneous(points), axis)[0]
         body = None if body_h is None else _along_across(body_h, axis, float(np.dot(axis.eye[:2], axis.b)))
-        bounds["its aliasing over the visible pixels (its texels' side along V_P or their longer side, L2 over them) "
-               "would be worse than the uniform map's"] = lambda_no_worse_on_average(delta, weights, body) * scale
         edges = ctx.edges if ctx.edges is not None and ctx.edges.sum() > 0 else None     # (part 7: where errors can be)
+        # (once per input: a cascade split's lispsm and gmnpr ask for the same)
+        key = tuple(a if a is None else (np.shape(a), np.asarray(a, dtype=np.float64).tobytes())
+                    for a in (delta, weights, depth, body, edges))
+        if (made := _GUARD_BOUNDS.get(key)) is None:
+            if len(_GUARD_BOUNDS) >= 16:                     # (a point light's 6 faces and more)
+                _GUARD_BOUNDS.clear()
+            made = _GUARD_BOUNDS[key] = (lambda_no_worse_on_average(delta, weights, body), lambda_least_on_screen(
+                delta, weights if edges is None else edges, depth, body))
+        bounds["its aliasing over the visible pixels (its texels' side along V_P or their longer side, L2 over them) "
+               "would be worse than the uniform map's"] = made[0] * scale
         bounds["its texels would be larger on screen, on average over the visible "
-               + ("pixels" if edges is None else "shadow edges")] = lambda_least_on_screen(
-            delta, weights if edges is None else edges, depth, body) * scale
+               + ("pixels" if edges is None else "shadow edges")] = made[1] * scale
     why, guard = max(bounds.items(), key=lambda item: item[1])
     if not guard > lam:
         return lam, None
