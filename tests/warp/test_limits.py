@@ -8,18 +8,7 @@ import numpy as np
 import pytest
 
 from addon.warp import region_from_boxes
-from addon.warp.types import SceneBounds, View
-
-
-def cloud_seen_end_on(n: int, seed: int = 1) -> tuple[View, SceneBounds]:
-    """``n`` long boxes seen end-on by a camera on their axis: each is deep (near to far) and covers many of the ray
-    cast's squares, every square sees hundreds (the (square, box) pairs grow as n times the squares)."""
-    rng = np.random.default_rng(seed)
-    centre = np.column_stack([rng.uniform(-10, 10, n), rng.uniform(0, 1000, n), rng.uniform(-10, 10, n)])
-    half = np.column_stack([rng.uniform(2, 6, n), rng.uniform(50, 400, n), rng.uniform(2, 6, n)])
-    looks_along_y = [[1, 0, 0, 0], [0, 0, -1, -30], [0, 1, 0, 0], [0, 0, 0, 1]]
-    view = View.perspective(looks_along_y, np.radians(40), 16 / 9, 0.5, 3000, (1280, 720))
-    return view, SceneBounds.from_boxes(np.stack([centre - half, centre + half], axis=1))
+from bench.visibility import cloud_seen_end_on
 
 
 def peak_bytes(view, scene) -> tuple[int, object]:
