@@ -12,7 +12,7 @@ Milliseconds per call, best and median over ``repeat`` rounds, interleaved:
 * ``region_from_boxes`` on the 2,000-box city as a Blender scene gives it
   (``solid=False``: object bounds, every square at a silhouette, so every deep
   box is cut to each square it covers: the live viewport's case), and on 750
-  long boxes seen end-on (``tests/warp/test_limits.py``: the CLI's worst case,
+  long boxes seen end-on (``cloud_seen_end_on``, also in tests/warp/test_limits.py: the CLI's worst case,
   hundreds of deep boxes per square);
 * ``region_from_window_depth`` - the tile reduction of a depth buffer read
   back from the pre-pass, at 640x360, 1280x720 and 1920x1080 (synthetic depth);
