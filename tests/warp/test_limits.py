@@ -4,7 +4,6 @@ import json
 import tracemalloc
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from addon.warp import region_from_boxes
