@@ -31,6 +31,9 @@ the method and the map size changed) and sets each method's numbers against unif
   than uniform's; and against uniform on those same pixels: each map's wrong pixels and uniform's there (means over
   the phases) and the width across the edges there in each (floor_wall's cascade at 2048², 16 phases: splits 0-2
   0.43-0.73x uniform's wrong pixels on their pixels, split 3 0.94x at 0.99x uniform's width: 23 of its 52);
+* ``at seams`` (a method of several maps): its wrong pixels in the blend bands where the shading mixes two splits'
+  shadows, and within two pixels of a change of serving map (a split's end, a cube face's edge), each the mean over
+  the phases, beside uniform's on the same pixels: whether the cascade's seams make wrong pixels of their own;
 * ``by grid angle``: the straight edge pixels per band of angle to their map's nearest texel axis
   (:data:`ANGLE_BINS`), the wrong ones among them and the mean width across the edge there. The bilinear
   contour of PCF 2 errs across an edge by E|δ| = 0.25 texel on a grid along it, 0.16-0.19 at 20-45° (a
@@ -225,7 +228,7 @@ def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1, s
     for method in methods:
         for size in sizes:
             settings = method_settings(method, size, pcf)
-            last = render_depsgraph(dg, resolution, settings=settings, read=READ)
+            last = render_depsgraph(dg, resolution, settings=settings, read=READ | {"eye_depth"})
             setup, result = last["setup"], last["result"]
             shadow, counted = result.shadow_raw >= 0.5, comparable_mask(gt, result)
             wrong = counted & (shadow != gt.shadow)
@@ -249,11 +252,34 @@ def measure_scene(name: str, methods, sizes, resolution, phase_count: int = 1, s
                          "ties": None if tied is None else (int((wrong & tied).sum()), int((tied & counted).sum()),
                                                             int((wrong & edges & ~tied).sum())),
                          "setup": setup, "served": [edges & counted & (result.map_index == i)
-                                                    for i in range(len(setup.maps))], "wrong_by_phase": wrong_by_phase})
+                                                    for i in range(len(setup.maps))], "wrong_by_phase": wrong_by_phase,
+                         "seams": [k & counted for k in seams(setup, result)]})
     for r in rows:
         u = next(u for u in rows if u["method"] == "uniform" and u["size"] == r["size"])
         r["against_uniform"] = [against_uniform(view, gt, edge_n, px, r, u) if px.any() else None for px in r["served"]]
+        r["at_seams"] = [(int(k.sum()), *(float(np.mean([w[k].sum() for w in x["wrong_by_phase"]])) for x in (r, u)))
+                         for k in r["seams"]] if len(r["setup"].maps) > 1 else None
     return rows
+
+
+def seams(setup, result) -> tuple:
+    """(the pixels in a blend band, those within ``CORNER_RADIUS`` pixels of a change of serving map but in no band):
+    a cascade's seams. A band is where the shading pass (shade_frag.glsl) mixes map j's shadow into a farther map's:
+    the eye depth within ``blend_band`` past the end of j's ``view_depth_range``; a change is a split's end, a cube
+    face's edge or a silhouette between surfaces that different maps serve."""
+    from addon.measure.errors import dilate
+    index, band = result.map_index, np.zeros(result.map_index.shape, dtype=bool)
+    for j, m in enumerate(setup.maps):
+        if m.blend_band > 0.0 and m.view_depth_range is not None:
+            past = result.eye_depth - m.view_depth_range[1]
+            band |= (index > j) & (past > 0.0) & (past < m.blend_band)
+    change = np.zeros_like(band)
+    rows, cols = index[1:] != index[:-1], index[:, 1:] != index[:, :-1]
+    change[1:] |= rows
+    change[:-1] |= rows
+    change[:, 1:] |= cols
+    change[:, :-1] |= cols
+    return band, dilate(change, CORNER_RADIUS) & ~band
 
 
 def against_uniform(view, gt, edge_n, pixels, row, uniform) -> tuple:
@@ -323,6 +349,11 @@ def table(rows: list[dict]) -> list[str]:
                              f"{role} {a[0]:.1f}, {a[1]:.1f} ({a[0] / max(a[1], 1e-9):.2f}x); {a[2]:.3f}, {a[3]:.3f} px "
                              f"({a[2] / a[3]:.2f}x)" for (role, *_), a in zip(
                                  [m for m in r["by_map"]], [a for a in r["against_uniform"] if a is not None])))
+        if r["at_seams"] is not None:
+            (nb, b, ub), (nc, c, uc) = r["at_seams"]
+            lines.append(f"{'':>42}at seams (wrong, mean over phases; uniform's on the same pixels): blend bands "
+                         f"{b:.1f}, {ub:.1f} of {nb} px; within {CORNER_RADIUS} px of a change of map {c:.1f}, {uc:.1f} "
+                         f"of {nc} px")
         if len(r["phases"]) > 1:
             v, uv = np.array(r["phases"]), np.array(u["phases"])
             lines.append(f"{'':>42}over {len(v)} grid phases: {v.mean():.1f} ± {v.std(ddof=1):.1f} wrong "

@@ -195,3 +195,22 @@ def test_a_grid_phase_leaves_a_plane_maps_lixels_on_their_pixels():
                                                  np.array([[-5.0, -5, 0], [5, -5, 0], [5, 5, 0], [-5, 5, 0]]), 1e-6))
     kept, moved = shifted(ShadowSetup([plane, m], Diagnostics("plane_optimal")), (0.5, 0.5)).maps
     assert kept is plane and not np.array_equal(moved.matrix, m.matrix)
+
+
+def test_a_cascades_seams_are_its_blend_bands_as_the_shading_reads_them_and_the_pixels_by_a_change_of_map():
+    """shade_frag.glsl mixes map j's shadow into a farther map's where the eye depth is within j's blend band past
+    the end of j's depth range; the other seam pixels lie within two pixels of a change of serving map."""
+    from types import SimpleNamespace
+    from bench.edge_footprint import seams
+    near = ShadowMap(np.eye(4), (64, 64), view_depth_range=(0.1, 5.0), blend_band=0.5)
+    far = ShadowMap(np.eye(4), (64, 64), view_depth_range=(5.0, 20.0))
+    depth = np.tile(np.linspace(1.0, 10.0, 10), (6, 1))          # columns at eye depths 1..10
+    index = np.where(depth <= 5.0, 0, 1)
+    band, change = seams(ShadowSetup([near, far], Diagnostics("cascade")), SimpleNamespace(map_index=index,
+                                                                                       eye_depth=depth))
+    assert not band.any()                                         # no pixel between 5.0 and 5.5
+    depth[:, 5] = 5.25
+    band, change = seams(ShadowSetup([near, far], Diagnostics("cascade")), SimpleNamespace(map_index=index,
+                                                                                       eye_depth=depth))
+    assert np.array_equal(np.flatnonzero(band.any(axis=0)), [5]) and band[:, 5].all()
+    assert np.array_equal(np.flatnonzero(change.any(axis=0)), [2, 3, 4, 6, 7])   # 4|5 and 2 px on, less the band
