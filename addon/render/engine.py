@@ -202,11 +202,10 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     from ..gpu.batches import shared_batches
     from ..gpu.pipeline import ShadowFrame
     from ..scene.describe import (NO_FACES, NoLightError, check_finite_geometry, describe_scene, evaluated, eye_view,
-                                  light_notes, lost_depth_note, motion_blur_note, pick_light, render_camera,
-                                  other_lights_note, unmodelled_objects_note)
+                                  light_notes, pick_light, render_camera)
     from ..scene.geometry import shared_cache
-    from ..scene.linking import light_links, linking_note
-    from ..scene.materials import material_holdout_note
+    from ..scene.linking import light_links
+    from ..scene.notes import scene_notes
     from ..scene.world import world_light, world_shading
 
     scene = depsgraph.scene.original if depsgraph.scene.is_evaluated else depsgraph.scene
@@ -236,16 +235,11 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     # The world as Cycles lights it, of the evaluated scene (an animation render's frame's, not the original's).
     world = world_light(depsgraph.scene_eval.world)
     seen = world_shading(depsgraph.scene_eval.world, world, depsgraph.view_layer)   # as Cycles sees it
-    for note in (lost_depth_note(view, bounds, camera.name), motion_blur_note(scene), world.note,
-                 material_holdout_note(depsgraph), unmodelled_objects_note(depsgraph),
-                 other_lights_note(light_obj, depsgraph, scene.name)):
-        if warnings is not None and note:
-            warnings.append(f"Lixel: {note}")
+    if warnings is not None:   # the sidebar shows the same notes (addon.ui.live)
+        warnings += [f"Lixel: {note}" for note in scene_notes(scene, depsgraph, light_obj, camera.name, view, bounds,
+                                                             geometry.instances, world)]
     timings["describe"] = time.perf_counter() - t
     links = light_links(light_obj, geometry.instances)   # Light/Shadow Linking: what it lights, what blocks it
-    note = linking_note(light_obj, geometry.instances)
-    if warnings is not None and note:
-        warnings.append(f"Lixel: {note}")
     frame = ShadowFrame(geometry, view, resolution or view.resolution, read=read, targets=targets, timed=timed,
                         lit=links.lit, blocks=links.blocks)
     frame.camera_prepass()

@@ -36,6 +36,7 @@ from ..guard import guarded_callback, user_message
 from ..scene.describe import (NO_FACES, check_finite_geometry, describe_bounds, describe_light, describe_view,
                               light_notes, pick_light, render_camera)
 from ..scene.geometry import shared_cache
+from ..scene.notes import scene_notes
 from ..scene.owned import is_debug_object
 from ..settings import LixelSettings
 from ..warp import METHODS, compute, focused_body
@@ -75,10 +76,11 @@ def scene_geometry(depsgraph):
     return geometry
 
 
-def scene_bounds(depsgraph):
-    """SceneBounds of the evaluated scene's geometry (:func:`scene_geometry`): the
-    same object, with its culling index, while the scene's instances are unchanged."""
-    return describe_bounds(depsgraph, scene_geometry(depsgraph).instances)
+def scene_bounds(depsgraph) -> tuple:
+    """(SceneBounds, InstanceSet) of the evaluated scene's geometry (:func:`scene_geometry`): the
+    same objects, the bounds with their culling index, while the scene's instances are unchanged."""
+    instances = scene_geometry(depsgraph).instances
+    return describe_bounds(depsgraph, instances), instances
 
 
 @dataclass
@@ -93,6 +95,11 @@ class LiveState:
     light_pointer: int = 0
     """The light object's ``as_pointer()`` (its Light/Shadow Linking, for the picture: ``renders.pip_textures``)."""
     bounds: object = None
+    instances: object = None
+    """The ``InstanceSet`` the bounds were made from (its Light/Shadow Linking readers, for the notes)."""
+    notes: tuple = ()
+    """The scene's notes (``addon.scene.notes.scene_notes``: the render's warnings, without "Lixel: "), gathered
+    when :func:`update` is told of a change, never per redraw; () where none, or where describing failed."""
     settings: Optional[LixelSettings] = None
     method_used: str = ""
     body: object = None
@@ -250,22 +257,32 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
             view = timed("describe view", describe_view, camera if camera is not None else followed_camera(scene),
                          depsgraph, scene)
         light = st.light
+        lob = None
         if "light" in todo or light is None:
             lob = light_obj if light_obj is not None else pick_light(scene, depsgraph, active)
             light = timed("describe light", describe_light, lob, depsgraph)
             st.light_name, st.light_notes, st.light_pointer = lob.name, light_notes(lob, depsgraph), lob.as_pointer()
-        bounds = st.bounds
+        bounds, instances = st.bounds, st.instances
         if "bounds" in todo or bounds is None:
-            bounds = timed("describe bounds", scene_bounds, depsgraph)
+            bounds, instances = timed("describe bounds", scene_bounds, depsgraph)
             if len(bounds.receivers) == 0:
                 raise WarpError(f"Scene '{scene.name}' {NO_FACES}: add geometry to cast and receive shadows")
+        if todo:   # any change may change a note (a world, a second light, a material): gathered here, not per redraw
+            if lob is None:   # the light described before, unless it is no longer the scene's
+                lob = light_obj if light_obj is not None else scene.objects.get(st.light_name)
+                if lob is None or lob.type != "LIGHT":
+                    lob = pick_light(scene, depsgraph, active)
+            cam = camera if camera is not None else followed_camera(scene)
+            st.notes = tuple(timed("notes", scene_notes, scene, depsgraph, lob, getattr(cam, "name", ""), view,
+                                   bounds, instances))
     except Exception as exc:  # noqa: BLE001 - every caller gets the message in state.error
+        st.notes = ()
         return _fail(st, user_message(exc, f"describing scene '{scene.name}'"), timings)
 
     inputs_changed = not (_same(view, st.view) and _same(light, st.light) and _same(bounds, st.bounds))
     settings_changed = new_settings != st.settings
     refocused = st.settings is None or st.settings.warp.focus != new_settings.warp.focus
-    st.view, st.light, st.bounds, st.settings = view, light, bounds, new_settings
+    st.view, st.light, st.bounds, st.instances, st.settings = view, light, bounds, instances, new_settings
     if (not inputs_changed and not settings_changed and st.setup is not None and not st.error
             and (moving or not st.provisional)):
         st.timings, st.recomputed = timings, ()

@@ -52,6 +52,13 @@ def wrapped_label(layout, text: str, icon: str) -> None:
         layout.label(text=line, icon=icon if i == 0 else "BLANK1")
 
 
+def draw_notes(layout, notes) -> None:
+    """The scene's notes (``LiveState.notes``, as the live state last gathered them: drawing computes nothing),
+    each in full (:func:`wrapped_label`) behind an alert icon: what a render with Lixel warns about."""
+    for note in notes:
+        wrapped_label(layout.column(align=True), note, "ERROR")
+
+
 def split_layout(layout):
     """``layout`` with properties in split rows, without animation decorators."""
     layout.use_property_split, layout.use_property_decorate = True, False
@@ -96,6 +103,8 @@ class LIXEL_PT_main(LixelPanel, bpy.types.Panel):
             wrapped_label(layout.box(), st.error, "ERROR")
         elif st is not None and st.note:
             wrapped_label(layout.column(align=True), st.note, "INFO")
+        if st is not None and st.notes:
+            draw_notes(layout.box(), st.notes)
         if not props.initialised:
             box = layout.box()
             box.label(text="Not set up: renders with the preference defaults", icon="PREFERENCES")
