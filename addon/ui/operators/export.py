@@ -14,6 +14,9 @@ from .. import live, overlays
 from .common import LixelSceneOperator
 
 COMPARISON_TEXT = "Lixel Comparison"
+BLEND_RELATIVE = {"PATH_SUPPORTS_BLEND_RELATIVE"} \
+    if "is_path_supports_blend_relative" in bpy.types.Property.bl_rna.properties else set()
+"""The path option that tells Blender (4.5 on) a "//" path is meant: execute() resolves it beside the .blend file."""
 COMPARISON_IMAGE = "Lixel Comparison"
 
 
@@ -41,6 +44,8 @@ class LIXEL_OT_export_json(LixelSceneOperator, bpy.types.Operator, ExportHelper)
     bl_options = {"REGISTER", "UNDO"}  # a scene's first export writes its settings
 
     filename_ext = ".json"
+    filepath: StringProperty(name="File Path", description="Filepath used for exporting the file", maxlen=1024,
+                             subtype="FILE_PATH", options=BLEND_RELATIVE)
     filter_glob: StringProperty(default="*.json", options={"HIDDEN"})
     all_methods: BoolProperty(name="All Methods", default=False,
                               description="Export every method ({\"methods\": {...}}) instead of the scene's")
