@@ -172,6 +172,38 @@ def planks(scene):
     cam.data.clip_start, cam.data.clip_end = 1.0, 300.0
 
 
+def view_box(scene) -> np.ndarray:
+    """(2, 3): the bounding box of the camera's view frustum (its first frame), world space."""
+    from mathutils import Vector
+    cam = scene.camera
+    scene.frame_set(scene.frame_start)
+    m = cam.matrix_world
+    frame = [Vector(v) for v in cam.data.view_frame(scene=scene)]
+    if cam.data.type == "ORTHO":
+        pts = [m @ Vector((v.x, v.y, -d)) for v in frame for d in (cam.data.clip_start, cam.data.clip_end)]
+    else:
+        pts = [m @ (v * (d / -v.z)) for v in frame for d in (cam.data.clip_start, cam.data.clip_end)]
+    pts = np.array([tuple(p) for p in pts])
+    return np.array([pts.min(axis=0), pts.max(axis=0)])
+
+
+def ground(half: Optional[float], reach: float = 400.0):
+    """The ground (z = 0) as a grid over the view frustum's box grown by ``reach`` m (what can be seen and what can
+    shadow it: the trimmed twin), with ``half`` and a ring of quads to ±``half`` m around it: one huge box (an
+    endless floor) whose far quads are never seen. (One quad of ±``half`` m cannot be judged here: the truth's
+    float32 ray cast shadows such a triangle by itself; docs/papers.md, "Hard cases".)"""
+    def edit(scene):
+        import bpy
+        from sample_blends.scenes import grid, mesh_object
+        lo, hi = view_box(scene)[:, :2] + [[-reach], [reach]]
+        xs, ys = [lo[0], hi[0]], [lo[1], hi[1]]
+        if half is not None:
+            xs, ys = [-half, *xs, half], [-half, *ys, half]
+        bpy.data.objects.remove(scene.objects["Ground"])
+        mesh_object("Ground", *grid(xs, ys), scene.collection)
+    return edit
+
+
 def _then(*edits):
     def edit(scene):
         for e in edits:
@@ -239,6 +271,11 @@ def cases() -> dict[str, Case]:
                limit="pixels finer than float32 positions resolve 10 m from the scene's centre") for w in (2e-5, 1e-6)),
         Case("planks_1mm_at_100m", "contact", planks, None, "1 mm planks 100 m away under a 40° sun"),
     ]
+    for base in ("city_side_sun", "stage_spot", "point_low_in_view"):
+        out.append(Case(f"{base}_ground_trimmed", base, ground(None), None,
+                        "the twin: the ground cut to 400 m around the view frustum's box"))
+        out += [Case(f"{base}_ground_{half}", base, ground(float(half)), f"{base}_ground_trimmed",
+                     f"the ground one box of ±{half} m (its far quads never seen)") for half in ("1e6", "1e9", "1e12")]
     return {c.name: c for c in out}
 
 
@@ -300,7 +337,8 @@ def case_with_truth(case: Case, resolution):
     scene, dg = build(case, resolution)
     geometry = GeometryCache().update(dg)
     view, light, bounds = describe_scene(scene, dg)
-    return dg, view, light, truth_near_camera(view, light, geometry, bounds.scale())
+    corners = view.corners()             # (the scale of what can be seen: a huge ground's would skip every caster)
+    return dg, view, light, truth_near_camera(view, light, geometry, bounds.scale([corners.min(0), corners.max(0)]))
 
 
 @dataclass
