@@ -188,7 +188,7 @@ def view_box(scene) -> np.ndarray:
 
 
 def ground(half: Optional[float], reach: float = 400.0):
-    """The ground (z = 0) as a grid over the view frustum's box grown by ``reach`` m (what can be seen and what can
+    """The ground or floor (z = 0) as a grid over the view frustum's box grown by ``reach`` m (what can be seen and what can
     shadow it: the trimmed twin), with ``half`` and a ring of quads to ±``half`` m around it: one huge box (an
     endless floor) whose far quads are never seen. (One quad of ±``half`` m cannot be judged here: the truth's
     float32 ray cast shadows such a triangle by itself; docs/papers.md, "Hard cases".)"""
@@ -199,8 +199,10 @@ def ground(half: Optional[float], reach: float = 400.0):
         xs, ys = [lo[0], hi[0]], [lo[1], hi[1]]
         if half is not None:
             xs, ys = [-half, *xs, half], [-half, *ys, half]
-        bpy.data.objects.remove(scene.objects["Ground"])
-        mesh_object("Ground", *grid(xs, ys), scene.collection)
+        old = scene.objects.get("Ground") or scene.objects["Floor"]
+        name = old.name
+        bpy.data.objects.remove(old)
+        mesh_object(name, *grid(xs, ys), scene.collection)
     return edit
 
 
