@@ -52,10 +52,9 @@ def huge_ground(view: View, half: float | None, reach: float = 400.0) -> SceneBo
     """:func:`town` with its ground ±``half`` m wide (a huge box standing for an endless floor), or for None its
     trimmed twin: the ground cut to the view frustum's bounding box grown by ``reach`` m, farther than a sun 1° high
     crosses the 3 m boxes (what can be seen, and what can shadow it)."""
-    boxes = town().receivers.copy()
-    corners = view.corners()
+    boxes, corners = town().receivers.copy(), view.corners()[:, :2]
     lo, hi = (corners.min(axis=0) - reach, corners.max(axis=0) + reach) if half is None else (-half, half)
-    boxes[0, 0, :2], boxes[0, 1, :2] = np.broadcast_to(lo, 3)[:2], np.broadcast_to(hi, 3)[:2]
+    boxes[0, 0, :2], boxes[0, 1, :2] = lo, hi
     return SceneBounds.from_boxes(boxes)
 
 
