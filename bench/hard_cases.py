@@ -7,13 +7,13 @@
 Each case is a scene of :mod:`bench.rendered_error` (a box scene or a sample scene) edited in Blender: scaled with
 its camera's clip range (objects, lights and camera together: the units should not matter), moved 1e5 m from the
 origin, given a near plane of 1e-4 m and a far one of 1e4-1e5 m, a sun within 0.1° of the view axis or grazing the
-ground, a point light on a surface, inside a box or at the camera, a spot of 179° or 0.5°, an orthographic camera, 1
-mm planks 100 m away, a ground of one box ±1e6 to ±1e12 m wide. Each is rendered through the engine's path with
+ground, a point light on a surface, inside a box or at the camera, a spot of 179° or 0.5°, an orthographic camera,
+1 mm planks 100 m away, a ground of one box ±1e6 to ±1e12 m wide. Each is rendered through the engine's path with
 ``LixelSettings`` defaults (only the method and map size changed) and classified against the ray-cast truth as
-``bench.rendered_error`` does; each case names
-its well-conditioned twin (``ref``), and the check is that no case errs much more than its twin where the image
-shows it: over the pixels facing the light (n·l >= 0.1, the report's ``NDL_MIN``; below it lit and shadowed differ by
-under a tenth of the light, and at the grazing incidences the hard cases make, n·l ~ 1e-4, by nothing one can see):
+``bench.rendered_error`` does; each case names its well-conditioned twin (``ref``), and the check is that no case
+errs much more than its twin where the image shows it: over the pixels facing the light (n·l >= 0.1, the report's
+``NDL_MIN``; below it lit and shadowed differ by under a tenth of the light, and at the grazing incidences the hard
+cases make, n·l ~ 1e-4, by nothing one can see):
 
 * facing error <= max(RATIO x the twin's, the twin's + SLACK) per method and size (the error over every counted
   pixel is printed beside it);
