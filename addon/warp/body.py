@@ -109,9 +109,9 @@ def view_frustum(view: View, origin: np.ndarray, tol: float | None = None) -> Co
 
 
 def intersection_body(view: View, light: Light, scene: SceneBounds,
-                      visible: VisibleRegion | None = None) -> IntersectionBody:
-    """B for this view, light and scene (Scherzer §4.1), R cut by ``visible`` when given; EmptyBodyError, with the
-    reason, when nothing visible can receive a shadow."""
+                      visible: VisibleRegion | None = None, least: float = 0.0) -> IntersectionBody:
+    """B for this view, light and scene (Scherzer §4.1), R cut by ``visible`` when given, its scale at least ``least``
+    (a cascade's splits take the whole B's); EmptyBodyError, with the reason, when nothing visible can be shadowed."""
     if scene.is_empty:
         raise EmptyBodyError("the scene has no shadow casters or receivers")
     origin = view.position
@@ -136,9 +136,9 @@ def intersection_body(view: View, light: Light, scene: SceneBounds,
     receivers = BoxIndex.of(scene, "receivers").select(vn, vo + vn @ origin)
     if receivers.box is None:
         raise EmptyBodyError("no shadow receiver is inside the view frustum" + cone)
-    s_r, seen = receivers.box - origin, frustum.vertices       # S_r as far as V reaches (inside out: V misses it)
+    s_r, seen = receivers.box - origin, frustum.vertices      # S_r as far as V sees (inside out: V misses it)
     s_r = np.array([np.maximum(s_r[0], seen.min(axis=0)), np.minimum(s_r[1], seen.max(axis=0))])
-    scale = max(math.dist(*s_r), view_size * 1e-6, 1e-9)
+    scale = max(math.dist(*s_r), view_size * 1e-6, 1e-9, least)
     tol = RELATIVE_TOLERANCE * max(scale, float(np.abs(s_r).max()))
 
     # R = V ∩ S_r ∩ L.
