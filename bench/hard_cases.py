@@ -8,11 +8,12 @@ Each case is a scene of :mod:`bench.rendered_error` (a box scene or a sample sce
 its camera's clip range (objects, lights and camera together: the units should not matter), moved 1e5 m from the
 origin, given a near plane of 1e-4 m and a far one of 1e4-1e5 m, a sun within 0.1° of the view axis or grazing the
 ground, a point light on a surface, inside a box or at the camera, a spot of 179° or 0.5°, an orthographic camera,
-1 mm planks 100 m away. Each is rendered through the engine's path with ``LixelSettings`` defaults (only the method
-and map size changed) and classified against the ray-cast truth as ``bench.rendered_error`` does; each case names
-its well-conditioned twin (``ref``), and the check is that no case errs much more than its twin where the image
-shows it: over the pixels facing the light (n·l >= 0.1, the report's ``NDL_MIN``; below it lit and shadowed differ by
-under a tenth of the light, and at the grazing incidences the hard cases make, n·l ~ 1e-4, by nothing one can see):
+1 mm planks 100 m away, a ground of one box ±1e6 to ±1e12 m wide. Each is rendered through the engine's path with
+``LixelSettings`` defaults (only the method and map size changed) and classified against the ray-cast truth as
+``bench.rendered_error`` does; each case names its well-conditioned twin (``ref``), and the check is that no case
+errs much more than its twin where the image shows it: over the pixels facing the light (n·l >= 0.1, the report's
+``NDL_MIN``; below it lit and shadowed differ by under a tenth of the light, and at the grazing incidences the hard
+cases make, n·l ~ 1e-4, by nothing one can see):
 
 * facing error <= max(RATIO x the twin's, the twin's + SLACK) per method and size (the error over every counted
   pixel is printed beside it);
@@ -172,6 +173,40 @@ def planks(scene):
     cam.data.clip_start, cam.data.clip_end = 1.0, 300.0
 
 
+def view_box(scene) -> np.ndarray:
+    """(2, 3): the bounding box of the camera's view frustum (its first frame), world space."""
+    from mathutils import Vector
+    cam = scene.camera
+    scene.frame_set(scene.frame_start)
+    m = cam.matrix_world
+    frame = [Vector(v) for v in cam.data.view_frame(scene=scene)]
+    if cam.data.type == "ORTHO":
+        pts = [m @ Vector((v.x, v.y, -d)) for v in frame for d in (cam.data.clip_start, cam.data.clip_end)]
+    else:
+        pts = [m @ (v * (d / -v.z)) for v in frame for d in (cam.data.clip_start, cam.data.clip_end)]
+    pts = np.array([tuple(p) for p in pts])
+    return np.array([pts.min(axis=0), pts.max(axis=0)])
+
+
+def ground(half: Optional[float], reach: float = 400.0):
+    """The ground or floor (z = 0) as a grid over the view frustum's box grown by ``reach`` m (what can be seen and what can
+    shadow it: the trimmed twin), with ``half`` and a ring of quads to ±``half`` m around it: one huge box (an
+    endless floor) whose far quads are never seen. (One quad of ±``half`` m cannot be judged here: the truth's
+    float32 ray cast shadows such a triangle by itself; docs/papers.md, "Hard cases".)"""
+    def edit(scene):
+        import bpy
+        from sample_blends.scenes import grid, mesh_object
+        lo, hi = view_box(scene)[:, :2] + [[-reach], [reach]]
+        xs, ys = [lo[0], hi[0]], [lo[1], hi[1]]
+        if half is not None:
+            xs, ys = [-half, *xs, half], [-half, *ys, half]
+        old = scene.objects.get("Ground") or scene.objects["Floor"]
+        name = old.name
+        bpy.data.objects.remove(old)
+        mesh_object(name, *grid(xs, ys), scene.collection)
+    return edit
+
+
 def _then(*edits):
     def edit(scene):
         for e in edits:
@@ -239,6 +274,11 @@ def cases() -> dict[str, Case]:
                limit="pixels finer than float32 positions resolve 10 m from the scene's centre") for w in (2e-5, 1e-6)),
         Case("planks_1mm_at_100m", "contact", planks, None, "1 mm planks 100 m away under a 40° sun"),
     ]
+    for base in ("city_side_sun", "stage_spot", "point_low_in_view"):
+        out.append(Case(f"{base}_ground_trimmed", base, ground(None), None,
+                        "the twin: the ground cut to 400 m around the view frustum's box"))
+        out += [Case(f"{base}_ground_{half}", base, ground(float(half)), f"{base}_ground_trimmed",
+                     f"the ground one box of ±{half} m (its far quads never seen)") for half in ("1e6", "1e9", "1e12")]
     return {c.name: c for c in out}
 
 
@@ -300,7 +340,8 @@ def case_with_truth(case: Case, resolution):
     scene, dg = build(case, resolution)
     geometry = GeometryCache().update(dg)
     view, light, bounds = describe_scene(scene, dg)
-    return dg, view, light, truth_near_camera(view, light, geometry, bounds.scale())
+    corners = view.corners()             # (the scale of what can be seen: a huge ground's would skip every caster)
+    return dg, view, light, truth_near_camera(view, light, geometry, bounds.scale([corners.min(0), corners.max(0)]))
 
 
 @dataclass

@@ -43,7 +43,7 @@ class IntersectionBody:
     """R = V ∩ S_r ∩ L: the part of the view that holds receivers."""
     origin: np.ndarray
     scale: float
-    """A length typical of B and the scene (for relative tolerances)."""
+    """A length typical of B: S_c's diagonal as far as it can be seen or shadow what is (tolerances, padding)."""
     hull_halfspaces: tuple[np.ndarray, np.ndarray]
     """World-space (normals, offsets) of hull(R ∪ light) (⊂ L): the light-extruded view."""
     culled: Culled
@@ -109,9 +109,9 @@ def view_frustum(view: View, origin: np.ndarray, tol: float | None = None) -> Co
 
 
 def intersection_body(view: View, light: Light, scene: SceneBounds,
-                      visible: VisibleRegion | None = None) -> IntersectionBody:
-    """B for this view, light and scene (Scherzer §4.1), R cut by ``visible`` when given; EmptyBodyError, with the
-    reason, when nothing visible can receive a shadow."""
+                      visible: VisibleRegion | None = None, least: float = 0.0) -> IntersectionBody:
+    """B for this view, light and scene (Scherzer §4.1), R cut by ``visible`` when given, its scale at least ``least``
+    (a cascade's splits take the whole B's); EmptyBodyError, with the reason, when nothing visible can be shadowed."""
     if scene.is_empty:
         raise EmptyBodyError("the scene has no shadow casters or receivers")
     origin = view.position
@@ -129,17 +129,16 @@ def intersection_body(view: View, light: Light, scene: SceneBounds,
     d = ln @ corners.T - lo[:, None]
     if np.any(d.min(axis=1) >= 0):
         raise EmptyBodyError("no shadow receiver is lit in view: the view frustum is outside the spot cone")
-    cuts = d.max(axis=1) > 0
-    ln, lo = ln[cuts], lo[cuts]
+    ln, lo = ln[d.max(axis=1) > 0], lo[d.max(axis=1) > 0]
 
     # Receivers meeting V ∩ L (planes moved to world space for the culling).
-    vn = np.concatenate([frustum.normals, ln])
-    vo = np.concatenate([frustum.offsets, lo])
+    vn, vo = np.concatenate([frustum.normals, ln]), np.concatenate([frustum.offsets, lo])
     receivers = BoxIndex.of(scene, "receivers").select(vn, vo + vn @ origin)
     if receivers.box is None:
         raise EmptyBodyError("no shadow receiver is inside the view frustum" + cone)
-    s_r = receivers.box - origin
-    scale = max(math.dist(*s_r), view_size * 1e-6, 1e-9)
+    s_r, seen = receivers.box - origin, frustum.vertices      # S_r as far as V sees (inside out: V misses it)
+    s_r = np.array([np.maximum(s_r[0], seen.min(axis=0)), np.minimum(s_r[1], seen.max(axis=0))])
+    scale = max(math.dist(*s_r), view_size * 1e-6, 1e-9, least)
     tol = RELATIVE_TOLERANCE * max(scale, float(np.abs(s_r).max()))
 
     # R = V ∩ S_r ∩ L.
@@ -155,7 +154,7 @@ def intersection_body(view: View, light: Light, scene: SceneBounds,
     hull = light_hull(r, light_h)
     casters = BoxIndex.of(scene, "casters").select(hull.normals, hull.offsets + hull.normals @ origin, tol)
     held = r.vertices if casters.box is None else np.concatenate([r.vertices, casters.box - origin])
-    s_c = np.array([held.min(axis=0), held.max(axis=0)])
+    s_c = np.clip([held.min(axis=0), held.max(axis=0)], *_reach(r.vertices, light_h, held))
     scale = max(math.dist(*s_c), scale)
     pad = max(BOX_PAD * scale, 512 * tol)
     bn, bo = BOX_NORMALS, box_offsets(*s_c) + pad
@@ -171,3 +170,14 @@ def intersection_body(view: View, light: Light, scene: SceneBounds,
         raise EmptyBodyError("the light-extruded view does not meet the scene")
     return IntersectionBody(body, r, origin, scale, (hull.normals, hull.offsets + hull.normals @ origin),
                             Culled(receivers, casters), visible)
+
+
+def _reach(r: np.ndarray, light_h: np.ndarray, held: np.ndarray) -> np.ndarray:
+    """A (2, 3) box holding hull(R ∪ light) ∩ bbox(``held``): R's box and the light, or for a sun R's box swept towards
+    it until it leaves ``held``'s box (the least exit distance over the axes' slabs): what can shadow R."""
+    box, d = np.array([r.min(axis=0), r.max(axis=0)]), light_h[:3]
+    if light_h[3]:
+        return np.array([np.minimum(box[0], d), np.maximum(box[1], d)])
+    exits = np.where(d > 0, held.max(axis=0) - box[0], held.min(axis=0) - box[1])
+    t = max(0.0, min(float(e / di) for e, di in zip(exits, d) if abs(di) > 1e-12))
+    return box + np.array([np.minimum(0.0, t * d), np.maximum(0.0, t * d)])

@@ -25,8 +25,7 @@ _CONE_ROWS = np.stack([np.cos(_CONE_ANGLES), np.sin(_CONE_ANGLES), np.ones(CONE_
 def cone_halfspaces(apex, axis, full_angle) -> tuple[np.ndarray, np.ndarray]:
     """(normals (k, 3), offsets (k,)) of the k = CONE_SIDES pyramid circumscribing the cone (apex, axis, full angle)."""
     a = normalize(axis)
-    u = pyramid_side(a)
-    widened = math.atan(math.tan(full_angle / 2) / math.cos(math.pi / CONE_SIDES))
+    u, widened = pyramid_side(a), math.atan(math.tan(full_angle / 2) / math.cos(math.pi / CONE_SIDES))
     c, s = math.cos(widened), math.sin(widened)
     normals = _CONE_ROWS @ np.array([c * u, c * cross(a, u), -s * a])
     return normals, normals @ np.asarray(apex, dtype=np.float64)

@@ -190,8 +190,7 @@ class ConvexPolytope:
         """``clip`` by vertex enumeration, for half-spaces that all cut."""
         n2, o2 = _dedupe_planes(n2, o2, self.tol, self.vertices)
         inside = (self.vertices @ n2.T - o2 <= self.tol).all(axis=1)
-        n = np.concatenate([self.normals, n2])
-        o = np.concatenate([self.offsets, o2])
+        n, o = np.concatenate([self.normals, n2]), np.concatenate([self.offsets, o2])
         return _enumerate(self.vertices[inside], n, o, _combinations3(len(n), len(self.normals)), self.tol,
                           self.incidence[inside])
 
@@ -231,8 +230,7 @@ def _cut(vertices: list, facets: list, normal: list, offset: float, tol: float, 
         if not_inside.issuperset(loop):                        # cut away
             continue
         new, turns = [], 0                                     # walked
-        p = loop[-1]
-        p_out = p in beyond
+        p, p_out = loop[-1], loop[-1] in beyond
         for q in loop:
             q_out = q in beyond
             if p_out != q_out:                                 # the edge p -> q passes the plane

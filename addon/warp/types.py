@@ -218,9 +218,9 @@ class SceneBounds:
         b = np.concatenate([self.casters, self.receivers])
         return np.array([b[:, 0].min(axis=0), b[:, 1].max(axis=0)]) if len(b) else None
 
-    def scale(self) -> float:
-        """A length typical of the scene (the AABB diagonal), for relative tolerances."""
-        box = self.aabb()
+    def scale(self, within=None) -> float:
+        """A length typical of the scene for relative tolerances: its AABB's diagonal (of its part in ``within``)."""
+        box = self.aabb() if within is None or self.is_empty else np.clip(self.aabb(), *within)
         return 1.0 if box is None else max(float(np.linalg.norm(box[1] - box[0])), 1e-12)
 
 
@@ -277,10 +277,9 @@ class ShadowMap:
     def contains(self, points, tol: float = 0.0) -> np.ndarray:
         """Which (N, 3) points are inside the clip volume (w > 0, |ndc| <= 1 + tol)."""
         h = self.clip(points)
-        w = h[:, 3]
-        ok = w > 0
+        ok = h[:, 3] > 0
         with np.errstate(divide="ignore", invalid="ignore"):
-            ndc = h[:, :3] / np.where(ok, w, 1.0)[:, None]
+            ndc = h[:, :3] / np.where(ok, h[:, 3], 1.0)[:, None]
         return ok & np.all(np.abs(ndc) <= 1.0 + tol, axis=1)
 
     def serves(self, points, view: Optional[View] = None, tol: float = 0.0) -> np.ndarray:

@@ -48,6 +48,16 @@ def town(offset=(0.0, 0.0, 0.0), size=50.0, flat=False) -> SceneBounds:
     return SceneBounds.from_boxes(np.asarray(boxes, dtype=float) + o)
 
 
+def huge_ground(view: View, half: float | None, reach: float = 400.0) -> SceneBounds:
+    """:func:`town` with its ground ±``half`` m wide (a huge box standing for an endless floor), or for None its
+    trimmed twin: the ground cut to the view frustum's bounding box grown by ``reach`` m, farther than a sun 1° high
+    crosses the 3 m boxes (what can be seen, and what can shadow it)."""
+    boxes, corners = town().receivers.copy(), view.corners()[:, :2]
+    lo, hi = (corners.min(axis=0) - reach, corners.max(axis=0) + reach) if half is None else (-half, half)
+    boxes[0, 0, :2], boxes[0, 1, :2] = lo, hi
+    return SceneBounds.from_boxes(boxes)
+
+
 def sun(direction) -> Light:
     return Light("SUN", direction=np.asarray(direction, dtype=float), name="Sun")
 

@@ -1,13 +1,16 @@
 """Extreme but valid inputs to the warp core (issue: the CLI's limits): a right answer or a clear message, never an
 out-of-memory kill. The coarse ray cast's memory stays bounded however many boxes each of its squares sees."""
 import json
+import math
 import tracemalloc
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from addon.warp import region_from_boxes
+from addon.warp import METHODS, compute, focused_body, region_from_boxes
 from bench.visibility import cloud_seen_end_on
+from hard_cases import _street, huge_ground, point, spot, sun
 
 
 def peak_bytes(view, scene) -> tuple[int, object]:
@@ -60,19 +63,39 @@ def test_a_box_far_from_the_view_changes_no_map(light, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("light,half", [("point", 1e11), ("point", 1e12), ("spot", 1e12)])
-def test_a_box_far_larger_than_the_view_under_a_point_light_gets_a_message(light, half, tmp_path, capsys):
-    """The core's tolerances and a point light's near floor are relative to the boxes meeting the view: a ground
-    box ±1e11 wide puts the cube maps' near plane (1e-6 of it) beyond all the light shows in view, and no cube face
-    is left. Every method on the whole B then says so, naming the light and what to do; it printed no maps with
-    "cannot be computed (ValueError: need at least one array to concatenate)" or an internal IndexError. (cascade
-    builds a B per split and gets maps.)"""
+def test_a_huge_box_under_a_point_light_gives_the_maps_of_its_trimmed_twin(light, half, tmp_path, capsys):
+    """B's scale (its tolerances, a point light's near floor) comes from what the view can see: a ground box ±1e11
+    or ±1e12 wide under the example's ground gives every method (the CLI's JSON) the maps of the same box trimmed to
+    ±1e3. (From the boxes meeting the view, the cube maps' near plane lay beyond all the light shows in view: only
+    cascade got maps, the others "trim boxes far larger than the view".)"""
     config = json.loads(EXAMPLE.read_text())
     config["light"] = LIGHTS[light]
-    config["boxes"] = config["boxes"][:37] + [{"min": [-half, -half, -2], "max": [half, half, -1]}]
+    config["boxes"] = config["boxes"][:37] + [{"min": [-1e3, -1e3, -2], "max": [1e3, 1e3, -1]}]
+    twin = run_all(config, tmp_path, capsys)
+    config["boxes"][37] = {"min": [-half, -half, -2], "max": [half, half, -1]}
     for method, result in run_all(config, tmp_path, capsys).items():
-        error = result["diagnostics"].get("error", "")
-        if method == "cascade":
-            assert result["maps"] and not error, error
-            continue
-        assert not result["maps"] and error.startswith("Light 'light': the boxes in view span"), (method, error)
-        assert "trim boxes far larger than the view" in error
+        assert result["maps"] and result["maps"] == twin[method]["maps"], (method, result["diagnostics"])
+
+
+HUGE_GROUND_LIGHTS = {"sun": sun([0.4, 0.3, -0.6]), "sun 1° high": sun([0.3, 1.0, -math.tan(math.radians(1.0)) * math.hypot(0.3, 1.0)]),
+                      "spot": spot([-10.0, -10.0, 25.0], [0.4, 0.6, -1.0], math.radians(70.0)),
+                      "point above": point([0.0, 10.0, 60.0]), "point in view": point([0.0, 8.0, 2.0])}
+
+
+@pytest.mark.parametrize("light", list(HUGE_GROUND_LIGHTS))
+def test_a_ground_of_any_size_gives_the_maps_of_its_trimmed_twin(light):
+    """A ground modelled as one huge box, ±1e4 to ±1e12 m (an 'endless' floor), gives every method exactly the maps
+    of the same ground trimmed to what the view can see and what can shadow it (``hard_cases.huge_ground``). B's
+    scale came from the boxes meeting the view: over ±1e7 m a sun's maps moved 10-100 % of their largest entry, a
+    spot's over ±1e8 by 1e14; a point light in view got "cannot be computed (ZeroDivisionError)" from ±1e6 on, a spot
+    over ±1e11 "the view frustum does not meet the receivers"."""
+    view, lamp = _street(), HUGE_GROUND_LIGHTS[light]
+
+    def maps(scene) -> dict:
+        body = focused_body(view, lamp, scene)
+        return {m: [s.matrix for s in compute(m, view, lamp, scene, body=body).maps] for m in METHODS}
+
+    twin = maps(huge_ground(view, None))
+    for half in (1e4, 1e8, 1e12):
+        for method, got in maps(huge_ground(view, half)).items():
+            assert len(got) == len(twin[method]) and all(map(np.array_equal, got, twin[method])), (method, half)

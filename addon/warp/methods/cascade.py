@@ -94,6 +94,7 @@ class Trials:
     seen: Optional[tuple] = None        # the ``receivers`` from C_0 on (None: their normals unknown)
     made: dict = dataclasses.field(default_factory=dict)
     cube_axis: Optional[np.ndarray] = None   # every split's B's (the whole B's: docs/papers.md, "One cube")
+    scale: float = 0.0                       # every split's B's at least (the whole B's: its padding, tolerances)
 
     def once(self, key: tuple, make):
         """``make()``, called the first time ``key`` is asked for."""
@@ -109,7 +110,7 @@ class Trials:
         if seen is not None and seen.is_empty:
             return clipped, None
         try:
-            return clipped, dataclasses.replace(intersection_body(clipped, self.light, self.scene, seen),
+            return clipped, dataclasses.replace(intersection_body(clipped, self.light, self.scene, seen, self.scale),
                                                 cube_axis=self.cube_axis)
         except EmptyBodyError:
             return clipped, None
@@ -218,7 +219,8 @@ def split_depths(view: View, light: Light, scene: SceneBounds, body: Intersectio
     depths = practical_splits(z_n, z_f, options.cascade_splits, options.cascade_lambda)
     seen = receivers(view, light, body.visible, z_n, math.inf, scene) if adaptive_splits(options) else None
     trials = Trials(view, light, scene, options, body.visible, seen,
-                    cube_axis=None if light.is_directional else light_cone(body.vertices, light.position)[0])
+                    cube_axis=None if light.is_directional else light_cone(body.vertices, light.position)[0],
+                    scale=body.scale)
     splits = trials.splits_at(depths)
     if not adaptive_splits(options):
         return depths, splits, "practical"
