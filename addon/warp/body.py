@@ -129,7 +129,8 @@ def intersection_body(view: View, light: Light, scene: SceneBounds,
     d = ln @ corners.T - lo[:, None]
     if np.any(d.min(axis=1) >= 0):
         raise EmptyBodyError("no shadow receiver is lit in view: the view frustum is outside the spot cone")
-    ln, lo = ln[d.max(axis=1) > 0], lo[d.max(axis=1) > 0]
+    cuts = d.max(axis=1) > 0
+    ln, lo = ln[cuts], lo[cuts]
 
     # Receivers meeting V ∩ L (planes moved to world space for the culling).
     vn, vo = np.concatenate([frustum.normals, ln]), np.concatenate([frustum.offsets, lo])
