@@ -326,7 +326,7 @@ def _region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int],
 def grid_may_meet(view: View, index: BoxIndex, samples) -> np.ndarray:
     """(rays, clusters): whether each ray of ``sample_rays``' grid lies within a cell of the image of the cluster's
     bounds grown by the rays' rounding (NaN: yes), as every ray that meets them does (``rays.ray_index``)."""
-    grow = 1e-9 * (view.far + float(np.abs(index.c_bounds).max(initial=0.0)))         # (c_bounds: lo, -hi rows)
+    grow = 1e-9 * (view.far + float(np.abs(view.corners()).max()))     # (of V's coordinates: no box far off counts)
     (x0, x1), (y0, y1) = _ndc_rectangles(view, np.stack([index.c_bounds[:3].T - grow, grow - index.c_bounds[3:].T], 1))
     x, y = (g.reshape(-1, 1) for g in np.meshgrid(*(sample_ndc(n) for n in samples)))
     cx, cy = 2.0 / samples[0], 2.0 / samples[1]
