@@ -37,9 +37,9 @@ def _warp_errors(what: str):
 
 
 MAX_COORDINATE = 1e12
-"""The largest coordinate (camera, light, box) the core works with. Its tolerances are relative to B's size; a scene
-that mixes this with millimetres is already at the edge of float64 (1e12 carries 1e-4 absolutely), and beyond it a
-single huge box makes every relative tolerance swallow the rest of the scene."""
+"""The largest coordinate (camera, light, box) the core takes, as far as it is tested: B and its tolerances are
+relative to the camera and to what it sees (``body.intersection_body``), so a ground box of ±1e12 m gives its trimmed
+twin's maps (tests/warp/test_limits.py); but there float64 carries only 1e-4 absolutely, millimetres no more."""
 
 
 MIN_RESOLVED = 1e-9

@@ -245,9 +245,9 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
             farthest = float((part @ forward).max())
         to_light = perspective_of(views[f], *near_far(nearest, farthest, near_floor)[:2])
         frames.append(LightFrame(to_light, part + apex, "cube" + CUBE_FACES[f][0], False, clamped and cuts_a_box))
-    if not frames:         # (the floor is of the scale of the boxes meeting the view: one far larger swallows the view)
-        raise WarpError(f"Light '{light.name}': the boxes in view span {body.scale:.3g}, so its maps start "
-                        f"{near_floor:.3g} from it, beyond all it lights in view: trim boxes far larger than the view")
+    if not frames:         # (a guard: B is at least 1000 tolerances thick, its scale what the view sees, test_limits)
+        raise WarpError(f"Light '{light.name}': no cube face holds a part of B (what the view sees and can shadow, "
+                        f"{body.scale:.3g} across) thicker than its tolerance: check its and the camera's transforms")
     return frames
 
 
