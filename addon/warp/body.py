@@ -19,7 +19,7 @@ log = logging.getLogger(__name__)
 
 RELATIVE_TOLERANCE = 1e-10
 BOX_PAD = 1e-7
-"""Boxes are padded by this fraction of the scene scale (and at least 512 tolerances) so a flat scene, or a single
+"""Boxes are padded by this fraction of B's scale (and at least 512 tolerances) so a flat scene, or a single
 point-sized box, still gives a closed body at least 1000 tolerances thick."""
 
 

@@ -22,7 +22,7 @@ PARALLEL_BLEND = math.sin(math.radians(1.0))
 FLIP_Z = np.diag([1.0, 1.0, -1.0, 1.0])
 
 NEAR_FLOOR = 1e-6
-"""A point light's maps (and plane maps' casters) reach no nearer to it than this fraction of the scene scale."""
+"""A point light's maps (and plane maps' casters) reach no nearer to it than this fraction of B's scale."""
 
 
 @dataclass(frozen=True)
@@ -173,7 +173,7 @@ def nearest_box_distance(body: IntersectionBody, apex) -> float:
 def cube_near_floor(body: IntersectionBody, apex, hyperbolic: bool,
                     widest_cos: float = CUBE_FACE_COS) -> tuple[float, bool]:
     """The near distance of a point light's cube faces with the light on or in B, and whether it cuts a box that
-    matters: ``NEAR_FLOOR`` of the scene scale for linear depth (Scherzer §4.2), else the nearest box's distance times
+    matters: ``NEAR_FLOOR`` of B's scale for linear depth (Scherzer §4.2), else the nearest box's distance times
     ``widest_cos``."""
     least = NEAR_FLOOR * body.scale
     bound = 0.999 * widest_cos * nearest_box_distance(body, apex)
