@@ -197,33 +197,37 @@ def parse_light(light: dict) -> Light:
     return Light(**kw)
 
 
+def _entries(value, field: str, kind: str, needs: tuple):
+    """(``field[i]``, entry) for each ``kind`` object (``KEYS``, ``needs`` those) of the list ``value``, or ConfigError."""
+    if not isinstance(value, list):
+        example = ", ".join(f'"{k}": [...]' for k in needs)
+        raise ConfigError(f"{field}: must be a list of {{{example}}}")
+    for i, entry in enumerate(value):
+        _only_known(entry, f"{field}[{i}]", kind)
+        yield f"{field}[{i}]", entry
+
+
 def parse_boxes(boxes) -> SceneBounds:
-    if not isinstance(boxes, list):
-        raise ConfigError("boxes: must be a list of {\"min\": [...], \"max\": [...]}")
     out = []
-    for i, b in enumerate(boxes):
-        _only_known(b, f"boxes[{i}]", "box")
-        lo = _vector(_get(b, "min", f"boxes[{i}]"), f"boxes[{i}].min", coordinates=True)
-        hi = _vector(_get(b, "max", f"boxes[{i}]"), f"boxes[{i}].max", coordinates=True)
+    for at, b in _entries(boxes, "boxes", "box", ("min", "max")):
+        lo = _vector(_get(b, "min", at), f"{at}.min", coordinates=True)
+        hi = _vector(_get(b, "max", at), f"{at}.max", coordinates=True)
         if np.any(lo > hi):
-            raise ConfigError(f"boxes[{i}]: min must not exceed max")
+            raise ConfigError(f"{at}: min must not exceed max")
         out.append([lo, hi])
     return SceneBounds.from_boxes(np.asarray(out, dtype=np.float64).reshape(-1, 2, 3))
 
 
 def parse_planes(planes) -> tuple:
-    if not isinstance(planes, list):
-        raise ConfigError("planes: must be a list of {\"point\": [...], \"normal\": [...]}")
     out = []
-    for i, p in enumerate(planes):
-        _only_known(p, f"planes[{i}]", "plane")
-        point = _vector(_get(p, "point", f"planes[{i}]"), f"planes[{i}].point", coordinates=True)
-        normal = _vector(_get(p, "normal", f"planes[{i}]"), f"planes[{i}].normal")
+    for at, p in _entries(planes, "planes", "plane", ("point", "normal")):
+        point = _vector(_get(p, "point", at), f"{at}.point", coordinates=True)
+        normal = _vector(_get(p, "normal", at), f"{at}.normal")
         if not np.any(normal):
-            raise ConfigError(f"planes[{i}].normal: must not be zero")
+            raise ConfigError(f"{at}.normal: must not be zero")
         plane = (point, normal / np.linalg.norm(normal))
         if "extent" in p:  # what the sidebar's Planes From Selection keeps: the map covers only that outline
-            plane += (_extent(p["extent"], f"planes[{i}].extent", plane[1]),)
+            plane += (_extent(p["extent"], f"{at}.extent", plane[1]),)
         out.append(plane)
     return tuple(out)
 
