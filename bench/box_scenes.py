@@ -67,36 +67,29 @@ def _city(seed=7, extent=90.0, count=260):
     mesh_object("Buildings", *merge(parts))
 
 
-def _street_camera(scene):
-    return _camera(scene, (0.0, -80.0, 1.8), (0.0, 20.0, 0.0), fov_deg=60.0, near=0.1, far=150.0)
+def _street_under_sun(direction):
+    """The city seen down its open street (x = 0) from 80 m back, under a sun travelling along ``direction``."""
+    scene = reset()
+    _city()
+    _camera(scene, (0.0, -80.0, 1.8), (0.0, 20.0, 0.0), fov_deg=60.0, near=0.1, far=150.0)
+    add_sun(scene, direction)
+    return scene
 
 
 def city_side_sun():
     """A street view, the sun from the side (15° off perpendicular to the view, towards the
     camera, so the walls facing the camera are not exactly edge-on to it), 35° high."""
-    scene = reset()
-    _city()
-    _street_camera(scene)
-    add_sun(scene, (1.0, -0.27, -math.tan(math.radians(35.0)) * math.hypot(1.0, 0.27)))
-    return scene
+    return _street_under_sun((1.0, -0.27, -math.tan(math.radians(35.0)) * math.hypot(1.0, 0.27)))
 
 
 def city_behind_sun():
     """A street view, the sun from behind the camera (30° high)."""
-    scene = reset()
-    _city()
-    _street_camera(scene)
-    add_sun(scene, (0.25, 1.0, -math.tan(math.radians(30.0))))
-    return scene
+    return _street_under_sun((0.25, 1.0, -math.tan(math.radians(30.0))))
 
 
 def city_low_sun():
     """A street view, a sun 8° above the horizon from the side and ahead."""
-    scene = reset()
-    _city()
-    _street_camera(scene)
-    add_sun(scene, (0.8, -0.6, -math.tan(math.radians(8.0))))
-    return scene
+    return _street_under_sun((0.8, -0.6, -math.tan(math.radians(8.0))))
 
 
 def forest_side_sun():
@@ -130,22 +123,23 @@ def stage_spot():
     return scene
 
 
+def _block_under_point(seed, eye, lamp):
+    """A block of 120 boxes (``seed``) seen from ``eye`` towards the origin, a point light at ``lamp``."""
+    scene = reset()
+    _city(seed=seed, extent=40.0, count=120)
+    _camera(scene, eye, (0.0, 0.0, 0.0), fov_deg=60.0, near=0.1, far=80.0)
+    _point(scene, lamp)
+    return scene
+
+
 def point_behind_camera():
     """A point light 4 m behind and 3 m above the camera over a block of boxes."""
-    scene = reset()
-    _city(seed=11, extent=40.0, count=120)
-    _camera(scene, (0.0, -30.0, 3.0), (0.0, 0.0, 0.0), fov_deg=60.0, near=0.1, far=80.0)
-    _point(scene, (1.0, -34.0, 6.0))
-    return scene
+    return _block_under_point(11, (0.0, -30.0, 3.0), (1.0, -34.0, 6.0))
 
 
 def point_low_in_view():
     """A point light 1.5 m above the ground among the boxes, in the camera's view."""
-    scene = reset()
-    _city(seed=13, extent=40.0, count=120)
-    _camera(scene, (0.0, -30.0, 6.0), (0.0, 0.0, 0.0), fov_deg=60.0, near=0.1, far=80.0)
-    _point(scene, (0.0, -10.0, 1.5))
-    return scene
+    return _block_under_point(13, (0.0, -30.0, 6.0), (0.0, -10.0, 1.5))
 
 
 def contact():
