@@ -117,6 +117,32 @@ def _ms(rec) -> str:
     return (f"{m / 1000:.2f} s" if m >= 1000 else f"{m:.0f} ms") + " CPU"
 
 
+def _method_grid(scene, axes, sizes, names, eevee_col: bool, draw, fontsize: int) -> None:
+    """The panels after row 0's first (the truth's): Cycles beside it, then a row per map size of the methods and, in
+    the last column, EEVEE where it ran at that size; unused panels blank. ``draw(ax, rec, label)`` shows a record that
+    ran and returns its title; one that failed (or never ran) shows its label and why."""
+    cy = _cycles(scene)
+    panels = [(axes[0, 1], cy, "Cycles")] if cy is not None and axes.shape[1] > 1 else []
+    for j in range(1 + len(panels), axes.shape[1]):
+        _blank(axes[0, j])
+    for i, size in enumerate(sizes, start=1):
+        for j, name in enumerate(names):
+            rec = _lookup(scene["methods"], name, size)
+            panels.append((axes[i, j], rec, f"{name}{_fell(rec)} {size}²"))
+        if eevee_col:
+            ev = _eevee_at(scene, size)
+            if ev is None:
+                _blank(axes[i, len(names)])
+            else:
+                panels.append((axes[i, len(names)], ev, f"EEVEE {size}²"))
+    for ax, rec, label in panels:
+        if rec and rec.get("status") == "ok":
+            ax.set_title(draw(ax, rec, label), fontsize=fontsize)
+        else:
+            ax.set_title(label, fontsize=fontsize)
+            _failed(ax, rec)
+
+
 # --------------------------------------------------------------------------- renders
 
 def srgb(linear: np.ndarray) -> np.ndarray:
@@ -156,39 +182,11 @@ def renders(scene: dict, path: Path) -> Path:
     show = dict(origin="lower", cmap="gray", vmin=0, vmax=1, interpolation="nearest")
     axes[0, 0].imshow(_display(img["truth"], e), **show)
     axes[0, 0].set_title("ground truth (ray cast)", fontsize=9)
-    cy = _cycles(scene)
-    if cy is not None:
-        if cy.get("status") == "ok":
-            axes[0, 1].imshow(_display(cy["_images"]["render"], e), **show)
-            axes[0, 1].set_title(f"Cycles, {cy['samples']} spp, {_ms(cy)}", fontsize=9)
-        else:
-            axes[0, 1].set_title("Cycles", fontsize=9)
-            _failed(axes[0, 1], cy)
-    else:
-        _blank(axes[0, 1])
-    for j in range(2, cols):
-        _blank(axes[0, j])
-    for i, size in enumerate(sizes, start=1):
-        for j, name in enumerate(names):
-            ax = axes[i, j]
-            rec = _lookup(scene["methods"], name, size)
-            ax.set_title(f"{name}{_fell(rec)} {size}²" + (f", {_ms(rec)}" if rec and rec.get("status") == "ok"
-                                                        else ""), fontsize=9)
-            if rec and rec.get("status") == "ok":
-                ax.imshow(_display(rec["_images"]["render"], e), **show)
-            else:
-                _failed(ax, rec)
-        if eevee_col:
-            ax = axes[i, len(names)]
-            ev = _eevee_at(scene, size)
-            if ev is None:
-                _blank(ax)
-            elif ev.get("status") == "ok":
-                ax.imshow(_display(ev["_images"]["render"], e), **show)
-                ax.set_title(f"EEVEE {size}², {_ms(ev)}", fontsize=9)
-            else:
-                ax.set_title(f"EEVEE {size}²", fontsize=9)
-                _failed(ax, ev)
+
+    def draw(ax, rec, label):
+        ax.imshow(_display(rec["_images"]["render"], e), **show)
+        return label + (f", {rec['samples']} spp" if rec["method"] == "cycles" else "") + f", {_ms(rec)}"
+    _method_grid(scene, axes, sizes, names, eevee_col, draw, fontsize=9)
     _radiance_bar(fig, axes[:, -1].tolist(), e)
     return _save(fig, path)
 
@@ -215,43 +213,14 @@ def errors(scene: dict, path: Path) -> Path:
     eevee_col = any(_eevee_at(scene, s) for s in sizes)
     cols = max(len(names) + int(eevee_col), 1)
     fig, axes = _figure(len(sizes) + 1, cols, h / w, extra_h=0.6)
-    cy = _cycles(scene)
     axes[0, 0].imshow(error_rgb(truth, truth, img["valid"]), origin="lower", interpolation="nearest")
     axes[0, 0].set_title("ground truth's shadows", fontsize=8)
-    if cy is not None and cols > 1:
-        ax = axes[0, 1]
-        if cy.get("status") == "ok":
-            ax.imshow(error_rgb(cy["_images"]["shadow"], truth, cy["_images"]["comparable"]), origin="lower",
-                      interpolation="nearest")
-            ax.set_title(_error_title("Cycles", cy), fontsize=8)
-        else:
-            ax.set_title("Cycles", fontsize=8)
-            _failed(ax, cy)
-    for j in range(2 if cy is not None else 1, cols):
-        _blank(axes[0, j])
-    for i, size in enumerate(sizes, start=1):
-        for j, name in enumerate(names):
-            ax = axes[i, j]
-            rec = _lookup(scene["methods"], name, size)
-            if rec and rec.get("status") == "ok":
-                ax.imshow(error_rgb(rec["_images"]["shadow"], truth, rec["_images"]["comparable"]),
-                          origin="lower", interpolation="nearest")
-                ax.set_title(_error_title(f"{name}{_fell(rec)} {size}²", rec), fontsize=8)
-            else:
-                ax.set_title(f"{name} {size}²", fontsize=8)
-                _failed(ax, rec)
-        if eevee_col:
-            ax = axes[i, len(names)]
-            ev = _eevee_at(scene, size)
-            if ev is None:
-                _blank(ax)
-            elif ev.get("status") == "ok":
-                ax.imshow(error_rgb(ev["_images"]["shadow"], truth, ev["_images"]["comparable"]),
-                          origin="lower", interpolation="nearest")
-                ax.set_title(_error_title(f"EEVEE {size}²", ev), fontsize=8)
-            else:
-                ax.set_title(f"EEVEE {size}²", fontsize=8)
-                _failed(ax, ev)
+
+    def draw(ax, rec, label):
+        ax.imshow(error_rgb(rec["_images"]["shadow"], truth, rec["_images"]["comparable"]), origin="lower",
+                  interpolation="nearest")
+        return _error_title(label, rec)
+    _method_grid(scene, axes, sizes, names, eevee_col, draw, fontsize=8)
     _error_key(fig, ncol=3 if cols > 2 else 2)
     return _save(fig, path)
 
