@@ -149,6 +149,17 @@ def render(lx, scene, method="uniform", map_size=2048, shadow=None, setup=None, 
     return out, view, lt, setup, dg
 
 
+def cached_frame(lx, scene, geometry_cache, gpu_scene, method, **kwargs):
+    """(the pipeline's output, the geometry, the bounds) of a frame drawn as the engine draws one after another:
+    through a kept ``GeometryCache`` and ``GPUScene``, 256² maps."""
+    dg = scene.view_layers[0].depsgraph
+    dg.update()
+    geometry = geometry_cache.update(dg)
+    view, lt, bounds = lx.describe.describe_scene(scene, dg, instances=geometry.instances)
+    setup = lx.warp.compute(method, view, lt, bounds, lx.warp.WarpOptions(shadow_map_size=(256, 256)))
+    return lx.pipeline.render_shadows(view, lt, setup, geometry, scene=gpu_scene, **kwargs), geometry, bounds
+
+
 # ---------------------------------------------------------------- ground truth
 
 def bvh_of(dg):
@@ -715,15 +726,9 @@ def test_second_render_uploads_nothing(lx, scene):
     gc = lx.geometry.GeometryCache()
     gs = lx.batches.GPUScene()
     pool = lx.targets.TargetPool()
-    dg = scene.view_layers[0].depsgraph
 
     def go():
-        dg.update()
-        geometry = gc.update(dg)
-        view, lt, bounds = lx.describe.describe_scene(scene, dg, instances=geometry.instances)
-        setup = lx.warp.compute("uniform", view, lt, bounds, lx.warp.WarpOptions(shadow_map_size=(256, 256)))
-        out = lx.pipeline.render_shadows(view, lt, setup, geometry, scene=gs, targets=pool)
-        return out, geometry, bounds
+        return cached_frame(lx, scene, gc, gs, "uniform", targets=pool)
 
     first, g1, b1 = go()
     assert first.counts.uploads == 2 and gc.extractions == 2
@@ -774,14 +779,9 @@ def test_moving_the_camera_or_the_light_rebuilds_no_index(lx, scene):
     lt = shadow_scene(scene, "SUN")
     gc = lx.geometry.GeometryCache()
     gs = lx.batches.GPUScene()
-    dg = scene.view_layers[0].depsgraph
 
     def go():
-        dg.update()
-        geometry = gc.update(dg)
-        view, light, bounds = lx.describe.describe_scene(scene, dg, instances=geometry.instances)
-        setup = lx.warp.compute("lispsm", view, light, bounds, lx.warp.WarpOptions(shadow_map_size=(256, 256)))
-        out = lx.pipeline.render_shadows(view, light, setup, geometry, scene=gs)
+        out, geometry, bounds = cached_frame(lx, scene, gc, gs, "lispsm")
         return out, geometry, lx.culling.BoxIndex.of(bounds, "casters")
 
     _, g0, index = go()
