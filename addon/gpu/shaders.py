@@ -316,12 +316,8 @@ def reduce_shader(depth_source: bool):
 @functools.lru_cache(maxsize=None)
 def mdsm_shader():
     """Builds an n-depth key map from a depth map (Pagot et al. §4.3)."""
-    import gpu
-    info = gpu.types.GPUShaderCreateInfo()
-    info.vertex_in(0, "VEC3", "pos")
+    info = _fullscreen_info("mdsm_frag.glsl")
     info.push_constant("VEC4", "u_params")
     info.sampler(0, "DEPTH_2D", "u_depth")
     info.fragment_out(0, "VEC4", "out_keys")
-    info.vertex_source(source("fullscreen_vert.glsl"))
-    info.fragment_source(source("mdsm_frag.glsl"))
     return _create(info, "multiple-depth map")
