@@ -14,6 +14,7 @@ import pytest
 from mathutils import Vector
 from mathutils.bvhtree import BVHTree
 
+from addon.measure.errors import shadow_edges
 from addon.warp.methods import METHODS as _METHODS_AT_COLLECTION
 
 METHOD_NAMES = sorted(_METHODS_AT_COLLECTION)
@@ -481,13 +482,7 @@ def foot_contact(out, lt, dg, setup):
     img[ys, xs] = truth
     on = np.zeros(covered.shape, dtype=bool)
     on[ys, xs] = True
-    # True shadow edges on the ground: shadowed pixels next to lit ground pixels, and vice versa.
-    edge = np.zeros_like(img)
-    for a, b in (((slice(1, None), slice(None)), (slice(None, -1), slice(None))),
-                 ((slice(None), slice(1, None)), (slice(None), slice(None, -1)))):
-        differ = (img[a] != img[b]) & on[a] & on[b]
-        edge[a] |= differ
-        edge[b] |= differ
+    edge = shadow_edges(img, on)    # true shadow edges on the ground: shadowed pixels next to lit ones, and vice versa
     e = world[edge].astype(np.float64)
     d_edge = np.full(len(pts), np.inf)
     for start in range(0, len(pts), 2048):
