@@ -202,7 +202,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     from ..gpu.batches import shared_batches
     from ..gpu.pipeline import ShadowFrame
     from ..scene.describe import (NO_FACES, NoLightError, check_finite_geometry, describe_scene, evaluated, eye_view,
-                                  light_notes, pick_light, render_camera)
+                                  light_notes, pick_light, render_camera, shadow_off)
     from ..scene.geometry import shared_cache
     from ..scene.linking import light_links
     from ..scene.notes import scene_notes
@@ -264,9 +264,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
             raise EmptyBodyError(f"scene '{scene.name}' {NO_FACES}, so the frame shows only the world background")
         if unlit is not None:
             raise EmptyBodyError(f"{unlit}; the frame is lit by the world alone")
-        if not getattr(evaluated(light_obj, depsgraph).data, "use_shadow", True):
-            raise EmptyBodyError(f"light '{light.name}' casts no shadows, as in Blender's engines: its Shadow is off "
-                                 f"(Light properties > Shadow)")
+        if shadow_off(light_obj, depsgraph):   # as Blender's engines: lit, unshadowed
+            raise EmptyBodyError(shadow_off(light_obj, depsgraph))
         # The pre-pass, hence the visible region, is a function of the geometry and the view.
         body, setup = shared_warps().get((geometry, bounds), (method, view, light, settings.warp, frame.size), warp)
     except EmptyBodyError as exc:

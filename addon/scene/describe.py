@@ -434,6 +434,16 @@ def light_notes(light_obj, depsgraph=None) -> list[str]:
     return notes
 
 
+def shadow_off(light_obj, depsgraph=None) -> Optional[str]:
+    """Why ``light_obj`` casts no shadow where its Shadow is off (Light properties > Shadow: Cycles and EEVEE light
+    with it, unshadowed), as ``depsgraph`` evaluates it (:func:`evaluated`); None where it casts them."""
+    data = getattr(evaluated(light_obj, depsgraph), "data", None) if light_obj is not None else None
+    if getattr(data, "use_shadow", True):
+        return None
+    return (f"light '{light_obj.name}' casts no shadows, as in Blender's engines: its Shadow is off (Light properties "
+            f"> Shadow)")
+
+
 def other_lights_note(light_obj, depsgraph, scene_name: str) -> Optional[str]:
     """A warning naming the lights of the frame besides ``light_obj`` that would light it in Cycles and EEVEE (shown
     in ``depsgraph``, a strength other than 0, Diffuse on): Lixel renders one light, so they light nothing here.

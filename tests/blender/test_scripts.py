@@ -367,3 +367,34 @@ def test_render_method_evaluates_modifiers_as_f12_does(lixel, tmp_path, load_pix
         assert got.returncode == 0, got.stderr
         differ = np.abs(load_pixels(out) - load_pixels(tmp_path / "f12.exr")).max(axis=-1) > 1e-4
         assert differ.mean() < 1e-3, f"{mode}: {differ.sum()} of {differ.size} pixels differ from F12's"
+
+
+@pytest.mark.parametrize("light", ["Shadow off", "Shadow Linking", "Light Linking"])
+def test_render_method_shadows_the_light_as_f12_does(light, lixel, tmp_path, load_pixels):
+    """A sun with Shadow off (Light properties), or whose Shadow Linking or Light Linking leaves the cube out: the
+    script's picture equals F12's (Lixel engine, as Cycles: no shadow, no cube's shadow, the cube unlit), where it
+    drew the cube's shadow and lit it (29, 29 and 198 of 5184 pixels differed); Shadow off is said."""
+    path = tmp_path / "light.blend"
+    with active_scene("tiny") as scene:
+        sun, cube = scene.objects["tiny light"], scene.objects["tiny cube"]
+        if light == "Shadow off":
+            sun.data.use_shadow = False
+        else:
+            coll = bpy.data.collections.new("tiny linking")
+            coll.objects.link(cube)
+            coll.collection_objects[0].light_linking.link_state = "EXCLUDE"
+            attr = "blocker_collection" if light == "Shadow Linking" else "receiver_collection"
+            setattr(sun.light_linking, attr, coll)
+        r = scene.render
+        r.resolution_x, r.resolution_y, r.resolution_percentage, r.engine = 96, 54, 100, "LIXEL"
+        r.image_settings.file_format, r.filepath = "OPEN_EXR", str(tmp_path / "f12.exr")
+        bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+        assert bpy.ops.render.render(write_still=True, scene=scene.name) == {"FINISHED"}
+        if light != "Shadow off":
+            bpy.data.collections.remove(coll)
+    out = tmp_path / "script.exr"
+    got = run("module", "render_method.py", path, "--scene", "tiny", "--output", str(out))
+    assert got.returncode == 0, got.stderr
+    np.testing.assert_allclose(load_pixels(out), load_pixels(tmp_path / "f12.exr"), atol=1e-4)
+    said = "lixel: warning: Light 'tiny light' casts no shadows, as in Blender's engines: its Shadow is off"
+    assert (said in got.stderr) == (light == "Shadow off"), got.stderr
