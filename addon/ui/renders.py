@@ -276,6 +276,23 @@ def image_format(path: str) -> str:
     return IMAGE_FORMATS.get(suffix, "PNG")
 
 
+def within_border(render, image: np.ndarray) -> np.ndarray:
+    """A whole frame's ``image`` (row 0 at the bottom) as F12 leaves it under ``render``'s Render Region (Output
+    properties > Format > Render Region): cut to the region with Crop to Render Region (``engine.result_window``),
+    else the whole frame, transparent black (0, 0, 0, 0) outside the region, as Cycles and Lixel's F12 save it.
+    Without this ``render_method.py`` drew the whole frame (2592 of 5184 pixels differed from F12's under a
+    region of half the width, and the size under Crop)."""
+    from ..render.engine import result_window
+    if not render.use_border:
+        return image
+    x0, y0, x1, y1 = result_window(render, image.shape[1], image.shape[0])
+    if render.use_crop_to_border:
+        return image[y0:y1, x0:x1]
+    out = np.zeros_like(image)
+    out[y0:y1, x0:x1] = image[y0:y1, x0:x1]
+    return out
+
+
 def save_image(rgba: np.ndarray, path: str, name: Optional[str] = None, linear: bool = True) -> None:
     """Write an image (row 0 at the bottom) to a file in the format its ending names (:func:`image_format`: an
     OpenEXR keeps scene-linear values above 1); ``linear`` as in :func:`to_image`. OSError (naming

@@ -398,3 +398,23 @@ def test_render_method_shadows_the_light_as_f12_does(light, lixel, tmp_path, loa
     np.testing.assert_allclose(load_pixels(out), load_pixels(tmp_path / "f12.exr"), atol=1e-4)
     said = "lixel: warning: Light 'tiny light' casts no shadows, as in Blender's engines: its Shadow is off"
     assert (said in got.stderr) == (light == "Shadow off"), got.stderr
+
+
+@pytest.mark.parametrize("crop", [False, True])
+def test_render_method_keeps_the_render_region_as_f12_does(crop, lixel, tmp_path, load_pixels):
+    """A Render Region (Output properties > Format) over the middle half, with and without Crop to Render Region:
+    the script's picture equals F12's (as Cycles: the whole frame, transparent black outside the region; the region
+    alone with Crop), where it drew the whole frame (2592 of 5184 pixels differed; 96x54 against F12's 48x54)."""
+    path = tmp_path / "region.blend"
+    with active_scene("tiny") as scene:
+        r = scene.render
+        r.use_border, r.use_crop_to_border = True, crop
+        r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.25, 0.75, 0.1, 0.8
+        r.resolution_x, r.resolution_y, r.resolution_percentage, r.engine = 96, 54, 100, "LIXEL"
+        r.image_settings.file_format, r.filepath = "OPEN_EXR", str(tmp_path / "f12.exr")
+        bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+        assert bpy.ops.render.render(write_still=True, scene=scene.name) == {"FINISHED"}
+    out = tmp_path / "script.exr"
+    got = run("module", "render_method.py", path, "--scene", "tiny", "--output", str(out))
+    assert got.returncode == 0, got.stderr
+    np.testing.assert_allclose(load_pixels(out), load_pixels(tmp_path / "f12.exr"), atol=1e-4)
