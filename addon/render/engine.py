@@ -236,7 +236,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     world = world_light(depsgraph.scene_eval.world)
     seen = world_shading(depsgraph.scene_eval.world, world, depsgraph.view_layer)   # as Cycles sees it
     if warnings is not None:   # the sidebar shows the same notes (addon.ui.live)
-        warnings += [f"Lixel: {note}" for note in scene_notes(scene, depsgraph, light_obj, camera.name, view, bounds,
+        warnings += [f"Lixel: {note}" for note in scene_notes(scene, depsgraph, light_obj, camera, view, bounds,
                                                              geometry.instances, world)]
     timings["describe"] = time.perf_counter() - t
     links = light_links(light_obj, geometry.instances)   # Light/Shadow Linking: what it lights, what blocks it

@@ -159,6 +159,16 @@ def motion_blur_note(scene) -> Optional[str]:
             f"Motion Blur off in Render properties with Cycles or EEVEE, or render there for blur)")
 
 
+def depth_of_field_note(camera) -> Optional[str]:
+    """A warning where ``camera`` (an object) has Depth of Field on (Camera properties > Depth of Field, which Cycles
+    and EEVEE blur out of focus by its F-Stop): Lixel renders every distance in focus."""
+    dof = getattr(getattr(camera, "data", None), "dof", None)
+    if dof is None or not dof.use_dof:
+        return None
+    return (f"Camera '{camera.name}' has Depth of Field on: Lixel renders every distance in focus, unblurred (switch "
+            f"it off in Camera properties > Depth of Field, or render with Cycles or EEVEE for the blur)")
+
+
 UNDRAWN_TYPES = {"CURVES": "hair curves", "POINTCLOUD": "a point cloud", "VOLUME": "a volume"}
 """Object types Cycles renders (strands, points, a volume that shadows) and Lixel does not draw."""
 

@@ -276,8 +276,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
                 if lob is None or lob.type != "LIGHT":
                     lob = pick_light(scene, depsgraph, active)
             cam = camera if camera is not None else followed_camera(scene)
-            st.notes = tuple(timed("notes", scene_notes, scene, depsgraph, lob, getattr(cam, "name", ""), view,
-                                   bounds, instances))
+            st.notes = tuple(timed("notes", scene_notes, scene, depsgraph, lob, cam, view, bounds, instances))
     except Exception as exc:  # noqa: BLE001 - every caller gets the message in state.error
         st.notes = ()
         return _fail(st, user_message(exc, f"describing scene '{scene.name}'"), timings)

@@ -68,11 +68,17 @@ def _textured_world(scene):
     scene.world.node_tree.links.new(sky.outputs[0], background(scene.world).inputs["Color"])
 
 
+def _depth_of_field(scene):
+    scene.camera.data.dof.use_dof = True     # Cycles and EEVEE blur out of focus (F-Stop 2.8); Lixel said nothing
+
+
 CASES = {
     "second light": (_second_light, "light 'Point' lights nothing here", "choose the light Lixel renders"),
     "shadow catcher": (_shadow_catcher, "object 'Ground' is a Shadow Catcher", "switch it off"),
     "textured world": (_textured_world, "World 'lixel_test sky' lights with its Sky Texture node",
                        "set World properties > Viewport Display > Color"),
+    "depth of field": (_depth_of_field, "Camera 'Cam' has Depth of Field on: Lixel renders every distance in focus",
+                       "switch it off in Camera properties > Depth of Field"),
 }
 
 
