@@ -230,12 +230,7 @@ class Session:
             return
         bpy = self.bpy
         view_layer = self.bpy.context.view_layer
-
-        def change(owner, attr, value):
-            old = getattr(owner, attr)
-            if old != value:
-                setattr(owner, attr, value)
-                self.shown.append((lambda v, o=owner, a=attr: setattr(o, a, v), old))
+        change = self.change
 
         def layers(lc):
             yield lc
@@ -257,13 +252,26 @@ class Session:
             with contextlib.suppress(AttributeError, TypeError):   # linked (read-only) data keeps its viewport value
                 change(owner, attr, value)
 
+    def change(self, owner, attr, value) -> None:
+        """Set ``owner.attr`` to ``value`` for the session (undone when it ends)."""
+        old = getattr(owner, attr)
+        if old != value:
+            setattr(owner, attr, value)
+            self.shown.append((lambda v, o=owner, a=attr: setattr(o, a, v), old))
+
     def state(self, scene, settings):
         """The live state for the scene (camera/light from the arguments), as a copy of its own: Lixel's live
         update (``depsgraph_update_post``, which a render's GPU start sets off, and ``frame_change_post``)
         recomputes the scene's stored state with the scene's own settings, camera and light. ScriptError on
-        failure."""
+        failure. A ``--camera`` is the scene's camera for the session, as F12 renders through it: Blender evaluates
+        the scene camera wherever it lives (an excluded collection, another scene), where the script read the
+        matrix the file last stored (never evaluated: the world origin; "the camera sees no shadow receiver"). A
+        ``--light`` must be one the scene shows, as the panel's Lixel light must (``describe.pick_light``): Cycles
+        lights nothing with another scene's light, which the script rendered with."""
         live = self.module("addon.ui.live")
         camera, light = self.objects(scene)
+        if camera is not None:
+            self.change(scene, "camera", camera)
         self.show_as_rendered(scene)
         depsgraph = self.bpy.context.evaluated_depsgraph_get()
         st = live.update(scene, depsgraph, settings=settings, camera=camera, light_obj=light, changed=None,

@@ -516,8 +516,8 @@ class NoLightError(WarpError):
     frame by the world alone, and so does the LIXEL engine (``describe_scene(need_light=False)``)."""
 
 
-def pick_light(scene, depsgraph=None, active=None):
-    """The light Lixel shadows: the scene's Lixel light (``scene.lixel.light``)
+def pick_light(scene, depsgraph=None, active=None, chosen=None):
+    """The light Lixel shadows: ``chosen`` (a script's ``--light``) or the scene's Lixel light (``scene.lixel.light``)
     if set, else the active object if it is a light, else the first sun, else
     the first light of a supported type (lights by name, for determinism). Only
     a light the scene shows in ``depsgraph`` (render or viewport) counts: a Lixel
@@ -525,7 +525,7 @@ def pick_light(scene, depsgraph=None, active=None):
     refused by name. Lights shown only as instances (a linked lighting rig) count when the scene's own lights
     do not answer. No light shown, or the Lixel light hidden: :class:`NoLightError`."""
     lights = _scene_lights(scene, depsgraph)
-    chosen = _lixel_light_property(scene)
+    chosen = chosen if chosen is not None else _lixel_light_property(scene)
     if depsgraph is not None and (chosen not in lights if chosen is not None else
                                   not any(ob.data.type in LIGHT_TYPES for ob in lights)):
         lights += _instanced_lights(depsgraph)      # walked only when the scene's own lights do not answer
@@ -533,7 +533,7 @@ def pick_light(scene, depsgraph=None, active=None):
         if chosen not in lights:
             raise NoLightError(f"The Lixel light '{chosen.name}' is not among the lights scene '{scene.name}' shows "
                                f"(hidden, in an excluded collection or in another scene), so Blender lights nothing "
-                               f"with it: show it, or choose another light (Lixel panel > Light)")
+                               f"with it: show it, or choose another light (Lixel panel > Light; a script's --light)")
         return chosen
     if active is not None and active.type == "LIGHT" and active in lights:
         return active

@@ -260,7 +260,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         light = st.light
         lob = None
         if "light" in todo or light is None:
-            lob = light_obj if light_obj is not None else pick_light(scene, depsgraph, active)
+            lob = pick_light(scene, depsgraph, active, chosen=light_obj)
             light = timed("describe light", describe_light, lob, depsgraph)
             off = shadow_off(lob, depsgraph)   # its pictures are drawn unshadowed, as F12 draws them (renders.as_rendered)
             st.light_name, st.light_pointer = lob.name, lob.as_pointer()
