@@ -225,9 +225,10 @@ class Session:
         ``hide_render``; an object hidden in the viewport, by its eye or its monitor, still renders). Without this
         ``render_method.py`` drew a cube hidden from renders, which F12 leaves out, and left out one hidden in the
         viewport, which F12 draws. Modifiers, curves, metaballs, particles and Simplify evaluate with their render
-        settings too (:func:`render_evaluation`). Undone when the session ends: nothing of the file changes."""
-        if self.shown:
-            return
+        settings too (:func:`render_evaluation`). Undone when the session ends: nothing of the file changes.
+        Made again on each call (each frame of ``export_animation.py``): a render visibility animated over the frames
+        is the frame's, where the first frame's held for all (frame 3's matrices were those of a scene still showing
+        an object keyframed out of renders there)."""
         bpy = self.bpy
         view_layer = self.bpy.context.view_layer
         change = self.change

@@ -461,3 +461,31 @@ def test_a_camera_or_light_of_another_scene(lixel, tmp_path, load_pixels):
     assert got.returncode == 1 and "Traceback" not in got.stderr
     assert ("lixel: error: The Lixel light 'other light' is not among the lights scene 'tiny' shows (hidden, in an "
             "excluded collection or in another scene)") in got.stderr, got.stderr
+
+
+def test_export_animation_follows_render_visibility_keyframed_over_the_frames(lixel, tmp_path):
+    """A tall box keyframed out of renders (Restrict Render) at frame 3: exporting frames 1 to 3 gives frame 3 the
+    matrices of frame 3 alone (as F12 renders each frame with that frame's visibility), where the first frame's
+    visibility held for all and frame 3's maps were those of a scene still showing the box."""
+    path = tmp_path / "keyed.blend"
+    with active_scene("tiny") as scene:
+        cube = scene.objects["tiny cube"]
+        tall = bpy.data.objects.new("tiny tall", cube.data)
+        scene.collection.objects.link(tall)
+        tall.location, tall.scale = (-3.0, 2.0, 1.0), (1.0, 1.0, 4.0)
+        for frame, hidden in ((1, False), (3, True)):
+            tall.hide_render = hidden
+            tall.keyframe_insert("hide_render", frame=frame)
+        scene.frame_set(1)
+        try:
+            bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+        finally:
+            bpy.data.objects.remove(tall)
+    frames = {}
+    for span in ("1:3", "3:3"):
+        out = tmp_path / f"{span.replace(':', '-')}.json"
+        got = run("module", "export_animation.py", path, "--scene", "tiny", "--frames", span, "--output", str(out))
+        assert got.returncode == 0, got.stderr
+        frames[span] = {f["frame"]: f for f in json.loads(out.read_text())["frames"]}
+    assert frames["1:3"][3] == frames["3:3"][3]
+    assert frames["1:3"][1]["maps"] != frames["1:3"][3]["maps"]
