@@ -135,6 +135,7 @@ class Session:
         self.package = None
         self.registered = False
         self.shown: list = []     # (setter, value before) of what show_as_rendered changed, undone on exit
+        self.warned = False       # Is Viewport said (once a session)
 
     def __enter__(self):
         import bpy
@@ -274,6 +275,12 @@ class Session:
         if camera is not None:
             self.change(scene, "camera", camera)
         self.show_as_rendered(scene)
+        if not self.warned and (names := [n for n in asks_is_viewport(self.bpy) if n in scene.objects]):
+            self.warned = True
+            print(f"lixel: warning: object '{names[0]}'{f' and {len(names) - 1} more' if len(names) > 1 else ''} "
+                  f"{'has' if len(names) == 1 else 'have'} Geometry Nodes that ask Is Viewport: a script evaluates "
+                  f"them as the 3D view does, F12 and Cycles as renders; render with F12 (the Lixel engine) for the "
+                  f"render's answer", file=sys.stderr)
         depsgraph = self.bpy.context.evaluated_depsgraph_get()
         st = live.update(scene, depsgraph, settings=settings, camera=camera, light_obj=light, changed=None,
                          active=self.bpy.context.view_layer.objects.active)
@@ -286,9 +293,11 @@ def render_evaluation(bpy, scene):
     """(owner, viewport attribute, render value) for each viewport setting that evaluates otherwise in a render:
     a modifier's eye (Realtime) against its camera (Render), Subdivision Surface and Multiresolution levels,
     Simplify's subdivision and child particle limits, curves' and metaballs' resolution, particles' display amount
-    and children. F12 and Cycles evaluate the render values: without these a Subdivision Surface of Levels
+    and children and display (a particle system instancing objects shows none in the viewport as Dot or None).
+    F12 and Cycles evaluate the render values: without these a Subdivision Surface of Levels
     Viewport 0 and Render 2 cast a sharp cube's shadow in ``render_method.py`` and a round one in F12 (7.8% of a
-    96x54 picture differed). Geometry Nodes' Is Viewport cannot be changed so and still answers True."""
+    96x54 picture differed). Geometry Nodes' Is Viewport cannot be changed so and still answers True
+    (:func:`asks_is_viewport`)."""
     render = scene.render
     yield render, "simplify_subdivision", render.simplify_subdivision_render
     yield render, "simplify_child_particles", render.simplify_child_particles_render
@@ -306,6 +315,20 @@ def render_evaluation(bpy, scene):
     for part in bpy.data.particles:
         yield part, "display_percentage", 100
         yield part, "child_percent", part.rendered_child_count
+        yield part, "display_method", "RENDER"   # Dot/None in the viewport: no instanced objects there
+
+
+def asks_is_viewport(bpy) -> list:
+    """Names of the objects whose Geometry Nodes (a modifier shown in renders) hold an Is Viewport node, in their
+    group or a group inside it: a script evaluates them as the 3D view does (True), F12 and Cycles as renders."""
+    def asks(tree, seen):
+        if tree is None or tree in seen:
+            return False
+        seen.add(tree)
+        return any(node.bl_idname == "GeometryNodeIsViewport" or asks(getattr(node, "node_tree", None), seen)
+                   for node in tree.nodes)
+    return sorted(ob.name for ob in bpy.data.objects
+                  if any(md.type == "NODES" and md.show_render and asks(md.node_group, set()) for md in ob.modifiers))
 
 
 def _import_checkout():

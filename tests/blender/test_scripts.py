@@ -489,3 +489,48 @@ def test_export_animation_follows_render_visibility_keyframed_over_the_frames(li
         frames[span] = {f["frame"]: f for f in json.loads(out.read_text())["frames"]}
     assert frames["1:3"][3] == frames["3:3"][3]
     assert frames["1:3"][1]["maps"] != frames["1:3"][3]["maps"]
+
+
+def _is_viewport_group():
+    """A Geometry Nodes group that passes its geometry on in renders and drops it in the viewport (Is Viewport)."""
+    tree = bpy.data.node_groups.new("lixel_test is viewport", "GeometryNodeTree")
+    for way in ("INPUT", "OUTPUT"):
+        tree.interface.new_socket("Geometry", in_out=way, socket_type="NodeSocketGeometry")
+    given, out = tree.nodes.new("NodeGroupInput"), tree.nodes.new("NodeGroupOutput")
+    asks, switch = tree.nodes.new("GeometryNodeIsViewport"), tree.nodes.new("GeometryNodeSwitch")
+    switch.input_type = "GEOMETRY"
+    tree.links.new(asks.outputs[0], switch.inputs[0])
+    tree.links.new(given.outputs[0], switch.inputs[1])     # False (a render): the geometry
+    tree.links.new(switch.outputs[0], out.inputs[0])
+    return tree
+
+
+def test_particles_shown_as_dots_and_is_viewport(lixel, tmp_path, load_pixels):
+    """A particle system instancing the cube over the ground, shown as Dots in the viewport (Viewport Display >
+    Display As): the script's picture equals F12's, where it left the 30 instanced cubes out (127 of 5184 pixels
+    differed). Geometry Nodes asking Is Viewport cannot be evaluated as renders by a script: said by name."""
+    path = tmp_path / "particles.blend"
+    with active_scene("tiny") as scene:
+        cube, ground = scene.objects["tiny cube"], scene.objects["tiny ground"]
+        system = ground.modifiers.new("lixel_test particles", "PARTICLE_SYSTEM").particle_system.settings
+        system.count, system.frame_start, system.frame_end, system.physics_type = 30, 1, 1, "NO"
+        system.render_type, system.instance_object, system.particle_size = "OBJECT", cube, 0.3
+        system.display_method = "DOT"
+        r = scene.render
+        r.resolution_x, r.resolution_y, r.resolution_percentage, r.engine = 96, 54, 100, "LIXEL"
+        r.image_settings.file_format, r.filepath = "OPEN_EXR", str(tmp_path / "f12.exr")
+        bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+        assert bpy.ops.render.render(write_still=True, scene=scene.name) == {"FINISHED"}
+        ground.modifiers.new("lixel_test nodes", "NODES").node_group = tree = _is_viewport_group()
+        bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "nodes.blend"), copy=True)
+        bpy.data.particles.remove(system)
+        bpy.data.node_groups.remove(tree)
+    out = tmp_path / "script.exr"
+    got = run("module", "render_method.py", path, "--scene", "tiny", "--output", str(out))
+    assert got.returncode == 0 and "Is Viewport" not in got.stderr, got.stderr
+    assert_nearly_f12(load_pixels(out), load_pixels(tmp_path / "f12.exr"))
+    got = run("module", "render_method.py", tmp_path / "nodes.blend", "--scene", "tiny", "--output", str(out))
+    assert got.returncode == 0, got.stderr
+    assert ("lixel: warning: object 'tiny ground' has Geometry Nodes that ask Is Viewport: a script evaluates them as "
+            "the 3D view does, F12 and Cycles as renders; render with F12 (the Lixel engine) for the render's answer"
+            ) in got.stderr
