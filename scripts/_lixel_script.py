@@ -291,17 +291,19 @@ class Session:
 
 def render_evaluation(bpy, scene):
     """(owner, viewport attribute, render value) for each viewport setting that evaluates otherwise in a render:
-    a modifier's eye (Realtime) against its camera (Render), Subdivision Surface and Multiresolution levels,
-    Simplify's subdivision and child particle limits, curves' and metaballs' resolution, particles' display amount
-    and children and display (a particle system instancing objects shows none in the viewport as Dot or None).
-    F12 and Cycles evaluate the render values: without these a Subdivision Surface of Levels
-    Viewport 0 and Render 2 cast a sharp cube's shadow in ``render_method.py`` and a round one in F12 (7.8% of a
-    96x54 picture differed). Geometry Nodes' Is Viewport cannot be changed so and still answers True
-    (:func:`asks_is_viewport`)."""
+    an instancer shown (Object properties > Instancing > Show Instancer: a particle emitter, a mesh instancing on
+    its faces), a modifier's eye (Realtime) against its camera (Render), Subdivision Surface and Multiresolution
+    levels, Simplify's subdivision and child particle limits, curves' and metaballs' resolution, particles' display
+    amount, children and display (a system instancing objects shows none in the viewport as Dot or None).
+    F12 and Cycles evaluate the render values: without these a Subdivision Surface of Levels Viewport 0 and Render 2
+    cast a sharp cube's shadow in ``render_method.py`` and a round one in F12 (7.8% of a 96x54 picture differed), and
+    an emitter hidden from renders drew its ground (71%). Geometry Nodes' Is Viewport cannot be changed so and still
+    answers True (:func:`asks_is_viewport`)."""
     render = scene.render
     yield render, "simplify_subdivision", render.simplify_subdivision_render
     yield render, "simplify_child_particles", render.simplify_child_particles_render
     for ob in bpy.data.objects:
+        yield ob, "show_instancer_for_viewport", ob.show_instancer_for_render   # an instancer's own surface
         for md in ob.modifiers:
             yield md, "show_viewport", md.show_render
             if md.type in ("SUBSURF", "MULTIRES"):
