@@ -272,7 +272,8 @@ def depth_rows(near: float, far: float, orthographic: bool) -> np.ndarray:
 
 
 def describe_light(light_obj, depsgraph=None) -> Light:
-    """A Blender light object as a :class:`Light`, with its colour and energy.
+    """A Blender light object as a :class:`Light`, with its colour and energy as Cycles takes them (Blender 5.0: the
+    colour times the Temperature's blackbody where it is on, the strength times 2^Exposure).
 
     * SUN: ``direction`` = the object's world -Z.
     * POINT: ``position`` = the object's world location.
@@ -311,7 +312,10 @@ def describe_light(light_obj, depsgraph=None) -> Light:
                         f"nowhere: set its scale to 1 (Object properties > Transform > Scale)")
     minus_z = minus_z / z_length if z_length > 0 else minus_z
     color = tuple(float(c) for c in data.color)
-    energy = float(data.energy) if lights_surfaces(light_eval) else 0.0
+    if getattr(data, "use_temperature", False):   # 5.0: Cycles multiplies the colour by the Temperature's blackbody
+        color = tuple(c * float(t) for c, t in zip(color, data.temperature_color))
+    # 5.0's Exposure scales the strength by 2^exposure in Cycles (measured: Strength 3 at Exposure 1 renders as 6)
+    energy = float(data.energy) * 2.0 ** float(getattr(data, "exposure", 0.0)) if lights_surfaces(light_eval) else 0.0
     name = light_obj.name
     if kind == "SUN":
         return Light("SUN", direction=minus_z, color=color, energy=energy, name=name)
