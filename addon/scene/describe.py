@@ -271,9 +271,23 @@ def depth_rows(near: float, far: float, orthographic: bool) -> np.ndarray:
     return np.array([[0.0, 0.0, -(far + near) / d, -2.0 * far * near / d], [0.0, 0.0, -1.0, 0.0]])
 
 
+def unnormalized_area(data) -> float:
+    """What Cycles multiplies a light's strength by where its Normalize is off (Blender 5.0; measured in 5.0.1
+    against Normalize on, to 1e-6): the emitter's area. An area light's square or rectangle (size x size_y) or disk
+    or ellipse (pi/4 of that), a point or spot light's sphere 4 pi r^2 (r: its Radius), a sun's pi sin^2(angle / 2)."""
+    if data.type == "SUN":
+        return math.pi * math.sin(float(data.angle) / 2.0) ** 2
+    if data.type in ("POINT", "SPOT"):
+        return 4.0 * math.pi * float(data.shadow_soft_size) ** 2
+    x = float(data.size)
+    y = x if data.shape in ("SQUARE", "DISK") else float(data.size_y)
+    return x * y * (math.pi / 4.0 if data.shape in ("DISK", "ELLIPSE") else 1.0)
+
+
 def describe_light(light_obj, depsgraph=None) -> Light:
     """A Blender light object as a :class:`Light`, with its colour and energy as Cycles takes them (Blender 5.0: the
-    colour times the Temperature's blackbody where it is on, the strength times 2^Exposure).
+    colour times the Temperature's blackbody where it is on, the strength times 2^Exposure, and times the emitter's
+    area where Normalize is off: :func:`unnormalized_area`).
 
     * SUN: ``direction`` = the object's world -Z.
     * POINT: ``position`` = the object's world location.
@@ -316,6 +330,8 @@ def describe_light(light_obj, depsgraph=None) -> Light:
         color = tuple(c * float(t) for c, t in zip(color, data.temperature_color))
     # 5.0's Exposure scales the strength by 2^exposure in Cycles (measured: Strength 3 at Exposure 1 renders as 6)
     energy = float(data.energy) * 2.0 ** float(getattr(data, "exposure", 0.0)) if lights_surfaces(light_eval) else 0.0
+    if not getattr(data, "normalize", True):
+        energy *= unnormalized_area(data)
     name = light_obj.name
     if kind == "SUN":
         return Light("SUN", direction=minus_z, color=color, energy=energy, name=name)

@@ -262,7 +262,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         if "light" in todo or light is None:
             lob = pick_light(scene, depsgraph, active, chosen=light_obj)
             light = timed("describe light", describe_light, lob, depsgraph)
-            off = shadow_off(lob, depsgraph)   # its pictures are drawn unshadowed, as F12 draws them (renders.as_rendered)
+            off = shadow_off(lob, depsgraph)   # its pictures are unshadowed, as F12's (renders.as_rendered)
             st.light_name, st.light_pointer = lob.name, lob.as_pointer()
             st.light_notes = (*light_notes(lob, depsgraph), *([off[0].upper() + off[1:]] if off else ()))
         bounds, instances = st.bounds, st.instances
@@ -286,7 +286,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
     refocused = st.settings is None or st.settings.warp.focus != new_settings.warp.focus
     st.view, st.light, st.bounds, st.instances, st.settings = view, light, bounds, instances, new_settings
     if (not inputs_changed and not settings_changed and st.setup is not None and not st.error
-            and (moving or not st.provisional) and st.light_notes == light_notes_before):   # (Shadow off: a new picture)
+            and (moving or not st.provisional) and st.light_notes == light_notes_before):   # Shadow off: new picture
         st.timings, st.recomputed = timings, ()
         return st
     try:
