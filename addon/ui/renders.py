@@ -20,16 +20,18 @@ def render_state(st: LiveState, depsgraph, resolution, setup=None, settings=None
                  read=("combined", "shadow_mask", "shadow_maps")):
     """Render the state's camera view with ``setup`` (default: the state's):
     an ``addon.gpu.result.RenderResult`` holding the images in ``read``, shadowed as F12 shadows the frame
-    (:func:`as_rendered`). Starts the GPU context when needed (background mode); raises WarpError
+    (:func:`as_rendered`), transparent where F12 is (Film Transparent: the scripts drew the world there, 969 of 5184
+    pixels differed). Starts the GPU context when needed (background mode); raises WarpError
     (GPUUnavailableError) with a message for the user."""
     from ..gpu.context import ensure_gpu_context
     from ..gpu.pipeline import render_shadows
     ensure_gpu_context()
     geometry = geometry if geometry is not None else scene_geometry(depsgraph)
     setup, body, links = as_rendered(st, depsgraph, geometry, setup if setup is not None else st.setup)
+    transparent = bool(depsgraph.scene_eval.render.film_transparent)   # as F12: (0, 0, 0, 0) where no surface is
     return render_shadows(st.view, st.light, setup, geometry, settings if settings is not None else st.settings,
                           tuple(int(v) for v in resolution), body=body, read=read, lit=links.lit, blocks=links.blocks,
-                          **lighting(st, depsgraph))
+                          transparent=transparent, **lighting(st, depsgraph))
 
 
 def as_rendered(st: LiveState, depsgraph, geometry, setup) -> tuple:

@@ -541,3 +541,22 @@ def test_particles_as_f12_renders_them_and_is_viewport(how, lixel, tmp_path, loa
         assert ("lixel: warning: object 'tiny ground' has Geometry Nodes that ask Is Viewport: a script evaluates "
                 "them as the 3D view does, F12 and Cycles as renders; render with F12 (the Lixel engine) for the "
                 "render's answer") in got.stderr
+
+
+def test_render_method_keeps_a_transparent_film_as_f12_does(lixel, tmp_path, load_pixels):
+    """Film Transparent (Render properties > Film): the script's picture equals F12's, (0, 0, 0, 0) where no surface
+    is (as Cycles), where it drew the world's colour there, opaque (969 of 5184 pixels differed)."""
+    path = tmp_path / "film.blend"
+    with active_scene("tiny") as scene:
+        r = scene.render
+        r.film_transparent = True
+        r.resolution_x, r.resolution_y, r.resolution_percentage, r.engine = 96, 54, 100, "LIXEL"
+        r.image_settings.file_format, r.filepath = "OPEN_EXR", str(tmp_path / "f12.exr")
+        bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+        assert bpy.ops.render.render(write_still=True, scene=scene.name) == {"FINISHED"}
+    out = tmp_path / "script.exr"
+    got = run("module", "render_method.py", path, "--scene", "tiny", "--output", str(out))
+    assert got.returncode == 0, got.stderr
+    f12 = load_pixels(tmp_path / "f12.exr")
+    assert (f12[..., 3] == 0).mean() > 0.1
+    np.testing.assert_allclose(load_pixels(out), f12, atol=1e-4)
