@@ -269,9 +269,14 @@ class Session:
         the scene camera wherever it lives (an excluded collection, another scene), where the script read the
         matrix the file last stored (never evaluated: the world origin; "the camera sees no shadow receiver"). A
         ``--light`` must be one the scene shows, as the panel's Lixel light must (``describe.pick_light``): Cycles
-        lights nothing with another scene's light, which the script rendered with."""
+        lights nothing with another scene's light, which the script rendered with. A view layer with Surfaces off
+        is refused: the script drew its surfaces where F12 shows the world alone (4066 of 5184 pixels differed)."""
         live = self.module("addon.ui.live")
         camera, light = self.objects(scene)
+        layer = self.bpy.context.view_layer
+        if not getattr(layer, "use_solid", True):   # F12 and Cycles draw no surface: the world alone, no shadow
+            raise ScriptError(f"view layer '{layer.name}' has Surfaces off (View Layer properties > Filter), so as in "
+                              f"Cycles its renders show only the world background: switch Surfaces on")
         if camera is not None:
             self.change(scene, "camera", camera)
         self.show_as_rendered(scene)
