@@ -313,12 +313,36 @@ def test_an_exr_picture_holds_the_scene_linear_values_themselves(lixel, tmp_path
     assert not [s for s in bpy.data.scenes if s.name.startswith("Lixel")]
 
 
+def f12_output(scene, tmp_path) -> None:
+    """Set ``scene`` to render 96x54 with the Lixel engine into ``tmp_path/f12.exr``."""
+    r = scene.render
+    r.resolution_x, r.resolution_y, r.resolution_percentage, r.engine = 96, 54, 100, "LIXEL"
+    r.image_settings.file_format, r.filepath = "OPEN_EXR", str(tmp_path / "f12.exr")
+
+
+def f12(scene, tmp_path, name: str) -> Path:
+    """Save a copy of the file as ``tmp_path/name`` and render ``scene`` with F12 (:func:`f12_output`); the copy's
+    path."""
+    f12_output(scene, tmp_path)
+    path = tmp_path / name
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    assert bpy.ops.render.render(write_still=True, scene=scene.name) == {"FINISHED"}
+    return path
+
+
+def scripts_picture(path, tmp_path, load_pixels, *args, mode="module") -> np.ndarray:
+    """render_method.py's picture of scene "tiny" of ``path`` (with ``args``), run as ``mode`` runs it."""
+    out = tmp_path / f"{mode}.exr"
+    got = run(mode, "render_method.py", path, "--scene", "tiny", "--output", str(out), *args)
+    assert got.returncode == 0, got.stderr
+    return load_pixels(out)
+
+
 @pytest.mark.parametrize("hidden", ["from renders", "in the viewport", "by its eye"])
 def test_render_method_renders_what_f12_renders(hidden, lixel, tmp_path, load_pixels):
     """A cube hidden from renders (Restrict Render) or hidden in the viewport (its monitor or its eye): the script's
     picture equals F12's (Lixel engine), where it drew what the 3D view shows (the cube hidden from renders and its
     shadow there, the one hidden in the viewport gone)."""
-    path = tmp_path / "hidden.blend"
     with active_scene("tiny") as scene:
         cube = scene.objects["tiny cube"]
         if hidden == "from renders":
@@ -327,16 +351,10 @@ def test_render_method_renders_what_f12_renders(hidden, lixel, tmp_path, load_pi
             cube.hide_viewport = True
         else:
             cube.hide_set(True)
-        r = scene.render
-        r.resolution_x, r.resolution_y, r.resolution_percentage, r.engine = 96, 54, 100, "LIXEL"
-        r.image_settings.file_format, r.filepath = "OPEN_EXR", str(tmp_path / "f12.exr")
-        bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
-        assert bpy.ops.render.render(write_still=True, scene=scene.name) == {"FINISHED"}
+        path = f12(scene, tmp_path, "hidden.blend")
     for mode in MODES:
-        out = tmp_path / f"{mode}.exr"
-        got = run(mode, "render_method.py", path, "--scene", "tiny", "--output", str(out))
-        assert got.returncode == 0, got.stderr
-        np.testing.assert_allclose(load_pixels(out), load_pixels(tmp_path / "f12.exr"), atol=1e-4)
+        np.testing.assert_allclose(scripts_picture(path, tmp_path, load_pixels, mode=mode),
+                                   load_pixels(tmp_path / "f12.exr"), atol=1e-4)
 
 
 def assert_nearly_f12(got: np.ndarray, f12: np.ndarray) -> None:
@@ -352,9 +370,7 @@ def test_render_method_evaluates_modifiers_as_f12_does(lixel, tmp_path, load_pix
     only in renders and one shown only in the viewport, under Simplify's viewport limit of 0 (render: 6). The
     script's picture equals F12's (Lixel engine; Cycles too evaluates the render settings), where it drew the
     viewport's: the sharp cube, repeated along Y, not the rounded one repeated along X (7.8% of the pixels
-    differed). A few shadow-edge pixels differ when the viewport's settings already equal the render's (3 of 5184
-    with the two Arrays shown in both, 5.0.1): the test allows 0.1%."""
-    path = tmp_path / "modifiers.blend"
+    differed)."""
     with active_scene("tiny") as scene:
         cube = scene.objects["tiny cube"]
         subsurf = cube.modifiers.new("render subsurf", "SUBSURF")
@@ -365,15 +381,9 @@ def test_render_method_evaluates_modifiers_as_f12_does(lixel, tmp_path, load_pix
             array.show_viewport, array.show_render = viewport, not viewport
         r = scene.render
         r.use_simplify, r.simplify_subdivision, r.simplify_subdivision_render = True, 0, 6
-        r.resolution_x, r.resolution_y, r.resolution_percentage, r.engine = 96, 54, 100, "LIXEL"
-        r.image_settings.file_format, r.filepath = "OPEN_EXR", str(tmp_path / "f12.exr")
-        bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
-        assert bpy.ops.render.render(write_still=True, scene=scene.name) == {"FINISHED"}
+        path = f12(scene, tmp_path, "modifiers.blend")
     for mode in MODES:
-        out = tmp_path / f"{mode}.exr"
-        got = run(mode, "render_method.py", path, "--scene", "tiny", "--output", str(out))
-        assert got.returncode == 0, got.stderr
-        assert_nearly_f12(load_pixels(out), load_pixels(tmp_path / "f12.exr"))
+        assert_nearly_f12(scripts_picture(path, tmp_path, load_pixels, mode=mode), load_pixels(tmp_path / "f12.exr"))
 
 
 @pytest.mark.parametrize("light", ["Shadow off", "Shadow Linking", "Light Linking"])
@@ -381,7 +391,6 @@ def test_render_method_shadows_the_light_as_f12_does(light, lixel, tmp_path, loa
     """A sun with Shadow off (Light properties), or whose Shadow Linking or Light Linking leaves the cube out: the
     script's picture equals F12's (Lixel engine, as Cycles: no shadow, no cube's shadow, the cube unlit), where it
     drew the cube's shadow and lit it (29, 29 and 198 of 5184 pixels differed); Shadow off is said."""
-    path = tmp_path / "light.blend"
     with active_scene("tiny") as scene:
         sun, cube = scene.objects["tiny light"], scene.objects["tiny cube"]
         if light == "Shadow off":
@@ -392,11 +401,7 @@ def test_render_method_shadows_the_light_as_f12_does(light, lixel, tmp_path, loa
             coll.collection_objects[0].light_linking.link_state = "EXCLUDE"
             attr = "blocker_collection" if light == "Shadow Linking" else "receiver_collection"
             setattr(sun.light_linking, attr, coll)
-        r = scene.render
-        r.resolution_x, r.resolution_y, r.resolution_percentage, r.engine = 96, 54, 100, "LIXEL"
-        r.image_settings.file_format, r.filepath = "OPEN_EXR", str(tmp_path / "f12.exr")
-        bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
-        assert bpy.ops.render.render(write_still=True, scene=scene.name) == {"FINISHED"}
+        path = f12(scene, tmp_path, "light.blend")
         if light != "Shadow off":
             bpy.data.collections.remove(coll)
     out = tmp_path / "script.exr"
@@ -412,19 +417,13 @@ def test_render_method_keeps_the_render_region_as_f12_does(crop, lixel, tmp_path
     """A Render Region (Output properties > Format) over the middle half, with and without Crop to Render Region:
     the script's picture equals F12's (as Cycles: the whole frame, transparent black outside the region; the region
     alone with Crop), where it drew the whole frame (2592 of 5184 pixels differed; 96x54 against F12's 48x54)."""
-    path = tmp_path / "region.blend"
     with active_scene("tiny") as scene:
         r = scene.render
         r.use_border, r.use_crop_to_border = True, crop
         r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.25, 0.75, 0.1, 0.8
-        r.resolution_x, r.resolution_y, r.resolution_percentage, r.engine = 96, 54, 100, "LIXEL"
-        r.image_settings.file_format, r.filepath = "OPEN_EXR", str(tmp_path / "f12.exr")
-        bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
-        assert bpy.ops.render.render(write_still=True, scene=scene.name) == {"FINISHED"}
-    out = tmp_path / "script.exr"
-    got = run("module", "render_method.py", path, "--scene", "tiny", "--output", str(out))
-    assert got.returncode == 0, got.stderr
-    np.testing.assert_allclose(load_pixels(out), load_pixels(tmp_path / "f12.exr"), atol=1e-4)
+        path = f12(scene, tmp_path, "region.blend")
+    np.testing.assert_allclose(scripts_picture(path, tmp_path, load_pixels), load_pixels(tmp_path / "f12.exr"),
+                               atol=1e-4)
 
 
 def test_a_camera_or_light_of_another_scene(lixel, tmp_path, load_pixels):
@@ -433,7 +432,6 @@ def test_a_camera_or_light_of_another_scene(lixel, tmp_path, load_pixels):
     it read the matrix the file stored, never evaluated (the world origin: "the camera sees no shadow receiver").
     ``--light`` naming another scene's light: refused by name, as the panel's Lixel light is (Cycles lights nothing
     with it), where the script rendered the scene lit by it."""
-    path = tmp_path / "other.blend"
     with active_scene("tiny") as scene:
         other = bpy.data.scenes.new("tiny other")
         side = bpy.data.objects.new("side camera", scene.camera.data)
@@ -441,21 +439,18 @@ def test_a_camera_or_light_of_another_scene(lixel, tmp_path, load_pixels):
         spot = bpy.data.objects.new("other light", bpy.data.lights.new("other light", "SPOT"))
         for ob in (side, spot):
             other.collection.objects.link(ob)
-        r = scene.render
-        r.resolution_x, r.resolution_y, r.resolution_percentage, r.engine = 96, 54, 100, "LIXEL"
-        r.image_settings.file_format, r.filepath = "OPEN_EXR", str(tmp_path / "f12.exr")
+        f12_output(scene, tmp_path)
         try:
-            bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
-            scene.camera = side
+            bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "other.blend"), copy=True)
+            scene.camera = side       # for F12 alone: the file keeps its own camera
             assert bpy.ops.render.render(write_still=True, scene=scene.name) == {"FINISHED"}
         finally:
             bpy.data.scenes.remove(other)
             for ob in (side, spot):
                 bpy.data.objects.remove(ob)
-    out = tmp_path / "side.exr"
-    got = run("module", "render_method.py", path, "--scene", "tiny", "--camera", "side camera", "--output", str(out))
-    assert got.returncode == 0, got.stderr
-    assert_nearly_f12(load_pixels(out), load_pixels(tmp_path / "f12.exr"))
+    path = tmp_path / "other.blend"
+    assert_nearly_f12(scripts_picture(path, tmp_path, load_pixels, "--camera", "side camera"),
+                      load_pixels(tmp_path / "f12.exr"))
     got = run("module", "render_method.py", path, "--scene", "tiny", "--light", "other light", "--output",
               str(tmp_path / "lit.exr"))
     assert got.returncode == 1 and "Traceback" not in got.stderr
@@ -512,7 +507,6 @@ def test_particles_as_f12_renders_them_and_is_viewport(how, lixel, tmp_path, loa
     script's picture equals F12's, where it left the 30 instanced cubes out (127 of 5184 pixels differed) or drew
     the ground F12 leaves out (3684). Geometry Nodes asking Is Viewport cannot be evaluated as renders by a script:
     said by name."""
-    path = tmp_path / "particles.blend"
     with active_scene("tiny") as scene:
         cube, ground = scene.objects["tiny cube"], scene.objects["tiny ground"]
         system = ground.modifiers.new("lixel_test particles", "PARTICLE_SYSTEM").particle_system.settings
@@ -522,11 +516,7 @@ def test_particles_as_f12_renders_them_and_is_viewport(how, lixel, tmp_path, loa
             system.display_method = "DOT"
         else:
             ground.show_instancer_for_render = False
-        r = scene.render
-        r.resolution_x, r.resolution_y, r.resolution_percentage, r.engine = 96, 54, 100, "LIXEL"
-        r.image_settings.file_format, r.filepath = "OPEN_EXR", str(tmp_path / "f12.exr")
-        bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
-        assert bpy.ops.render.render(write_still=True, scene=scene.name) == {"FINISHED"}
+        path = f12(scene, tmp_path, "particles.blend")
         ground.modifiers.new("lixel_test nodes", "NODES").node_group = tree = _is_viewport_group()
         bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "nodes.blend"), copy=True)
         bpy.data.particles.remove(system)
@@ -546,20 +536,12 @@ def test_particles_as_f12_renders_them_and_is_viewport(how, lixel, tmp_path, loa
 def test_render_method_keeps_a_transparent_film_as_f12_does(lixel, tmp_path, load_pixels):
     """Film Transparent (Render properties > Film): the script's picture equals F12's, (0, 0, 0, 0) where no surface
     is (as Cycles), where it drew the world's colour there, opaque (969 of 5184 pixels differed)."""
-    path = tmp_path / "film.blend"
     with active_scene("tiny") as scene:
-        r = scene.render
-        r.film_transparent = True
-        r.resolution_x, r.resolution_y, r.resolution_percentage, r.engine = 96, 54, 100, "LIXEL"
-        r.image_settings.file_format, r.filepath = "OPEN_EXR", str(tmp_path / "f12.exr")
-        bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
-        assert bpy.ops.render.render(write_still=True, scene=scene.name) == {"FINISHED"}
-    out = tmp_path / "script.exr"
-    got = run("module", "render_method.py", path, "--scene", "tiny", "--output", str(out))
-    assert got.returncode == 0, got.stderr
-    f12 = load_pixels(tmp_path / "f12.exr")
-    assert (f12[..., 3] == 0).mean() > 0.1
-    np.testing.assert_allclose(load_pixels(out), f12, atol=1e-4)
+        scene.render.film_transparent = True
+        path = f12(scene, tmp_path, "film.blend")
+    rendered = load_pixels(tmp_path / "f12.exr")
+    assert (rendered[..., 3] == 0).mean() > 0.1
+    np.testing.assert_allclose(scripts_picture(path, tmp_path, load_pixels), rendered, atol=1e-4)
 
 
 def test_a_view_layer_with_surfaces_off_is_refused_by_name(lixel, tmp_path):
