@@ -80,7 +80,7 @@ def main(argv=None):
         if args.output or args.shadow_output or args.map_output:
             res = renders.render_state(st, s.bpy.context.evaluated_depsgraph_get(), st.view.resolution)
             if args.output:
-                renders.save_image(renders.within_border(scene.render, res.combined), args.output)
+                renders.save_image(renders.within_border(scene.render, res.combined), args.output, view_of=scene)
             if args.shadow_output:
                 import numpy as np
                 m = np.asarray(res.shadow_mask, dtype=np.float32)
