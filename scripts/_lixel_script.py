@@ -135,6 +135,7 @@ class Session:
         self.package = None
         self.registered = False
         self.shown: list = []     # (setter, value before) of what show_as_rendered changed, undone on exit
+        self.warned = False       # Is Viewport said (once a session)
 
     def __enter__(self):
         import bpy
@@ -224,18 +225,14 @@ class Session:
         hold: every object and collection visible in the viewport exactly where it renders (Restrict Render,
         ``hide_render``; an object hidden in the viewport, by its eye or its monitor, still renders). Without this
         ``render_method.py`` drew a cube hidden from renders, which F12 leaves out, and left out one hidden in the
-        viewport, which F12 draws. Undone when the session ends: nothing of the file changes. (Modifiers' render
-        levels and other render-only evaluation are not followed: the viewport's are used.)"""
-        if self.shown:
-            return
+        viewport, which F12 draws. Modifiers, curves, metaballs, particles and Simplify evaluate with their render
+        settings too (:func:`render_evaluation`). Undone when the session ends: nothing of the file changes.
+        Made again on each call (each frame of ``export_animation.py``): a render visibility animated over the frames
+        is the frame's, where the first frame's held for all (frame 3's matrices were those of a scene still showing
+        an object keyframed out of renders there)."""
         bpy = self.bpy
         view_layer = self.bpy.context.view_layer
-
-        def change(owner, attr, value):
-            old = getattr(owner, attr)
-            if old != value:
-                setattr(owner, attr, value)
-                self.shown.append((lambda v, o=owner, a=attr: setattr(o, a, v), old))
+        change = self.change
 
         def layers(lc):
             yield lc
@@ -253,21 +250,92 @@ class Session:
                 if ob.hide_get(view_layer=view_layer):
                     ob.hide_set(False, view_layer=view_layer)
                     self.shown.append((lambda v, o=ob: o.hide_set(v, view_layer=view_layer), True))
+        for owner, attr, value in render_evaluation(bpy, scene):
+            with contextlib.suppress(AttributeError, TypeError):   # linked (read-only) data keeps its viewport value
+                change(owner, attr, value)
+
+    def change(self, owner, attr, value) -> None:
+        """Set ``owner.attr`` to ``value`` for the session (undone when it ends)."""
+        old = getattr(owner, attr)
+        if old != value:
+            setattr(owner, attr, value)
+            self.shown.append((lambda v, o=owner, a=attr: setattr(o, a, v), old))
 
     def state(self, scene, settings):
         """The live state for the scene (camera/light from the arguments), as a copy of its own: Lixel's live
         update (``depsgraph_update_post``, which a render's GPU start sets off, and ``frame_change_post``)
         recomputes the scene's stored state with the scene's own settings, camera and light. ScriptError on
-        failure."""
+        failure. A ``--camera`` is the scene's camera for the session, as F12 renders through it: Blender evaluates
+        the scene camera wherever it lives (an excluded collection, another scene), where the script read the
+        matrix the file last stored (never evaluated: the world origin; "the camera sees no shadow receiver"). A
+        ``--light`` must be one the scene shows, as the panel's Lixel light must (``describe.pick_light``): Cycles
+        lights nothing with another scene's light, which the script rendered with. A view layer with Surfaces off
+        is refused: the script drew its surfaces where F12 shows the world alone (4066 of 5184 pixels differed)."""
         live = self.module("addon.ui.live")
         camera, light = self.objects(scene)
+        layer = self.bpy.context.view_layer
+        if not getattr(layer, "use_solid", True):   # F12 and Cycles draw no surface: the world alone, no shadow
+            raise ScriptError(f"view layer '{layer.name}' has Surfaces off (View Layer properties > Filter), so as in "
+                              f"Cycles its renders show only the world background: switch Surfaces on")
+        if camera is not None:
+            self.change(scene, "camera", camera)
         self.show_as_rendered(scene)
+        if not self.warned and (names := [n for n in asks_is_viewport(self.bpy) if n in scene.objects]):
+            self.warned = True
+            print(f"lixel: warning: object '{names[0]}'{f' and {len(names) - 1} more' if len(names) > 1 else ''} "
+                  f"{'has' if len(names) == 1 else 'have'} Geometry Nodes that ask Is Viewport: a script evaluates "
+                  f"them as the 3D view does, F12 and Cycles as renders; render with F12 (the Lixel engine) for the "
+                  f"render's answer", file=sys.stderr)
         depsgraph = self.bpy.context.evaluated_depsgraph_get()
         st = live.update(scene, depsgraph, settings=settings, camera=camera, light_obj=light, changed=None,
                          active=self.bpy.context.view_layer.objects.active)
         if st.error:
             raise ScriptError(st.error)
         return copy.copy(st)
+
+
+def render_evaluation(bpy, scene):
+    """(owner, viewport attribute, render value) for each viewport setting that evaluates otherwise in a render:
+    an instancer shown (Object properties > Instancing > Show Instancer: a particle emitter, a mesh instancing on
+    its faces), a modifier's eye (Realtime) against its camera (Render), Subdivision Surface and Multiresolution
+    levels, Simplify's subdivision and child particle limits, curves' and metaballs' resolution, particles' display
+    amount, children and display (a system instancing objects shows none in the viewport as Dot or None).
+    F12 and Cycles evaluate the render values: without these a Subdivision Surface of Levels Viewport 0 and Render 2
+    cast a sharp cube's shadow in ``render_method.py`` and a round one in F12 (7.8% of a 96x54 picture differed), and
+    an emitter hidden from renders drew its ground (71%). Geometry Nodes' Is Viewport cannot be changed so and still
+    answers True (:func:`asks_is_viewport`)."""
+    render = scene.render
+    yield render, "simplify_subdivision", render.simplify_subdivision_render
+    yield render, "simplify_child_particles", render.simplify_child_particles_render
+    for ob in bpy.data.objects:
+        yield ob, "show_instancer_for_viewport", ob.show_instancer_for_render   # an instancer's own surface
+        for md in ob.modifiers:
+            yield md, "show_viewport", md.show_render
+            if md.type in ("SUBSURF", "MULTIRES"):
+                yield md, "levels", md.render_levels
+    for curve in bpy.data.curves:
+        for axis in ("u", "v"):
+            if getattr(curve, f"render_resolution_{axis}"):   # 0: the viewport's resolution
+                yield curve, f"resolution_{axis}", getattr(curve, f"render_resolution_{axis}")
+    for mball in bpy.data.metaballs:
+        yield mball, "resolution", mball.render_resolution
+    for part in bpy.data.particles:
+        yield part, "display_percentage", 100
+        yield part, "child_percent", part.rendered_child_count
+        yield part, "display_method", "RENDER"   # Dot/None in the viewport: no instanced objects there
+
+
+def asks_is_viewport(bpy) -> list:
+    """Names of the objects whose Geometry Nodes (a modifier shown in renders) hold an Is Viewport node, in their
+    group or a group inside it: a script evaluates them as the 3D view does (True), F12 and Cycles as renders."""
+    def asks(tree, seen):
+        if tree is None or tree in seen:
+            return False
+        seen.add(tree)
+        return any(node.bl_idname == "GeometryNodeIsViewport" or asks(getattr(node, "node_tree", None), seen)
+                   for node in tree.nodes)
+    return sorted(ob.name for ob in bpy.data.objects
+                  if any(md.type == "NODES" and md.show_render and asks(md.node_group, set()) for md in ob.modifiers))
 
 
 def _import_checkout():

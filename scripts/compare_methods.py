@@ -62,7 +62,7 @@ def main(argv=None):
                     continue
                 out = renders.render_state(st, depsgraph, res, setup=row["setup"], geometry=geometry, read={"combined"})
                 path = os.path.join(args.output_dir, f"{row['method']}.png")
-                renders.save_image(out.combined, path)
+                renders.save_image(out.combined, path, view_of=scene)
                 images.append(out.combined)
                 render_ms = sum(out.timings.values()) * 1000
                 labels.append(renders.method_label(row, render_ms))
@@ -70,7 +70,7 @@ def main(argv=None):
                 doc["methods"][row["method"]]["render_ms"] = render_ms
             if images:
                 renders.save_image(renders.mosaic(images, columns=min(3, len(images)), labels=labels),
-                                 os.path.join(args.output_dir, "comparison.png"))
+                                   os.path.join(args.output_dir, "comparison.png"), view_of=scene)
         with open(os.path.join(args.output_dir, "comparison.json"), "w", encoding="utf-8") as fh:
             json.dump(doc, fh, indent=2)
         return 0

@@ -5,7 +5,7 @@
 
 Writes the shaded picture, optionally the shadow mask and the first shadow map, each in the format its file
 name's ending names (PNG, OpenEXR, JPEG or TIFF; PNG without one), and the setup (matrices + diagnostics, the
-CLI's JSON).
+CLI's JSON). The picture and the mask keep the scene's Render Region as F12 does (cut to it with Crop).
 """
 import json
 import os
@@ -80,11 +80,12 @@ def main(argv=None):
         if args.output or args.shadow_output or args.map_output:
             res = renders.render_state(st, s.bpy.context.evaluated_depsgraph_get(), st.view.resolution)
             if args.output:
-                renders.save_image(res.combined, args.output)
+                renders.save_image(renders.within_border(scene.render, res.combined), args.output, view_of=scene)
             if args.shadow_output:
                 import numpy as np
                 m = np.asarray(res.shadow_mask, dtype=np.float32)
-                renders.save_image(np.dstack([m, m, m, np.ones_like(m)]), args.shadow_output)
+                renders.save_image(renders.within_border(scene.render, np.dstack([m, m, m, np.ones_like(m)])),
+                                   args.shadow_output)
             if args.map_output and res.shadow_maps:
                 renders.save_image(renders.depth_to_rgba(res.shadow_maps[0]), args.map_output)
             t = res.timings

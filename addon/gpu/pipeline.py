@@ -799,7 +799,8 @@ def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, setti
                    resolution: Optional[tuple[int, int]] = None, *, body=None,
                    scene: Optional[GPUScene] = None, targets: Optional[TargetPool] = None,
                    ambient=DEFAULT_AMBIENT, albedo: float = DEFAULT_ALBEDO,
-                   spot_blend: float = 0.0, read=ANALYSIS, background=None) -> RenderResult:
+                   spot_blend: float = 0.0, read=ANALYSIS, background=None, lit=None, blocks=None,
+                   transparent: bool = False) -> RenderResult:
     """Render ``geometry`` from ``view`` with the shadow maps of ``setup``: a
     whole :class:`ShadowFrame` in one call.
 
@@ -818,7 +819,8 @@ def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, setti
     light's Blender ``spot_blend`` (softness of the cone edge, 0 = hard).
     ``read``: the :class:`RenderResult` images to read back (default
     ``result.ANALYSIS``; ``result.EVERYTHING`` adds the world position, the
-    maps and the map preview).
+    maps and the map preview). ``lit``/``blocks``: the light's Light and Shadow Linking (see :class:`ShadowFrame`).
+    ``transparent``: Film Transparent (see :meth:`ShadowFrame.shade`).
     """
     shadow = _shadow_settings(settings)
     read = check_read(read)
@@ -826,7 +828,7 @@ def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, setti
         raise WarpError("the shadow setup has no maps")
     if len(setup.maps) > shaders.MAX_MAPS:
         raise WarpError(f"the shadow setup has {len(setup.maps)} maps; Lixel's shader takes at most {shaders.MAX_MAPS}")
-    frame = ShadowFrame(geometry, view, resolution, read=read, scene=scene, targets=targets)
+    frame = ShadowFrame(geometry, view, resolution, read=read, scene=scene, targets=targets, lit=lit, blocks=blocks)
     if body is None:
         try:
             body = intersection_body(view, light, geometry.instances.bounds)
@@ -835,5 +837,5 @@ def render_shadows(view: View, light: Light, setup: ShadowSetup, geometry, setti
             body = None
     frame.camera_prepass()
     frame.draw_maps(setup, shadow, body)
-    frame.shade(light, setup, shadow, albedo, spot_blend, ambient, background=background)
+    frame.shade(light, setup, shadow, albedo, spot_blend, ambient, background=background, transparent=transparent)
     return frame.finish()

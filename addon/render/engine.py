@@ -202,7 +202,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     from ..gpu.batches import shared_batches
     from ..gpu.pipeline import ShadowFrame
     from ..scene.describe import (NO_FACES, NoLightError, check_finite_geometry, describe_scene, evaluated, eye_view,
-                                  light_notes, pick_light, render_camera)
+                                  light_notes, pick_light, render_camera, shadow_off)
     from ..scene.geometry import shared_cache
     from ..scene.linking import light_links
     from ..scene.notes import scene_notes
@@ -236,7 +236,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     world = world_light(depsgraph.scene_eval.world)
     seen = world_shading(depsgraph.scene_eval.world, world, depsgraph.view_layer)   # as Cycles sees it
     if warnings is not None:   # the sidebar shows the same notes (addon.ui.live)
-        warnings += [f"Lixel: {note}" for note in scene_notes(scene, depsgraph, light_obj, camera.name, view, bounds,
+        warnings += [f"Lixel: {note}" for note in scene_notes(scene, depsgraph, light_obj, camera, view, bounds,
                                                              geometry.instances, world)]
     timings["describe"] = time.perf_counter() - t
     links = light_links(light_obj, geometry.instances)   # Light/Shadow Linking: what it lights, what blocks it
@@ -264,9 +264,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
             raise EmptyBodyError(f"scene '{scene.name}' {NO_FACES}, so the frame shows only the world background")
         if unlit is not None:
             raise EmptyBodyError(f"{unlit}; the frame is lit by the world alone")
-        if not getattr(evaluated(light_obj, depsgraph).data, "use_shadow", True):
-            raise EmptyBodyError(f"light '{light.name}' casts no shadows, as in Blender's engines: its Shadow is off "
-                                 f"(Light properties > Shadow)")
+        if shadow_off(light_obj, depsgraph):   # as Blender's engines: lit, unshadowed
+            raise EmptyBodyError(shadow_off(light_obj, depsgraph))
         # The pre-pass, hence the visible region, is a function of the geometry and the view.
         body, setup = shared_warps().get((geometry, bounds), (method, view, light, settings.warp, frame.size), warp)
     except EmptyBodyError as exc:

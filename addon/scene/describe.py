@@ -159,6 +159,16 @@ def motion_blur_note(scene) -> Optional[str]:
             f"Motion Blur off in Render properties with Cycles or EEVEE, or render there for blur)")
 
 
+def depth_of_field_note(camera) -> Optional[str]:
+    """A warning where ``camera`` (an object) has Depth of Field on (Camera properties > Depth of Field, which Cycles
+    and EEVEE blur out of focus by its F-Stop): Lixel renders every distance in focus."""
+    dof = getattr(getattr(camera, "data", None), "dof", None)
+    if dof is None or not dof.use_dof:
+        return None
+    return (f"Camera '{camera.name}' has Depth of Field on: Lixel renders every distance in focus, unblurred (switch "
+            f"it off in Camera properties > Depth of Field, or render with Cycles or EEVEE for the blur)")
+
+
 UNDRAWN_TYPES = {"CURVES": "hair curves", "POINTCLOUD": "a point cloud", "VOLUME": "a volume"}
 """Object types Cycles renders (strands, points, a volume that shadows) and Lixel does not draw."""
 
@@ -261,8 +271,23 @@ def depth_rows(near: float, far: float, orthographic: bool) -> np.ndarray:
     return np.array([[0.0, 0.0, -(far + near) / d, -2.0 * far * near / d], [0.0, 0.0, -1.0, 0.0]])
 
 
+def unnormalized_area(data) -> float:
+    """What Cycles multiplies a light's strength by where its Normalize is off (Blender 5.0; measured in 5.0.1
+    against Normalize on, to 1e-6): the emitter's area. An area light's square or rectangle (size x size_y) or disk
+    or ellipse (pi/4 of that), a point or spot light's sphere 4 pi r^2 (r: its Radius), a sun's pi sin^2(angle / 2)."""
+    if data.type == "SUN":
+        return math.pi * math.sin(float(data.angle) / 2.0) ** 2
+    if data.type in ("POINT", "SPOT"):
+        return 4.0 * math.pi * float(data.shadow_soft_size) ** 2
+    x = float(data.size)
+    y = x if data.shape in ("SQUARE", "DISK") else float(data.size_y)
+    return x * y * (math.pi / 4.0 if data.shape in ("DISK", "ELLIPSE") else 1.0)
+
+
 def describe_light(light_obj, depsgraph=None) -> Light:
-    """A Blender light object as a :class:`Light`, with its colour and energy.
+    """A Blender light object as a :class:`Light`, with its colour and energy as Cycles takes them (Blender 5.0: the
+    colour times the Temperature's blackbody where it is on, the strength times 2^Exposure, and times the emitter's
+    area where Normalize is off: :func:`unnormalized_area`).
 
     * SUN: ``direction`` = the object's world -Z.
     * POINT: ``position`` = the object's world location.
@@ -301,7 +326,12 @@ def describe_light(light_obj, depsgraph=None) -> Light:
                         f"nowhere: set its scale to 1 (Object properties > Transform > Scale)")
     minus_z = minus_z / z_length if z_length > 0 else minus_z
     color = tuple(float(c) for c in data.color)
-    energy = float(data.energy) if lights_surfaces(light_eval) else 0.0
+    if getattr(data, "use_temperature", False):   # 5.0: Cycles multiplies the colour by the Temperature's blackbody
+        color = tuple(c * float(t) for c, t in zip(color, data.temperature_color))
+    # 5.0's Exposure scales the strength by 2^exposure in Cycles (measured: Strength 3 at Exposure 1 renders as 6)
+    energy = float(data.energy) * 2.0 ** float(getattr(data, "exposure", 0.0)) if lights_surfaces(light_eval) else 0.0
+    if not getattr(data, "normalize", True):
+        energy *= unnormalized_area(data)
     name = light_obj.name
     if kind == "SUN":
         return Light("SUN", direction=minus_z, color=color, energy=energy, name=name)
@@ -434,6 +464,16 @@ def light_notes(light_obj, depsgraph=None) -> list[str]:
     return notes
 
 
+def shadow_off(light_obj, depsgraph=None) -> Optional[str]:
+    """Why ``light_obj`` casts no shadow where its Shadow is off (Light properties > Shadow: Cycles and EEVEE light
+    with it, unshadowed), as ``depsgraph`` evaluates it (:func:`evaluated`); None where it casts them."""
+    data = getattr(evaluated(light_obj, depsgraph), "data", None) if light_obj is not None else None
+    if getattr(data, "use_shadow", True):
+        return None
+    return (f"light '{light_obj.name}' casts no shadows, as in Blender's engines: its Shadow is off (Light properties "
+            f"> Shadow)")
+
+
 def other_lights_note(light_obj, depsgraph, scene_name: str) -> Optional[str]:
     """A warning naming the lights of the frame besides ``light_obj`` that would light it in Cycles and EEVEE (shown
     in ``depsgraph``, a strength other than 0, Diffuse on): Lixel renders one light, so they light nothing here.
@@ -496,8 +536,8 @@ class NoLightError(WarpError):
     frame by the world alone, and so does the LIXEL engine (``describe_scene(need_light=False)``)."""
 
 
-def pick_light(scene, depsgraph=None, active=None):
-    """The light Lixel shadows: the scene's Lixel light (``scene.lixel.light``)
+def pick_light(scene, depsgraph=None, active=None, chosen=None):
+    """The light Lixel shadows: ``chosen`` (a script's ``--light``) or the scene's Lixel light (``scene.lixel.light``)
     if set, else the active object if it is a light, else the first sun, else
     the first light of a supported type (lights by name, for determinism). Only
     a light the scene shows in ``depsgraph`` (render or viewport) counts: a Lixel
@@ -505,7 +545,7 @@ def pick_light(scene, depsgraph=None, active=None):
     refused by name. Lights shown only as instances (a linked lighting rig) count when the scene's own lights
     do not answer. No light shown, or the Lixel light hidden: :class:`NoLightError`."""
     lights = _scene_lights(scene, depsgraph)
-    chosen = _lixel_light_property(scene)
+    chosen = chosen if chosen is not None else _lixel_light_property(scene)
     if depsgraph is not None and (chosen not in lights if chosen is not None else
                                   not any(ob.data.type in LIGHT_TYPES for ob in lights)):
         lights += _instanced_lights(depsgraph)      # walked only when the scene's own lights do not answer
@@ -513,7 +553,7 @@ def pick_light(scene, depsgraph=None, active=None):
         if chosen not in lights:
             raise NoLightError(f"The Lixel light '{chosen.name}' is not among the lights scene '{scene.name}' shows "
                                f"(hidden, in an excluded collection or in another scene), so Blender lights nothing "
-                               f"with it: show it, or choose another light (Lixel panel > Light)")
+                               f"with it: show it, or choose another light (Lixel panel > Light; a script's --light)")
         return chosen
     if active is not None and active.type == "LIGHT" and active in lights:
         return active

@@ -34,7 +34,7 @@ import numpy as np
 from ..gpu.blas import one_blas_thread
 from ..guard import guarded_callback, user_message
 from ..scene.describe import (NO_FACES, check_finite_geometry, describe_bounds, describe_light, describe_view,
-                              light_notes, pick_light, render_camera)
+                              light_notes, pick_light, render_camera, shadow_off)
 from ..scene.geometry import shared_cache
 from ..scene.notes import scene_notes
 from ..scene.owned import is_debug_object
@@ -242,6 +242,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         depsgraph = scene.view_layers[0].depsgraph
     timings: dict[str, float] = {}
     recomputed = []
+    light_notes_before = st.light_notes
 
     def timed(name, fn, *args, **kw):
         t0 = time.perf_counter()
@@ -259,9 +260,11 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         light = st.light
         lob = None
         if "light" in todo or light is None:
-            lob = light_obj if light_obj is not None else pick_light(scene, depsgraph, active)
+            lob = pick_light(scene, depsgraph, active, chosen=light_obj)
             light = timed("describe light", describe_light, lob, depsgraph)
-            st.light_name, st.light_notes, st.light_pointer = lob.name, light_notes(lob, depsgraph), lob.as_pointer()
+            off = shadow_off(lob, depsgraph)   # its pictures are unshadowed, as F12's (renders.as_rendered)
+            st.light_name, st.light_pointer = lob.name, lob.as_pointer()
+            st.light_notes = (*light_notes(lob, depsgraph), *([off[0].upper() + off[1:]] if off else ()))
         bounds, instances = st.bounds, st.instances
         if "bounds" in todo or bounds is None:
             bounds, instances = timed("describe bounds", scene_bounds, depsgraph)
@@ -273,8 +276,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
                 if lob is None or lob.type != "LIGHT":
                     lob = pick_light(scene, depsgraph, active)
             cam = camera if camera is not None else followed_camera(scene)
-            st.notes = tuple(timed("notes", scene_notes, scene, depsgraph, lob, getattr(cam, "name", ""), view,
-                                   bounds, instances))
+            st.notes = tuple(timed("notes", scene_notes, scene, depsgraph, lob, cam, view, bounds, instances))
     except Exception as exc:  # noqa: BLE001 - every caller gets the message in state.error
         st.notes = ()
         return _fail(st, user_message(exc, f"describing scene '{scene.name}'"), timings)
@@ -284,7 +286,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
     refocused = st.settings is None or st.settings.warp.focus != new_settings.warp.focus
     st.view, st.light, st.bounds, st.instances, st.settings = view, light, bounds, instances, new_settings
     if (not inputs_changed and not settings_changed and st.setup is not None and not st.error
-            and (moving or not st.provisional)):
+            and (moving or not st.provisional) and st.light_notes == light_notes_before):   # Shadow off: new picture
         st.timings, st.recomputed = timings, ()
         return st
     try:

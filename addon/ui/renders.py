@@ -19,16 +19,37 @@ from .live import LiveState, scene_geometry
 def render_state(st: LiveState, depsgraph, resolution, setup=None, settings=None, geometry=None,
                  read=("combined", "shadow_mask", "shadow_maps")):
     """Render the state's camera view with ``setup`` (default: the state's):
-    an ``addon.gpu.result.RenderResult`` holding the images in ``read``.
-    Starts the GPU context when needed (background mode); raises WarpError
+    an ``addon.gpu.result.RenderResult`` holding the images in ``read``, shadowed as F12 shadows the frame
+    (:func:`as_rendered`), transparent where F12 is (Film Transparent: the scripts drew the world there, 969 of 5184
+    pixels differed). Starts the GPU context when needed (background mode); raises WarpError
     (GPUUnavailableError) with a message for the user."""
     from ..gpu.context import ensure_gpu_context
     from ..gpu.pipeline import render_shadows
     ensure_gpu_context()
     geometry = geometry if geometry is not None else scene_geometry(depsgraph)
-    return render_shadows(st.view, st.light, setup if setup is not None else st.setup, geometry,
-                          settings if settings is not None else st.settings, tuple(int(v) for v in resolution),
-                          body=st.body, read=read, **lighting(st, depsgraph))
+    setup, body, links = as_rendered(st, depsgraph, geometry, setup if setup is not None else st.setup)
+    transparent = bool(depsgraph.scene_eval.render.film_transparent)   # as F12: (0, 0, 0, 0) where no surface is
+    return render_shadows(st.view, st.light, setup, geometry, settings if settings is not None else st.settings,
+                          tuple(int(v) for v in resolution), body=body, read=read, lit=links.lit, blocks=links.blocks,
+                          transparent=transparent, **lighting(st, depsgraph))
+
+
+def as_rendered(st: LiveState, depsgraph, geometry, setup) -> tuple:
+    """(setup, body, LightLinks) that draw the state's frame as F12 does (``addon.render.engine``): no shadow where
+    the light's Shadow is off (``describe.shadow_off``), and the light's Light and Shadow Linking followed. Without
+    them ``render_method.py`` shadowed the frame of a light with Shadow off, and drew the shadow of a cube its Shadow
+    Linking left out and lit one its Light Linking left unlit, where F12 and Cycles do not (29 and 198 pixels of a
+    96x54 picture differed)."""
+    from ..render.engine import no_shadow_setup
+    from ..scene.describe import shadow_off
+    from ..scene.linking import LightLinks, light_links
+    lob = state_light(st, depsgraph)
+    links = LightLinks()
+    if len(geometry.instances.linkers):     # a light has Light/Shadow Linking: follow the picture's light's
+        links = light_links(lob.original if lob is not None else None, geometry.instances)
+    if shadow_off(lob):
+        return no_shadow_setup(st.method_used or "uniform"), None, links
+    return setup, st.body, links
 
 
 def state_light(st: LiveState, depsgraph):
@@ -152,24 +173,21 @@ def pip_textures(st: LiveState, depsgraph, longest: int, want_map: bool, want_sc
     from ..gpu import compose
     from ..gpu.context import ensure_gpu_context
     from ..gpu.pipeline import ShadowFrame
-    from ..scene.linking import LightLinks, light_links
     out = {}
     if not (want_map or want_scene):
         return out
     ensure_gpu_context()
-    geometry, links = scene_geometry(depsgraph), LightLinks()
-    if len(geometry.instances.linkers):     # a light has Light/Shadow Linking: follow the picture's light's
-        lob = state_light(st, depsgraph)
-        links = light_links(lob.original if lob is not None else None, geometry.instances)
+    geometry = scene_geometry(depsgraph)
+    setup, body, links = as_rendered(st, depsgraph, geometry, st.setup)
     frame = ShadowFrame(geometry, st.view, fit_resolution(st.view.resolution, longest),
                         read={"combined"}, targets=targets, lit=links.lit, blocks=links.blocks)
     frame.camera_prepass()
-    frame.draw_maps(st.setup, st.settings.shadow, st.body)
+    frame.draw_maps(setup, st.settings.shadow, body)
     if want_scene:
-        frame.shade(st.light, st.setup, st.settings.shadow, **lighting(st, depsgraph))
+        frame.shade(st.light, setup, st.settings.shadow, **lighting(st, depsgraph))
         out["scene"] = frame.combined_texture()
-    if want_map:
-        out["map"] = compose.map_picture(frame.targets, "map_picture", frame.maps[0][0], st.setup.maps[0].size, longest)
+    if want_map and setup.maps[0].role != "none":   # a light with Shadow off has no map to show
+        out["map"] = compose.map_picture(frame.targets, "map_picture", frame.maps[0][0], setup.maps[0].size, longest)
     return out
 
 
@@ -260,9 +278,34 @@ def image_format(path: str) -> str:
     return IMAGE_FORMATS.get(suffix, "PNG")
 
 
-def save_image(rgba: np.ndarray, path: str, name: Optional[str] = None, linear: bool = True) -> None:
+def within_border(render, image: np.ndarray) -> np.ndarray:
+    """A whole frame's ``image`` (row 0 at the bottom) as F12 leaves it under ``render``'s Render Region (Output
+    properties > Format > Render Region): cut to the region with Crop to Render Region (``engine.result_window``),
+    else the whole frame, transparent black (0, 0, 0, 0) outside the region, as Cycles and Lixel's F12 save it.
+    Without this ``render_method.py`` drew the whole frame (2592 of 5184 pixels differed from F12's under a
+    region of half the width, and the size under Crop)."""
+    from ..render.engine import result_window
+    if not render.use_border:
+        return image
+    x0, y0, x1, y1 = result_window(render, image.shape[1], image.shape[0])
+    if render.use_crop_to_border:
+        return image[y0:y1, x0:x1]
+    out = np.zeros_like(image)
+    out[y0:y1, x0:x1] = image[y0:y1, x0:x1]
+    return out
+
+
+VIEW_SETTINGS = ("view_transform", "look", "exposure", "gamma", "use_white_balance", "white_balance_temperature",
+                 "white_balance_tint")
+"""The Color Management view settings F12 saves a picture through (``use_white_balance``...: 5.0 only)."""
+
+
+def save_image(rgba: np.ndarray, path: str, name: Optional[str] = None, linear: bool = True, view_of=None) -> None:
     """Write an image (row 0 at the bottom) to a file in the format its ending names (:func:`image_format`: an
-    OpenEXR keeps scene-linear values above 1); ``linear`` as in :func:`to_image`. OSError (naming
+    OpenEXR keeps scene-linear values above 1); ``linear`` as in :func:`to_image`. ``view_of``: a scene whose Color
+    Management (display, view transform, look, exposure, gamma) a scene-linear picture is saved through in a format
+    other than OpenEXR, as F12 saves it (without it, 4066 of 5184 pixels of ``render_method.py``'s PNG differed
+    from F12's under a new scene's AgX); None: sRGB-encoded as it is. OSError (naming
     ``path``) when it cannot be written. A relative ``path`` is the working directory's (Blender 5.0 cannot save to a
     bare file name such as "out.png": it fails to make its empty folder); "//" paths stay the .blend file's."""
     import os
@@ -274,13 +317,22 @@ def save_image(rgba: np.ndarray, path: str, name: Optional[str] = None, linear: 
     try:
         img.filepath_raw = str(path) if str(path).startswith("//") else os.path.abspath(path)
         img.file_format = file_format
-        if file_format == "OPEN_EXR" and linear:
+        if linear and (file_format == "OPEN_EXR" or view_of is not None):
             # Image.save() does not write scene-linear values to OpenEXR (measured: 4.2.23 writes them sRGB-encoded,
             # 0.25 -> 0.537 and 2.0 -> 1.353; 5.0.1 wherever alpha < 1, 0.25 -> 0.589 at alpha 0.5); save_render
-            # with OpenEXR settings writes them as they are, in both. Its settings come from a scene of its own.
+            # with OpenEXR settings writes them as they are, in both, and other formats through the settings'
+            # Color Management. Its settings come from a scene of its own.
             settings = bpy.data.scenes.new("Lixel output settings")
             fmt = settings.render.image_settings
-            fmt.file_format, fmt.color_mode, fmt.color_depth = "OPEN_EXR", "RGBA", "32"
+            fmt.file_format = file_format
+            if file_format == "OPEN_EXR":
+                fmt.color_mode, fmt.color_depth = "RGBA", "32"
+            else:
+                fmt.color_mode = "RGB" if file_format == "JPEG" else "RGBA"
+                settings.display_settings.display_device = view_of.display_settings.display_device
+                for attr in VIEW_SETTINGS:
+                    if hasattr(view_of.view_settings, attr):
+                        setattr(settings.view_settings, attr, getattr(view_of.view_settings, attr))
             img.save_render(bpy.path.abspath(img.filepath_raw), scene=settings)
         else:
             img.save()

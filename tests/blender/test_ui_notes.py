@@ -6,6 +6,7 @@ their sky was replaced by a constant. They are gathered when the live state is u
 import importlib
 
 import bpy
+import numpy as np
 import pytest
 
 from test_render_engine import _render, add, build, scene  # noqa: F401
@@ -67,11 +68,17 @@ def _textured_world(scene):
     scene.world.node_tree.links.new(sky.outputs[0], background(scene.world).inputs["Color"])
 
 
+def _depth_of_field(scene):
+    scene.camera.data.dof.use_dof = True     # Cycles and EEVEE blur out of focus (F-Stop 2.8); Lixel said nothing
+
+
 CASES = {
     "second light": (_second_light, "light 'Point' lights nothing here", "choose the light Lixel renders"),
     "shadow catcher": (_shadow_catcher, "object 'Ground' is a Shadow Catcher", "switch it off"),
     "textured world": (_textured_world, "World 'lixel_test sky' lights with its Sky Texture node",
                        "set World properties > Viewport Display > Color"),
+    "depth of field": (_depth_of_field, "Camera 'Cam' has Depth of Field on: Lixel renders every distance in focus",
+                       "switch it off in Camera properties > Depth of Field"),
 }
 
 
@@ -131,3 +138,35 @@ def test_notes_follow_the_live_updates_and_not_the_redraws(live, panel, scene, w
     scene.world.color = (0.5, 0.25, 0.125)    # the viewport colour Lixel lights with instead: only the World changes
     bpy.context.view_layer.update()
     assert len(gathered) == 2 and "viewport colour (0.5, 0.25, 0.125)" in live.state(scene).notes[0]
+
+
+def test_a_light_with_shadow_off_is_said_and_pictured_unshadowed(live, panel, scene, lixel):  # noqa: F811
+    """Light properties > Shadow off after a Refresh (the depsgraph handler's update, as an edit in the UI): the
+    sidebar says the light casts no shadows and the 3D view's picture of the camera view is unshadowed, as F12
+    renders it (``test_render_engine``); the map picture is left out. Before, the state kept its note (none) and its
+    picture, and the picture showed the shadows; switched on again, both come back."""
+    renders = importlib.import_module(f"{lixel.__name__}.addon.ui.renders")
+    build(scene)
+    sun = scene.objects["Sun"]
+    assert bpy.ops.lixel.refresh() == {"FINISHED"}
+
+    def picture():
+        st = live.state(scene)
+        return st, renders.pip_images(st, bpy.context.evaluated_depsgraph_get(), 48, True, True)
+    on, shadowed = picture()
+    generation = on.generation
+    said = "Light 'Sun' casts no shadows, as in Blender's engines: its Shadow is off (Light properties > Shadow)"
+    assert said not in on.note and set(shadowed) == {"scene", "map"}
+    sun.data.use_shadow = False
+    bpy.context.view_layer.update()
+    off, unshadowed = picture()
+    assert said in off.note and off.generation > generation    # the 3D view's cached pictures are drawn again
+    assert set(unshadowed) == {"scene"} and (unshadowed["scene"][..., :3] >= shadowed["scene"][..., :3] - 1e-6).all()
+    assert (unshadowed["scene"][..., :3] > shadowed["scene"][..., :3] + 0.1).any()
+    labels = [t for t, _ in main_panel_labels(panel)]
+    assert said.split()[0] in " ".join(labels) and "Shadow is off" in " ".join(labels)
+    sun.data.use_shadow = True
+    bpy.context.view_layer.update()
+    again, reshadowed = picture()
+    assert said not in again.note
+    np.testing.assert_array_equal(reshadowed["scene"], shadowed["scene"])
