@@ -99,6 +99,16 @@ def test_export_writes_the_cli_format(scene, mods, tmp_path):
     assert set(doc["methods"]) == set(mods.warp.METHODS)
 
 
+def test_export_never_overwrites_a_file_without_the_json_extension(scene, tmp_path):
+    """From Python there is no file browser to add ".json": a path such as the .blend file's own was opened and
+    overwritten. It gets the extension, as Blender's exporters add theirs."""
+    blend = tmp_path / "shot.blend"
+    blend.write_bytes(b"BLENDER-v405 the user's work")
+    assert bpy.ops.lixel.export_json(filepath=str(blend)) == {"FINISHED"}
+    assert blend.read_bytes() == b"BLENDER-v405 the user's work"
+    assert set(json.loads((tmp_path / "shot.blend.json").read_text())) == {"maps", "diagnostics"}
+
+
 def test_export_reports_an_unwritable_path(scene, tmp_path):
     with pytest.raises(RuntimeError, match="cannot write"):
         bpy.ops.lixel.export_json(filepath=str(tmp_path / "missing_dir" / "x.json"))

@@ -57,7 +57,9 @@ class LIXEL_OT_export_json(LixelSceneOperator, bpy.types.Operator, ExportHelper)
         if st is None:
             return {"CANCELLED"}
         doc = export_document(st, self.all_methods)
-        path = bpy.path.abspath(self.filepath)      # "//name.json": beside the .blend file, as Blender's paths are
+        # "//name.json": beside the .blend file, as Blender's paths are. Called from Python (no file browser to add
+        # the extension), a path without ".json" gets it, as Blender's exporters do: it never overwrites a .blend.
+        path = bpy.path.ensure_ext(bpy.path.abspath(self.filepath), self.filename_ext)
         try:
             with open(path, "w", encoding="utf-8") as fh:
                 json.dump(doc, fh, indent=2 if self.indent else None)
