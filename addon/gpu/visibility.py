@@ -57,6 +57,8 @@ EDGE_MAP = 512
 """Texels a side of the first look's uniform map(s) (:func:`shadow_edges`)."""
 EDGE_PIXELS = 0.5
 """The narrowest band on screen an edge sample of :func:`shadow_edges` is taken to stand for, in pixels."""
+SOBEL = np.array([[-1, -1], [0, -2], [1, -1], [-2, 0], [0, 0], [2, 0], [-1, 1], [0, 2], [1, 1]], dtype=np.float64)
+"""(9, 2): Sobel's d/dx and d/dy over the 3 x 3 taps of ``at_shadow_edge``, in its order (x fastest)."""
 EDGE_GRAZING = 0.05
 """Surface samples whose n·l is below this are left out of :func:`shadow_edges` (turned from the light, or so nearly
 edge-on that a coarse map's texel holds the plane itself at many depths)."""
@@ -67,7 +69,9 @@ def shadow_edges(frame, region: VisibleRegion, body, light, bounds, options) -> 
     "The λ guard", part 7): per tile, the length in pixels (up to a constant) of the shadow edges of a first, coarse
     look, the uniform map(s) of ``body`` at ``EDGE_MAP``² drawn with the frame's casters
     (``ShadowFrame.probe_depths``): its surface samples at an edge (``at_shadow_edge``), each over the width on
-    screen of the band of texels that found it. Unchanged where the surface was not read back or nothing casts."""
+    screen of the band of texels that found it; and ``VisibleRegion.edge_directions``, each edge sample's shadow edge
+    as a world direction on its surface (``at_shadow_edge``). Unchanged where the surface was not read back or nothing
+    casts."""
     if region.surface is None or region.normals is None or not frame.geometry.instances.casts.any():
         return region
     from ..warp import compute
@@ -76,11 +80,11 @@ def shadow_edges(frame, region: VisibleRegion, body, light, bounds, options) -> 
     points = region.surface.mean(axis=1)
     seen_from = -frame.view.direction[None] if frame.view.orthographic else frame.view.position - points
     normals = region.normals * np.sign(np.einsum("ij,ij->i", region.normals, seen_from))[:, None]   # the seen side
-    band, free = np.zeros(len(points)), np.ones(len(points), dtype=bool)
+    band, free, along = np.zeros(len(points)), np.ones(len(points), dtype=bool), np.zeros((len(points), 3))
     for m, depth in zip(setup.maps, frame.probe_depths(setup, body)):
         mine = free & m.contains(points)
         free &= ~mine
-        band[mine] = at_shadow_edge(m, depth, points[mine], normals[mine], light)
+        band[mine], along[mine] = at_shadow_edge(m, depth, points[mine], normals[mine], light)
     view = frame.view
     pixels = band * math.sqrt(pixel_density_constant(view)) / (1.0 if view.orthographic else view.eye_depth(points))
     h = points @ view.world_to_clip[:, :3].T + view.world_to_clip[:, 3]
@@ -89,15 +93,17 @@ def shadow_edges(frame, region: VisibleRegion, body, light, bounds, options) -> 
     row = np.clip(np.searchsorted(t.y_edges[1:-1], h[:, 1] / h[:, 3], side="right"), 0, len(t.y_edges) - 2)
     edges = np.bincount(row * t.near.shape[1] + col, np.where(band > 0, 1.0 / np.maximum(pixels, EDGE_PIXELS), 0.0),
                         minlength=t.near.size)
-    return replace(region, tiles=replace(t, edges=edges.reshape(t.near.shape)))
+    return replace(region, tiles=replace(t, edges=edges.reshape(t.near.shape)), edge_directions=along)
 
 
-def at_shadow_edge(shadow_map, window_depth: np.ndarray, points: np.ndarray, normals: np.ndarray, light) -> np.ndarray:
+def at_shadow_edge(shadow_map, window_depth: np.ndarray, points: np.ndarray, normals: np.ndarray,
+                   light) -> tuple[np.ndarray, np.ndarray]:
     """Where (N, 3) ``points`` (unit ``normals`` on their seen side, inside ``shadow_map``'s clip volume, n·l >=
     ``EDGE_GRAZING``) lie at one of its shadow edges, the world width of the 3 x 3 texels around each, 0 elsewhere:
     some but not all of them hold a caster nearer the light than the point's own plane where the light ray through
     the texel's centre meets it (the shading's receiver-plane test, ``gpu_shaders/shade_frag.glsl``), by more than
-    1.5 texel widths."""
+    1.5 texel widths. And (N, 3) the edge's unit direction on each point's plane (0 elsewhere): the 3 x 3 taps' Sobel
+    gradient g in texels is the edge's normal in the map, so the edge runs along d = n × D_Mᵀg (D_M·d ⟂ g, n·d = 0)."""
     m = shadow_map.matrix
     to_light = -light.direction[None] if light.is_directional else light.position - points
     to_light = to_light / np.linalg.norm(to_light, axis=1, keepdims=True)
@@ -111,16 +117,23 @@ def at_shadow_edge(shadow_map, window_depth: np.ndarray, points: np.ndarray, nor
     cos = np.einsum("ij,ij->i", normals, to_light)
     along = np.abs(np.einsum("ij,ij->i", slope, to_light))
     reach = 3.0 * along * np.sqrt(np.maximum(1.0 - cos * cos, 0.0)) / np.maximum(cos, 1e-6) / j.min(axis=1)
-    out = np.zeros(len(points))              # only where a tap is nearer than the plane can come over 2 texels:
-    some = (cos >= EDGE_GRAZING) & (stored.min(axis=1) < 0.5 * (depth - reach) + 0.5)
+    out, direction = np.zeros(len(points)), np.zeros((len(points), 3))   # only where a tap nearer than the plane
+    some = (cos >= EDGE_GRAZING) & (stored.min(axis=1) < 0.5 * (depth - reach) + 0.5)   # can come over 2 texels:
     if some.any():
-        out[some] = _edge_test(m, size, taps[some], stored[some], points[some], normals[some], depth[some],
-                               1.5 * width[some] * along[some], shadow_map) * 3.0 * width[some]
-    return out
+        near = _edge_test(m, size, taps[some], stored[some], points[some], normals[some], depth[some],
+                          1.5 * width[some] * along[some], shadow_map)
+        edge = (near.sum(axis=1) > 0) & (near.sum(axis=1) < 9)
+        out[some] = edge * 3.0 * width[some]
+        g = near @ SOBEL                                                   # (K, 2): toward the casters, in texels
+        d = np.cross(normals[some], np.einsum("kij,ki->kj", raster_jacobian(m, size, points[some]), g))
+        length = np.linalg.norm(d, axis=1, keepdims=True)
+        direction[some] = np.where(edge[:, None] & (length > 0), d / np.where(length > 0, length, 1.0), 0.0)
+    return out, direction
 
 
 def _edge_test(m, size, taps, stored, points, normals, depth, bias, shadow_map) -> np.ndarray:
-    """:func:`at_shadow_edge`'s test at its (K, 9, 2) ``taps`` (``stored`` window depths there) of K points."""
+    """:func:`at_shadow_edge`'s test at its (K, 9, 2) ``taps`` (``stored`` window depths there) of K points: (K, 9)
+    whether each tap holds a caster nearer the light than the point's plane."""
     ndc = (taps + 0.5) * (2.0 / size) - 1.0
     inverse = np.linalg.inv(m)
     start = ndc @ inverse[:, :2].T + inverse[:, 3]                         # each tap's ray at NDC depth 0 and 1
@@ -131,5 +144,5 @@ def _edge_test(m, size, taps, stored, points, normals, depth, bias, shadow_map) 
         on_plane = ends[0] + (t / np.einsum("ikj,ij->ik", ray, normals))[..., None] * ray
     plane = np.where(np.isfinite(on_plane).all(-1), shadow_map.stored_depth(on_plane.reshape(-1, 3))[0].reshape(-1, 9),
                      depth[:, None])
-    near = (stored < 0.5 * (np.minimum(plane, depth[:, None]) - bias[:, None]) + 0.5).sum(axis=1)
-    return (near > 0) & (near < 9)
+    near = (stored < 0.5 * (np.minimum(plane, depth[:, None]) - bias[:, None]) + 0.5).astype(np.float64)
+    return near

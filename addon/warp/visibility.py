@@ -66,6 +66,8 @@ class VisibleRegion:
     """(N, 2, 3) world points, per sample (pixel, ray) that hit a surface: the nearest and farthest its depth allows."""
     normals: np.ndarray | None = None
     """(N, 3) the unit normal at each ``surface`` sample (the ray cast's faces, the pre-pass's; None: not known)."""
+    edge_directions: np.ndarray | None = None
+    """(N, 3) the unit direction of the first look's shadow edge at each ``surface`` sample, 0 where none (None)."""
 
     @property
     def is_empty(self) -> bool:

@@ -284,3 +284,23 @@ def test_without_a_prepass_the_boxes_region_holds_every_point_the_engine_shades(
         points = out.world_position[out.covered]
         assert len(points) > 1000
         assert mods.warp.region_from_boxes(view, bounds).contains(view, points, tol=1e-5).all()
+
+
+def test_the_first_look_knows_which_way_the_shadow_edges_run(mods, fresh_scene):
+    """``shadow_edges`` also gives each edge sample its edge's direction (the first look's 3 x 3 taps' gradient carried
+    onto the sample's plane through the map's Jacobian), which the cascade's pick weighs its maps by: on the ground
+    below axis-aligned boxes under a sun, a shadow edge is a top edge's image (along x or y) or a vertical edge's
+    (along the sun's ground direction), and the directions found lie along those."""
+    view, light, bounds, frame = overlooked_frame(mods, fresh_scene, set())
+    region, _ = mods.visibility.region_from_frame(frame, surface=True)
+    options = mods.warp.WarpOptions(shadow_map_size=2048)
+    body = mods.warp.focused_body(view, light, bounds, options, region)
+    found = mods.visibility.shadow_edges(frame, region, body, light, bounds, options)
+    d = found.edge_directions
+    on_ground = np.any(d != 0, axis=1) & (np.abs(found.normals[:, 2]) > 0.99)
+    assert d.shape == found.normals.shape and on_ground.sum() >= 20
+    np.testing.assert_allclose(np.linalg.norm(d[on_ground], axis=1), 1.0)
+    sun = light.direction[:2] / np.linalg.norm(light.direction[:2])
+    off = [np.degrees(np.arccos(np.clip(np.abs(d[on_ground, :2] @ a), 0.0, 1.0))) for a in ([1, 0], [0, 1], sun)]
+    off = np.min(off, axis=0)
+    assert np.median(off) < 5.0 and np.percentile(off, 80) < 15.0, np.percentile(off, [50, 80, 100])

@@ -13,8 +13,10 @@ import numpy as np
 from addon.cli.config import parse_config
 from addon.measure.box_scene import visible_points
 from addon.warp import WarpOptions, compute
-from addon.warp.methods.cascade import single, stretched
-from addon.warp.partition.receivers import RAYS, footprint_p95, footprint_p95s, footprints, receivers
+from addon.warp.aliasing import raster_jacobian
+from addon.warp.methods.cascade import Trials, single, stretched
+from addon.warp.partition.receivers import (EDGES, LOSS, RAYS, filter_losses, footprint_p95, footprint_p95s, footprints,
+                                          receivers)
 from addon.warp.visibility import BOX_SAMPLES, region_from_boxes
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -74,3 +76,48 @@ def test_footprints_in_one_batch_are_each_setups_own():
     alone = [footprints([s], seen)[0] for s in setups]
     assert all(np.array_equal(a, b, equal_nan=True) for a, b in zip(footprints(setups, seen), alone))
     assert not np.allclose(alone[0], alone[1], equal_nan=True)
+
+
+
+def edged(seen, points, directions):
+    """``seen`` with shadow edges known at ``points`` running along ``directions`` (the engine's first look's)."""
+    return (*seen[:4], np.stack([points, directions], axis=1))
+
+
+def test_a_map_that_lays_the_known_shadow_edges_on_a_texel_axis_is_weighed_by_the_filter_gain_it_loses():
+    """A grid along an edge holds nothing of the edge's place within a texel, so PCF 2's bilinear taps gain little
+    there (docs/papers.md, the cascade's edges): where the shadow edges' directions are known, a single map whose
+    texel axes lie along them counts its footprints 1 + ``LOSS`` times, one 45° off them once, and a map of several
+    faces, or too few edges, leaves its footprints as they are."""
+    view, light, scene = example("outdoor_sun")
+    seen = receivers(view, light, region_from_boxes(view, scene), view.near, math.inf, scene)
+    setup = compute("uniform", view, light, scene, WarpOptions(shadow_map_size=(1024, 1024), focus="view"))
+    points = seen[0][::7][:EDGES + 5]
+    jacobian = raster_jacobian(setup.maps[0].matrix, setup.maps[0].size, points[:1])[0]     # a sun's: the same anywhere
+
+    def along(texels):                                  # the direction on the ground whose image runs along ``texels``
+        d = np.append(np.linalg.solve(jacobian[:, :2], texels), 0.0)
+        return np.broadcast_to(d / np.linalg.norm(d), points.shape)
+
+    aligned, diagonal = (filter_losses([setup], edged(seen, points, along(t)))[0] for t in ([1.0, 0.0], [1.0, 1.0]))
+    assert aligned == 1.0 + LOSS and diagonal == 1.0
+    assert filter_losses([setup], edged(seen, points[:EDGES - 1], along([0.0, 1.0])[:EDGES - 1]))[0] == 1.0
+    faces = dataclasses.replace(setup, maps=setup.maps * 2)
+    assert filter_losses([faces, setup], edged(seen, points, along([0.0, 1.0]))).tolist() == [1.0, 1.0 + LOSS]
+
+
+def test_with_no_edges_known_the_candidates_are_scored_by_their_footprints_alone():
+    """The CLI's region (the boxes' ray cast) knows no shadow edges: every candidate of a split, turned and laid out
+    2:1, is scored by its footprints, bit for bit as before the edges were weighed (``tests.warp.golden``: no CLI
+    setup moves)."""
+    view, light, scene = example("outdoor_sun")
+    region = region_from_boxes(view, scene)
+    seen = receivers(view, light, region, view.near, math.inf, scene)
+    assert seen[4].shape == (0, 2, 3)
+    trials = Trials(view, light, scene, WarpOptions(shadow_map_size=1024, cascade_splits=2), region, seen)
+    split = trials.splits_at(np.array([view.near, 20.0, view.far]))[0]
+    scored = trials.candidates(split, split.far)
+    depth = view.eye_depth(seen[0])
+    mine = (*(x[(depth >= split.near) & (depth < split.far)] for x in seen[:4]), seen[4])
+    assert len(scored) > 3 and all(np.array_equal(f, g, equal_nan=True) for (_, _, f), g in
+                                   zip(scored, footprints([m for _, m, _ in scored], mine)))

@@ -16,7 +16,8 @@ from ..diagnostics import Diagnostics
 from ..frame import light_cone
 from ..partition.adaptive import max_error, minimax_splits
 from ..partition.budget import shared_sizes
-from ..partition.receivers import TAIL, footprint_p95, footprint_p95s, footprints, grazing, receivers, turned
+from ..partition.receivers import (TAIL, filter_losses, footprint_p95, footprint_p95s, footprints, grazing, receivers,
+                                   turned)
 from ..partition.splits import practical_splits, split_region, split_view, tightened_depth_range
 from ..partition.stable import stable_depth_range, stable_spot_map, stable_sun_map
 from ..types import MAX_MAP_SIDE, EmptyBodyError, Light, SceneBounds, ShadowSetup, View, WarpError, WarpOptions
@@ -142,8 +143,8 @@ class Trials:
         (Lloyd's pick first), each single map ``turned`` to B_i's hull and (``laid``) to its ``grazing`` ones, and
         (``laid``) each of those ``stretched``."""
         maps = sorted(split.tried, key=lambda t: t[1] is not split.setup)
-        depth = self.view.eye_depth(self.seen[0])
-        seen = tuple(x[(depth >= split.near) & (depth < far)] for x in self.seen)
+        seen = tuple(x[(d >= split.near) & (d < far)] for x, d in zip(self.seen, [self.view.eye_depth(self.seen[0])] * 4
+                     + [self.view.eye_depth(self.seen[4][:, 0])]))
         for w, m in [(w, m) for w, m in maps if len(m.maps) == 1]:
             hull = self.once(("turned", split.near, split.far + split.band, w),
                              lambda: turned(m.maps[0].matrix, split.body.vertices))
@@ -155,7 +156,9 @@ class Trials:
         for w, m in maps:
             unique.setdefault(tuple((p.matrix.tobytes(), tuple(p.size)) for p in m.maps), (w, m))
         maps = list(unique.values())
-        return [(w, m, f) for (w, m), f in zip(maps, footprints([m for _, m in maps], seen) if maps else [])]
+        setups = [m for _, m in maps]            # each weighed by the filter gain it loses at the known shadow edges
+        return [(w, m, f * k) for (w, m), f, k in zip(maps, footprints(setups, seen) if maps else [],
+                                                      filter_losses(setups, seen))]
 
     def least_footprint(self, splits: list) -> tuple[list, list]:
         """``splits`` with the maps among their ``candidates`` of least p95 at the receivers (coordinate descent from
@@ -298,8 +301,7 @@ def cascade(view: View, light: Light, body: IntersectionBody, options: WarpOptio
         splits=[float(d) for d in depths], split_scheme=scheme, map_splits=owner, split_predicted_error=errors,
         split_warps=[s.warp if f else None for s, f in zip(splits, filled)],
         predicted_max_error=max(e for e in errors if e is not None), budget=options.cascade_budget,
-        stable=options.cascade_stable,
-        split_bodies=[s.body.vertices if s.body is not None else None for s in splits],
+        stable=options.cascade_stable, split_bodies=[s.body.vertices if s.body is not None else None for s in splits],
         split_body_faces=[list(s.body.faces) if s.body is not None else None for s in splits],
         split_frusta=[s.setup.diagnostics.warp_frustum_corners if f else None for s, f in zip(splits, filled)])
     return ShadowSetup(maps, diag)
