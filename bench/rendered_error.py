@@ -11,7 +11,8 @@ from :mod:`bench.box_scenes`, or one generated there from ``--seed``) is rendere
 only the method and the map size changed: what a user gets. The ground truth
 is the report's ray caster (``bench.report.ground_truth``), counted where the render shows the point and the
 face the ray caster hit (``bench.report.run.comparable_mask``: not at silhouettes, nor at a box's edge where the
-two saw the same point on different faces, whose shadows differ). Per scene, method
+two saw the same point on different faces, whose shadows differ; a scene where the truth counts no pixel, as
+when a wall in its own shade fills the view, is named and not judged). Per scene, method
 and size it prints the misclassified pixels (false light: lit where the truth
 is shadowed; false shadow: the opposite) and the analytic p95 texel footprint
 over the lit points facing the light (n·l >= 0.1, the report's) and over all lit points (n·l > 0, the issue's
@@ -127,6 +128,10 @@ def measure_scene(name: str, methods, sizes, resolution, images: Path | None, lo
     from bench.report.run import comparable_mask
 
     dg, geometry, view, light, gt, truth_seconds = scene_with_truth(name, resolution)
+    if not gt.valid.any():      # an error rate of no pixels is NaN, and would fail every criterion
+        log(f"{name}: no pixel to count (every surface in view faces away from the light or lies outside the "
+            "spot's cone): not judged")
+        return []
     log(f"{name}: {len(geometry.instances)} instances, ground truth {truth_seconds:.1f}s, "
         f"{100 * gt.shadow[gt.valid].mean():.1f}% of {int(gt.valid.sum())} counted pixels in shadow")
     lit = gt.valid & ~gt.shadow                  # (the truth's lit points all have n·l > 0)

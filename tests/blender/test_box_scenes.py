@@ -83,3 +83,25 @@ def test_a_generated_name_builds_its_scene_in_blender():
     built = json.loads(out.stdout.strip().splitlines()[-1])
     assert built == {"type": "POINT", "in_view": True, "objects": ["CAMERA", "LIGHT", "MESH", "MESH"],
                      "near": pytest.approx(draw_scene(2, 5).near)}
+
+
+JUDGE = """
+import json, os, sys
+from bench.rendered_error import _scratch_env, check, measure_scene
+_scratch_env()
+import bpy
+lines = []
+ms = measure_scene(sys.argv[1], ["uniform", "lispsm"], [512], (64, 36), None, lines.append)
+print(json.dumps({"measured": len(ms), "checks": [c.holds for c in check(ms)], "log": lines}), flush=True)
+os._exit(0)
+"""
+
+
+def test_a_scene_with_no_pixel_to_count_is_not_judged():
+    """gen42_02_low_sun's camera stands 3.3 m from a 12.5 m building's wall in its own shade, which fills the view:
+    the truth counts no pixel, so there is no error rate to judge. It was NaN, and every criterion failed on it
+    (38 of seed 42's 39 failed checks); now the scene is named as not judged and adds no check."""
+    out = subprocess.run([sys.executable, "-c", JUDGE, generated_name(42, 2)], cwd=ROOT, capture_output=True,
+                         text=True, timeout=300)
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    assert got["measured"] == 0 and got["checks"] == [] and "no pixel to count" in got["log"][-1]
