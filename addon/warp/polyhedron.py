@@ -170,8 +170,7 @@ class ConvexPolytope:
         cutting = [j for j, r in enumerate(reach) if r > self.tol]
         if not cutting:
             return self
-        if len(cutting) < len(n):
-            n, o = n[cutting], o[cutting]
+        n, o = n[cutting], o[cutting]
         vertices, facets = self.vertices.tolist(), list(enumerate(self.loops))
         try:
             for plane, (normal, offset) in enumerate(zip(n.tolist(), o.tolist()), start=len(self.normals)):
