@@ -19,12 +19,6 @@ def divided(h) -> np.ndarray:
     return h[:, :3] / w
 
 
-def ndc_box(h) -> tuple[np.ndarray, np.ndarray]:
-    """Min and max of the divided coordinates of homogeneous points ``h`` (N, 4)."""
-    ndc = divided(h)
-    return ndc.min(axis=0), ndc.max(axis=0)
-
-
 def window_matrix(lo, hi) -> np.ndarray:
     """The affine NDC map taking the box [lo, hi] onto [-1, 1]^3."""
     return window_matrices([np.asarray(lo, dtype=np.float64).tolist()], [np.asarray(hi, dtype=np.float64).tolist()])[0]

@@ -20,7 +20,6 @@ the ray and its float32 steps are long (``light_depth_row`` gives None then)."""
 def fitted_row(along: np.ndarray, points) -> np.ndarray:
     """The depth row ``along`` (an affine function, 4 entries) scaled and offset
     so that ``points`` span [-1, 1] (padded like the unit-cube fit)."""
-    along = np.asarray(along, dtype=np.float64)
     d = homogeneous(points) @ along
     window = window_matrix([float(d.min())] * 3, [float(d.max())] * 3)
     return window[2, 2] * along + np.array([0.0, 0.0, 0.0, window[2, 3]])

@@ -93,8 +93,7 @@ class ConvexPolytope:
         n /= length[:, None]
         o = np.einsum("ij,ij->i", n, c[_HEX_QUADS[:, 0]])
         if n[0] @ c[7] > o[0]:                  # the near face's normal points at the far corner: inward
-            n, o = -n, -o
-            return cls(c, n, o, _HEX_REVERSED, tol)
+            return cls(c, -n, -o, _HEX_REVERSED, tol)
         return cls(c, n, o, HEXAHEDRON_LOOPS, tol)
 
     @classmethod
@@ -170,8 +169,7 @@ class ConvexPolytope:
         cutting = [j for j, r in enumerate(reach) if r > self.tol]
         if not cutting:
             return self
-        if len(cutting) < len(n):
-            n, o = n[cutting], o[cutting]
+        n, o = n[cutting], o[cutting]
         vertices, facets = self.vertices.tolist(), list(enumerate(self.loops))
         try:
             for plane, (normal, offset) in enumerate(zip(n.tolist(), o.tolist()), start=len(self.normals)):
@@ -490,9 +488,7 @@ MERGE_PAIRS = 1 << 22
 def _merge_groups(p: np.ndarray, tol, radius: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Merge points closer than ``tol`` (plus the larger ``radius``), transitively, each joining the first point
     in lexicographic order within reach: (indices kept, each point's group's position among them). Rows go in
-    blocks, each against the points within reach in x: a slice, as x sorts first."""
-    if len(p) == 0:
-        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    blocks, each against the points within reach in x: a slice, as x sorts first; ``p`` is not empty."""
     order = np.lexsort((p[:, 2], p[:, 1], p[:, 0]))
     q = p[order]
     reach = np.full(len(q), float(tol)) if radius is None else tol + radius[order]

@@ -9,11 +9,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .body import IntersectionBody, view_frustum
+from .body import IntersectionBody
 from .fit import fit_keeping_points
 from .frame import image_up
 from .geometry import cross, normalize
-from .light_hull import light_halfspaces
 from .polyhedron import BOX_NORMALS, ConvexPolytope, Edges, box_edges, box_offsets, clip_segments
 from .types import Light, View, WarpOptions
 
@@ -81,7 +80,7 @@ def virtual_camera(view: View, body: IntersectionBody, visible_near: float | Non
 def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
                           options: WarpOptions | None = None) -> float:
     """d_R, the nearest eye depth at which a receiver can be seen (§6's near plane "as far as possible"):
-    ``options.visible_depth_range`` when given, else the least eye depth of V ∩ L ∩ box over the receiver boxes."""
+    ``options.visible_depth_range`` when given, else the least eye depth of R ∩ box over the receiver boxes."""
     if options is not None and options.visible_depth_range is not None:
         return max(float(options.visible_depth_range[0]), view.near)
     axis = -view.world_to_camera[2, :3]                     # camera-relative world -> eye depth
@@ -89,14 +88,12 @@ def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,
     nearest = body.visible_vertices[int(depths.argmin())] - view.position
     coarse = max(float(depths.min()), view.near)
     boxes = _BoxesByDepth(body.culled.receivers, axis, view.position, coarse)
-    region, best, measured = None, math.inf, 0
+    best, measured = math.inf, 0
     while (batch := boxes.next(NEAREST_BOX_BATCH, below=best)) is not None:
         lo, hi, bounds = batch
         if bounds[0] <= coarse and np.all((lo <= nearest) & (nearest <= hi), axis=1).any():
             return coarse                                    # R's nearest vertex is in a receiver box
-        if region is None:
-            region = _visible_region(view, light, body) or False
-        depths = lowest_in_boxes(region, lo, hi, axis).tolist() if region else [math.inf] * len(bounds)
+        depths = lowest_in_boxes(body.visible_polytope, lo, hi, axis).tolist()    # (R is camera-relative, as the boxes)
         for bound, depth in zip(bounds, depths):
             if bound >= best:
                 break
@@ -164,15 +161,6 @@ def _lowest_on_edges(edges: Edges, normals: np.ndarray, offsets: np.ndarray, axi
     rise = edges.step @ axis
     t = np.where(t_lo <= t_hi, np.where(rise >= 0, t_lo, t_hi), np.nan)     # NaN: nothing left (t may be infinite)
     return np.fmin.reduce(edges.start @ axis + t * rise, axis=-1, initial=np.inf)
-
-
-def _visible_region(view: View, light: Light, body: IntersectionBody) -> ConvexPolytope | None:
-    """V ∩ L relative to the camera (B's R when B is camera-relative), or None."""
-    origin = view.position
-    if body.origin.tolist() == origin.tolist():
-        return body.visible_polytope
-    ln, lo = light_halfspaces(light, origin)
-    return view_frustum(view, origin, body.tolerance).clip(ln, lo)
 
 
 # ---------------------------------------------------------------------------

@@ -377,9 +377,6 @@ class WarpOptions:
                 raise WarpError(f"{name} must be one of {', '.join(map(repr, choices))} (got {getattr(self, name)!r})")
         if not (0.0 < self.plane_budget <= 1.0):
             raise WarpError("plane_budget must be in (0, 1]")
-        self._check_cascade()
-
-    def _check_cascade(self) -> None:
         splits = self.cascade_splits
         if isinstance(splits, bool) or not isinstance(splits, (int, np.integer)) or not 1 <= splits <= 8:
             raise WarpError(f"cascade_splits must be a whole number from 1 to 8 (got {splits!r})")

@@ -298,7 +298,6 @@ def region_from_boxes(view: View, scene: SceneBounds, samples: tuple[int, int] =
     key = (view.camera_to_world.tobytes(), view.projection.tobytes(), view.near, view.far, samples, tile)
     last = scene.cached(("visible region", samples, tile), dict)
     if last.get("key") != key:
-        last.clear()
         last.update(key=key, region=_region_from_boxes(view, scene, samples, tile))
     return last["region"]
 

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from ..fit import fit_runs, ndc_box, window_matrix
+from ..fit import divided, fit_runs, window_matrix
 from ..body import IntersectionBody
 from ..diagnostics import Diagnostics
 from ..frame import LightFrame, body_light_angles, light_frames, world_sun_frame
@@ -41,7 +41,8 @@ def frame_maps(frames: list[LightFrame], size: tuple[int, int], snap: bool = Fal
         maps = [ShadowMap(m, size, "LESS", f.role) for m, f in zip(fitted, frames)]
     else:
         frame = frames[0]
-        lo, hi = ndc_box(frame.points_h @ frame.to_light.T)
+        ndc = divided(frame.points_h @ frame.to_light.T)
+        lo, hi = ndc.min(axis=0), ndc.max(axis=0)
         if snap and frame.directional:
             lo, hi = snapped_window(lo, hi, size)
         maps = [ShadowMap(window_matrix(lo, hi) @ frame.to_light, size, "LESS", frame.role)]

@@ -9,7 +9,7 @@ import numpy as np
 from ..body import IntersectionBody
 from ..fit import window_matrix
 from ..frame import WORLD_NORTH, WORLD_UP, image_up, near_far, perspective_of, world_sun_frame
-from ..geometry import UNIT_CUBE_CORNERS, look_along, transform_h, transform_points
+from ..geometry import UNIT_CUBE_CORNERS, look_along, transform_points
 from ..types import Light, ShadowMap, View
 
 LADDER_STEPS = 8
@@ -39,8 +39,7 @@ def stable_spot_map(light: Light, body: IntersectionBody, size: tuple[int, int],
     side = 2.0 ** (np.ceil(np.log2(np.maximum(image.max(axis=0) - lo, 1e-300)) * LADDER_STEPS) / LADDER_STEPS)
     texel = side / (n - 1.0)
     corner = np.floor(lo / texel) * texel
-    h = transform_h(to_light, body.vertices[ahead])
-    z = h[:, 2] / h[:, 3]
+    z = transform_points(to_light, body.vertices[ahead])[:, 2]
     matrix = window_matrix([*corner, z.min()], [*(corner + texel * n), z.max()]) @ to_light
     return ShadowMap(matrix, tuple(size), "LESS", "main")
 
