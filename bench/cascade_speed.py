@@ -42,8 +42,8 @@ def capture(scenes, size: int) -> dict:
     import bpy
     from addon.gpu.context import ensure_gpu_context
     from addon.gpu.pipeline import ShadowFrame
-    from addon.gpu.visibility import region_from_frame, shadow_edges
-    from addon.render.engine import reads_surface, weighs_edges
+    from addon.gpu.visibility import region_from_frame
+    from addon.render.engine import first_look, looks_for_edges, reads_surface
     from addon.scene.describe import describe_scene
     from addon.scene.geometry import GeometryCache
     from addon.warp import focused_body
@@ -60,12 +60,12 @@ def capture(scenes, size: int) -> dict:
         options = default_settings("cascade", size).warp
         frame = ShadowFrame(geometry, view, (640, 360))
         frame.camera_prepass()
-        edges = weighs_edges("cascade", options, light)
+        edges = looks_for_edges("cascade", options, light)
         visible, _ = region_from_frame(frame, surface=reads_surface("cascade", options) or edges)
         weighed = visible
         if edges:
-            weighed = shadow_edges(frame, visible, focused_body(view, light, bounds, options, visible), light, bounds,
-                                   options)
+            weighed = first_look(frame, visible, focused_body(view, light, bounds, options, visible), light, bounds,
+                                 options, "cascade")
         bounds = dataclasses.replace(bounds)            # without the culling index (built once per scene)
         cases[name] = (view, light, bounds, options, visible, weighed)
     return cases

@@ -57,15 +57,23 @@ GUARDED = ("lispsm", "gmnpr", "glpr", "psm", "cascade")
 guard"), the cascade through its splits' warps."""
 
 
-def weighs_edges(method: str, options, light) -> bool:
-    """Whether ``method``'s λ guard acts and weighs where shadow edges fall on what is seen (``fit_warp``): not for a
-    point light, whose warped cube faces rendered worse with the edges (docs/papers.md, the λ guard, part 7; why is
-    not known)."""
-    if options.focus != "visible" or method not in GUARDED or light.type == "POINT":
+def looks_for_edges(method: str, options, light) -> bool:
+    """Whether ``fit_warp`` takes the first look at the shadow edges (``shadow_edges``): where ``method``'s λ guard
+    acts, for its weights (``weighs_edges``) and the cascade's map pick (``partition.receivers.filter_losses``: the
+    edges' directions), for a point light only the cascade's pick (docs/papers.md, "A pick that sees the edges'
+    directions")."""
+    if options.focus != "visible" or method not in GUARDED or (light.type == "POINT" and method != "cascade"):
         return False
     if method == "cascade":
         return options.lambda_guard == "all" and not options.cascade_stable and options.cascade_warp != "uniform"
     return options.lambda_guard in ("all", method)
+
+
+def weighs_edges(method: str, options, light) -> bool:
+    """Whether ``method``'s λ guard weighs where the first look's shadow edges fall on what is seen (``fit_warp``):
+    not for a point light, whose warped cube faces rendered worse with the edges (docs/papers.md, the λ guard, part
+    7; why is not known)."""
+    return light.type != "POINT" and looks_for_edges(method, options, light)
 
 EXTRA_PASSES = (
     # name, channels, channel ids, compositor socket type, view-layer switch, RenderResult image
@@ -157,22 +165,33 @@ def no_shadow_setup(method: str) -> ShadowSetup:
     return ShadowSetup([ShadowMap(none, (1, 1), role="none")], Diagnostics(method))
 
 
+def first_look(frame, visible, body, light, bounds, options, method: str):
+    """``visible`` with the first look's shadow edges (``shadow_edges``) for ``method`` where ``looks_for_edges``:
+    their directions, and their per-tile weights only where the λ guard weighs them (``weighs_edges``)."""
+    from ..gpu.visibility import shadow_edges
+    seen = shadow_edges(frame, visible, body, light, bounds, options)
+    if weighs_edges(method, options, light):
+        return seen
+    return dataclasses.replace(seen, tiles=dataclasses.replace(seen.tiles, edges=None))
+
+
 def fit_warp(frame, light, bounds, options, method: str):
     """B and the warp for ``frame`` (a ``ShadowFrame`` whose view is the
     camera's): B fitted to what the frame's pre-pass saw when ``options.focus``
     is "visible", to the view frustum otherwise; where the λ guard acts
-    (``weighs_edges``), also where shadow edges fall on what is seen
-    (``shadow_edges``, a coarse first look). Returns (body, setup, seconds
-    spent reading the visible region, or None). Raises ``EmptyBodyError``."""
-    from ..gpu.visibility import region_from_frame, shadow_edges
+    (``looks_for_edges``), also where shadow edges fall on what is seen
+    (``shadow_edges``, a coarse first look; the guard weighs them only where
+    ``weighs_edges``). Returns (body, setup, seconds spent reading the visible
+    region, or None). Raises ``EmptyBodyError``."""
+    from ..gpu.visibility import region_from_frame
     visible = seconds = None
-    edges = weighs_edges(method, options, light)
+    look = looks_for_edges(method, options, light)
     if options.focus == "visible":
-        visible, seconds = region_from_frame(frame, surface=reads_surface(method, options) or edges)
+        visible, seconds = region_from_frame(frame, surface=reads_surface(method, options) or look)
     body = focused_body(frame.view, light, bounds, options, visible)
-    if edges:
+    if look:
         t = time.perf_counter()
-        body = dataclasses.replace(body, visible=shadow_edges(frame, visible, body, light, bounds, options))
+        body = dataclasses.replace(body, visible=first_look(frame, visible, body, light, bounds, options, method))
         seconds += time.perf_counter() - t
     return body, compute(method, frame.view, light, bounds, options, body=body), seconds
 

@@ -99,7 +99,7 @@ def test_the_engine_reads_the_seen_surface_back_only_for_a_method_that_reads_it(
     """Issue 15's wasted work (``warp.methods.reads_surface``): a stable cascade, or a one-split one whose λ guard
     does not act, does not read the pre-pass's surface back and gets the maps it got when it did; the adaptive
     cascade reads it, and so does a one-split cascade whose warps the guard weighs by the shadow edges seen
-    (``engine.weighs_edges``)."""
+    (``engine.looks_for_edges``)."""
     overlook(fresh_scene)
     read, asked, force = mods.visibility.region_from_frame, [], []
 
@@ -304,3 +304,34 @@ def test_the_first_look_knows_which_way_the_shadow_edges_run(mods, fresh_scene):
     off = [np.degrees(np.arccos(np.clip(np.abs(d[on_ground, :2] @ a), 0.0, 1.0))) for a in ([1, 0], [0, 1], sun)]
     off = np.min(off, axis=0)
     assert np.median(off) < 5.0 and np.percentile(off, 80) < 15.0, np.percentile(off, [50, 80, 100])
+
+
+@pytest.mark.parametrize("kind", ["SUN", "POINT"])
+def test_a_point_lights_cascade_gets_the_first_looks_edges_but_its_lambda_guard_does_not_weigh_them(mods, fresh_scene,
+                                                                                                     kind):
+    """The cascade's pick weighs its single maps by the shadow edges' directions (``partition.receivers.filter_losses``)
+    for a point light too: ``fit_warp`` takes the first look and hands the cascade each edge sample's direction, but
+    not the per-tile edge weights the λ guard weighs its warps by (a point light's warped cube faces rendered worse
+    with them: docs/papers.md, the λ guard, part 7); a sun's cascade gets both, and a point light's LiSPSM, whose
+    guard is all the first look would serve, takes none."""
+    overlook(fresh_scene)
+    lamp = fresh_scene.objects["Sun"]
+    lamp.data.type = kind
+    lamp.location = (1.0, -4.0, 36.0)
+    dg = fresh_scene.view_layers[0].depsgraph
+    dg.update()
+    mods.context.ensure_gpu_context()
+    geometry = mods.geometry.GeometryCache().update(dg)
+    view, light, bounds = mods.describe.describe_scene(fresh_scene, dg, instances=geometry.instances)
+    assert light.type == kind
+
+    def seen(method):
+        frame = mods.pipeline.ShadowFrame(geometry, view, read=set())
+        frame.camera_prepass()
+        options = mods.settings.LixelSettings(method=method).warp
+        return mods.engine.fit_warp(frame, light, bounds, options, method)[0].visible
+
+    cascade = seen("cascade")
+    assert cascade.edge_directions is not None and np.any(cascade.edge_directions != 0, axis=1).sum() >= 20
+    assert (cascade.edge_weights() is None) == (kind == "POINT")
+    assert (seen("lispsm").edge_directions is None) == (kind == "POINT")
