@@ -1,4 +1,4 @@
-"""Cascaded shadow maps (Scherzer §3: "a partitioning of the view frustum into subsets, each rendered into its own
+"""Cascaded shadow maps (Scherzer §3.3: "a partitioning of the view frustum into subsets, each rendered into its own
 shadow map"; GMNPR §1), :func:`cascade` (docs/papers.md, ``addon/warp/methods/cascade.py``): split depths C_0..C_N
 (``partition``); split i the view clipped to [C_i, C_(i+1) + band_i], its B_i (Scherzer §4.1) and warp; one
 ShadowSetup of every split's maps, ``view_depth_range`` tiling [near, far], at most ``MAX_MAPS`` maps."""

@@ -18,7 +18,7 @@ SNAP_STEPS_PER_OCTAVE = 8
 """Texel snapping: a window's extent is one of this many sizes per doubling."""
 
 NEAR_PLANE_NOTE = ("the light is inside B and a box reaches nearer to it than the near plane "
-                   "(1e-6 of the scene scale); what lies nearer is not covered")
+                   "(1e-6 of B's scale); what lies nearer is not covered")
 """The "near plane" fallback's reason (``frame.LightFrame.near_clamped``)."""
 
 

@@ -27,7 +27,7 @@ MAX_MAPS = 8
 """Maps one shading pass can select from (``addon.gpu.shaders.MAX_MAPS``): plane
 maps beyond what this leaves next to the fallback maps are left out, smallest first."""
 REGION_TOLERANCE = 1e-6
-"""A point belongs to a plane's region within this fraction of the scene scale (at least 100x the body tolerance)."""
+"""A point belongs to a plane's region within this fraction of B's scale (at least 100x the body tolerance)."""
 TWIST_GAIN = 0.99
 """plane_twist='auto' twists when the rotated rectangle is below this fraction
 of the unrotated one and the budget forces fewer lixels than pixels."""
@@ -173,7 +173,7 @@ def plane_map_of(k: int, plane: PlaneOfInterest, view: View, light: Light, body:
     grown = polygon + tol * outwards
     casters, near_clamped = casters_of(polygon, outwards, grown, height, l_h, tol, body, origin)
     if near_clamped:
-        diag.fallback(f"{role}: near plane", "the light is inside B; casters nearer than 1e-6 of the scene scale "
+        diag.fallback(f"{role}: near plane", "the light is inside B; casters nearer than 1e-6 of B's scale "
                                              "to the light's height are not in the plane map")
     fit_h = homogeneous(np.concatenate([grown - tol * plane.normal, grown + tol * plane.normal, casters]))
     h, w = np.array([height, rows[2]]) @ fit_h.T           # height, and clip w (the z row is -h before its window)
