@@ -283,8 +283,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
             raise EmptyBodyError(f"scene '{scene.name}' {NO_FACES}, so the frame shows only the world background")
         if unlit is not None:
             raise EmptyBodyError(f"{unlit}; the frame is lit by the world alone")
-        if shadow_off(light_obj, depsgraph):   # as Blender's engines: lit, unshadowed
-            raise EmptyBodyError(shadow_off(light_obj, depsgraph))
+        if off := shadow_off(light_obj, depsgraph):   # as in Blender's engines: lit, unshadowed
+            raise EmptyBodyError(off)
         # The pre-pass, hence the visible region, is a function of the geometry and the view.
         body, setup = shared_warps().get((geometry, bounds), (method, view, light, settings.warp, frame.size), warp)
     except EmptyBodyError as exc:

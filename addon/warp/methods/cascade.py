@@ -143,8 +143,9 @@ class Trials:
         (Lloyd's pick first), each single map ``turned`` to B_i's hull and (``laid``) to its ``grazing`` ones, and
         (``laid``) each of those ``stretched``."""
         maps = sorted(split.tried, key=lambda t: t[1] is not split.setup)
-        seen = tuple(x[(d >= split.near) & (d < far)] for x, d in zip(self.seen, [self.view.eye_depth(self.seen[0])] * 4
-                     + [self.view.eye_depth(self.seen[4][:, 0])]))
+        *at, edges = self.seen                  # the receivers' arrays, and apart the edge samples (point, direction)
+        kept, kept_edges = ((d >= split.near) & (d < far) for d in map(self.view.eye_depth, (at[0], edges[:, 0])))
+        seen = (*(x[kept] for x in at), edges[kept_edges])
         for w, m in [(w, m) for w, m in maps if len(m.maps) == 1]:
             hull = self.once(("turned", split.near, split.far + split.band, w),
                              lambda: turned(m.maps[0].matrix, split.body.vertices))
