@@ -225,19 +225,13 @@ def smallest_cone(directions) -> tuple[np.ndarray, float]:
 @dataclass(frozen=True)
 class PPSLight:
     """The light's frustum in PPS: ``matrix`` (PPS -> light clip before the fit; None when no frustum narrower
-    than allowed holds B'), L' ``light`` (unit), ``kind``, ``cone_half_angle``, ``axis`` k, ``single_frustum``."""
+    than allowed holds B'), L' ``light`` (unit, homogeneous), ``kind``, ``cone_half_angle``, ``single_frustum``."""
 
     matrix: np.ndarray | None
     light: np.ndarray
     kind: str
     cone_half_angle: float
-    axis: np.ndarray
     single_frustum: bool = True
-
-    @property
-    def position(self) -> np.ndarray | None:
-        """L' as a PPS point, None when it is at infinity (directional)."""
-        return None if self.kind == "directional" else self.light[:3] / self.light[3]
 
 
 def pps_light_matrix(light_h, points, max_half_angle: float = math.inf) -> PPSLight:
@@ -252,11 +246,11 @@ def pps_light_matrix(light_h, points, max_half_angle: float = math.inf) -> PPSLi
     rays = w * b_in_pps - l                                 # u(p), pointing away from the real light
     lengths = np.sqrt(np.einsum("ij,ij->i", rays, rays))
     if lengths.min() <= 1e-12 * max(float(lengths.max()), 1e-300):
-        return PPSLight(None, light, kind, math.pi, np.array([0.0, 0.0, 1.0]), False)
+        return PPSLight(None, light, kind, math.pi, False)
     k, margin = smallest_cone(rays / lengths[:, None])
     half = math.acos(min(1.0, max(-1.0, margin)))
     if margin < MIN_CONE_MARGIN or half > max_half_angle:
-        return PPSLight(None, light, kind, half, k, margin >= MIN_CONE_MARGIN)
+        return PPSLight(None, light, kind, half, margin >= MIN_CONE_MARGIN)
     # The (a, b, k) frame centred at c, the mean of B'; (a, b, k) right-handed: the camera's
     # projection already reverses orientation, so the composed world -> light NDC map reverses it
     # once, like frame.FLIP_Z @ look_along (a uniform map): triangles facing the light keep their
@@ -271,4 +265,4 @@ def pps_light_matrix(light_h, points, max_half_angle: float = math.inf) -> PPSLi
     # and the shear that makes the x, y and w rows vanish at L': they gain γx, γy and ρ times the depth row.
     lam = axes @ (l - w * centre)
     shear = np.array([-lam[0], -lam[1], 0.0, -w]) / lam[2]
-    return PPSLight(frame + np.outer(shear, frame[2]), light, kind, half, k)
+    return PPSLight(frame + np.outer(shear, frame[2]), light, kind, half)

@@ -144,7 +144,6 @@ def check_all(view, light, scene, kind=None, applied=True):
         assert not d.fallbacks, d.fallbacks
         if kind is not None:
             assert d.extra["pps_light_kind"] == kind
-        assert d.extra["inverted"] == (d.extra["pps_light_kind"] == "inverted")
         assert d.extra["virtual_shift"] >= 0
     return setup, body
 

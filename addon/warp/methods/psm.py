@@ -130,13 +130,11 @@ def guarded_warp(view: View, light: Light, body: IntersectionBody, options: Warp
 
 
 def _pps_report(warp: PSMWarp) -> dict:
-    camera, light_in_pps = warp.camera, warp.light_in_pps
+    camera, light_in_pps, l = warp.camera, warp.light_in_pps, warp.light_in_pps.light
     return {
-        "pps_light": light_in_pps.light,
-        "pps_light_position": light_in_pps.position,
+        "pps_light": l,
+        "pps_light_position": None if light_in_pps.kind == "directional" else l[:3] / l[3],     # L' as a PPS point
         "pps_light_kind": light_in_pps.kind,
-        "inverted": light_in_pps.kind == "inverted",
-        "directional_in_pps": light_in_pps.kind == "directional",
         "virtual_shift": camera.shift,
         "virtual_near": camera.near,
         "virtual_far": camera.far,
