@@ -9,11 +9,12 @@ from typing import Optional
 
 import numpy as np
 
+from ..aliasing import raster_jacobian
 from ..body import IntersectionBody
 from ..diagnostics import Diagnostics
 from ..fit import fit_to_unit_cube
-from ..frame import light_frames
-from ..geometry import finite_clip_volume_corners, translation
+from ..frame import LightFrame, light_frames
+from ..geometry import finite_clip_volume_corners, transform_points, translation
 from ..linear_depth import light_depth_row
 from ..post_perspective import PPSLight, VirtualCamera, nearest_visible_depth, pps_light_matrix, virtual_camera
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpOptions
@@ -51,7 +52,8 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
         return _uniform_fallback(view, light, body, options, diag, "light inside B",
                                  f"light '{light.name}' is inside the region that must be covered: no single "
                                  "frustum in post-perspective space contains it; using the uniform cube faces")
-    warp = psm_warp(view, light, body, options, nearest_visible_depth(view, light, body, options))
+    frames = light_frames(view, light, body, options)
+    warp = psm_warp(view, light, body, options, nearest_visible_depth(view, light, body, options), frames)
     if warp.relative is None:                                          # (§3: no single frustum from L' holds B')
         diag.extra.update(_pps_report(warp))
         half = math.degrees(warp.light_in_pps.cone_half_angle)
@@ -60,7 +62,7 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
                f"space (max {math.degrees(options.max_frustum_angle):.0f}); using the uniform map's cube faces")
         return _uniform_fallback(view, light, body, options, diag, "PPS light frustum", f"light '{light.name}' {why}")
     if options.lambda_guard == "all":
-        warp, note = guarded_warp(view, light, body, options, warp, diag)
+        warp, note = guarded_warp(view, light, body, options, warp, diag, frames)
         if warp is None:
             return _uniform_fallback(view, light, body, options, diag, "main: λ guard", note)
         if note:
@@ -79,24 +81,43 @@ def psm(view: View, light: Light, body: IntersectionBody, options: WarpOptions) 
     return ShadowSetup([shadow_map], diag)
 
 
-def psm_warp(view: View, light: Light, body: IntersectionBody, options: WarpOptions,
-             visible_near: float) -> PSMWarp:
-    """The virtual camera, near at ``visible_near`` (§4.2, §6), its PPS light frustum around B' (§3), the fit (§4)."""
+def psm_warp(view: View, light: Light, body: IntersectionBody, options: WarpOptions, visible_near: float,
+             frames: list[LightFrame]) -> PSMWarp:
+    """The virtual camera, near at ``visible_near`` (§4.2, §6), its PPS light frustum around B' (§3), the fit (§4),
+    its x, y turned towards the light frame's where the light has one (``turned_fit``)."""
     camera = virtual_camera(view, body, visible_near)
     light_in_pps = pps_light_matrix(camera.to_pps @ light.homogeneous_from(view.position), camera.points,
                                     math.inf if light.is_directional else options.max_frustum_angle / 2)
     relative = None
     if light_in_pps.matrix is not None:
-        relative = fit_to_unit_cube(light_in_pps.matrix @ camera.to_pps, body.vertices - view.position)
+        relative = turned_fit(light_in_pps.matrix @ camera.to_pps, view, body, frames[0] if len(frames) == 1 else None)
     return PSMWarp(camera, light_in_pps, relative)
 
 
+def turned_fit(unfitted: np.ndarray, view: View, body: IntersectionBody, frame: Optional[LightFrame]) -> np.ndarray:
+    """The fit (§4) of ``unfitted`` (camera-relative world -> the PPS light's clip), its x, y turned from PPS's towards
+    ``frame``'s as far as that shrinks the texel at B's centroid, fully from half its area. PPS scales the view's x, y
+    and depth unlike, so x, y square in PPS can be skewed in the light's image; turned, PSM tends to the uniform map
+    as the virtual camera moves back, as §4.2 says it must (docs/papers.md, "PSM's map axes under a low sun").
+    J: a fitted map's d(x/w, y/w) over the frame's x, y at B's centroid; C = J⁻¹ at det 1 puts the fitted x, y along
+    the frame's there; the turn is I + t (C - I), t = log2 of the texel's area before over after, clamped to [0, 1]."""
+    fitted = lambda m: fit_to_unit_cube(m, body.vertices - view.position)
+    jacobian = lambda m: raster_jacobian(m @ translation(-view.position) @ np.linalg.inv(frame.to_light), (2, 2),
+                                         transform_points(frame.to_light, body.volume_centroid))[0, :, :2]
+    relative = fitted(unfitted)
+    if frame is None or not np.linalg.det(j := jacobian(relative)) > 0:
+        return relative
+    c = np.linalg.inv(j) * math.sqrt(np.linalg.det(j))
+    turned = lambda t: fitted(np.vstack([((1 - t) * np.eye(2) + t * c) @ relative[:2], relative[2:]]))
+    t = min(math.log2(max(np.linalg.det(jacobian(turned(1.0))) / np.linalg.det(j), 1.0)), 1.0)
+    return turned(t) if t > 0 else relative
+
+
 def guarded_warp(view: View, light: Light, body: IntersectionBody, options: WarpOptions, warp: PSMWarp,
-                 diag: Diagnostics) -> tuple[Optional[PSMWarp], str]:
+                 diag: Diagnostics, frames: list[LightFrame]) -> tuple[Optional[PSMWarp], str]:
     """The λ guard (docs/papers.md) for PSM: the virtual near distance rises until PSM's λ (``map_lambda``) is
     within ``GUARD_TOLERANCE`` above the guard's (§4.2: at infinity PSM is the uniform map). Returns the warp and
     why it moved ("": it did not), or None and why the uniform map serves."""
-    frames = light_frames(view, light, body, options)
     at, _ = light_at_eye(view, light, options, body, view.direction)
     if len(frames) != 1 or at is None:
         return warp, ""
@@ -116,7 +137,7 @@ def guarded_warp(view: View, light: Light, body: IntersectionBody, options: Warp
             x = (low + high) / 2
         if not x < GUARD_FAR * (warp.camera.far - warp.camera.near):
             return None, f"PSM's {why}; only a virtual camera {GUARD_FAR:.0e} depths of B back meets it"
-        tried = psm_warp(view, light, body, options, x)
+        tried = psm_warp(view, light, body, options, x, frames)
         if tried.relative is None:
             return None, f"PSM's {why}; no single post-perspective frustum on the way back"
         axis, lam = map_lambda(tried.relative @ translation(-view.position), frames[0])
