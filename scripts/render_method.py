@@ -81,8 +81,8 @@ def main(argv=None):
         if st.note:
             print(f"lixel: warning: {st.note}", file=sys.stderr)
         if args.json:
-            with open(args.json, "w", encoding="utf-8") as fh:
-                json.dump(s.module("addon.cli.output").setup_json(st.setup), fh, indent=2)
+            output = s.module("addon.cli.output")    # whole or not at all: a failed write leaves what was there
+            output.write_text(args.json, json.dumps(output.setup_json(st.setup), indent=2))
         if args.output or args.shadow_output or args.map_output:
             res = renders.render_state(st, s.bpy.context.evaluated_depsgraph_get(), st.view.resolution)
             if args.output:
