@@ -64,18 +64,20 @@ def run(mode, script, blend_path, *args, timeout=240, cwd=ROOT, file_size_blocks
 MODES = ["module", "blender"]
 
 
-@pytest.mark.parametrize("script, option, extra", [("export_animation.py", "--output", ("--frames", "1:5")),
-                                                   ("render_method.py", "--json", ())])
-def test_an_output_that_fails_part_way_leaves_the_file_that_was_there(blend, tmp_path, script, option, extra):
-    """A JSON output written over an existing file emptied it first: a write that failed part-way (a full disk)
-    left the user's file gone and half a document in its place. It is written beside it and renamed over it once
-    whole; a failed one is one line naming the file, and leaves nothing behind."""
-    out = tmp_path / "setup.json"
+@pytest.mark.parametrize("script, option, name, extra", [
+    ("export_animation.py", "--output", "setup.json", ("--frames", "1:5")),
+    ("render_method.py", "--json", "setup.json", ()),
+    ("render_method.py", "--shadow-output", "shadow.exr", ("--resolution", "320x180"))])
+def test_an_output_that_fails_part_way_leaves_the_file_that_was_there(blend, tmp_path, script, option, name, extra):
+    """An output written over an existing file emptied it first: a write that failed part-way (a full disk) left
+    the user's file gone and half a document or picture in its place. It is written beside it and renamed over it
+    once whole; a failed one is one line naming the file, and leaves nothing behind."""
+    out = tmp_path / name
     out.write_text('{"the user\'s": "earlier export"}\n')
     r = run("module", script, blend, option, str(out), "--method", "uniform", *extra, file_size_blocks=1)
-    assert r.returncode == 1 and f"lixel: error: cannot write '{out}': File too large" in r.stderr, r.stderr
+    assert r.returncode == 1 and f"lixel: error: cannot write '{out}': " in r.stderr, r.stderr
     assert out.read_text() == '{"the user\'s": "earlier export"}\n'
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["setup.json"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]
 
 
 @pytest.mark.parametrize("mode", MODES)
