@@ -71,8 +71,9 @@ def main(argv=None):
             if images:
                 renders.save_image(renders.mosaic(images, columns=min(3, len(images)), labels=labels),
                                    os.path.join(args.output_dir, "comparison.png"), view_of=scene)
-        with open(os.path.join(args.output_dir, "comparison.json"), "w", encoding="utf-8") as fh:
-            json.dump(doc, fh, indent=2)
+        # whole or not at all: a failed write leaves the file that was there
+        s.module("addon.cli.output").write_text(os.path.join(args.output_dir, "comparison.json"),
+                                                json.dumps(doc, indent=2))
         return 0
 
 

@@ -69,8 +69,7 @@ def main(argv=None):
         if args.output == "-":
             print(text, file=data)
         else:
-            with open(args.output, "w", encoding="utf-8") as fh:
-                fh.write(text + "\n")
+            s.module("addon.cli.output").write_text(args.output, text + "\n")   # whole or not at all
             print(f"lixel: {len(doc['frames']) - failed} of {len(doc['frames'])} frames exported to {args.output}")
         live.clear()
         if failed == len(doc["frames"]):

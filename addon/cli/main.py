@@ -48,6 +48,21 @@ def run_method(name, view, light, scene, options, body):
         return {"maps": [], "diagnostics": {"method": name, "error": _internal(exc), "fallbacks": []}}
 
 
+MAX_INDENT = 16
+
+
+def _indent(text: str) -> int:
+    """``--indent``: spaces per level, 0..MAX_INDENT (json takes a negative one as 0, and a huge one pads every
+    line with it)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if not 0 <= value <= MAX_INDENT:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number from 0 to {MAX_INDENT} (spaces per level)")
+    return value
+
+
 def main(argv=None) -> int:
     with np.errstate(all="ignore"):  # numpy's RuntimeWarnings are no message for a user: errors are lines of their own
         return _main(argv)
@@ -57,7 +72,8 @@ def _main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m addon.warp", description="Lixel light matrices for a config.")
     parser.add_argument("--method", required=True, help=f"one of {', '.join(METHODS)}, or 'all'")
     parser.add_argument("config", help="JSON config file ('-' for standard input)")
-    parser.add_argument("--indent", type=int, default=None, help="pretty-print the JSON")
+    parser.add_argument("--indent", type=_indent, default=None,
+                        help=f"pretty-print the JSON with this many spaces per level (0 to {MAX_INDENT})")
     args = parser.parse_args(argv)
     if args.method != "all" and args.method not in METHODS:
         return _error(f"--method: unknown method {args.method!r}; choose one of {', '.join(METHODS)} or all")

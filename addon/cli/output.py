@@ -2,13 +2,60 @@
 export operator writes and the scripts save."""
 from __future__ import annotations
 
+import contextlib
 import math
+import os
+import stat
+import tempfile
 from typing import Any
 
 import numpy as np
 
 from ..warp.diagnostics import Diagnostics
 from ..warp.types import ShadowMap, ShadowSetup
+
+
+def write_text(path: str, text: str) -> None:
+    """Write ``text`` (UTF-8) to the file ``path`` whole or not at all (:func:`replacing`). OSError naming ``path``
+    where it cannot be written."""
+    with replacing(path) as temporary, open(temporary, "w", encoding="utf-8") as fh:
+        fh.write(text)
+
+
+@contextlib.contextmanager
+def replacing(path: str):
+    """A file to write instead of ``path``, beside it, renamed over it once the block ends without an exception,
+    with the permissions ``path`` had (a new file: the umask's); removed where the block fails. So a write that fails
+    part-way (a full disk) leaves the file that was there as it was and no half-written one: ``open(path, "w")``
+    emptied the user's file first. A symbolic link's target is the file replaced; a path that is not a plain file (a
+    device, a pipe) is written directly. An OSError is raised naming ``path``, never the temporary file."""
+    target = os.path.realpath(path)
+    if os.path.exists(target) and not os.path.isfile(target):
+        yield target
+        return
+    mode = stat.S_IMODE(os.stat(target).st_mode) if os.path.exists(target) else 0o666 & ~_umask()
+    base, ending = os.path.splitext(os.path.basename(target))
+    try:
+        fd, temporary = tempfile.mkstemp(prefix=f".{base}.", suffix=f".part{ending}", dir=os.path.dirname(target))
+        os.close(fd)
+    except OSError as exc:   # named as the file asked for, not the temporary one
+        raise OSError(exc.errno, exc.strerror, path) from None
+    try:
+        yield temporary
+        os.chmod(temporary, mode)
+        os.replace(temporary, target)
+    except BaseException as exc:
+        with contextlib.suppress(OSError):
+            os.unlink(temporary)
+        if isinstance(exc, OSError):
+            raise OSError(exc.errno, exc.strerror, path) from None
+        raise
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def setup_json(setup: ShadowSetup) -> dict:

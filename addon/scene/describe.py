@@ -271,23 +271,32 @@ def depth_rows(near: float, far: float, orthographic: bool) -> np.ndarray:
     return np.array([[0.0, 0.0, -(far + near) / d, -2.0 * far * near / d], [0.0, 0.0, -1.0, 0.0]])
 
 
-def unnormalized_area(data) -> float:
-    """What Cycles multiplies a light's strength by where its Normalize is off (Blender 5.0; measured in 5.0.1
-    against Normalize on, to 1e-6): the emitter's area. An area light's square or rectangle (size x size_y) or disk
-    or ellipse (pi/4 of that), a point or spot light's sphere 4 pi r^2 (r: its Radius), a sun's pi sin^2(angle / 2)."""
-    if data.type == "SUN":
-        return math.pi * math.sin(float(data.angle) / 2.0) ** 2
-    if data.type in ("POINT", "SPOT"):
-        return 4.0 * math.pi * float(data.shadow_soft_size) ** 2
+def area_light_area(data, matrix) -> float:
+    """An area light's emitter area in square metres as Cycles lights with it: its square or rectangle (Size x Size Y)
+    or disk or ellipse (pi/4 of that), stretched by the object's X and Y scale (``matrix``: its world matrix).
+    Where it is 0 (a Size, Size Y or X/Y scale of 0), Cycles emits nothing from it, Normalize on or off (measured in
+    4.2.23 and 5.0.1: a ground's mean 9.5e-9 against 0.081 at Size 0.5)."""
     x = float(data.size)
     y = x if data.shape in ("SQUARE", "DISK") else float(data.size_y)
-    return x * y * (math.pi / 4.0 if data.shape in ("DISK", "ELLIPSE") else 1.0)
+    sx, sy = np.linalg.norm(np.asarray(matrix, dtype=float)[:3, :2], axis=0)
+    return x * y * float(sx * sy) * (math.pi / 4.0 if data.shape in ("DISK", "ELLIPSE") else 1.0)
+
+
+def unnormalized_area(data, matrix) -> float:
+    """What Cycles multiplies a light's strength by where its Normalize is off (Blender 5.0; measured in 5.0.1
+    against Normalize on, to 1e-6): the emitter's area. An area light's :func:`area_light_area`, a point or spot
+    light's sphere 4 pi r^2 (r: its Radius; at Radius 0, 4), a sun's pi sin^2(angle / 2) (at Angle 0, 1)."""
+    if data.type == "SUN":
+        return math.pi * math.sin(float(data.angle) / 2.0) ** 2 if data.angle > 0 else 1.0
+    if data.type in ("POINT", "SPOT"):
+        return 4.0 * math.pi * float(data.shadow_soft_size) ** 2 if data.shadow_soft_size > 0 else 4.0
+    return area_light_area(data, matrix)
 
 
 def describe_light(light_obj, depsgraph=None) -> Light:
     """A Blender light object as a :class:`Light`, with its colour and energy as Cycles takes them (Blender 5.0: the
     colour times the Temperature's blackbody where it is on, the strength times 2^Exposure, and times the emitter's
-    area where Normalize is off: :func:`unnormalized_area`).
+    area where Normalize is off: :func:`unnormalized_area`). An area light of no area emits nothing, as in Cycles.
 
     * SUN: ``direction`` = the object's world -Z.
     * POINT: ``position`` = the object's world location.
@@ -329,9 +338,10 @@ def describe_light(light_obj, depsgraph=None) -> Light:
     if getattr(data, "use_temperature", False):   # 5.0: Cycles multiplies the colour by the Temperature's blackbody
         color = tuple(c * float(t) for c, t in zip(color, data.temperature_color))
     # 5.0's Exposure scales the strength by 2^exposure in Cycles (measured: Strength 3 at Exposure 1 renders as 6)
-    energy = float(data.energy) * 2.0 ** float(getattr(data, "exposure", 0.0)) if lights_surfaces(light_eval) else 0.0
+    emits = lights_surfaces(light_eval) and (kind != "AREA" or area_light_area(data, m) > 0)
+    energy = float(data.energy) * 2.0 ** float(getattr(data, "exposure", 0.0)) if emits else 0.0
     if not getattr(data, "normalize", True):
-        energy *= unnormalized_area(data)
+        energy *= unnormalized_area(data, m)
     name = light_obj.name
     if kind == "SUN":
         return Light("SUN", direction=minus_z, color=color, energy=energy, name=name)
@@ -450,7 +460,11 @@ def light_notes(light_obj, depsgraph=None) -> list[str]:
     elif energy < 0:     # Cycles subtracts such a light (measured in 5.0.1: a sun of -1 darkens the world's 0.40 to 0.12)
         notes.append(f"Light '{light_obj.name}' has a negative strength ({energy:g}): it takes light away, as in "
                      f"Cycles, so its shadows are the brighter places (Light properties > Power/Strength)")
-    if data.type == "AREA":
+    if data.type == "AREA" and area_light_area(data, light_obj.matrix_world) <= 0:
+        notes.append(f"Area light '{light_obj.name}' has no area (a Size, Size Y or X/Y scale of 0): as in Cycles it "
+                     f"emits nothing, so its shadows show only in the Shadow pass; give it a size (Light properties > "
+                     f"Size) and a scale (Object properties > Transform > Scale)")
+    elif data.type == "AREA":
         notes.append(f"Area light '{light_obj.name}' is shadowed as a spot light at its centre (hard shadows, "
                      f"cone = its spread, at most 179°)")
     if data.type == "SPOT" and data.spot_size > MAX_CONE:

@@ -389,15 +389,30 @@ def _fail(st: LiveState, message: str, timings: dict) -> LiveState:
     return st
 
 
+def length_text(value: float, scene) -> str:
+    """A length in Blender units as Blender's own fields show it: in ``scene``'s unit system and Unit Scale
+    (Scene properties > Units: at 0.01, 100 units are 1 m), to 3 digits; "m" where the scene is gone."""
+    units = getattr(scene, "unit_settings", None)
+    if units is None:
+        return f"{value:.3g} m"
+    if units.system == "NONE":
+        return f"{value:.3g}"
+    return bpy.utils.units.to_string(units.system, "LENGTH", value * units.scale_length, precision=3)
+
+
 def readouts(st: Optional[LiveState]) -> list[tuple[str, str]]:
     """(label, value) pairs for the panel: θ, γ, n_opt or λ, B's vertex count,
-    maps, footprint, timings."""
+    maps, footprint, timings; lengths in the scene's units (:func:`length_text`)."""
     if st is None:
         return []
     if st.setup is None:
         return [("Error", st.error or "not computed")]
     import math
     d = st.setup.diagnostics
+    scene = bpy.data.scenes.get(st.scene_name)
+
+    def span(near, far) -> str:
+        return f"{length_text(near, scene)}–{length_text(far, scene)}"
     rows = [("Method", st.method_used)]
     rows.append(("θ", "—" if d.theta is None else f"{math.degrees(d.theta):.1f}°"))
     rows.append(("γ", "—" if d.gamma is None else f"{math.degrees(d.gamma):.1f}°"))
@@ -409,14 +424,14 @@ def readouts(st: Optional[LiveState]) -> list[tuple[str, str]]:
         focus = st.body.focus
         if st.body.visible is not None:
             near, far = st.body.visible.depth_range
-            focus += f", depth {near:.3g}–{far:.3g}"
+            focus += f", depth {span(near, far)}"
         rows.append(("Focus", focus))
     rows.append(("B vertices", str(len(d.body_vertices))))
     if "splits" in d.extra:              # a cascade: each split's depths, warp and predicted error
         z, warps, errors = d.extra["splits"], d.extra["split_warps"], d.extra["split_predicted_error"]
         for i, (warp, error) in enumerate(zip(warps, errors)):
-            rows.append((f"Split {i}", f"{z[i]:.3g}–{z[i + 1]:.3g} m, {warp}, predicted {error:.3g}" if warp
-                         else f"{z[i]:.3g}–{z[i + 1]:.3g} m, nothing visible"))
+            rows.append((f"Split {i}", f"{span(z[i], z[i + 1])}, {warp}, predicted {error:.3g}" if warp
+                         else f"{span(z[i], z[i + 1])}, nothing visible"))
         rows.append(("Predicted max", f"{d.extra['predicted_max_error']:.3g} (Lloyd, {d.extra['split_scheme']} splits)"))
         if st.provisional:               # a moving view's: refine_when_resting
             rows.append(("Splits", "PSSM λ while moving; refining" if refinement_pending() else

@@ -311,31 +311,37 @@ def save_image(rgba: np.ndarray, path: str, name: Optional[str] = None, linear: 
     import os
 
     import bpy
+    from ..cli.output import replacing
     file_format = image_format(path)
+    final = bpy.path.abspath(str(path)) if str(path).startswith("//") else os.path.abspath(path)
+    if os.path.isdir(final):
+        raise OSError(21, "it is a folder: give a file name", str(path))
+    os.makedirs(os.path.dirname(final), exist_ok=True)     # as Blender makes an output's folders
     img = to_image(name or "Lixel output", rgba, existing_ok=False, linear=linear)
     settings = None
     try:
-        img.filepath_raw = str(path) if str(path).startswith("//") else os.path.abspath(path)
-        img.file_format = file_format
-        if linear and (file_format == "OPEN_EXR" or view_of is not None):
-            # Image.save() does not write scene-linear values to OpenEXR (measured: 4.2.23 writes them sRGB-encoded,
-            # 0.25 -> 0.537 and 2.0 -> 1.353; 5.0.1 wherever alpha < 1, 0.25 -> 0.589 at alpha 0.5); save_render
-            # with OpenEXR settings writes them as they are, in both, and other formats through the settings'
-            # Color Management. Its settings come from a scene of its own.
-            settings = bpy.data.scenes.new("Lixel output settings")
-            fmt = settings.render.image_settings
-            fmt.file_format = file_format
-            if file_format == "OPEN_EXR":
-                fmt.color_mode, fmt.color_depth = "RGBA", "32"
+        with replacing(final) as temporary:   # whole or not at all: a failed write leaves the file that was there
+            img.filepath_raw = temporary
+            img.file_format = file_format
+            if linear and (file_format == "OPEN_EXR" or view_of is not None):
+                # Image.save() does not write scene-linear values to OpenEXR (measured: 4.2.23 writes them sRGB-encoded,
+                # 0.25 -> 0.537 and 2.0 -> 1.353; 5.0.1 wherever alpha < 1, 0.25 -> 0.589 at alpha 0.5); save_render
+                # with OpenEXR settings writes them as they are, in both, and other formats through the settings'
+                # Color Management. Its settings come from a scene of its own.
+                settings = bpy.data.scenes.new("Lixel output settings")
+                fmt = settings.render.image_settings
+                fmt.file_format = file_format
+                if file_format == "OPEN_EXR":
+                    fmt.color_mode, fmt.color_depth = "RGBA", "32"
+                else:
+                    fmt.color_mode = "RGB" if file_format == "JPEG" else "RGBA"
+                    settings.display_settings.display_device = view_of.display_settings.display_device
+                    for attr in VIEW_SETTINGS:
+                        if hasattr(view_of.view_settings, attr):
+                            setattr(settings.view_settings, attr, getattr(view_of.view_settings, attr))
+                img.save_render(temporary, scene=settings)
             else:
-                fmt.color_mode = "RGB" if file_format == "JPEG" else "RGBA"
-                settings.display_settings.display_device = view_of.display_settings.display_device
-                for attr in VIEW_SETTINGS:
-                    if hasattr(view_of.view_settings, attr):
-                        setattr(settings.view_settings, attr, getattr(view_of.view_settings, attr))
-            img.save_render(bpy.path.abspath(img.filepath_raw), scene=settings)
-        else:
-            img.save()
+                img.save()
     except RuntimeError as exc:  # Blender's "Error: Could not write image: <why>" (or "internal error, see console")
         why = str(exc).strip().splitlines()[0].partition("Could not write image: ")[2]
         raise OSError(0, why if why and "internal error" not in why else "the image cannot be written there",

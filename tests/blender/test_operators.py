@@ -440,3 +440,35 @@ def test_every_operator_that_changes_data_can_be_undone(lixel):
     ops = importlib.import_module(f"{lixel.__name__}.addon.ui.operators")
     options = {c.bl_idname: c.bl_options for c in ops.classes}
     assert [n for n in CHANGES_DATA if "UNDO" not in options[f"lixel.{n}"]] == []
+
+
+@pytest.fixture
+def file_size_limit():
+    """A write failing part-way, as on a full disk: files may not grow past ``limit`` bytes (RLIMIT_FSIZE; the
+    signal it sends is ignored so the write fails with EFBIG instead)."""
+    import resource
+    import signal
+    old_limit, old_handler = resource.getrlimit(resource.RLIMIT_FSIZE), signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+
+    def limit(n):
+        resource.setrlimit(resource.RLIMIT_FSIZE, (n, old_limit[1]))
+    yield limit
+    resource.setrlimit(resource.RLIMIT_FSIZE, old_limit)
+    signal.signal(signal.SIGXFSZ, old_handler)
+
+
+def test_an_export_that_fails_part_way_leaves_the_file_that_was_there(scene, tmp_path, file_size_limit):
+    """Exporting over an existing file opened it for writing, which emptied it, then wrote: a write that failed
+    part-way (a full disk) left the user's file gone and 256 bytes of half a JSON document in its place. The
+    export is written beside it and renamed over it only when whole; a failed one is said and leaves no file."""
+    path = tmp_path / "setup.json"
+    path.write_text('{"the user\'s": "earlier export"}\n')
+    path.chmod(0o640)
+    file_size_limit(256)
+    with pytest.raises(RuntimeError, match=r"cannot write '.*setup\.json': File too large"):
+        bpy.ops.lixel.export_json(filepath=str(path), all_methods=True)
+    file_size_limit(-1)
+    assert path.read_text() == '{"the user\'s": "earlier export"}\n'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["setup.json"]
+    assert bpy.ops.lixel.export_json(filepath=str(path)) == {"FINISHED"}
+    assert set(json.loads(path.read_text())) == {"maps", "diagnostics"} and (path.stat().st_mode & 0o777) == 0o640

@@ -92,3 +92,17 @@ def test_operator_without_a_folder_or_camera_says_so(lixel, tmp_path):
         with pytest.raises(RuntimeError, match="camera"):
             bpy.ops.lixel.overlay_snapshot(directory=str(tmp_path))
     assert not list(tmp_path.iterdir())
+
+
+def test_operator_names_what_the_observer_picture_leaves_out(lixel, tmp_path, capfd):
+    """The operator's observer picture leaves out what lies far beyond B (a far clip plane 500 m away): the script
+    named it ("note: camera's view frustum reaches ... beyond the picture"), the operator drew the lines running out
+    of the picture and said nothing."""
+    import bpy
+    from ui_scenes import active_scene
+    with active_scene("lixel_snapshot_notes") as scene:
+        scene.camera.data.clip_end = 500.0
+        assert bpy.ops.lixel.overlay_snapshot(directory=str(tmp_path), width=96) == {"FINISHED"}
+    out = capfd.readouterr().out
+    assert "Lixel: saved overlay_camera.png, overlay_observer.png in " in out
+    assert "the observer's picture leaves out: camera's view frustum reaches " in out and "beyond the picture" in out

@@ -44,7 +44,9 @@ def blend(tmp_path_factory, lixel):
     return path
 
 
-def run(mode, script, blend_path, *args, timeout=240, cwd=ROOT):
+def run(mode, script, blend_path, *args, timeout=240, cwd=ROOT, file_size_blocks=None):
+    """Run a script as a user does (``mode``: the bpy module or ``blender --python``); ``file_size_blocks``: files
+    may not grow past that many 512-byte blocks (a write fails part-way, as on a full disk)."""
     env = dict(os.environ)
     scratch = Path(blend_path).parent if blend_path else Path(tempfile.gettempdir())
     env.setdefault("XDG_CACHE_HOME", str(scratch / "xdg"))
@@ -54,10 +56,28 @@ def run(mode, script, blend_path, *args, timeout=240, cwd=ROOT):
         cmd = [sys.executable, script_path] + ([str(blend_path)] if blend_path else []) + list(args)
     else:
         cmd = [sys.executable, "-c", BLENDER_MODE, str(blend_path), script_path] + list(args)
+    if file_size_blocks is not None:    # SIGXFSZ ignored: the write fails (EFBIG) instead of killing the process
+        cmd = ["sh", "-c", f'trap "" XFSZ; ulimit -f {file_size_blocks}; exec "$@"', "sh", *cmd]
     return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env, cwd=str(cwd))
 
 
 MODES = ["module", "blender"]
+
+
+@pytest.mark.parametrize("script, option, name, extra", [
+    ("export_animation.py", "--output", "setup.json", ("--frames", "1:5")),
+    ("render_method.py", "--json", "setup.json", ()),
+    ("render_method.py", "--shadow-output", "shadow.exr", ("--resolution", "320x180"))])
+def test_an_output_that_fails_part_way_leaves_the_file_that_was_there(blend, tmp_path, script, option, name, extra):
+    """An output written over an existing file emptied it first: a write that failed part-way (a full disk) left
+    the user's file gone and half a document or picture in its place. It is written beside it and renamed over it
+    once whole; a failed one is one line naming the file, and leaves nothing behind."""
+    out = tmp_path / name
+    out.write_text('{"the user\'s": "earlier export"}\n')
+    r = run("module", script, blend, option, str(out), "--method", "uniform", *extra, file_size_blocks=1)
+    assert r.returncode == 1 and f"lixel: error: cannot write '{out}': " in r.stderr, r.stderr
+    assert out.read_text() == '{"the user\'s": "earlier export"}\n'
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]
 
 
 @pytest.mark.parametrize("mode", MODES)

@@ -387,6 +387,22 @@ def test_output_to_a_full_disk_is_one_line_naming_it():
     assert r.returncode == 1 and r.stderr == "lixel: error: cannot write the output: No space left on device\n", \
         r.stderr
 
+@pytest.mark.parametrize("value", ["-1", "-20", "17", "1000000000", "2.5", "two"])
+def test_indent_out_of_range_is_one_line_naming_it(value):
+    """--indent is a number of spaces, 0..16: a negative one printed as if it were 0 (json treats it as ''),
+    and a huge one padded every line with it (a gigabyte of spaces for 10^9)."""
+    r = run_cli("--method", "uniform", str(EXAMPLES[0]), "--indent", value)
+    assert r.returncode == 2 and r.stdout == "", r.stdout[:200]
+    assert "argument --indent: " in r.stderr and "0 to 16" in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
+@pytest.mark.parametrize("value", ["0", "2", "16"])
+def test_indent_in_range_pretty_prints(value):
+    r = run_cli("--method", "uniform", str(EXAMPLES[0]), "--indent", value)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.splitlines()[1] == " " * int(value) + '"maps": ['
+
+
 def test_unknown_method():
     r = run_cli("--method", "nope", str(EXAMPLES[0]))
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "--method" in r.stderr

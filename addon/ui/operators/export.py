@@ -6,7 +6,7 @@ import bpy
 from bpy.props import BoolProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ExportHelper
 
-from ...cli.output import setup_json
+from ...cli.output import setup_json, write_text
 from ...guard import guarded_operator
 from ...scene.owned import lixel_datablock
 from ...warp import METHODS
@@ -60,10 +60,8 @@ class LIXEL_OT_export_json(LixelSceneOperator, bpy.types.Operator, ExportHelper)
         # "//name.json": beside the .blend file, as Blender's paths are. Called from Python (no file browser to add
         # the extension), a path without ".json" gets it, as Blender's exporters do: it never overwrites a .blend.
         path = bpy.path.ensure_ext(bpy.path.abspath(self.filepath), self.filename_ext)
-        try:
-            with open(path, "w", encoding="utf-8") as fh:
-                json.dump(doc, fh, indent=2 if self.indent else None)
-                fh.write("\n")
+        try:   # whole or not at all: a failed write leaves the file that was there
+            write_text(path, json.dumps(doc, indent=2 if self.indent else None) + "\n")
         except OSError as exc:
             self.report({"ERROR"}, f"Lixel: cannot write '{path}': {exc.strerror}")
             return {"CANCELLED"}

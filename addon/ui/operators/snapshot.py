@@ -54,7 +54,7 @@ class LIXEL_OT_overlay_snapshot(LixelSceneOperator, bpy.types.Operator):
         views = [("camera", snapshot.camera_view_projection(st.view), renders.fit_resolution(st.view.resolution,
                                                                                            self.width), receivers)]
         w, h = self.width, max(1, round(self.width * 0.625))
-        observer, _notes = snapshot.observer_view_projection(st.geometry, st.view, w / h)
+        observer, notes = snapshot.observer_view_projection(st.geometry, st.view, w / h)
         views.append(("observer", observer, (w, h), list(OBSERVER_OVERLAYS) + receivers[-1:]))
         region = getattr(context, "region_data", None)
         if region is not None and context.region is not None:
@@ -76,7 +76,9 @@ class LIXEL_OT_overlay_snapshot(LixelSceneOperator, bpy.types.Operator):
                 self.report({"ERROR"}, f"Lixel: cannot write '{path}': {exc.strerror}")
                 return {"CANCELLED"}
             written.append(os.path.basename(path))
-        self.report({"INFO"}, f"Lixel: saved {', '.join(written)} in {self.directory}")
+        # what the observer's picture leaves out (its lines run out of the picture), as the script says it
+        left_out = f"; the observer's picture leaves out: {'; '.join(notes)}" if notes else ""
+        self.report({"INFO"}, f"Lixel: saved {', '.join(written)} in {self.directory}{left_out}")
         return {"FINISHED"}
 
 
