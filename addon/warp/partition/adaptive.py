@@ -35,8 +35,7 @@ def minimax_splits(errors_at: Callable[[np.ndarray], list], splits: np.ndarray, 
                    shared_budget: bool = False) -> tuple[np.ndarray, list[float]]:
     """The depths (ends kept) after ``ROUNDS`` (few: a long search settles where a split's B jumps) equalising steps
     on ``errors_at(C_0..C_N)`` from ``splits`` with ``errors``, or those if the :func:`objective` did not fall."""
-    start, start_e = np.asarray(splits, dtype=np.float64), np.asarray(errors, dtype=np.float64)
-    c, e = start, start_e
+    c, e = start, start_e = np.asarray(splits, dtype=np.float64), np.asarray(errors, dtype=np.float64)
     power = np.ones(len(e))
     for _ in range(ROUNDS if len(c) > 2 and usable(e) else 0):
         moved = equalising_step(c, e, power, shared_budget)
@@ -45,9 +44,8 @@ def minimax_splits(errors_at: Callable[[np.ndarray], list], splits: np.ndarray, 
             break
         power = local_power(np.diff(np.log(c)), e, np.diff(np.log(moved)), moved_e, power)
         c, e = moved, moved_e
-    if objective(e, shared_budget) < objective(start_e, shared_budget):
-        return c, [float(x) for x in e]
-    return start, [float(x) for x in start_e]
+    c, e = (c, e) if objective(e, shared_budget) < objective(start_e, shared_budget) else (start, start_e)
+    return c, [float(x) for x in e]
 
 
 def usable(errors: np.ndarray) -> bool:
