@@ -104,10 +104,9 @@ def footprint_p95(footprints: list, band=(95.0,)) -> float:
 def footprint_p95s(fixed: list, choices: list) -> np.ndarray:
     """``footprint_p95(fixed + [c])`` of each of ``choices`` (not empty) at once: the value at rank r = ⌊0.95·(n - 1)⌋
     of the n finite ones is their (n - 1 - r)-th largest, found among as many of each part's largest (one partition)."""
-    f, lengths = np.concatenate([np.zeros(0), *fixed]), np.array([len(c) for c in choices], dtype=int)
-    f, c = -np.sort(-f[np.isfinite(f)]), np.full((len(choices), lengths.max()), -np.inf)
-    c[np.arange(c.shape[1]) < lengths[:, None]] = np.concatenate(choices)
-    n = len(f) + np.isfinite(c).sum(axis=1)
+    f, c = np.concatenate([np.zeros(0), *fixed]), np.full((len(choices), max(map(len, choices))), -np.inf)
+    c[np.arange(c.shape[1]) < np.array([len(v) for v in choices])[:, None]] = np.concatenate(choices)
+    f, n = -np.sort(-f[np.isfinite(f)]), np.isfinite(f).sum() + np.isfinite(c).sum(axis=1)
     x = 95.0 * ((n - 1) / 100)
     r = np.floor(x).astype(int)
     q = int((n - 1 - r).max()) + 1
