@@ -3,6 +3,7 @@
     python -m bench.cascade_speed --save FILE [--scenes forest,city_side_sun,...] [--size 2048]   # needs bpy
     python -m bench.cascade_speed --load FILE [--repeat 7] [--profile] [--json OUT]
     python -m bench.cascade_speed [--repeat 7]                    # both, in one process
+    python -m bench.cascade_speed --load FILE --against TREE [--rounds 6] [--repeat 3]   # this tree / TREE, ratios
 
 A frame with the ``cascade`` method spends its CPU time (the engine's "warp" stage) in ``focused_body`` and
 ``compute("cascade")``: B over what the pre-pass saw, then the splits, each split's B, the warps "auto" tries, the
@@ -13,6 +14,10 @@ pre-pass drawn (software OpenGL) and read back as ``fit_warp`` reads it; ``--sav
 that two trees can be timed on the same inputs (``--load`` needs no bpy). Each case is timed in rounds that
 interleave all cases (a burst of load falls on all alike): the median and best per call, in process CPU time
 (``time.process_time``) and wall clock. ``--profile`` prints each case's cProfile, its most costly functions.
+``--against`` times another tree (main's: ``git worktree add`` or ``git archive``) on the same inputs: ``--rounds``
+rounds, each a fresh process of this tree and one of the other, in turn first, each timing ``--repeat`` calls per
+case; per case the median over rounds of each tree's CPU per call, and the ratio (this / other) with the range of
+the rounds' ratios (a burst of load on a shared machine shows there, not as a false speed-up).
 """
 from __future__ import annotations
 
@@ -25,7 +30,9 @@ import os
 import pickle
 import pstats
 import statistics
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -111,6 +118,28 @@ def profile(case, top: int = 25) -> str:
     return out.getvalue()
 
 
+def against(load: Path, tree: Path, scenes: str, rounds: int, repeat: int) -> dict:
+    """{case: {cpu_ms: this tree's median, other_ms, ratio, ratio_min, ratio_max}} over ``rounds`` alternating
+    rounds of one fresh process per tree (``time_cases`` with ``repeat`` in each: its median per round)."""
+    runs = {ROOT: [], tree: []}
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(rounds):
+            for where in ((ROOT, tree) if k % 2 == 0 else (tree, ROOT)):
+                out = Path(tmp) / "round.json"
+                subprocess.run([sys.executable, "-m", "bench.cascade_speed", "--load", str(load), "--scenes", scenes,
+                                "--repeat", str(repeat), "--json", str(out)], cwd=where, check=True,
+                               stdout=subprocess.DEVNULL)
+                runs[where].append({c: r["cpu_ms"]["median"] for c, r in json.loads(out.read_text()).items()})
+    res = {}
+    for case in runs[ROOT][0]:
+        ours, theirs = ([r[case] for r in runs[w]] for w in (ROOT, tree))
+        ratios = [a / b for a, b in zip(ours, theirs)]
+        res[case] = {"cpu_ms": statistics.median(ours), "other_ms": statistics.median(theirs),
+                     "ratio": statistics.median(ours) / statistics.median(theirs), "ratio_min": min(ratios),
+                     "ratio_max": max(ratios)}
+    return res
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.cascade_speed", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -121,9 +150,23 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=7)
     ap.add_argument("--profile", action="store_true")
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--against", type=Path, help="another tree to time alternately with this one (needs --load)")
+    ap.add_argument("--rounds", type=int, default=6)
     args = ap.parse_args(argv)
     if str(ROOT) not in sys.path:
         sys.path.insert(0, str(ROOT))
+    if args.against:
+        if not args.load:
+            ap.error("--against times the inputs of --load")
+        res = against(args.load.resolve(), args.against.resolve(), args.scenes, args.rounds, args.repeat)
+        print(f"CPU per change of view, ms: median over {args.rounds} alternating rounds ({args.repeat} calls each) "
+              f"of this tree and {args.against}; ratio this/other (range over rounds)")
+        for k, r in res.items():
+            print(f"  {k:22s} {r['cpu_ms']:8.1f} / {r['other_ms']:8.1f}  = {r['ratio']:.3f} "
+                  f"({r['ratio_min']:.3f}-{r['ratio_max']:.3f})")
+        if args.json:
+            args.json.write_text(json.dumps(res, indent=1))
+        return 0
     if args.load:
         cases = pickle.loads(args.load.read_bytes())
         cases = {k: v for k, v in cases.items() if k in args.scenes.split(",") or args.scenes == ",".join(SCENES)}

@@ -165,7 +165,8 @@ class Trials:
         """``splits`` with the maps among their ``candidates`` of least p95 at the receivers (coordinate descent from
         Lloyd's picks, two sweeps; kept if ``MARGIN`` below theirs) and their footprints there (none: none known)."""
         depth = np.zeros(0) if self.seen is None else self.view.eye_depth(self.seen[0])
-        scored = [(s, self.candidates(s, s.far)) for s in splits
+        scored = [(s, self.once(("candidates", s.near, s.far, s.band, s.warp, *(w for w, _ in s.tried)),
+                                lambda: self.candidates(s, s.far))) for s in splits
                   if s.setup is not None and np.any((depth >= s.near) & (depth < s.far))]
 
         def error(picks: list) -> float:

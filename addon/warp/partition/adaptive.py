@@ -25,18 +25,16 @@ def max_error(view: View, light: Light, setup: ShadowSetup, region_world: np.nda
                                  initial=0.0)) for i, m in enumerate(setup.maps) if (served == i).any()], default=0.0)
 
 
-def objective(errors, shared_budget: bool) -> float:
+def objective(errors: np.ndarray, shared_budget: bool) -> float:
     """The worst split's error, or with a shared budget the equalised one."""
-    e = np.asarray(errors, dtype=np.float64)
-    return float(np.sqrt(np.mean(e * e))) if shared_budget else float(e.max())
+    return float(np.sqrt(np.mean(errors * errors))) if shared_budget else float(errors.max())
 
 
 def minimax_splits(errors_at: Callable[[np.ndarray], list], splits: np.ndarray, errors: list,
                    shared_budget: bool = False) -> tuple[np.ndarray, list[float]]:
     """The depths (ends kept) after ``ROUNDS`` (few: a long search settles where a split's B jumps) equalising steps
     on ``errors_at(C_0..C_N)`` from ``splits`` with ``errors``, or those if the :func:`objective` did not fall."""
-    start, start_e = np.asarray(splits, dtype=np.float64), np.asarray(errors, dtype=np.float64)
-    c, e = start, start_e
+    c, e = start, start_e = np.asarray(splits, dtype=np.float64), np.asarray(errors, dtype=np.float64)
     power = np.ones(len(e))
     for _ in range(ROUNDS if len(c) > 2 and usable(e) else 0):
         moved = equalising_step(c, e, power, shared_budget)
@@ -45,9 +43,8 @@ def minimax_splits(errors_at: Callable[[np.ndarray], list], splits: np.ndarray, 
             break
         power = local_power(np.diff(np.log(c)), e, np.diff(np.log(moved)), moved_e, power)
         c, e = moved, moved_e
-    if objective(e, shared_budget) < objective(start_e, shared_budget):
-        return c, [float(x) for x in e]
-    return start, [float(x) for x in start_e]
+    c, e = (c, e) if objective(e, shared_budget) < objective(start_e, shared_budget) else (start, start_e)
+    return c, [float(x) for x in e]
 
 
 def usable(errors: np.ndarray) -> bool:
@@ -59,16 +56,14 @@ def local_power(w0, e0, w1, e1, fallback) -> np.ndarray:
     """p_i of E_i = k_i·w_i^p_i through two measurements (``fallback`` where the width barely moved)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         p = np.log(e1 / e0) / np.log(w1 / w0)
-    ok = np.isfinite(p) & (np.abs(np.log(w1 / w0)) > 1e-3)
-    return np.clip(np.where(ok, p, fallback), MIN_POWER, MAX_POWER)
+    return np.clip(np.where(np.isfinite(p) & (np.abs(np.log(w1 / w0)) > 1e-3), p, fallback), MIN_POWER, MAX_POWER)
 
 
 def equalising_step(c: np.ndarray, errors: np.ndarray, power: np.ndarray, shared_budget: bool) -> np.ndarray:
     """The depths whose log widths make the modelled errors equal (k w^p = t),
     or with a shared budget p k² w^(2p-1) = t, summing to ln(z_f/z_n)."""
     widths = np.diff(np.log(c))
-    k = errors / widths ** power
-    total = widths.sum()
+    k, total = errors / widths ** power, widths.sum()
     a, q = (power * k * k, 2.0 * power - 1.0) if shared_budget else (k, power)     # the equalised a·w^q = t
 
     def width_at(t: float) -> np.ndarray:

@@ -45,18 +45,22 @@ def footprints(setups: list, seen: tuple) -> list[np.ndarray]:
     """Screen pixels per texel σ_max(G·H⁻¹) of each of ``setups`` at the ``receivers`` ``seen``, H = D_map·T of the map
     serving each (inf edge-on, NaN unserved): the judge's ``addon.measure.footprint`` (PSM §1.1), in one batch."""
     p, _, tangent, g, _ = seen
-    maps = [m for s in setups for m in s.maps]
-    matrices = {id(m.matrix): m.matrix for m in maps}                  # (a map laid out anew keeps its matrix)
-    d = dict(zip(matrices, raster_jacobian(list(matrices.values()), [(2, 2)] * len(matrices), p)))   # D_M at 2x2
-    h = np.array([d[id(m.matrix)] * (np.asarray(m.size, dtype=np.float64)[:, None] / 2.0) for m in maps]) @ tangent
-    j = g @ (np.swapaxes(h[..., ::-1, ::-1], -1, -2) * [[1.0, -1.0], [-1.0, 1.0]])    # G·H⁻¹·det H
-    f2, det_j, det_h = (j * j).sum(axis=(-2, -1)), det2(j), np.abs(det2(h))
+    h = jacobians([m for s in setups for m in s.maps], p) @ tangent
+    j = g @ np.stack([h[..., 1, 1], -h[..., 0, 1], -h[..., 1, 0], h[..., 0, 0]], -1).reshape(h.shape)   # G·H⁻¹·det H
+    f2, det_j, det_h = entries(j * j, np.add), det2(j), np.abs(det2(h))
     with np.errstate(divide="ignore", invalid="ignore"):
         sigma = np.sqrt((f2 + np.sqrt(np.maximum(f2 * f2 - 4.0 * det_j * det_j, 0.0))) / 2.0) / det_h
-    sigma = np.where(det_h > 1e-14 * np.max(np.abs(h), axis=(-2, -1), initial=0.0) ** 2, sigma, np.inf)
-    first = np.cumsum([0] + [len(s.maps) for s in setups])
-    served = [s.map_index(p, None, 1e-6) if len(s.maps) > 1 else np.zeros(len(p), int) for s in setups]
-    return [np.where(k >= 0, sigma[i + k, np.arange(len(p))], np.nan) for i, k in zip(first, served)]
+    sigma = np.where(det_h > 1e-14 * entries(np.abs(h), np.maximum) ** 2, sigma, np.inf)
+    first = np.cumsum([0] + [len(s.maps) for s in setups])[:-1, None]
+    served = np.array([s.map_index(p, None, 1e-6) if len(s.maps) > 1 else np.zeros(len(p), int) for s in setups])
+    return list(np.where(served >= 0, sigma[first + served, np.arange(len(p))], np.nan))
+
+
+def jacobians(maps: list, points: np.ndarray) -> np.ndarray:
+    """(M, N, 2, 3) ``raster_jacobian`` of each of ``maps``, each matrix's once (a map laid out anew keeps it)."""
+    matrices = {id(m.matrix): m.matrix for m in maps}
+    d = dict(zip(matrices, raster_jacobian(list(matrices.values()), [(2, 2)] * len(matrices), points)))
+    return np.array([d[id(m.matrix)] * (np.asarray(m.size, dtype=np.float64)[:, None] / 2.0) for m in maps])
 
 
 def filter_losses(setups: list, seen: tuple) -> np.ndarray:
@@ -65,8 +69,7 @@ def filter_losses(setups: list, seen: tuple) -> np.ndarray:
     place in a texel, and PCF 2 gains 3-7 % there, 16-33 % at 20-45° (docs/papers.md, the cascade's edges)."""
     if len(seen[4]) < EDGES or not setups:
         return np.ones(len(setups))
-    d = raster_jacobian([s.maps[0].matrix for s in setups], [s.maps[0].size for s in setups], seen[4][:, 0])
-    v = np.abs(np.einsum("mnij,nj->mni", d, seen[4][:, 1]))
+    v = np.abs(np.einsum("mnij,nj->mni", jacobians([s.maps[0] for s in setups], seen[4][:, 0]), seen[4][:, 1]))
     a = np.degrees(np.arctan2(np.minimum(v[..., 0], v[..., 1]), np.maximum(v[..., 0], v[..., 1])))     # 0..45°
     return 1.0 + LOSS * np.nanmean(np.clip((20.0 - a) / 12.0, 0.0, 1.0), axis=1) * [len(s.maps) == 1 for s in setups]
 
@@ -85,6 +88,11 @@ def det2(a: np.ndarray) -> np.ndarray:
     return a[..., 0, 0] * a[..., 1, 1] - a[..., 0, 1] * a[..., 1, 0]
 
 
+def entries(a: np.ndarray, op) -> np.ndarray:
+    """``op`` over a stack of 2x2 matrices' entries in ``a.sum(axis=(-2, -1))``'s order (7x faster than it)."""
+    return op(op(op(a[..., 0, 0], a[..., 0, 1]), a[..., 1, 0]), a[..., 1, 1])
+
+
 def footprint_p95(footprints: list, band=(95.0,)) -> float:
     """The judge's p95 of the finite values of ``footprints`` (edge-on left out; 0 if none), or the geometric mean of
     the percentiles of a ``band`` about it (``TAIL``: a p95 at a cliff of the distribution does not decide alone)."""
@@ -95,13 +103,15 @@ def footprint_p95(footprints: list, band=(95.0,)) -> float:
 
 def footprint_p95s(fixed: list, choices: list) -> np.ndarray:
     """``footprint_p95(fixed + [c])`` of each of ``choices`` (not empty) at once: the value at rank r = ⌊0.95·(n - 1)⌋
-    of the n finite ones is their (n - 1 - r)-th largest, found among as many of each part's largest."""
-    f, *choices = [-np.sort(-v[np.isfinite(v)]) for v in [np.concatenate([np.zeros(0), *fixed]), *choices]]
-    n = len(f) + np.array([len(c) for c in choices], dtype=int)
+    of the n finite ones is their (n - 1 - r)-th largest, found among as many of each part's largest (one partition)."""
+    f, c = np.concatenate([np.zeros(0), *fixed]), np.full((len(choices), max(map(len, choices))), -np.inf)
+    c[np.arange(c.shape[1]) < np.array([len(v) for v in choices])[:, None]] = np.concatenate(choices)
+    f, n = -np.sort(-f[np.isfinite(f)]), np.isfinite(f).sum() + np.isfinite(c).sum(axis=1)
     x = 95.0 * ((n - 1) / 100)
     r = np.floor(x).astype(int)
     q = int((n - 1 - r).max()) + 1
-    tops = np.array([np.concatenate([f[:q], c[:q], np.full(2 * q - len(f[:q]) - len(c[:q]), -np.inf)]) for c in choices])
+    c = np.c_[np.where(np.isfinite(c), c, -np.inf), np.full((len(c), max(q - c.shape[1], 0)), -np.inf)]
+    tops = np.c_[np.broadcast_to(f[:q], (len(c), len(f[:q]))), np.partition(c, c.shape[1] - q, axis=1)[:, -q:]]
     tops = -np.sort(-tops, axis=1)[np.arange(len(choices))[:, None], np.maximum((n - 1 - r)[:, None] - [0, 1], 0)]
     with np.errstate(divide="ignore", invalid="ignore"):               # (v_(r+1) - v_r)·(x - r) + v_r: np.interp's
         return np.where(n > 0, np.exp(np.log((tops[:, 1] - tops[:, 0]) * (x - r) + tops[:, 0])), 0.0)

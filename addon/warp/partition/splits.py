@@ -28,8 +28,7 @@ def practical_splits(z_n: float, z_f: float, count: int, lam: float) -> np.ndarr
 def tightened_depth_range(view: View, light: Light, body: IntersectionBody,
                           options: WarpOptions) -> tuple[float, float]:
     """[z_n, z_f] (module docs), within the camera's clip range."""
-    z_n = nearest_visible_depth(view, light, body)
-    z_f = float(view.eye_depth(body.visible_vertices).max())
+    z_n, z_f = nearest_visible_depth(view, light, body), float(view.eye_depth(body.visible_vertices).max())
     ranges = [options.visible_depth_range] + ([body.visible.depth_range] if body.visible is not None else [])
     for near, far in (r for r in ranges if r is not None):
         z_n, z_f = max(z_n, float(near)), min(z_f, float(far))

@@ -27,8 +27,7 @@ def stable_spot_map(light: Light, body: IntersectionBody, size: tuple[int, int],
     """A split's spot map on a world-fixed image plane, or None when B_i leaves ``max_angle`` around the spot's axis."""
     eye = look_along(light.position, light.direction, image_up(WORLD_UP, WORLD_NORTH, light.direction))
     rel = body.vertices @ eye[:3, :3].T + eye[:3, 3]
-    depth = -rel[:, 2]                                   # along the spot's axis
-    floor = 1e-6 * body.scale
+    depth, floor = -rel[:, 2], 1e-6 * body.scale         # depths along the spot's axis, the least one ahead
     ahead = depth > floor
     image = rel[ahead, :2] / depth[ahead, None]          # on the plane one unit ahead of the light
     if not ahead.any() or np.abs(image).max() > math.tan(max_angle / 2):
