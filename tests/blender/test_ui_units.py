@@ -124,3 +124,24 @@ def test_a_too_far_object_and_a_bad_visible_range_are_named_in_the_scenes_units(
         assert lengths, str(refused.value)
         np.testing.assert_allclose(_in_units(scene, *lengths.groups()), [3e13 + 0.5, 1e12], rtol=6e-3)
 
+
+@pytest.mark.parametrize("system, scale", UNIT_SYSTEMS)
+def test_overlay_snapshot_notes_name_reaches_in_the_scenes_units(lixel, system, scale):
+    """The observer snapshot's notes on what lies beyond its picture said "reaches 200 m" in Blender units."""
+    snapshot = importlib.import_module(f"{lixel.__name__}.addon.ui.snapshot")
+
+    class View:
+        direction = np.array([0.0, 1.0, 0.0])
+    box = np.array([[x, y, z] for x in (-1, 1) for y in (0, 10) for z in (0, 2)], dtype=float)
+    geometry = {"view_corners": np.concatenate([box[:4], box[4:] * [20, 20, 1]]),
+                "body_edges": np.stack([box[::2], box[1::2]], axis=1),
+                "light_lines": np.array([[[0, 0, 0], [0, 0, 500.0]]]), "warp_lines": np.zeros((0, 2, 3))}
+    with active_scene("lixel_units") as scene:
+        _units_scene(scene, system, scale)
+        _, notes = snapshot.observer_view_projection(geometry, View(), 1.6, scene=scene)
+        centre = np.array([0.0, 5.0, 1.0])
+        reaches = [np.linalg.norm(geometry["view_corners"] - centre, axis=1).max(),
+                   np.linalg.norm(geometry["light_lines"].reshape(-1, 3) - centre, axis=1).max()]
+        shown = [re.search(r" reach(?:es)? (.+) from the setup's centre, beyond the picture", n) for n in notes]
+        assert all(shown) and len(shown) == 2, notes
+        np.testing.assert_allclose(_in_units(scene, *(s.group(1) for s in shown)), reaches, rtol=6e-3)
