@@ -67,7 +67,7 @@ def main(argv=None):
                 vp, notes = snapshot.camera_view_projection(st.view), []
             else:
                 w, h = args.width, max(1, round(args.width * 0.625))
-                vp, notes = snapshot.observer_view_projection(st.geometry, st.view, w / h)
+                vp, notes = snapshot.observer_view_projection(st.geometry, st.view, w / h, scene=scene)
             img = snapshot.draw_snapshot(scene, st, snapshot.OverlayFlags.of(overlays[view]), vp, (w, h))
             path = os.path.join(args.output_dir, f"overlay_{view}.png")
             renders.save_image(img, path, linear=False)  # the overlays draw display colours

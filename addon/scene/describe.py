@@ -16,6 +16,7 @@ from ..warp import MAX_COORDINATE
 from ..warp.polyhedron import box_corners
 from ..warp.types import Light, SceneBounds, View, WarpError, clip_range_beyond_depth
 from .instances import GEOMETRY_TYPES, InstanceSet, walk_instances  # noqa: F401 (re-exported)
+from .units import length_text
 
 MAX_RESOLUTION = 16384
 """Largest render side Lixel accepts (the GPU's maximum texture size)."""
@@ -135,10 +136,11 @@ def eye_view(view: View, camera_obj, model_matrix, shift_x: float, depsgraph=Non
                 view.resolution, view.orthographic)
 
 
-def lost_depth_note(view: View, bounds: SceneBounds, camera_name: str) -> Optional[str]:
+def lost_depth_note(view: View, bounds: SceneBounds, camera_name: str, scene=None) -> Optional[str]:
     """A warning when what the perspective ``view`` sees reaches beyond the distance where its depth can no longer be
     told from the far plane (:data:`DEPTH_STEP`), and that band is more than 1 % of its clip range: a clip start
-    too small for its clip end (Blender's own engines lose it too), which renders those surfaces as background."""
+    too small for its clip end (Blender's own engines lose it too), which renders those surfaces as background.
+    Lengths in ``scene``'s units (:func:`length_text`)."""
     n, f = view.near, view.far
     lost = n * f / (n + DEPTH_STEP * (f - n))
     if view.orthographic or f - lost < 0.01 * (f - n) or len(bounds.receivers) == 0:
@@ -146,8 +148,9 @@ def lost_depth_note(view: View, bounds: SceneBounds, camera_name: str) -> Option
     farthest = float(view.eye_depth(box_corners(bounds.receivers[:, 0], bounds.receivers[:, 1])).max())
     if farthest <= lost:
         return None
-    return (f"Camera '{camera_name}' clips from {n:g} to {f:g}: 32-bit depth cannot tell surfaces farther than "
-            f"{lost:.3g} from its clip end, so they render as background; raise the clip start (Camera properties > Lens > Clip)")
+    return (f"Camera '{camera_name}' clips from {length_text(n, scene)} to {length_text(f, scene)}: 32-bit depth "
+            f"cannot tell its clip end from surfaces farther away than {length_text(lost, scene)}, so they render "
+            f"as background; raise the clip start (Camera properties > Lens > Clip)")
 
 
 def motion_blur_note(scene) -> Optional[str]:
@@ -239,9 +242,10 @@ def describe_view(camera_obj, depsgraph, scene) -> View:
     r = scene.render
     near, far = float(cam.clip_start), float(cam.clip_end)
     if not (0 < near < far < math.inf):
-        raise WarpError(f"Camera '{camera_obj.name}' clips at start {near:g} and end {far:g}: the clip start must be "
-                        f"positive and less than the clip end (Camera properties > Lens > Clip)")
-    if why := clip_range_beyond_depth(near, far, cam.type == "ORTHO"):   # orthographic depth is linear: any ratio
+        raise WarpError(f"Camera '{camera_obj.name}' clips at start {length_text(near, scene)} and end "
+                        f"{length_text(far, scene)}: the clip start must be positive and less than the clip end "
+                        f"(Camera properties > Lens > Clip)")
+    if why := clip_range_beyond_depth(near, far, cam.type == "ORTHO", lambda v: length_text(v, scene)):  # ortho: any ratio
         raise WarpError(f"Camera '{camera_obj.name}' {why}: raise the clip start or lower the clip end "
                         f"(Camera properties > Lens > Clip)")
     camera_to_world = unscaled_camera_matrix(ob_eval.matrix_world, camera_obj.name)
@@ -367,7 +371,7 @@ def describe_bounds(depsgraph, instances: Optional[InstanceSet] = None) -> Scene
     avoid walking the depsgraph again.
     """
     inst = walk_instances(depsgraph) if instances is None else instances
-    check_finite_instances(inst)
+    check_finite_instances(inst, depsgraph.scene)
     return inst.bounds  # made once per instance set, with its culling index
 
 
@@ -379,10 +383,10 @@ _finite_sets: "weakref.WeakSet" = weakref.WeakSet()
 """Instance sets already found finite (a cache hands out the same set while the scene is unchanged)."""
 
 
-def check_finite_instances(inst: InstanceSet) -> None:
+def check_finite_instances(inst: InstanceSet, scene=None) -> None:
     """Refuse a scene with non-finite numbers in an object's transform or bounds,
     naming the first such object (a NaN would silently spread through B and the
-    maps). Each instance set is checked once."""
+    maps), or reaching beyond :data:`MAX_COORDINATE` (in ``scene``'s units). Each instance set is checked once."""
     if len(inst) == 0 or inst in _finite_sets:
         return
     bad = ~_finite(inst.matrices, (1, 2))
@@ -401,8 +405,9 @@ def check_finite_instances(inst: InstanceSet) -> None:
                         f"scale it down or move it closer to the origin")
     bad = (reach > MAX_COORDINATE) & (inst.casts | inst.receives)   # as the core would refuse "the scene's boxes"
     if bad.any():
-        raise WarpError(f"Object '{_first_bad(inst, bad)}' reaches {reach[bad].max():.3g} from the origin, beyond the "
-                        f"{MAX_COORDINATE:.0e} Lixel can compute with: move it closer to the origin or scale it down")
+        raise WarpError(f"Object '{_first_bad(inst, bad)}' reaches {length_text(reach[bad].max(), scene)} from the "
+                        f"origin, beyond the {length_text(MAX_COORDINATE, scene)} Lixel can compute with: move it "
+                        f"closer to the origin or scale it down")
     _finite_sets.add(inst)
 
 

@@ -26,7 +26,7 @@ def scene_notes(scene, depsgraph, light_obj, camera, view: View, bounds: SceneBo
     out in part, objects Lixel does not model (a Shadow Catcher, hair curves, a point cloud, a volume), lights
     besides the one Lixel renders, and Light/Shadow Linking Lixel cannot follow. In that order; none: []."""
     world = world if world is not None else world_light(depsgraph.scene_eval.world)
-    notes = (lost_depth_note(view, bounds, getattr(camera, "name", "")), motion_blur_note(scene),
+    notes = (lost_depth_note(view, bounds, getattr(camera, "name", ""), scene), motion_blur_note(scene),
              depth_of_field_note(evaluated(camera, depsgraph) if camera is not None else None), world.note,
              material_holdout_note(depsgraph), unmodelled_objects_note(depsgraph),
              other_lights_note(light_obj, depsgraph, scene.name), linking_note(light_obj, instances))

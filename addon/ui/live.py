@@ -38,6 +38,7 @@ from ..scene.describe import (NO_FACES, check_finite_geometry, describe_bounds, 
 from ..scene.geometry import shared_cache
 from ..scene.notes import scene_notes
 from ..scene.owned import is_debug_object
+from ..scene.units import length_text
 from ..settings import LixelSettings
 from ..warp import METHODS, compute, focused_body
 from ..warp.methods.cascade import adaptive_splits
@@ -387,17 +388,6 @@ def _fail(st: LiveState, message: str, timings: dict) -> LiveState:
     st.recomputed = ()
     st.generation += 1
     return st
-
-
-def length_text(value: float, scene) -> str:
-    """A length in Blender units as Blender's own fields show it: in ``scene``'s unit system and Unit Scale
-    (Scene properties > Units: at 0.01, 100 units are 1 m), to 3 digits; "m" where the scene is gone."""
-    units = getattr(scene, "unit_settings", None)
-    if units is None:
-        return f"{value:.3g} m"
-    if units.system == "NONE":
-        return f"{value:.3g}"
-    return bpy.utils.units.to_string(units.system, "LENGTH", value * units.scale_length, precision=3)
 
 
 def readouts(st: Optional[LiveState]) -> list[tuple[str, str]]:

@@ -12,6 +12,7 @@ import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, FloatVectorProperty,
                        IntProperty, IntVectorProperty, PointerProperty, StringProperty)
 
+from ..scene.units import length_text
 from ..settings import BIAS_MODES, MAX_MAP_SIZE, MDSM_SELECTIONS, MIN_MAP_SIZE, LixelSettings, ShadowSettings
 from ..warp.types import WarpError, WarpOptions
 from . import addon_preferences
@@ -258,7 +259,10 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
         if self.use_visible_depth_range:
             near, far = (float(v) for v in self.visible_depth_range)
             if not 0 <= near < far:
-                raise WarpError(f"the visible range must satisfy 0 <= near < far (got {near}, {far})")
+                scene = self.id_data
+                raise WarpError(f"Scene '{scene.name}' has a Visible Range from {length_text(near, scene)} to "
+                                f"{length_text(far, scene)}: its far end must lie beyond its near end "
+                                f"(Lixel panel > Method > Visible Range)")
             vis = (near, far)
         return WarpOptions(
             shadow_map_size=(w, h), focus=self.focus, lambda_guard=self.lambda_guard,

@@ -20,6 +20,7 @@ from typing import Optional
 
 import numpy as np
 
+from ..scene.units import length_text
 from ..warp.geometry import frustum_matrix, look_along, normalize
 
 BACKDROP_DEPTH_OFFSET = 2e-4
@@ -61,7 +62,7 @@ def _points(a) -> np.ndarray:
 
 
 def observer_view_projection(geometry: dict, view, aspect: float, fov_y: float = math.radians(35.0),
-                             reach: float = 2.5) -> tuple[np.ndarray, list]:
+                             reach: float = 2.5, scene=None) -> tuple[np.ndarray, list]:
     """World -> clip of an observer outside the setup, and notes on what the
     picture leaves out.
 
@@ -71,9 +72,9 @@ def observer_view_projection(geometry: dict, view, aspect: float, fov_y: float =
     times B's radius of its centre: a camera's far plane, a warp frustum or a
     spot's post-perspective light frustum can reach hundreds of metres past
     the scene, and fitting them would shrink the scene to a dot. What is left
-    out is named in the notes (its lines still run out of the picture). The
-    observer looks at the centre from the camera's right, a little behind it
-    and above it (world Z up).
+    out is named in the notes, with how far it reaches in ``scene``'s units
+    (its lines still run out of the picture). The observer looks at the
+    centre from the camera's right, a little behind it and above it (world Z up).
     """
     notes = []
     view_corners = _points(geometry["view_corners"])
@@ -94,8 +95,8 @@ def observer_view_projection(geometry: dict, view, aspect: float, fov_y: float =
         near = d <= reach * radius
         parts.append(p[near])
         if not near.all():
-            notes.append(f"{name} reach{'' if name.endswith('frusta') else 'es'} {d.max():.4g} m from the setup's centre, "
-                         f"beyond the picture")
+            notes.append(f"{name} reach{'' if name.endswith('frusta') else 'es'} {length_text(d.max(), scene)} from "
+                         f"the setup's centre, beyond the picture")
     pts = np.concatenate(parts)
     centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
     radius = float(np.max(np.linalg.norm(pts - centre, axis=1))) or 1.0

@@ -26,10 +26,10 @@ MAX_CLIP_RATIO = float(2 ** 24)
 projection uploaded to it) cannot tell the clip range's ends apart near the far plane (orthographic depth is linear)."""
 
 
-def clip_range_beyond_depth(near: float, far: float, orthographic: bool) -> str:
-    """Why a camera clipping from ``near`` to ``far`` is beyond :data:`MAX_CLIP_RATIO` ("" when it is not)."""
-    return "" if orthographic or far / near <= MAX_CLIP_RATIO else (f"clips from {near:g} to {far:g}, a range of "
-            f"1:{far / near:.3g}, beyond what 32-bit float depth resolves (1:{MAX_CLIP_RATIO:,.0f})")
+def clip_range_beyond_depth(near: float, far: float, orthographic: bool, length=lambda v: f"{v:g}") -> str:
+    """Why a camera clipping from ``near`` to ``far`` (as ``length`` writes them) is past :data:`MAX_CLIP_RATIO` ("" if not)."""
+    return "" if orthographic or far / near <= MAX_CLIP_RATIO else (f"clips from {length(near)} to {length(far)}, "
+            f"a range of 1:{far / near:.3g}, beyond what 32-bit float depth resolves (1:{MAX_CLIP_RATIO:,.0f})")
 
 
 def _mat4(m, name) -> np.ndarray:

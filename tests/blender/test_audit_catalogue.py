@@ -158,7 +158,7 @@ CASES = {
     "orthographic_camera": Case(_ortho, check="covers_what_workbench_covers"),
     "near_1e-6_far_1e9": Case(lambda sc: (setattr(sc.camera.data, "clip_start", 1e-6),
                                           setattr(sc.camera.data, "clip_end", 1e9)),
-                              r"Camera 'catalogue camera' clips from 1e-06 to 1e\+09, a range of 1:1e\+15, beyond what "
+                              r"Camera 'catalogue camera' clips from 1 µm to 1e\+09 m, a range of 1:1e\+15, beyond what "
                               r"32-bit float depth resolves .*raise the clip start"),
     "orthographic_near_1e-6_far_100": Case(lambda sc: (_ortho(sc), setattr(sc.camera.data, "clip_start", 1e-6),
                                                        setattr(sc.camera.data, "clip_end", 100.0)),

@@ -631,8 +631,9 @@ def test_a_light_with_shadow_off_casts_none_as_in_blenders_engines(engine, scene
     assert "light 'Sun' casts no shadows, as in Blender's engines: its Shadow is off" in got[0]["warnings"][0]
 
 
-@pytest.mark.parametrize("clip_start, lost", [(1e-3, None), (3e-6, "7.16"), (1e-6, "4.56")])
-def test_a_clip_start_too_small_for_what_is_seen_is_named(engine, scene, clip_start, lost):
+@pytest.mark.parametrize("clip_start, start, lost", [(1e-3, "", None), (3e-6, "3 µm", "7.16 m"),
+                                                     (1e-6, "1 µm", "4.56 m")])
+def test_a_clip_start_too_small_for_what_is_seen_is_named(engine, scene, clip_start, start, lost):
     """Clip 1e-6 to 10 (a ratio Lixel accepts, below 2^24) rendered black with "the camera sees no shadow
     receiver": 32-bit depth loses everything beyond 4.56 m. The render now says which camera and what to raise."""
     build(scene)
@@ -641,8 +642,8 @@ def test_a_clip_start_too_small_for_what_is_seen_is_named(engine, scene, clip_st
         assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
     notes = [w for w in got[-1]["warnings"] if "32-bit depth" in w]
     assert notes == ([] if lost is None else [
-        f"Lixel: Camera 'Cam' clips from {clip_start:g} to 10: 32-bit depth cannot tell surfaces farther than {lost} "
-        f"from its clip end, so they render as background; raise the clip start (Camera properties > Lens > Clip)"])
+        f"Lixel: Camera 'Cam' clips from {start} to 10 m: 32-bit depth cannot tell its clip end from surfaces farther "
+        f"away than {lost}, so they render as background; raise the clip start (Camera properties > Lens > Clip)"])
 
 
 def test_a_linked_lixel_light_is_read_itself_not_a_local_light_of_its_name(engine, scene, tmp_path):

@@ -280,7 +280,7 @@ def test_depth_rows_are_blenders_in_float64(describe, fresh_scene, kind):
 
 def test_a_clip_range_beyond_float_precision_is_refused_by_name(describe, types_mod, fresh_scene):
     cam = add_camera(fresh_scene, name="Wide", clip_start=1e-6, clip_end=1e9)
-    with pytest.raises(types_mod.WarpError, match=r"Camera 'Wide' clips from 1e-06 to 1e\+09, a range of 1:1e\+15, "
+    with pytest.raises(types_mod.WarpError, match=r"Camera 'Wide' clips from 1 µm to 1e\+09 m, a range of 1:1e\+15, "
                                                   r"beyond what 32-bit float depth resolves .*raise the clip start"):
         describe.describe_view(cam, _depsgraph(fresh_scene), fresh_scene)
     cam.data.clip_start, cam.data.clip_end = 1e-3, 1e4  # 1:1e7 is still resolved
@@ -302,7 +302,7 @@ def test_a_clip_range_beyond_float_precision_is_refused_by_name(describe, types_
     ("box", lambda ob: ob.data.vertices[0].co.__setitem__(0, float("inf")),
      r"Object 'Box' has vertices with non-finite coordinates"),
     ("box", lambda ob: setattr(ob, "location", (0, -3e13, 0)),        # a typo in the N panel: named, not "the scene"
-     r"Object 'Box' reaches 3e\+13 from the origin, beyond the 1e\+12 Lixel can compute with: move it closer"),
+     r"Object 'Box' reaches 3e\+13 m from the origin, beyond the 1e\+12 m Lixel can compute with: move it closer"),
 ])
 def test_degenerate_cameras_lights_and_objects_are_named(describe, types_mod, fresh_scene, what, change, pattern):
     cam = add_camera(fresh_scene)

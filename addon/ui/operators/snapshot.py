@@ -54,7 +54,7 @@ class LIXEL_OT_overlay_snapshot(LixelSceneOperator, bpy.types.Operator):
         views = [("camera", snapshot.camera_view_projection(st.view), renders.fit_resolution(st.view.resolution,
                                                                                            self.width), receivers)]
         w, h = self.width, max(1, round(self.width * 0.625))
-        observer, notes = snapshot.observer_view_projection(st.geometry, st.view, w / h)
+        observer, notes = snapshot.observer_view_projection(st.geometry, st.view, w / h, scene=context.scene)
         views.append(("observer", observer, (w, h), list(OBSERVER_OVERLAYS) + receivers[-1:]))
         region = getattr(context, "region_data", None)
         if region is not None and context.region is not None:
