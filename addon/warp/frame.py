@@ -116,12 +116,10 @@ def world_sun_frame(light: Light, body: IntersectionBody) -> LightFrame:
 
 
 def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]:
-    """Axis and half-angle of a cone from ``apex`` holding ``points`` (apex points ignored; near π: no single cone)."""
+    """Axis and half-angle of a cone from ``apex`` holding B's ``points`` (apex ones ignored; near π: no single cone)."""
     dirs = np.asarray(points, dtype=np.float64) - apex
     norms = np.sqrt(np.einsum("ij,ij->i", dirs, dirs))
-    farthest = float(norms.max(initial=0.0))
-    if farthest == 0:
-        return SURROUND_AXIS.copy(), math.pi
+    farthest = float(norms.max())
     # Points at the apex itself (B has the light as a vertex when the light is
     # outside R) have no direction: a rounding error would give them any.
     far = norms > 1e-7 * farthest
@@ -290,8 +288,6 @@ def cube_sections(poly: ConvexPolytope, basis: np.ndarray) -> list[FacePart]:
     pts, face = pyramid_sections(poly, planes[:24].reshape(6, 4, 3), _FACE_RAYS @ basis)
     counts = np.bincount(face, minlength=6).tolist()
     faces = [f for f in range(6) if counts[f]]
-    if not faces:
-        return []
     ends = list(itertools.accumulate(counts[f] for f in faces))
     starts = [e - counts[f] for f, e in zip(faces, ends)]
     distance = pts @ planes.T                                # to each side (outwards) and along each axis
