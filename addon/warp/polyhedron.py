@@ -179,7 +179,7 @@ class ConvexPolytope:
             return self._clip_by_enumeration(n, o)
         planes, loops = zip(*facets)
         planes = list(planes)
-        return ConvexPolytope(_rows(vertices), np.concatenate([self.normals, n])[planes],
+        return ConvexPolytope(np.array(vertices), np.concatenate([self.normals, n])[planes],
                               np.concatenate([self.offsets, o])[planes], loops, self.tol)
 
     def _clip_by_enumeration(self, n2: np.ndarray, o2: np.ndarray) -> "ConvexPolytope | None":
@@ -604,11 +604,6 @@ def _turn(o, a, b) -> float:
 def hexahedron_faces(corners) -> list[np.ndarray]:
     """The six quads of 8 corners in ``UNIT_CUBE_CORNERS`` order (e.g. a view frustum)."""
     return list(np.asarray(corners, dtype=np.float64)[_HEX_QUADS])
-
-
-def _rows(rows: list) -> np.ndarray:
-    """(n, 3) float64 array of n rows of 3 plain floats."""
-    return np.fromiter(chain.from_iterable(rows), np.float64, 3 * len(rows)).reshape(-1, 3)
 
 
 _HEX_QUADS = np.array(HEXAHEDRON_LOOPS)
