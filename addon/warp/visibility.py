@@ -9,7 +9,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .culling import BoxIndex
-from .geometry import clip_halfspaces, perpendicular
+from .geometry import clip_halfspaces
 from .polyhedron import HEXAHEDRON_EDGES, box_corners
 from .rays import ray_index, slab_intervals
 from .types import EmptyBodyError, Light, SceneBounds, View, WarpOptions
@@ -204,11 +204,10 @@ def kdop_halfspaces(corners: np.ndarray, view: View, light: Light, pad: float) -
 
 
 def _across(ell: np.ndarray, view: View) -> np.ndarray:
-    """(K, 3) unit directions across ℓ, every 180°/K from the maps' +y (``frame.image_up``: V_P, Scherzer Eq. 3), so
+    """(K, 3) unit directions across ℓ, every 180°/K from the maps' +y (``frame.up_across``: V_P, Scherzer Eq. 3), so
     the k-DOP bounds a map's own axes exactly."""
-    from .frame import image_up                      # (frame imports body, which imports this module)
-    u = image_up(view.direction, view.up, ell)
-    u = u if u.any() else perpendicular(ell)
+    from .frame import up_across                     # (frame imports body, which imports this module)
+    u = up_across(view, ell)
     a = np.arange(KDOP_DIRECTIONS) * (math.pi / KDOP_DIRECTIONS)
     return np.cos(a)[:, None] * u + np.sin(a)[:, None] * np.cross(ell, u)
 
