@@ -141,7 +141,8 @@ def raster_jacobian(matrix, size, points) -> np.ndarray:
     w = np.where(w > 0, w, np.nan)
     ndc = h[..., :2] / w[..., None]
     d = (m[..., None, :2, :3] - ndc[..., None] * m[..., None, 3:4, :3]) / w[..., None, None]
-    return d * (np.asarray(size, dtype=np.float64)[..., None, :, None] / 2.0)
+    half = np.asarray(size, dtype=np.float64)[..., None, :, None] / 2.0
+    return d if np.all(half == 1.0) else d * half          # ((2, 2): NDC per metre, the partition's and PSM's scale)
 
 
 def pixel_density_constant(view) -> float:

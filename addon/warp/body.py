@@ -101,11 +101,10 @@ class IntersectionBody:
         return moved[key]
 
 
-def view_frustum(view: View, origin: np.ndarray, tol: float | None = None) -> ConvexPolytope:
-    """V relative to ``origin``, with the tolerance ``tol`` (default: relative to its size)."""
+def view_frustum(view: View, origin: np.ndarray) -> ConvexPolytope:
+    """V relative to ``origin``, its tolerance relative to its size."""
     corners = view.corners() - origin
-    return ConvexPolytope.hexahedron(corners, RELATIVE_TOLERANCE * math.dist(corners[0], corners[7]) if tol is None
-                                     else tol)
+    return ConvexPolytope.hexahedron(corners, RELATIVE_TOLERANCE * math.dist(corners[0], corners[7]))
 
 
 def intersection_body(view: View, light: Light, scene: SceneBounds,

@@ -76,6 +76,12 @@ def image_up(view_direction, view_up, light_direction) -> np.ndarray:
     return np.array([c / length for c in up])
 
 
+def up_across(view: View, axis) -> np.ndarray:
+    """The map's +y across a light ``axis`` (``image_up`` of the view), or a perpendicular at its singular point."""
+    up = image_up(view.direction, view.up, axis)
+    return up if up.any() else perpendicular(axis)
+
+
 def light_angles(view: View, light_direction) -> tuple[float, float]:
     """(θ, γ): γ the angle between view and light directions (Scherzer §4.4), θ folded (GMNPR)."""
     c = min(max(dot3(view.direction.tolist(), normalize(light_direction).tolist()), -1.0), 1.0)
@@ -116,12 +122,10 @@ def world_sun_frame(light: Light, body: IntersectionBody) -> LightFrame:
 
 
 def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]:
-    """Axis and half-angle of a cone from ``apex`` holding ``points`` (apex points ignored; near π: no single cone)."""
+    """Axis and half-angle of a cone from ``apex`` holding B's ``points`` (apex ones ignored; near π: no single cone)."""
     dirs = np.asarray(points, dtype=np.float64) - apex
     norms = np.sqrt(np.einsum("ij,ij->i", dirs, dirs))
-    farthest = float(norms.max(initial=0.0))
-    if farthest == 0:
-        return SURROUND_AXIS.copy(), math.pi
+    farthest = float(norms.max())
     # Points at the apex itself (B has the light as a vertex when the light is
     # outside R) have no direction: a rounding error would give them any.
     far = norms > 1e-7 * farthest
@@ -210,12 +214,9 @@ _FACE_TURNS = np.array([[[sign if j == row else 0.0 for j in range(3)] for row, 
 def point_frames(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> list[LightFrame]:
     """One perspective frame when B fits a frustum narrower than ``max_frustum_angle``, else one per cube face B
     reaches, the cube aligned with the cone axis or ``body.cube_axis`` (a known discontinuity in the number of maps)."""
-    def up_across(axis):
-        up = image_up(view.direction, view.up, axis)
-        return up if up.any() else perpendicular(axis)
     apex = light.position
     axis, half = light_cone(body.vertices, apex)
-    up = up_across(axis)
+    up = up_across(view, axis)
     inside = body.contains(apex[None], -10.0 * body.tolerance)[0]                  # (strictly inside B)
     if 2 * half <= options.max_frustum_angle and not inside:
         floor, cuts_a_box = None, True
@@ -223,7 +224,7 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
             floor, cuts_a_box = cube_near_floor(body, apex, not options.linear_z, math.cos(half))
         return [perspective_frame(apex, axis, up, body.vertices, "main", body.scale, floor, cuts_a_box)]
     axis = axis if body.cube_axis is None else body.cube_axis
-    basis = cube_basis(axis, up_across(axis))
+    basis = cube_basis(axis, up_across(view, axis))
     near_floor, cuts_a_box = cube_near_floor(body, apex, not options.linear_z)
     turns = _FACE_TURNS @ basis                              # (6, 3, 3): each face's eye rows x, y, -forward
     views = np.tile(np.eye(4), (6, 1, 1))                    # each face's view: those rows through the apex
@@ -290,8 +291,6 @@ def cube_sections(poly: ConvexPolytope, basis: np.ndarray) -> list[FacePart]:
     pts, face = pyramid_sections(poly, planes[:24].reshape(6, 4, 3), _FACE_RAYS @ basis)
     counts = np.bincount(face, minlength=6).tolist()
     faces = [f for f in range(6) if counts[f]]
-    if not faces:
-        return []
     ends = list(itertools.accumulate(counts[f] for f in faces))
     starts = [e - counts[f] for f, e in zip(faces, ends)]
     distance = pts @ planes.T                                # to each side (outwards) and along each axis

@@ -93,7 +93,6 @@ def translation(offset) -> np.ndarray:
 
 def perpendicular(v) -> np.ndarray:
     """A unit vector perpendicular to ``v``, away from the axis most aligned with it."""
-    v = np.asarray(v, dtype=np.float64)
     return normalize(cross(v, np.eye(3)[int(np.argmin(np.abs(v)))]))
 
 

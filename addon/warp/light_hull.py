@@ -22,13 +22,15 @@ _CONE_ROWS = np.stack([np.cos(_CONE_ANGLES), np.sin(_CONE_ANGLES), np.ones(CONE_
 """(cos θ_i, sin θ_i, 1) per side of the pyramid."""
 
 
-def cone_halfspaces(apex, axis, full_angle) -> tuple[np.ndarray, np.ndarray]:
-    """(normals (k, 3), offsets (k,)) of the k = CONE_SIDES pyramid circumscribing the cone (apex, axis, full angle)."""
-    a = normalize(axis)
-    u, widened = pyramid_side(a), math.atan(math.tan(full_angle / 2) / math.cos(math.pi / CONE_SIDES))
+def light_halfspaces(light: Light, origin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """L relative to ``origin``: (normals (k, 3), offsets (k,)) of a spot's CONE_SIDES pyramid (k = 0 otherwise)."""
+    if light.type != "SPOT":
+        return np.zeros((0, 3)), np.zeros(0)
+    a = normalize(light.direction)
+    u, widened = pyramid_side(a), math.atan(math.tan(light.spot_angle / 2) / math.cos(math.pi / CONE_SIDES))
     c, s = math.cos(widened), math.sin(widened)
     normals = _CONE_ROWS @ np.array([c * u, c * cross(a, u), -s * a])
-    return normals, normals @ np.asarray(apex, dtype=np.float64)
+    return normals, normals @ (light.position - origin)
 
 
 def pyramid_side(a) -> np.ndarray:
@@ -36,13 +38,6 @@ def pyramid_side(a) -> np.ndarray:
     ``a`` (Rodrigues), so it turns continuously with the spot; singular only pointing straight up."""
     (ax, ay, az), k = a.tolist(), 1.0 - float(a[2])
     return perpendicular(a) if k < 1e-9 else normalize(np.array([1.0 - ax * ax / k, -ax * ay / k, ax]))
-
-
-def light_halfspaces(light: Light, origin: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """L relative to ``origin``: the half-spaces of the light's frustum (only spots have one)."""
-    if light.type != "SPOT":
-        return np.zeros((0, 3)), np.zeros(0)
-    return cone_halfspaces(light.position - origin, light.direction, light.spot_angle)
 
 
 class Side(NamedTuple):

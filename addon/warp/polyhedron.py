@@ -85,7 +85,7 @@ class ConvexPolytope:
     def hexahedron(cls, corners, tol: float) -> "ConvexPolytope":
         """A hexahedron (a view frustum) from 8 corners in ``UNIT_CUBE_CORNERS`` order, either orientation."""
         c = np.asarray(corners, dtype=np.float64)
-        diagonals = c[_HEX_DIAGONAL_ENDS] - c[_HEX_DIAGONAL_STARTS]      # (6, 2, 3): each quad's two diagonals
+        diagonals = c[_HEX_QUADS[:, 2:]] - c[_HEX_QUADS[:, :2]]      # (6, 2, 3): each quad's two diagonals
         n = cross(diagonals[:, 0], diagonals[:, 1])
         length = np.sqrt(np.einsum("ij,ij->i", n, n))
         if not length.all():
@@ -101,8 +101,6 @@ class ConvexPolytope:
         """The bounded intersection of ``normals @ x <= offsets`` (vertex enumeration), or None when empty or flat."""
         n, o = unit_halfspaces(normals, offsets)
         n, o = _dedupe_planes(n, o, tol)
-        if len(n) < 4:
-            return None
         return _enumerate(np.zeros((0, 3)), n, o, _combinations3(len(n)), tol)
 
     # -- what follows from it -------------------------------------------------
@@ -181,7 +179,7 @@ class ConvexPolytope:
             return self._clip_by_enumeration(n, o)
         planes, loops = zip(*facets)
         planes = list(planes)
-        return ConvexPolytope(_rows(vertices), np.concatenate([self.normals, n])[planes],
+        return ConvexPolytope(np.array(vertices), np.concatenate([self.normals, n])[planes],
                               np.concatenate([self.offsets, o])[planes], loops, self.tol)
 
     def _clip_by_enumeration(self, n2: np.ndarray, o2: np.ndarray) -> "ConvexPolytope | None":
@@ -384,8 +382,6 @@ def coincident_planes(n: np.ndarray, o: np.ndarray, points: np.ndarray | None, t
 def _dedupe_planes(n: np.ndarray, o: np.ndarray, tol: float,
                    points: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Drop planes equal (within ``tol`` over ``points``) to an earlier one."""
-    if len(n) < 2:
-        return n, o
     keep = ~np.any(np.tril(coincident_planes(n, o, points, tol), -1), axis=1)
     return n[keep], o[keep]
 
@@ -558,7 +554,7 @@ def plane_section(poly: ConvexPolytope, normal, offset: float) -> np.ndarray | N
     n = np.asarray(normal, dtype=np.float64)
     height = poly.vertices @ n - offset
     on = np.abs(height) <= poly.tol
-    crossings = [_crossings(poly, height)] if on.any() else []
+    crossings = None
     if not on.any():
         try:
             cut = _cut(poly.vertices.tolist(), list(enumerate(poly.loops)), n.tolist(), offset, poly.tol, -1)
@@ -569,11 +565,10 @@ def plane_section(poly: ConvexPolytope, normal, offset: float) -> np.ndarray | N
             section = [vertices[v] for v in _from_first_crossing(facets, cap)]
             if _turns_exceed(section, n, poly.tol):
                 return np.array(section)
-            crossings = [np.array(section)]
-        elif cut is None:
-            crossings = [_crossings(poly, height)]
-    return convex_polygon_on_plane(np.concatenate([poly.vertices[on] - np.outer(height[on], n)] + crossings), n,
-                                   poly.tol)
+            crossings = np.array(section)
+    if crossings is None:
+        crossings = _crossings(poly, height)
+    return convex_polygon_on_plane(np.concatenate([poly.vertices[on] - np.outer(height[on], n), crossings]), n, poly.tol)
 
 
 def _from_first_crossing(facets: list, cap: list) -> list:
@@ -611,11 +606,5 @@ def hexahedron_faces(corners) -> list[np.ndarray]:
     return list(np.asarray(corners, dtype=np.float64)[_HEX_QUADS])
 
 
-def _rows(rows: list) -> np.ndarray:
-    """(n, 3) float64 array of n rows of 3 plain floats."""
-    return np.fromiter(chain.from_iterable(rows), np.float64, 3 * len(rows)).reshape(-1, 3)
-
-
 _HEX_QUADS = np.array(HEXAHEDRON_LOOPS)
-_HEX_DIAGONAL_STARTS, _HEX_DIAGONAL_ENDS = _HEX_QUADS[:, :2], _HEX_QUADS[:, 2:]
 _HEX_REVERSED = tuple(loop[::-1] for loop in HEXAHEDRON_LOOPS)

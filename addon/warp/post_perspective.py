@@ -125,9 +125,7 @@ class _BoxesByDepth:
         return self.c_lower[self.opened] if self.opened < len(self.clusters) else math.inf
 
     def _open(self, stop: int) -> None:
-        """Add the boxes of clusters [opened, stop) to the pool, in order."""
-        if stop <= self.opened:
-            return
+        """Add the boxes of clusters [opened, stop) to the pool, in order (none: the pool, already in order, stays)."""
         ids = self.clusters[self.opened:stop]
         more = self.index.c_box_bounds[:, ids][:, self.picked[ids]]                 # (6, boxes): lo, -hi
         pool = np.concatenate([self.pool, more], axis=1)

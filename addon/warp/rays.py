@@ -98,5 +98,4 @@ def ray_index(origins, directions, t_max, index: BoxIndex, selection: Selection 
             best[rays[better]] = nearest[better]
             won = np.isfinite(t) & (t == best[pair_ray])
             which[pair_ray[won]] = index.perm[slots[box[won]]]
-    which[~np.isfinite(best)] = -1
     return best, which

@@ -9,7 +9,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .culling import BoxIndex
-from .geometry import clip_halfspaces, perpendicular
+from .geometry import clip_halfspaces
 from .polyhedron import HEXAHEDRON_EDGES, box_corners
 from .rays import ray_index, slab_intervals
 from .types import EmptyBodyError, Light, SceneBounds, View, WarpOptions
@@ -133,7 +133,7 @@ class VisibleRegion:
         """World half-spaces holding every seen tile's depth slab: the eye-depth range,
         the screen rectangle of the seen tiles and a k-DOP of their corners around the light."""
         corners = self.tile_corners(view)
-        pad = KDOP_PAD * (float(np.ptp(corners, axis=0).max()) or 1.0)
+        pad = KDOP_PAD * (float(np.ptp(np.ascontiguousarray(corners.T), axis=1).max()) or 1.0)   # (.T: kdop_halfspaces)
         z_lo, z_hi = self.depth_range
         z_lo, z_hi = max(z_lo - pad, view.near), z_hi + pad       # (a flat region keeps a thickness)
         row = view.world_to_camera[2]                          # eye depth = -(row . [x, 1])
@@ -182,13 +182,14 @@ def kdop_halfspaces(corners: np.ndarray, view: View, light: Light, pad: float) -
     ell = mid / math.sqrt(mid @ mid) if mid @ mid > 0 else view.direction
     across = _across(ell, view)                                     # (K, 3)
     along, sideways = rel @ ell, rel @ across.T                     # (N,), (N, K)
+    # Maxima and minima over the points go along the last axis of (K, N) copies: numpy takes a tenth of the time there
+    # that it takes over the short axis of (N, K) (0.5 ms for 4,000 tile corners), and they are exact either way.
     normals = [ell[None], -ell[None]]
     offsets = [[along.max() + pad], [pad - along.min()]]
-    dist = np.sqrt(np.einsum("ij,ij->i", rel, rel))
-    if not light.is_directional and along.min() > 0.05 * dist.max():
+    if not light.is_directional and along.min() > 0.05 * np.sqrt(np.einsum("ij,ij->i", rel, rel)).max():
         # Planes through the light: angle(rel, ℓ towards m) <= a  <=>  (m cos a - ℓ sin a) . rel <= 0.
-        angle = np.arctan2(sideways, along[:, None])
-        hi, lo = angle.max(axis=0), angle.min(axis=0)
+        angle = np.ascontiguousarray(np.arctan2(sideways, along[:, None]).T)
+        hi, lo = angle.max(axis=1), angle.min(axis=1)
         spread = KDOP_PAD * float((hi - lo).max())
         hi, lo = np.minimum(hi + spread, 0.49 * math.pi), np.maximum(lo - spread, -0.49 * math.pi)
         normals += [np.cos(hi)[:, None] * across - np.sin(hi)[:, None] * ell,
@@ -196,17 +197,17 @@ def kdop_halfspaces(corners: np.ndarray, view: View, light: Light, pad: float) -
         offsets += [np.zeros(KDOP_DIRECTIONS), np.zeros(KDOP_DIRECTIONS)]
     else:
         normals += [across, -across]
-        offsets += [sideways.max(axis=0) + pad, pad - sideways.min(axis=0)]
+        sideways = np.ascontiguousarray(sideways.T)
+        offsets += [sideways.max(axis=1) + pad, pad - sideways.min(axis=1)]
     n = np.concatenate(normals)
     return n, np.concatenate(offsets) + n @ base
 
 
 def _across(ell: np.ndarray, view: View) -> np.ndarray:
-    """(K, 3) unit directions across ℓ, every 180°/K from the maps' +y (``frame.image_up``: V_P, Scherzer Eq. 3), so
+    """(K, 3) unit directions across ℓ, every 180°/K from the maps' +y (``frame.up_across``: V_P, Scherzer Eq. 3), so
     the k-DOP bounds a map's own axes exactly."""
-    from .frame import image_up                      # (frame imports body, which imports this module)
-    u = image_up(view.direction, view.up, ell)
-    u = u if u.any() else perpendicular(ell)
+    from .frame import up_across                     # (frame imports body, which imports this module)
+    u = up_across(view, ell)
     a = np.arange(KDOP_DIRECTIONS) * (math.pi / KDOP_DIRECTIONS)
     return np.cos(a)[:, None] * u + np.sin(a)[:, None] * np.cross(ell, u)
 

@@ -9,16 +9,12 @@ import numpy as np
 
 from ..body import IntersectionBody
 from ..post_perspective import nearest_visible_depth
-from ..types import Light, View, WarpError, WarpOptions
+from ..types import Light, View, WarpOptions
 from ..visibility import VisibleRegion
 
 
 def practical_splits(z_n: float, z_f: float, count: int, lam: float) -> np.ndarray:
-    """C_0..C_N (C_0 = z_n, C_N = z_f exactly): λ = 1 logarithmic, λ = 0 uniform."""
-    if not 0.0 < z_n < z_f:
-        raise WarpError(f"a cascade needs 0 < z_n < z_f (got {z_n}, {z_f})")
-    if not 0.0 <= lam <= 1.0:
-        raise WarpError(f"the split scheme's λ must be in [0, 1] (got {lam})")
+    """C_0..C_N (C_0 = z_n, C_N = z_f exactly) for 0 < z_n < z_f: λ ∈ [0, 1], 1 logarithmic, 0 uniform."""
     i_over_n = np.arange(count + 1) / count
     c = lam * (z_n * (z_f / z_n) ** i_over_n) + (1.0 - lam) * (z_n + (z_f - z_n) * i_over_n)
     c[0], c[-1] = z_n, z_f
