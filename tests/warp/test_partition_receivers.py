@@ -84,26 +84,43 @@ def edged(seen, points, directions):
     return (*seen[:4], np.stack([points, directions], axis=1))
 
 
-def test_a_map_that_lays_the_known_shadow_edges_on_a_texel_axis_is_weighed_by_the_filter_gain_it_loses():
-    """A grid along an edge holds nothing of the edge's place within a texel, so PCF 2's bilinear taps gain little
-    there (docs/papers.md, the cascade's edges): where the shadow edges' directions are known, a single map whose
-    texel axes lie along them counts its footprints 1 + ``LOSS`` times, one 45° off them once, and a map of several
-    faces, or too few edges, leaves its footprints as they are."""
+def sun_edges():
+    """outdoor_sun's ``receivers``, its uniform map, ``EDGES`` + 5 of the receivers and ``along``: the direction on
+    the ground whose image in that map runs along the given texel direction, at each of them."""
     view, light, scene = example("outdoor_sun")
     seen = receivers(view, light, region_from_boxes(view, scene), view.near, math.inf, scene)
     setup = compute("uniform", view, light, scene, WarpOptions(shadow_map_size=(1024, 1024), focus="view"))
     points = seen[0][::7][:EDGES + 5]
     jacobian = raster_jacobian(setup.maps[0].matrix, setup.maps[0].size, points[:1])[0]     # a sun's: the same anywhere
 
-    def along(texels):                                  # the direction on the ground whose image runs along ``texels``
+    def along(texels):
         d = np.append(np.linalg.solve(jacobian[:, :2], texels), 0.0)
         return np.broadcast_to(d / np.linalg.norm(d), points.shape)
+    return seen, setup, points, along
 
+
+def test_a_map_that_lays_the_known_shadow_edges_on_a_texel_axis_is_weighed_by_the_filter_gain_it_loses():
+    """A grid along an edge holds nothing of the edge's place within a texel, so PCF 2's bilinear taps gain little
+    there (docs/papers.md, the cascade's edges): where the shadow edges' directions are known, a single map whose
+    texel axes lie along them counts its footprints 1 + ``LOSS`` times, one 45° off them once, and a map of several
+    faces, or no edges, leaves its footprints as they are."""
+    seen, setup, points, along = sun_edges()
     aligned, diagonal = (filter_losses([setup], edged(seen, points, along(t)))[0] for t in ([1.0, 0.0], [1.0, 1.0]))
     assert aligned == 1.0 + LOSS and diagonal == 1.0
-    assert filter_losses([setup], edged(seen, points[:EDGES - 1], along([0.0, 1.0])[:EDGES - 1]))[0] == 1.0
+    assert filter_losses([setup], edged(seen, points[:0], along([0.0, 1.0])[:0]))[0] == 1.0
     faces = dataclasses.replace(setup, maps=setup.maps * 2)
     assert filter_losses([faces, setup], edged(seen, points, along([0.0, 1.0]))).tolist() == [1.0, 1.0 + LOSS]
+
+
+def test_a_splits_few_edge_samples_weigh_its_pick_in_proportion_to_how_many_there_are():
+    """Fewer than ``EDGES`` edge samples are weighed, not dropped: their aligned share is shrunk toward the no-edge
+    pick's 0 by n/``EDGES`` (as if the samples not seen were not aligned), so a split's loss grows with every sample
+    that lies along a texel axis, is half the full one at ``EDGES``/2 and meets it at ``EDGES`` without a jump."""
+    seen, setup, points, along = sun_edges()
+    losses = [filter_losses([setup], edged(seen, points[:n], along([0.0, 1.0])[:n]))[0] for n in range(EDGES + 3)]
+    assert losses[0] == 1.0 and np.all(np.diff(losses[:EDGES + 1]) > 0)
+    assert math.isclose(losses[EDGES // 2], 1.0 + LOSS / 2, rel_tol=1e-12)
+    assert losses[EDGES] == losses[EDGES + 2] == 1.0 + LOSS
 
 
 def test_with_no_edges_known_the_candidates_are_scored_by_their_footprints_alone():

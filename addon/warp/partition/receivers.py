@@ -15,7 +15,7 @@ TAIL = (93.0, 95.0, 97.0)
 SAMPLES = 2048
 """At most this many of a region's receivers (every k-th) score its splits: the engine's pre-pass gives up to 16,384."""
 LOSS, EDGES = 2.0, 20
-"""How much more an aligned map's footprint counts (``filter_losses``), and the fewest edge receivers that weigh."""
+"""How much more an aligned map's footprint counts (``filter_losses``), and the edge samples that weigh in full."""
 RAYS = (64, 36)
 """The receivers' rays (columns, rows) where the region is the scene boxes' 48x27 ray cast (docs/papers.md)."""
 
@@ -64,14 +64,17 @@ def jacobians(maps: list, points: np.ndarray) -> np.ndarray:
 
 
 def filter_losses(setups: list, seen: tuple) -> np.ndarray:
-    """Per setup, 1 + ``LOSS``·the mean over the ``receivers`` ``seen``'s shadow edges e of min(1, (20° - a)/12°)⁺, a
-    the angle of D_M·e to a texel axis of its one map (several: 1): a grid along an edge holds nothing of the edge's
-    place in a texel, and PCF 2 gains 3-7 % there, 16-33 % at 20-45° (docs/papers.md, the cascade's edges)."""
-    if len(seen[4]) < EDGES or not setups:
+    """Per setup, 1 + ``LOSS``·the mean over the ``receivers`` ``seen``'s n shadow edges e of min(1, (20° - a)/12°)⁺, a
+    the angle of D_M·e to a texel axis of its one map (several: 1), times min(1, n/``EDGES``): a grid along an edge
+    holds nothing of the edge's place in a texel, and PCF 2 gains 3-7 % there, 16-33 % at 20-45° (docs/papers.md, the
+    cascade's edges); below ``EDGES`` samples the share is shrunk toward the no-edge pick's 0, as if the missing ones
+    were not aligned, so that a split's weight grows with its evidence rather than jumping at a threshold."""
+    if not len(seen[4]) or not setups:
         return np.ones(len(setups))
     v = np.abs(np.einsum("mnij,nj->mni", jacobians([s.maps[0] for s in setups], seen[4][:, 0]), seen[4][:, 1]))
     a = np.degrees(np.arctan2(np.minimum(v[..., 0], v[..., 1]), np.maximum(v[..., 0], v[..., 1])))     # 0..45°
-    return 1.0 + LOSS * np.nanmean(np.clip((20.0 - a) / 12.0, 0.0, 1.0), axis=1) * [len(s.maps) == 1 for s in setups]
+    share = np.nanmean(np.clip((20.0 - a) / 12.0, 0.0, 1.0), axis=1) * min(1.0, len(seen[4]) / EDGES)
+    return 1.0 + LOSS * share * [len(s.maps) == 1 for s in setups]
 
 
 def grazing(setup: ShadowSetup, seen: tuple, light: Light, top: float = 90.0) -> tuple:
