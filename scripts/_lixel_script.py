@@ -163,6 +163,14 @@ class Session:
                 if isinstance(path, str) and os.path.exists(path) and os.path.samefile(path, bpy.data.filepath):
                     raise ScriptError(f"--{name.replace('_', '-')} {path} is the .blend file being read: writing "
                                       f"there would destroy it; choose another name")
+            named: dict = {}   # one file for two outputs: the second overwrote the first without a word
+            for name in OUTPUT_OPTIONS:
+                path = getattr(self.args, name, None)
+                if isinstance(path, str) and path != "-":
+                    other = named.setdefault(os.path.realpath(path), name)
+                    if other != name:
+                        raise ScriptError(f"--{other.replace('_', '-')} and --{name.replace('_', '-')} both name "
+                                          f"{path}: the second would overwrite the first; give each its own file")
         except BaseException:
             self.__exit__(None, None, None)
             raise

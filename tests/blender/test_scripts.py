@@ -98,6 +98,41 @@ def test_export_animation(mode, blend, tmp_path):
         assert body[:, 2].max() >= 1.0 - 1e-6 and body[:, 2].min() <= 1e-6
 
 
+EARLIER = '{"the user\'s": "earlier export"}\n'
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_export_animation_that_computes_no_frame_keeps_the_file_there(mode, blend, lixel, tmp_path):
+    """A misspelt ``--camera`` was said once per frame and the user's earlier export was replaced by a document of
+    errors alone ('0 of 5 frames exported to anim.json', then the error): it is said at once and nothing is
+    written; a scene no frame of which can be computed (a camera clipping from 5 to 5) keeps the file too."""
+    out = tmp_path / "anim.json"
+    out.write_text(EARLIER)
+    r = run(mode, "export_animation.py", blend, "--output", str(out), "--camera", "tiny camra")
+    assert r.returncode == 1 and "lixel: error: there is no object named 'tiny camra'" in r.stderr, r.stderr
+    assert "exported" not in r.stdout + r.stderr and out.read_text() == EARLIER
+    with active_scene("tiny") as scene:
+        scene.camera.data.clip_start = scene.camera.data.clip_end = 5.0
+        bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "clipped.blend"), copy=True)
+    r = run(mode, "export_animation.py", tmp_path / "clipped.blend", "--output", str(out), "--frames", "1:2")
+    assert r.returncode == 1 and "lixel: error: no frame could be computed, nothing written: Camera" in r.stderr, \
+        r.stderr
+    assert out.read_text() == EARLIER and sorted(p.name for p in tmp_path.iterdir()) == ["anim.json", "clipped.blend"]
+
+
+@pytest.mark.parametrize("options", [("--output", "--shadow-output"), ("--json", "--map-output")])
+def test_two_outputs_naming_one_file_are_refused(blend, tmp_path, options):
+    """``--output r.png --shadow-output r.png`` wrote the shaded picture, then the shadow mask over it, and said
+    nothing: the user asked for two pictures and got one. Refused, naming both options; nothing written."""
+    out = tmp_path / "r.png"
+    args = [a for option in options for a in (option, str(out))]
+    r = run("module", "render_method.py", blend, *args, "--resolution", "32x18")
+    assert r.returncode == 1, r.stderr
+    assert (f"lixel: error: {options[0]} and {options[1]} both name {out}: the second would overwrite the first; "
+            f"give each its own file") in r.stderr, r.stderr
+    assert not out.exists()
+
+
 def test_export_animation_to_stdout_is_json_only(blend):
     """``--output -``: Blender's "Read blend" line (printed by C code when the
     script opens the file) and any note go to stderr; stdout parses as JSON."""
