@@ -262,7 +262,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         lob = None
         if "light" in todo or light is None:
             lob = pick_light(scene, depsgraph, active, chosen=light_obj)
-            light = timed("describe light", describe_light, lob, depsgraph)
+            light = timed("describe light", describe_light, lob, depsgraph, scene)
             off = shadow_off(lob, depsgraph)   # its pictures are unshadowed, as F12's (renders.as_rendered)
             st.light_name, st.light_pointer = lob.name, lob.as_pointer()
             st.light_notes = (*light_notes(lob, depsgraph), *([off[0].upper() + off[1:]] if off else ()))

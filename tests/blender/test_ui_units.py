@@ -145,3 +145,23 @@ def test_overlay_snapshot_notes_name_reaches_in_the_scenes_units(lixel, system, 
         shown = [re.search(r" reach(?:es)? (.+) from the setup's centre, beyond the picture", n) for n in notes]
         assert all(shown) and len(shown) == 2, notes
         np.testing.assert_allclose(_in_units(scene, *(s.group(1) for s in shown)), reaches, rtol=6e-3)
+
+
+@pytest.mark.parametrize("system, scale", UNIT_SYSTEMS)
+@pytest.mark.parametrize("what", ["camera", "light"])
+def test_a_too_far_camera_or_light_is_named_in_the_scenes_units(lixel, system, scale, what):
+    """A camera or a point light beyond the 1e12 units Lixel computes with: Refresh said "The camera's position reaches
+    2e+12 from the origin, beyond the 1e+12 Lixel can compute with", naming no camera and in Blender units (at a
+    Unit Scale of 0.01 Blender's fields show 2e10 m)."""
+    with active_scene("lixel_units", light="POINT") as scene:
+        _units_scene(scene, system, scale)
+        ob = scene.objects[f"lixel_units {what}"]
+        ob.location.z = 2e12
+        bpy.context.view_layer.update()
+        with pytest.raises(RuntimeError) as refused:
+            bpy.ops.lixel.refresh()
+        lengths = re.search(rf"Lixel: {what.title()} 'lixel_units {what}' is (.+) from the origin, beyond the (.+) "
+                            rf"Lixel can compute with: move it closer to the origin or scale the scene down",
+                            str(refused.value))
+        assert lengths, str(refused.value)
+        np.testing.assert_allclose(_in_units(scene, *lengths.groups()), [2e12, 1e12], rtol=6e-3)
