@@ -11,6 +11,7 @@ Arguments come after ``--`` when it is present, else after the script name.
 Bad arguments print the usage and exit with status 2; a scene Lixel cannot
 handle (no camera, no light, ...) prints ``lixel: error: ...`` and exits 1,
 as does anything unexpected (one line; ``LIXEL_DEBUG=1`` shows the traceback).
+Ctrl-C is one line too (exit status 130).
 """
 from __future__ import annotations
 
@@ -390,6 +391,10 @@ def run(main) -> None:
         code = 1
     except BrokenPipeError:  # ``--output - | head``: the reader stopped early and has what it wanted
         code = 1
+    except KeyboardInterrupt:  # Ctrl-C: a line, not a traceback (every output is written whole or not at all)
+        print("lixel: interrupted: the outputs written so far are whole; the one in progress was not written (a "
+              "file already there under its name is kept)", file=sys.stderr)
+        code = 130
     except OSError as exc:  # an output the script cannot write: the path (or standard output) and why, not a bug
         where = f"'{exc.filename}'" if exc.filename is not None else "the output"
         print(f"lixel: error: cannot write {where}: {exc.strerror or exc}", file=sys.stderr)

@@ -133,6 +133,26 @@ def test_two_outputs_naming_one_file_are_refused(blend, tmp_path, options):
     assert not out.exists()
 
 
+def test_ctrl_c_is_one_line_and_leaves_the_file_there(blend, tmp_path):
+    """Ctrl-C during a run printed a Python traceback (from wherever it landed: a GPU read-back, a picture's save)
+    and ended by the signal; it is one line, status 130, and the file the run would have replaced is kept."""
+    import signal
+    import time
+    out = tmp_path / "anim.json"
+    out.write_text(EARLIER)
+    env = dict(os.environ, XDG_CACHE_HOME=str(tmp_path / "xdg"), BLENDER_USER_RESOURCES=str(tmp_path / "user"))
+    p = subprocess.Popen([sys.executable, str(SCRIPTS / "export_animation.py"), str(blend), "--output", str(out),
+                          "--frames", "1:1048574"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         env=env, cwd=str(ROOT))
+    time.sleep(4)           # well inside the million frames
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 130 and "Traceback" not in err, err
+    assert "lixel: interrupted: the outputs written so far are whole" in err
+    assert out.read_text() == EARLIER
+    assert [f.name for f in tmp_path.iterdir() if f.name not in ("user", "xdg")] == ["anim.json"]
+
+
 def test_export_animation_to_stdout_is_json_only(blend):
     """``--output -``: Blender's "Read blend" line (printed by C code when the
     script opens the file) and any note go to stderr; stdout parses as JSON."""
