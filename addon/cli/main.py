@@ -6,7 +6,7 @@ output (no maps, ``diagnostics.empty_body`` says why, plus a note on stderr),
 not crashed on. An unexpected exception (a bug) is one line on stderr too
 (``LIXEL_DEBUG=1`` prints the traceback); with ``--method all`` the other
 methods' results are still printed. Output that cannot be written (a full disk) is one line too; a reader that
-stops early (``| head``) ends the command quietly, with status 1.
+stops early (``| head``) ends the command quietly, with status 1; Ctrl-C is one line, with status 130.
 """
 from __future__ import annotations
 
@@ -65,7 +65,11 @@ def _indent(text: str) -> int:
 
 def main(argv=None) -> int:
     with np.errstate(all="ignore"):  # numpy's RuntimeWarnings are no message for a user: errors are lines of their own
-        return _main(argv)
+        try:
+            return _main(argv)
+        except KeyboardInterrupt:   # Ctrl-C (waiting on a standard input never given, say): a line, no traceback
+            print("lixel: interrupted: nothing written", file=sys.stderr)
+            return 130
 
 
 def _main(argv=None) -> int:

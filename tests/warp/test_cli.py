@@ -379,6 +379,27 @@ def test_a_reader_that_stops_early_gets_no_traceback():
     assert r.returncode == 1 and r.stderr == "", r.stderr
 
 
+def test_ctrl_c_while_waiting_for_the_config_is_one_line():
+    """``python -m addon.warp --method all -`` with no config piped in waits on standard input; Ctrl-C there printed
+    a traceback (from a codec's decode) and the process died of the signal. One line, status 130."""
+    import signal
+    import time
+    cmd, env = _cli_command("--method", "all", "-")
+    p = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         cwd=ROOT, env=env)
+    for _ in range(200):   # until it reads its standard input (Linux: syscall 0, read, of descriptor 0)
+        try:
+            if open(f"/proc/{p.pid}/syscall").read().startswith("0 0x0 "):
+                break
+        except OSError:
+            time.sleep(3)
+            break
+        time.sleep(0.05)
+    p.send_signal(signal.SIGINT)
+    out, err = p.communicate(timeout=60)
+    assert (p.returncode, out, err) == (130, "", "lixel: interrupted: nothing written\n")
+
+
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
 def test_output_to_a_full_disk_is_one_line_naming_it():
     cmd, env = _cli_command("--method", "uniform", str(EXAMPLES[0]))
