@@ -164,6 +164,10 @@ class Session:
                 if isinstance(path, str) and os.path.exists(path) and os.path.samefile(path, bpy.data.filepath):
                     raise ScriptError(f"--{name.replace('_', '-')} {path} is the .blend file being read: writing "
                                       f"there would destroy it; choose another name")
+            folder = getattr(self.args, "output_dir", None)   # said after the whole comparison: 'File exists'
+            if isinstance(folder, str) and os.path.exists(folder) and not os.path.isdir(folder):
+                raise ScriptError(f"--output-dir {folder} is a file, not a folder: name a folder (one that is missing "
+                                  f"is made)")
             named: dict = {}   # one file for two outputs: the second overwrote the first without a word
             for name in OUTPUT_OPTIONS:
                 path = getattr(self.args, name, None)

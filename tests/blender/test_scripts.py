@@ -153,6 +153,18 @@ def test_ctrl_c_is_one_line_and_leaves_the_file_there(blend, tmp_path):
     assert [f.name for f in tmp_path.iterdir() if f.name not in ("user", "xdg")] == ["anim.json"]
 
 
+@pytest.mark.parametrize("script", ["compare_methods.py", "overlay_snapshot.py"])
+def test_an_output_dir_that_is_a_file_is_refused_first(blend, tmp_path, script):
+    """``--output-dir`` naming a file: compare_methods computed and printed every method, then said "cannot write
+    'x': File exists". Refused first, saying it is a file; the file is kept."""
+    there = tmp_path / "notes.txt"
+    there.write_text("the user's notes\n")
+    r = run("module", script, blend, "--output-dir", str(there), *(["--no-render"] if "compare" in script else []))
+    assert r.returncode == 1 and f"lixel: error: --output-dir {there} is a file, not a folder: name a folder" \
+        in r.stderr, r.stderr
+    assert "texel px" not in r.stdout and there.read_text() == "the user's notes\n"
+
+
 def test_export_animation_to_stdout_is_json_only(blend):
     """``--output -``: Blender's "Read blend" line (printed by C code when the
     script opens the file) and any note go to stderr; stdout parses as JSON."""
