@@ -407,7 +407,7 @@ def readouts(st: Optional[LiveState]) -> list[tuple[str, str]]:
     rows.append(("θ", "—" if d.theta is None else f"{math.degrees(d.theta):.1f}°"))
     rows.append(("γ", "—" if d.gamma is None else f"{math.degrees(d.gamma):.1f}°"))
     if d.n_opt is not None:
-        rows.append(("n_opt", f"{d.n_opt:.4g}"))
+        rows.append(("n_opt", length_text(d.n_opt, scene)))   # a distance (the warp's centre from its near plane)
     if d.lam is not None:
         rows.append(("λ", f"{d.lam:.4g}"))
     if st.body is not None:
@@ -469,15 +469,16 @@ def compare_methods(st: LiveState, methods=None) -> list[dict]:
     return rows
 
 
-def comparison_table(rows: list[dict]) -> str:
-    """The comparison as aligned text (for a Text datablock or a terminal)."""
+def comparison_table(rows: list[dict], scene=None) -> str:
+    """The comparison as aligned text (for a Text datablock or a terminal); n_opt, a distance, in ``scene``'s units
+    (:func:`length_text`)."""
     import math
 
     def deg(v):
         return "—" if v is None else f"{math.degrees(v):6.1f}°"
 
-    def num(v, fmt="{:.4g}"):
-        return "—" if v is None else fmt.format(v)
+    def num(v, text="{:.4g}".format):
+        return "—" if v is None else text(v)
 
     lines = [f"{'method':<14} {'θ':>7} {'γ':>7} {'n_opt':>9} {'λ':>9} {'maps':>4} "
              f"{'texel px (median)':>18} {'(max)':>9} {'ms':>7}"]
@@ -485,7 +486,8 @@ def comparison_table(rows: list[dict]) -> str:
         if "error" in r:
             lines.append(f"{r['method']:<14} error: {r['error']}")
             continue
-        lines.append(f"{r['method']:<14} {deg(r['theta']):>7} {deg(r['gamma']):>7} {num(r['n_opt']):>9} "
-                     f"{num(r['lam']):>9} {r['maps']:>4} {num(r['footprint_median_px'], '{:.3g}'):>18} "
-                     f"{num(r['footprint_max_px'], '{:.3g}'):>9} {r['warp_ms']:7.2f}")
+        n_opt = num(r['n_opt'], lambda v: length_text(v, scene))
+        lines.append(f"{r['method']:<14} {deg(r['theta']):>7} {deg(r['gamma']):>7} {n_opt:>9} "
+                     f"{num(r['lam']):>9} {r['maps']:>4} {num(r['footprint_median_px'], '{:.3g}'.format):>18} "
+                     f"{num(r['footprint_max_px'], '{:.3g}'.format):>9} {r['warp_ms']:7.2f}")
     return "\n".join(lines)

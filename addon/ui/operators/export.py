@@ -92,7 +92,7 @@ class LIXEL_OT_compare(LixelSceneOperator, bpy.types.Operator):
         if st is None:
             return {"CANCELLED"}
         rows = live.compare_methods(st)
-        table = live.comparison_table(rows)
+        table = live.comparison_table(rows, context.scene)
         note = ""
         if overlays.gpu_pipeline() is None:
             note = ("\n\nShadow renders of each method need the gpu pipeline (addon/gpu), which is not available "
