@@ -282,6 +282,21 @@ def test_malformed_config_gets_one_line_naming_the_field(name, tmp_path, capsys)
         check_one_line(code, out.out, out.err, field)
 
 
+@pytest.mark.parametrize("field, value, unit", [("resolution", [10 ** 9, 720], "pixels"),
+                                                ("shadow_map_size", [1024, 0], "texels")])
+def test_a_size_out_of_range_names_what_it_counts(tmp_path, capsys, field, value, unit):
+    """A camera resolution out of range was refused as "must be between 1 and 16384 texels per side": a camera has
+    pixels; the shadow map's texels."""
+    from addon.cli import main
+    config = json.loads(EXAMPLES[0].read_text())
+    (config["camera"] if field == "resolution" else config)[field] = value
+    path = tmp_path / "config.json"
+    path.write_text(json.dumps(config))
+    assert main(["--method", "uniform", str(path)]) == 2
+    where = f"camera.{field}" if field == "resolution" else field
+    assert capsys.readouterr().err == f"lixel: error: {where}: must be between 1 and 16384 {unit} per side (got {value})\n"
+
+
 def test_clip_range_is_refused_beyond_what_float32_depth_resolves(tmp_path, capsys):
     """The rule of the Blender path (``MAX_CLIP_RATIO``, 1:2^24): up to it a perspective camera gets its maps, beyond
     it one line naming camera.far and what to do (a 1:1e12 range silently printed no maps, "empty body"); an
