@@ -274,7 +274,7 @@ class Session:
             setattr(owner, attr, value)
             self.shown.append((lambda v, o=owner, a=attr: setattr(o, a, v), old))
 
-    def state(self, scene, settings):
+    def state(self, scene, settings, empty_ok: bool = False):
         """The live state for the scene (camera/light from the arguments), as a copy of its own: Lixel's live
         update (``depsgraph_update_post``, which a render's GPU start sets off, and ``frame_change_post``)
         recomputes the scene's stored state with the scene's own settings, camera and light. ScriptError on
@@ -283,7 +283,9 @@ class Session:
         matrix the file last stored (never evaluated: the world origin; "the camera sees no shadow receiver"). A
         ``--light`` must be one the scene shows, as the panel's Lixel light must (``describe.pick_light``): Cycles
         lights nothing with another scene's light, which the script rendered with. A view layer with Surfaces off
-        is refused: the script drew its surfaces where F12 shows the world alone (4066 of 5184 pixels differed)."""
+        is refused: the script drew its surfaces where F12 shows the world alone (4066 of 5184 pixels differed).
+        ``empty_ok``: a frame with nothing to shadow (the camera looks at the sky) is returned, its ``empty_body``
+        saying why, where F12 renders it unshadowed (by default it is a ScriptError)."""
         live = self.module("addon.ui.live")
         camera, light = self.objects(scene)
         layer = self.bpy.context.view_layer
@@ -302,7 +304,7 @@ class Session:
         depsgraph = self.bpy.context.evaluated_depsgraph_get()
         st = live.update(scene, depsgraph, settings=settings, camera=camera, light_obj=light, changed=None,
                          active=self.bpy.context.view_layer.objects.active)
-        if st.error:
+        if st.error and not (empty_ok and st.empty_body):
             raise ScriptError(st.error)
         return copy.copy(st)
 

@@ -117,6 +117,9 @@ class LiveState:
     """The 3D view's Local Camera the state follows (:func:`follow`); "": the scene's camera (``render_camera``)."""
     provisional: bool = False
     """The setup is a moving view's: the cascade's λ splits stand in for its adaptive ones until :func:`refine`."""
+    empty_body: str = ""
+    """Why nothing the camera sees can be shadowed (the core's EmptyBodyError), where that is the ``error``: F12
+    renders such a frame unshadowed, with a warning (``render_method.py`` does too)."""
 
     @property
     def ok(self) -> bool:
@@ -307,14 +310,15 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
     except EmptyBodyError as exc:   # the core's words ("the camera sees no shadow receiver"), with names and a remedy
         st.body = None
         cam = camera if camera is not None else followed_camera(scene)
-        return _fail(st, f"Camera '{getattr(cam, 'name', '')}' and light '{st.light_name}' leave Lixel nothing to "
-                         f"shadow: {exc}; aim the camera (or the light) at the objects that receive shadows",
-                     timings)
+        _fail(st, f"Camera '{getattr(cam, 'name', '')}' and light '{st.light_name}' leave Lixel nothing to shadow: "
+                  f"{exc}; aim the camera (or the light) at the objects that receive shadows", timings)
+        st.empty_body = str(exc)
+        return st
     except Exception as exc:  # noqa: BLE001 - WarpError or a bug: a message either way
         st.body = None
         return _fail(st, user_message(exc, f"computing Lixel's setup for scene '{scene.name}'"), timings)
     note = "; ".join(n for n in (note, *st.light_notes) if n)
-    st.body, st.setup, st.method_used, st.note, st.error = body, setup, method, note, ""
+    st.body, st.setup, st.method_used, st.note, st.error, st.empty_body = body, setup, method, note, "", ""
     st.provisional = provisional
     st.geometry, st.footprint = geometry, footprint
     st.timings, st.recomputed = timings, tuple(recomputed)
@@ -379,7 +383,7 @@ def refine_after_rest():
 
 
 def _fail(st: LiveState, message: str, timings: dict) -> LiveState:
-    st.error = message
+    st.error, st.empty_body = message, ""
     st.setup = None
     st.provisional = False
     st.geometry = None

@@ -445,6 +445,26 @@ def test_render_method_renders_what_f12_renders(hidden, lixel, tmp_path, load_pi
                                    load_pixels(tmp_path / "f12.exr"), atol=1e-4)
 
 
+@pytest.mark.parametrize("mode", MODES)
+def test_render_method_renders_a_view_with_nothing_to_shadow_as_f12_does(mode, lixel, tmp_path, load_pixels):
+    """The camera turned to the sky (a frame of an animation, say): F12 renders it unshadowed with a warning ("no
+    shadows in this view"), where render_method.py refused it ("leave Lixel nothing to shadow", exit 1, no picture).
+    The picture equals F12's, with F12's warning; --json is the command line's empty body, and no map is written."""
+    with active_scene("tiny") as scene:
+        scene.camera.rotation_euler = (3.1, 0.0, 0.0)   # looking up
+        path = f12(scene, tmp_path, "sky.blend")
+    out = tmp_path / f"{mode}.exr"
+    got = run(mode, "render_method.py", path, "--scene", "tiny", "--output", str(out), "--json",
+              str(tmp_path / "sky.json"), "--map-output", str(tmp_path / "map.png"))
+    assert got.returncode == 0, got.stderr
+    assert "lixel: warning: no shadows in this view (the camera sees no shadow receiver" in got.stderr
+    assert f"lixel: warning: no shadow map to write to {tmp_path / 'map.png'}" in got.stderr
+    np.testing.assert_allclose(load_pixels(out), load_pixels(tmp_path / "f12.exr"), atol=1e-4)
+    doc = json.loads((tmp_path / "sky.json").read_text())
+    assert doc["maps"] == [] and doc["diagnostics"]["empty_body"].startswith("the camera sees no shadow receiver")
+    assert not (tmp_path / "map.png").exists()
+
+
 def assert_nearly_f12(got: np.ndarray, f12: np.ndarray) -> None:
     """``got`` is F12's picture but for a few shadow-edge pixels (at most 0.1%): F12 fits its maps to what its GPU
     pre-pass sees, the scripts to a ray cast against boxes, and the two differ a little once the scene is not the
