@@ -92,7 +92,11 @@ def main(argv=None):
                 if st.empty_body else output.setup_json(setup)     # as the command line writes an empty body
             output.write_text(args.json, json.dumps(doc, indent=2))
         if args.output or args.shadow_output or args.map_output:
-            res = renders.render_state(st, s.bpy.context.evaluated_depsgraph_get(), st.view.resolution, setup=setup)
+            depsgraph = s.bpy.context.evaluated_depsgraph_get()
+            res = renders.render_state(st, depsgraph, st.view.resolution, setup=setup)
+            # a light with Shadow off draws no map (as F12): its 1x1 stand-in was written as the map
+            shadow_off = s.module("addon.scene.describe").shadow_off
+            unshadowed = st.empty_body or shadow_off(renders.state_light(st, depsgraph))
             if args.output:
                 renders.save_image(renders.within_border(scene.render, res.combined), args.output, view_of=scene)
             if args.shadow_output:
@@ -100,8 +104,8 @@ def main(argv=None):
                 m = np.asarray(res.shadow_mask, dtype=np.float32)
                 renders.save_image(renders.within_border(scene.render, np.dstack([m, m, m, np.ones_like(m)])),
                                    args.shadow_output)
-            if args.map_output and st.empty_body:
-                print(f"lixel: warning: no shadow map to write to {args.map_output}", file=sys.stderr)
+            if args.map_output and unshadowed:
+                print(f"lixel: warning: no shadow map to write to {args.map_output} ({unshadowed})", file=sys.stderr)
             elif args.map_output and res.shadow_maps:
                 renders.save_image(renders.depth_to_rgba(res.shadow_maps[0]), args.map_output)
             t = res.timings

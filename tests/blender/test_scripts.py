@@ -458,11 +458,25 @@ def test_render_method_renders_a_view_with_nothing_to_shadow_as_f12_does(mode, l
               str(tmp_path / "sky.json"), "--map-output", str(tmp_path / "map.png"))
     assert got.returncode == 0, got.stderr
     assert "lixel: warning: no shadows in this view (the camera sees no shadow receiver" in got.stderr
-    assert f"lixel: warning: no shadow map to write to {tmp_path / 'map.png'}" in got.stderr
+    assert f"lixel: warning: no shadow map to write to {tmp_path / 'map.png'} (the camera sees no" in got.stderr
     np.testing.assert_allclose(load_pixels(out), load_pixels(tmp_path / "f12.exr"), atol=1e-4)
     doc = json.loads((tmp_path / "sky.json").read_text())
     assert doc["maps"] == [] and doc["diagnostics"]["empty_body"].startswith("the camera sees no shadow receiver")
     assert not (tmp_path / "map.png").exists()
+
+
+def test_render_method_writes_no_map_for_a_light_with_shadow_off(blend, lixel, tmp_path):
+    """A light with Shadow off draws no shadow map (as in F12): --map-output wrote the 1x1 stand-in the picture is
+    drawn with, as if it were the map. It says there is no map, and why."""
+    with active_scene("tiny") as scene:
+        scene.objects["tiny light"].data.use_shadow = False
+        bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "off.blend"), copy=True)
+    got = run("module", "render_method.py", tmp_path / "off.blend", "--scene", "tiny", "--output",
+              str(tmp_path / "off.png"), "--map-output", str(tmp_path / "map.png"), "--resolution", "32x18")
+    assert got.returncode == 0, got.stderr
+    assert (f"lixel: warning: no shadow map to write to {tmp_path / 'map.png'} (light 'tiny light' casts no "
+            f"shadows") in got.stderr, got.stderr
+    assert (tmp_path / "off.png").is_file() and not (tmp_path / "map.png").exists()
 
 
 def assert_nearly_f12(got: np.ndarray, f12: np.ndarray) -> None:
