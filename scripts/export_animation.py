@@ -8,8 +8,10 @@ Output: {"scene", "method", "frames": [{"frame": f, "maps": [...], "diagnostics"
 {"frame": f, "error": "..."}]}. With ``--output -`` standard output carries the
 JSON only (everything else goes to standard error; with the Blender binary add
 ``-q`` so Blender's own status lines, printed before the script runs, stay out). A frame Lixel cannot handle (e.g. the camera
-sees nothing) is recorded with its error; the exit status is 0 unless every
-frame failed, when nothing is written (a file already there is kept).
+is degenerate) is recorded with its error, a frame with nothing to shadow (the
+camera looks at the sky) as the command line reports an empty body; the exit
+status is 0 unless every frame failed, when nothing is written (a file already
+there is kept).
 """
 import json
 import os
@@ -59,13 +61,18 @@ def main(argv=None):
         for f in frames:
             scene.frame_set(f)
             try:
-                st = s.state(scene, settings)
+                st = s.state(scene, settings, empty_ok=True)
             except ls.ScriptError as exc:
                 doc["frames"].append({"frame": f, "error": str(exc)})
                 failed += 1
                 continue
+            output = s.module("addon.cli.output")
+            if st.empty_body:   # the camera sees nothing to shadow (the sky), as the command line reports it
+                method = s.module("addon.ui.live").resolve_method(settings.method)[0]
+                doc["frames"].append({"frame": f, **output.empty_body_json(method, st.empty_body)})
+                continue
             doc["method"] = st.method_used
-            doc["frames"].append({"frame": f, **s.module("addon.cli.output").setup_json(st.setup)})
+            doc["frames"].append({"frame": f, **output.setup_json(st.setup)})
         live.clear()
         if failed == len(doc["frames"]):   # an export already there is kept, not replaced by errors alone
             raise ls.ScriptError(f"no frame could be computed, nothing written: "

@@ -88,8 +88,7 @@ def main(argv=None):
             print(f"lixel: warning: {st.note}", file=sys.stderr)
         if args.json:
             output = s.module("addon.cli.output")    # whole or not at all: a failed write leaves what was there
-            doc = {"maps": [], "diagnostics": {"method": method, "empty_body": st.empty_body, "fallbacks": []}} \
-                if st.empty_body else output.setup_json(setup)     # as the command line writes an empty body
+            doc = output.empty_body_json(method, st.empty_body) if st.empty_body else output.setup_json(setup)
             output.write_text(args.json, json.dumps(doc, indent=2))
         if args.output or args.shadow_output or args.map_output:
             depsgraph = s.bpy.context.evaluated_depsgraph_get()

@@ -21,7 +21,7 @@ import numpy as np
 from ..warp import METHODS, compute, focused_body
 from ..warp.types import EmptyBodyError, WarpError
 from .config import parse_config
-from .output import setup_json
+from .output import empty_body_json, setup_json
 
 
 def _internal(exc: BaseException) -> str:
@@ -39,7 +39,7 @@ def _error(message: str, status: int = 2) -> int:
 
 def run_method(name, view, light, scene, options, body):
     if isinstance(body, EmptyBodyError):
-        return {"maps": [], "diagnostics": {"method": name, "empty_body": str(body), "fallbacks": []}}
+        return empty_body_json(name, str(body))
     try:
         return setup_json(compute(name, view, light, scene, options, body=body))
     except WarpError as exc:

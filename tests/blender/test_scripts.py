@@ -465,6 +465,26 @@ def test_render_method_renders_a_view_with_nothing_to_shadow_as_f12_does(mode, l
     assert not (tmp_path / "map.png").exists()
 
 
+def test_export_animation_reports_a_frame_with_nothing_to_shadow_as_the_command_line_does(lixel, tmp_path):
+    """A frame whose camera turns to the sky was recorded as an error ("leave Lixel nothing to shadow ... aim the
+    camera"), where F12 renders it and the command line reports an empty body: it is the command line's empty body
+    (no maps, diagnostics.empty_body), beside frame 1's maps."""
+    with active_scene("tiny") as scene:
+        cam = scene.camera
+        cam.keyframe_insert("rotation_euler", frame=1)
+        cam.rotation_euler = (3.1, 0.0, 0.0)
+        cam.keyframe_insert("rotation_euler", frame=2)
+        bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "turn.blend"), copy=True)
+    out = tmp_path / "turn.json"
+    r = run("module", "export_animation.py", tmp_path / "turn.blend", "--scene", "tiny", "--output", str(out),
+            "--frames", "1:2", "--method", "uniform")
+    assert r.returncode == 0 and "lixel: 2 of 2 frames exported" in r.stdout, r.stdout + r.stderr
+    first, second = json.loads(out.read_text())["frames"]
+    assert len(first["maps"]) == 1
+    assert second["maps"] == [] and second["diagnostics"]["method"] == "uniform"
+    assert second["diagnostics"]["empty_body"].startswith("the camera sees no shadow receiver"), second
+
+
 def test_render_method_writes_no_map_for_a_light_with_shadow_off(blend, lixel, tmp_path):
     """A light with Shadow off draws no shadow map (as in F12): --map-output wrote the 1x1 stand-in the picture is
     drawn with, as if it were the map. It says there is no map, and why."""
