@@ -135,8 +135,11 @@ def test_two_outputs_naming_one_file_are_refused(blend, tmp_path, options):
 
 def test_ctrl_c_is_one_line_and_leaves_the_file_there(blend, tmp_path):
     """Ctrl-C during a run printed a Python traceback (from wherever it landed: a GPU read-back, a picture's save)
-    and ended by the signal; it is one line, status 130, and the file the run would have replaced is kept."""
+    and ended by the signal; it is one line, status 130, and the file the run would have replaced is kept. (A Ctrl-C
+    landing inside one of Blender's handlers is printed and dropped by Blender itself, as any exception there: the
+    user presses it again, as this test does.)"""
     import signal
+    import threading
     import time
     out = tmp_path / "anim.json"
     out.write_text(EARLIER)
@@ -144,11 +147,23 @@ def test_ctrl_c_is_one_line_and_leaves_the_file_there(blend, tmp_path):
     p = subprocess.Popen([sys.executable, str(SCRIPTS / "export_animation.py"), str(blend), "--output", str(out),
                           "--frames", "1:1048574"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                          env=env, cwd=str(ROOT))
-    time.sleep(4)           # well inside the million frames
-    p.send_signal(signal.SIGINT)
-    _, err = p.communicate(timeout=120)
-    assert p.returncode == 130 and "Traceback" not in err, err
-    assert "lixel: interrupted: the outputs written so far are whole" in err
+    err: list = []
+    threading.Thread(target=lambda: err.extend(p.stderr), daemon=True).start()
+    assert "Read blend" in p.stdout.readline()      # the file is open: the frames are being computed
+    for _ in range(60):
+        p.send_signal(signal.SIGINT)
+        try:
+            p.wait(timeout=2)
+            break
+        except subprocess.TimeoutExpired:
+            continue
+    p.stdout.read()
+    time.sleep(0.2)
+    text = "".join(err)
+    assert p.returncode == 130, text
+    assert text.splitlines()[-1] == ("lixel: interrupted: the outputs written so far are whole; the one in progress "
+                                     "was not written (a file already there under its name is kept)")
+    assert "_lixel_script.py" not in text, text        # no traceback through the script's own code
     assert out.read_text() == EARLIER
     assert [f.name for f in tmp_path.iterdir() if f.name not in ("user", "xdg")] == ["anim.json"]
 
