@@ -11,6 +11,7 @@ Arguments come after ``--`` when it is present, else after the script name.
 Bad arguments print the usage and exit with status 2; a scene Lixel cannot
 handle (no camera, no light, ...) prints ``lixel: error: ...`` and exits 1,
 as does anything unexpected (one line; ``LIXEL_DEBUG=1`` shows the traceback).
+Ctrl-C is one line too (exit status 130).
 """
 from __future__ import annotations
 
@@ -163,6 +164,18 @@ class Session:
                 if isinstance(path, str) and os.path.exists(path) and os.path.samefile(path, bpy.data.filepath):
                     raise ScriptError(f"--{name.replace('_', '-')} {path} is the .blend file being read: writing "
                                       f"there would destroy it; choose another name")
+            folder = getattr(self.args, "output_dir", None)   # said after the whole comparison: 'File exists'
+            if isinstance(folder, str) and os.path.exists(folder) and not os.path.isdir(folder):
+                raise ScriptError(f"--output-dir {folder} is a file, not a folder: name a folder (one that is missing "
+                                  f"is made)")
+            named: dict = {}   # one file for two outputs: the second overwrote the first without a word
+            for name in OUTPUT_OPTIONS:
+                path = getattr(self.args, name, None)
+                if isinstance(path, str) and path != "-":
+                    other = named.setdefault(os.path.realpath(path), name)
+                    if other != name:
+                        raise ScriptError(f"--{other.replace('_', '-')} and --{name.replace('_', '-')} both name "
+                                          f"{path}: the second would overwrite the first; give each its own file")
         except BaseException:
             self.__exit__(None, None, None)
             raise
@@ -261,7 +274,7 @@ class Session:
             setattr(owner, attr, value)
             self.shown.append((lambda v, o=owner, a=attr: setattr(o, a, v), old))
 
-    def state(self, scene, settings):
+    def state(self, scene, settings, empty_ok: bool = False):
         """The live state for the scene (camera/light from the arguments), as a copy of its own: Lixel's live
         update (``depsgraph_update_post``, which a render's GPU start sets off, and ``frame_change_post``)
         recomputes the scene's stored state with the scene's own settings, camera and light. ScriptError on
@@ -270,7 +283,9 @@ class Session:
         matrix the file last stored (never evaluated: the world origin; "the camera sees no shadow receiver"). A
         ``--light`` must be one the scene shows, as the panel's Lixel light must (``describe.pick_light``): Cycles
         lights nothing with another scene's light, which the script rendered with. A view layer with Surfaces off
-        is refused: the script drew its surfaces where F12 shows the world alone (4066 of 5184 pixels differed)."""
+        is refused: the script drew its surfaces where F12 shows the world alone (4066 of 5184 pixels differed).
+        ``empty_ok``: a frame with nothing to shadow (the camera looks at the sky) is returned, its ``empty_body``
+        saying why, where F12 renders it unshadowed (by default it is a ScriptError)."""
         live = self.module("addon.ui.live")
         camera, light = self.objects(scene)
         layer = self.bpy.context.view_layer
@@ -289,7 +304,7 @@ class Session:
         depsgraph = self.bpy.context.evaluated_depsgraph_get()
         st = live.update(scene, depsgraph, settings=settings, camera=camera, light_obj=light, changed=None,
                          active=self.bpy.context.view_layer.objects.active)
-        if st.error:
+        if st.error and not (empty_ok and st.empty_body):
             raise ScriptError(st.error)
         return copy.copy(st)
 
@@ -382,6 +397,10 @@ def run(main) -> None:
         code = 1
     except BrokenPipeError:  # ``--output - | head``: the reader stopped early and has what it wanted
         code = 1
+    except KeyboardInterrupt:  # Ctrl-C: a line, not a traceback (every output is written whole or not at all)
+        print("lixel: interrupted: the outputs written so far are whole; the one in progress was not written (a "
+              "file already there under its name is kept)", file=sys.stderr)
+        code = 130
     except OSError as exc:  # an output the script cannot write: the path (or standard output) and why, not a bug
         where = f"'{exc.filename}'" if exc.filename is not None else "the output"
         print(f"lixel: error: cannot write {where}: {exc.strerror or exc}", file=sys.stderr)

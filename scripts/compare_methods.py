@@ -41,7 +41,7 @@ def main(argv=None):
         scene = s.scene()
         st = s.state(scene, s.settings(scene, "uniform"))
         rows = live.compare_methods(st, methods)
-        print(live.comparison_table(rows))
+        print(live.comparison_table(rows, scene))
         os.makedirs(args.output_dir, exist_ok=True)
         camera = s.objects(scene)[0] or s.module("addon.scene.describe").render_camera(scene)
         doc = {"scene": scene.name, "camera": camera.name, "light": st.light_name,

@@ -8,8 +8,10 @@ Output: {"scene", "method", "frames": [{"frame": f, "maps": [...], "diagnostics"
 {"frame": f, "error": "..."}]}. With ``--output -`` standard output carries the
 JSON only (everything else goes to standard error; with the Blender binary add
 ``-q`` so Blender's own status lines, printed before the script runs, stay out). A frame Lixel cannot handle (e.g. the camera
-sees nothing) is recorded with its error; the exit status is 0 unless every
-frame failed.
+is degenerate) is recorded with its error, a frame with nothing to shadow (the
+camera looks at the sky) as the command line reports an empty body; the exit
+status is 0 unless every frame failed, when nothing is written (a file already
+there is kept).
 """
 import json
 import os
@@ -53,27 +55,34 @@ def main(argv=None):
         scene = s.scene()
         settings = s.settings(scene, args.method)
         frames = frame_range(p, args.frames, scene)
+        s.objects(scene)   # a --camera/--light that is not there: said at once, no file written (each frame said it)
         doc = {"scene": scene.name, "method": settings.method, "frames": []}
         failed = 0
         for f in frames:
             scene.frame_set(f)
             try:
-                st = s.state(scene, settings)
+                st = s.state(scene, settings, empty_ok=True)
             except ls.ScriptError as exc:
                 doc["frames"].append({"frame": f, "error": str(exc)})
                 failed += 1
                 continue
+            output = s.module("addon.cli.output")
+            if st.empty_body:   # the camera sees nothing to shadow (the sky), as the command line reports it
+                method = s.module("addon.ui.live").resolve_method(settings.method)[0]
+                doc["frames"].append({"frame": f, **output.empty_body_json(method, st.empty_body)})
+                continue
             doc["method"] = st.method_used
-            doc["frames"].append({"frame": f, **s.module("addon.cli.output").setup_json(st.setup)})
+            doc["frames"].append({"frame": f, **output.setup_json(st.setup)})
+        live.clear()
+        if failed == len(doc["frames"]):   # an export already there is kept, not replaced by errors alone
+            raise ls.ScriptError(f"no frame could be computed, nothing written: "
+                                 f"{doc['frames'][0]['error'] if doc['frames'] else 'empty range'}")
         text = json.dumps(doc, indent=1)
         if args.output == "-":
             print(text, file=data)
         else:
             s.module("addon.cli.output").write_text(args.output, text + "\n")   # whole or not at all
             print(f"lixel: {len(doc['frames']) - failed} of {len(doc['frames'])} frames exported to {args.output}")
-        live.clear()
-        if failed == len(doc["frames"]):
-            raise ls.ScriptError(f"no frame could be computed: {doc['frames'][0]['error'] if doc['frames'] else 'empty range'}")
         return 0
 
 

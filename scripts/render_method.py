@@ -11,7 +11,8 @@ The picture is F12's (the Lixel engine's) but for a few shadow-edge pixels: F12 
 pre-pass sees, this script to a ray cast against the objects' boxes (the sidebar's live state, which --json writes),
 so their maps differ a little once a scene is not the plainest (3 of 5184 pixels with an Array modifier, 2 with a
 camera shift: tests/blender/test_scripts.py). For F12's exact pixels render with F12 (blender -b FILE -f N with the
-Lixel engine).
+Lixel engine). A view with nothing to shadow (the camera looks at the sky) is drawn unshadowed with F12's warning;
+its --json is the command line's empty body, and it has no map to write.
 """
 import json
 import os
@@ -77,14 +78,24 @@ def main(argv=None):
             scene.render.resolution_percentage = 100
         if args.frame is not None:
             scene.frame_set(args.frame)
-        st = s.state(scene, s.settings(scene, args.method))
-        if st.note:
+        st = s.state(scene, s.settings(scene, args.method), empty_ok=True)
+        setup, method = st.setup, st.method_used
+        if st.empty_body:   # as F12: the frame unshadowed, with a warning (it was refused, where F12 rendered it)
+            method = s.module("addon.ui.live").resolve_method(st.settings.method)[0]
+            setup = s.module("addon.render.engine").no_shadow_setup(method)
+            print(f"lixel: warning: no shadows in this view ({st.empty_body}), as F12 renders it", file=sys.stderr)
+        elif st.note:
             print(f"lixel: warning: {st.note}", file=sys.stderr)
         if args.json:
             output = s.module("addon.cli.output")    # whole or not at all: a failed write leaves what was there
-            output.write_text(args.json, json.dumps(output.setup_json(st.setup), indent=2))
+            doc = output.empty_body_json(method, st.empty_body) if st.empty_body else output.setup_json(setup)
+            output.write_text(args.json, json.dumps(doc, indent=2))
         if args.output or args.shadow_output or args.map_output:
-            res = renders.render_state(st, s.bpy.context.evaluated_depsgraph_get(), st.view.resolution)
+            depsgraph = s.bpy.context.evaluated_depsgraph_get()
+            res = renders.render_state(st, depsgraph, st.view.resolution, setup=setup)
+            # a light with Shadow off draws no map (as F12): its 1x1 stand-in was written as the map
+            shadow_off = s.module("addon.scene.describe").shadow_off
+            unshadowed = st.empty_body or shadow_off(renders.state_light(st, depsgraph))
             if args.output:
                 renders.save_image(renders.within_border(scene.render, res.combined), args.output, view_of=scene)
             if args.shadow_output:
@@ -92,10 +103,13 @@ def main(argv=None):
                 m = np.asarray(res.shadow_mask, dtype=np.float32)
                 renders.save_image(renders.within_border(scene.render, np.dstack([m, m, m, np.ones_like(m)])),
                                    args.shadow_output)
-            if args.map_output and res.shadow_maps:
+            if args.map_output and unshadowed:
+                print(f"lixel: warning: no shadow map to write to {args.map_output} ({unshadowed})", file=sys.stderr)
+            elif args.map_output and res.shadow_maps:
                 renders.save_image(renders.depth_to_rgba(res.shadow_maps[0]), args.map_output)
             t = res.timings
-            print(f"lixel: {st.method_used}: {len(st.setup.maps)} map(s) of light '{st.light_name}', "
+            maps = 0 if st.empty_body else len(setup.maps)
+            print(f"lixel: {method}: {maps} map(s) of light '{st.light_name}', "
                   f"{sum(t.values()) * 1000:.0f} ms render ({', '.join(f'{k} {v * 1000:.0f}' for k, v in t.items())})")
         return 0
 

@@ -114,7 +114,7 @@ def _matrix(value, field: str) -> np.ndarray:
     return a
 
 
-def _size(value, field: str) -> tuple[int, int]:
+def _size(value, field: str, unit: str = "texels") -> tuple[int, int]:
     if isinstance(value, bool):
         raise ConfigError(f"{field}: must be an int or [w, h]")
     if isinstance(value, int):
@@ -124,7 +124,7 @@ def _size(value, field: str) -> tuple[int, int]:
     else:
         raise ConfigError(f"{field}: must be an int or [w, h] of ints (got {value!r})")
     if not (1 <= w <= MAX_MAP_SIDE and 1 <= h <= MAX_MAP_SIDE):
-        raise ConfigError(f"{field}: must be between 1 and {MAX_MAP_SIDE} texels per side (got {value!r})")
+        raise ConfigError(f"{field}: must be between 1 and {MAX_MAP_SIDE} {unit} per side (got {value!r})")
     return int(w), int(h)
 
 
@@ -135,7 +135,7 @@ def parse_view(cam: dict) -> View:
     far = _number(_get(cam, "far", "camera"), "camera.far", positive=True)
     if far <= near:
         raise ConfigError(f"camera.far: must be greater than camera.near ({far} <= {near})")
-    res = _size(_get(cam, "resolution", "camera", [1920, 1080]), "camera.resolution")
+    res = _size(_get(cam, "resolution", "camera", [1920, 1080]), "camera.resolution", "pixels")
     aspect = _number(_get(cam, "aspect", "camera", res[0] / res[1]), "camera.aspect", positive=True)
     if not ASPECT_RANGE[0] <= aspect <= ASPECT_RANGE[1]:
         raise ConfigError(f"camera.aspect: must be between {ASPECT_RANGE[0]:g} and {ASPECT_RANGE[1]:g} (got {aspect!r})")

@@ -6,7 +6,7 @@ output (no maps, ``diagnostics.empty_body`` says why, plus a note on stderr),
 not crashed on. An unexpected exception (a bug) is one line on stderr too
 (``LIXEL_DEBUG=1`` prints the traceback); with ``--method all`` the other
 methods' results are still printed. Output that cannot be written (a full disk) is one line too; a reader that
-stops early (``| head``) ends the command quietly, with status 1.
+stops early (``| head``) ends the command quietly, with status 1; Ctrl-C is one line, with status 130.
 """
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ import numpy as np
 from ..warp import METHODS, compute, focused_body
 from ..warp.types import EmptyBodyError, WarpError
 from .config import parse_config
-from .output import setup_json
+from .output import empty_body_json, setup_json
 
 
 def _internal(exc: BaseException) -> str:
@@ -39,7 +39,7 @@ def _error(message: str, status: int = 2) -> int:
 
 def run_method(name, view, light, scene, options, body):
     if isinstance(body, EmptyBodyError):
-        return {"maps": [], "diagnostics": {"method": name, "empty_body": str(body), "fallbacks": []}}
+        return empty_body_json(name, str(body))
     try:
         return setup_json(compute(name, view, light, scene, options, body=body))
     except WarpError as exc:
@@ -65,7 +65,11 @@ def _indent(text: str) -> int:
 
 def main(argv=None) -> int:
     with np.errstate(all="ignore"):  # numpy's RuntimeWarnings are no message for a user: errors are lines of their own
-        return _main(argv)
+        try:
+            return _main(argv)
+        except KeyboardInterrupt:   # Ctrl-C (waiting on a standard input never given, say): a line, no traceback
+            print("lixel: interrupted: nothing written", file=sys.stderr)
+            return 130
 
 
 def _main(argv=None) -> int:

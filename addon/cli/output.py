@@ -63,6 +63,11 @@ def setup_json(setup: ShadowSetup) -> dict:
     return {"maps": [map_json(m) for m in setup.maps], "diagnostics": diagnostics_json(setup.diagnostics)}
 
 
+def empty_body_json(method: str, why: str) -> dict:
+    """A setup's JSON where nothing the camera sees can be shadowed: no maps, ``diagnostics.empty_body`` says why."""
+    return {"maps": [], "diagnostics": {"method": method, "empty_body": why, "fallbacks": []}}
+
+
 def map_json(m: ShadowMap) -> dict:
     """A map's matrix, size, depth test and role, and what else it carries."""
     out: dict[str, Any] = {"matrix": m.matrix.tolist(), "size": [int(m.size[0]), int(m.size[1])],

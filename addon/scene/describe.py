@@ -72,6 +72,17 @@ def unscaled_camera_matrix(matrix, name: str) -> np.ndarray:
     return m
 
 
+def check_reach(what: str, position, scene) -> None:
+    """WarpError naming ``what`` (a camera or a light) where ``position`` lies beyond :data:`MAX_COORDINATE`, in
+    ``scene``'s units: the core's own check said "The camera's position reaches 2e+12 from the origin", naming no
+    camera and in bare Blender units (2e10 m at a Unit Scale of 0.01)."""
+    reach = float(np.abs(position).max())
+    if reach > MAX_COORDINATE:
+        raise WarpError(f"{what} is {length_text(reach, scene)} from the origin, beyond the "
+                        f"{length_text(MAX_COORDINATE, scene)} Lixel can compute with: move it closer to the origin "
+                        f"or scale the scene down")
+
+
 def _a(noun: str) -> str:
     """``noun`` with its indefinite article ("an empty", "a mesh")."""
     return f"{'an' if noun[:1] in 'aeiou' else 'a'} {noun}"
@@ -249,6 +260,7 @@ def describe_view(camera_obj, depsgraph, scene) -> View:
         raise WarpError(f"Camera '{camera_obj.name}' {why}: raise the clip start or lower the clip end "
                         f"(Camera properties > Lens > Clip)")
     camera_to_world = unscaled_camera_matrix(ob_eval.matrix_world, camera_obj.name)
+    check_reach(f"Camera '{camera_obj.name}'", camera_to_world[:3, 3], scene)
     projection = _matrix(ob_eval.calc_matrix_camera(depsgraph, x=w, y=h,
                                                     scale_x=float(r.pixel_aspect_x), scale_y=float(r.pixel_aspect_y)))
     orthographic = cam.type == "ORTHO"
@@ -297,7 +309,7 @@ def unnormalized_area(data, matrix) -> float:
     return area_light_area(data, matrix)
 
 
-def describe_light(light_obj, depsgraph=None) -> Light:
+def describe_light(light_obj, depsgraph=None, scene=None) -> Light:
     """A Blender light object as a :class:`Light`, with its colour and energy as Cycles takes them (Blender 5.0: the
     colour times the Temperature's blackbody where it is on, the strength times 2^Exposure, and times the emitter's
     area where Normalize is off: :func:`unnormalized_area`). An area light of no area emits nothing, as in Cycles.
@@ -313,7 +325,8 @@ def describe_light(light_obj, depsgraph=None) -> Light:
       the 179° cap.
 
     A light that lights no surface (:func:`lights_surfaces`) has an energy of 0: its shadows show only in the
-    Shadow pass. Any other object raises :class:`WarpError` naming it.
+    Shadow pass. Any other object, or a light beyond :data:`MAX_COORDINATE` (a sun has no position), raises
+    :class:`WarpError` naming it (lengths in ``scene``'s units).
     """
     if light_obj is None:
         raise WarpError("No light given: add a Sun, Point, Spot or Area light")
@@ -332,6 +345,8 @@ def describe_light(light_obj, depsgraph=None) -> Light:
         raise WarpError(f"Light '{light_obj.name}' has a non-finite transform (NaN or infinity in its location, "
                         f"rotation or scale, or a parent's): fix its transform (Object properties > Transform)")
     position = m[:3, 3].copy()
+    if kind != "SUN":
+        check_reach(f"Light '{light_obj.name}'", position, scene)
     minus_z = -m[:3, 2]
     z_length = float(np.linalg.norm(minus_z))
     if kind != "POINT" and not 0 < z_length < math.inf:
@@ -653,7 +668,7 @@ def describe_scene(context_or_scene, depsgraph=None, camera=None, light=None,
         if need_light:
             raise
         light_obj = None
-    lit = describe_light(light_obj, depsgraph) if light_obj is not None else None
+    lit = describe_light(light_obj, depsgraph, scene) if light_obj is not None else None
     bounds = describe_bounds(depsgraph, instances)
     if need_receivers and len(bounds.receivers) == 0:
         raise WarpError(f"Scene '{scene.name}' {NO_FACES}: add geometry to cast and receive shadows")

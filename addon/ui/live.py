@@ -117,6 +117,9 @@ class LiveState:
     """The 3D view's Local Camera the state follows (:func:`follow`); "": the scene's camera (``render_camera``)."""
     provisional: bool = False
     """The setup is a moving view's: the cascade's λ splits stand in for its adaptive ones until :func:`refine`."""
+    empty_body: str = ""
+    """Why nothing the camera sees can be shadowed (the core's EmptyBodyError), where that is the ``error``: F12
+    renders such a frame unshadowed, with a warning (``render_method.py`` does too)."""
 
     @property
     def ok(self) -> bool:
@@ -262,7 +265,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         lob = None
         if "light" in todo or light is None:
             lob = pick_light(scene, depsgraph, active, chosen=light_obj)
-            light = timed("describe light", describe_light, lob, depsgraph)
+            light = timed("describe light", describe_light, lob, depsgraph, scene)
             off = shadow_off(lob, depsgraph)   # its pictures are unshadowed, as F12's (renders.as_rendered)
             st.light_name, st.light_pointer = lob.name, lob.as_pointer()
             st.light_notes = (*light_notes(lob, depsgraph), *([off[0].upper() + off[1:]] if off else ()))
@@ -307,14 +310,15 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
     except EmptyBodyError as exc:   # the core's words ("the camera sees no shadow receiver"), with names and a remedy
         st.body = None
         cam = camera if camera is not None else followed_camera(scene)
-        return _fail(st, f"Camera '{getattr(cam, 'name', '')}' and light '{st.light_name}' leave Lixel nothing to "
-                         f"shadow: {exc}; aim the camera (or the light) at the objects that receive shadows",
-                     timings)
+        _fail(st, f"Camera '{getattr(cam, 'name', '')}' and light '{st.light_name}' leave Lixel nothing to shadow: "
+                  f"{exc}; aim the camera (or the light) at the objects that receive shadows", timings)
+        st.empty_body = str(exc)
+        return st
     except Exception as exc:  # noqa: BLE001 - WarpError or a bug: a message either way
         st.body = None
         return _fail(st, user_message(exc, f"computing Lixel's setup for scene '{scene.name}'"), timings)
     note = "; ".join(n for n in (note, *st.light_notes) if n)
-    st.body, st.setup, st.method_used, st.note, st.error = body, setup, method, note, ""
+    st.body, st.setup, st.method_used, st.note, st.error, st.empty_body = body, setup, method, note, "", ""
     st.provisional = provisional
     st.geometry, st.footprint = geometry, footprint
     st.timings, st.recomputed = timings, tuple(recomputed)
@@ -379,7 +383,7 @@ def refine_after_rest():
 
 
 def _fail(st: LiveState, message: str, timings: dict) -> LiveState:
-    st.error = message
+    st.error, st.empty_body = message, ""
     st.setup = None
     st.provisional = False
     st.geometry = None
@@ -407,7 +411,7 @@ def readouts(st: Optional[LiveState]) -> list[tuple[str, str]]:
     rows.append(("θ", "—" if d.theta is None else f"{math.degrees(d.theta):.1f}°"))
     rows.append(("γ", "—" if d.gamma is None else f"{math.degrees(d.gamma):.1f}°"))
     if d.n_opt is not None:
-        rows.append(("n_opt", f"{d.n_opt:.4g}"))
+        rows.append(("n_opt", length_text(d.n_opt, scene)))   # a distance (the warp's centre from its near plane)
     if d.lam is not None:
         rows.append(("λ", f"{d.lam:.4g}"))
     if st.body is not None:
@@ -469,15 +473,16 @@ def compare_methods(st: LiveState, methods=None) -> list[dict]:
     return rows
 
 
-def comparison_table(rows: list[dict]) -> str:
-    """The comparison as aligned text (for a Text datablock or a terminal)."""
+def comparison_table(rows: list[dict], scene=None) -> str:
+    """The comparison as aligned text (for a Text datablock or a terminal); n_opt, a distance, in ``scene``'s units
+    (:func:`length_text`)."""
     import math
 
     def deg(v):
         return "—" if v is None else f"{math.degrees(v):6.1f}°"
 
-    def num(v, fmt="{:.4g}"):
-        return "—" if v is None else fmt.format(v)
+    def num(v, text="{:.4g}".format):
+        return "—" if v is None else text(v)
 
     lines = [f"{'method':<14} {'θ':>7} {'γ':>7} {'n_opt':>9} {'λ':>9} {'maps':>4} "
              f"{'texel px (median)':>18} {'(max)':>9} {'ms':>7}"]
@@ -485,7 +490,8 @@ def comparison_table(rows: list[dict]) -> str:
         if "error" in r:
             lines.append(f"{r['method']:<14} error: {r['error']}")
             continue
-        lines.append(f"{r['method']:<14} {deg(r['theta']):>7} {deg(r['gamma']):>7} {num(r['n_opt']):>9} "
-                     f"{num(r['lam']):>9} {r['maps']:>4} {num(r['footprint_median_px'], '{:.3g}'):>18} "
-                     f"{num(r['footprint_max_px'], '{:.3g}'):>9} {r['warp_ms']:7.2f}")
+        n_opt = num(r['n_opt'], lambda v: length_text(v, scene))
+        lines.append(f"{r['method']:<14} {deg(r['theta']):>7} {deg(r['gamma']):>7} {n_opt:>9} "
+                     f"{num(r['lam']):>9} {r['maps']:>4} {num(r['footprint_median_px'], '{:.3g}'.format):>18} "
+                     f"{num(r['footprint_max_px'], '{:.3g}'.format):>9} {r['warp_ms']:7.2f}")
     return "\n".join(lines)

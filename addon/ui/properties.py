@@ -361,16 +361,30 @@ def preference_settings():
         return None
 
 
+VIEW_PREFERENCES = ("live_update", "body_alpha")
+"""The preferences' New Scenes defaults that are no render setting (not in ``LixelSettings``): a new scene takes
+them with the rest. (They were shown in the preferences and never applied: Live Update off there left every new
+scene updating live.)"""
+
+
+def take_preferences(props) -> None:
+    """Write the add-on preferences' defaults into ``props`` (the planes of interest kept); none where they are not
+    available."""
+    prefs = preference_settings()
+    if prefs is not None:
+        props.from_settings(prefs, planes=False)
+        for name in VIEW_PREFERENCES:
+            setattr(props, name, getattr(addon_preferences(), name))
+
+
 def ensure_defaults(scene) -> bool:
     """Apply the add-on preferences' defaults to a scene never set up before.
     Returns True if it did. (Not callable from draw code: it writes.)"""
     props = getattr(scene, "lixel", None)
     if props is None or props.initialised:
         return False
-    prefs = preference_settings()
-    if prefs is not None:
-        props.from_settings(prefs, planes=False)
-    props.initialised = True
+    props.initialised = True  # first: the writes must not apply the preferences again (_touched)
+    take_preferences(props)
     return True
 
 
@@ -384,11 +398,9 @@ def _touched(name: str):
             return
         value = getattr(self, name)
         value = tuple(value) if hasattr(value, "__len__") and not isinstance(value, str) else value
-        prefs = preference_settings()
         self.initialised = True
-        if prefs is not None:
-            self.from_settings(prefs, planes=False)
-            setattr(self, name, value)
+        take_preferences(self)
+        setattr(self, name, value)
     return update
 
 
@@ -397,7 +409,7 @@ SETTING_NAMES = ("light", "method", "shadow_map_size", "focus", "lambda_guard", 
                  "plane_budget", "plane_twist", "bias_mode", "constant_bias", "slope_bias", "normal_offset",
                  "back_faces", "pcf_kernel", "revectorize", "mdsm_depths", "mdsm_selection", "mdsm_neighbourhood",
                  "eye_blur") + CASCADE_SETTINGS
-for _name in SETTING_NAMES:  # one update callback for every setting (before registration)
+for _name in SETTING_NAMES + VIEW_PREFERENCES:  # one update callback for every setting (before registration)
     LixelSceneSettings.__annotations__[_name].keywords["update"] = _touched(_name)
 
 classes = (LixelPlane, LixelSceneSettings)

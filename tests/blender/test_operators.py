@@ -3,6 +3,7 @@ one that needs a setup reports a clear error (and changes nothing) when the
 camera, the light or the meshes are missing."""
 import importlib
 import json
+import os
 
 import bpy
 import numpy as np
@@ -107,6 +108,19 @@ def test_export_never_overwrites_a_file_without_the_json_extension(scene, tmp_pa
     assert bpy.ops.lixel.export_json(filepath=str(blend)) == {"FINISHED"}
     assert blend.read_bytes() == b"BLENDER-v405 the user's work"
     assert set(json.loads((tmp_path / "shot.blend.json").read_text())) == {"maps", "diagnostics"}
+
+
+@pytest.mark.parametrize("given", ["none", "empty", "folder", "folder/"])
+def test_export_without_a_file_name_is_refused(scene, tmp_path, monkeypatch, given):
+    """No file name (a script's ``export_json()``, a name cleared in the file browser, a folder) wrote a hidden
+    '.json' into the working or the given folder and reported success. Refused as Blender's exporters refuse it
+    ("No filepath given"); nothing written."""
+    monkeypatch.chdir(tmp_path)
+    kw = {"none": {}, "empty": {"filepath": ""}, "folder": {"filepath": str(tmp_path)},
+          "folder/": {"filepath": str(tmp_path) + os.sep}}[given]
+    with pytest.raises(RuntimeError, match="Lixel: no file name given.*: name the JSON file to export to"):
+        bpy.ops.lixel.export_json(**kw)
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_export_reports_an_unwritable_path(scene, tmp_path):

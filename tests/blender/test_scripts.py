@@ -98,6 +98,88 @@ def test_export_animation(mode, blend, tmp_path):
         assert body[:, 2].max() >= 1.0 - 1e-6 and body[:, 2].min() <= 1e-6
 
 
+EARLIER = '{"the user\'s": "earlier export"}\n'
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_export_animation_that_computes_no_frame_keeps_the_file_there(mode, blend, lixel, tmp_path):
+    """A misspelt ``--camera`` was said once per frame and the user's earlier export was replaced by a document of
+    errors alone ('0 of 5 frames exported to anim.json', then the error): it is said at once and nothing is
+    written; a scene no frame of which can be computed (a camera clipping from 5 to 5) keeps the file too."""
+    out = tmp_path / "anim.json"
+    out.write_text(EARLIER)
+    r = run(mode, "export_animation.py", blend, "--output", str(out), "--camera", "tiny camra")
+    assert r.returncode == 1 and "lixel: error: there is no object named 'tiny camra'" in r.stderr, r.stderr
+    assert "exported" not in r.stdout + r.stderr and out.read_text() == EARLIER
+    with active_scene("tiny") as scene:
+        scene.camera.data.clip_start = scene.camera.data.clip_end = 5.0
+        bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "clipped.blend"), copy=True)
+    r = run(mode, "export_animation.py", tmp_path / "clipped.blend", "--output", str(out), "--frames", "1:2")
+    assert r.returncode == 1 and "lixel: error: no frame could be computed, nothing written: Camera" in r.stderr, \
+        r.stderr
+    assert out.read_text() == EARLIER and sorted(p.name for p in tmp_path.iterdir()) == ["anim.json", "clipped.blend"]
+
+
+@pytest.mark.parametrize("options", [("--output", "--shadow-output"), ("--json", "--map-output")])
+def test_two_outputs_naming_one_file_are_refused(blend, tmp_path, options):
+    """``--output r.png --shadow-output r.png`` wrote the shaded picture, then the shadow mask over it, and said
+    nothing: the user asked for two pictures and got one. Refused, naming both options; nothing written."""
+    out = tmp_path / "r.png"
+    args = [a for option in options for a in (option, str(out))]
+    r = run("module", "render_method.py", blend, *args, "--resolution", "32x18")
+    assert r.returncode == 1, r.stderr
+    assert (f"lixel: error: {options[0]} and {options[1]} both name {out}: the second would overwrite the first; "
+            f"give each its own file") in r.stderr, r.stderr
+    assert not out.exists()
+
+
+def test_ctrl_c_is_one_line_and_leaves_the_file_there(blend, tmp_path):
+    """Ctrl-C during a run printed a Python traceback (from wherever it landed: a GPU read-back, a picture's save)
+    and ended by the signal; it is one line, status 130, and the file the run would have replaced is kept. (A Ctrl-C
+    landing inside one of Blender's handlers is printed and dropped by Blender itself, as any exception there: the
+    user presses it again, as this test does.)"""
+    import signal
+    import threading
+    import time
+    out = tmp_path / "anim.json"
+    out.write_text(EARLIER)
+    env = dict(os.environ, XDG_CACHE_HOME=str(tmp_path / "xdg"), BLENDER_USER_RESOURCES=str(tmp_path / "user"))
+    p = subprocess.Popen([sys.executable, str(SCRIPTS / "export_animation.py"), str(blend), "--output", str(out),
+                          "--frames", "1:1048574"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         env=env, cwd=str(ROOT))
+    err: list = []
+    threading.Thread(target=lambda: err.extend(p.stderr), daemon=True).start()
+    assert "Read blend" in p.stdout.readline()      # the file is open: the frames are being computed
+    for _ in range(60):
+        p.send_signal(signal.SIGINT)
+        try:
+            p.wait(timeout=2)
+            break
+        except subprocess.TimeoutExpired:
+            continue
+    p.stdout.read()
+    time.sleep(0.2)
+    text = "".join(err)
+    assert p.returncode == 130, text
+    assert text.splitlines()[-1] == ("lixel: interrupted: the outputs written so far are whole; the one in progress "
+                                     "was not written (a file already there under its name is kept)")
+    assert "_lixel_script.py" not in text, text        # no traceback through the script's own code
+    assert out.read_text() == EARLIER
+    assert [f.name for f in tmp_path.iterdir() if f.name not in ("user", "xdg")] == ["anim.json"]
+
+
+@pytest.mark.parametrize("script", ["compare_methods.py", "overlay_snapshot.py"])
+def test_an_output_dir_that_is_a_file_is_refused_first(blend, tmp_path, script):
+    """``--output-dir`` naming a file: compare_methods computed and printed every method, then said "cannot write
+    'x': File exists". Refused first, saying it is a file; the file is kept."""
+    there = tmp_path / "notes.txt"
+    there.write_text("the user's notes\n")
+    r = run("module", script, blend, "--output-dir", str(there), *(["--no-render"] if "compare" in script else []))
+    assert r.returncode == 1 and f"lixel: error: --output-dir {there} is a file, not a folder: name a folder" \
+        in r.stderr, r.stderr
+    assert "texel px" not in r.stdout and there.read_text() == "the user's notes\n"
+
+
 def test_export_animation_to_stdout_is_json_only(blend):
     """``--output -``: Blender's "Read blend" line (printed by C code when the
     script opens the file) and any note go to stderr; stdout parses as JSON."""
@@ -376,6 +458,60 @@ def test_render_method_renders_what_f12_renders(hidden, lixel, tmp_path, load_pi
     for mode in MODES:
         np.testing.assert_allclose(scripts_picture(path, tmp_path, load_pixels, mode=mode),
                                    load_pixels(tmp_path / "f12.exr"), atol=1e-4)
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_render_method_renders_a_view_with_nothing_to_shadow_as_f12_does(mode, lixel, tmp_path, load_pixels):
+    """The camera turned to the sky (a frame of an animation, say): F12 renders it unshadowed with a warning ("no
+    shadows in this view"), where render_method.py refused it ("leave Lixel nothing to shadow", exit 1, no picture).
+    The picture equals F12's, with F12's warning; --json is the command line's empty body, and no map is written."""
+    with active_scene("tiny") as scene:
+        scene.camera.rotation_euler = (3.1, 0.0, 0.0)   # looking up
+        path = f12(scene, tmp_path, "sky.blend")
+    out = tmp_path / f"{mode}.exr"
+    got = run(mode, "render_method.py", path, "--scene", "tiny", "--output", str(out), "--json",
+              str(tmp_path / "sky.json"), "--map-output", str(tmp_path / "map.png"))
+    assert got.returncode == 0, got.stderr
+    assert "lixel: warning: no shadows in this view (the camera sees no shadow receiver" in got.stderr
+    assert f"lixel: warning: no shadow map to write to {tmp_path / 'map.png'} (the camera sees no" in got.stderr
+    np.testing.assert_allclose(load_pixels(out), load_pixels(tmp_path / "f12.exr"), atol=1e-4)
+    doc = json.loads((tmp_path / "sky.json").read_text())
+    assert doc["maps"] == [] and doc["diagnostics"]["empty_body"].startswith("the camera sees no shadow receiver")
+    assert not (tmp_path / "map.png").exists()
+
+
+def test_export_animation_reports_a_frame_with_nothing_to_shadow_as_the_command_line_does(lixel, tmp_path):
+    """A frame whose camera turns to the sky was recorded as an error ("leave Lixel nothing to shadow ... aim the
+    camera"), where F12 renders it and the command line reports an empty body: it is the command line's empty body
+    (no maps, diagnostics.empty_body), beside frame 1's maps."""
+    with active_scene("tiny") as scene:
+        cam = scene.camera
+        cam.keyframe_insert("rotation_euler", frame=1)
+        cam.rotation_euler = (3.1, 0.0, 0.0)
+        cam.keyframe_insert("rotation_euler", frame=2)
+        bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "turn.blend"), copy=True)
+    out = tmp_path / "turn.json"
+    r = run("module", "export_animation.py", tmp_path / "turn.blend", "--scene", "tiny", "--output", str(out),
+            "--frames", "1:2", "--method", "uniform")
+    assert r.returncode == 0 and "lixel: 2 of 2 frames exported" in r.stdout, r.stdout + r.stderr
+    first, second = json.loads(out.read_text())["frames"]
+    assert len(first["maps"]) == 1
+    assert second["maps"] == [] and second["diagnostics"]["method"] == "uniform"
+    assert second["diagnostics"]["empty_body"].startswith("the camera sees no shadow receiver"), second
+
+
+def test_render_method_writes_no_map_for_a_light_with_shadow_off(blend, lixel, tmp_path):
+    """A light with Shadow off draws no shadow map (as in F12): --map-output wrote the 1x1 stand-in the picture is
+    drawn with, as if it were the map. It says there is no map, and why."""
+    with active_scene("tiny") as scene:
+        scene.objects["tiny light"].data.use_shadow = False
+        bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "off.blend"), copy=True)
+    got = run("module", "render_method.py", tmp_path / "off.blend", "--scene", "tiny", "--output",
+              str(tmp_path / "off.png"), "--map-output", str(tmp_path / "map.png"), "--resolution", "32x18")
+    assert got.returncode == 0, got.stderr
+    assert (f"lixel: warning: no shadow map to write to {tmp_path / 'map.png'} (light 'tiny light' casts no "
+            f"shadows") in got.stderr, got.stderr
+    assert (tmp_path / "off.png").is_file() and not (tmp_path / "map.png").exists()
 
 
 def assert_nearly_f12(got: np.ndarray, f12: np.ndarray) -> None:

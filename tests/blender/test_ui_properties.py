@@ -91,6 +91,28 @@ def test_preferences_apply_to_new_scenes_only(lixel, mods):
         prefs.method, prefs.map_size, prefs.pcf_kernel = old
 
 
+def test_new_scenes_take_the_preferences_live_update_and_body_opacity(lixel, mods):
+    """Preferences > New Scenes shows Live Update and Body Opacity: they were never applied (Live Update off there
+    left every new scene updating live, a Body Opacity of 0.6 drew B at 0.15), nor by Reset to Preferences. A new
+    scene takes them with the rest; a user's first edit of one is kept, as of any setting."""
+    prefs = mods.preferences.preferences()
+    old = (prefs.live_update, prefs.body_alpha)
+    prefs.live_update, prefs.body_alpha = False, 0.6
+    try:
+        with active_scene("lixel_prefs_view") as scene:
+            assert mods.properties.ensure_defaults(scene)
+            assert not scene.lixel.live_update and scene.lixel.body_alpha == pytest.approx(0.6)
+            scene.lixel.live_update, scene.lixel.body_alpha = True, 0.3
+            assert bpy.ops.lixel.reset_settings() == {"FINISHED"}
+            assert not scene.lixel.live_update and scene.lixel.body_alpha == pytest.approx(0.6)
+        with active_scene("lixel_prefs_view_edited") as scene:
+            scene.lixel.body_alpha = 0.3          # the first edit of a scene never set up
+            assert scene.lixel.initialised and not scene.lixel.live_update
+            assert scene.lixel.body_alpha == pytest.approx(0.3)
+    finally:
+        prefs.live_update, prefs.body_alpha = old
+
+
 def test_light_poll_accepts_only_lights(lixel):
     with active_scene("lixel_props_light") as scene:
         poll = type(scene.lixel).__annotations__["light"].keywords["poll"]

@@ -145,3 +145,44 @@ def test_overlay_snapshot_notes_name_reaches_in_the_scenes_units(lixel, system, 
         shown = [re.search(r" reach(?:es)? (.+) from the setup's centre, beyond the picture", n) for n in notes]
         assert all(shown) and len(shown) == 2, notes
         np.testing.assert_allclose(_in_units(scene, *(s.group(1) for s in shown)), reaches, rtol=6e-3)
+
+
+@pytest.mark.parametrize("system, scale", UNIT_SYSTEMS)
+@pytest.mark.parametrize("what", ["camera", "light"])
+def test_a_too_far_camera_or_light_is_named_in_the_scenes_units(lixel, system, scale, what):
+    """A camera or a point light beyond the 1e12 units Lixel computes with: Refresh said "The camera's position reaches
+    2e+12 from the origin, beyond the 1e+12 Lixel can compute with", naming no camera and in Blender units (at a
+    Unit Scale of 0.01 Blender's fields show 2e10 m)."""
+    with active_scene("lixel_units", light="POINT") as scene:
+        _units_scene(scene, system, scale)
+        ob = scene.objects[f"lixel_units {what}"]
+        ob.location.z = 2e12
+        bpy.context.view_layer.update()
+        with pytest.raises(RuntimeError) as refused:
+            bpy.ops.lixel.refresh()
+        lengths = re.search(rf"Lixel: {what.title()} 'lixel_units {what}' is (.+) from the origin, beyond the (.+) "
+                            rf"Lixel can compute with: move it closer to the origin or scale the scene down",
+                            str(refused.value))
+        assert lengths, str(refused.value)
+        np.testing.assert_allclose(_in_units(scene, *lengths.groups()), [2e12, 1e12], rtol=6e-3)
+
+
+@pytest.mark.parametrize("system, scale", UNIT_SYSTEMS)
+def test_n_opt_a_distance_is_shown_in_the_scenes_units(live, system, scale):
+    """n_opt (LiSPSM's, Scherzer §4.4 Eq. 1: the warp's centre's distance from its near plane) is a length: the
+    Readouts panel and the Compare Methods text printed it in bare Blender units ("n_opt 12.59" where, at a Unit
+    Scale of 0.01, Blender's fields show 12.6 cm) beside the focus depths they already wrote in the scene's units."""
+    with active_scene("lixel_units") as scene:
+        _units_scene(scene, system, scale)
+        scene.lixel.method = "lispsm"
+        assert bpy.ops.lixel.refresh() == {"FINISHED"}
+        n_opt = live.state(scene).setup.diagnostics.n_opt
+        assert n_opt is not None
+        np.testing.assert_allclose(_in_units(scene, dict(live.readouts(live.state(scene)))["n_opt"]), [n_opt],
+                                   rtol=6e-3)
+        assert bpy.ops.lixel.compare(longest_side=16) == {"FINISHED"}
+        table = bpy.data.texts["Lixel Comparison"].as_string()
+        row = next(line for line in table.splitlines() if line.startswith("lispsm "))
+        shown = re.match(r"lispsm +\S+ +\S+ +(.+?) +— +1 ", row)
+        assert shown, row
+        np.testing.assert_allclose(_in_units(scene, shown.group(1)), [n_opt], rtol=6e-3)

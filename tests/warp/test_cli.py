@@ -282,6 +282,21 @@ def test_malformed_config_gets_one_line_naming_the_field(name, tmp_path, capsys)
         check_one_line(code, out.out, out.err, field)
 
 
+@pytest.mark.parametrize("field, value, unit", [("resolution", [10 ** 9, 720], "pixels"),
+                                                ("shadow_map_size", [1024, 0], "texels")])
+def test_a_size_out_of_range_names_what_it_counts(tmp_path, capsys, field, value, unit):
+    """A camera resolution out of range was refused as "must be between 1 and 16384 texels per side": a camera has
+    pixels; the shadow map's texels."""
+    from addon.cli import main
+    config = json.loads(EXAMPLES[0].read_text())
+    (config["camera"] if field == "resolution" else config)[field] = value
+    path = tmp_path / "config.json"
+    path.write_text(json.dumps(config))
+    assert main(["--method", "uniform", str(path)]) == 2
+    where = f"camera.{field}" if field == "resolution" else field
+    assert capsys.readouterr().err == f"lixel: error: {where}: must be between 1 and 16384 {unit} per side (got {value})\n"
+
+
 def test_clip_range_is_refused_beyond_what_float32_depth_resolves(tmp_path, capsys):
     """The rule of the Blender path (``MAX_CLIP_RATIO``, 1:2^24): up to it a perspective camera gets its maps, beyond
     it one line naming camera.far and what to do (a 1:1e12 range silently printed no maps, "empty body"); an
@@ -377,6 +392,27 @@ def test_a_reader_that_stops_early_gets_no_traceback():
     finally:
         os.close(write_end)
     assert r.returncode == 1 and r.stderr == "", r.stderr
+
+
+def test_ctrl_c_while_waiting_for_the_config_is_one_line():
+    """``python -m addon.warp --method all -`` with no config piped in waits on standard input; Ctrl-C there printed
+    a traceback (from a codec's decode) and the process died of the signal. One line, status 130."""
+    import signal
+    import time
+    cmd, env = _cli_command("--method", "all", "-")
+    p = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         cwd=ROOT, env=env)
+    for _ in range(200):   # until it reads its standard input (Linux: syscall 0, read, of descriptor 0)
+        try:
+            if open(f"/proc/{p.pid}/syscall").read().startswith("0 0x0 "):
+                break
+        except OSError:
+            time.sleep(3)
+            break
+        time.sleep(0.05)
+    p.send_signal(signal.SIGINT)
+    out, err = p.communicate(timeout=60)
+    assert (p.returncode, out, err) == (130, "", "lixel: interrupted: nothing written\n")
 
 
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")

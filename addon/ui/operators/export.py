@@ -1,6 +1,7 @@
 """Export the light matrices and diagnostics to JSON (the CLI's format), and
 compare the methods for the current view."""
 import json
+import os
 
 import bpy
 from bpy.props import BoolProperty, IntProperty, StringProperty
@@ -53,13 +54,18 @@ class LIXEL_OT_export_json(LixelSceneOperator, bpy.types.Operator, ExportHelper)
 
     @guarded_operator
     def execute(self, context):
+        path = bpy.path.abspath(self.filepath)
+        if not os.path.basename(path) or os.path.isdir(path):   # was written as a hidden '.json' there
+            self.report({"ERROR"}, f"Lixel: no file name given{f' (only the folder {path})' if path else ''}: name "
+                                   f"the JSON file to export to, as Blender's exporters ask")
+            return {"CANCELLED"}
         st = self.fresh_state(context)
         if st is None:
             return {"CANCELLED"}
         doc = export_document(st, self.all_methods)
         # "//name.json": beside the .blend file, as Blender's paths are. Called from Python (no file browser to add
         # the extension), a path without ".json" gets it, as Blender's exporters do: it never overwrites a .blend.
-        path = bpy.path.ensure_ext(bpy.path.abspath(self.filepath), self.filename_ext)
+        path = bpy.path.ensure_ext(path, self.filename_ext)
         try:   # whole or not at all: a failed write leaves the file that was there
             write_text(path, json.dumps(doc, indent=2 if self.indent else None) + "\n")
         except OSError as exc:
@@ -86,7 +92,7 @@ class LIXEL_OT_compare(LixelSceneOperator, bpy.types.Operator):
         if st is None:
             return {"CANCELLED"}
         rows = live.compare_methods(st)
-        table = live.comparison_table(rows)
+        table = live.comparison_table(rows, context.scene)
         note = ""
         if overlays.gpu_pipeline() is None:
             note = ("\n\nShadow renders of each method need the gpu pipeline (addon/gpu), which is not available "

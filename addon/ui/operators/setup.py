@@ -5,7 +5,7 @@ from bpy.props import EnumProperty
 from ...guard import guarded_operator
 from ...settings import LixelSettings
 from .. import live, overlays
-from ..properties import OVERLAYS, preference_settings
+from ..properties import OVERLAYS, take_preferences
 from .common import LixelSceneOperator, current_state, initialise
 
 
@@ -39,8 +39,8 @@ class LIXEL_OT_reset_settings(LixelSceneOperator, bpy.types.Operator):
     @guarded_operator
     def execute(self, context):
         props = context.scene.lixel
-        settings = preference_settings() or LixelSettings()
-        props.from_settings(settings, planes=False)
+        props.from_settings(LixelSettings(), planes=False)   # where the preferences are not available
+        take_preferences(props)
         self.report({"INFO"}, f"Lixel settings reset to the preferences (method {props.method})")
         return {"FINISHED"}
 
