@@ -149,14 +149,19 @@ def test_ctrl_c_is_one_line_and_leaves_the_file_there(blend, tmp_path):
                          env=env, cwd=str(ROOT))
     err: list = []
     threading.Thread(target=lambda: err.extend(p.stderr), daemon=True).start()
-    assert "Read blend" in p.stdout.readline()      # the file is open: the frames are being computed
-    for _ in range(60):
-        p.send_signal(signal.SIGINT)
-        try:
-            p.wait(timeout=2)
-            break
-        except subprocess.TimeoutExpired:
-            continue
+    try:
+        assert "Read blend" in p.stdout.readline()      # the file is open: the frames are being computed
+        for _ in range(60):
+            p.send_signal(signal.SIGINT)
+            try:
+                p.wait(timeout=2)
+                break
+            except subprocess.TimeoutExpired:
+                continue
+    finally:
+        if p.poll() is None:      # (never left running a million frames when Ctrl-C did not end it)
+            p.kill()
+            p.wait()
     p.stdout.read()
     time.sleep(0.2)
     text = "".join(err)
