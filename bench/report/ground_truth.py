@@ -202,7 +202,7 @@ def ground_truth(view: View, light: Light, bvh, scene_scale: float) -> GroundTru
     # wrong side. A hit on a surface parallel to the receiver and within eps of its plane is the receiver
     # itself through float32 rounding (the segment leaves the plane at once) and is passed over; any other
     # hit shadows, however near the plane. (Starting eps above the surface, eps / n·l along the ray, skipped
-    # those too: at n·l = 5e-4 that is 7 m, through a box that stands in the receiver; docs/papers.md.)
+    # those too: at n·l = 5.5e-4 that is 8 m, through a box that stands in the receiver; docs/papers.md.)
     eps = 1e-5 * scene_scale + 2e-5 * np.linalg.norm(p - view.position, axis=1)
     start = p + to_l * eps[:, None]
     limit = np.where(np.isfinite(dist), dist - 2.0 * eps, scene_scale * 4.0)
