@@ -135,6 +135,29 @@ def direct_light(points: np.ndarray, normals: np.ndarray, light: Light, albedo: 
     return out.reshape(p.shape[:-1])
 
 
+def _occluded(ray_cast, o, d, limit: float, p, n, eps: float) -> bool:
+    """Whether the segment from ``o`` along unit ``d`` for ``limit`` hits a surface other than the receiver's own
+    plane (through ``p`` with unit normal ``n``: parallel to it and within ``eps`` of it), passing over those
+    (``mathutils.Vector`` arguments)."""
+    for _ in range(OWN_PLANE_HITS):
+        loc, normal, _, t = ray_cast(o, d, limit)
+        if loc is None:
+            return False
+        if abs(n.dot(loc - p)) > eps or abs(n.dot(normal)) < PARALLEL:
+            return True
+        o = loc + d * eps
+        limit -= t + eps
+        if limit <= 0.0:
+            return False
+    return False
+
+
+OWN_PLANE_HITS = 64
+"""How many hits on the receiver's own plane a shadow ray passes over (float32 rounding along a grazing ray)."""
+PARALLEL = 1.0 - 1e-6
+"""|cos| between two normals at or above which their surfaces are parallel (1.4e-3 rad)."""
+
+
 def ground_truth(view: View, light: Light, bvh, scene_scale: float) -> GroundTruth:
     """Cast the camera rays and the shadow rays (see module doc)."""
     from mathutils import Vector
@@ -174,17 +197,18 @@ def ground_truth(view: View, light: Light, bvh, scene_scale: float) -> GroundTru
         valid[idx[~inside]] = False
         shadow[idx[~inside]] = True
     todo = np.flatnonzero(facing)
-    # The shadow ray starts on its own line, where it is eps above the surface (eps / n·l along it): a start
-    # moved along the normal would move the line sideways, and at grazing light (n·l = 0.04: 3.8 mm becomes
-    # cm on a wall) pass an occluder's edge on the wrong side.
+    # The shadow ray starts on its own line, eps along it: a start moved along the normal would move the line
+    # sideways, and at grazing light (n·l = 0.04: 3.8 mm becomes cm on a wall) pass an occluder's edge on the
+    # wrong side. A hit on a surface parallel to the receiver and within eps of its plane is the receiver
+    # itself through float32 rounding (the segment leaves the plane at once) and is passed over; any other
+    # hit shadows, however near the plane. (Starting eps above the surface, eps / n·l along the ray, skipped
+    # those too: at n·l = 5.5e-4 that is 8 m, through a box that stands in the receiver; docs/papers.md.)
     eps = 1e-5 * scene_scale + 2e-5 * np.linalg.norm(p - view.position, axis=1)
-    skip = eps / np.maximum(np.einsum("ij,ij->i", nrm[idx], to_l), 1e-300)
-    start = p + to_l * skip[:, None]
-    limit = np.where(np.isfinite(dist), dist - skip - eps, scene_scale * 4.0)
+    start = p + to_l * eps[:, None]
+    limit = np.where(np.isfinite(dist), dist - 2.0 * eps, scene_scale * 4.0)
     for k in todo[limit[todo] > 0].tolist():
-        loc, _, _, _ = ray_cast(Vector(start[k].tolist()), Vector(to_l[k].tolist()), float(limit[k]))
-        if loc is not None:
-            shadow[idx[k]] = True
+        shadow[idx[k]] = _occluded(ray_cast, Vector(start[k].tolist()), Vector(to_l[k].tolist()), float(limit[k]),
+                                   Vector(p[k].tolist()), Vector(nrm[idx[k]].tolist()), float(eps[k]))
     t2 = time.perf_counter()
     return GroundTruth(hit=hit.reshape(h, w), points=pts.reshape(h, w, 3), normals=nrm.reshape(h, w, 3),
                        shadow=shadow.reshape(h, w), valid=valid.reshape(h, w), camera=view.position,

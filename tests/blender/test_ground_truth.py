@@ -136,6 +136,28 @@ def test_grazing_sun_shadow_ends_where_the_occluders_edge_sends_it(fresh_scene):
         _cleanup(objs)
 
 
+def test_a_box_standing_in_a_grazed_receiver_shadows_it_however_near_the_plane(fresh_scene):
+    # a point light 0.5 mm over the ground (n·l ~ 1e-4 there) and a box standing in the ground between it and
+    # the ground beyond: every shadow ray from there passes through the box, 0.1-0.4 mm over the ground, and is
+    # shadowed. A ray started eps above the ground (eps / n·l, metres, along it) would start past the box.
+    # The ground itself, grazed, is no occluder: beside the box's shadow it is lit
+    objs = _build(fresh_scene, "POINT", light_at=(-5.0, 2.5, 0.0005))
+    v = [(x, y, z) for z in (-0.1, 0.3) for y in (2.0, 3.0) for x in (-2.0, -1.0)]
+    objs.append(_mesh(fresh_scene, "gt_box", v, [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4),
+                                                 (1, 5, 7, 3)]))
+    try:
+        view, light, gt = _truth(fresh_scene)
+        x, y = gt.points[..., 0], gt.points[..., 1]
+        ground = gt.hit & gt.valid & (np.abs(gt.points[..., 2]) < 1e-4) & (x > 0.0)
+        behind = ground & (np.abs(y - 2.5) < 0.4 * (x + 5.0) / 4.0)      # inside the far face's wedge
+        beside = ground & (np.abs(y - 2.5) > 0.6 * (x + 5.0) / 3.0)      # outside the near face's
+        assert behind.sum() > 1000 and beside.sum() > 1000
+        assert gt.shadow[behind].all()
+        assert not gt.shadow[beside].any()
+    finally:
+        _cleanup(objs)
+
+
 def test_a_pixel_where_the_render_shows_another_face_than_the_ray_caster_is_not_compared():
     """At a box's edge the rasterizer (its vertices snapped to sub-pixel steps) and the ray caster can see the same
     point on different faces, whose shadows differ: such a crease pixel is no shadow error and is left out, as a
