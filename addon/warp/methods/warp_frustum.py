@@ -226,8 +226,8 @@ def _image_direction(v, s: float) -> tuple[float, float]:
 
 
 def _turned(a: tuple, fade: float) -> tuple[float, float]:
-    """A fading (or λ-guarded) warp turns its axes back towards the frame's +y with it, so that at fade = 0
-    (λ = ∞) the map is exactly the frame's uniform map: GMNPR §3's λ = ∞ limit, Scherzer §4's fall-back to it."""
+    """A fading warp turns its axes back towards the frame's +y with it, so
+    that at fade = 0 the map is exactly the frame's uniform map."""
     if fade >= 1.0:
         return a
     turn = fade * math.atan2(a[0], a[1])
@@ -382,12 +382,7 @@ def frame_warps(frames: list, view: View, at: Optional[LightAtEye], reason: str,
             # (the rules' λ is in units of all of B's extent along V_P, this frame's in its part's; across V_P too for
             # a sun's frame only: on point-light faces it left warped faces worse than unwarped, tests/warp/test_cascade)
             scale = geo.extent_world / geo.body_extent_world if geo.body_extent_world > 0 else 0.0
-            rule_lam, (lam, guarded) = lam, guard_lambda(lam, geo.gamma, geo, ctx, scale,
-                                                         frame.points_h if frame.directional else None)
-            if guarded:      # Scherzer §4: μ weakened by rule_lam/λ as by a fade, P's axes turn back as far (λ = ∞: uniform)
-                geo.a = _turned(geo.a, rule_lam / lam)
-                h = b_in_light[run == k, :2] @ geo.a
-                geo.h_min, geo.extent = float(h.min()), float(np.ptp(h))
+            lam, guarded = guard_lambda(lam, geo.gamma, geo, ctx, scale, frame.points_h if frame.directional else None)
         _warp_strength(w, geo, lam, guarded)
         warp[k] = warp_matrix(geo, w.mu)
     for w, matrix in zip(warps, fit_runs(warp, b_in_light_h, starts, run) @ to_light):
