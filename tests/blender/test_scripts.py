@@ -133,6 +133,13 @@ def test_two_outputs_naming_one_file_are_refused(blend, tmp_path, options):
     assert not out.exists()
 
 
+def _ctrl_c_as_in_a_terminal():
+    """In the child: SIGINT's default action, as a terminal's foreground job has it (a suite run in the background,
+    ``cmd &`` or a CI runner, passes SIGINT on ignored, and Python then never raises KeyboardInterrupt)."""
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_is_one_line_and_leaves_the_file_there(blend, tmp_path):
     """Ctrl-C during a run printed a Python traceback (from wherever it landed: a GPU read-back, a picture's save)
     and ended by the signal; it is one line, status 130, and the file the run would have replaced is kept. (A Ctrl-C
@@ -146,7 +153,7 @@ def test_ctrl_c_is_one_line_and_leaves_the_file_there(blend, tmp_path):
     env = dict(os.environ, XDG_CACHE_HOME=str(tmp_path / "xdg"), BLENDER_USER_RESOURCES=str(tmp_path / "user"))
     p = subprocess.Popen([sys.executable, str(SCRIPTS / "export_animation.py"), str(blend), "--output", str(out),
                           "--frames", "1:1048574"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         env=env, cwd=str(ROOT))
+                         env=env, cwd=str(ROOT), preexec_fn=_ctrl_c_as_in_a_terminal)
     err: list = []
     threading.Thread(target=lambda: err.extend(p.stderr), daemon=True).start()
     try:
