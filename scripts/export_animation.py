@@ -57,6 +57,7 @@ def main(argv=None):
         frames = frame_range(p, args.frames, scene)
         s.objects(scene)   # a --camera/--light that is not there: said at once, no file written (each frame said it)
         doc = {"scene": scene.name, "method": settings.method, "frames": []}
+        output = s.module("addon.cli.output")
         failed = 0
         for f in frames:
             scene.frame_set(f)
@@ -66,7 +67,6 @@ def main(argv=None):
                 doc["frames"].append({"frame": f, "error": str(exc)})
                 failed += 1
                 continue
-            output = s.module("addon.cli.output")
             if st.empty_body:   # the camera sees nothing to shadow (the sky), as the command line reports it
                 method = s.module("addon.ui.live").resolve_method(settings.method)[0]
                 doc["frames"].append({"frame": f, **output.empty_body_json(method, st.empty_body)})
@@ -81,7 +81,7 @@ def main(argv=None):
         if args.output == "-":
             print(text, file=data)
         else:
-            s.module("addon.cli.output").write_text(args.output, text + "\n")   # whole or not at all
+            output.write_text(args.output, text + "\n")   # whole or not at all
             print(f"lixel: {len(doc['frames']) - failed} of {len(doc['frames'])} frames exported to {args.output}")
         return 0
 
