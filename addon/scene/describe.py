@@ -13,6 +13,7 @@ from typing import Optional
 import numpy as np
 
 from ..warp import MAX_COORDINATE
+from ..warp.geometry import frustum_matrix, ortho_matrix
 from ..warp.polyhedron import box_corners
 from ..warp.types import Light, SceneBounds, View, WarpError, clip_range_beyond_depth
 from .instances import GEOMETRY_TYPES, InstanceSet, walk_instances  # noqa: F401 (re-exported)
@@ -280,11 +281,8 @@ def describe_view(camera_obj, depsgraph, scene) -> View:
 
 def depth_rows(near: float, far: float, orthographic: bool) -> np.ndarray:
     """The z and w rows of Blender's camera projection (``perspective_m4`` /
-    ``orthographic_m4``, OpenGL depth: near -> -1, far -> +1) in float64."""
-    d = far - near
-    if orthographic:
-        return np.array([[0.0, 0.0, -2.0 / d, -(far + near) / d], [0.0, 0.0, 0.0, 1.0]])
-    return np.array([[0.0, 0.0, -(far + near) / d, -2.0 * far * near / d], [0.0, 0.0, -1.0, 0.0]])
+    ``orthographic_m4``, OpenGL depth: near -> -1, far -> +1) in float64: the core's glOrtho / glFrustum rows."""
+    return (ortho_matrix if orthographic else frustum_matrix)(-1.0, 1.0, -1.0, 1.0, near, far)[2:]
 
 
 def area_light_area(data, matrix) -> float:
