@@ -168,10 +168,11 @@ def test_a_too_far_camera_or_light_is_named_in_the_scenes_units(lixel, system, s
 
 
 @pytest.mark.parametrize("system, scale", UNIT_SYSTEMS)
-def test_n_opt_a_distance_is_shown_in_the_scenes_units(live, system, scale):
+def test_n_opt_a_distance_is_shown_in_the_scenes_units(lixel, live, system, scale):
     """n_opt (LiSPSM's, Scherzer §4.4 Eq. 1: the warp's centre's distance from its near plane) is a length: the
     Readouts panel and the Compare Methods text printed it in bare Blender units ("n_opt 12.59" where, at a Unit
-    Scale of 0.01, Blender's fields show 12.6 cm) beside the focus depths they already wrote in the scene's units."""
+    Scale of 0.01, Blender's fields show 12.6 cm) beside the focus depths they already wrote in the scene's units;
+    so did the comparison mosaic's tile labels (Compare Methods' picture, scripts/compare_methods.py)."""
     with active_scene("lixel_units") as scene:
         _units_scene(scene, system, scale)
         scene.lixel.method = "lispsm"
@@ -185,4 +186,9 @@ def test_n_opt_a_distance_is_shown_in_the_scenes_units(live, system, scale):
         row = next(line for line in table.splitlines() if line.startswith("lispsm "))
         shown = re.match(r"lispsm +\S+ +\S+ +(.+?) +— +1 ", row)
         assert shown, row
+        np.testing.assert_allclose(_in_units(scene, shown.group(1)), [n_opt], rtol=6e-3)
+        rows = live.compare_methods(live.state(scene), ["lispsm"])        # the comparison mosaic's tile label
+        label = importlib.import_module(f"{lixel.__name__}.addon.ui.renders").method_label(rows[0], scene)[1]
+        shown = re.search(r"n_opt (.+?), texel footprint", label)
+        assert shown, label
         np.testing.assert_allclose(_in_units(scene, shown.group(1)), [n_opt], rtol=6e-3)
