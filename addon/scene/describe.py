@@ -12,7 +12,7 @@ from typing import Optional
 
 import numpy as np
 
-from ..warp import MAX_COORDINATE
+from ..warp import MAX_COORDINATE, unresolved_frustum
 from ..warp.geometry import frustum_matrix, ortho_matrix
 from ..warp.polyhedron import box_corners
 from ..warp.types import Light, SceneBounds, View, WarpError, clip_range_beyond_depth
@@ -269,14 +269,12 @@ def describe_view(camera_obj, depsgraph, scene) -> View:
     if not np.all(np.isfinite(projection)) or projection[0, 0] == 0 or projection[1, 1] == 0:
         raise WarpError(f"Camera '{camera_obj.name}' has a degenerate lens (focal length, sensor or orthographic "
                         f"scale): fix it in Camera properties > Lens")
-    return View(
-        camera_to_world=camera_to_world,
-        projection=projection,
-        near=near,
-        far=far,
-        resolution=(w, h),
-        orthographic=orthographic,
-    )
+    view = View(camera_to_world=camera_to_world, projection=projection, near=near, far=far, resolution=(w, h),
+                orthographic=orthographic)
+    if why := unresolved_frustum(view, lambda v: length_text(v, scene)):     # (the core's words in bare units)
+        raise WarpError(f"Camera '{camera_obj.name}': its view frustum {why}: widen its clip range (Camera "
+                        f"properties > Lens > Clip) or move the scene closer to the origin")
+    return view
 
 
 def depth_rows(near: float, far: float, orthographic: bool) -> np.ndarray:

@@ -132,8 +132,7 @@ def _no_default_plane(receiver_boxes, seen: bool) -> str:
     else:
         i, height, side = flattest
         found = (f"no receiver in view is flat (a plane of interest needs a box at most {FLAT_RATIO:.0%} as high as "
-                 f"its smaller side; the flattest, receiver box {i}, is {height:.3g} high over {side:.3g}, "
-                 f"{height / side:.0%}): the receivers are not planar, e.g. a terrain")
+                 f"its smaller side; the flattest, receiver box {i}, is {height / side:.0%}): not planar, e.g. terrain")
     return (f"no plane of interest given and {found}. plane_optimal renders with its fallback map alone, the "
             f"uniform map with the whole texel budget (Chong-Gortler §5: where no plane describes the receivers "
             f"the method has nothing to be exact on); give planes (Planes of Interest in the Lixel panel, or "
