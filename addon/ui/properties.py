@@ -264,6 +264,9 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
                                 f"{length_text(far, scene)}: its far end must lie beyond its near end "
                                 f"(Lixel panel > Method > Visible Range)")
             vis = (near, far)
+        if self.use_lambda and not self.lam > 0 and self.method in LAMBDA_METHODS + CASCADE_METHODS:  # (GMNPR splits)
+            raise WarpError(f"Scene '{self.id_data.name}' forces λ = {self.lam:g}: a forced λ must be positive; "
+                            f"raise it or turn Override λ off (Lixel panel > Method, with GMNPR or GLPR)")
         return WarpOptions(
             shadow_map_size=(w, h), focus=self.focus, lambda_guard=self.lambda_guard,
             texel_snapping=self.texel_snapping, delta_z=self.delta_z,
