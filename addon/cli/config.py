@@ -293,6 +293,8 @@ def parse_options(config: dict) -> WarpOptions:
     fields = {f.name: str(f.type) for f in dataclasses.fields(WarpOptions)}
     names = set(fields) - {"shadow_map_size", "planes"}
     for key, value in extra.items():
+        if key in ("shadow_map_size", "planes"):
+            raise ConfigError(f"options.{key}: give {key} at the config's top level, beside \"options\"")
         if key not in names:
             raise ConfigError(f"options.{key}: unknown option; known: {', '.join(sorted(names))}")
         kw[key] = _option(key, value, fields[key])

@@ -320,6 +320,20 @@ def test_an_option_out_of_range_is_refused_before_computing(tmp_path, capsys, op
         assert capsys.readouterr().err == f"lixel: error: options.{option}: {allowed} (got {value!r})\n"
 
 
+@pytest.mark.parametrize("key, value", [("shadow_map_size", 1024), ("planes", [])])
+def test_a_top_level_key_given_in_options_says_where_it_belongs(tmp_path, capsys, key, value):
+    """"options": {"shadow_map_size": 1024} was refused as "unknown option; known: ..." with a list that does not
+    hold it, though the config format takes it: at the top level. The line says so."""
+    from addon.cli import main
+    config = base_config()
+    config["options"] = {key: value}
+    path = tmp_path / "config.json"
+    path.write_text(json.dumps(config))
+    assert main(["--method", "uniform", str(path)]) == 2
+    assert capsys.readouterr().err == (f"lixel: error: options.{key}: give {key} at the config's top level, "
+                                       f"beside \"options\"\n")
+
+
 @pytest.mark.parametrize("huge, unit", [([1e308, 0, 0], [1, 0, 0]), ([0, 0, -1e-320], [0, 0, -1]),
                                         ([1e308, 1e308, -1e308], [1, 1, -1])])
 def test_a_light_direction_of_huge_or_tiny_numbers_is_the_direction_it_points(tmp_path, capsys, huge, unit):
