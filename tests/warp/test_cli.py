@@ -391,6 +391,25 @@ def test_malformed_config_in_a_real_process(name):
     check_one_line(r.returncode, r.stdout, r.stderr, field)
 
 
+@pytest.mark.parametrize("where", [["camera"], []])
+def test_a_key_given_twice_is_refused_not_silently_the_last(tmp_path, capsys, where):
+    """A config with "far": 70 and, further down the camera, "far": 7 (or two "light" objects) computed the last one
+    without a word (Python's JSON keeps the last); it is refused naming the key."""
+    from addon.cli import main
+    config = base_config()
+    obj = config
+    for key in where:
+        obj = obj[key]
+    key = "far" if where else "light"
+    text = json.dumps(config)
+    doubled = json.dumps(obj)[:-1] + f', "{key}": ' + json.dumps(obj[key]) + "}"
+    path = tmp_path / "config.json"
+    path.write_text(text.replace(json.dumps(obj), doubled) if where else doubled)
+    assert main(["--method", "uniform", str(path)]) == 2
+    assert capsys.readouterr().err == (f"lixel: error: config: the key '{key}' appears twice in one object (JSON keeps "
+                                       f"the last, silently): keep one\n")
+
+
 @pytest.mark.parametrize("text,expect", [
     ("", "not valid JSON"),
     ("{", "not valid JSON"),
