@@ -320,6 +320,19 @@ def test_an_option_out_of_range_is_refused_before_computing(tmp_path, capsys, op
         assert capsys.readouterr().err == f"lixel: error: options.{option}: {allowed} (got {value!r})\n"
 
 
+def test_plane_maps_that_do_not_fit_a_one_texel_map_say_what_to_do(tmp_path, capsys):
+    """chess_spot at "shadow_map_size": 1 (the format's least): plane_optimal said "plane_optimal: plane_optimal:
+    could not fit the plane maps into the texel budget", its name twice and no remedy."""
+    from addon.cli import main
+    config = json.loads((ROOT / "examples" / "chess_spot.json").read_text())
+    config["shadow_map_size"] = 1
+    path = tmp_path / "config.json"
+    path.write_text(json.dumps(config))
+    assert main(["--method", "plane_optimal", str(path)]) == 1
+    assert capsys.readouterr().err == ("lixel: error: plane_optimal: the plane maps do not fit a budget of 0.75 "
+                                       "texels: give a larger shadow map size\n")
+
+
 @pytest.mark.parametrize("key, value", [("shadow_map_size", 1024), ("planes", [])])
 def test_a_top_level_key_given_in_options_says_where_it_belongs(tmp_path, capsys, key, value):
     """"options": {"shadow_map_size": 1024} was refused as "unknown option; known: ..." with a list that does not
