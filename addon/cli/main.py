@@ -102,7 +102,7 @@ def _main(argv=None) -> int:
     except UnicodeDecodeError:
         return _error(f"config: {args.config} is not UTF-8 text")
     try:
-        # (without a byte order mark: Windows editors save one)
+        # a byte order mark (Windows editors save one) dropped, a key given twice refused
         config = json.loads(text.removeprefix("\ufeff"), object_pairs_hook=_one_of_each)
     except RecursionError:
         return _error("config: nested too deeply")
