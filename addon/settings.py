@@ -17,6 +17,10 @@ MAX_MAP_SIZE = MAX_MAP_SIDE
 notes §8.8); below 16 texels a map cannot resolve a shadow, so a smaller value is
 a typing slip that Lixel refuses rather than renders."""
 
+MAX_EYE_BLUR = 32.0
+"""The widest eye-space blur in pixels: each seen pixel reads its (2r + 1)² neighbours (eye_blur_frag.glsl), 4,225 at
+32 and 4 million at 1,000, where one 1080p frame takes hours and the viewport's shadowed overlay freezes Blender."""
+
 BIAS_MODES = ("NONE", "CONSTANT", "SLOPE", "CONSTANT_SLOPE", "RECEIVER_PLANE", "NORMAL_OFFSET")
 MDSM_SELECTIONS = ("MINMAX", "SORT")
 
@@ -64,8 +68,8 @@ class ShadowSettings:
             raise WarpError(f"MDSM selection must be one of {', '.join(MDSM_SELECTIONS)}")
         if min(self.constant_bias, self.slope_bias, self.normal_offset) < 0:
             raise WarpError("biases must be >= 0")
-        if self.eye_blur < 0:
-            raise WarpError("eye-space blur must be >= 0")
+        if not 0 <= self.eye_blur <= MAX_EYE_BLUR:
+            raise WarpError(f"eye-space blur must be 0..{MAX_EYE_BLUR:g} pixels (got {self.eye_blur:g})")
 
 
 @dataclass(frozen=True)

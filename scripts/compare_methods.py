@@ -65,7 +65,7 @@ def main(argv=None):
                 renders.save_image(out.combined, path, view_of=scene)
                 images.append(out.combined)
                 render_ms = sum(out.timings.values()) * 1000
-                labels.append(renders.method_label(row, render_ms))
+                labels.append(renders.method_label(row, scene, render_ms))
                 doc["methods"][row["method"]]["picture"] = os.path.basename(path)
                 doc["methods"][row["method"]]["render_ms"] = render_ms
             if images:

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from ..warp import MAX_COORDINATE
-from ..warp.geometry import ortho_matrix
+from ..warp.geometry import normalize, ortho_matrix
 from ..warp.types import MAX_MAP_SIDE, Light, SceneBounds, View, WarpError, WarpOptions, clip_range_beyond_depth
 
 
@@ -183,9 +183,10 @@ def parse_light(light: dict) -> Light:
     kw: dict[str, Any] = {"type": kind, "name": str(light.get("name", "light"))}
     if kind in ("SUN", "SPOT"):
         d = _vector(_get(light, "direction", "light"), "light.direction")
-        length = float(np.linalg.norm(d))
-        if not (length > 0 and math.isfinite(length)) or not np.all(np.isfinite(d / length)):
-            raise ConfigError("light.direction: must be a non-zero vector")
+        try:
+            normalize(d)                                # (the core's: [1e308, 0, 0] is a direction too)
+        except ValueError:
+            raise ConfigError("light.direction: must be a non-zero vector") from None
         kw["direction"] = d
     if kind in ("POINT", "SPOT"):
         kw["position"] = _vector(_get(light, "position", "light"), "light.position", coordinates=True)
@@ -271,11 +272,11 @@ def _option(key: str, value, annotation: str):
             raise ConfigError(f"{field}: must be a string (got {value!r})")
         return value
     if kind == "float":
-        return _number(value, field)
+        return _number(value, field, positive=key == "lam")      # (a forced λ must be positive)
     if kind == "tuple[float, float]":
         a = _vector(value, field, 2)
-        if a[0] > a[1]:
-            raise ConfigError(f"{field}: must be [low, high] with low <= high (got {value!r})")
+        if not 0 <= a[0] < a[1]:                                 # (the Lixel panel's Visible Range rule)
+            raise ConfigError(f"{field}: must be [near, far] eye depths with 0 <= near < far (got {value!r})")
         return (float(a[0]), float(a[1]))
     return tuple(value) if isinstance(value, list) else value
 
@@ -292,6 +293,8 @@ def parse_options(config: dict) -> WarpOptions:
     fields = {f.name: str(f.type) for f in dataclasses.fields(WarpOptions)}
     names = set(fields) - {"shadow_map_size", "planes"}
     for key, value in extra.items():
+        if key in ("shadow_map_size", "planes"):
+            raise ConfigError(f"options.{key}: give {key} at the config's top level, beside \"options\"")
         if key not in names:
             raise ConfigError(f"options.{key}: unknown option; known: {', '.join(sorted(names))}")
         kw[key] = _option(key, value, fields[key])

@@ -48,6 +48,20 @@ def run_method(name, view, light, scene, options, body):
         return {"maps": [], "diagnostics": {"method": name, "error": _internal(exc), "fallbacks": []}}
 
 
+class DuplicateKey(Exception):
+    """A key given twice in one JSON object."""
+
+
+def _one_of_each(pairs: list) -> dict:
+    """A JSON object's pairs as a dict; :class:`DuplicateKey` where a key comes twice ("far": 70, ..., "far": 7)."""
+    seen = {}
+    for key, value in pairs:
+        if key in seen:
+            raise DuplicateKey(repr(key))
+        seen[key] = value
+    return seen
+
+
 MAX_INDENT = 16
 
 
@@ -88,9 +102,12 @@ def _main(argv=None) -> int:
     except UnicodeDecodeError:
         return _error(f"config: {args.config} is not UTF-8 text")
     try:
-        config = json.loads(text.removeprefix("\ufeff"))   # a byte order mark (Windows editors save one)
+        # a byte order mark (Windows editors save one) dropped, a key given twice refused
+        config = json.loads(text.removeprefix("\ufeff"), object_pairs_hook=_one_of_each)
     except RecursionError:
         return _error("config: nested too deeply")
+    except DuplicateKey as exc:
+        return _error(f"config: the key {exc} appears twice in one object (JSON keeps the last, silently): keep one")
     except json.JSONDecodeError as exc:
         return _error(f"config: not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})")
     except ValueError as exc:   # an integer longer than Python converts (4300 digits)

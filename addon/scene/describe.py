@@ -12,7 +12,8 @@ from typing import Optional
 
 import numpy as np
 
-from ..warp import MAX_COORDINATE
+from ..warp import MAX_COORDINATE, unresolved_frustum
+from ..warp.geometry import frustum_matrix, ortho_matrix
 from ..warp.polyhedron import box_corners
 from ..warp.types import Light, SceneBounds, View, WarpError, clip_range_beyond_depth
 from .instances import GEOMETRY_TYPES, InstanceSet, walk_instances  # noqa: F401 (re-exported)
@@ -268,23 +269,18 @@ def describe_view(camera_obj, depsgraph, scene) -> View:
     if not np.all(np.isfinite(projection)) or projection[0, 0] == 0 or projection[1, 1] == 0:
         raise WarpError(f"Camera '{camera_obj.name}' has a degenerate lens (focal length, sensor or orthographic "
                         f"scale): fix it in Camera properties > Lens")
-    return View(
-        camera_to_world=camera_to_world,
-        projection=projection,
-        near=near,
-        far=far,
-        resolution=(w, h),
-        orthographic=orthographic,
-    )
+    view = View(camera_to_world=camera_to_world, projection=projection, near=near, far=far, resolution=(w, h),
+                orthographic=orthographic)
+    if why := unresolved_frustum(view, lambda v: length_text(v, scene)):     # (the core's words in bare units)
+        raise WarpError(f"Camera '{camera_obj.name}': its view frustum {why}: widen its clip range (Camera "
+                        f"properties > Lens > Clip) or move the scene closer to the origin")
+    return view
 
 
 def depth_rows(near: float, far: float, orthographic: bool) -> np.ndarray:
     """The z and w rows of Blender's camera projection (``perspective_m4`` /
-    ``orthographic_m4``, OpenGL depth: near -> -1, far -> +1) in float64."""
-    d = far - near
-    if orthographic:
-        return np.array([[0.0, 0.0, -2.0 / d, -(far + near) / d], [0.0, 0.0, 0.0, 1.0]])
-    return np.array([[0.0, 0.0, -(far + near) / d, -2.0 * far * near / d], [0.0, 0.0, -1.0, 0.0]])
+    ``orthographic_m4``, OpenGL depth: near -> -1, far -> +1) in float64: the core's glOrtho / glFrustum rows."""
+    return (ortho_matrix if orthographic else frustum_matrix)(-1.0, 1.0, -1.0, 1.0, near, far)[2:]
 
 
 def area_light_area(data, matrix) -> float:

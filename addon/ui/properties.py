@@ -13,7 +13,8 @@ from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProp
                        IntProperty, IntVectorProperty, PointerProperty, StringProperty)
 
 from ..scene.units import length_text
-from ..settings import BIAS_MODES, MAX_MAP_SIZE, MDSM_SELECTIONS, MIN_MAP_SIZE, LixelSettings, ShadowSettings
+from ..settings import (BIAS_MODES, MAX_EYE_BLUR, MAX_MAP_SIZE, MDSM_SELECTIONS, MIN_MAP_SIZE, LixelSettings,
+                        ShadowSettings)
 from ..warp.types import WarpError, WarpOptions
 from . import addon_preferences
 
@@ -231,7 +232,9 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
     mdsm_neighbourhood: IntProperty(name="MDSM Neighbourhood", default=3, min=1, max=7,
                                     description="q of the q × q neighbourhood the depths are selected from")
     eye_blur: FloatProperty(name="Eye Blur", default=0.0, min=0.0, soft_max=8.0, subtype="PIXEL",
-                            description="Depth-dependent eye-space blur radius in pixels, 0 = off (Scherzer §4.3)")
+                            # no hard max: Blender would clamp a typed 100 silently; shadow_settings refuses it by name
+                            description=f"Depth-dependent eye-space blur radius in pixels, 0 = off, at most "
+                                        f"{MAX_EYE_BLUR:g} (Scherzer §4.3)")
 
     # Overlays and live updates
     show_body: BoolProperty(name=OVERLAYS[0][1], description=OVERLAYS[0][2], default=False)
@@ -264,6 +267,9 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
                                 f"{length_text(far, scene)}: its far end must lie beyond its near end "
                                 f"(Lixel panel > Method > Visible Range)")
             vis = (near, far)
+        if self.use_lambda and not self.lam > 0 and self.method in LAMBDA_METHODS + CASCADE_METHODS:  # (GMNPR splits)
+            raise WarpError(f"Scene '{self.id_data.name}' forces λ = {self.lam:g}: a forced λ must be positive; "
+                            f"raise it or turn Override λ off (Lixel panel > Method, with GMNPR or GLPR)")
         return WarpOptions(
             shadow_map_size=(w, h), focus=self.focus, lambda_guard=self.lambda_guard,
             texel_snapping=self.texel_snapping, delta_z=self.delta_z,
@@ -285,6 +291,11 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
         return planes
 
     def shadow_settings(self) -> ShadowSettings:
+        """The ShadowSettings these settings describe (an Eye Blur beyond MAX_EYE_BLUR refused by name, not clamped)."""
+        if not 0 <= self.eye_blur <= MAX_EYE_BLUR:
+            raise WarpError(f"Scene '{self.id_data.name}' has an Eye Blur of {self.eye_blur:g} px, beyond the "
+                            f"{MAX_EYE_BLUR:g} px Lixel blurs (each pixel reads (2r + 1)² others): lower it (Lixel "
+                            f"panel > Shadows > Eye Blur)")
         return ShadowSettings(
             bias_mode=self.bias_mode, constant_bias=float(self.constant_bias), slope_bias=float(self.slope_bias),
             normal_offset=float(self.normal_offset),

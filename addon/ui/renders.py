@@ -13,6 +13,7 @@ import numpy as np
 
 from ..gpu.blas import one_blas_thread
 from ..scene.owned import find_made, mark_made
+from ..scene.units import length_text
 from .live import LiveState, scene_geometry
 
 
@@ -129,10 +130,10 @@ def label_strip(lines: list, width: int) -> np.ndarray:
     return rgba
 
 
-def method_label(row: dict, render_ms: Optional[float] = None) -> list:
-    """Two lines naming a method's tile (a row of ``live.compare_methods``)."""
+def method_label(row: dict, scene, render_ms: Optional[float] = None) -> list:
+    """Two lines naming a method's tile (a row of ``live.compare_methods``); n_opt, a distance, in ``scene``'s units."""
     deg = "—" if row.get("theta") is None else f"{math.degrees(row['theta']):.1f}°"
-    warp = f"n_opt {row['n_opt']:.3g}" if row.get("n_opt") is not None else \
+    warp = f"n_opt {length_text(row['n_opt'], scene)}" if row.get("n_opt") is not None else \
         (f"λ {row['lam']:.3g}" if row.get("lam") is not None else "no warp parameter")
     first = f"{row['method']}: {row.get('maps', '?')} map(s)" + (f", {render_ms:.0f} ms" if render_ms else "")
     if row.get("fallbacks"):
@@ -213,7 +214,7 @@ def compare_renders(st: LiveState, depsgraph, rows: list, longest: int = 320) ->
         out = render_state(st, depsgraph, res, setup=row["setup"], geometry=geometry, read={"combined"})
         images.append(np.ascontiguousarray(out.combined, dtype=np.float32))
         names.append(row["method"])
-        labels.append(method_label(row, 1000.0 * sum(out.timings.values())))
+        labels.append(method_label(row, depsgraph.scene, 1000.0 * sum(out.timings.values())))
     if not images:
         raise ValueError("no method produced a setup to render")
     return mosaic(images, columns=min(3, len(images)), labels=labels), names

@@ -59,12 +59,16 @@ def _check_range(view: View, light: Light, scene: SceneBounds) -> None:
         if value > MAX_COORDINATE:
             raise WarpError(f"{what} reaches {value:.3g} from the origin, beyond the {MAX_COORDINATE:.0e} Lixel can "
                             f"compute with: move the scene closer to the origin or scale it down")
+    if why := unresolved_frustum(view):
+        raise WarpError(f"The camera's view frustum {why}: widen its clip range or move the scene closer to the origin")
+
+
+def unresolved_frustum(view: View, length=lambda v: f"{v:.3g}") -> str:
+    """Why the view frustum is below :data:`MIN_RESOLVED` where it is, as ``length`` writes lengths ("" if not)."""
     extent = math.hypot(*(max(c) - min(c) for c in zip(*view.corners().tolist())))  # the frustum's box diagonal
-    where = max(1.0, checks[1][1])
-    if not extent >= MIN_RESOLVED * where:
-        raise WarpError(f"The camera's view frustum is {extent:.3g} across at {where:.3g} from the origin, below what "
-                        f"float64 resolves there: widen the camera's clip range or move the scene closer to the "
-                        f"origin")
+    where = max(1.0, *map(abs, view.position.tolist()))
+    return "" if extent >= MIN_RESOLVED * where else (f"is {length(extent)} across at {length(where)} from the "
+                                                       f"origin, below what float64 resolves there")
 
 
 def intersection_body(view: View, light: Light, scene: SceneBounds,
@@ -96,8 +100,7 @@ def compute(method: str, view: View, light: Light, scene: SceneBounds, options: 
     with _warp_errors(f"The {method} light matrices"):         # (the cascade builds one B per split from the scene)
         setup = METHODS[method](view, light, body, options, *([scene] if method in SCENE_METHODS else []))
     if not all(np.isfinite(m.matrix).all() for m in setup.maps):
-        raise WarpError(f"The {method} light matrices came out non-finite for this camera, light and scene: check "
-                        f"the camera's clip range and the scene's size")
+        raise WarpError(f"The {method} light matrices are not finite: check the camera's clip range and scene size")
     setup.diagnostics.extra["focus"] = body.focus
     if body.visible is not None:
         setup.diagnostics.extra["visible_depth_range"] = body.visible.depth_range

@@ -247,8 +247,8 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
         to_light = perspective_of(views[f], *near_far(nearest, farthest, near_floor)[:2])
         frames.append(LightFrame(to_light, part + apex, "cube" + CUBE_FACES[f][0], False, clamped and cuts_a_box))
     if not frames:         # (a guard: B is at least 1000 tolerances thick, its scale what the view sees, test_limits)
-        raise WarpError(f"Light '{light.name}': no cube face holds a part of B (what is seen and what can shadow it, "
-                        f"{body.scale:.3g} across) thicker than its tolerance: check its and the camera's transforms")
+        raise WarpError(f"Light '{light.name}': no cube face holds a part of B (what is seen and what can shadow it) "
+                        f"thicker than its tolerance: check its and the camera's transforms")
     return frames
 
 

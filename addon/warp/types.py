@@ -376,7 +376,7 @@ class WarpOptions:
             if getattr(self, name) not in choices:
                 raise WarpError(f"{name} must be one of {', '.join(map(repr, choices))} (got {getattr(self, name)!r})")
         if not (0.0 < self.plane_budget <= 1.0):
-            raise WarpError("plane_budget must be in (0, 1]")
+            raise WarpError(f"plane_budget must be in (0, 1] (got {self.plane_budget!r})")
         splits = self.cascade_splits
         if isinstance(splits, bool) or not isinstance(splits, (int, np.integer)) or not 1 <= splits <= 8:
             raise WarpError(f"cascade_splits must be a whole number from 1 to 8 (got {splits!r})")

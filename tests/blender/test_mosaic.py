@@ -2,6 +2,7 @@
 labels every tile: a strip of text drawn with blf off-screen above each picture."""
 import importlib
 
+import bpy
 import numpy as np
 import pytest
 
@@ -36,6 +37,6 @@ def test_every_tile_of_the_mosaic_has_its_own_label(renders):
 def test_method_label_names_the_warp_parameter(renders):
     row = {"method": "lispsm", "theta": np.radians(45.0), "n_opt": 3.25, "lam": None, "maps": 1,
            "footprint_median_px": 1.2, "footprint_max_px": 8.0, "fallbacks": []}
-    first, second = renders.method_label(row, 12.0)
+    first, second = renders.method_label(row, bpy.data.scenes[0], 12.0)
     assert first == "lispsm: 1 map(s), 12 ms"
-    assert second == "θ 45.0°, n_opt 3.25, texel footprint 1.2 px (max 8)"
+    assert second == "θ 45.0°, n_opt 3.25 m, texel footprint 1.2 px (max 8)"

@@ -169,3 +169,39 @@ def test_opening_a_file_writes_nothing_into_its_scenes(lixel, tmp_path):
     # (bpy.data.is_dirty cannot tell: it is True after any open_mainfile in background mode)
     for name in ("lixel_never_set_up_a", "lixel_never_set_up_b"):
         assert got["scenes"][name] == {"initialised": False, "method": "lispsm", "renders_with": ["uniform", [512, 512]]}
+
+
+@pytest.mark.parametrize("method, refused", [("gmnpr", True), ("glpr", True), ("cascade", True), ("lispsm", False)])
+def test_a_forced_lambda_of_zero_is_refused_by_name_where_it_is_used(lixel, method, refused):
+    """The λ field's minimum is 0: with Override λ on, Refresh and F12 said "the forced λ must be positive (got 0.0);
+    leave it unset for Eq. 8", naming no scene and no field of the panel. It names them and what to do, wherever
+    the λ reaches (GMNPR, GLPR, the cascade's GMNPR splits); where it does not (LiSPSM), the scene computes."""
+    with active_scene("lixel_lambda") as scene:
+        scene.lixel.method, scene.lixel.use_lambda, scene.lixel.lam = method, True, 0.0
+        if not refused:
+            assert bpy.ops.lixel.refresh() == {"FINISHED"}
+            return
+        with pytest.raises(RuntimeError, match=r"Lixel: Scene 'lixel_lambda' forces λ = 0: a forced λ must be "
+                                               r"positive; raise it or turn Override λ off \(Lixel panel > Method, "
+                                               r"with GMNPR or GLPR\)"):
+            bpy.ops.lixel.refresh()
+        scene.lixel.lam = 0.25
+        assert bpy.ops.lixel.refresh() == {"FINISHED"}
+
+
+def test_an_eye_blur_beyond_what_renders_in_time_is_refused_by_name(lixel):
+    """Eye Blur has no hard maximum (soft 8 px): a typed 1000 made every seen pixel read its 2001² neighbours, hours
+    for one 1080p frame and a frozen Blender under the viewport's shadowed overlay (150 px took 0.47 s at 64x36,
+    2e8 reads). It is refused by name, as typed, before anything renders; 32 px still renders."""
+    with active_scene("lixel_blur") as scene:
+        scene.lixel.initialised = True
+        scene.render.engine = "LIXEL"
+        scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 32, 18, 100
+        scene.lixel.eye_blur = 1000.0
+        for op in (bpy.ops.lixel.refresh, bpy.ops.render.render):
+            with pytest.raises(RuntimeError, match=r"Scene 'lixel_blur' has an Eye Blur of 1000 px, beyond the 32 px "
+                                                   r"Lixel blurs .*: lower it \(Lixel panel > Shadows > Eye Blur\)"):
+                op()
+        assert scene.lixel.eye_blur == 1000.0
+        scene.lixel.eye_blur = 32.0
+        assert bpy.ops.render.render() == {"FINISHED"}

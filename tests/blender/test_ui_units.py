@@ -168,10 +168,11 @@ def test_a_too_far_camera_or_light_is_named_in_the_scenes_units(lixel, system, s
 
 
 @pytest.mark.parametrize("system, scale", UNIT_SYSTEMS)
-def test_n_opt_a_distance_is_shown_in_the_scenes_units(live, system, scale):
+def test_n_opt_a_distance_is_shown_in_the_scenes_units(lixel, live, system, scale):
     """n_opt (LiSPSM's, Scherzer §4.4 Eq. 1: the warp's centre's distance from its near plane) is a length: the
     Readouts panel and the Compare Methods text printed it in bare Blender units ("n_opt 12.59" where, at a Unit
-    Scale of 0.01, Blender's fields show 12.6 cm) beside the focus depths they already wrote in the scene's units."""
+    Scale of 0.01, Blender's fields show 12.6 cm) beside the focus depths they already wrote in the scene's units;
+    so did the comparison mosaic's tile labels (Compare Methods' picture, scripts/compare_methods.py)."""
     with active_scene("lixel_units") as scene:
         _units_scene(scene, system, scale)
         scene.lixel.method = "lispsm"
@@ -186,3 +187,33 @@ def test_n_opt_a_distance_is_shown_in_the_scenes_units(live, system, scale):
         shown = re.match(r"lispsm +\S+ +\S+ +(.+?) +— +1 ", row)
         assert shown, row
         np.testing.assert_allclose(_in_units(scene, shown.group(1)), [n_opt], rtol=6e-3)
+        rows = live.compare_methods(live.state(scene), ["lispsm"])        # the comparison mosaic's tile label
+        label = importlib.import_module(f"{lixel.__name__}.addon.ui.renders").method_label(rows[0], scene)[1]
+        shown = re.search(r"n_opt (.+?), texel footprint", label)
+        assert shown, label
+        np.testing.assert_allclose(_in_units(scene, shown.group(1)), [n_opt], rtol=6e-3)
+
+
+@pytest.mark.parametrize("system, scale", UNIT_SYSTEMS)
+def test_a_view_frustum_too_small_for_where_it_is_is_named_in_the_scenes_units(describe, system, scale):
+    """A camera 1e9 units from the origin clipping from 0.01 to 0.2: Refresh said "The camera's view frustum is 0.29
+    across at 1e+09 from the origin, below what float64 resolves there", naming no camera and in Blender units (at a
+    Unit Scale of 0.01 Blender's fields show 2.9 mm and 10,000 km). Refresh, F12 and the scripts (each describes the
+    camera first) say it of the camera by name, in the scene's units."""
+    with active_scene("lixel_units") as scene:
+        _units_scene(scene, system, scale)
+        for ob in scene.objects:
+            ob.location.x += 1e9
+        scene.camera.data.clip_start, scene.camera.data.clip_end = 0.01, 0.2
+        bpy.context.view_layer.update()
+        with pytest.raises(RuntimeError) as refused:
+            bpy.ops.lixel.refresh()
+        lengths = re.search(r"Lixel: Camera 'lixel_units camera': its view frustum is (.+) across at (.+) from the "
+                            r"origin, below what float64 resolves there: widen its clip range \(Camera properties > "
+                            r"Lens > Clip\) or move the scene closer to the origin", str(refused.value))
+        assert lengths, str(refused.value)
+        scene.camera.location.x -= 1e9                                   # the same frustum at the origin
+        bpy.context.view_layer.update()
+        corners = describe.describe_view(scene.camera, bpy.context.evaluated_depsgraph_get(), scene).corners()
+        np.testing.assert_allclose(_in_units(scene, *lengths.groups()),
+                                   [np.linalg.norm(np.ptp(corners, axis=0)), 1e9 + 7.0], rtol=6e-3)

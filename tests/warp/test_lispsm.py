@@ -667,3 +667,15 @@ def warp_lambda(matrix, view, light, body):
     """λ = (h_min - h_0)/D read from the map (``map_lambda``), in its sun frame (∞: unwarped)."""
     from addon.warp.methods.warp_frustum import map_lambda
     return map_lambda(matrix, light_frames(view, light, body, WarpOptions())[0])[1]
+
+
+def test_the_guards_depth_note_says_the_visible_depths_as_a_ratio():
+    """GLPR's guard raised by the worst aliasing over the visible depths said them as "[3.738, 59.69]": bare Blender
+    units in a note the Lixel panel shows beside lengths in the scene's units. The bound reads only their ratio
+    (``lambda_no_worse_than_uniform``), and the note says that, in no unit."""
+    view = camera([0.0, -10.0, 6.0], [0.0, 1.0, -0.25])
+    guarded = compute("glpr", view, sun([0.3, 0.5, -0.6]), SCENE, WarpOptions(shadow_map_size=1024, focus="view"))
+    d = guarded.diagnostics
+    (why,) = [why for what, why in d.fallbacks if what == "main: λ guard"]
+    ratio = (d.extra["z_n"] + d.extra["delta_z"]) / d.extra["z_n"]
+    assert f"its worst aliasing over the visible depths (far {ratio:.4g}x near) would be worse" in why, why

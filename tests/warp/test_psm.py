@@ -598,3 +598,6 @@ def test_the_lambda_guard_moves_the_virtual_camera_back_until_psm_is_no_worse_th
     assert [w for w, _ in guarded.diagnostics.fallbacks] == ["main: λ guard"]
     assert guarded.diagnostics.extra["virtual_near"] > 2 * raw.diagnostics.extra["virtual_near"]
     assert guarded.maps[0].contains(body.vertices, 1e-6).all()
+    # the note's move is a ratio, in no unit ("from near 0.1 to 3.2": bare Blender units beside the panel's lengths)
+    moved = guarded.diagnostics.extra["virtual_near"] / raw.diagnostics.extra["virtual_near"]
+    assert guarded.diagnostics.fallbacks[0][1].startswith(f"virtual camera moved back to {moved:.3g}x its near (§4.2)")

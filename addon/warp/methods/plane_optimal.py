@@ -132,8 +132,7 @@ def _no_default_plane(receiver_boxes, seen: bool) -> str:
     else:
         i, height, side = flattest
         found = (f"no receiver in view is flat (a plane of interest needs a box at most {FLAT_RATIO:.0%} as high as "
-                 f"its smaller side; the flattest, receiver box {i}, is {height:.3g} high over {side:.3g}, "
-                 f"{height / side:.0%}): the receivers are not planar, e.g. a terrain")
+                 f"its smaller side; the flattest, receiver box {i}, is {height / side:.0%}): not planar, e.g. terrain")
     return (f"no plane of interest given and {found}. plane_optimal renders with its fallback map alone, the "
             f"uniform map with the whole texel budget (Chong-Gortler §5: where no plane describes the receivers "
             f"the method has nothing to be exact on); give planes (Planes of Interest in the Lixel panel, or "
@@ -368,7 +367,7 @@ def _fraction_of_a_lixel(jobs: list[PlaneMap], budget: float) -> float:
             return s
         shrink = min(math.sqrt(budget / total), MAX_MAP_SIDE / side)
         s *= min(shrink, 1.0) * (1 - 1e-3) if shrink < 1 - 1e-3 else (1 - 1e-3)
-    raise WarpError("plane_optimal: could not fit the plane maps into the texel budget")
+    raise WarpError(f"the plane maps do not fit a budget of {budget:.3g} texels: give a larger shadow map size")
 
 
 def light_map(job: PlaneMap, s: float, origin: np.ndarray, tol: float, options: WarpOptions) -> ShadowMap:

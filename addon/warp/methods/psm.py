@@ -144,7 +144,7 @@ def guarded_warp(view: View, light: Light, body: IntersectionBody, options: Warp
         guard = guard_lambda(0.0, at.gamma, axis, ctx)[0] if axis is not None else 0.0
         y = lam / guard if guard > 0.0 and math.isfinite(lam) else aim
         if abs(y - aim) <= GUARD_TOLERANCE / 2:
-            return tried, f"virtual camera moved back from near {warp.camera.near:.4g} to {x:.4g} (§4.2): PSM's {why}"
+            return tried, f"virtual camera moved back to {x / warp.camera.near:.3g}x its near (§4.2): PSM's {why}"
         tried_points.append((x, y))
         low, high = (x, high) if y < aim else (low, x)
     return None, f"PSM's {why}; the search for its virtual camera did not converge"

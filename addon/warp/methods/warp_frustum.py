@@ -287,7 +287,7 @@ def guard_lambda(lam: float, gamma: float, axis: WarpAxis, ctx: WarpContext, sca
     homogeneous vertices ``body_h`` and ``axis`` a FrameGeometry), and to the λ whose texels are least on screen
     over the visible pixels, or over the shadow edges seen where known (``ctx.edges``): (λ, why raised or "")."""
     theta = folded(gamma)
-    bounds = {f"its worst aliasing over the visible depths [{ctx.z_n:.4g}, {ctx.z_f:.4g}] would be worse than the "
+    bounds = {f"its worst aliasing over the visible depths (far {ctx.z_f / ctx.z_n:.4g}x near) would be worse than the "
               f"uniform map's": lambda_no_worse_than_uniform(theta, ctx.z_n, ctx.z_f, ctx.phi)}
     if ctx.visible is not None and axis.extent > 0 and scale > 0:
         points, weights, depth = ctx.visible
