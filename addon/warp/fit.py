@@ -12,11 +12,11 @@ NDC_PAD = 1e-7
 
 
 def divided(h) -> np.ndarray:
-    """The divided coordinates (N, 3) of homogeneous points ``h`` (N, 4), all with w > 0."""
-    w = h[:, 3:]
+    """The divided coordinates (..., N, 3) of homogeneous points ``h`` (..., N, 4), all with w > 0."""
+    w = h[..., 3:]
     if not (w > 0).all():
         raise WarpError("internal: a point of B is behind the projection (w <= 0)")
-    return h[:, :3] / w
+    return h[..., :3] / w
 
 
 def window_matrix(lo, hi) -> np.ndarray:
@@ -45,8 +45,12 @@ def _axis_window(a: float, b: float, least: float) -> tuple[float, float]:
 
 
 def fit_to_unit_cube(transform, points) -> np.ndarray:
-    """A @ transform with ``points`` filling NDC [-1, 1]^3."""
-    return fit_keeping_points(transform, points)[0]
+    """A @ transform with ``points`` filling NDC [-1, 1]^3; of a stack of transforms (k, 4, 4), each (k, 4, 4)."""
+    transform = np.asarray(transform, dtype=np.float64)
+    h = np.asarray(points, dtype=np.float64) @ np.swapaxes(transform[..., :3], -1, -2) + transform[..., None, :, 3]
+    ndc = divided(h)
+    lo, hi = ndc.min(axis=-2).reshape(-1, 3).tolist(), ndc.max(axis=-2).reshape(-1, 3).tolist()
+    return window_matrices(lo, hi).reshape(transform.shape) @ transform
 
 
 def fit_keeping_points(transform, points) -> tuple[np.ndarray, np.ndarray]:
