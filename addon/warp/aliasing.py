@@ -134,9 +134,9 @@ def lambda_least_on_screen(delta, weights, depth, body=None) -> float:
 
 def raster_jacobian(matrix, size, points) -> np.ndarray:
     """(N, 2, 3) d(raster)/d(world) of the projective ``matrix`` onto a ``size`` raster (of a stack of (M, 4, 4) with
-    (M, 2) sizes: (M, N, 2, 3)), D_M = diag(w, h)/2 · (M[:2, :3] - ndc ⊗ M[3, :3]) / w_clip. NaN where w_clip <= 0.
-    Worked with the points along the last axis (..., 2, 3, N), then laid out as (..., N, 2, 3): numpy's elementwise
-    passes over runs of 3 cost 3x those over runs of N (the same operations on the same numbers: the same bits)."""
+    (M, 2) sizes: (M, N, 2, 3)), D_M = diag(w, h)/2 · (M[:2, :3] - ndc ⊗ M[3, :3]) / w_clip. NaN where w_clip <= 0."""
+    # Worked with the points along the last axis (..., 2, 3, N), then laid out as (..., N, 2, 3): numpy's elementwise
+    # passes over runs of 3 cost 3x those over runs of N (the same operations on the same numbers: the same bits).
     m = np.asarray(matrix, dtype=np.float64)
     h = m @ homogeneous(points).T                                   # (..., 4, N)
     w = np.where(h[..., 3, :] > 0, h[..., 3, :], np.nan)

@@ -44,11 +44,9 @@ def _axis_window(a: float, b: float, least: float) -> tuple[float, float]:
     return 2.0 / (b - a), -(b + a) / (b - a)
 
 
-def fit_to_unit_cube(transform, points) -> np.ndarray:
-    """A @ transform with ``points`` filling NDC [-1, 1]^3; of a stack of transforms (k, 4, 4), each (k, 4, 4)."""
-    transform = np.asarray(transform, dtype=np.float64)
-    h = np.asarray(points, dtype=np.float64) @ np.swapaxes(transform[..., :3], -1, -2) + transform[..., None, :, 3]
-    ndc = divided(h)
+def fit_to_unit_cube(transform: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """A @ ``transform`` (4, 4), or each of a stack (k, 4, 4), with the (N, 3) ``points`` filling NDC [-1, 1]^3."""
+    ndc = divided(points @ np.swapaxes(transform[..., :3], -1, -2) + transform[..., None, :, 3])
     lo, hi = ndc.min(axis=-2).reshape(-1, 3).tolist(), ndc.max(axis=-2).reshape(-1, 3).tolist()
     return window_matrices(lo, hi).reshape(transform.shape) @ transform
 
