@@ -51,10 +51,9 @@ def fit_to_unit_cube(transform: np.ndarray, points: np.ndarray) -> np.ndarray:
     return window_matrices(lo, hi).reshape(transform.shape) @ transform
 
 
-def fit_keeping_points(transform, points) -> tuple[np.ndarray, np.ndarray]:
+def fit_keeping_points(transform: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``fit_to_unit_cube`` and the ``points`` as the fitted map divides them."""
-    transform = np.asarray(transform, dtype=np.float64)
-    ndc = divided(np.asarray(points, dtype=np.float64) @ transform[:, :3].T + transform[:, 3])
+    ndc = divided(points @ transform[:, :3].T + transform[:, 3])
     window = window_matrix(ndc.min(axis=0), ndc.max(axis=0))
     return window @ transform, ndc * window.diagonal()[:3] + window[:3, 3]
 
