@@ -12,11 +12,11 @@ NDC_PAD = 1e-7
 
 
 def divided(h) -> np.ndarray:
-    """The divided coordinates (N, 3) of homogeneous points ``h`` (N, 4), all with w > 0."""
-    w = h[:, 3:]
+    """The divided coordinates (..., N, 3) of homogeneous points ``h`` (..., N, 4), all with w > 0."""
+    w = h[..., 3:]
     if not (w > 0).all():
         raise WarpError("internal: a point of B is behind the projection (w <= 0)")
-    return h[:, :3] / w
+    return h[..., :3] / w
 
 
 def window_matrix(lo, hi) -> np.ndarray:
@@ -44,15 +44,16 @@ def _axis_window(a: float, b: float, least: float) -> tuple[float, float]:
     return 2.0 / (b - a), -(b + a) / (b - a)
 
 
-def fit_to_unit_cube(transform, points) -> np.ndarray:
-    """A @ transform with ``points`` filling NDC [-1, 1]^3."""
-    return fit_keeping_points(transform, points)[0]
+def fit_to_unit_cube(transform: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """A @ ``transform`` (4, 4), or each of a stack (k, 4, 4), with the (N, 3) ``points`` filling NDC [-1, 1]^3."""
+    ndc = divided(points @ np.swapaxes(transform[..., :3], -1, -2) + transform[..., None, :, 3])
+    lo, hi = ndc.min(axis=-2).reshape(-1, 3).tolist(), ndc.max(axis=-2).reshape(-1, 3).tolist()
+    return window_matrices(lo, hi).reshape(transform.shape) @ transform
 
 
-def fit_keeping_points(transform, points) -> tuple[np.ndarray, np.ndarray]:
+def fit_keeping_points(transform: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``fit_to_unit_cube`` and the ``points`` as the fitted map divides them."""
-    transform = np.asarray(transform, dtype=np.float64)
-    ndc = divided(np.asarray(points, dtype=np.float64) @ transform[:, :3].T + transform[:, 3])
+    ndc = divided(points @ transform[:, :3].T + transform[:, 3])
     window = window_matrix(ndc.min(axis=0), ndc.max(axis=0))
     return window @ transform, ndc * window.diagonal()[:3] + window[:3, 3]
 

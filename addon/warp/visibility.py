@@ -139,8 +139,7 @@ class VisibleRegion:
         row = view.world_to_camera[2]                          # eye depth = -(row . [x, 1])
         planes = np.array([row, -row, *screen_sides(view, *self.screen)])
         kn, ko = kdop_halfspaces(corners, view, light, pad)
-        return (np.concatenate([planes[:, :3], kn]),
-                np.concatenate([-planes[:, 3] + [-z_lo, z_hi, 0, 0, 0, 0], ko]))
+        return np.concatenate([planes[:, :3], kn]), np.concatenate([-planes[:, 3] + [-z_lo, z_hi, 0, 0, 0, 0], ko])
 
 
 def screen_sides(view: View, x0, x1, y0, y1) -> np.ndarray:

@@ -137,5 +137,6 @@ def turned(matrix: np.ndarray, points: np.ndarray, along: tuple | None = None) -
         hull = convex_polygon_on_plane(np.c_[xy, np.zeros(len(xy))], (0.0, 0.0, 1.0), 1e-9 * float(np.ptp(xy)))
         edges = np.zeros((0, 2)) if hull is None else (np.roll(hull, -1, axis=0) - hull)[:, :2]
         angles = np.unique(np.round(np.mod(np.arctan2(edges[:, 1], edges[:, 0]), np.pi / 2), 3))
-    turns = [np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]]) @ metric for a in angles]
-    return [fit_to_unit_cube(np.vstack([t @ matrix[:2], matrix[2:]]), points) for t in turns]
+    c, s = np.cos(angles), np.sin(angles)                              # the turns fitted at once: (K, 4, 4)
+    turns = np.stack([np.stack([c, s], -1), np.stack([-s, c], -1)], -2) @ metric @ matrix[:2]
+    return list(fit_to_unit_cube(np.concatenate([turns, np.broadcast_to(matrix[2:], (len(c), 2, 4))], 1), points))
