@@ -194,7 +194,7 @@ def test_add_frustum_says_when_its_map_reaches_through_infinity(lixel, nodes, wg
         sc.camera.data.sensor_fit, sc.camera.data.angle_y = "VERTICAL", math.radians(60)
         sc.camera.data.clip_start, sc.camera.data.clip_end = 0.1, 70.0
         light = sc.objects["lixel_frustum_note light"]
-        light.data.type, light.location = "POINT", (-3.0, -12.0, 5.0)
+        light.data.type, light.location = "POINT", (-3.0, -12.0, 3.0)
         sc.lixel.initialised, sc.lixel.method = True, "cascade"
         try:
             assert bpy.ops.lixel.refresh() == {"FINISHED"}
