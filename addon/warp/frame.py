@@ -88,7 +88,7 @@ def eye_image_up(view: View, apex, axis, vector) -> np.ndarray:
     "The λ guard"), blended within PARALLEL_BLEND of the light ray into ``up_across`` as the warp is (behind the light: it)."""
     up, ray = up_across(view, axis), view.position - apex
     image = vector - (vector @ axis) / (ray @ axis) * ray if ray @ axis > 0 else np.zeros(3)
-    s = math.sqrt(max(1.0 - (vector @ ray) ** 2 / max((vector @ vector) * (ray @ ray), 1e-300), 0.0))
+    s = math.sqrt(max(1.0 - (normalize(vector) @ normalize(ray)) ** 2, 0.0))
     blended = s * image / max(math.sqrt(image @ image), 1e-300) + max(0.0, PARALLEL_BLEND - s) * up
     return normalize(blended) if image.any() and blended @ blended > 1e-24 else up
 
