@@ -573,44 +573,6 @@ def test_the_guard_can_be_kept_to_glpr():
     assert any(what == "main: λ guard" for what, _ in glpr.fallbacks)
 
 
-def _generated_point_behind_camera(seed):
-    """A generated scene's point light behind the camera (``bench.box_scenes``, 640x360): view, light, boxes."""
-    from bench.box_scenes import draw_scene
-    g = draw_scene(seed, 4)
-    assert g.kind == "point_behind_camera"
-    eye, target = g.camera
-    view = camera(eye, target - eye, fov_deg=g.fov_deg, near=g.near, far=g.far, res=(640, 360))
-    ground = [[-g.ground, -g.ground, -0.01], [g.ground, g.ground, 0.0]]
-    return view, Light("POINT", position=np.asarray(g.light, dtype=np.float64)), SceneBounds.from_boxes(
-        [ground] + g.boxes.tolist())
-
-
-@pytest.mark.parametrize("method", WARPS)
-@pytest.mark.parametrize("seed", [55, 56])
-def test_on_a_point_light_behind_the_camera_the_guarded_warp_at_lambda_infinity_is_the_uniform_map(method, seed):
-    """GMNPR §3: λ = ∞ is the uniform map. Where the λ guard finds no warp no worse than the uniform map, the warp's
-    single map is the uniform method's map, not the uniform map turned to V_P's image (p95 footprint 1.24x the
-    uniform map's on gen55_04 before the point frame's +y became V_P's image at the eye, ``frame.eye_image_up``)."""
-    view, light, scene = _generated_point_behind_camera(seed)
-    options = WarpOptions(shadow_map_size=2048)
-    warped, uniform = compute(method, view, light, scene, options), compute("uniform", view, light, scene, options)
-    assert len(warped.maps) == 1 and any(what == "main: λ guard" and "(the uniform map)" in why
-                                         for what, why in warped.diagnostics.fallbacks)
-    np.testing.assert_allclose(warped.maps[0].matrix, uniform.maps[0].matrix, rtol=0, atol=1e-9)
-
-
-@pytest.mark.parametrize("seed", [1, 41, 55])
-def test_a_point_lights_uniform_map_lays_the_view_ray_from_the_eye_along_its_texel_columns(seed):
-    """Scherzer Eq. 3's V_P in a point light's map is the view ray's image at the eye: the uniform map's +y follows
-    it, as the warp's axis does (so the two differ only by the warp), and so the map's texel rows lie across the
-    view's depth lines (7 % fewer wrong pixels rendered on the design seeds' point and spot scenes)."""
-    view, light, scene = _generated_point_behind_camera(seed)
-    matrix = compute("uniform", view, light, scene, WarpOptions(shadow_map_size=2048)).maps[0].matrix
-    ray = view.position[None] + np.outer([0.0, 1.0], view.direction)         # (a line's image is a line)
-    (x0, y0), (x1, y1) = ndc(matrix, ray)[0][:, :2]
-    assert y1 > y0 and abs(x1 - x0) <= 1e-6 * (y1 - y0)
-
-
 def _maps_before_closure(view, light, scene, options):
     """A point light's warped cube-face maps as ``warped_setup`` hands them to ``ray_closed``."""
     body = intersection_body(view, light, scene)
