@@ -82,18 +82,6 @@ def up_across(view: View, axis) -> np.ndarray:
     return up if up.any() else perpendicular(axis)
 
 
-def eye_image_up(view: View, apex, axis, vector) -> np.ndarray:
-    """A point light frame's +y: ``vector``'s image at the eye's (the warp's V_P, Scherzer Eq. 3, as
-    ``warp_frustum.frame_axes`` finds it: the guard's λ = ∞ is then this uniform map, and on the design seeds it
-    renders 7 % fewer wrong pixels than V_P at the axis, docs/papers.md "The λ guard"), blended within
-    PARALLEL_BLEND of the light ray into ``up_across`` as the warp blends it (``up_across`` behind the light plane)."""
-    up, ray = up_across(view, axis), view.position - apex
-    image = vector - (vector @ axis) / (ray @ axis) * ray if ray @ axis > 0 else np.zeros(3)
-    s = math.sqrt(max(1.0 - (normalize(vector) @ normalize(ray)) ** 2, 0.0))
-    blended = s * image / max(math.sqrt(image @ image), 1e-300) + max(0.0, PARALLEL_BLEND - s) * up
-    return normalize(blended) if image.any() and blended @ blended > 1e-24 else up
-
-
 def light_angles(view: View, light_direction) -> tuple[float, float]:
     """(θ, γ): γ the angle between view and light directions (Scherzer §4.4), θ folded (GMNPR)."""
     c = min(max(dot3(view.direction.tolist(), normalize(light_direction).tolist()), -1.0), 1.0)
@@ -228,7 +216,7 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
     reaches, the cube aligned with the cone axis or ``body.cube_axis`` (a known discontinuity in the number of maps)."""
     apex = light.position
     axis, half = light_cone(body.vertices, apex)
-    up = eye_image_up(view, apex, axis, body.volume_centroid - view.position if options.middle_vector else view.direction)
+    up = up_across(view, axis)
     inside = body.contains(apex[None], -10.0 * body.tolerance)[0]                  # (strictly inside B)
     if 2 * half <= options.max_frustum_angle and not inside:
         floor, cuts_a_box = None, True
