@@ -61,7 +61,9 @@ def looks_for_edges(method: str, options, light) -> bool:
     """Whether ``fit_warp`` takes the first look at the shadow edges (``shadow_edges``): where ``method``'s λ guard
     acts, for its weights (``weighs_edges``) and the cascade's map pick (``partition.receivers.filter_losses``: the
     edges' directions), for a point light only the cascade's pick (docs/papers.md, "A pick that sees the edges'
-    directions")."""
+    directions"), and plane_optimal's default plane (its share of the edges: ``plane_optimal.planes_of_interest``)."""
+    if options.focus == "visible" and method == "plane_optimal":
+        return not options.planes
     if options.focus != "visible" or method not in GUARDED or (light.type == "POINT" and method != "cascade"):
         return False
     if method == "cascade":
@@ -73,7 +75,7 @@ def weighs_edges(method: str, options, light) -> bool:
     """Whether ``method``'s λ guard weighs where the first look's shadow edges fall on what is seen (``fit_warp``):
     not for a point light, whose warped cube faces rendered worse with the edges (docs/papers.md, the λ guard, part
     7; why is not known)."""
-    return light.type != "POINT" and looks_for_edges(method, options, light)
+    return light.type != "POINT" and method in GUARDED and looks_for_edges(method, options, light)
 
 EXTRA_PASSES = (
     # name, channels, channel ids, compositor socket type, view-layer switch, RenderResult image

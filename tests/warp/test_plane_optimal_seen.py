@@ -3,10 +3,12 @@ that holds most of the seen surface, and its map is made only when the pixels it
 pixel", Chong-Gortler §2) are worth the texels the fallback gives up for it."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
-from addon.measure.box_scene import visible_points
+from addon.measure.box_scene import pixel_rays, ray_boxes, visible_points
 from addon.warp import SceneBounds, WarpOptions, compute, focused_body, intersection_body
 from addon.warp.methods.plane_optimal import worth_its_texels
 from addon.warp.plane_map import default_plane, top_shares
@@ -61,6 +63,40 @@ def test_a_plane_map_is_made_only_when_what_it_makes_exact_outweighs_what_the_fa
     assert np.allclose(small.maps[0].matrix, uniform.maps[0].matrix) and small.maps[0].size == (256, 256)
     assert [m.role for m in large.maps] == ["plane:0", "fallback"]
     assert large.diagnostics.extra["budget"]["lixels_per_pixel"] == 1.0
+
+
+def test_a_plane_wholly_in_shadow_with_none_of_the_views_shadow_edges_gets_no_map_its_texels_go_to_the_fallback():
+    """Shadow aliasing is at the shadow edges (Chong-Gortler §1): a ground wholly in a wall's shadow under a 5° sun,
+    most of what is seen, holds none of the edges (they run across the towers' lit faces above it), so making it
+    exact gains nothing; priced by its seen share alone it took the texels from the fallback (gen62_08_low_sun)."""
+    ground, wall = np.array([[-40.0, -40.0, -0.5], [40.0, 40.0, 0.0]]), np.array([[-40.0, -31.0, 0.0], [40.0, -30.0, 8.0]])
+    towers = [np.array([[x - 1.0, 8.0, 0.0], [x + 1.0, 10.0, 20.0]]) for x in (-8.0, -3.0, 3.0, 8.0)]
+    sc, light = SceneBounds.from_boxes(np.array([ground, wall, *towers])), sun_at(5.0, 180.0)
+    view = camera((0.0, -14.0, 6.0), (0.0, 6.0, 3.0), fov_deg=70.0)
+    body = focused_body(view, light, sc)
+    o, d, length = pixel_rays(view, BOX_SAMPLES)                    # (the CLI's ray grid, as ``body.visible.surface``)
+    t, _, n = ray_boxes(o, d, length, sc.receivers)
+    hit = np.isfinite(t)
+    p = o[hit] + t[hit, None] * d[hit]
+    lit = np.full(hit.shape, np.nan)
+    lit[hit] = ~np.isfinite(ray_boxes(p + 1e-6 * n[hit], np.broadcast_to(-light.direction, p.shape),
+                                      np.full(len(p), np.inf), sc.casters)[0])
+    grid = lit.reshape(BOX_SAMPLES[::-1])
+    edge = np.zeros(grid.shape, dtype=bool)                         # a seen neighbour in the other state
+    edge[1:] |= np.abs(grid[1:] - grid[:-1]) == 1
+    edge[:, 1:] |= np.abs(grid[:, 1:] - grid[:, :-1]) == 1
+    at_edge = edge.reshape(-1)[hit]
+    on_ground = np.abs(p[:, 2]) < TOL
+    assert len(body.visible.surface) == len(p) and on_ground.mean() > 0.8 and not lit[hit][on_ground].any()
+    assert at_edge.sum() >= 4 and not at_edge[on_ground].any()
+    looked = dataclasses.replace(body, visible=dataclasses.replace(
+        body.visible, edge_directions=np.where(at_edge[:, None], (1.0, 0.0, 0.0), 0.0)))
+    options = WarpOptions(shadow_map_size=(1024, 1024))
+    assert [m.role for m in compute("plane_optimal", view, light, sc, options, body=body).maps] == ["plane:0", "fallback"]
+    setup = compute("plane_optimal", view, light, sc, options, body=looked)
+    uniform = compute("uniform", view, light, sc, options, body=looked)
+    assert [m.role for m in setup.maps] == ["fallback"] and setup.maps[0].size == (1024, 1024)
+    assert np.allclose(setup.maps[0].matrix, uniform.maps[0].matrix) and "plane:0" in dict(setup.diagnostics.fallbacks)
 
 
 def test_without_a_seen_surface_the_plane_map_keeps_the_papers_budget():

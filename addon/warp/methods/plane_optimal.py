@@ -69,7 +69,7 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
     total = options.shadow_map_size[0] * options.shadow_map_size[1]
     s = share_budget(jobs, options.plane_budget * total, options.plane_twist)
     if jobs and not worth_its_texels(share, s, sum(_texels(j.rect) for j in jobs), len(frames) * total):
-        diag.fallback("plane:0", f"{jobs[0].plane.name}: {share:.1%} of the seen pixels, not worth its map's texels"
+        diag.fallback("plane:0", f"{jobs[0].plane.name}: {share:.1%} of the seen pixels (or edges), not worth its texels"
                                  + ("" if s >= 1.0 else f" ({s:.3g} lixels per pixel: below one its lixels sample no "
                                                         f"pixel's own point)"))
         jobs = []
@@ -102,11 +102,13 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
 def planes_of_interest(options: WarpOptions, body: IntersectionBody, tol: float,
                        diag: Diagnostics) -> tuple[list[PlaneOfInterest], float | None]:
     """``WarpOptions.planes``, else the flat receiver top the camera sees most (``plane_map.default_plane``; without a
-    seen surface the widest); and its seen share (None: unknown, or planes given)."""
+    seen surface the widest); and its share of the errors (None: unknown, or planes given): of the seen pixels, and
+    where the first look found shadow edges (``VisibleRegion.edge_directions``) at most of the pixels at those edges,
+    where shadow aliasing is (§1): a plane in one shadow, or wholly lit, has nothing for its map to make exact."""
     if options.planes:
         return [PlaneOfInterest.from_option(p, i) for i, p in enumerate(options.planes)], None
-    surface = None if body.visible is None else body.visible.surface
-    plane, share = default_plane(body.culled.receivers.boxes, surface, tol)
+    surface, edges = (None, None) if body.visible is None else (body.visible.surface, body.visible.edge_directions)
+    plane, share = default_plane(body.culled.receivers.boxes, surface, tol, None if edges is None else edges.any(1))
     if plane is None:
         diag.fallback("planes", _no_default_plane(body.culled.receivers.boxes, surface is not None))
         return [], None
