@@ -37,6 +37,7 @@ vec2 lixel_octahedral(vec3 n)
 
 void main()
 {
+  vec3 v_world = lixel_camera_position(v_camera); /* camera_lib.glsl */
   /* The normal's direction (its length and side are the shading pass's: the
    * octahedral map divides by the L1 norm, and the shading turns the normal
    * towards the viewer). */

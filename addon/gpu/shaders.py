@@ -163,12 +163,12 @@ def _camera_info(name: str, fragment: str):
     info = gpu.types.GPUShaderCreateInfo()
     _common_defines(info)
     iface = gpu.types.GPUStageInterfaceInfo(f"lixel_{name}_iface")
-    iface.smooth("VEC3", "v_world")
+    iface.smooth("VEC3", "v_camera")
     info.vertex_out(iface)
     _instanced_vertex_input(info)
     info.push_constant("MAT4", "u_view_proj")
-    info.vertex_source(source("instance_lib.glsl") + source("shade_vert.glsl"))
-    info.fragment_source(source(fragment))
+    info.vertex_source(source("instance_lib.glsl") + source("camera_lib.glsl") + source("shade_vert.glsl"))
+    info.fragment_source(source("camera_lib.glsl") + source(fragment))
     return info
 
 
