@@ -3,43 +3,43 @@
  * positions interpolated so erred off a face seen edge-on by 0.06-0.18 mm
  * 25 m away (gen64_04_point_behind_camera; p99 0.015 mm over the view): each
  * coordinate's P / w carries the camera's offset from the origin times 1 / w,
- * whose screen gradient is steep there, and rounds on its own. Three of the
- * camera's clip coordinates instead (x, y and w under a perspective camera,
- * x, y and z under an orthographic one, whose w is 1) have no such term: x / w
- * and y / w are the pixel's, and only the depth along the view is steep, so
- * the rounding moves the point along its eye ray, nearly within the face
- * (there now within 0.004 mm). Each is divided by its row's length: the
- * rows are then unit vectors, nearly orthogonal, and solving them back for P
- * (a 3 x 3 inverse in float32) adds only a few float32 steps of P's size.
- * lixel_camera_rows: those rows' directions as columns, their constant terms
- * and 1 / their lengths. */
-/* The clip row that gives the depth along the view: w (3), or z (2) where w
- * is constant (an orthographic camera). */
-int lixel_depth_row()
+ * whose screen gradient is steep there, and rounds on its own. Under a
+ * perspective camera the varying is therefore P in three of its clip
+ * coordinates, x, y and w, which have no such term: x / w and y / w are the
+ * pixel's, and only 1 / w is steep, so the rounding moves the point along its
+ * eye ray, nearly within the face (there now within 0.004 mm). Each is
+ * divided by its row's length, so the rows are unit vectors, nearly
+ * orthogonal, and solving them back for P (a 3 x 3 inverse in float32) adds
+ * only a few float32 steps of P's size. An orthographic camera interpolates
+ * without a 1 / w: there the varying stays P (its clip z would add the depth
+ * range's offset, losing 2^-24 of the far distance: 3 µm at 0.5 m for a far of
+ * 100 m).
+ * lixel_camera_rows: whether the camera is a perspective one, and then those
+ * rows' directions as columns, their constant terms and 1 / their lengths. */
+bool lixel_camera_rows(out mat3 rows, out vec3 offsets, out vec3 scale)
 {
   mat4 m = u_view_proj;
-  return abs(m[0][3]) + abs(m[1][3]) + abs(m[2][3]) > 0.0 ? 3 : 2;
-}
-
-void lixel_camera_rows(out mat3 rows, out vec3 offsets, out vec3 scale)
-{
-  mat4 m = u_view_proj;
+  vec3 x = vec3(m[0][0], m[1][0], m[2][0]), w = vec3(m[0][3], m[1][3], m[2][3]);
+  if (dot(w, w) <= 1e-12 * dot(x, x)) {
+    return false; /* orthographic: w's row is the float64 rounding of inverting the camera's matrix, ~1e-17 */
+  }
   for (int c = 0; c < 3; c++) {
-    int r = c < 2 ? c : lixel_depth_row();
+    int r = c < 2 ? c : 3;
     vec3 row = vec3(m[0][r], m[1][r], m[2][r]);
     scale[c] = inversesqrt(dot(row, row));
     rows[c] = row * scale[c];
     offsets[c] = m[3][r] * scale[c];
   }
+  return true;
 }
 
-/* The varying of clip position h. */
-vec3 lixel_camera_varying(vec4 h)
+/* The varying of world position P (relative to the frame's origin), whose
+ * clip position is h. */
+vec3 lixel_camera_varying(vec3 P, vec4 h)
 {
   mat3 rows;
   vec3 offsets, scale;
-  lixel_camera_rows(rows, offsets, scale);
-  return vec3(h.x, h.y, h[lixel_depth_row()]) * scale;
+  return lixel_camera_rows(rows, offsets, scale) ? vec3(h.x, h.y, h.w) * scale : P;
 }
 
 /* The world position (relative to the frame's origin) of the varying v. */
@@ -47,6 +47,5 @@ vec3 lixel_camera_position(vec3 v)
 {
   mat3 rows;
   vec3 offsets, scale;
-  lixel_camera_rows(rows, offsets, scale);
-  return inverse(transpose(rows)) * (v - offsets);
+  return lixel_camera_rows(rows, offsets, scale) ? inverse(transpose(rows)) * (v - offsets) : v;
 }

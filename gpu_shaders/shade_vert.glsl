@@ -6,5 +6,5 @@ void main()
 {
   vec4 world = lixel_instance_matrix() * vec4(pos, 1.0);
   gl_Position = u_view_proj * world;
-  v_camera = lixel_camera_varying(gl_Position); /* camera_lib.glsl */
+  v_camera = lixel_camera_varying(world.xyz, gl_Position); /* camera_lib.glsl */
 }
