@@ -37,7 +37,6 @@ vec2 lixel_octahedral(vec3 n)
 
 void main()
 {
-  vec3 v_world = lixel_camera_position(v_camera); /* camera_lib.glsl */
   /* The normal's direction (its length and side are the shading pass's: the
    * octahedral map divides by the L1 norm, and the shading turns the normal
    * towards the viewer). */
@@ -51,5 +50,5 @@ void main()
 #ifdef LIXEL_HOLDOUT
   marks |= 0x80000000u;
 #endif
-  out_surface = vec4(v_world, uintBitsToFloat(marks | (q.x << 15) | q.y));
+  out_surface = vec4(lixel_camera_position(v_camera), uintBitsToFloat(marks | (q.x << 15) | q.y));
 }

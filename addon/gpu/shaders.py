@@ -163,6 +163,7 @@ def _camera_info(name: str, fragment: str):
     info = gpu.types.GPUShaderCreateInfo()
     _common_defines(info)
     iface = gpu.types.GPUStageInterfaceInfo(f"lixel_{name}_iface")
+    iface.smooth("VEC3", "v_world")
     iface.smooth("VEC3", "v_camera")
     info.vertex_out(iface)
     _instanced_vertex_input(info)
