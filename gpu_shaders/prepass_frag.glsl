@@ -50,5 +50,5 @@ void main()
 #ifdef LIXEL_HOLDOUT
   marks |= 0x80000000u;
 #endif
-  out_surface = vec4(v_world, uintBitsToFloat(marks | (q.x << 15) | q.y));
+  out_surface = vec4(lixel_camera_position(), uintBitsToFloat(marks | (q.x << 15) | q.y));
 }

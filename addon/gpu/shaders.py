@@ -164,11 +164,15 @@ def _camera_info(name: str, fragment: str):
     _common_defines(info)
     iface = gpu.types.GPUStageInterfaceInfo(f"lixel_{name}_iface")
     iface.smooth("VEC3", "v_world")
+    iface.smooth("VEC3", "v_camera")
+    for flat in ("v_camera_offsets", "v_camera_to_world_x", "v_camera_to_world_y", "v_camera_to_world_z"):
+        iface.flat("VEC3", flat)                                 # (camera_lib.glsl: solved once per vertex)
     info.vertex_out(iface)
     _instanced_vertex_input(info)
     info.push_constant("MAT4", "u_view_proj")
-    info.vertex_source(source("instance_lib.glsl") + source("shade_vert.glsl"))
-    info.fragment_source(source(fragment))
+    info.vertex_source("#define LIXEL_VERTEX_STAGE\n" + source("instance_lib.glsl") + source("camera_lib.glsl")
+                       + source("shade_vert.glsl"))
+    info.fragment_source(source("camera_lib.glsl") + source(fragment))
     return info
 
 
