@@ -313,7 +313,8 @@ def test_a_point_lights_cascade_gets_the_first_looks_edges_but_its_lambda_guard_
     for a point light too: ``fit_warp`` takes the first look and hands the cascade each edge sample's direction, but
     not the per-tile edge weights the λ guard weighs its warps by (a point light's warped cube faces rendered worse
     with them: docs/papers.md, the λ guard, part 7); a sun's cascade gets both, and a point light's LiSPSM, whose
-    guard is all the first look would serve, takes none."""
+    guard is all the first look would serve, takes none. plane_optimal takes the edge samples under either light, to
+    price its default plane by its share of the edges (``plane_map.default_plane``), and no edge weights (no guard)."""
     overlook(fresh_scene)
     lamp = fresh_scene.objects["Sun"]
     lamp.data.type = kind
@@ -335,3 +336,5 @@ def test_a_point_lights_cascade_gets_the_first_looks_edges_but_its_lambda_guard_
     assert cascade.edge_directions is not None and np.any(cascade.edge_directions != 0, axis=1).sum() >= 20
     assert (cascade.edge_weights() is None) == (kind == "POINT")
     assert (seen("lispsm").edge_directions is None) == (kind == "POINT")
+    plane_optimal = seen("plane_optimal")
+    assert plane_optimal.edge_directions is not None and plane_optimal.edge_weights() is None
