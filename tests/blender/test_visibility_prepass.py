@@ -338,3 +338,61 @@ def test_a_point_lights_cascade_gets_the_first_looks_edges_but_its_lambda_guard_
     assert (seen("lispsm").edge_directions is None) == (kind == "POINT")
     plane_optimal = seen("plane_optimal")
     assert plane_optimal.edge_directions is not None and plane_optimal.edge_weights() is None
+
+
+
+def test_the_first_looks_edge_samples_weigh_the_shadow_edges_by_their_length_on_screen(mods, fresh_scene):
+    """Shadow aliasing is at the shadow edges (Chong-Gortler §1), so plane_optimal prices its default plane by its
+    share of the edges seen. The first look's samples, every k-th pixel each way, land in a band of 3 texels around
+    each edge, wide on screen on the near ground and a fraction of that on the far, grazing ground: counted, the
+    samples give the far ground too small a part of the edges. Each weighed by the length of edge it stands for
+    (``edge_lengths``: 1 / the band's width across the edge on screen), they give it its share of the pixels at a
+    shadow edge in the rendered image (a fine uniform map's shadows)."""
+    ground = bpy.data.meshes.new("Ground")
+    ground.from_pydata([(-200, -200, 0), (200, -200, 0), (200, 200, 0), (-200, 200, 0)], [], [(0, 1, 2, 3)])
+    add(fresh_scene, "Ground", ground)
+    posts = [(x, y, 0.5) for y in (12.0, 18.0) for x in (-3.0, 3.0)]
+    posts += [(x, y, 2.0) for y in range(50, 100, 12) for x in range(-24, 25, 8)]
+    for i, (x, y, r) in enumerate(posts):
+        add(fresh_scene, f"Post{i}", box_mesh(f"Post{i}", (x - r, y - r, 0.0), (x + r, y + r, 6 * r)))
+    cam = add(fresh_scene, "Cam", bpy.data.cameras.new("Cam"))
+    cam.data.clip_start, cam.data.clip_end = 0.1, 300.0
+    cam.location = (0.0, 0.0, 6.0)
+    cam.rotation_euler = (Vector((0.0, 40.0, 0.0)) - cam.location).to_track_quat("-Z", "Y").to_euler()
+    fresh_scene.camera = cam
+    sun = add(fresh_scene, "Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.rotation_euler = (0.0, math.radians(60), 0.0)
+    fresh_scene.render.engine = "LIXEL"
+    fresh_scene.render.resolution_x, fresh_scene.render.resolution_y = 640, 360
+    fresh_scene.render.resolution_percentage = 100
+    dg = fresh_scene.view_layers[0].depsgraph
+    dg.update()
+    mods.context.ensure_gpu_context()
+    geometry = mods.geometry.GeometryCache().update(dg)
+    view, light, bounds = mods.describe.describe_scene(fresh_scene, dg, instances=geometry.instances)
+    frame = mods.pipeline.ShadowFrame(geometry, view, read={"shadow_raw", "covered", "world_position"})
+    region, _ = mods.visibility.region_from_frame(frame, surface=True)
+    options = mods.warp.WarpOptions(shadow_map_size=4096)
+    body = mods.warp.focused_body(view, light, bounds, options, region)
+    found = mods.visibility.shadow_edges(frame, region, body, light, bounds, options)
+    setup = mods.warp.compute("uniform", view, light, bounds, options, body=body)
+    frame.draw_maps(setup, mods.settings.ShadowSettings(), body)
+    frame.shade(light, setup, mods.settings.ShadowSettings())
+    out = frame.finish()
+    shadow, seen = out.shadow_raw >= 0.5, out.covered
+    change = np.zeros_like(shadow)
+    for a, b in (((slice(1, None), slice(None)), (slice(None, -1), slice(None))),
+                 ((slice(None), slice(1, None)), (slice(None), slice(None, -1)))):
+        step = (shadow[a] != shadow[b]) & seen[a] & seen[b]
+        change[a] |= step
+        change[b] |= step
+    edge = out.world_position[change]
+    edge = edge[np.abs(edge[:, 2]) < 1e-3]
+    far = 30.0                                                      # (the near posts' shadows end at 25 m)
+    truth = (view.eye_depth(edge) > far).mean()
+    points = found.surface.mean(axis=1)
+    at = (found.edge_lengths > 0) & (np.abs(points[:, 2]) < 1e-3)
+    beyond = view.eye_depth(points[at]) > far
+    counted, weighed = beyond.mean(), found.edge_lengths[at][beyond].sum() / found.edge_lengths[at].sum()
+    assert len(edge) > 1000 and at.sum() > 100 and counted < 0.5 * truth    # (0.28 of the samples, 0.66 of the pixels)
+    assert abs(weighed - truth) < 0.5 * abs(counted - truth)                   # (0.79)
