@@ -81,12 +81,10 @@ def shadow_edges(frame, region: VisibleRegion, body, light, bounds, options) -> 
     seen_from = -frame.view.direction[None] if frame.view.orthographic else frame.view.position - points
     normals = region.normals * np.sign(np.einsum("ij,ij->i", region.normals, seen_from))[:, None]   # the seen side
     band, free, along = np.zeros(len(points)), np.ones(len(points), dtype=bool), np.zeros((len(points), 3))
-    texels = np.full((len(points), 2, 3), np.nan)                           # D_M of each sample's map
     for m, depth in zip(setup.maps, frame.probe_depths(setup, body)):
         mine = free & m.contains(points)
         free &= ~mine
         band[mine], along[mine] = at_shadow_edge(m, depth, points[mine], normals[mine], light)
-        texels[mine] = raster_jacobian(m.matrix, m.size, points[mine])
     view = frame.view
     pixels = band * math.sqrt(pixel_density_constant(view)) / (1.0 if view.orthographic else view.eye_depth(points))
     h = points @ view.world_to_clip[:, :3].T + view.world_to_clip[:, 3]
@@ -95,30 +93,7 @@ def shadow_edges(frame, region: VisibleRegion, body, light, bounds, options) -> 
     row = np.clip(np.searchsorted(t.y_edges[1:-1], h[:, 1] / h[:, 3], side="right"), 0, len(t.y_edges) - 2)
     edges = np.bincount(row * t.near.shape[1] + col, np.where(band > 0, 1.0 / np.maximum(pixels, EDGE_PIXELS), 0.0),
                         minlength=t.near.size)
-    across = band_across(view, texels, points, normals, along, pixels)
-    return replace(region, tiles=replace(t, edges=edges.reshape(t.near.shape)), edge_directions=along,
-                   edge_lengths=np.where(band > 0, 1.0 / np.maximum(across, EDGE_PIXELS), 0.0))
-
-
-def band_across(view, texels: np.ndarray, points: np.ndarray, normals: np.ndarray, along: np.ndarray,
-                isotropic: np.ndarray) -> np.ndarray:
-    """Per edge sample of :func:`shadow_edges`, the width on screen in pixels, across its edge, of the band of 3
-    texels (``at_shadow_edge``'s 3 x 3 taps) it was found in; ``isotropic`` where the edge's direction is not known.
-    On the sample's plane, with d the edge's direction and e = n × d, a Jacobian D (``texels``: the map's D_M, (N, 2,
-    3); the camera's D_V) gives |Dd ∧ De| / |Dd| texels or pixels per metre across d (per square metre over per
-    metre along), so the band is 3 / that of D_M metres across, times that of D_V pixels. Samples every k pixels
-    each way fall in it width / k² times per pixel of the edge's length on screen, so each stands for k² / width
-    pixels of the length: its 1 / width weighs the shadow edges seen by their length, where aliasing is (Chong-Gortler
-    §1), not by the samples a band holds, which fall few on a far or grazing ground (docs/papers.md)."""
-    across = np.cross(normals, along)
-
-    def per_metre(jacobian):
-        d, e = (np.einsum("nij,nj->ni", jacobian, v) for v in (along, across))
-        return np.abs(d[:, 0] * e[:, 1] - d[:, 1] * e[:, 0]) / np.linalg.norm(d, axis=1)
-
-    with np.errstate(divide="ignore", invalid="ignore"):
-        width = 3.0 * per_metre(raster_jacobian(view.world_to_clip, view.resolution, points)) / per_metre(texels)
-    return np.where(np.isfinite(width), width, isotropic)
+    return replace(region, tiles=replace(t, edges=edges.reshape(t.near.shape)), edge_directions=along)
 
 
 def at_shadow_edge(shadow_map, window_depth: np.ndarray, points: np.ndarray, normals: np.ndarray,

@@ -318,10 +318,9 @@ def flattest_box(receiver_boxes) -> Optional[tuple[int, float, float]]:
     return i, float(ext[i, 2]), float(side[i])
 
 
-def top_shares(boxes, surface: np.ndarray, tol: float, weights: Optional[np.ndarray] = None) -> np.ndarray:
+def top_shares(boxes, surface: np.ndarray, tol: float) -> np.ndarray:
     """Per box, the share of the seen surface (``VisibleRegion.surface``) on its top face: the samples whose depth
-    interval meets the top's height and whose middle lies over the box, within ``tol``, each by its ``weights``."""
-    w = np.ones(len(surface)) if weights is None else weights
+    interval meets the top's height and whose middle lies over the box, within ``tol``."""
     b = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3)
     order = np.argsort(b[:, 1, 2], kind="stable")
     z, tops = np.sort(surface[:, :, 2], axis=1), b[order, 1, 2]
@@ -333,22 +332,20 @@ def top_shares(boxes, surface: np.ndarray, tol: float, weights: Optional[np.ndar
         box = order[np.repeat(first[part] - np.cumsum(c) + c, c) + np.arange(c.sum())]
         mid = surface[np.repeat(part, c)].mean(axis=1)[:, :2]
         over = ((mid >= b[box, 0, :2] - tol) & (mid <= b[box, 1, :2] + tol)).all(axis=1)
-        seen += np.bincount(box[over], w[np.repeat(part, c)][over], minlength=len(b))
-    return seen / (w.sum() or 1.0)
+        seen += np.bincount(box[over], minlength=len(b))
+    return seen / max(len(z), 1)
 
 
 def default_plane(receiver_boxes, surface: Optional[np.ndarray] = None, tol: float = 0.0,
-                  edge_lengths: Optional[np.ndarray] = None) -> tuple[Optional[PlaneOfInterest], Optional[float]]:
+                  at_edges: Optional[np.ndarray] = None) -> tuple[Optional[PlaneOfInterest], Optional[float]]:
     """The default plane of interest and its seen share: the flat receiver top the ``surface`` is most on
     (``top_shares``; on none: None), without a surface the widest (share None); then widest, thinnest, first. Given
-    ``edge_lengths`` (per sample, the shadow edges' length on screen it stands for, 0 where none: ``VisibleRegion``;
-    all 0: no evidence), at most the top's share of that length: of the edge pixels, where aliasing is (Chong-Gortler
-    §1), not of the edge samples, which a far ground's narrow bands on screen catch few of."""
+    ``at_edges`` (which samples lie at a shadow edge; none: no evidence), at most the top's share of those samples."""
     b = np.asarray(receiver_boxes, dtype=np.float64).reshape(-1, 2, 3)
     area, height = _flat_tops(b[:, 0].T, b[:, 1].T)
     share = np.zeros(len(b)) if surface is None else top_shares(b, surface, tol)
     for i in np.lexsort((np.arange(len(b)), height, -area, -np.where(area >= 0, share, -1.0)))[:1].tolist():
         if area[i] >= 0 and (surface is None or share[i] > 0):
-            edges = share[i:i + 1] if not np.any(edge_lengths) else top_shares(b[i:i + 1], surface, tol, edge_lengths)
+            edges = share[i:i + 1] if not np.any(at_edges) else top_shares(b[i:i + 1], surface[at_edges], tol)
             return _top_face(b[i, 0], b[i, 1], i), None if surface is None else float(min(share[i], edges[0]))
     return None, None

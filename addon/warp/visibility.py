@@ -68,8 +68,6 @@ class VisibleRegion:
     """(N, 3) the unit normal at each ``surface`` sample (the ray cast's faces, the pre-pass's; None: not known)."""
     edge_directions: np.ndarray | None = None
     """(N, 3) the unit direction of the first look's shadow edge at each ``surface`` sample, 0 where none (None)."""
-    edge_lengths: np.ndarray | None = None
-    """(N,) the length on screen of the first look's shadow edges each ``surface`` sample stands for, 0 where none."""
 
     @property
     def is_empty(self) -> bool:

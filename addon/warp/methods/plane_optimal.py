@@ -103,12 +103,12 @@ def planes_of_interest(options: WarpOptions, body: IntersectionBody, tol: float,
                        diag: Diagnostics) -> tuple[list[PlaneOfInterest], float | None]:
     """``WarpOptions.planes``, else the flat receiver top the camera sees most (``plane_map.default_plane``; without a
     seen surface the widest); and its share of the errors (None: unknown, or planes given): of the seen pixels, and
-    where the first look found shadow edges (``VisibleRegion.edge_lengths``) at most of the pixels at those edges,
+    where the first look found shadow edges (``VisibleRegion.edge_directions``) at most of the pixels at those edges,
     where shadow aliasing is (§1): a plane in one shadow, or wholly lit, has nothing for its map to make exact."""
     if options.planes:
         return [PlaneOfInterest.from_option(p, i) for i, p in enumerate(options.planes)], None
-    surface, edges = (None, None) if body.visible is None else (body.visible.surface, body.visible.edge_lengths)
-    plane, share = default_plane(body.culled.receivers.boxes, surface, tol, edges)
+    surface, edges = (None, None) if body.visible is None else (body.visible.surface, body.visible.edge_directions)
+    plane, share = default_plane(body.culled.receivers.boxes, surface, tol, None if edges is None else edges.any(1))
     if plane is None:
         diag.fallback("planes", _no_default_plane(body.culled.receivers.boxes, surface is not None))
         return [], None
