@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from ..settings import FRUSTUM_ANGLE_DEGREES
 from ..warp import MAX_COORDINATE
 from ..warp.geometry import normalize, ortho_matrix
 from ..warp.types import MAX_MAP_SIDE, Light, SceneBounds, View, WarpError, WarpOptions, clip_range_beyond_depth
@@ -253,9 +254,10 @@ def _option(key: str, value, annotation: str):
     """Check one ``options`` entry against its WarpOptions field type."""
     field = f"options.{key}"
     if key == "max_frustum_angle":
-        deg = _number(value, field, positive=True)
-        if deg >= 180:
-            raise ConfigError(f"{field}: must be below 180 degrees (got {value!r})")
+        deg, (low, high) = _number(value, field), FRUSTUM_ANGLE_DEGREES
+        if not low <= deg <= high:      # (the Lixel panel's range; why: settings.FRUSTUM_ANGLE_DEGREES)
+            raise ConfigError(f"{field}: must be from {low:g} to {high:g} degrees, as in the Lixel panel; wider "
+                              f"lights take cube faces (got {value!r})")
         return math.radians(deg)
     optional = annotation.startswith("Optional[")
     kind = annotation[len("Optional["):-1] if optional else annotation

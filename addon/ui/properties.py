@@ -13,8 +13,8 @@ from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProp
                        IntProperty, IntVectorProperty, PointerProperty, StringProperty)
 
 from ..scene.units import length_text
-from ..settings import (BIAS_MODES, MAX_EYE_BLUR, MAX_MAP_SIZE, MDSM_SELECTIONS, MIN_MAP_SIZE, LixelSettings,
-                        ShadowSettings)
+from ..settings import (BIAS_MODES, FRUSTUM_ANGLE_DEGREES, MAX_EYE_BLUR, MAX_MAP_SIZE, MDSM_SELECTIONS, MIN_MAP_SIZE,
+                        LixelSettings, ShadowSettings)
 from ..warp.types import WarpError, WarpOptions
 from . import addon_preferences
 
@@ -161,7 +161,8 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
     lam: FloatProperty(name="λ", default=0.5, min=0.0, soft_max=1.0, precision=4,
                        description="The reparameterisation's λ (Zhang et al. Eq. 2)")
     max_frustum_angle: FloatProperty(
-        name="Max Frustum Angle", default=math.radians(120.0), min=math.radians(10.0), max=math.radians(170.0),
+        name="Max Frustum Angle", default=math.radians(120.0), min=math.radians(FRUSTUM_ANGLE_DEGREES[0]),
+        max=math.radians(FRUSTUM_ANGLE_DEGREES[1]),
         subtype="ANGLE", description="Widest single perspective map for a point light; wider needs take cube faces")
     planes: CollectionProperty(type=LixelPlane, name="Planes of Interest")
     active_plane: IntProperty(name="Active Plane", default=0, min=0)

@@ -553,3 +553,29 @@ def test_a_broken_method_does_not_hide_the_others(tmp_path):
     out = json.loads(r.stdout)["methods"]
     assert "ZeroDivisionError" in out["uniform"]["diagnostics"]["error"]
     assert all(out[m]["maps"] for m in out if m != "uniform")
+
+
+@pytest.mark.parametrize("degrees", [0.5, 9.9, 170.5, 175, 179.999])
+def test_a_max_frustum_angle_the_panel_refuses_is_refused_with_its_range(tmp_path, capsys, degrees):
+    """The Lixel panel takes Max Frustum Angle from 10° to 170°; the CLI took any angle in (0°, 180°): at 179.999°
+    a point light got one perspective map whose centre texels are 114,592 times as wide as a 90° cube face's (the panel
+    would have given cube faces). One range (``settings.FRUSTUM_ANGLE_DEGREES``) for both, refused with it."""
+    from addon.cli import main
+    config = json.loads((ROOT / "examples" / "terrain_point.json").read_text())
+    config["options"] = {"max_frustum_angle": degrees}
+    path = tmp_path / "config.json"
+    path.write_text(json.dumps(config))
+    assert main(["--method", "uniform", str(path)]) == 2
+    assert capsys.readouterr().err == (f"lixel: error: options.max_frustum_angle: must be from 10 to 170 degrees, as "
+                                       f"in the Lixel panel; wider lights take cube faces (got {degrees!r})\n")
+
+
+@pytest.mark.parametrize("degrees", [10, 170])
+def test_the_panels_max_frustum_angles_compute_from_the_cli(tmp_path, capsys, degrees):
+    from addon.cli import main
+    config = json.loads((ROOT / "examples" / "terrain_point.json").read_text())
+    config["options"] = {"max_frustum_angle": degrees}
+    path = tmp_path / "config.json"
+    path.write_text(json.dumps(config))
+    assert main(["--method", "uniform", str(path)]) == 0
+    assert json.loads(capsys.readouterr().out)["maps"]
