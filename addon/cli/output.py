@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import re
 import stat
 import tempfile
 from typing import Any
@@ -83,6 +84,26 @@ def map_json(m: ShadowMap) -> dict:
     if m.blend_band > 0:
         out["blend_band"] = float(m.blend_band)
     return out
+
+
+RECEIVER_BOX = re.compile(r"\breceiver box (\d+)")
+"""How the warp core's notes name a receiver (``plane_map``: the flattest box, the default plane's top): by its index
+among the receivers B was built from (``body.culled.receivers``), a number no user can look up."""
+
+
+def name_receivers(diagnostics: Diagnostics, body, name) -> None:
+    """Give each receiver the core's notes name by index (:data:`RECEIVER_BOX`) as ``name(k)``, k its index in the
+    scene's receivers (``SceneBounds.receivers``): a config's ``boxes[k]``, an object of a Blender scene."""
+    scene_index = np.flatnonzero(body.culled.receivers.mask)
+
+    def named(v):
+        if isinstance(v, str):
+            return RECEIVER_BOX.sub(lambda m: name(int(scene_index[int(m.group(1))])), v)
+        if isinstance(v, (list, dict)):
+            return {k: named(x) for k, x in v.items()} if isinstance(v, dict) else [named(x) for x in v]
+        return v
+    diagnostics.fallbacks = [(what, named(why)) for what, why in diagnostics.fallbacks]
+    diagnostics.extra = named(diagnostics.extra)
 
 
 def diagnostics_json(d: Diagnostics) -> dict:

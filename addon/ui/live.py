@@ -31,6 +31,7 @@ from typing import Optional
 import bpy
 import numpy as np
 
+from ..cli.output import name_receivers
 from ..gpu.blas import one_blas_thread
 from ..guard import guarded_callback, user_message
 from ..scene.describe import (NO_FACES, check_finite_geometry, describe_bounds, describe_light, describe_view,
@@ -303,6 +304,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         provisional = moving and method == "cascade" and adaptive_splits(new_settings.warp)
         options = dataclasses.replace(new_settings.warp, cascade_adaptive=False) if provisional else new_settings.warp
         setup = timed("warp", compute, method, view, light, bounds, options, body=body)
+        name_receivers(setup.diagnostics, body, receiver_object(instances))
         recomputed.append("setup")
         geometry = timed("overlay geometry", overlay_geometry, view, setup, body.faces)
         recomputed.append("overlays")
@@ -325,6 +327,11 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
     st.generation += 1
     log.debug("Lixel: %s recomputed %s in %.1f ms", scene.name, recomputed, st.total_ms())
     return st
+
+
+def receiver_object(instances):
+    """``name(k)`` for :func:`name_receivers`: the object whose bounds are receiver k of ``instances.bounds``."""
+    return lambda k: f"object '{instances.owners[instances.owner_ids[instances.receiver_ids[k]]]}'"
 
 
 def _r_sample(body) -> np.ndarray:
@@ -461,6 +468,7 @@ def compare_methods(st: LiveState, methods=None) -> list[dict]:
             rows.append(row)
             continue
         row["warp_ms"] = (time.perf_counter() - t0) * 1000.0
+        name_receivers(setup.diagnostics, st.body, receiver_object(st.instances))
         d = setup.diagnostics
         fallbacks, notes = fallbacks_and_notes(d)
         row.update(theta=d.theta, gamma=d.gamma, n_opt=d.n_opt, lam=d.lam, maps=len(setup.maps),

@@ -579,3 +579,23 @@ def test_the_panels_max_frustum_angles_compute_from_the_cli(tmp_path, capsys, de
     path.write_text(json.dumps(config))
     assert main(["--method", "uniform", str(path)]) == 0
     assert json.loads(capsys.readouterr().out)["maps"]
+
+
+def test_plane_optimal_names_the_receiver_it_speaks_of_as_the_configs_box(tmp_path, capsys):
+    """plane_optimal's notes named "receiver box i", i counting only the boxes in view: with a box out of view first,
+    the tower boxes[1] was "receiver box 0" and the ground boxes[2] "top of receiver box 1". They name boxes[k]."""
+    from addon.cli import main
+    config = json.loads((ROOT / "examples" / "sun_overhead.json").read_text())
+    behind, tower, ground = ({"min": [0, -600, 0], "max": [1, -599, 1]}, {"min": [0, 0, 0], "max": [1, 1, 3]},
+                             {"min": [-50, -50, -0.1], "max": [50, 50, 0]})
+    for boxes, said in (([behind, tower], "the flattest, boxes[1], is 300%"), ([behind, tower, ground], None)):
+        config["boxes"] = boxes
+        path = tmp_path / "config.json"
+        path.write_text(json.dumps(config))
+        assert main(["--method", "plane_optimal", str(path)]) == 0
+        d = json.loads(capsys.readouterr().out)["diagnostics"]
+        assert "receiver box" not in json.dumps(d)
+        if said:
+            assert said in d["fallbacks"][0]["reason"]
+        else:
+            assert d["default_plane"] == "top of boxes[2]" and d["planes"][0]["name"] == "top of boxes[2]"
