@@ -31,7 +31,7 @@ from typing import Optional
 import bpy
 import numpy as np
 
-from ..cli.output import name_receivers
+from ..cli.output import PLANE_OPTION, name_in_notes, name_receivers
 from ..gpu.blas import one_blas_thread
 from ..guard import guarded_callback, user_message
 from ..scene.describe import (NO_FACES, check_finite_geometry, describe_bounds, describe_light, describe_view,
@@ -304,7 +304,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         provisional = moving and method == "cascade" and adaptive_splits(new_settings.warp)
         options = dataclasses.replace(new_settings.warp, cascade_adaptive=False) if provisional else new_settings.warp
         setup = timed("warp", compute, method, view, light, bounds, options, body=body)
-        name_receivers(setup.diagnostics, body, receiver_object(instances))
+        named_in_notes(setup, body, instances, scene)
         recomputed.append("setup")
         geometry = timed("overlay geometry", overlay_geometry, view, setup, body.faces)
         recomputed.append("overlays")
@@ -329,9 +329,14 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
     return st
 
 
-def receiver_object(instances):
-    """``name(k)`` for :func:`name_receivers`: the object whose bounds are receiver k of ``instances.bounds``."""
-    return lambda k: f"object '{instances.owners[instances.owner_ids[instances.receiver_ids[k]]]}'"
+def named_in_notes(setup, body, instances, scene) -> None:
+    """The setup's notes with the receivers and planes of interest the core names by index named as the user knows
+    them: the object whose bounds a receiver is, the plane as the panel lists it (``LixelPlane.label``)."""
+    name_receivers(setup.diagnostics, body,
+                   lambda k: f"object '{instances.owners[instances.owner_ids[instances.receiver_ids[k]]]}'")
+    planes = getattr(getattr(scene, "lixel", None), "planes", ())
+    name_in_notes(setup.diagnostics, PLANE_OPTION,
+                  lambda i: f"plane of interest '{planes[i].label(i)}'" if i < len(planes) else f"planes[{i}]")
 
 
 def _r_sample(body) -> np.ndarray:
@@ -468,7 +473,7 @@ def compare_methods(st: LiveState, methods=None) -> list[dict]:
             rows.append(row)
             continue
         row["warp_ms"] = (time.perf_counter() - t0) * 1000.0
-        name_receivers(setup.diagnostics, st.body, receiver_object(st.instances))
+        named_in_notes(setup, st.body, st.instances, bpy.data.scenes.get(st.scene_name))
         d = setup.diagnostics
         fallbacks, notes = fallbacks_and_notes(d)
         row.update(theta=d.theta, gamma=d.gamma, n_opt=d.n_opt, lam=d.lam, maps=len(setup.maps),

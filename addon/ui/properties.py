@@ -84,6 +84,10 @@ class LixelPlane(bpy.types.PropertyGroup):
     corners: IntProperty(name="Corners", default=0, min=0, max=PLANE_CORNERS,
                          description="How many extent corners are set (0: the plane is unbounded)")
 
+    def label(self, index: int) -> str:
+        """How the panel lists the plane (``index``: its place in the list)."""
+        return self.source or f"Plane {index}"
+
     def extent_corners(self) -> tuple:
         return tuple(tuple(c) for c in self.extent[:self.corners])
 
@@ -283,10 +287,10 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
         """((point, normal[, extent]), ...) of the planes of interest; WarpError naming a bad one."""
         planes = tuple((tuple(p.point), tuple(p.normal)) + ((p.extent_corners(),) if p.corners else ())
                        for p in self.planes)
-        for p, (point, normal, *extent) in zip(self.planes, planes):
+        for i, (p, (point, normal, *extent)) in enumerate(zip(self.planes, planes)):
             corners = tuple(v for corner in p.extent_corners() for v in corner)
             if not all(math.isfinite(v) for v in point + normal + corners) or not any(normal):
-                raise WarpError(f"Plane of interest '{p.source or 'unnamed'}' of scene '{self.id_data.name}' has a "
+                raise WarpError(f"Plane of interest '{p.label(i)}' of scene '{self.id_data.name}' has a "
                                 f"non-finite point or a zero normal: remove it or take it again from the selection "
                                 f"(Lixel panel > Method > Planes of Interest)")
         return planes

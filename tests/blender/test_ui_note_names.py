@@ -50,3 +50,26 @@ def test_the_default_planes_top_is_named_by_its_object(live):
         d = st.setup.diagnostics
         assert "receiver box" not in repr(d.fallbacks) + repr(d.extra)
         assert d.extra["default_plane"] == "top of object 'lixel_ground ground'", d.extra["default_plane"]
+
+
+def test_a_plane_of_interest_is_named_as_the_panel_lists_it(live, lixel):
+    """The panel lists the planes of interest by what they were taken from ("Ground"; "Plane 1" where nothing is
+    recorded); the notes said "planes[0]", and a bad plane's error "Plane of interest 'unnamed'"."""
+    from test_ui_notes import IconLayout
+    panel = importlib.import_module(f"{lixel.__name__}.addon.ui.panel")
+    with active_scene("lixel_planes") as scene:
+        scene.lixel.method = "plane_optimal"
+        for point, source in (((0.0, 0.0, 1e6), "Ground"), ((0.0, 0.0, 0.0), "")):
+            p = scene.lixel.planes.add()
+            p.point, p.normal, p.source = point, (0.0, 0.0, 1.0), source
+        st = live.update(scene, bpy.context.evaluated_depsgraph_get())
+        assert st.ok, st.error
+        fallbacks = [value for label, value in live.readouts(st) if label == "Fallback"]
+        assert any("plane of interest 'Ground' has no visible part" in f for f in fallbacks), fallbacks
+        assert not any("planes[" in f for f in fallbacks)
+        log = []
+        panel.draw_planes(IconLayout(log), scene.lixel)
+        assert [e[1] for e in log if e[0] == "label" and e[1] in ("Ground", "Plane 1")] == ["Ground", "Plane 1"]
+        scene.lixel.planes[1].normal = (0.0, 0.0, 0.0)
+        st = live.update(scene, bpy.context.evaluated_depsgraph_get())
+        assert "Plane of interest 'Plane 1' of scene 'lixel_planes' has a non-finite point or a zero normal" in st.error
