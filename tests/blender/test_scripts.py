@@ -367,9 +367,11 @@ BAD = [
     ("export_animation.py", ["--output", "x.json", "--frames", "1048570:1048580"], "Blender's frames run from"),
     ("compare_methods.py", ["--output-dir", "d", "--methods", "uniform,bogus"], "unknown bogus"),
     ("compare_methods.py", ["--output-dir", "d", "--bogus-flag"], "unrecognized arguments"),
-    # "" compared (and rendered) every method; a method named twice was computed twice, its second row kept
+    # "" compared (and rendered) every method; a method named twice was computed twice, its second row kept; a
+    # view or overlay named twice was drawn and written twice
     ("compare_methods.py", ["--output-dir", "d", "--methods", ""], "unknown (none given)"),
     ("compare_methods.py", ["--output-dir", "d", "--methods", "uniform,psm,uniform"], "uniform given twice"),
+    ("overlay_snapshot.py", ["--output-dir", "d", "--views", "camera,camera"], "camera given twice"),
 ]
 
 
