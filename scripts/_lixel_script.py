@@ -208,7 +208,7 @@ class Session:
 
     def scene(self):
         bpy = self.bpy
-        if self.args.scene:
+        if self.args.scene is not None:    # ("": no scene of that name, as for --camera "", not the active one)
             sc = bpy.data.scenes.get(self.args.scene)
             if sc is None:
                 raise ScriptError(f"there is no scene named '{self.args.scene}' "

@@ -408,6 +408,9 @@ def test_scene_problems_are_errors_not_tracebacks(mode, blend, tmp_path):
     assert "Traceback" not in r.stderr
     r = run(mode, "export_animation.py", blend, "--scene", "nope", "--output", str(tmp_path / "y.json"))
     assert r.returncode == 1 and "there is no scene named 'nope'" in r.stderr
+    # --scene "" (an empty shell variable) exported the active scene; --camera "" was refused, as it is now
+    r = run(mode, "export_animation.py", blend, "--scene", "", "--output", str(tmp_path / "y.json"))
+    assert r.returncode == 1 and "there is no scene named ''" in r.stderr and not (tmp_path / "y.json").exists()
 
 
 @pytest.mark.parametrize("option,where", [("--json", "missing/x.json"), ("--output", ".")])
