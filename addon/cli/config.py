@@ -11,7 +11,7 @@
      "options": {...}}                            (optional WarpOptions fields)
 
 An orthographic camera gives ``"orthographic": true`` and ``"ortho_height"``
-instead of ``fov_y_deg``. Every error names the field (``ConfigError``); a key
+instead of ``fov_y_deg``; the camera's scale is ignored, as Blender ignores it. Every error names the field (``ConfigError``); a key
 the config format does not know (``light.energy``), or one that does not apply
 (a sun's ``position``), is an error too, never silently ignored.
 """
@@ -45,7 +45,10 @@ LIGHT_KEYS = {"SUN": ("direction",), "POINT": ("position",), "SPOT": ("direction
 """The keys each light type uses besides ``type`` and ``name``."""
 ASPECT_RANGE = (1e-6, 1e6)
 AXIS_RANGE = (1e-6, 1e6)
-"""Lengths a camera matrix's axes may have (a scaled camera is fine, a degenerate one is not)."""
+"""Lengths a camera matrix's axes may have: a scaled camera is taken unscaled, as Blender's renderers take it
+(``addon.scene.describe.unscaled_camera_matrix``), a degenerate one is refused."""
+ROUNDED_AXIS = 1e-6
+"""A camera axis this close to unit length is a rotation written to 6 digits (the examples), taken as given."""
 MAX_PROJECTION_CONDITION = 1e12
 """A projection beyond this condition number (a 1e-300° field of view, a 1e-300 clip
 start) cannot be inverted in float64 to the frustum the core clips with. Clip
@@ -112,6 +115,8 @@ def _matrix(value, field: str) -> np.ndarray:
     if not (AXIS_RANGE[0] <= lengths.min() and lengths.max() <= AXIS_RANGE[1]):
         raise ConfigError(f"{field}: the axes' lengths must be between {AXIS_RANGE[0]:g} and {AXIS_RANGE[1]:g} "
                           f"(got {', '.join(f'{v:.3g}' for v in lengths)})")
+    if np.any(np.abs(lengths - 1.0) > ROUNDED_AXIS):   # eye depths, clip range and lens are lengths, not in scales
+        a[:3, :3] /= lengths
     return a
 
 

@@ -599,3 +599,23 @@ def test_plane_optimal_names_the_receiver_it_speaks_of_as_the_configs_box(tmp_pa
             assert said in d["fallbacks"][0]["reason"]
         else:
             assert d["default_plane"] == "top of boxes[2]" and d["planes"][0]["name"] == "top of boxes[2]"
+
+
+@pytest.mark.parametrize("scale", [(2.0, 2.0, 2.0), (0.5, 0.5, 0.5), (2.0, 4.0, 0.5)])
+def test_a_scaled_camera_is_taken_as_blender_takes_it_unscaled(tmp_path, capsys, scale):
+    """Blender's renderers ignore a camera's scale (``describe.unscaled_camera_matrix``); the CLI took it into the
+    view, so a camera matrix_world scaled by 2 measured eye depths in halves (visible_depth_range 1.86-5.27 for
+    chess_spot's 3.72-10.54) and clipped at twice its near and far; a non-uniform scale stretched the frustum."""
+    from addon.cli import main
+    config = json.loads((ROOT / "examples" / "chess_spot.json").read_text())
+    unscaled = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, -1.0, -8.0], [0.0, 1.0, 0.0, 1.0], [0.0, 0.0, 0.0, 1.0]])
+    outputs = []
+    for s in ((1.0, 1.0, 1.0), scale):
+        matrix = unscaled.copy()
+        matrix[:3, :3] *= s                          # (Blender's matrix_world: each axis times the object's scale)
+        config["camera"]["matrix_world"] = matrix.tolist()
+        path = tmp_path / "config.json"
+        path.write_text(json.dumps(config))
+        assert main(["--method", "all", str(path)]) == 0
+        outputs.append(capsys.readouterr().out)
+    assert outputs[0] == outputs[1]
