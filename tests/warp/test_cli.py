@@ -320,17 +320,19 @@ def test_an_option_out_of_range_is_refused_before_computing(tmp_path, capsys, op
         assert capsys.readouterr().err == f"lixel: error: options.{option}: {allowed} (got {value!r})\n"
 
 
-def test_plane_maps_that_do_not_fit_a_one_texel_map_say_what_to_do(tmp_path, capsys):
+@pytest.mark.parametrize("size, options, budget", [(1, {}, "0.75"), (1024, {"plane_budget": 1e-12}, "1.05e-06")])
+def test_plane_maps_that_do_not_fit_say_what_to_do(tmp_path, capsys, size, options, budget):
     """chess_spot at "shadow_map_size": 1 (the format's least): plane_optimal said "plane_optimal: plane_optimal:
-    could not fit the plane maps into the texel budget", its name twice and no remedy."""
+    could not fit the plane maps into the texel budget", its name twice and no remedy. At a plane_budget of 1e-12
+    of a 1024² map it said "give a larger shadow map size": one of 10^12 texels. Either raises the budget."""
     from addon.cli import main
     config = json.loads((ROOT / "examples" / "chess_spot.json").read_text())
-    config["shadow_map_size"] = 1
+    config["shadow_map_size"], config["options"] = size, options
     path = tmp_path / "config.json"
     path.write_text(json.dumps(config))
     assert main(["--method", "plane_optimal", str(path)]) == 1
-    assert capsys.readouterr().err == ("lixel: error: plane_optimal: the plane maps do not fit a budget of 0.75 "
-                                       "texels: give a larger shadow map size\n")
+    assert capsys.readouterr().err == (f"lixel: error: plane_optimal: the plane maps do not fit a budget of {budget} "
+                                       f"texels: raise the map size or plane budget\n")
 
 
 @pytest.mark.parametrize("key, value", [("shadow_map_size", 1024), ("planes", [])])
