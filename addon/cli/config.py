@@ -186,7 +186,10 @@ def parse_light(light: dict) -> Light:
         if key not in ("type", "name") + LIGHT_KEYS[kind]:
             raise ConfigError(f"light.{key}: a {kind} light has no {key}; it takes "
                               f"{', '.join(LIGHT_KEYS[kind])} (and name)")
-    kw: dict[str, Any] = {"type": kind, "name": str(light.get("name", "light"))}
+    name = light.get("name", "light")
+    if not isinstance(name, str) or not name.strip():       # (the messages name the light by it)
+        raise ConfigError(f"light.name: must be a non-empty string (got {name!r})")
+    kw: dict[str, Any] = {"type": kind, "name": name}
     if kind in ("SUN", "SPOT"):
         d = _vector(_get(light, "direction", "light"), "light.direction")
         try:

@@ -178,6 +178,10 @@ MALFORMED = {
     "light_type_area": (_set(["light", "type"], "AREA"), "light.type"),
     "light_type_lowercase": (_set(["light", "type"], "sun"), "light.type"),
     "light_type_missing": (_drop(["light", "type"]), "light.type"),
+    # a light's name was str()'d: 5, null or "" computed as light '5', 'None' or '' in every message
+    "light_name_number": (_set(["light", "name"], 5), "light.name"),
+    "light_name_null": (_set(["light", "name"], None), "light.name"),
+    "light_name_empty": (_set(["light", "name"], " "), "light.name"),
     "light_direction_zero": (_set(["light", "direction"], [0, 0, 0]), "light.direction"),
     "light_direction_two": (_set(["light", "direction"], [0, 1]), "light.direction"),
     "light_direction_string": (_set(["light", "direction"], "down"), "light.direction"),
