@@ -417,6 +417,28 @@ def _matrix_modifier(ob, name: str, group, carrier, map_index: int):
     return mod
 
 
+def followers_of_missing_maps(carrier, count: int) -> list:
+    """(object name, map index) of every object whose Lixel frustum or texel-grid modifier follows ``carrier``'s map
+    ``index`` >= ``count``, a map the carrier no longer holds (the setup has fewer maps since it was added): the
+    groups read a zero matrix there: a frustum shows a 2-unit cube at the origin, a texel grid no texel's colour."""
+    out = []
+    for ob in bpy.data.objects:
+        for name in (FRUSTUM_MODIFIER, TEXEL_MODIFIER):
+            mod = lixel_modifier(ob, name)
+            if mod is not None and _get_input(mod, "Light Matrices") == carrier:
+                index = int(_get_input(mod, "Map Index"))
+                if index >= count:
+                    out.append((ob.name, index))
+    return out
+
+
+def _get_input(mod, name: str):
+    for item in mod.node_group.interface.items_tree:
+        if getattr(item, "in_out", None) == "INPUT" and item.name == name:
+            return mod[item.identifier]
+    raise KeyError(name)
+
+
 def lixel_modifier(ob, name: str):
     """The geometry-nodes modifier Lixel added to ``ob`` as ``name`` (it runs one
     of Lixel's node groups), or None."""
