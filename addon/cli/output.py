@@ -110,7 +110,8 @@ def name_receivers(diagnostics: Diagnostics, body, name) -> None:
     """Give each receiver the core's notes name by index (:data:`RECEIVER_BOX`) as ``name(k)``, k its index in the
     scene's receivers (``SceneBounds.receivers``): a config's ``boxes[k]``, an object of a Blender scene."""
     scene_index = np.flatnonzero(body.culled.receivers.mask)
-    name_in_notes(diagnostics, RECEIVER_BOX, lambda i: name(int(scene_index[i])))
+    name_in_notes(diagnostics, RECEIVER_BOX,
+                  lambda i: name(int(scene_index[i])) if i < len(scene_index) else f"receiver box {i}")
 
 
 def diagnostics_json(d: Diagnostics) -> dict:
