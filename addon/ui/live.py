@@ -35,7 +35,7 @@ from ..cli.output import PLANE_OPTION, name_in_notes, name_receivers
 from ..gpu.blas import one_blas_thread
 from ..guard import guarded_callback, user_message
 from ..scene.describe import (NO_FACES, check_finite_geometry, describe_bounds, describe_light, describe_view,
-                              light_notes, pick_light, render_camera, shadow_off)
+                              evaluated_depsgraph, light_notes, pick_light, render_camera, shadow_off)
 from ..scene.geometry import shared_cache
 from ..scene.notes import scene_notes
 from ..scene.owned import is_debug_object
@@ -243,8 +243,8 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         st = _states[scene_key(scene)] = LiveState(scene.name)
     st.scene_name = scene.name
     todo = set(INPUTS) if changed is None else set(changed)
-    if depsgraph is None:
-        depsgraph = scene.view_layers[0].depsgraph
+    if depsgraph is None and (todo or None in (st.view, st.light, st.bounds)):
+        depsgraph = evaluated_depsgraph(scene)    # (view_layers[0].depsgraph of a scene not shown: Blender crashed)
     timings: dict[str, float] = {}
     recomputed = []
     light_notes_before = st.light_notes
