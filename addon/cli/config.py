@@ -11,9 +11,10 @@
      "options": {...}}                            (optional WarpOptions fields)
 
 An orthographic camera gives ``"orthographic": true`` and ``"ortho_height"``
-instead of ``fov_y_deg``; the camera's scale is ignored, as Blender ignores it. Every error names the field (``ConfigError``); a key
-the config format does not know (``light.energy``), or one that does not apply
-(a sun's ``position``), is an error too, never silently ignored.
+instead of ``fov_y_deg``; the camera's scale is ignored, as Blender ignores it.
+Every error names the field (``ConfigError``); a key the config format does not
+know (``light.energy``), or one that does not apply (a sun's ``position``), is
+an error too, never silently ignored.
 """
 from __future__ import annotations
 
