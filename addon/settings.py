@@ -21,12 +21,6 @@ MAX_EYE_BLUR = 32.0
 """The widest eye-space blur in pixels: each seen pixel reads its (2r + 1)² neighbours (eye_blur_frag.glsl), 4,225 at
 32 and 4 million at 1,000, where one 1080p frame takes hours and the viewport's shadowed overlay freezes Blender."""
 
-FRUSTUM_ANGLE_DEGREES = (10.0, 170.0)
-"""The Max Frustum Angle a user may set (``WarpOptions.max_frustum_angle``, in degrees), in the panel and the CLI
-alike. Past 170° a point light's one perspective map spreads its texels thin at its centre, tan(half the angle)
-times a 90° cube face's (11.4 at 170°, 1,146 at 179.9°): cube faces serve such a light better. Below 10° nearly
-every point light takes cube faces, each 90° wide, wider than the limit asked for."""
-
 BIAS_MODES = ("NONE", "CONSTANT", "SLOPE", "CONSTANT_SLOPE", "RECEIVER_PLANE", "NORMAL_OFFSET")
 MDSM_SELECTIONS = ("MINMAX", "SORT")
 

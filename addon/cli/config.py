@@ -24,7 +24,6 @@ from typing import Any
 
 import numpy as np
 
-from ..settings import FRUSTUM_ANGLE_DEGREES
 from ..warp import MAX_COORDINATE
 from ..warp.geometry import normalize, ortho_matrix
 from ..warp.types import MAX_MAP_SIDE, Light, SceneBounds, View, WarpError, WarpOptions, clip_range_beyond_depth
@@ -48,6 +47,11 @@ ASPECT_RANGE = (1e-6, 1e6)
 AXIS_RANGE = (1e-6, 1e6)
 """Lengths a camera matrix's axes may have: a scaled camera is taken unscaled, as Blender's renderers take it
 (``addon.scene.describe.unscaled_camera_matrix``), a degenerate one is refused."""
+FRUSTUM_ANGLE_DEGREES = (10.0, 170.0)
+"""The Max Frustum Angle a user may set (``WarpOptions.max_frustum_angle``, in degrees), in the panel and the CLI
+alike. Past 170° a point light's one perspective map spreads its texels thin at its centre, tan(half the angle)
+times a 90° cube face's (11.4 at 170°, 1,146 at 179.9°): cube faces serve such a light better. Below 10° nearly
+every point light takes cube faces, each 90° wide, wider than the limit asked for."""
 ROUNDED_AXIS = 1e-6
 """A camera axis this close to unit length is a rotation written to 6 digits (the examples), taken as given."""
 MAX_PROJECTION_CONDITION = 1e12
@@ -264,7 +268,7 @@ def _option(key: str, value, annotation: str):
     field = f"options.{key}"
     if key == "max_frustum_angle":
         deg, (low, high) = _number(value, field), FRUSTUM_ANGLE_DEGREES
-        if not low <= deg <= high:      # (the Lixel panel's range; why: settings.FRUSTUM_ANGLE_DEGREES)
+        if not low <= deg <= high:      # (the Lixel panel's range too)
             raise ConfigError(f"{field}: must be from {low:g} to {high:g} degrees, as in the Lixel panel; wider "
                               f"lights take cube faces (got {value!r})")
         return math.radians(deg)

@@ -13,8 +13,9 @@ from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProp
                        IntProperty, IntVectorProperty, PointerProperty, StringProperty)
 
 from ..scene.units import length_text
-from ..settings import (BIAS_MODES, FRUSTUM_ANGLE_DEGREES, MAX_EYE_BLUR, MAX_MAP_SIZE, MDSM_SELECTIONS, MIN_MAP_SIZE,
-                        LixelSettings, ShadowSettings)
+from ..cli.config import FRUSTUM_ANGLE_DEGREES
+from ..settings import (BIAS_MODES, MAX_EYE_BLUR, MAX_MAP_SIZE, MDSM_SELECTIONS, MIN_MAP_SIZE, LixelSettings,
+                        ShadowSettings)
 from ..warp.types import WarpError, WarpOptions
 from . import addon_preferences
 

@@ -565,7 +565,7 @@ def test_a_broken_method_does_not_hide_the_others(tmp_path):
 def test_a_max_frustum_angle_the_panel_refuses_is_refused_with_its_range(tmp_path, capsys, degrees):
     """The Lixel panel takes Max Frustum Angle from 10° to 170°; the CLI took any angle in (0°, 180°): at 179.999°
     a point light got one perspective map whose centre texels are 114,592 times as wide as a 90° cube face's (the panel
-    would have given cube faces). One range (``settings.FRUSTUM_ANGLE_DEGREES``) for both, refused with it."""
+    would have given cube faces). One range (``cli.config.FRUSTUM_ANGLE_DEGREES``) for both, refused with it."""
     from addon.cli import main
     config = json.loads((ROOT / "examples" / "terrain_point.json").read_text())
     config["options"] = {"max_frustum_angle": degrees}
