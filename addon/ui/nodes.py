@@ -397,12 +397,16 @@ def ensure_carrier(scene, setup):
     return ob
 
 
-def _set_input(mod, tree, name, value):
+def _input(tree, name: str) -> str:
+    """The identifier of ``tree``'s input ``name`` (a modifier's key for its value)."""
     for item in tree.interface.items_tree:
         if getattr(item, "in_out", None) == "INPUT" and item.name == name:
-            mod[item.identifier] = value
-            return
+            return item.identifier
     raise KeyError(name)
+
+
+def _set_input(mod, tree, name, value):
+    mod[_input(tree, name)] = value
 
 
 def _matrix_modifier(ob, name: str, group, carrier, map_index: int):
@@ -425,18 +429,11 @@ def followers_of_missing_maps(carrier, count: int) -> list:
     for ob in bpy.data.objects:
         for name in (FRUSTUM_MODIFIER, TEXEL_MODIFIER):
             mod = lixel_modifier(ob, name)
-            if mod is not None and _get_input(mod, "Light Matrices") == carrier:
-                index = int(_get_input(mod, "Map Index"))
+            if mod is not None and mod[_input(mod.node_group, "Light Matrices")] == carrier:
+                index = int(mod[_input(mod.node_group, "Map Index")])
                 if index >= count:
                     out.append((ob.name, index))
     return out
-
-
-def _get_input(mod, name: str):
-    for item in mod.node_group.interface.items_tree:
-        if getattr(item, "in_out", None) == "INPUT" and item.name == name:
-            return mod[item.identifier]
-    raise KeyError(name)
 
 
 def lixel_modifier(ob, name: str):
