@@ -43,6 +43,18 @@ def check_frames(parser: argparse.ArgumentParser, option: str, text, *frames: in
         parser.error(f"{option} {text}: Blender's frames run from {lo} to {hi}")
 
 
+def names_option(parser: argparse.ArgumentParser, option: str, text: str, allowed) -> list:
+    """The comma-separated names of ``option`` (``--methods``, ``--views``); usage error (exit 2) for a name not in
+    ``allowed``, for none ("", an empty shell variable) and for one given twice."""
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    bad = [n for n in names if n not in allowed]
+    if bad or not names:
+        parser.error(f"{option}: unknown {', '.join(bad) or '(none given)'}; choose from {', '.join(allowed)}")
+    if twice := sorted({n for n in names if names.count(n) > 1}):
+        parser.error(f"{option}: {', '.join(twice)} given twice: name each once")
+    return names
+
+
 class ScriptError(Exception):
     """A problem with the scene, reported as ``lixel: error: ...`` (exit status 1)."""
 
@@ -196,7 +208,7 @@ class Session:
 
     def scene(self):
         bpy = self.bpy
-        if self.args.scene:
+        if self.args.scene is not None:    # ("": no scene of that name, as for --camera "", not the active one)
             sc = bpy.data.scenes.get(self.args.scene)
             if sc is None:
                 raise ScriptError(f"there is no scene named '{self.args.scene}' "

@@ -31,12 +31,7 @@ def main(argv=None):
         p.error(f"--longest {args.longest}: use 16..16384 pixels")
     with ls.Session(args) as s:
         all_methods = list(s.module("addon.warp.methods").METHODS)
-        methods = all_methods
-        if args.methods:
-            methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-            bad = [m for m in methods if m not in all_methods]
-            if bad or not methods:
-                p.error(f"--methods: unknown {', '.join(bad) or '(none given)'}; choose from {', '.join(all_methods)}")
+        methods = all_methods if args.methods is None else ls.names_option(p, "--methods", args.methods, all_methods)
         live = s.module("addon.ui.live")
         scene = s.scene()
         st = s.state(scene, s.settings(scene, "uniform"))

@@ -23,14 +23,6 @@ VIEWS = ("camera", "observer")
 OVERLAYS = ("body", "frusta", "warp", "texels", "footprint")
 
 
-def _names(p, option, text, allowed):
-    names = [n.strip() for n in text.split(",") if n.strip()]
-    bad = [n for n in names if n not in allowed]
-    if bad or not names:
-        p.error(f"{option}: unknown {', '.join(bad) or '(none given)'}; choose from {', '.join(allowed)}")
-    return names
-
-
 def parser():
     p = ls.base_parser("overlay_snapshot.py", "Draw Lixel's viewport overlays off-screen and save them as PNG.")
     p.add_argument("--output-dir", "-o", required=True, help="directory for the PNG files")
@@ -46,9 +38,9 @@ def parser():
 def main(argv=None):
     p = parser()
     args = ls.parse(p, argv)
-    views = _names(p, "--views", args.views, VIEWS)
-    overlays = {"camera": _names(p, "--camera-overlays", args.camera_overlays, OVERLAYS),
-                "observer": _names(p, "--observer-overlays", args.observer_overlays, OVERLAYS)}
+    views = ls.names_option(p, "--views", args.views, VIEWS)
+    overlays = {"camera": ls.names_option(p, "--camera-overlays", args.camera_overlays, OVERLAYS),
+                "observer": ls.names_option(p, "--observer-overlays", args.observer_overlays, OVERLAYS)}
     if not 64 <= args.width <= 8192:
         p.error(f"--width {args.width}: use 64..8192 pixels")
     with ls.Session(args) as s:

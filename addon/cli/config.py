@@ -11,9 +11,10 @@
      "options": {...}}                            (optional WarpOptions fields)
 
 An orthographic camera gives ``"orthographic": true`` and ``"ortho_height"``
-instead of ``fov_y_deg``. Every error names the field (``ConfigError``); a key
-the config format does not know (``light.energy``), or one that does not apply
-(a sun's ``position``), is an error too, never silently ignored.
+instead of ``fov_y_deg``; the camera's scale is ignored, as Blender ignores it.
+Every error names the field (``ConfigError``); a key the config format does not
+know (``light.energy``), or one that does not apply (a sun's ``position``), is
+an error too, never silently ignored.
 """
 from __future__ import annotations
 
@@ -44,7 +45,15 @@ LIGHT_KEYS = {"SUN": ("direction",), "POINT": ("position",), "SPOT": ("direction
 """The keys each light type uses besides ``type`` and ``name``."""
 ASPECT_RANGE = (1e-6, 1e6)
 AXIS_RANGE = (1e-6, 1e6)
-"""Lengths a camera matrix's axes may have (a scaled camera is fine, a degenerate one is not)."""
+"""Lengths a camera matrix's axes may have: a scaled camera is taken unscaled, as Blender's renderers take it
+(``addon.scene.describe.unscaled_camera_matrix``), a degenerate one is refused."""
+FRUSTUM_ANGLE_DEGREES = (10.0, 170.0)
+"""The Max Frustum Angle a user may set (``WarpOptions.max_frustum_angle``, in degrees), in the panel and the CLI
+alike. Past 170° a point light's one perspective map spreads its texels thin at its centre, tan(half the angle)
+times a 90° cube face's (11.4 at 170°, 1,146 at 179.9°): cube faces serve such a light better. Below 10° nearly
+every point light takes cube faces, each 90° wide, wider than the limit asked for."""
+ROUNDED_AXIS = 1e-6
+"""A camera axis this close to unit length is a rotation written to 6 digits (the examples), taken as given."""
 MAX_PROJECTION_CONDITION = 1e12
 """A projection beyond this condition number (a 1e-300° field of view, a 1e-300 clip
 start) cannot be inverted in float64 to the frustum the core clips with. Clip
@@ -111,6 +120,8 @@ def _matrix(value, field: str) -> np.ndarray:
     if not (AXIS_RANGE[0] <= lengths.min() and lengths.max() <= AXIS_RANGE[1]):
         raise ConfigError(f"{field}: the axes' lengths must be between {AXIS_RANGE[0]:g} and {AXIS_RANGE[1]:g} "
                           f"(got {', '.join(f'{v:.3g}' for v in lengths)})")
+    if np.any(np.abs(lengths - 1.0) > ROUNDED_AXIS):   # eye depths, clip range and lens are lengths, not in scales
+        a[:3, :3] /= lengths
     return a
 
 
@@ -180,7 +191,10 @@ def parse_light(light: dict) -> Light:
         if key not in ("type", "name") + LIGHT_KEYS[kind]:
             raise ConfigError(f"light.{key}: a {kind} light has no {key}; it takes "
                               f"{', '.join(LIGHT_KEYS[kind])} (and name)")
-    kw: dict[str, Any] = {"type": kind, "name": str(light.get("name", "light"))}
+    name = light.get("name", "light")
+    if not isinstance(name, str) or not name.strip():       # (the messages name the light by it)
+        raise ConfigError(f"light.name: must be a non-empty string (got {name!r})")
+    kw: dict[str, Any] = {"type": kind, "name": name}
     if kind in ("SUN", "SPOT"):
         d = _vector(_get(light, "direction", "light"), "light.direction")
         try:
@@ -253,9 +267,10 @@ def _option(key: str, value, annotation: str):
     """Check one ``options`` entry against its WarpOptions field type."""
     field = f"options.{key}"
     if key == "max_frustum_angle":
-        deg = _number(value, field, positive=True)
-        if deg >= 180:
-            raise ConfigError(f"{field}: must be below 180 degrees (got {value!r})")
+        deg, (low, high) = _number(value, field), FRUSTUM_ANGLE_DEGREES
+        if not low <= deg <= high:      # (the Lixel panel's range too)
+            raise ConfigError(f"{field}: must be from {low:g} to {high:g} degrees, as in the Lixel panel; wider "
+                              f"lights take cube faces (got {value!r})")
         return math.radians(deg)
     optional = annotation.startswith("Optional[")
     kind = annotation[len("Optional["):-1] if optional else annotation

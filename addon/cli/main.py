@@ -21,7 +21,7 @@ import numpy as np
 from ..warp import METHODS, compute, focused_body
 from ..warp.types import EmptyBodyError, WarpError
 from .config import parse_config
-from .output import empty_body_json, setup_json
+from .output import empty_body_json, name_receivers, setup_json
 
 
 def _internal(exc: BaseException) -> str:
@@ -41,7 +41,9 @@ def run_method(name, view, light, scene, options, body):
     if isinstance(body, EmptyBodyError):
         return empty_body_json(name, str(body))
     try:
-        return setup_json(compute(name, view, light, scene, options, body=body))
+        setup = compute(name, view, light, scene, options, body=body)
+        name_receivers(setup.diagnostics, body, lambda k: f"boxes[{k}]")
+        return setup_json(setup)
     except WarpError as exc:
         return {"maps": [], "diagnostics": {"method": name, "error": str(exc), "fallbacks": []}}
     except Exception as exc:  # a bug in one method must not hide the others' results

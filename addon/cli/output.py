@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import re
 import stat
 import tempfile
 from typing import Any
@@ -83,6 +84,34 @@ def map_json(m: ShadowMap) -> dict:
     if m.blend_band > 0:
         out["blend_band"] = float(m.blend_band)
     return out
+
+
+RECEIVER_BOX = re.compile(r"\breceiver box (\d+)")
+"""How the warp core's notes name a receiver (``plane_map``: the flattest box, the default plane's top): by its index
+among the receivers B was built from (``body.culled.receivers``), a number no user can look up."""
+PLANE_OPTION = re.compile(r"\bplanes\[(\d+)\]")
+"""How they name a plane of interest given (``PlaneOfInterest.from_option``): by its index in ``WarpOptions.planes``,
+the config's own name for it; the Lixel panel lists the planes by name."""
+
+
+def name_in_notes(diagnostics: Diagnostics, pattern: re.Pattern, name) -> None:
+    """Write each ``pattern`` (its group: an index i) in the diagnostics' notes and extra text as ``name(i)``."""
+    def named(v):
+        if isinstance(v, str):
+            return pattern.sub(lambda m: name(int(m.group(1))), v)
+        if isinstance(v, (list, dict)):
+            return {k: named(x) for k, x in v.items()} if isinstance(v, dict) else [named(x) for x in v]
+        return v
+    diagnostics.fallbacks = [(what, named(why)) for what, why in diagnostics.fallbacks]
+    diagnostics.extra = named(diagnostics.extra)
+
+
+def name_receivers(diagnostics: Diagnostics, body, name) -> None:
+    """Give each receiver the core's notes name by index (:data:`RECEIVER_BOX`) as ``name(k)``, k its index in the
+    scene's receivers (``SceneBounds.receivers``): a config's ``boxes[k]``, an object of a Blender scene."""
+    scene_index = np.flatnonzero(body.culled.receivers.mask)
+    name_in_notes(diagnostics, RECEIVER_BOX,
+                  lambda i: name(int(scene_index[i])) if i < len(scene_index) else f"receiver box {i}")
 
 
 def diagnostics_json(d: Diagnostics) -> dict:

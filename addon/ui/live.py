@@ -31,10 +31,11 @@ from typing import Optional
 import bpy
 import numpy as np
 
+from ..cli.output import PLANE_OPTION, name_in_notes, name_receivers
 from ..gpu.blas import one_blas_thread
 from ..guard import guarded_callback, user_message
 from ..scene.describe import (NO_FACES, check_finite_geometry, describe_bounds, describe_light, describe_view,
-                              light_notes, pick_light, render_camera, shadow_off)
+                              evaluated_depsgraph, light_notes, pick_light, render_camera, shadow_off)
 from ..scene.geometry import shared_cache
 from ..scene.notes import scene_notes
 from ..scene.owned import is_debug_object
@@ -242,8 +243,8 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         st = _states[scene_key(scene)] = LiveState(scene.name)
     st.scene_name = scene.name
     todo = set(INPUTS) if changed is None else set(changed)
-    if depsgraph is None:
-        depsgraph = scene.view_layers[0].depsgraph
+    if depsgraph is None and (todo or None in (st.view, st.light, st.bounds)):
+        depsgraph = evaluated_depsgraph(scene)    # (view_layers[0].depsgraph of a scene not shown: Blender crashed)
     timings: dict[str, float] = {}
     recomputed = []
     light_notes_before = st.light_notes
@@ -303,6 +304,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         provisional = moving and method == "cascade" and adaptive_splits(new_settings.warp)
         options = dataclasses.replace(new_settings.warp, cascade_adaptive=False) if provisional else new_settings.warp
         setup = timed("warp", compute, method, view, light, bounds, options, body=body)
+        named_in_notes(setup, body, instances, scene)
         recomputed.append("setup")
         geometry = timed("overlay geometry", overlay_geometry, view, setup, body.faces)
         recomputed.append("overlays")
@@ -325,6 +327,16 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
     st.generation += 1
     log.debug("Lixel: %s recomputed %s in %.1f ms", scene.name, recomputed, st.total_ms())
     return st
+
+
+def named_in_notes(setup, body, instances, scene) -> None:
+    """The setup's notes with the receivers and planes of interest the core names by index named as the user knows
+    them: the object whose bounds a receiver is, the plane as the panel lists it (``LixelPlane.label``)."""
+    name_receivers(setup.diagnostics, body,
+                   lambda k: f"object '{instances.owners[instances.owner_ids[instances.receiver_ids[k]]]}'")
+    planes = getattr(getattr(scene, "lixel", None), "planes", ())
+    name_in_notes(setup.diagnostics, PLANE_OPTION,
+                  lambda i: f"plane of interest '{planes[i].label(i)}'" if i < len(planes) else f"planes[{i}]")
 
 
 def _r_sample(body) -> np.ndarray:
@@ -461,6 +473,7 @@ def compare_methods(st: LiveState, methods=None) -> list[dict]:
             rows.append(row)
             continue
         row["warp_ms"] = (time.perf_counter() - t0) * 1000.0
+        named_in_notes(setup, st.body, st.instances, bpy.data.scenes.get(st.scene_name))
         d = setup.diagnostics
         fallbacks, notes = fallbacks_and_notes(d)
         row.update(theta=d.theta, gamma=d.gamma, n_opt=d.n_opt, lam=d.lam, maps=len(setup.maps),

@@ -397,12 +397,16 @@ def ensure_carrier(scene, setup):
     return ob
 
 
-def _set_input(mod, tree, name, value):
+def _input(tree, name: str) -> str:
+    """The identifier of ``tree``'s input ``name`` (a modifier's key for its value)."""
     for item in tree.interface.items_tree:
         if getattr(item, "in_out", None) == "INPUT" and item.name == name:
-            mod[item.identifier] = value
-            return
+            return item.identifier
     raise KeyError(name)
+
+
+def _set_input(mod, tree, name, value):
+    mod[_input(tree, name)] = value
 
 
 def _matrix_modifier(ob, name: str, group, carrier, map_index: int):
@@ -415,6 +419,21 @@ def _matrix_modifier(ob, name: str, group, carrier, map_index: int):
     _set_input(mod, group, "Light Matrices", carrier)
     _set_input(mod, group, "Map Index", int(map_index))
     return mod
+
+
+def followers_of_missing_maps(carrier, count: int) -> list:
+    """(object name, map index) of every object whose Lixel frustum or texel-grid modifier follows ``carrier``'s map
+    ``index`` >= ``count``, a map the carrier no longer holds (the setup has fewer maps since it was added): the
+    groups read a zero matrix there: a frustum shows a 2-unit cube at the origin, a texel grid no texel's colour."""
+    out = []
+    for ob in bpy.data.objects:
+        for name in (FRUSTUM_MODIFIER, TEXEL_MODIFIER):
+            mod = lixel_modifier(ob, name)
+            if mod is not None and mod[_input(mod.node_group, "Light Matrices")] == carrier:
+                index = int(mod[_input(mod.node_group, "Map Index")])
+                if index >= count:
+                    out.append((ob.name, index))
+    return out
 
 
 def lixel_modifier(ob, name: str):

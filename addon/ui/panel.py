@@ -140,7 +140,7 @@ def draw_planes(layout, props) -> None:
     box.label(text=f"Planes of Interest ({len(props.planes)})")
     for i, p in enumerate(props.planes):
         row = box.row(align=True)
-        row.label(text=p.source or f"Plane {i}")
+        row.label(text=p.label(i))
         op = row.operator("lixel.plane_remove", text="", icon="X")
         op.index = i
     if not len(props.planes):

@@ -13,6 +13,7 @@ from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProp
                        IntProperty, IntVectorProperty, PointerProperty, StringProperty)
 
 from ..scene.units import length_text
+from ..cli.config import FRUSTUM_ANGLE_DEGREES
 from ..settings import (BIAS_MODES, MAX_EYE_BLUR, MAX_MAP_SIZE, MDSM_SELECTIONS, MIN_MAP_SIZE, LixelSettings,
                         ShadowSettings)
 from ..warp.types import WarpError, WarpOptions
@@ -83,6 +84,10 @@ class LixelPlane(bpy.types.PropertyGroup):
                                 description="The corners of the convex polygon the plane's shadow map covers")
     corners: IntProperty(name="Corners", default=0, min=0, max=PLANE_CORNERS,
                          description="How many extent corners are set (0: the plane is unbounded)")
+
+    def label(self, index: int) -> str:
+        """How the panel lists the plane (``index``: its place in the list)."""
+        return self.source or f"Plane {index}"
 
     def extent_corners(self) -> tuple:
         return tuple(tuple(c) for c in self.extent[:self.corners])
@@ -161,7 +166,8 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
     lam: FloatProperty(name="λ", default=0.5, min=0.0, soft_max=1.0, precision=4,
                        description="The reparameterisation's λ (Zhang et al. Eq. 2)")
     max_frustum_angle: FloatProperty(
-        name="Max Frustum Angle", default=math.radians(120.0), min=math.radians(10.0), max=math.radians(170.0),
+        name="Max Frustum Angle", default=math.radians(120.0), min=math.radians(FRUSTUM_ANGLE_DEGREES[0]),
+        max=math.radians(FRUSTUM_ANGLE_DEGREES[1]),
         subtype="ANGLE", description="Widest single perspective map for a point light; wider needs take cube faces")
     planes: CollectionProperty(type=LixelPlane, name="Planes of Interest")
     active_plane: IntProperty(name="Active Plane", default=0, min=0)
@@ -282,10 +288,10 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
         """((point, normal[, extent]), ...) of the planes of interest; WarpError naming a bad one."""
         planes = tuple((tuple(p.point), tuple(p.normal)) + ((p.extent_corners(),) if p.corners else ())
                        for p in self.planes)
-        for p, (point, normal, *extent) in zip(self.planes, planes):
+        for i, (p, (point, normal, *extent)) in enumerate(zip(self.planes, planes)):
             corners = tuple(v for corner in p.extent_corners() for v in corner)
             if not all(math.isfinite(v) for v in point + normal + corners) or not any(normal):
-                raise WarpError(f"Plane of interest '{p.source or 'unnamed'}' of scene '{self.id_data.name}' has a "
+                raise WarpError(f"Plane of interest '{p.label(i)}' of scene '{self.id_data.name}' has a "
                                 f"non-finite point or a zero normal: remove it or take it again from the selection "
                                 f"(Lixel panel > Method > Planes of Interest)")
         return planes

@@ -124,3 +124,30 @@ def test_live_state_belongs_to_the_scene_not_its_name(lixel):
         assert live.state(newcomer) is None
         assert not live.update(newcomer).ok  # no light: its own error, not the old scene's setup
         assert st not in live.states()
+
+
+OTHER_SCENE = r"""
+import importlib, sys
+sys.path.insert(0, sys.argv[1])
+import bpy
+import conftest
+from ui_scenes import build
+live = importlib.import_module(conftest.enable_lixel().__name__ + ".addon.ui.live")
+scene = bpy.data.scenes.new("Other")       # not the window's scene: Blender never evaluated its view layer
+build(scene)
+st = live.update(scene)
+print("ok" if st.ok else st.error, flush=True)
+conftest.disable_lixel()
+"""
+
+
+def test_the_state_of_a_scene_not_shown_is_computed_not_crashed_on():
+    """``live.update(scene)`` without a depsgraph took ``scene.view_layers[0].depsgraph``: for a scene the window
+    does not show, one Blender never evaluated, and Blender crashed (segmentation fault, 4.2 and 5.0) reading the
+    camera's projection from it. It takes the scene's evaluated depsgraph (``describe.evaluated_depsgraph``)."""
+    import subprocess
+    from pathlib import Path
+    r = subprocess.run([sys.executable, "-c", OTHER_SCENE, str(Path(__file__).resolve().parent)],
+                       capture_output=True, text=True, timeout=240)
+    assert r.returncode == 0, (r.returncode, r.stderr[-800:])
+    assert r.stdout.strip().splitlines()[-1] == "ok"

@@ -274,6 +274,28 @@ def test_texel_grid_frustum_and_sync(scene, mods):
     assert mods.nodes.TEXEL_MODIFIER not in ground.modifiers
 
 
+def test_followers_of_a_map_the_setup_no_longer_has_are_named_when_the_matrices_are_written(scene, mods, capfd):
+    """A frustum object of the cascade's map 3, then the method set to LiSPSM (one map) and Sync Light Matrices: the
+    frustum's group read a zero matrix and showed a 2-unit cube at the origin, the texel grid of map 3 no texel's
+    colour, and "1 matrices synced" said nothing of them. Each writing of the matrices names them."""
+    ground = scene.objects["lixel_ops ground"]
+    scene.lixel.method = "cascade"
+    assert bpy.ops.lixel.frustum_add(map_index=3) == {"FINISHED"}
+    _select_only(scene, [ground.name])
+    assert bpy.ops.lixel.texel_grid_add(map_index=2) == {"FINISHED"}
+    assert "Warning" not in capfd.readouterr().out
+    scene.lixel.method = "lispsm"
+    assert bpy.ops.lixel.sync_matrices() == {"FINISHED"}
+    assert ("Warning: Lixel: 'Lixel Frustum (map 3)' (map 3), 'lixel_ops ground' (map 2) follow a map the lispsm "
+            "setup does not have (map 0 only): what they show belongs to no map; add them again for one of its maps, "
+            "or delete them") in capfd.readouterr().out
+    frustum = scene.objects["Lixel Frustum (map 3)"]
+    corners = [tuple(v.co) for v in frustum.evaluated_get(bpy.context.evaluated_depsgraph_get()).data.vertices]
+    assert sorted(corners) == sorted((x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1))  # (the cube)
+    assert bpy.ops.lixel.texel_grid_add(map_index=0) == {"FINISHED"}       # the grid follows map 0 again
+    assert "'lixel_ops ground'" not in capfd.readouterr().out
+
+
 def test_texel_grid_leaves_objects_linked_from_a_library_and_says_so(scene, tmp_path):
     """A modifier or material put on linked data is not saved with the file: the grid would vanish on reload."""
     me = bpy.data.meshes.new("library block")

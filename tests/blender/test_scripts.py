@@ -367,6 +367,11 @@ BAD = [
     ("export_animation.py", ["--output", "x.json", "--frames", "1048570:1048580"], "Blender's frames run from"),
     ("compare_methods.py", ["--output-dir", "d", "--methods", "uniform,bogus"], "unknown bogus"),
     ("compare_methods.py", ["--output-dir", "d", "--bogus-flag"], "unrecognized arguments"),
+    # "" compared (and rendered) every method; a method named twice was computed twice, its second row kept; a
+    # view or overlay named twice was drawn and written twice
+    ("compare_methods.py", ["--output-dir", "d", "--methods", ""], "unknown (none given)"),
+    ("compare_methods.py", ["--output-dir", "d", "--methods", "uniform,psm,uniform"], "uniform given twice"),
+    ("overlay_snapshot.py", ["--output-dir", "d", "--views", "camera,camera"], "camera given twice"),
 ]
 
 
@@ -403,6 +408,9 @@ def test_scene_problems_are_errors_not_tracebacks(mode, blend, tmp_path):
     assert "Traceback" not in r.stderr
     r = run(mode, "export_animation.py", blend, "--scene", "nope", "--output", str(tmp_path / "y.json"))
     assert r.returncode == 1 and "there is no scene named 'nope'" in r.stderr
+    # --scene "" (an empty shell variable) exported the active scene; --camera "" was refused, as it is now
+    r = run(mode, "export_animation.py", blend, "--scene", "", "--output", str(tmp_path / "y.json"))
+    assert r.returncode == 1 and "there is no scene named ''" in r.stderr and not (tmp_path / "y.json").exists()
 
 
 @pytest.mark.parametrize("option,where", [("--json", "missing/x.json"), ("--output", ".")])

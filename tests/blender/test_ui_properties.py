@@ -205,3 +205,11 @@ def test_an_eye_blur_beyond_what_renders_in_time_is_refused_by_name(lixel):
         assert scene.lixel.eye_blur == 1000.0
         scene.lixel.eye_blur = 32.0
         assert bpy.ops.render.render() == {"FINISHED"}
+
+
+def test_the_panel_and_the_cli_take_one_max_frustum_angle_range(lixel, mods):
+    """The panel's Max Frustum Angle field is bounded by the range the CLI refuses outside
+    (``cli.config.FRUSTUM_ANGLE_DEGREES``); the CLI took (0°, 180°) where the panel took 10°-170°."""
+    prop = bpy.types.Scene.bl_rna.properties["lixel"].fixed_type.properties["max_frustum_angle"]
+    low, high = importlib.import_module(f"{lixel.__name__}.addon.cli.config").FRUSTUM_ANGLE_DEGREES
+    assert (prop.hard_min, prop.hard_max) == pytest.approx((math.radians(low), math.radians(high)), rel=1e-6)

@@ -178,6 +178,10 @@ MALFORMED = {
     "light_type_area": (_set(["light", "type"], "AREA"), "light.type"),
     "light_type_lowercase": (_set(["light", "type"], "sun"), "light.type"),
     "light_type_missing": (_drop(["light", "type"]), "light.type"),
+    # a light's name was str()'d: 5, null or "" computed as light '5', 'None' or '' in every message
+    "light_name_number": (_set(["light", "name"], 5), "light.name"),
+    "light_name_null": (_set(["light", "name"], None), "light.name"),
+    "light_name_empty": (_set(["light", "name"], " "), "light.name"),
     "light_direction_zero": (_set(["light", "direction"], [0, 0, 0]), "light.direction"),
     "light_direction_two": (_set(["light", "direction"], [0, 1]), "light.direction"),
     "light_direction_string": (_set(["light", "direction"], "down"), "light.direction"),
@@ -320,17 +324,19 @@ def test_an_option_out_of_range_is_refused_before_computing(tmp_path, capsys, op
         assert capsys.readouterr().err == f"lixel: error: options.{option}: {allowed} (got {value!r})\n"
 
 
-def test_plane_maps_that_do_not_fit_a_one_texel_map_say_what_to_do(tmp_path, capsys):
+@pytest.mark.parametrize("size, options, budget", [(1, {}, "0.75"), (1024, {"plane_budget": 1e-12}, "1.05e-06")])
+def test_plane_maps_that_do_not_fit_say_what_to_do(tmp_path, capsys, size, options, budget):
     """chess_spot at "shadow_map_size": 1 (the format's least): plane_optimal said "plane_optimal: plane_optimal:
-    could not fit the plane maps into the texel budget", its name twice and no remedy."""
+    could not fit the plane maps into the texel budget", its name twice and no remedy. At a plane_budget of 1e-12
+    of a 1024² map it said "give a larger shadow map size": one of 10^12 texels. Either raises the budget."""
     from addon.cli import main
     config = json.loads((ROOT / "examples" / "chess_spot.json").read_text())
-    config["shadow_map_size"] = 1
+    config["shadow_map_size"], config["options"] = size, options
     path = tmp_path / "config.json"
     path.write_text(json.dumps(config))
     assert main(["--method", "plane_optimal", str(path)]) == 1
-    assert capsys.readouterr().err == ("lixel: error: plane_optimal: the plane maps do not fit a budget of 0.75 "
-                                       "texels: give a larger shadow map size\n")
+    assert capsys.readouterr().err == (f"lixel: error: plane_optimal: the plane maps do not fit a budget of {budget} "
+                                       f"texels: raise the map size or plane budget\n")
 
 
 @pytest.mark.parametrize("key, value", [("shadow_map_size", 1024), ("planes", [])])
@@ -553,3 +559,69 @@ def test_a_broken_method_does_not_hide_the_others(tmp_path):
     out = json.loads(r.stdout)["methods"]
     assert "ZeroDivisionError" in out["uniform"]["diagnostics"]["error"]
     assert all(out[m]["maps"] for m in out if m != "uniform")
+
+
+@pytest.mark.parametrize("degrees", [0.5, 9.9, 170.5, 175, 179.999])
+def test_a_max_frustum_angle_the_panel_refuses_is_refused_with_its_range(tmp_path, capsys, degrees):
+    """The Lixel panel takes Max Frustum Angle from 10° to 170°; the CLI took any angle in (0°, 180°): at 179.999°
+    a point light got one perspective map whose centre texels are 114,592 times as wide as a 90° cube face's (the panel
+    would have given cube faces). One range (``cli.config.FRUSTUM_ANGLE_DEGREES``) for both, refused with it."""
+    from addon.cli import main
+    config = json.loads((ROOT / "examples" / "terrain_point.json").read_text())
+    config["options"] = {"max_frustum_angle": degrees}
+    path = tmp_path / "config.json"
+    path.write_text(json.dumps(config))
+    assert main(["--method", "uniform", str(path)]) == 2
+    assert capsys.readouterr().err == (f"lixel: error: options.max_frustum_angle: must be from 10 to 170 degrees, as "
+                                       f"in the Lixel panel; wider lights take cube faces (got {degrees!r})\n")
+
+
+@pytest.mark.parametrize("degrees", [10, 170])
+def test_the_panels_max_frustum_angles_compute_from_the_cli(tmp_path, capsys, degrees):
+    from addon.cli import main
+    config = json.loads((ROOT / "examples" / "terrain_point.json").read_text())
+    config["options"] = {"max_frustum_angle": degrees}
+    path = tmp_path / "config.json"
+    path.write_text(json.dumps(config))
+    assert main(["--method", "uniform", str(path)]) == 0
+    assert json.loads(capsys.readouterr().out)["maps"]
+
+
+def test_plane_optimal_names_the_receiver_it_speaks_of_as_the_configs_box(tmp_path, capsys):
+    """plane_optimal's notes named "receiver box i", i counting only the boxes in view: with a box out of view first,
+    the tower boxes[1] was "receiver box 0" and the ground boxes[2] "top of receiver box 1". They name boxes[k]."""
+    from addon.cli import main
+    config = json.loads((ROOT / "examples" / "sun_overhead.json").read_text())
+    behind, tower, ground = ({"min": [0, -600, 0], "max": [1, -599, 1]}, {"min": [0, 0, 0], "max": [1, 1, 3]},
+                             {"min": [-50, -50, -0.1], "max": [50, 50, 0]})
+    for boxes, said in (([behind, tower], "the flattest, boxes[1], is 300%"), ([behind, tower, ground], None)):
+        config["boxes"] = boxes
+        path = tmp_path / "config.json"
+        path.write_text(json.dumps(config))
+        assert main(["--method", "plane_optimal", str(path)]) == 0
+        d = json.loads(capsys.readouterr().out)["diagnostics"]
+        assert "receiver box" not in json.dumps(d)
+        if said:
+            assert said in d["fallbacks"][0]["reason"]
+        else:
+            assert d["default_plane"] == "top of boxes[2]" and d["planes"][0]["name"] == "top of boxes[2]"
+
+
+@pytest.mark.parametrize("scale", [(2.0, 2.0, 2.0), (0.5, 0.5, 0.5), (2.0, 4.0, 0.5)])
+def test_a_scaled_camera_is_taken_as_blender_takes_it_unscaled(tmp_path, capsys, scale):
+    """Blender's renderers ignore a camera's scale (``describe.unscaled_camera_matrix``); the CLI took it into the
+    view, so a camera matrix_world scaled by 2 measured eye depths in halves (visible_depth_range 1.86-5.27 for
+    chess_spot's 3.72-10.54) and clipped at twice its near and far; a non-uniform scale stretched the frustum."""
+    from addon.cli import main
+    config = json.loads((ROOT / "examples" / "chess_spot.json").read_text())
+    unscaled = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, -1.0, -8.0], [0.0, 1.0, 0.0, 1.0], [0.0, 0.0, 0.0, 1.0]])
+    outputs = []
+    for s in ((1.0, 1.0, 1.0), scale):
+        matrix = unscaled.copy()
+        matrix[:3, :3] *= s                          # (Blender's matrix_world: each axis times the object's scale)
+        config["camera"]["matrix_world"] = matrix.tolist()
+        path = tmp_path / "config.json"
+        path.write_text(json.dumps(config))
+        assert main(["--method", "all", str(path)]) == 0
+        outputs.append(capsys.readouterr().out)
+    assert outputs[0] == outputs[1]

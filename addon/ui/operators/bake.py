@@ -15,6 +15,23 @@ from .common import LixelSceneOperator
 BAKED = "baked"
 
 
+class MatrixOperator(LixelSceneOperator):
+    """An operator that writes the light matrices to the scene's carrier."""
+
+    def name_followers_of_missing_maps(self, carrier, st) -> None:
+        """A warning naming each object that follows a map ``carrier`` (holding ``st``'s maps) no longer holds: a
+        frustum showed a 2-unit cube at the origin, a texel grid a colour of no texel, and nothing said why."""
+        count = len(st.setup.maps)
+        if stale := nodes.followers_of_missing_maps(carrier, count):
+            one = len(stale) == 1
+            maps = "map 0 only" if count == 1 else f"maps 0 to {count - 1}"
+            self.report({"WARNING"}, f"Lixel: {', '.join(f'{name!r} (map {i})' for name, i in stale)} follow"
+                                     f"{'s' if one else ''} a map the {st.method_used} setup does not have ({maps}): "
+                                     f"what {'it shows' if one else 'they show'} belongs to no map; add "
+                                     f"{'it' if one else 'them'} again for one of its maps, or delete "
+                                     f"{'it' if one else 'them'}")
+
+
 def mesh_from_polygons(name, polygons, scene):
     """``scene``'s Lixel mesh ``name`` (new or emptied) from convex polygons, vertices shared
     where polygons meet."""
@@ -119,7 +136,7 @@ def linked_note(linked: list) -> str:
             f"Objects and Data) to change its texel grid")
 
 
-class LIXEL_OT_texel_grid_add(LixelSceneOperator, bpy.types.Operator):
+class LIXEL_OT_texel_grid_add(MatrixOperator, bpy.types.Operator):
     """Put the shadow-map texel grid on the selected meshes (a geometry-nodes modifier and material); the light matrices come from the "Lixel Light Matrices" object, updated now"""
 
     bl_idname = "lixel.texel_grid_add"
@@ -152,11 +169,12 @@ class LIXEL_OT_texel_grid_add(LixelSceneOperator, bpy.types.Operator):
         carrier = nodes.ensure_carrier(context.scene, st.setup)
         for ob in meshes:
             nodes.add_texel_grid(ob, carrier, self.map_index)
+        self.name_followers_of_missing_maps(carrier, st)
         self.report({"INFO"}, f"Lixel: texel grid of map {self.map_index} on {len(meshes)} object(s)")
         return {"FINISHED"}
 
 
-class LIXEL_OT_frustum_add(LixelSceneOperator, bpy.types.Operator):
+class LIXEL_OT_frustum_add(MatrixOperator, bpy.types.Operator):
     """Add an object whose mesh is a shadow map's frustum, built by geometry nodes from the light matrix (it follows the matrix when the setup is synced)"""
 
     bl_idname = "lixel.frustum_add"
@@ -173,6 +191,7 @@ class LIXEL_OT_frustum_add(LixelSceneOperator, bpy.types.Operator):
             return {"CANCELLED"}
         carrier = nodes.ensure_carrier(context.scene, st.setup)
         ob = nodes.add_frustum_object(context.scene, carrier, self.map_index)
+        self.name_followers_of_missing_maps(carrier, st)
         note = frustum_note(ob, st.setup.maps[self.map_index].matrix, context.evaluated_depsgraph_get())
         self.report({"INFO"}, f"Lixel: '{ob.name}' follows map {self.map_index}" + (f" ({note})" if note else ""))
         return {"FINISHED"}
@@ -190,7 +209,7 @@ def frustum_note(ob, matrix, depsgraph) -> str:
     return f"empty for now: {why}; the light frustum overlay shows its part around B"
 
 
-class LIXEL_OT_sync_matrices(LixelSceneOperator, bpy.types.Operator):
+class LIXEL_OT_sync_matrices(MatrixOperator, bpy.types.Operator):
     """Write the current light matrices to the "Lixel Light Matrices" object, so texel grids and frustum objects follow"""
 
     bl_idname = "lixel.sync_matrices"
@@ -203,7 +222,7 @@ class LIXEL_OT_sync_matrices(LixelSceneOperator, bpy.types.Operator):
         st = self.fresh_state(context)
         if st is None:
             return {"CANCELLED"}
-        nodes.ensure_carrier(context.scene, st.setup)
+        self.name_followers_of_missing_maps(nodes.ensure_carrier(context.scene, st.setup), st)
         self.report({"INFO"}, f"Lixel: {len(st.setup.maps)} matrices synced")
         return {"FINISHED"}
 

@@ -369,7 +369,7 @@ def _fraction_of_a_lixel(jobs: list[PlaneMap], budget: float) -> float:
             return s
         shrink = min(math.sqrt(budget / total), MAX_MAP_SIDE / side)
         s *= min(shrink, 1.0) * (1 - 1e-3) if shrink < 1 - 1e-3 else (1 - 1e-3)
-    raise WarpError(f"the plane maps do not fit a budget of {budget:.3g} texels: give a larger shadow map size")
+    raise WarpError(f"the plane maps do not fit a budget of {budget:.3g} texels: raise the map size or plane budget")
 
 
 def light_map(job: PlaneMap, s: float, origin: np.ndarray, tol: float, options: WarpOptions) -> ShadowMap:

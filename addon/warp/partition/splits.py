@@ -8,6 +8,7 @@ import dataclasses
 import numpy as np
 
 from ..body import IntersectionBody
+from ..geometry import frustum_matrix, ortho_matrix
 from ..post_perspective import nearest_visible_depth
 from ..types import Light, View, WarpOptions
 from ..visibility import VisibleRegion
@@ -34,10 +35,9 @@ def tightened_depth_range(view: View, light: Light, body: IntersectionBody,
 
 
 def split_view(view: View, near: float, far: float) -> View:
-    """The camera with its clip range (the projection's depth row, OpenGL) set to [near, far]."""
-    p = np.array(view.projection, dtype=np.float64)
-    p[2, 2:] = np.array([-2.0, -(far + near)] if view.orthographic else [-(far + near), -2.0 * far * near]) / (far - near)
-    return View(view.camera_to_world, p, near, far, view.resolution, view.orthographic)
+    """The camera with its clip range (the projection's depth row: glOrtho's or glFrustum's) set to [near, far]."""
+    rows = (ortho_matrix if view.orthographic else frustum_matrix)(-1.0, 1.0, -1.0, 1.0, near, far)[2:]
+    return dataclasses.replace(view, projection=np.vstack([view.projection[:2], rows]), near=near, far=far)
 
 
 def split_region(region: VisibleRegion, near: float, far: float) -> VisibleRegion:
