@@ -531,7 +531,7 @@ def convex_polygon_on_plane(points, normal, tol: float) -> np.ndarray | None:
     if length <= tol:
         return None
     u = rel[int(np.argmax(far))] / length                  # in-plane axes: u towards the farthest point,
-    xy = rel @ np.array([u, np.cross(normal, u)]).T        # v = normal x u
+    xy = rel @ np.array([u, cross(normal, u)]).T        # v = normal x u
     order = np.lexsort((xy[:, 1], xy[:, 0]))
     q = xy[order].tolist()
     area_tol = tol * max(float(np.ptp(xy, axis=0).max()), tol)
