@@ -91,11 +91,15 @@ def texel_ratios(lam, delta, body=None) -> list:
     """The warp's texel at λ (K, 1) over the uniform map's at δ ∈ [0, 1] along B's extent (N): along V_P,
     ρ = (λ + δ)²/(λ(λ + 1)), and, given B's vertices ``body`` = (δ, (q - q_eye)/D), its longer side (across:
     (1 + δ/λ)·range((q - q_eye)/(1 + δ/λ))/D) over uniform's (the λ guard, docs/papers.md). (K, N) each."""
-    rho = [(lam + delta) ** 2 / (lam * (lam + 1.0))]
-    if body is not None and np.ptp(body[1]) > 0:
-        across = (1.0 + delta / lam) * np.ptp(body[1] / (1.0 + body[0] / lam), axis=1, keepdims=True)
-        rho.append(np.maximum(across, rho[0]) / max(float(np.ptp(body[1])), 1.0))
-    return rho
+    rho = lam + delta                   # (each step in place: numpy's (K, N) temporaries cost a fifth of the guard)
+    rho **= 2
+    rho /= lam * (lam + 1.0)
+    if body is None or not np.ptp(body[1]) > 0:
+        return [rho]
+    across = delta / lam
+    across += 1.0
+    across *= np.ptp(body[1] / (1.0 + body[0] / lam), axis=1, keepdims=True)
+    return [rho, np.divide(np.maximum(across, rho, out=across), max(float(np.ptp(body[1])), 1.0), out=across)]
 
 
 def lambda_no_worse_on_average(delta, weights=None, body=None) -> float:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
-from itertools import chain
+from itertools import chain, combinations
 from typing import NamedTuple
 
 import numpy as np
@@ -346,17 +346,9 @@ def section_points(poly: ConvexPolytope, normals: np.ndarray, offsets: np.ndarra
 # Vertex enumeration: the fallback for cuts the face walk cannot order.
 # ---------------------------------------------------------------------------
 
-_COMBOS: dict[tuple[int, int], np.ndarray] = {}
-
-
 def _combinations3(m: int, first_new: int = 0) -> np.ndarray:
-    """(C(m, 3), 3) triples i < j < k, k >= ``first_new``, lexicographic (cached)."""
-    c = _COMBOS.get((m, first_new))
-    if c is None:
-        i, j, k = np.meshgrid(np.arange(m), np.arange(m), np.arange(m), indexing="ij")
-        sel = (i < j) & (j < k) & (k >= first_new)
-        c = _COMBOS[(m, first_new)] = np.stack([i[sel], j[sel], k[sel]], axis=1)
-    return c
+    """(C(m, 3), 3) triples i < j < k, k >= ``first_new``, lexicographic."""
+    return np.array([t for t in combinations(range(m), 3) if t[2] >= first_new], dtype=np.int64).reshape(-1, 3)
 
 
 def unit_halfspaces(normals, offsets) -> tuple[np.ndarray, np.ndarray]:
@@ -531,7 +523,7 @@ def convex_polygon_on_plane(points, normal, tol: float) -> np.ndarray | None:
     if length <= tol:
         return None
     u = rel[int(np.argmax(far))] / length                  # in-plane axes: u towards the farthest point,
-    xy = rel @ np.array([u, np.cross(normal, u)]).T        # v = normal x u
+    xy = rel @ np.array([u, cross(normal, u)]).T        # v = normal x u
     order = np.lexsort((xy[:, 1], xy[:, 0]))
     q = xy[order].tolist()
     area_tol = tol * max(float(np.ptp(xy, axis=0).max()), tol)

@@ -9,7 +9,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .culling import BoxIndex
-from .geometry import clip_halfspaces
+from .geometry import clip_halfspaces, cross
 from .polyhedron import HEXAHEDRON_EDGES, box_corners
 from .rays import ray_index, slab_intervals
 from .types import EmptyBodyError, Light, SceneBounds, View, WarpOptions
@@ -208,7 +208,7 @@ def _across(ell: np.ndarray, view: View) -> np.ndarray:
     from .frame import up_across                     # (frame imports body, which imports this module)
     u = up_across(view, ell)
     a = np.arange(KDOP_DIRECTIONS) * (math.pi / KDOP_DIRECTIONS)
-    return np.cos(a)[:, None] * u + np.sin(a)[:, None] * np.cross(ell, u)
+    return np.cos(a)[:, None] * u + np.sin(a)[:, None] * cross(ell, u)
 
 
 # ---------------------------------------------------------------- sources

@@ -178,7 +178,7 @@ class Trials:
             pick[i] = int(np.argmin(footprint_p95s(others, [f for *_, f in scored[i][1]])))
         if not (scored and error(pick) < (1.0 - MARGIN) * error(lloyds)):
             pick = lloyds
-        for (s, c), k in zip(scored, pick):
+        for (s, c), k in [(sc, k) for sc, k in zip(scored, pick) if k]:          # (Lloyd's pick keeps its error)
             s.warp, s.setup, _ = c[k]
             s.predicted_error = max_error(s.view, self.light, s.setup, s.body.visible_vertices)
         return splits, [c[k][2] for (_, c), k in zip(scored, pick)]

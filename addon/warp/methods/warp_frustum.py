@@ -42,10 +42,6 @@ class WarpContext:
     guard: bool = False
     """Whether the rule's λ is guarded (``guard_lambda``, as ``WarpOptions.lambda_guard`` says)."""
 
-    @property
-    def delta_z(self) -> float:
-        return self.z_f - self.z_n
-
 
 @dataclass
 class LightAtEye:
@@ -251,7 +247,7 @@ LambdaRule = Callable[[FrameGeometry, WarpContext, float, WarpOptions], float]
 
 def rule_lispsm(g: FrameGeometry, ctx: WarpContext, phi: Optional[float], options: WarpOptions) -> float:
     """λ = n_opt / D with n_opt from Scherzer Eq. 1."""
-    k = lispsm_inverse_n_opt(ctx.z_n, ctx.delta_z, g.gamma)
+    k = lispsm_inverse_n_opt(ctx.z_n, ctx.z_f - ctx.z_n, g.gamma)
     if k == 0.0 or g.body_extent_world <= 0.0:
         return math.inf
     return 1.0 / (k * g.body_extent_world)
@@ -419,7 +415,7 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
         at, reason = light_at_eye(view, light, options, body, middle if options.middle_vector else None)
     ctx = eye_depth_range(view, body, options, diag, at)
     ctx.guard = options.lambda_guard in ("all", name)
-    diag.extra.update(z_n=ctx.z_n, delta_z=ctx.delta_z, frames=[f.role for f in frames],
+    diag.extra.update(z_n=ctx.z_n, delta_z=ctx.z_f - ctx.z_n, frames=[f.role for f in frames],
                       middle_vector=_unit_or_zero(middle))
     # GMNPR's φ: gmnpr and glpr use and report it, LiSPSM's Eq. 1 has no φ (the λ guard's model has).
     phi = ctx.phi if at is not None and name != "lispsm" else None
