@@ -165,6 +165,21 @@ def lost_depth_note(view: View, bounds: SceneBounds, camera_name: str, scene=Non
             f"as background; raise the clip start (Camera properties > Lens > Clip)")
 
 
+def check_visible_range(view: View, options, camera_name: str, scene) -> None:
+    """WarpError when ``options.visible_depth_range`` (the panel's Custom Visible Range) lies wholly outside the
+    camera's clip range: it holds nothing the camera sees (every method ignored it and the cascade found no visible
+    receiver). A range that overlaps the clip range is taken where it does (the methods clamp it)."""
+    if options.visible_depth_range is None:
+        return
+    near, far = options.visible_depth_range
+    if far <= view.near or near >= view.far:
+        raise WarpError(f"Scene '{scene.name}' has a Visible Range from {length_text(near, scene)} to "
+                        f"{length_text(far, scene)}, wholly outside the clip range of camera '{camera_name}' "
+                        f"({length_text(view.near, scene)} to {length_text(view.far, scene)}), so it holds nothing "
+                        f"the camera sees: set it within the clip range or turn Custom Visible Range off (Lixel "
+                        f"panel > Method > Visible Range)")
+
+
 def motion_blur_note(scene) -> Optional[str]:
     """A warning where ``scene`` asks for motion blur (Render properties > Motion Blur, set with Cycles or EEVEE,
     which blur what moves over the shutter around each frame): Lixel renders the frame's one instant."""
