@@ -253,8 +253,12 @@ def describe_view(camera_obj, depsgraph, scene) -> View:
     ``camera_to_world`` is the evaluated ``matrix_world`` (constraints, drivers,
     animation applied) without its scale, which Blender's renderers ignore
     (:func:`unscaled_camera_matrix`). A degenerate camera (non-finite or zero-scale
-    transform, a clip range beyond float precision) raises WarpError naming it.
+    transform, a clip range beyond float precision) raises WarpError naming it. ``depsgraph`` None (a scene's
+    ``view_layers[0].depsgraph`` where Blender never made one): the scene's own, evaluated
+    (:func:`evaluated_depsgraph`); Blender's ``calc_matrix_camera`` crashed on None (segmentation fault).
     """
+    if depsgraph is None:
+        depsgraph = evaluated_depsgraph(scene)
     if camera_obj is None:
         raise WarpError(f"Scene '{scene.name}' has no camera: add a camera and make it active (Scene properties > Camera)")
     if camera_obj.type != "CAMERA":
