@@ -3,6 +3,7 @@ scripts) and the render engine: a range wholly outside the clip range is refused
 taken where it does, for every method alike (the CLI refuses the same range as it reads the config:
 tests/warp/test_cli.py)."""
 import importlib
+from types import SimpleNamespace
 
 import bpy
 import pytest
@@ -12,14 +13,10 @@ from ui_scenes import active_scene
 
 @pytest.fixture(scope="module")
 def m(lixel):
-    class M:
-        pass
-    ns = M()
-    ns.live = importlib.import_module(f"{lixel.__name__}.addon.ui.live")
-    ns.engine = importlib.import_module(f"{lixel.__name__}.addon.render.engine")
-    ns.gpu_context = importlib.import_module(f"{lixel.__name__}.addon.gpu.context")
-    ns.types = importlib.import_module(f"{lixel.__name__}.addon.warp.types")
-    return ns
+    def module(name):
+        return importlib.import_module(f"{lixel.__name__}.addon.{name}")
+    return SimpleNamespace(live=module("ui.live"), engine=module("render.engine"), gpu_context=module("gpu.context"),
+                           types=module("warp.types"))
 
 
 LENGTHS = {1000.0: "1 km", 2000.0: "2 km", 0.0: "0 m", 0.05: "5 cm"}
