@@ -251,7 +251,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
                                          need_receivers=False, need_light=light_obj is not None)
     if light is None:   # no direct light: the shading's ambient term alone, as Blender's engines light such a frame
         light = Light("SUN", direction=view.direction, energy=0.0, name="no light")
-    check_visible_range(view, settings.warp, camera.name, scene)
+    check_visible_range(view, settings, camera.name, scene)
     if eye is not None:
         view = eye_view(view, camera, *eye, depsgraph=depsgraph)
     # The world as Cycles lights it, of the evaluated scene (an animation render's frame's, not the original's).

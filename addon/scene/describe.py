@@ -165,13 +165,20 @@ def lost_depth_note(view: View, bounds: SceneBounds, camera_name: str, scene=Non
             f"as background; raise the clip start (Camera properties > Lens > Clip)")
 
 
-def check_visible_range(view: View, options, camera_name: str, scene) -> None:
-    """WarpError when ``options.visible_depth_range`` (the panel's Custom Visible Range) lies wholly outside the
-    camera's clip range: it holds nothing the camera sees (every method ignored it and the cascade found no visible
-    receiver). A range that overlaps the clip range is taken where it does (the methods clamp it)."""
-    if options.visible_depth_range is None:
+VISIBLE_RANGE_METHODS = ("psm", "lispsm", "gmnpr", "glpr", "cascade")
+"""The methods that read ``WarpOptions.visible_depth_range`` (PSM's d_R: ``post_perspective.nearest_visible_depth``;
+LiSPSM's, GMNPR's and GLPR's Δz = Visible: ``warp_frustum.eye_depth_range``; the cascade's range to split:
+``partition.splits``); the panel shows the Visible Range for them."""
+
+
+def check_visible_range(view: View, settings, camera_name: str, scene) -> None:
+    """WarpError when ``settings`` (LixelSettings) run a method of :data:`VISIBLE_RANGE_METHODS` on a Custom Visible
+    Range wholly outside the camera's clip range: it holds nothing the camera sees (LiSPSM and PSM computed as if it
+    were not there, the cascade found no visible receiver). A range that overlaps the clip range is taken where it
+    does (the methods clamp it); uniform and plane_optimal do not read it (the panel hides it for them)."""
+    if settings.method not in VISIBLE_RANGE_METHODS or settings.warp.visible_depth_range is None:
         return
-    near, far = options.visible_depth_range
+    near, far = settings.warp.visible_depth_range
     if far <= view.near or near >= view.far:
         raise WarpError(f"Scene '{scene.name}' has a Visible Range from {length_text(near, scene)} to "
                         f"{length_text(far, scene)}, wholly outside the clip range of camera '{camera_name}' "

@@ -270,7 +270,7 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         cam = camera if camera is not None else followed_camera(scene)
         if "view" in todo or view is None:
             view = timed("describe view", describe_view, cam, depsgraph, scene)
-        check_visible_range(view, new_settings.warp, getattr(cam, "name", ""), scene)   # (as the settings change too)
+        check_visible_range(view, new_settings, getattr(cam, "name", ""), scene)   # (as the settings change too)
         light = st.light
         lob = None
         if "light" in todo or light is None:

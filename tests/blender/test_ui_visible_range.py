@@ -29,12 +29,12 @@ def _refusal(scene, near, far):
 
 
 @pytest.mark.parametrize("near, far", [(1000.0, 2000.0), (0.0, 0.05)])
-@pytest.mark.parametrize("method", ["uniform", "lispsm", "cascade"])
+@pytest.mark.parametrize("method", ["psm", "lispsm", "cascade"])
 def test_a_visible_range_outside_the_clip_range_is_refused_naming_both(m, method, near, far):
-    """A camera clipping at [0.1, 30] m and a Custom Visible Range of [1000, 2000] m (Δz = Visible): uniform and
+    """A camera clipping at [0.1, 30] m and a Custom Visible Range of [1000, 2000] m (Δz = Visible): PSM and
     LiSPSM computed as if it were not there, the cascade said "no split of the view holds a visible receiver",
-    naming no cause. Every method now refuses it with the same message, naming the scene, the range, the camera
-    and its clip range, and what to do; the user's settings are left as they were."""
+    naming no cause. Every method that reads the range now refuses it with the same message, naming the scene, the
+    range, the camera and its clip range, and what to do; the user's settings are left as they were."""
     with active_scene("lixel_visible_range") as scene:
         scene.camera.data.clip_end = 30.0
         props = scene.lixel
@@ -44,6 +44,21 @@ def test_a_visible_range_outside_the_clip_range_is_refused_naming_both(m, method
         assert not st.ok and st.error == _refusal(scene, near, far)
         assert tuple(props.visible_depth_range) == pytest.approx((near, far)) and props.use_visible_depth_range
         props.visible_depth_range = (5.0, 2000.0)           # overlapping the clip range: taken where it does
+        st = m.live.update(scene, bpy.context.evaluated_depsgraph_get())
+        assert st.ok, st.error
+
+
+@pytest.mark.parametrize("method", ["uniform", "plane_optimal"])
+def test_a_method_that_does_not_read_the_visible_range_is_not_stopped_by_it(m, lixel, method):
+    """Uniform and plane_optimal do not read the range and the panel hides it for them: a range left from LiSPSM
+    outside the clip range does not stop them with a message about a field the user cannot see."""
+    panel = importlib.import_module(f"{lixel.__name__}.addon.ui.panel")
+    assert "visible_depth_range" not in panel.method_parameters(method)
+    assert all("visible_depth_range" in panel.method_parameters(other) for other in ("psm", "lispsm", "cascade"))
+    with active_scene("lixel_visible_range") as scene:
+        scene.camera.data.clip_end = 30.0
+        props = scene.lixel
+        props.method, props.use_visible_depth_range, props.visible_depth_range = method, True, (1000.0, 2000.0)
         st = m.live.update(scene, bpy.context.evaluated_depsgraph_get())
         assert st.ok, st.error
 
