@@ -22,6 +22,7 @@ import importlib
 import importlib.util
 import os
 import sys
+import tempfile
 import traceback
 from pathlib import Path
 
@@ -140,6 +141,27 @@ OUTPUT_OPTIONS = ("output", "json", "shadow_output", "map_output", "output_dir")
 """The scripts' options that name files or folders to write."""
 
 
+def writable_folder(folder: str) -> None:
+    """ScriptError naming ``--output-dir``, why and what to do where it cannot be written (or made), said before any
+    work: compare_methods said so only after the whole comparison had been computed and printed. Nothing is made
+    here: a nameless file is tried in the folder, or in the nearest folder above that exists, where it would be made
+    (as root, permissions alone do not tell)."""
+    nearest = os.path.abspath(folder)
+    while not os.path.exists(nearest):
+        nearest = os.path.dirname(nearest)
+    if not os.path.isdir(nearest):
+        why = f"{nearest} is a file, not a folder"
+    else:
+        try:
+            with tempfile.TemporaryFile(dir=nearest):
+                pass
+            return
+        except OSError as exc:
+            why = f"{exc.strerror or exc} ({nearest})"
+    raise ScriptError(f"--output-dir {folder} cannot be written: {why}: name a folder you can write to (one that is "
+                      f"missing is made)")
+
+
 class Session:
     """Opens the file, registers Lixel if Blender has not, and always unregisters."""
 
@@ -180,6 +202,8 @@ class Session:
             if isinstance(folder, str) and os.path.exists(folder) and not os.path.isdir(folder):
                 raise ScriptError(f"--output-dir {folder} is a file, not a folder: name a folder (one that is missing "
                                   f"is made)")
+            if isinstance(folder, str):
+                writable_folder(folder)
             named: dict = {}   # one file for two outputs: the second overwrote the first without a word
             for name in OUTPUT_OPTIONS:
                 path = getattr(self.args, name, None)

@@ -45,7 +45,11 @@ def run_method(name, view, light, scene, options, body):
         name_receivers(setup.diagnostics, body, lambda k: f"boxes[{k}]")
         return setup_json(setup)
     except WarpError as exc:
-        return {"maps": [], "diagnostics": {"method": name, "error": str(exc), "fallbacks": []}}
+        why = str(exc)
+        if isinstance(exc, EmptyBodyError) and name == "cascade" and options.visible_depth_range is not None:
+            why += (f" within options.visible_depth_range {list(options.visible_depth_range)}: widen it to the "
+                    f"receivers' eye depths or drop the option")
+        return {"maps": [], "diagnostics": {"method": name, "error": why, "fallbacks": []}}
     except Exception as exc:  # a bug in one method must not hide the others' results
         return {"maps": [], "diagnostics": {"method": name, "error": _internal(exc), "fallbacks": []}}
 

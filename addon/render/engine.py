@@ -222,8 +222,8 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
     render (``describe.eye_view``)."""
     from ..gpu.batches import shared_batches
     from ..gpu.pipeline import ShadowFrame
-    from ..scene.describe import (NO_FACES, NoLightError, check_finite_geometry, describe_scene, evaluated, eye_view,
-                                  light_notes, pick_light, render_camera, shadow_off)
+    from ..scene.describe import (NO_FACES, NoLightError, check_finite_geometry, check_visible_range, describe_scene,
+                                  evaluated, eye_view, light_notes, pick_light, render_camera, shadow_off)
     from ..scene.geometry import shared_cache
     from ..scene.linking import light_links
     from ..scene.notes import scene_notes
@@ -251,6 +251,7 @@ def render_depsgraph(depsgraph, resolution: Optional[tuple[int, int]] = None, se
                                          need_receivers=False, need_light=light_obj is not None)
     if light is None:   # no direct light: the shading's ambient term alone, as Blender's engines light such a frame
         light = Light("SUN", direction=view.direction, energy=0.0, name="no light")
+    check_visible_range(view, settings, camera.name, scene)
     if eye is not None:
         view = eye_view(view, camera, *eye, depsgraph=depsgraph)
     # The world as Cycles lights it, of the evaluated scene (an animation render's frame's, not the original's).

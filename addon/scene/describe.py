@@ -165,6 +165,28 @@ def lost_depth_note(view: View, bounds: SceneBounds, camera_name: str, scene=Non
             f"as background; raise the clip start (Camera properties > Lens > Clip)")
 
 
+VISIBLE_RANGE_METHODS = ("psm", "lispsm", "gmnpr", "glpr", "cascade")
+"""The methods that read ``WarpOptions.visible_depth_range`` (PSM's d_R: ``post_perspective.nearest_visible_depth``;
+LiSPSM's, GMNPR's and GLPR's Δz = Visible: ``warp_frustum.eye_depth_range``; the cascade's range to split:
+``partition.splits``); the panel shows the Visible Range for them."""
+
+
+def check_visible_range(view: View, settings, camera_name: str, scene) -> None:
+    """WarpError when ``settings`` (LixelSettings) run a method of :data:`VISIBLE_RANGE_METHODS` on a Custom Visible
+    Range wholly outside the camera's clip range: it holds nothing the camera sees (LiSPSM and PSM computed as if it
+    were not there, the cascade found no visible receiver). A range that overlaps the clip range is taken where it
+    does (the methods clamp it); uniform and plane_optimal do not read it (the panel hides it for them)."""
+    if settings.method not in VISIBLE_RANGE_METHODS or settings.warp.visible_depth_range is None:
+        return
+    near, far = settings.warp.visible_depth_range
+    if far <= view.near or near >= view.far:
+        raise WarpError(f"Scene '{scene.name}' has a Visible Range from {length_text(near, scene)} to "
+                        f"{length_text(far, scene)}, wholly outside the clip range of camera '{camera_name}' "
+                        f"({length_text(view.near, scene)} to {length_text(view.far, scene)}), so it holds nothing "
+                        f"the camera sees: set it within the clip range or turn Custom Visible Range off (Lixel "
+                        f"panel > Method > Visible Range)")
+
+
 def motion_blur_note(scene) -> Optional[str]:
     """A warning where ``scene`` asks for motion blur (Render properties > Motion Blur, set with Cycles or EEVEE,
     which blur what moves over the shutter around each frame): Lixel renders the frame's one instant."""
@@ -238,8 +260,12 @@ def describe_view(camera_obj, depsgraph, scene) -> View:
     ``camera_to_world`` is the evaluated ``matrix_world`` (constraints, drivers,
     animation applied) without its scale, which Blender's renderers ignore
     (:func:`unscaled_camera_matrix`). A degenerate camera (non-finite or zero-scale
-    transform, a clip range beyond float precision) raises WarpError naming it.
+    transform, a clip range beyond float precision) raises WarpError naming it. ``depsgraph`` None (a scene's
+    ``view_layers[0].depsgraph`` where Blender never made one): the scene's own, evaluated
+    (:func:`evaluated_depsgraph`); Blender's ``calc_matrix_camera`` crashed on None (segmentation fault).
     """
+    if depsgraph is None:
+        depsgraph = evaluated_depsgraph(scene)
     if camera_obj is None:
         raise WarpError(f"Scene '{scene.name}' has no camera: add a camera and make it active (Scene properties > Camera)")
     if camera_obj.type != "CAMERA":

@@ -34,8 +34,8 @@ import numpy as np
 from ..cli.output import PLANE_OPTION, name_in_notes, name_receivers
 from ..gpu.blas import one_blas_thread
 from ..guard import guarded_callback, user_message
-from ..scene.describe import (NO_FACES, check_finite_geometry, describe_bounds, describe_light, describe_view,
-                              evaluated_depsgraph, light_notes, pick_light, render_camera, shadow_off)
+from ..scene.describe import (NO_FACES, check_finite_geometry, check_visible_range, describe_bounds, describe_light,
+                              describe_view, evaluated_depsgraph, light_notes, pick_light, render_camera, shadow_off)
 from ..scene.geometry import shared_cache
 from ..scene.notes import scene_notes
 from ..scene.owned import is_debug_object
@@ -173,6 +173,14 @@ def follow(scene, camera) -> bool:
     return True
 
 
+def _remedy(settings: LixelSettings) -> str:
+    """What an empty body's message says before "aim the camera": where the cascade splits only a Custom Visible
+    Range, the range may be what holds no receiver."""
+    if settings.method != "cascade" or settings.warp.visible_depth_range is None:
+        return ";"
+    return " within the Visible Range: widen it (Lixel panel > Method > Visible Range) or"
+
+
 def followed_camera(scene):
     """The camera the scene's state describes: the Local Camera it follows (:func:`follow`) while the scene holds
     it, else the scene's (``render_camera``)."""
@@ -259,9 +267,10 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
     try:
         new_settings = settings if settings is not None else timed("settings", scene_settings, scene)
         view = st.view
+        cam = camera if camera is not None else followed_camera(scene)
         if "view" in todo or view is None:
-            view = timed("describe view", describe_view, camera if camera is not None else followed_camera(scene),
-                         depsgraph, scene)
+            view = timed("describe view", describe_view, cam, depsgraph, scene)
+        check_visible_range(view, new_settings, getattr(cam, "name", ""), scene)   # (as the settings change too)
         light = st.light
         lob = None
         if "light" in todo or light is None:
@@ -280,7 +289,6 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
                 lob = light_obj if light_obj is not None else scene.objects.get(st.light_name)
                 if lob is None or lob.type != "LIGHT":
                     lob = pick_light(scene, depsgraph, active)
-            cam = camera if camera is not None else followed_camera(scene)
             st.notes = tuple(timed("notes", scene_notes, scene, depsgraph, lob, cam, view, bounds, instances))
     except Exception as exc:  # noqa: BLE001 - every caller gets the message in state.error
         st.notes = ()
@@ -313,7 +321,8 @@ def update(scene, depsgraph=None, changed=None, active=None, settings: Optional[
         st.body = None
         cam = camera if camera is not None else followed_camera(scene)
         _fail(st, f"Camera '{getattr(cam, 'name', '')}' and light '{st.light_name}' leave Lixel nothing to shadow: "
-                  f"{exc}; aim the camera (or the light) at the objects that receive shadows", timings)
+                  f"{exc}{_remedy(new_settings)} aim the camera (or the light) at the objects that receive shadows",
+              timings)
         st.empty_body = str(exc)
         return st
     except Exception as exc:  # noqa: BLE001 - WarpError or a bug: a message either way

@@ -24,7 +24,8 @@ the carrier's matrices change, every group using it follows.
   (tests/blender/test_nodes.py).
 * **Lixel Frustum From Matrix** builds the clip volume of a map as a mesh: the
   unit cube's corners through the inverse matrix, divided by w; nothing for a
-  volume through infinity.
+  volume through infinity, nor for a map index the carrier does not hold (a map
+  the setup no longer has: its matrix would sample as a default, zero or identity).
 """
 import bpy
 import numpy as np
@@ -47,7 +48,7 @@ TEXEL_MODIFIER = "Lixel Texel Grid"
 FRUSTUM_MODIFIER = "Lixel Frustum"
 VERSION_KEY = "lixel_version"
 TEXEL_GROUP_VERSION = 1
-FRUSTUM_GROUP_VERSION = 3
+FRUSTUM_GROUP_VERSION = 4   # 4: nothing for a map the carrier does not hold (3 drew a 2-unit cube there)
 MATERIAL_VERSION = 1
 
 
@@ -229,7 +230,8 @@ def ensure_frustum_group():
     reaches through infinity (the carrier's ``lixel_map_unbounded``: a corner at w
     <= 0, which the divide by w would mirror into a box the map does not cover, or
     at a w so small that the box is its far reach, not its shape; and, where float32
-    evaluation puts a corner at w <= 0 all the same, nothing rather than a mirror)."""
+    evaluation puts a corner at w <= 0 all the same, nothing rather than a mirror); nothing for a ``Map Index`` at
+    or beyond the carrier's point count (a map the setup no longer has: Sample Index would give the default matrix)."""
     tree, current = _reset_tree(FRUSTUM_GROUP, "GeometryNodeTree", FRUSTUM_GROUP_VERSION)
     if tree is None:
         return current
@@ -268,9 +270,19 @@ def ensure_frustum_group():
     either = b.node("FunctionNodeBooleanMath", operation="OR")
     b.link(_socket(behind.outputs, "Result"), either.inputs[0])
     b.link(unbounded, either.inputs[1])  # 0 or 1; Blender converts a float to a boolean as > 0
+    carrier = b.node("GeometryNodeObjectInfo", transform_space="ORIGINAL")
+    b.link(_socket(gin.outputs, "Light Matrices"), _socket(carrier.inputs, "Object"))
+    maps = b.node("GeometryNodeAttributeDomainSize", component="MESH")
+    b.link(_socket(carrier.outputs, "Geometry"), _socket(maps.inputs, "Geometry"))
+    missing = b.node("FunctionNodeCompare", data_type="INT", operation="GREATER_EQUAL")   # index >= the maps held
+    b.link(_socket(gin.outputs, "Map Index"), _socket(missing.inputs, "A"))
+    b.link(_socket(maps.outputs, "Point Count"), _socket(missing.inputs, "B"))
+    empty = b.node("FunctionNodeBooleanMath", operation="OR")
+    b.link(_socket(either.outputs, "Boolean"), empty.inputs[0])
+    b.link(_socket(missing.outputs, "Result"), empty.inputs[1])
     delete = b.node("GeometryNodeDeleteGeometry", domain="POINT")
     b.link(_socket(setpos.outputs, "Geometry"), _socket(delete.inputs, "Geometry"))
-    b.link(_socket(either.outputs, "Boolean"), _socket(delete.inputs, "Selection"))
+    b.link(_socket(empty.outputs, "Boolean"), _socket(delete.inputs, "Selection"))
     b.link(_socket(delete.outputs, "Geometry"), gout.inputs[0])
     tree[VERSION_KEY] = FRUSTUM_GROUP_VERSION
     return tree
@@ -424,7 +436,8 @@ def _matrix_modifier(ob, name: str, group, carrier, map_index: int):
 def followers_of_missing_maps(carrier, count: int) -> list:
     """(object name, map index) of every object whose Lixel frustum or texel-grid modifier follows ``carrier``'s map
     ``index`` >= ``count``, a map the carrier no longer holds (the setup has fewer maps since it was added): the
-    groups read a zero matrix there: a frustum shows a 2-unit cube at the origin, a texel grid no texel's colour."""
+    groups read a zero matrix there: a frustum shows nothing (a group before version 4 of
+    :data:`FRUSTUM_GROUP_VERSION`: a 2-unit cube at the origin), a texel grid no texel's colour."""
     out = []
     for ob in bpy.data.objects:
         for name in (FRUSTUM_MODIFIER, TEXEL_MODIFIER):

@@ -9,6 +9,7 @@ import textwrap
 import bpy
 
 from ..guard import guarded_draw
+from ..scene.describe import VISIBLE_RANGE_METHODS
 from . import live, overlays
 from .properties import CASCADE_METHODS, CASCADE_SETTINGS, LAMBDA_METHODS, N_OPT_METHODS, OVERLAYS, PLANE_METHODS
 
@@ -22,7 +23,11 @@ def method_parameters(method: str, light_type: str = "") -> tuple[str, ...]:
     if method == "uniform":
         names.append("texel_snapping")
     if method in WARP_METHODS:
-        names += ["delta_z", "use_visible_depth_range", "visible_depth_range", "middle_vector"]
+        names.append("delta_z")
+    if method in VISIBLE_RANGE_METHODS:     # (PSM's d_R and the cascade's splits read it too)
+        names += ["use_visible_depth_range", "visible_depth_range"]
+    if method in WARP_METHODS:
+        names.append("middle_vector")
     if method in LAMBDA_METHODS:
         names += ["use_lambda", "lam"]
     if method in WARP_METHODS:

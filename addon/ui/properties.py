@@ -155,7 +155,7 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
         description="Give the visible depth range by hand instead of taking it from the scene")
     visible_depth_range: FloatVectorProperty(
         name="Visible Range", size=2, default=(0.1, 100.0), min=0.0, subtype="NONE", unit="LENGTH",
-        description="Near and far eye depth of what is visible (for Δz = Visible)")
+        description="Near and far eye depth of what is visible (Δz = Visible, PSM's near plane, the cascade's splits)")
     middle_vector: BoolProperty(
         name="Middle Vector", default=False,
         description="Use B's middle vector as V_P instead of Eq. 3 (Scherzer §4.4)")

@@ -216,6 +216,30 @@ def test_add_frustum_says_when_its_map_reaches_through_infinity(lixel, nodes, wg
             live.clear()
 
 
+def test_a_frustum_of_a_map_the_carrier_does_not_hold_draws_nothing(scene, nodes, wg):
+    """A frustum object added for map 2 of a 3-map setup, then the setup synced with 1 map: its group sampled a zero
+    matrix and drew a 2-unit cube at the origin, a box of no map. Now it draws nothing, and draws the volume again
+    when the carrier holds its map once more. A group saved at version 3 is rebuilt in place (its modifiers keep
+    it) the next time Lixel builds it."""
+    maps = [_Map(perspective_light(wg, (1.0 + i, 2.0, 9.0), (0.0, 0.0, 0.0)), (512, 512)) for i in range(3)]
+    carrier = nodes.ensure_carrier(scene, _Setup(*maps))
+    ob = nodes.add_frustum_object(scene, carrier, 2)
+    assert len(evaluated_points(ob, ["position"])["position"]) == 8
+    nodes.ensure_carrier(scene, _Setup(maps[0]))
+    assert nodes.followers_of_missing_maps(carrier, 1) == [(ob.name, 2)]
+    assert len(evaluated_points(ob, ["position"])["position"]) == 0
+    nodes.ensure_carrier(scene, _Setup(*maps))
+    world = evaluated_points(ob, ["position"])["position"] + np.array(ob.location)
+    assert len(world) == 8 and np.abs(np.sort(world, axis=0) - np.sort(wg.clip_volume_corners(maps[2].matrix),
+                                                                       axis=0)).max() < 1e-4
+    group = ob.modifiers[nodes.FRUSTUM_MODIFIER].node_group
+    group[nodes.VERSION_KEY] = 3                        # as a file saved before this version holds it
+    assert nodes.ensure_frustum_group() == group and group[nodes.VERSION_KEY] == nodes.FRUSTUM_GROUP_VERSION
+    assert ob.modifiers[nodes.FRUSTUM_MODIFIER].node_group == group
+    nodes.ensure_carrier(scene, _Setup(maps[0]))
+    assert len(evaluated_points(ob, ["position"])["position"]) == 0
+
+
 def test_groups_are_idempotent_and_versioned(scene, nodes):
     g1 = nodes.ensure_texel_grid_group()
     n_nodes = len(g1.nodes)

@@ -192,6 +192,28 @@ def test_an_output_dir_that_is_a_file_is_refused_first(blend, tmp_path, script):
     assert "texel px" not in r.stdout and there.read_text() == "the user's notes\n"
 
 
+@pytest.mark.parametrize("script", ["compare_methods.py", "overlay_snapshot.py"])
+def test_an_output_dir_that_cannot_be_written_is_refused_before_any_work(blend, tmp_path, script):
+    """``--output-dir notes.txt/pictures`` (a file where a folder must be made): compare_methods computed and printed
+    the whole table, then said "cannot write 'notes.txt/pictures': Not a directory". Refused first, naming the folder,
+    why and what to do; nothing is made and the file is kept."""
+    there = tmp_path / "notes.txt"
+    there.write_text("the user's notes\n")
+    folder = there / "pictures"
+    r = run("module", script, blend, "--output-dir", str(folder), *(["--no-render"] if "compare" in script else []))
+    assert r.returncode == 1 and (f"lixel: error: --output-dir {folder} cannot be written: {there} is a file, not a "
+                                  f"folder: name a folder you can write to (one that is missing is made)") \
+        in r.stderr, r.stderr
+    assert "texel px" not in r.stdout and there.read_text() == "the user's notes\n"
+
+
+def test_a_missing_output_dir_is_made_only_by_a_run_that_writes(blend, tmp_path):
+    """The check makes nothing: a run refused for its arguments after it (an unknown method) leaves no folder."""
+    folder = tmp_path / "new" / "pictures"
+    r = run("module", "compare_methods.py", blend, "--output-dir", str(folder), "--no-render", "--methods", "bogus")
+    assert r.returncode == 2 and not (tmp_path / "new").exists(), r.stderr
+
+
 def test_export_animation_to_stdout_is_json_only(blend):
     """``--output -``: Blender's "Read blend" line (printed by C code when the
     script opens the file) and any note go to stderr; stdout parses as JSON."""

@@ -324,6 +324,53 @@ def test_an_option_out_of_range_is_refused_before_computing(tmp_path, capsys, op
         assert capsys.readouterr().err == f"lixel: error: options.{option}: {allowed} (got {value!r})\n"
 
 
+@pytest.mark.parametrize("depths", [[1000, 2000], [0, 0.05]])
+def test_a_visible_range_outside_the_clip_range_is_refused_as_read(tmp_path, capsys, depths):
+    """outdoor_sun's camera clips at [0.1, 70]. A visible_depth_range of [1000, 2000] (or [0, 0.05]) holds nothing
+    it sees: every method but the cascade ignored it silently, and the cascade failed with "no split of the view
+    holds a visible receiver", naming no cause. Now it is refused as the config is read, for every method, naming
+    the option, its value, the clip range and what to do."""
+    from addon.cli import main
+    config = base_config()
+    config["options"] = {"visible_depth_range": depths, "delta_z": "visible"}
+    path = tmp_path / "config.json"
+    path.write_text(json.dumps(config))
+    for method in ("uniform", "lispsm", "cascade", "all"):
+        assert main(["--method", method, str(path)]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"lixel: error: options.visible_depth_range: [{depths[0]:g}, {depths[1]:g}] lies "
+                              f"wholly outside the camera's clip range [0.1, 70]"), err
+        assert "give eye depths that overlap the clip range, or drop the option" in err and err.count("\n") == 1
+
+
+def test_a_visible_range_partly_outside_the_clip_range_is_clamped_by_every_method(tmp_path, capsys):
+    """[20, 2000] overlaps outdoor_sun's clip range [0.1, 70]: every method takes its part within it, as the
+    panel's default Visible Range (0.1 to 100 m) beside a camera clipping at 30 m must work."""
+    from addon.cli import main
+    config = base_config()
+    config["options"] = {"visible_depth_range": [20, 2000], "delta_z": "visible"}
+    path = tmp_path / "config.json"
+    path.write_text(json.dumps(config))
+    assert main(["--method", "all", str(path)]) == 0, capsys.readouterr().err
+    results = json.loads(capsys.readouterr().out)["methods"]
+    assert len(results) == 7 and all(r["maps"] for r in results.values())
+
+
+def test_a_cascade_with_no_receiver_in_the_visible_range_names_the_range(tmp_path, capsys):
+    """[65, 70] lies within outdoor_sun's clip range but holds no receiver it sees: the cascade, which splits only the
+    range, said "no split of the view holds a visible receiver", naming no cause; now it names the option."""
+    from addon.cli import main
+    config = base_config()
+    config["options"] = {"visible_depth_range": [65, 70]}
+    path = tmp_path / "config.json"
+    path.write_text(json.dumps(config))
+    assert main(["--method", "cascade", str(path)]) == 1
+    assert capsys.readouterr().err == (
+        "lixel: error: cascade: no split of the view holds a visible receiver within options.visible_depth_range "
+        "[65.0, 70.0]: widen it to the receivers' eye depths or drop the option\n")
+    assert main(["--method", "uniform", str(path)]) == 0            # (which does not split by it)
+
+
 @pytest.mark.parametrize("size, options, budget", [(1, {}, "0.75"), (1024, {"plane_budget": 1e-12}, "1.05e-06")])
 def test_plane_maps_that_do_not_fit_say_what_to_do(tmp_path, capsys, size, options, budget):
     """chess_spot at "shadow_map_size": 1 (the format's least): plane_optimal said "plane_optimal: plane_optimal:
