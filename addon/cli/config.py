@@ -338,7 +338,7 @@ def parse_config(config: dict) -> tuple[View, Light, SceneBounds, WarpOptions]:
     options = parse_options(config)
     if options.visible_depth_range is not None:
         near, far = options.visible_depth_range
-        if far <= view.near or near >= view.far:    # (within the clip range, a part is taken: the methods clamp)
+        if not view.sees_depths(near, far):    # (within the clip range, a part is taken: the methods clamp)
             raise ConfigError(f"options.visible_depth_range: [{near:g}, {far:g}] lies wholly outside the camera's "
                               f"clip range [{view.near:g}, {view.far:g}] (camera.near, camera.far), so the camera "
                               f"sees nothing there: give eye depths that overlap the clip range, or drop the option")

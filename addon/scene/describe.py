@@ -179,7 +179,7 @@ def check_visible_range(view: View, settings, camera_name: str, scene) -> None:
     if settings.method not in VISIBLE_RANGE_METHODS or settings.warp.visible_depth_range is None:
         return
     near, far = settings.warp.visible_depth_range
-    if far <= view.near or near >= view.far:
+    if not view.sees_depths(near, far):
         raise WarpError(f"Scene '{scene.name}' has a Visible Range from {length_text(near, scene)} to "
                         f"{length_text(far, scene)}, wholly outside the clip range of camera '{camera_name}' "
                         f"({length_text(view.near, scene)} to {length_text(view.far, scene)}), so it holds nothing "

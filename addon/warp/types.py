@@ -74,6 +74,10 @@ class View:
             raise WarpError(f"fov_y must be in (0, 180) degrees (got {math.degrees(fov_y)})")
         return cls(camera_to_world, perspective_matrix(fov_y, aspect, near, far), near, far, resolution)
 
+    def sees_depths(self, near: float, far: float) -> bool:
+        """Whether eye depths from ``near`` to ``far`` overlap the clip range (a part of them can be seen)."""
+        return far > self.near and near < self.far
+
     # A View is immutable, so what is derived from it is computed once (read-only arrays).
     @cached_property
     def world_to_camera(self) -> np.ndarray:
