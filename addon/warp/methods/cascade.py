@@ -155,13 +155,13 @@ class Trials:
                                                                       grazing(m, seen, self.light)) if laid else [])]
         maps += [(w, single(m, size=size)) for w, m in maps if len(m.maps) == 1 and laid
                  for size in stretched(m.maps[0].size)]
-        unique = {}                                   # (a later copy of a map never wins: the first least wins)
+        unique = {}       # (a later copy of a map never wins: the first least wins); by receivers, matrices and sizes
         for w, m in maps:
-            unique.setdefault(tuple((p.matrix.tobytes(), tuple(p.size)) for p in m.maps), (w, m))
-        maps = list(unique.values())
-        setups = [m for _, m in maps]            # each weighed by the filter gain it loses at the known shadow edges
-        return [(w, m, f * k) for (w, m), f, k in zip(maps, footprints(setups, seen) if maps else [],
-                                                      filter_losses(setups, seen))]
+            unique.setdefault((kept.tobytes(), *((p.matrix.tobytes(), tuple(p.size)) for p in m.maps)), (w, m))
+        new = {key: m for key, (_, m) in unique.items() if key not in self.made}     # (footprints made once each)
+        self.made.update(zip(new, footprints(list(new.values()), seen) if new else []))
+        setups = [m for _, m in unique.values()]  # each weighed by the filter gain it loses at the known shadow edges
+        return [(w, m, self.made[key] * k) for (key, (w, m)), k in zip(unique.items(), filter_losses(setups, seen))]
 
     def least_footprint(self, splits: list) -> tuple[list, list]:
         """``splits`` with the maps among their ``candidates`` of least p95 at the receivers (coordinate descent from
