@@ -71,9 +71,7 @@ def image_up(view_direction, view_up, light_direction) -> np.ndarray:
     PARALLEL_BLEND of parallel into the camera's up (``image_up_blend``)."""
     up = image_up_blend(view_direction, view_up, light_direction)
     length = math.sqrt(dot3(up, up))
-    if length < 1e-300:
-        return np.zeros(3)
-    return np.array([c / length for c in up])
+    return np.zeros(3) if length < 1e-300 else np.array([c / length for c in up])
 
 
 def up_across(view: View, axis) -> np.ndarray:

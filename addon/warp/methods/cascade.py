@@ -116,8 +116,9 @@ class Trials:
         except EmptyBodyError:
             return clipped, None
 
-    def split(self, near: float, far: float, band: float, warps: Optional[list] = None) -> Split:
-        """Split [near, far] holding ``band`` more, by the warp of least predicted error among ``warps`` (or all)."""
+    def split(self, near: float, far: float, band: float, warps: Optional[list] = None, scored: bool = True) -> Split:
+        """Split [near, far] holding ``band`` more, by the warp of least predicted error among ``warps`` (or all; not
+        ``scored``: one warp, its error unread)."""
         end, options = far + band, self.options
         view, body = self.once(("body", near, end), lambda: self.body(near, end))
         split = Split(near, far, band, view, body)
@@ -126,17 +127,18 @@ class Trials:
                 else [options.cascade_warp]
         for name in warps if body is not None else []:
             setup = self.once(("maps", near, end, name), lambda: split_setup(name, view, self.light, body, options))
-            error = self.once(("m", near, end, name), lambda: max_error(view, self.light, setup, body.visible_vertices))
+            error = 0.0 if not scored else self.once(("m", near, end, name),
+                                                     lambda: max_error(view, self.light, setup, body.visible_vertices))
             if split.setup is None or error < split.predicted_error * (1.0 - TIE):
                 split.warp, split.setup, split.predicted_error = name, setup, error
             split.tried.append((name, setup))
         return split
 
-    def splits_at(self, c: np.ndarray, warps: Optional[list] = None) -> list:
+    def splits_at(self, c: np.ndarray, warps: Optional[list] = None, scored: bool = True) -> list:
         """The splits between the depths ``c``, split i with the warps allowed or ``warps[i]``, and a band of
         ``cascade_blend``·(C_(i+1) - C_i) (none for the last)."""
-        return [self.split(a, b, 0.0 if i == len(c) - 2 else self.options.cascade_blend * (b - a),
-                           None if warps is None else [warps[i]]) for i, (a, b) in enumerate(zip(c[:-1], c[1:]))]
+        return [self.split(a, b, 0.0 if i == len(c) - 2 else self.options.cascade_blend * (b - a), None if warps is None
+                           else [warps[i]], scored) for i, (a, b) in enumerate(zip(c[:-1], c[1:]))]
 
     def candidates(self, split: Split, far: float, laid: bool = True) -> list:
         """(warp, setup, ``footprints`` at the receivers at eye depths [C_i, ``far``)) of each warp ``split`` tried
@@ -153,13 +155,13 @@ class Trials:
                                                                       grazing(m, seen, self.light)) if laid else [])]
         maps += [(w, single(m, size=size)) for w, m in maps if len(m.maps) == 1 and laid
                  for size in stretched(m.maps[0].size)]
-        unique = {}                                   # (a later copy of a map never wins: the first least wins)
+        unique = {}       # (a later copy of a map never wins: the first least wins); by receivers, matrices and sizes
         for w, m in maps:
-            unique.setdefault(tuple((p.matrix.tobytes(), tuple(p.size)) for p in m.maps), (w, m))
-        maps = list(unique.values())
-        setups = [m for _, m in maps]            # each weighed by the filter gain it loses at the known shadow edges
-        return [(w, m, f * k) for (w, m), f, k in zip(maps, footprints(setups, seen) if maps else [],
-                                                      filter_losses(setups, seen))]
+            unique.setdefault((kept.tobytes(), *((p.matrix.tobytes(), tuple(p.size)) for p in m.maps)), (w, m))
+        new = {key: m for key, (_, m) in unique.items() if key not in self.made}     # (footprints made once each)
+        self.made.update(zip(new, footprints(list(new.values()), seen) if new else []))
+        setups = [m for _, m in unique.values()]  # each weighed by the filter gain it loses at the known shadow edges
+        return [(w, m, self.made[key] * k) for (key, (w, m)), k in zip(unique.items(), filter_losses(setups, seen))]
 
     def least_footprint(self, splits: list) -> tuple[list, list]:
         """``splits`` with the maps among their ``candidates`` of least p95 at the receivers (coordinate descent from
@@ -193,9 +195,9 @@ class Trials:
     def searched_depths(self, start: np.ndarray, warps: list) -> np.ndarray:
         """``start`` after ``SWEEPS`` coordinate sweeps of the inner ones over ``FRACTIONS`` of their neighbours'
         log range (linear if orthographic), kept where the ``TAIL`` p95 of the splits' ``least`` falls by ``MARGIN``."""
-        def tail(c: np.ndarray) -> float:
-            return footprint_p95([self.least(s, far) for s, far in zip(self.splits_at(c, warps), [*c[1:-1], math.inf])],
-                                 TAIL)
+        def tail(c: np.ndarray) -> float:          # (the splits' Lloyd's m unread: ``least`` scores them)
+            splits = self.splits_at(c, warps, scored=False)
+            return footprint_p95([self.least(s, far) for s, far in zip(splits, [*c[1:-1], math.inf])], TAIL)
 
         c, best = start, tail(start)
         for _, k, f in itertools.product(range(SWEEPS), range(1, len(start) - 1), FRACTIONS):

@@ -248,9 +248,7 @@ LambdaRule = Callable[[FrameGeometry, WarpContext, float, WarpOptions], float]
 def rule_lispsm(g: FrameGeometry, ctx: WarpContext, phi: Optional[float], options: WarpOptions) -> float:
     """λ = n_opt / D with n_opt from Scherzer Eq. 1."""
     k = lispsm_inverse_n_opt(ctx.z_n, ctx.z_f - ctx.z_n, g.gamma)
-    if k == 0.0 or g.body_extent_world <= 0.0:
-        return math.inf
-    return 1.0 / (k * g.body_extent_world)
+    return math.inf if k == 0.0 or g.body_extent_world <= 0.0 else 1.0 / (k * g.body_extent_world)
 
 
 def _forced(options: WarpOptions) -> Optional[float]:
