@@ -340,12 +340,12 @@ def default_plane(receiver_boxes, surface: Optional[np.ndarray] = None, tol: flo
                   at_edges: Optional[np.ndarray] = None) -> tuple[Optional[PlaneOfInterest], Optional[float]]:
     """The default plane of interest and its seen share: the flat receiver top the ``surface`` is most on
     (``top_shares``; on none: None), without a surface the widest (share None); then widest, thinnest, first. Given
-    ``at_edges`` (which samples lie at a shadow edge; none: no evidence), at most the top's share of those samples."""
+    ``at_edges`` (which samples lie at a shadow edge; none: no evidence), the top's share of those samples instead."""
     b = np.asarray(receiver_boxes, dtype=np.float64).reshape(-1, 2, 3)
     area, height = _flat_tops(b[:, 0].T, b[:, 1].T)
     share = np.zeros(len(b)) if surface is None else top_shares(b, surface, tol)
     for i in np.lexsort((np.arange(len(b)), height, -area, -np.where(area >= 0, share, -1.0)))[:1].tolist():
         if area[i] >= 0 and (surface is None or share[i] > 0):
             edges = share[i:i + 1] if not np.any(at_edges) else top_shares(b[i:i + 1], surface[at_edges], tol)
-            return _top_face(b[i, 0], b[i, 1], i), None if surface is None else float(min(share[i], edges[0]))
+            return _top_face(b[i, 0], b[i, 1], i), None if surface is None else float(edges[0])
     return None, None

@@ -65,6 +65,23 @@ def test_a_plane_map_is_made_only_when_what_it_makes_exact_outweighs_what_the_fa
     assert large.diagnostics.extra["budget"]["lixels_per_pixel"] == 1.0
 
 
+def _edge_samples(view, sc, light):
+    """Which of the CLI's ray-grid samples (``body.visible.surface``'s order) have a seen neighbour in the other
+    state of light (the first look's shadow edges, exactly), and the samples' points."""
+    o, d, length = pixel_rays(view, BOX_SAMPLES)
+    t, _, n = ray_boxes(o, d, length, sc.receivers)
+    hit = np.isfinite(t)
+    p = o[hit] + t[hit, None] * d[hit]
+    lit = np.full(hit.shape, np.nan)
+    lit[hit] = ~np.isfinite(ray_boxes(p + 1e-6 * n[hit], np.broadcast_to(-light.direction, p.shape),
+                                      np.full(len(p), np.inf), sc.casters)[0])
+    grid = lit.reshape(BOX_SAMPLES[::-1])
+    edge = np.zeros(grid.shape, dtype=bool)
+    edge[1:] |= np.abs(grid[1:] - grid[:-1]) == 1
+    edge[:, 1:] |= np.abs(grid[:, 1:] - grid[:, :-1]) == 1
+    return edge.reshape(-1)[hit], p
+
+
 def test_a_plane_wholly_in_shadow_with_none_of_the_views_shadow_edges_gets_no_map_its_texels_go_to_the_fallback():
     """Shadow aliasing is at the shadow edges (Chong-Gortler §1): a ground wholly in a wall's shadow under a 5° sun,
     most of what is seen, holds none of the edges (they run across the towers' lit faces above it), so making it
@@ -74,20 +91,11 @@ def test_a_plane_wholly_in_shadow_with_none_of_the_views_shadow_edges_gets_no_ma
     sc, light = SceneBounds.from_boxes(np.array([ground, wall, *towers])), sun_at(5.0, 180.0)
     view = camera((0.0, -14.0, 6.0), (0.0, 6.0, 3.0), fov_deg=70.0)
     body = focused_body(view, light, sc)
-    o, d, length = pixel_rays(view, BOX_SAMPLES)                    # (the CLI's ray grid, as ``body.visible.surface``)
-    t, _, n = ray_boxes(o, d, length, sc.receivers)
-    hit = np.isfinite(t)
-    p = o[hit] + t[hit, None] * d[hit]
-    lit = np.full(hit.shape, np.nan)
-    lit[hit] = ~np.isfinite(ray_boxes(p + 1e-6 * n[hit], np.broadcast_to(-light.direction, p.shape),
-                                      np.full(len(p), np.inf), sc.casters)[0])
-    grid = lit.reshape(BOX_SAMPLES[::-1])
-    edge = np.zeros(grid.shape, dtype=bool)                         # a seen neighbour in the other state
-    edge[1:] |= np.abs(grid[1:] - grid[:-1]) == 1
-    edge[:, 1:] |= np.abs(grid[:, 1:] - grid[:, :-1]) == 1
-    at_edge = edge.reshape(-1)[hit]
+    at_edge, p = _edge_samples(view, sc, light)
     on_ground = np.abs(p[:, 2]) < TOL
-    assert len(body.visible.surface) == len(p) and on_ground.mean() > 0.8 and not lit[hit][on_ground].any()
+    shadowed = np.isfinite(ray_boxes(p + 1e-6 * np.array([0.0, 0.0, 1.0]), np.broadcast_to(-light.direction, p.shape),
+                                np.full(len(p), np.inf), sc.casters)[0])
+    assert len(body.visible.surface) == len(p) and on_ground.mean() > 0.8 and shadowed[on_ground].all()
     assert at_edge.sum() >= 4 and not at_edge[on_ground].any()
     looked = dataclasses.replace(body, visible=dataclasses.replace(
         body.visible, edge_directions=np.where(at_edge[:, None], (1.0, 0.0, 0.0), 0.0)))
@@ -98,6 +106,32 @@ def test_a_plane_wholly_in_shadow_with_none_of_the_views_shadow_edges_gets_no_ma
     assert [m.role for m in setup.maps] == ["fallback"] and setup.maps[0].size == (1024, 1024)
     assert np.allclose(setup.maps[0].matrix, uniform.maps[0].matrix) and "plane:0" in dict(setup.diagnostics.fallbacks)
 
+
+def test_a_plane_holding_most_of_the_shadow_edges_is_priced_by_them_not_by_its_seen_pixels():
+    """The errors a plane map makes exact are the uniform map's on the plane, and they lie at its shadow edges (§1):
+    σ is the plane's share of the edges, more than its share of the pixels where the rest of the view is wholly lit.
+    Posts' shadows on a ground that fills 18 % of the view, under a wall in full sun, make 70 % of the edges; at 384²
+    its map takes t/B = 0.48, and (1 - 0.70)·√(B / (B - t)) = 0.42 of uniform's errors are left (seen share alone:
+    (1 - 0.18)·1.39 = 1.14, no map)."""
+    ground, wall = np.array([[-30.0, -30.0, -0.5], [30.0, 30.0, 0.0]]), np.array([[-30.0, 14.0, 0.0], [30.0, 15.0, 12.0]])
+    posts = [np.array([[x - 0.4, y - 0.4, 0.0], [x + 0.4, y + 0.4, 1.0]]) for x in (-4.0, -1.5, 1.5, 4.0)
+             for y in (2.0, 5.0, 8.0)]
+    sc, light = SceneBounds.from_boxes(np.array([ground, wall, *posts])), sun_at(25.0, 250.0)
+    view = camera((0.0, -4.0, 2.0), (0.0, 14.0, 5.0), fov_deg=60.0)
+    body = focused_body(view, light, sc)
+    at_edge, p = _edge_samples(view, sc, light)
+    on_ground = np.abs(p[:, 2]) < TOL
+    assert len(body.visible.surface) == len(p) and on_ground.mean() < 0.2 and at_edge.sum() >= 50
+    assert on_ground[at_edge].mean() > 0.65
+    looked = dataclasses.replace(body, visible=dataclasses.replace(
+        body.visible, edge_directions=np.where(at_edge[:, None], (1.0, 0.0, 0.0), 0.0)))
+    options = WarpOptions(shadow_map_size=(384, 384))
+    assert [m.role for m in compute("plane_optimal", view, light, sc, options, body=body).maps] == ["fallback"]
+    setup = compute("plane_optimal", view, light, sc, options, body=looked)
+    assert [m.role for m in setup.maps] == ["plane:0", "fallback"]
+    assert setup.diagnostics.extra["seen_share"] == pytest.approx(on_ground[at_edge].mean())
+    budget = setup.diagnostics.extra["budget"]
+    assert budget["lixels_per_pixel"] == 1.0 and 0.4 < budget["plane_texels"] / budget["total_texels"] < 0.55
 
 def test_without_a_seen_surface_the_plane_map_keeps_the_papers_budget():
     sc, view, light = _board()

@@ -69,7 +69,7 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
     total = options.shadow_map_size[0] * options.shadow_map_size[1]
     s = share_budget(jobs, options.plane_budget * total, options.plane_twist)
     if jobs and not worth_its_texels(share, s, sum(_texels(j.rect) for j in jobs), len(frames) * total):
-        diag.fallback("plane:0", f"{jobs[0].plane.name}: {share:.1%} of the seen pixels (or edges), not worth its texels"
+        diag.fallback("plane:0", f"{jobs[0].plane.name}: {share:.1%} of the edges (or seen pixels), not worth its texels"
                                  + ("" if s >= 1.0 else f" ({s:.3g} lixels per pixel: below one its lixels sample no "
                                                         f"pixel's own point)"))
         jobs = []
@@ -102,9 +102,9 @@ def plane_optimal(view: View, light: Light, body: IntersectionBody, options: War
 def planes_of_interest(options: WarpOptions, body: IntersectionBody, tol: float,
                        diag: Diagnostics) -> tuple[list[PlaneOfInterest], float | None]:
     """``WarpOptions.planes``, else the flat receiver top the camera sees most (``plane_map.default_plane``; without a
-    seen surface the widest); and its share of the errors (None: unknown, or planes given): of the seen pixels, and
-    where the first look found shadow edges (``VisibleRegion.edge_directions``) at most of the pixels at those edges,
-    where shadow aliasing is (§1): a plane in one shadow, or wholly lit, has nothing for its map to make exact."""
+    seen surface the widest); and its share of the errors (None: unknown, or planes given): where the first look found
+    shadow edges (``VisibleRegion.edge_directions``), of the samples at them, where shadow aliasing is (§1; as many as
+    the uniform map errs there, its texels' width across them), even above its share of the seen pixels; else that."""
     if options.planes:
         return [PlaneOfInterest.from_option(p, i) for i, p in enumerate(options.planes)], None
     surface, edges = (None, None) if body.visible is None else (body.visible.surface, body.visible.edge_directions)
@@ -117,9 +117,9 @@ def planes_of_interest(options: WarpOptions, body: IntersectionBody, tol: float,
 
 
 def worth_its_texels(share: float | None, s: float, texels: int, budget: float) -> bool:
-    """Whether a map at ``s`` lixels per pixel over its ``share`` of the seen pixels is worth ``texels`` of the
-    fallbacks' ``budget``: errors even over pixels and texel-wide leave (1 - σ)·√(budget / (budget - texels)) of
-    uniform's, σ the share it makes exact: all of it at one lixel per pixel (§2), none below (None: yes)."""
+    """Whether a map at ``s`` lixels per pixel holding ``share`` of uniform's errors is worth ``texels`` of the
+    fallbacks' ``budget``: texel-wide errors leave (1 - σ)·√(budget / (budget - texels)) of uniform's (those off the
+    plane at the fallback's wider texels), σ the share made exact: all at one lixel per pixel (§2), none below."""
     exact = share if s >= 1.0 else 0.0
     return share is None or (1.0 - exact) ** 2 <= 1.0 - texels / budget
 
