@@ -44,6 +44,7 @@ import numpy as np
 from ..scene.owned import (DEBUG_KEY, MADE_KEY, NAME_KEY, find_made, is_lixel_made, lixel_datablock, made_as,
                            mark_made)
 from ..warp.geometry import finite_clip_volume_corners
+from ..warp.types import WarpError
 
 TEXEL_GROUP = "Lixel Texel Grid"
 FRUSTUM_GROUP = "Lixel Frustum From Matrix"
@@ -531,13 +532,26 @@ def _input(tree, name: str) -> str:
     raise KeyError(name)
 
 
+def _lixel_input(tree, name: str) -> str:
+    """:func:`_input`, or WarpError naming the group where it has no such input (someone edited Lixel's group
+    without renaming it: it is still Lixel's, but not as Lixel built it)."""
+    try:
+        return _input(tree, name)
+    except KeyError:
+        raise WarpError(f"node group '{tree.name}' has no input '{name}' (was it edited?): rename it to keep it as "
+                        f"yours, and Lixel builds its own again") from None
+
+
 def _set_input(mod, tree, name, value):
-    mod[_input(tree, name)] = value
+    mod[_lixel_input(tree, name)] = value
 
 
-def _matrix_modifier(ob, name: str, group, carrier, map_index: int):
+def _matrix_modifier(ob, name: str, group, carrier, map_index: int, *more: str):
     """The object's geometry-nodes modifier ``name`` (made if missing) running
-    ``group`` on the light matrices of ``carrier``, map ``map_index``."""
+    ``group`` on the light matrices of ``carrier``, map ``map_index``. WarpError, before anything changes, where
+    ``group`` lacks one of its inputs or ``more``."""
+    for needed in ("Light Matrices", "Map Index", *more):
+        _lixel_input(group, needed)
     mod = lixel_modifier(ob, name)
     if mod is None:  # a user's modifier of that name keeps it: Blender names this one "<name>.001"
         mod = ob.modifiers.new(name, "NODES")
@@ -557,10 +571,13 @@ def followers_of_missing_maps(carrier, count: int) -> list:
     for ob in bpy.data.objects:
         for name in (FRUSTUM_MODIFIER, TEXEL_MODIFIER):
             mod = lixel_modifier(ob, name)
-            if mod is not None and mod[_input(mod.node_group, "Light Matrices")] == carrier:
-                index = int(mod[_input(mod.node_group, "Map Index")])
-                if index >= count:
-                    out.append((ob.name, index))
+            try:
+                follows = mod is not None and mod[_input(mod.node_group, "Light Matrices")] == carrier
+                index = int(mod[_input(mod.node_group, "Map Index")]) if follows else -1
+            except KeyError:    # a group of Lixel's that someone took an input out of follows no map of Lixel's
+                continue
+            if index >= count:
+                out.append((ob.name, index))
     return out
 
 
@@ -577,7 +594,7 @@ def add_texel_grid(ob, carrier, map_index: int = 0, notes=None):
     """Add (or update) the texel-grid modifier on mesh object ``ob`` (``notes``: see :func:`_keep_edited`)."""
     group = ensure_texel_grid_group(notes)
     mat = ensure_texel_material()
-    mod = _matrix_modifier(ob, TEXEL_MODIFIER, group, carrier, map_index)
+    mod = _matrix_modifier(ob, TEXEL_MODIFIER, group, carrier, map_index, "Material")
     _set_input(mod, group, "Material", mat)
     if not any(s.material == mat for s in ob.material_slots):
         ob.data.materials.append(mat)
