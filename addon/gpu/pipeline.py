@@ -36,7 +36,7 @@ from .blas import one_blas_thread
 from .batches import DrawList, GPUScene, shared_scene
 from .layout import LIXEL_SHADE
 from .result import ANALYSIS, SURFACE, RenderCounts, RenderMemory, RenderResult, check_read, unpack_normals
-from .targets import TargetPool, check_map_memory, shared_targets
+from .targets import TargetPool, check_map_memory, map_bytes, shared_targets
 
 log = logging.getLogger(__name__)
 
@@ -777,12 +777,13 @@ class ShadowFrame:
         c.matrix_uploads = s.matrix_uploads - self._before[2]
         c.list_uploads = s.list_uploads - self._before[3]
         c.target_allocations = self.targets.allocations - self._before[4]
-        map_bytes = [int(m.size[0]) * int(m.size[1]) * 4 for m in self.setup.maps]
+        per_map = [map_bytes([m.size]) for m in self.setup.maps]
         w, h = size
         out.memory = RenderMemory(
-            per_map_bytes=map_bytes,
-            mdsm_bytes_per_layer=list(map_bytes) if self.keys else [],
-            mdsm_texture_bytes=[b * 4 for b in map_bytes] if self.keys else [],
+            per_map_bytes=per_map,
+            mdsm_bytes_per_layer=list(per_map) if self.keys else [],
+            mdsm_texture_bytes=[map_bytes([m.size], mdsm=True) - b for m, b in zip(self.setup.maps, per_map)]
+            if self.keys else [],
             render_target_bytes=w * h * (4 + 16 + 16 * (variant.footprint + variant.data + variant.world)),
         )
         out.timings = dict(self.timings)
