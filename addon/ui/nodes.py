@@ -206,7 +206,7 @@ def _keep_edited(edited, tree, notes) -> None:
     (Lixel's marks off, a fake user so it is saved though nothing may use it), point Lixel's own modifiers from it
     to its new version ``tree``, and say so in ``notes`` (a list of messages; None: the log)."""
     moved = []
-    for ob in bpy.data.objects:
+    for ob in (ob for ob in bpy.data.objects if ob.library is None):    # a linked object's modifiers are its file's
         for mod in ob.modifiers:
             if mod.type == "NODES" and mod.node_group == edited and \
                     mod.name.split(".")[0] in (TEXEL_MODIFIER, FRUSTUM_MODIFIER):
