@@ -242,9 +242,10 @@ def parse_planes(planes) -> tuple:
     for at, p in _entries(planes, "planes", "plane", ("point", "normal")):
         point = _vector(_get(p, "point", at), f"{at}.point", coordinates=True)
         normal = _vector(_get(p, "normal", at), f"{at}.normal")
-        if not np.any(normal):
-            raise ConfigError(f"{at}.normal: must not be zero")
-        plane = (point, normal / np.linalg.norm(normal))
+        try:        # (the core's normalize, as for light.direction: [0, 0, 1e-300] is a direction too)
+            plane = (point, normalize(normal))
+        except ValueError:
+            raise ConfigError(f"{at}.normal: must not be zero") from None
         if "extent" in p:  # what the sidebar's Planes From Selection keeps: the map covers only that outline
             plane += (_extent(p["extent"], f"{at}.extent", plane[1]),)
         out.append(plane)

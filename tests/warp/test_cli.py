@@ -678,3 +678,21 @@ def test_a_scaled_camera_is_taken_as_blender_takes_it_unscaled(tmp_path, capsys,
         assert main(["--method", "all", str(path)]) == 0
         outputs.append(capsys.readouterr().out)
     assert outputs[0] == outputs[1]
+
+
+@pytest.mark.parametrize("scale", [1e-300, 1e300])
+def test_a_plane_normal_of_any_finite_length_is_a_direction(tmp_path, capsys, scale):
+    """A plane's normal [0, 0, 1e-300] or [0, 0, 1e300] was divided by its length in float64 (which under- or
+    overflows: 0 or inf) and plane_optimal failed with "needs a finite point and a non-zero finite normal" (exit 1),
+    while light.direction [1e308, 0, 0] is a direction (the core's ``normalize``). Now both are read as the core
+    reads a direction: the maps equal those of [0, 0, 1]."""
+    from addon.cli import main
+    config = json.loads((ROOT / "examples" / "chess_spot.json").read_text())
+    outputs = []
+    for normal in ([0, 0, 1], [0, 0, scale]):
+        config["planes"] = [{"point": [0, 0, 0], "normal": normal}]
+        path = tmp_path / "config.json"
+        path.write_text(json.dumps(config))
+        assert main(["--method", "plane_optimal", str(path)]) == 0, capsys.readouterr().err
+        outputs.append(json.loads(capsys.readouterr().out)["maps"])
+    assert outputs[0] == outputs[1]
