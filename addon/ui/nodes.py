@@ -561,6 +561,25 @@ def _matrix_modifier(ob, name: str, group, carrier, map_index: int, *more: str):
     return mod
 
 
+def reattach_orphans(scene, carrier) -> list:
+    """Point the Lixel frustum and texel-grid modifiers of ``scene``'s objects that follow no carrier (the carrier
+    object was deleted: Blender cleared their Light Matrices, so they showed nothing while Sync said the matrices
+    were synced) at ``carrier``, this scene's; the names of their objects."""
+    out = []
+    for ob in (ob for ob in scene.objects if ob.library is None):
+        for name in (FRUSTUM_MODIFIER, TEXEL_MODIFIER):
+            mod = lixel_modifier(ob, name)
+            try:
+                key = None if mod is None else _input(mod.node_group, "Light Matrices")
+            except KeyError:    # a group of Lixel's that someone took the input out of
+                continue
+            if key is not None and mod.get(key) is None:
+                mod[key] = carrier
+                ob.update_tag()
+                out.append(ob.name)
+    return out
+
+
 def followers_of_missing_maps(carrier, count: int) -> list:
     """(object name, map index) of every object whose Lixel frustum or texel-grid modifier follows ``carrier``'s map
     ``index`` >= ``count``, a map the carrier no longer holds (the setup has fewer maps since it was added): the

@@ -538,3 +538,31 @@ def test_a_lixel_group_whose_inputs_the_user_took_out_is_named_not_a_bug(scene, 
         for mod in [m for m in ground.modifiers if m.type == "NODES"]:
             ground.modifiers.remove(mod)
         bpy.data.node_groups.remove(group)
+
+
+def test_frusta_and_texel_grids_of_a_deleted_carrier_follow_the_new_one(scene, mods, capfd):
+    """The user deletes the "Lixel Light Matrices" object: Blender clears the Light Matrices of every frustum and
+    texel grid following it, and Sync made a new carrier, said "1 matrices synced", and left them showing nothing
+    (no volume, no texels) with no word. Now each writing of the matrices points the scene's orphaned Lixel
+    modifiers at the new carrier and names their objects."""
+    ground = scene.objects["lixel_ops ground"]
+    _select_only(scene, [ground.name])
+    assert bpy.ops.lixel.frustum_add() == {"FINISHED"}
+    assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+    frustum = scene.objects["Lixel Frustum (map 0)"]
+    bpy.data.objects.remove(scene.objects[mods.nodes.CARRIER_NAME])
+    capfd.readouterr()
+    try:
+        assert bpy.ops.lixel.sync_matrices() == {"FINISHED"}
+        carrier = mods.nodes.scene_debug_object(scene, mods.nodes.CARRIER_NAME)
+        assert (f"Info: Lixel: 'lixel_ops ground', 'Lixel Frustum (map 0)' followed no light matrices (the "
+                f"'{mods.nodes.CARRIER_NAME}' object they followed was deleted): they follow '{carrier.name}' "
+                f"again") in capfd.readouterr().out
+        dg = bpy.context.evaluated_depsgraph_get()
+        dg.update()
+        assert len(frustum.evaluated_get(dg).data.vertices) == 8
+        assert mods.nodes.TEXEL_ATTRIBUTE in ground.evaluated_get(dg).data.attributes
+        assert bpy.ops.lixel.sync_matrices() == {"FINISHED"}
+        assert "followed no light matrices" not in capfd.readouterr().out
+    finally:
+        assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"}

@@ -24,9 +24,14 @@ class MatrixOperator(LixelSceneOperator):
             self.report({"WARNING"}, message)
 
     def name_followers_of_missing_maps(self, carrier, st) -> None:
-        """A warning naming each object that follows a map ``carrier`` (holding ``st``'s maps) no longer holds: a
-        frustum showed a 2-unit cube at the origin, a texel grid the colours of no map's texels, and nothing said
-        why."""
+        """Reattach the scene's frusta and texel grids that follow no carrier (``nodes.reattach_orphans``: the
+        carrier object was deleted), saying so, and a warning naming each object that follows a map ``carrier``
+        (holding ``st``'s maps) no longer holds: a frustum showed a 2-unit cube at the origin, a texel grid the
+        colours of no map's texels, and nothing said why."""
+        if again := nodes.reattach_orphans(bpy.context.scene, carrier):
+            self.report({"INFO"}, f"Lixel: {', '.join(map(repr, again))} followed no light matrices (the "
+                                  f"'{nodes.CARRIER_NAME}' object they followed was deleted): they follow "
+                                  f"'{carrier.name}' again")
         count = len(st.setup.maps)
         if stale := nodes.followers_of_missing_maps(carrier, count):
             one = len(stale) == 1
