@@ -150,6 +150,8 @@ def _value(v):
         return v
     if isinstance(v, bpy.types.ID):
         return v.name
+    if isinstance(v, (set, frozenset)):     # an enum flag: a set's order changes from one process to the next
+        return tuple(sorted(str(x) for x in v))
     try:
         return tuple(_value(x) for x in v)
     except TypeError:
