@@ -310,6 +310,43 @@ def test_an_edited_group_is_never_rebuilt(scene, nodes, wg, tmp_path):
         bpy.data.node_groups.remove(group)
 
 
+FINGERPRINT_CHILD = r'''
+import importlib, importlib.util, sys
+import bpy
+conftest, path = sys.argv[1:3]
+spec = importlib.util.spec_from_file_location("bconf", conftest)
+bconf = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(bconf)
+bconf.enable_lixel()
+nodes = importlib.import_module(bconf.ADDON_MODULE + ".addon.ui.nodes")
+with bpy.data.libraries.load(path) as (names, into):
+    into.node_groups = list(names.node_groups)
+for group in into.node_groups:
+    print("LIXEL_FINGERPRINT", group[nodes.FINGERPRINT_KEY] == nodes.fingerprint(group))
+bconf.disable_lixel()
+'''
+
+
+def test_the_groups_lixel_built_read_as_unedited_in_another_process(nodes, tmp_path):
+    """A fingerprint that changed from one Blender session to the next (a set's order, an address) would make every
+    group Lixel built look edited after the file is opened again: it is the same in a fresh process with another
+    hash seed."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+    path = tmp_path / "groups.blend"
+    bpy.data.libraries.write(str(path), {nodes.ensure_texel_grid_group(), nodes.ensure_frustum_group()})
+    script = tmp_path / "fingerprint.py"
+    script.write_text(FINGERPRINT_CHILD)
+    conftest = Path(__file__).with_name("conftest.py")
+    proc = subprocess.run([sys.executable, str(script), str(conftest), str(path)], capture_output=True, text=True,
+                          timeout=300, env={**os.environ, "PYTHONHASHSEED": "12345"})
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    said = [line.split()[1] for line in proc.stdout.splitlines() if line.startswith("LIXEL_FINGERPRINT")]
+    assert said == ["True", "True"], proc.stdout[-2000:]
+
+
 def test_a_texel_grid_of_a_map_the_carrier_does_not_hold_leaves_the_mesh_as_it_is(scene, nodes, wg):
     """A texel grid added for map 2 of a 3-map setup, then the setup synced with 1 map: its group sampled a default
     matrix and coloured the mesh by texels of no map. Now it passes the mesh through as it is (no texel attributes),
