@@ -52,6 +52,10 @@ FRUSTUM_ANGLE_DEGREES = (10.0, 170.0)
 alike. Past 170° a point light's one perspective map spreads its texels thin at its centre, tan(half the angle)
 times a 90° cube face's (11.4 at 170°, 1,146 at 179.9°): cube faces serve such a light better. Below 10° nearly
 every point light takes cube faces, each 90° wide, wider than the limit asked for."""
+PLANE_BUDGET = (0.01, 1.0)
+"""The Plane Budget a user may set (``WarpOptions.plane_budget``, the most of the texel budget plane_optimal's plane
+maps may take), in the panel and the CLI alike. Below 1 % a 1024² budget leaves the planes about 10,000 texels, a
+100² map for what one lixel per pixel needs: a plane map that small helps nothing, and 1e-12 left none at all."""
 ROUNDED_AXIS = 1e-6
 """A camera axis this close to unit length is a rotation written to 6 digits (the examples), taken as given."""
 MAX_PROJECTION_CONDITION = 1e12
@@ -238,9 +242,10 @@ def parse_planes(planes) -> tuple:
     for at, p in _entries(planes, "planes", "plane", ("point", "normal")):
         point = _vector(_get(p, "point", at), f"{at}.point", coordinates=True)
         normal = _vector(_get(p, "normal", at), f"{at}.normal")
-        if not np.any(normal):
-            raise ConfigError(f"{at}.normal: must not be zero")
-        plane = (point, normal / np.linalg.norm(normal))
+        try:        # (the core's normalize, as for light.direction: [0, 0, 1e-300] is a direction too)
+            plane = (point, normalize(normal))
+        except ValueError:
+            raise ConfigError(f"{at}.normal: must not be zero") from None
         if "extent" in p:  # what the sidebar's Planes From Selection keeps: the map covers only that outline
             plane += (_extent(p["extent"], f"{at}.extent", plane[1]),)
         out.append(plane)
@@ -272,6 +277,12 @@ def _option(key: str, value, annotation: str):
             raise ConfigError(f"{field}: must be from {low:g} to {high:g} degrees, as in the Lixel panel; wider "
                               f"lights take cube faces (got {value!r})")
         return math.radians(deg)
+    if key == "plane_budget":
+        share, (low, high) = _number(value, field), PLANE_BUDGET
+        if not low <= share <= high:    # (the Lixel panel's range too)
+            raise ConfigError(f"{field}: must be from {low:g} to {high:g}, as in the Lixel panel: the share of the "
+                              f"texel budget the plane maps may take (got {value!r})")
+        return share
     optional = annotation.startswith("Optional[")
     kind = annotation[len("Optional["):-1] if optional else annotation
     if value is None:

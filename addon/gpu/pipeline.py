@@ -36,7 +36,7 @@ from .blas import one_blas_thread
 from .batches import DrawList, GPUScene, shared_scene
 from .layout import LIXEL_SHADE
 from .result import ANALYSIS, SURFACE, RenderCounts, RenderMemory, RenderResult, check_read, unpack_normals
-from .targets import TargetPool, shared_targets
+from .targets import TargetPool, check_map_memory, map_bytes, shared_targets
 
 log = logging.getLogger(__name__)
 
@@ -539,6 +539,7 @@ class ShadowFrame:
         if len(setup.maps) > shaders.MAX_MAPS:
             raise WarpError(f"the shadow setup has {len(setup.maps)} maps; Lixel's shader takes at most "
                             f"{shaders.MAX_MAPS}")
+        check_map_memory(setup, shadow.mdsm_depths > 1)
         t = time.perf_counter()
         inst = self.geometry.instances
         if body is not None and inst.casts.any():
@@ -575,6 +576,7 @@ class ShadowFrame:
         """Draw ``setup``'s maps apart from the frame's own (depth textures "probe<i>") with every face of the
         casters that can shadow what the camera sees (``body.hull_halfspaces``), and read back their window depths,
         (h, w) each: a first look at where shadows fall (``addon.gpu.visibility.shadow_edges``)."""
+        check_map_memory(setup)
         hn, ho = body.hull_halfspaces
         casters = self.scene.draw_list("casters", self._select("casters", hn, ho, body.tolerance * 10))
         maps = depth_pass(setup, self.scene, casters, ShadowSettings(), self.targets, prefix="probe")
@@ -775,12 +777,13 @@ class ShadowFrame:
         c.matrix_uploads = s.matrix_uploads - self._before[2]
         c.list_uploads = s.list_uploads - self._before[3]
         c.target_allocations = self.targets.allocations - self._before[4]
-        map_bytes = [int(m.size[0]) * int(m.size[1]) * 4 for m in self.setup.maps]
+        per_map = [map_bytes([m.size]) for m in self.setup.maps]
         w, h = size
         out.memory = RenderMemory(
-            per_map_bytes=map_bytes,
-            mdsm_bytes_per_layer=list(map_bytes) if self.keys else [],
-            mdsm_texture_bytes=[b * 4 for b in map_bytes] if self.keys else [],
+            per_map_bytes=per_map,
+            mdsm_bytes_per_layer=list(per_map) if self.keys else [],
+            mdsm_texture_bytes=[map_bytes([m.size], mdsm=True) - b for m, b in zip(self.setup.maps, per_map)]
+            if self.keys else [],
             render_target_bytes=w * h * (4 + 16 + 16 * (variant.footprint + variant.data + variant.world)),
         )
         out.timings = dict(self.timings)

@@ -17,6 +17,41 @@ from __future__ import annotations
 
 import functools
 
+from ..warp.types import WarpError
+
+BYTES_PER_TEXEL = {"DEPTH_COMPONENT32F": 4, "R32F": 4, "RG32F": 8, "RGBA32F": 16, "RGBA16F": 8, "R16F": 2, "RGBA8": 4}
+"""GPU memory a texel of each texture format Lixel allocates takes."""
+MAP_BYTES_LIMIT = 4 * 2 ** 30
+"""The most GPU memory a frame's shadow maps may take: 4 GiB (Blender's Python gpu module tells no device's memory).
+The cascade's 8 splits at 4096² take 512 MiB, with 4 MDSM depths 2.5 GiB; at 16384² one map takes 1 GiB and eight
+8 GiB, which fails deep in the GPU driver or takes the machine's memory (llvmpipe allocates it on the CPU)."""
+
+
+def map_bytes(sizes, mdsm: bool = False) -> int:
+    """GPU bytes of shadow maps of ``sizes`` ((w, h) each): a 32-bit depth texture each, and with ``mdsm`` (MDSM
+    Depths > 1) an RGBA32F key map each (``pipeline.mdsm_pass``)."""
+    per_texel = BYTES_PER_TEXEL["DEPTH_COMPONENT32F"] + (BYTES_PER_TEXEL["RGBA32F"] if mdsm else 0)
+    return sum(int(w) * int(h) for w, h in sizes) * per_texel
+
+
+def check_map_memory(setup, mdsm: bool = False, limit: int = MAP_BYTES_LIMIT) -> None:
+    """WarpError, before anything is allocated, when ``setup``'s maps would take more than ``limit`` bytes of GPU
+    memory (:func:`map_bytes`), naming the settings that size them and what to do."""
+    sizes = [m.size for m in setup.maps]
+    need = map_bytes(sizes, mdsm)
+    if need <= limit:
+        return
+    n = len(sizes)
+    shapes = sorted({f"{int(w)}x{int(h)}" for w, h in sizes})
+    splits = any(str(m.role).startswith("split") for m in setup.maps)
+    remedies = ["lower the Map Size"] + (["use fewer Splits or a Shared Texel Budget"] if splits else []) + \
+        (["set MDSM Depths to 1"] if mdsm else [])
+    raise WarpError(f"{n} shadow map{'s' if n > 1 else ''} of {', '.join(shapes)} texels"
+                    f"{' with their MDSM keys' if mdsm else ''} would take {need / 2 ** 30:.1f} GiB of GPU memory, "
+                    f"more than Lixel's limit of {limit / 2 ** 30:g} GiB: {', '.join(remedies[:-1])}"
+                    f"{' or ' if len(remedies) > 1 else ''}{remedies[-1]} (Lixel panel > Method)")
+
+
 class TargetPool:
     MAX_FRAMEBUFFERS = 64
     """Framebuffers kept (the oldest is dropped beyond this)."""
@@ -78,9 +113,7 @@ class TargetPool:
 
     @staticmethod
     def _size_of(size, fmt) -> int:
-        per_texel = {"DEPTH_COMPONENT32F": 4, "R32F": 4, "RG32F": 8, "RGBA32F": 16, "RGBA16F": 8, "R16F": 2,
-                     "RGBA8": 4}
-        return size[0] * size[1] * per_texel.get(fmt, 16)
+        return size[0] * size[1] * BYTES_PER_TEXEL.get(fmt, 16)
 
     @property
     def bytes(self) -> int:

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..warp import MAX_COORDINATE, unresolved_frustum
 from ..warp.geometry import frustum_matrix, ortho_matrix
+from ..warp.methods import VISIBLE_RANGE_METHODS
 from ..warp.polyhedron import box_corners
 from ..warp.types import Light, SceneBounds, View, WarpError, clip_range_beyond_depth
 from .instances import GEOMETRY_TYPES, InstanceSet, walk_instances  # noqa: F401 (re-exported)
@@ -165,16 +166,10 @@ def lost_depth_note(view: View, bounds: SceneBounds, camera_name: str, scene=Non
             f"as background; raise the clip start (Camera properties > Lens > Clip)")
 
 
-VISIBLE_RANGE_METHODS = ("psm", "lispsm", "gmnpr", "glpr", "cascade")
-"""The methods that read ``WarpOptions.visible_depth_range`` (PSM's d_R: ``post_perspective.nearest_visible_depth``;
-LiSPSM's, GMNPR's and GLPR's Δz = Visible: ``warp_frustum.eye_depth_range``; the cascade's range to split:
-``partition.splits``); the panel shows the Visible Range for them."""
-
-
 def check_visible_range(view: View, settings, camera_name: str, scene) -> None:
-    """WarpError when ``settings`` (LixelSettings) run a method of :data:`VISIBLE_RANGE_METHODS` on a Custom Visible
-    Range wholly outside the camera's clip range: it holds nothing the camera sees (LiSPSM and PSM computed as if it
-    were not there, the cascade found no visible receiver). A range that overlaps the clip range is taken where it
+    """WarpError when ``settings`` (LixelSettings) run a method of ``warp.methods.VISIBLE_RANGE_METHODS`` on a Custom
+    Visible Range wholly outside the camera's clip range: it holds nothing the camera sees (LiSPSM and PSM computed as
+    if it were not there, the cascade found no visible receiver). A range that overlaps the clip range is taken where it
     does (the methods clamp it); uniform and plane_optimal do not read it (the panel hides it for them)."""
     if settings.method not in VISIBLE_RANGE_METHODS or settings.warp.visible_depth_range is None:
         return

@@ -1,6 +1,12 @@
 """Geometry-node tooling, built by this code (the source of truth), idempotent
 and versioned (``node_group["lixel_version"]``; an older group is rebuilt in
-place, so the modifiers that use it keep working).
+place, so the modifiers that use it keep working). A group also keeps a
+fingerprint of what was built (``node_group["lixel_fingerprint"]``): an older
+group that no longer matches it (someone edited it without renaming it, or an
+older Lixel built it without one) is never rebuilt. It is left as it is, the
+user's from then on (kept with a fake user), the new version is built under the
+next free name, Lixel's own modifiers are pointed at that, and the operator says
+so, naming both groups (:func:`_keep_edited`).
 
 The light matrices travel in a *matrix carrier*: the mesh object "Lixel Light
 Matrices" with one point per shadow map and the point attributes
@@ -11,7 +17,9 @@ overlays and the operators use, decided once in float64). A modifier cannot take
 the node groups take the carrier *object* and sample the matrix from it; when
 the carrier's matrices change, every group using it follows.
 
-* **Lixel Texel Grid** puts the shadow-map texel grid on any mesh. Per point it
+* **Lixel Texel Grid** puts the shadow-map texel grid on any mesh (and leaves
+  the mesh as it is for a map index the carrier does not hold: a map the setup no
+  longer has, whose matrix would sample as a default). Per point it
   stores ``lixel_light_xyw`` = (x, y, w) of ``M @ [p, 1]`` (clip coordinates,
   affine in p, so they interpolate exactly across a face), ``lixel_texel`` =
   the texel coordinate ((x/w)·½+½)·W, ((y/w)·½+½)·H with the homogeneous divide
@@ -27,11 +35,16 @@ the carrier's matrices change, every group using it follows.
   volume through infinity, nor for a map index the carrier does not hold (a map
   the setup no longer has: its matrix would sample as a default, zero or identity).
 """
+import hashlib
+import logging
+
 import bpy
 import numpy as np
 
-from ..scene.owned import DEBUG_KEY, find_made, is_lixel_made, lixel_datablock, made_as, mark_made
+from ..scene.owned import (DEBUG_KEY, MADE_KEY, NAME_KEY, find_made, is_lixel_made, lixel_datablock, made_as,
+                           mark_made)
 from ..warp.geometry import finite_clip_volume_corners
+from ..warp.types import WarpError
 
 TEXEL_GROUP = "Lixel Texel Grid"
 FRUSTUM_GROUP = "Lixel Frustum From Matrix"
@@ -47,9 +60,12 @@ PARITY_COLOR_ATTRIBUTE = "lixel_texel_color"
 TEXEL_MODIFIER = "Lixel Texel Grid"
 FRUSTUM_MODIFIER = "Lixel Frustum"
 VERSION_KEY = "lixel_version"
-TEXEL_GROUP_VERSION = 1
+FINGERPRINT_KEY = "lixel_fingerprint"
+TEXEL_GROUP_VERSION = 2     # 2: the mesh as it is for a map the carrier does not hold (1 coloured by a default matrix)
 FRUSTUM_GROUP_VERSION = 4   # 4: nothing for a map the carrier does not hold (3 drew a 2-unit cube there)
 MATERIAL_VERSION = 1
+
+log = logging.getLogger(__name__)
 
 
 # --- small node-building helpers ------------------------------------------------------------------------------
@@ -119,17 +135,107 @@ class _Builder:
         return _socket(n.outputs, "Geometry")
 
 
+_LAYOUT = frozenset({"name", "label", "location", "location_absolute", "width", "height", "select", "hide",
+                     "show_options", "show_preview", "show_texture", "use_custom_color", "color", "color_tag",
+                     "warning_propagation", "description"})
+"""Node properties that change how a group looks in the editor, never what it computes: not in its fingerprint."""
+
+
+def _value(v):
+    """A socket's or property's value as plain data for a fingerprint: floats to 6 significant digits, a datablock
+    by name."""
+    if isinstance(v, float):
+        return float(f"{v:.6g}")
+    if isinstance(v, (bool, int, str)) or v is None:
+        return v
+    if isinstance(v, bpy.types.ID):
+        return v.name
+    if isinstance(v, (set, frozenset)):     # an enum flag: a set's order changes from one process to the next
+        return tuple(sorted(str(x) for x in v))
+    try:
+        return tuple(_value(x) for x in v)
+    except TypeError:
+        return repr(v)
+
+
+def fingerprint(tree) -> str:
+    """What node tree ``tree`` computes, hashed: its interface, each node's kind, settings, unlinked input values
+    and mute, and its links; not the layout (:data:`_LAYOUT`). Equal for a group as Lixel built it, saved and
+    loaded; different once a node, link, setting or value is changed."""
+    items = [(i.item_type, getattr(i, "in_out", ""), i.name, getattr(i, "socket_type", ""),
+              _value(getattr(i, "default_value", None))) for i in tree.interface.items_tree]
+    nodes = []
+    for n in sorted(tree.nodes, key=lambda n: n.name):
+        props = [(p.identifier, _value(getattr(n, p.identifier))) for p in n.bl_rna.properties
+                 if p.type in ("BOOLEAN", "INT", "FLOAT", "STRING", "ENUM") and not p.is_readonly
+                 and p.identifier not in _LAYOUT and not p.identifier.startswith("bl_")]
+        inputs = [(i.identifier, _value(getattr(i, "default_value", None))) for i in n.inputs if not i.is_linked]
+        nodes.append((n.name, n.bl_idname, props, inputs))
+    links = sorted((k.from_node.name, k.from_socket.identifier, k.to_node.name, k.to_socket.identifier, k.is_muted)
+                   for k in tree.links)
+    return hashlib.sha256(repr((items, nodes, links)).encode()).hexdigest()
+
+
 def _reset_tree(name, tree_type, version):
-    """Lixel's node tree ``name``: (None, tree) if it is current, else (tree, tree)
-    emptied for a rebuild. A user's tree of that name is never touched."""
+    """Lixel's node tree ``name``: (None, tree, None) if it is current, else (tree, None, edited): ``tree``
+    emptied for a rebuild, in place where Lixel's outdated group still holds what it built, else new (``edited``:
+    that group, differing from its fingerprint, left to the user). A user's tree of that name is never touched."""
     tree = find_made(bpy.data.node_groups, name)
     if tree is not None and tree.bl_idname == tree_type and tree.get(VERSION_KEY) == version:
-        return None, tree
+        return None, tree, None
+    edited = None
+    if tree is not None and tree.bl_idname == tree_type and tree.get(FINGERPRINT_KEY) != fingerprint(tree):
+        edited, tree = tree, None
     if tree is None or tree.bl_idname != tree_type:
         tree = mark_made(bpy.data.node_groups.new(name, tree_type), name)
     tree.nodes.clear()
     tree.interface.clear()
-    return tree, tree
+    return tree, None, edited
+
+
+def _built(tree, version: int, edited, notes):
+    """Stamp the rebuilt ``tree`` with ``version`` and its fingerprint; where an ``edited`` group was left,
+    :func:`_keep_edited`."""
+    tree[VERSION_KEY] = version
+    tree[FINGERPRINT_KEY] = fingerprint(tree)
+    if edited is not None:
+        _keep_edited(edited, tree, notes)
+    return tree
+
+
+def _keep_edited(edited, tree, notes) -> None:
+    """Leave ``edited`` (an outdated group of Lixel's that is not what Lixel built) as it is, the user's from now on
+    (Lixel's marks off, a fake user so it is saved though nothing may use it), point Lixel's own modifiers from it
+    to its new version ``tree``, and say so in ``notes`` (a list of messages; None: the log)."""
+    moved = []
+    for ob in (ob for ob in bpy.data.objects if ob.library is None):    # a linked object's modifiers are its file's
+        for mod in ob.modifiers:
+            if mod.type == "NODES" and mod.node_group == edited and \
+                    mod.name.split(".")[0] in (TEXEL_MODIFIER, FRUSTUM_MODIFIER):
+                values = {}
+                for name in ("Light Matrices", "Map Index", "Material"):
+                    try:
+                        values[name] = mod[_input(edited, name)]
+                    except KeyError:    # an input the user took out of their group
+                        pass
+                mod.node_group = tree
+                for name, value in values.items():
+                    _set_input(mod, tree, name, value)
+                moved.append(ob.name)
+    old = edited.get(VERSION_KEY)
+    for key in (MADE_KEY, NAME_KEY, VERSION_KEY, FINGERPRINT_KEY):
+        if key in edited.keys():
+            del edited[key]
+    edited.use_fake_user = True
+    said = (f"Lixel: node group '{edited.name}' (version {old}) is not as Lixel built it (edited, or made before Lixel "
+            f"kept a fingerprint), so it was left as it is, yours now (with a fake user, so it is saved); Lixel's "
+            f"version {tree[VERSION_KEY]} is '{tree.name}'"
+            + (f", now used by Lixel's modifiers on {', '.join(repr(n) for n in moved)}" if moved else "")
+            + f": to keep your edits, point those modifiers back to '{edited.name}' or copy them into '{tree.name}'")
+    if notes is None:
+        log.warning("%s", said)
+    else:
+        notes.append(said)
 
 
 def _carrier_matrix(b: _Builder, carrier_socket, index_socket, second=(SIZE_ATTRIBUTE, "FLOAT_VECTOR")):
@@ -181,9 +287,11 @@ def _new_input(tree, name, socket_type, default=None, min_value=None):
 
 # --- the groups -----------------------------------------------------------------------------------------------
 
-def ensure_texel_grid_group():
-    """The "Lixel Texel Grid" geometry node group (built or rebuilt if outdated)."""
-    tree, current = _reset_tree(TEXEL_GROUP, "GeometryNodeTree", TEXEL_GROUP_VERSION)
+def ensure_texel_grid_group(notes=None):
+    """The "Lixel Texel Grid" geometry node group (built or rebuilt if outdated; ``notes``: see :func:`_keep_edited`).
+    For a ``Map Index`` at or beyond the carrier's point count (a map the setup no longer has) it passes the mesh
+    through as it is: Sample Index would give a default matrix, whose "texels" belong to no map."""
+    tree, current, edited = _reset_tree(TEXEL_GROUP, "GeometryNodeTree", TEXEL_GROUP_VERSION)
     if tree is None:
         return current
     tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
@@ -219,20 +327,36 @@ def ensure_texel_grid_group():
     setmat = b.node("GeometryNodeSetMaterial")
     b.link(geo, _socket(setmat.inputs, "Geometry"))
     b.link(_socket(gin.outputs, "Material"), _socket(setmat.inputs, "Material"))
-    b.link(_socket(setmat.outputs, "Geometry"), gout.inputs[0])
-    tree[VERSION_KEY] = TEXEL_GROUP_VERSION
-    return tree
+    switch = b.node("GeometryNodeSwitch", input_type="GEOMETRY")
+    b.link(_map_missing(b, gin), _socket(switch.inputs, "Switch"))
+    b.link(_socket(setmat.outputs, "Geometry"), _socket(switch.inputs, "False"))
+    b.link(_socket(gin.outputs, "Geometry"), _socket(switch.inputs, "True"))
+    b.link(_socket(switch.outputs, "Output"), gout.inputs[0])
+    return _built(tree, TEXEL_GROUP_VERSION, edited, notes)
 
 
-def ensure_frustum_group():
+def _map_missing(b: _Builder, gin):
+    """True where the group's ``Map Index`` is at or beyond the carrier's point count: a map it does not hold."""
+    carrier = b.node("GeometryNodeObjectInfo", transform_space="ORIGINAL")
+    b.link(_socket(gin.outputs, "Light Matrices"), _socket(carrier.inputs, "Object"))
+    maps = b.node("GeometryNodeAttributeDomainSize", component="MESH")
+    b.link(_socket(carrier.outputs, "Geometry"), _socket(maps.inputs, "Geometry"))
+    missing = b.node("FunctionNodeCompare", data_type="INT", operation="GREATER_EQUAL")   # index >= the maps held
+    b.link(_socket(gin.outputs, "Map Index"), _socket(missing.inputs, "A"))
+    b.link(_socket(maps.outputs, "Point Count"), _socket(missing.inputs, "B"))
+    return _socket(missing.outputs, "Result")
+
+
+def ensure_frustum_group(notes=None):
     """The "Lixel Frustum From Matrix" group: the clip volume of map ``Map Index``
     of the carrier, in the modified object's local space; nothing where that volume
     reaches through infinity (the carrier's ``lixel_map_unbounded``: a corner at w
     <= 0, which the divide by w would mirror into a box the map does not cover, or
     at a w so small that the box is its far reach, not its shape; and, where float32
     evaluation puts a corner at w <= 0 all the same, nothing rather than a mirror); nothing for a ``Map Index`` at
-    or beyond the carrier's point count (a map the setup no longer has: Sample Index would give the default matrix)."""
-    tree, current = _reset_tree(FRUSTUM_GROUP, "GeometryNodeTree", FRUSTUM_GROUP_VERSION)
+    or beyond the carrier's point count (a map the setup no longer has: Sample Index would give the default matrix).
+    ``notes``: see :func:`_keep_edited`."""
+    tree, current, edited = _reset_tree(FRUSTUM_GROUP, "GeometryNodeTree", FRUSTUM_GROUP_VERSION)
     if tree is None:
         return current
     tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")  # unused; must be first
@@ -270,22 +394,15 @@ def ensure_frustum_group():
     either = b.node("FunctionNodeBooleanMath", operation="OR")
     b.link(_socket(behind.outputs, "Result"), either.inputs[0])
     b.link(unbounded, either.inputs[1])  # 0 or 1; Blender converts a float to a boolean as > 0
-    carrier = b.node("GeometryNodeObjectInfo", transform_space="ORIGINAL")
-    b.link(_socket(gin.outputs, "Light Matrices"), _socket(carrier.inputs, "Object"))
-    maps = b.node("GeometryNodeAttributeDomainSize", component="MESH")
-    b.link(_socket(carrier.outputs, "Geometry"), _socket(maps.inputs, "Geometry"))
-    missing = b.node("FunctionNodeCompare", data_type="INT", operation="GREATER_EQUAL")   # index >= the maps held
-    b.link(_socket(gin.outputs, "Map Index"), _socket(missing.inputs, "A"))
-    b.link(_socket(maps.outputs, "Point Count"), _socket(missing.inputs, "B"))
+    missing = _map_missing(b, gin)
     empty = b.node("FunctionNodeBooleanMath", operation="OR")
     b.link(_socket(either.outputs, "Boolean"), empty.inputs[0])
-    b.link(_socket(missing.outputs, "Result"), empty.inputs[1])
+    b.link(missing, empty.inputs[1])
     delete = b.node("GeometryNodeDeleteGeometry", domain="POINT")
     b.link(_socket(setpos.outputs, "Geometry"), _socket(delete.inputs, "Geometry"))
     b.link(_socket(empty.outputs, "Boolean"), _socket(delete.inputs, "Selection"))
     b.link(_socket(delete.outputs, "Geometry"), gout.inputs[0])
-    tree[VERSION_KEY] = FRUSTUM_GROUP_VERSION
-    return tree
+    return _built(tree, FRUSTUM_GROUP_VERSION, edited, notes)
 
 
 def ensure_texel_material():
@@ -417,13 +534,26 @@ def _input(tree, name: str) -> str:
     raise KeyError(name)
 
 
+def _lixel_input(tree, name: str) -> str:
+    """:func:`_input`, or WarpError naming the group where it has no such input (someone edited Lixel's group
+    without renaming it: it is still Lixel's, but not as Lixel built it)."""
+    try:
+        return _input(tree, name)
+    except KeyError:
+        raise WarpError(f"node group '{tree.name}' has no input '{name}' (was it edited?): rename it to keep it as "
+                        f"yours, and Lixel builds its own again") from None
+
+
 def _set_input(mod, tree, name, value):
-    mod[_input(tree, name)] = value
+    mod[_lixel_input(tree, name)] = value
 
 
-def _matrix_modifier(ob, name: str, group, carrier, map_index: int):
+def _matrix_modifier(ob, name: str, group, carrier, map_index: int, *more: str):
     """The object's geometry-nodes modifier ``name`` (made if missing) running
-    ``group`` on the light matrices of ``carrier``, map ``map_index``."""
+    ``group`` on the light matrices of ``carrier``, map ``map_index``. WarpError, before anything changes, where
+    ``group`` lacks one of its inputs or ``more``."""
+    for needed in ("Light Matrices", "Map Index", *more):
+        _lixel_input(group, needed)
     mod = lixel_modifier(ob, name)
     if mod is None:  # a user's modifier of that name keeps it: Blender names this one "<name>.001"
         mod = ob.modifiers.new(name, "NODES")
@@ -433,19 +563,42 @@ def _matrix_modifier(ob, name: str, group, carrier, map_index: int):
     return mod
 
 
+def reattach_orphans(scene, carrier) -> list:
+    """Point the Lixel frustum and texel-grid modifiers of ``scene``'s objects that follow no carrier (the carrier
+    object was deleted: Blender cleared their Light Matrices, so they showed nothing while Sync said the matrices
+    were synced) at ``carrier``, this scene's; the names of their objects."""
+    out = []
+    for ob in (ob for ob in scene.objects if ob.library is None):
+        for name in (FRUSTUM_MODIFIER, TEXEL_MODIFIER):
+            mod = lixel_modifier(ob, name)
+            try:
+                key = None if mod is None else _input(mod.node_group, "Light Matrices")
+            except KeyError:    # a group of Lixel's that someone took the input out of
+                continue
+            if key is not None and mod.get(key) is None:
+                mod[key] = carrier
+                ob.update_tag()
+                out.append(ob.name)
+    return out
+
+
 def followers_of_missing_maps(carrier, count: int) -> list:
     """(object name, map index) of every object whose Lixel frustum or texel-grid modifier follows ``carrier``'s map
     ``index`` >= ``count``, a map the carrier no longer holds (the setup has fewer maps since it was added): the
-    groups read a zero matrix there: a frustum shows nothing (a group before version 4 of
-    :data:`FRUSTUM_GROUP_VERSION`: a 2-unit cube at the origin), a texel grid no texel's colour."""
+    groups would read a default matrix there: a frustum shows nothing (a group before version 4 of
+    :data:`FRUSTUM_GROUP_VERSION`: a 2-unit cube at the origin), a texel grid leaves the mesh as it is (before
+    version 2 of :data:`TEXEL_GROUP_VERSION`: the colours of no map's texels)."""
     out = []
     for ob in bpy.data.objects:
         for name in (FRUSTUM_MODIFIER, TEXEL_MODIFIER):
             mod = lixel_modifier(ob, name)
-            if mod is not None and mod[_input(mod.node_group, "Light Matrices")] == carrier:
-                index = int(mod[_input(mod.node_group, "Map Index")])
-                if index >= count:
-                    out.append((ob.name, index))
+            try:
+                follows = mod is not None and mod[_input(mod.node_group, "Light Matrices")] == carrier
+                index = int(mod[_input(mod.node_group, "Map Index")]) if follows else -1
+            except KeyError:    # a group of Lixel's that someone took an input out of follows no map of Lixel's
+                continue
+            if index >= count:
+                out.append((ob.name, index))
     return out
 
 
@@ -458,11 +611,11 @@ def lixel_modifier(ob, name: str):
     return None
 
 
-def add_texel_grid(ob, carrier, map_index: int = 0):
-    """Add (or update) the texel-grid modifier on mesh object ``ob``."""
-    group = ensure_texel_grid_group()
+def add_texel_grid(ob, carrier, map_index: int = 0, notes=None):
+    """Add (or update) the texel-grid modifier on mesh object ``ob`` (``notes``: see :func:`_keep_edited`)."""
+    group = ensure_texel_grid_group(notes)
     mat = ensure_texel_material()
-    mod = _matrix_modifier(ob, TEXEL_MODIFIER, group, carrier, map_index)
+    mod = _matrix_modifier(ob, TEXEL_MODIFIER, group, carrier, map_index, "Material")
     _set_input(mod, group, "Material", mat)
     if not any(s.material == mat for s in ob.material_slots):
         ob.data.materials.append(mat)
@@ -499,9 +652,10 @@ def remove_texel_grid(ob) -> bool:
     return True
 
 
-def add_frustum_object(scene, carrier, map_index: int = 0):
-    """A debug object whose mesh is map ``map_index``'s clip volume, following the carrier."""
-    group = ensure_frustum_group()
+def add_frustum_object(scene, carrier, map_index: int = 0, notes=None):
+    """A debug object whose mesh is map ``map_index``'s clip volume, following the carrier (``notes``: see
+    :func:`_keep_edited`)."""
+    group = ensure_frustum_group(notes)
     name = f"Lixel Frustum (map {map_index})"
     ob = debug_object(scene, name, "frustum_nodes", lixel_mesh(name, scene))
     mod = _matrix_modifier(ob, FRUSTUM_MODIFIER, group, carrier, map_index)

@@ -9,7 +9,7 @@ import textwrap
 import bpy
 
 from ..guard import guarded_draw
-from ..scene.describe import VISIBLE_RANGE_METHODS
+from ..warp.methods import VISIBLE_RANGE_METHODS
 from . import live, overlays
 from .properties import CASCADE_METHODS, CASCADE_SETTINGS, LAMBDA_METHODS, N_OPT_METHODS, OVERLAYS, PLANE_METHODS
 

@@ -13,7 +13,7 @@ from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProp
                        IntProperty, IntVectorProperty, PointerProperty, StringProperty)
 
 from ..scene.units import length_text
-from ..cli.config import FRUSTUM_ANGLE_DEGREES
+from ..cli.config import FRUSTUM_ANGLE_DEGREES, PLANE_BUDGET
 from ..settings import (BIAS_MODES, MAX_EYE_BLUR, MAX_MAP_SIZE, MDSM_SELECTIONS, MIN_MAP_SIZE, LixelSettings,
                         ShadowSettings)
 from ..warp.types import WarpError, WarpOptions
@@ -171,7 +171,8 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
         subtype="ANGLE", description="Widest single perspective map for a point light; wider needs take cube faces")
     planes: CollectionProperty(type=LixelPlane, name="Planes of Interest")
     active_plane: IntProperty(name="Active Plane", default=0, min=0)
-    plane_budget: FloatProperty(name="Plane Budget", default=0.75, min=0.01, max=1.0, subtype="FACTOR",
+    plane_budget: FloatProperty(name="Plane Budget", default=0.75, min=PLANE_BUDGET[0], max=PLANE_BUDGET[1],
+                                subtype="FACTOR",
                                 description="The most of the texel budget the plane maps may take; they take only "
                                             "what one lixel per pixel needs, the fallback map gets the rest")
     plane_twist: EnumProperty(

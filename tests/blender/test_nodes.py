@@ -251,11 +251,11 @@ def test_groups_are_idempotent_and_versioned(scene, nodes):
     nodes.add_texel_grid(ground, carrier)
     assert len(ground.modifiers) == 1
     assert sum(1 for s in ground.material_slots if s.material and s.material.name == nodes.TEXEL_MATERIAL) == 1
-    # an outdated group is rebuilt in place: the modifier keeps using it
+    # an outdated group still as Lixel built it is rebuilt in place: the modifier keeps using it
     g1[nodes.VERSION_KEY] = 0
-    g1.nodes.clear()
-    g2 = nodes.ensure_texel_grid_group()
-    assert g2 == g1 and mod.node_group == g2 and len(g2.nodes) == n_nodes
+    said = []
+    g2 = nodes.ensure_texel_grid_group(said)
+    assert g2 == g1 and mod.node_group == g2 and len(g2.nodes) == n_nodes and said == []
     assert g2[nodes.VERSION_KEY] == nodes.TEXEL_GROUP_VERSION
     f1 = nodes.ensure_frustum_group()
     assert nodes.ensure_frustum_group() == f1
@@ -265,6 +265,111 @@ def test_groups_are_idempotent_and_versioned(scene, nodes):
     assert len(bpy.data.node_groups) == n_groups
     m1 = nodes.ensure_texel_material()
     assert nodes.ensure_texel_material() == m1
+
+
+def test_an_edited_group_is_never_rebuilt(scene, nodes, wg, tmp_path):
+    """A user edits Lixel's frustum group without renaming it (the cube's size 2 -> 3, a node muted), and Lixel's
+    next version rebuilds it: the edits were lost. Now an outdated group that differs from the fingerprint Lixel
+    stored when it built it is left as it is, the user's (Lixel's marks off, a fake user so it is saved though
+    unused); the new version is built beside it, Lixel's modifiers follow that, and the message names both groups
+    and the objects moved. The fingerprint survives a save and load (no false alarm), and an unedited outdated group
+    is still rebuilt in place."""
+    carrier = nodes.ensure_carrier(scene, _Setup(_Map(perspective_light(wg, (1.0, 2.0, 9.0), (0.0, 0.0, 0.0)),
+                                                      (512, 512))))
+    ob = nodes.add_frustum_object(scene, carrier, 0)
+    group = ob.modifiers[nodes.FRUSTUM_MODIFIER].node_group
+    path = tmp_path / "group.blend"
+    bpy.data.libraries.write(str(path), {group})
+    with bpy.data.libraries.load(str(path)) as (_, into):
+        into.node_groups = [group.name]
+    loaded = into.node_groups[0]
+    try:
+        assert loaded is not group and loaded[nodes.FINGERPRINT_KEY] == nodes.fingerprint(loaded)
+    finally:
+        bpy.data.node_groups.remove(loaded)
+    cube = next(n for n in group.nodes if n.bl_idname == "GeometryNodeMeshCube")
+    cube.inputs["Size"].default_value = (3.0, 3.0, 3.0)           # the user's edit
+    group.nodes[-1].mute = True
+    group[nodes.VERSION_KEY] = nodes.FRUSTUM_GROUP_VERSION - 1    # as a file from before Lixel's next version
+    edited = nodes.fingerprint(group)
+    said = []
+    other = nodes.add_frustum_object(scene, carrier, 0, said)
+    new = other.modifiers[nodes.FRUSTUM_MODIFIER].node_group
+    try:
+        assert other == ob and new != group and new.name == f"{nodes.FRUSTUM_GROUP}.001"
+        assert nodes.fingerprint(group) == edited and tuple(cube.inputs["Size"].default_value) == (3.0, 3.0, 3.0)
+        assert group.use_fake_user and not any(k.startswith("lixel") for k in group.keys())
+        assert new[nodes.VERSION_KEY] == nodes.FRUSTUM_GROUP_VERSION and nodes.ensure_frustum_group() == new
+        assert said == [f"Lixel: node group '{group.name}' (version {nodes.FRUSTUM_GROUP_VERSION - 1}) is not as "
+                        f"Lixel built it (edited, or made before Lixel kept a fingerprint), so it was left as it is, "
+                        f"yours now (with a fake user, so it is saved); Lixel's version {nodes.FRUSTUM_GROUP_VERSION} "
+                        f"is '{new.name}', now used by Lixel's modifiers on '{ob.name}': to keep your edits, point "
+                        f"those modifiers back to '{group.name}' or copy them into '{new.name}'"]
+        assert len(evaluated_points(ob, ["position"])["position"]) == 8      # the map's volume, from the new group
+    finally:
+        bpy.data.node_groups.remove(group)
+
+
+FINGERPRINT_CHILD = r'''
+import importlib, importlib.util, sys
+import bpy
+conftest, path = sys.argv[1:3]
+spec = importlib.util.spec_from_file_location("bconf", conftest)
+bconf = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(bconf)
+bconf.enable_lixel()
+nodes = importlib.import_module(bconf.ADDON_MODULE + ".addon.ui.nodes")
+with bpy.data.libraries.load(path) as (names, into):
+    into.node_groups = list(names.node_groups)
+for group in into.node_groups:
+    print("LIXEL_FINGERPRINT", group[nodes.FINGERPRINT_KEY] == nodes.fingerprint(group))
+bconf.disable_lixel()
+'''
+
+
+def test_the_groups_lixel_built_read_as_unedited_in_another_process(nodes, tmp_path):
+    """A fingerprint that changed from one Blender session to the next (a set's order, an address) would make every
+    group Lixel built look edited after the file is opened again: it is the same in a fresh process with another
+    hash seed."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+    path = tmp_path / "groups.blend"
+    bpy.data.libraries.write(str(path), {nodes.ensure_texel_grid_group(), nodes.ensure_frustum_group()})
+    script = tmp_path / "fingerprint.py"
+    script.write_text(FINGERPRINT_CHILD)
+    conftest = Path(__file__).with_name("conftest.py")
+    proc = subprocess.run([sys.executable, str(script), str(conftest), str(path)], capture_output=True, text=True,
+                          timeout=300, env={**os.environ, "PYTHONHASHSEED": "12345"})
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    said = [line.split()[1] for line in proc.stdout.splitlines() if line.startswith("LIXEL_FINGERPRINT")]
+    assert said == ["True", "True"], proc.stdout[-2000:]
+
+
+def test_a_texel_grid_of_a_map_the_carrier_does_not_hold_leaves_the_mesh_as_it_is(scene, nodes, wg):
+    """A texel grid added for map 2 of a 3-map setup, then the setup synced with 1 map: its group sampled a default
+    matrix and coloured the mesh by texels of no map. Now it passes the mesh through as it is (no texel attributes),
+    and shows map 2's texels again when the carrier holds it once more."""
+    ground = scene.objects["lixel_nodes ground"]
+    maps = [_Map(perspective_light(wg, (1.0 + i, 2.0, 9.0), (0.0, 0.0, 0.0)), (64, 64)) for i in range(3)]
+    carrier = nodes.ensure_carrier(scene, _Setup(*maps))
+    nodes.add_texel_grid(ground, carrier, map_index=2)
+    try:
+        local = np.array([v.co for v in ground.data.vertices], dtype=np.float64)
+        texels, _ = expected_texels(ground, local, maps[2].matrix, (64, 64))
+        assert np.abs(evaluated_points(ground, [nodes.TEXEL_ATTRIBUTE])[nodes.TEXEL_ATTRIBUTE][:, :2] - texels).max() < 1e-2
+        nodes.ensure_carrier(scene, _Setup(maps[0]))
+        assert nodes.followers_of_missing_maps(carrier, 1) == [(ground.name, 2)]
+        dg = bpy.context.evaluated_depsgraph_get()
+        dg.update()
+        me = ground.evaluated_get(dg).data
+        assert nodes.TEXEL_ATTRIBUTE not in me.attributes and nodes.XYW_ATTRIBUTE not in me.attributes
+        assert len(me.vertices) == len(ground.data.vertices)
+        nodes.ensure_carrier(scene, _Setup(*maps))
+        assert np.abs(evaluated_points(ground, [nodes.TEXEL_ATTRIBUTE])[nodes.TEXEL_ATTRIBUTE][:, :2] - texels).max() < 1e-2
+    finally:
+        nodes.remove_texel_grid(ground)
 
 
 EEVEE = "BLENDER_EEVEE" if bpy.app.version >= (5, 0, 0) else "BLENDER_EEVEE_NEXT"

@@ -509,3 +509,63 @@ def test_an_export_that_fails_part_way_leaves_the_file_that_was_there(scene, tmp
     assert sorted(p.name for p in tmp_path.iterdir()) == ["setup.json"]
     assert bpy.ops.lixel.export_json(filepath=str(path)) == {"FINISHED"}
     assert set(json.loads(path.read_text())) == {"maps", "diagnostics"} and (path.stat().st_mode & 0o777) == 0o640
+
+
+def test_a_lixel_group_whose_inputs_the_user_took_out_is_named_not_a_bug(scene, mods, capfd):
+    """The user edits Lixel's Texel Grid group without renaming it and takes out its Map Index input. Sync and Add
+    Texel Grid said "unexpected error ... this is a bug in Lixel" (a KeyError reading the modifier's inputs). Now
+    Sync passes the group by, and Add names the group, the input and what to do."""
+    ground = scene.objects["lixel_ops ground"]
+    _select_only(scene, [ground.name])
+    assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+    group = ground.modifiers[mods.nodes.TEXEL_MODIFIER].node_group
+    item = next(i for i in group.interface.items_tree if getattr(i, "in_out", "") == "INPUT" and i.name == "Map Index")
+    group.interface.remove(item)
+    try:
+        assert bpy.ops.lixel.sync_matrices() == {"FINISHED"}
+        cube = scene.objects["lixel_ops cube"]
+        _select_only(scene, [ground.name, cube.name])
+        with pytest.raises(RuntimeError) as refused:
+            bpy.ops.lixel.texel_grid_add()
+        assert "bug" not in str(refused.value) and len(cube.modifiers) == 0        # refused before any change
+        assert (f"node group '{group.name}' has no input 'Map Index' (was it edited?): rename it to keep it as yours, "
+                f"and Lixel builds its own again") in str(refused.value), str(refused.value)
+        group.name = "my grid"
+        _select_only(scene, [ground.name])
+        assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+        assert mods.nodes.lixel_modifier(ground, mods.nodes.TEXEL_MODIFIER).node_group not in (group, None)
+    finally:
+        for mod in [m for m in ground.modifiers if m.type == "NODES"]:
+            ground.modifiers.remove(mod)
+        bpy.data.node_groups.remove(group)
+
+
+def test_frusta_and_texel_grids_of_a_deleted_carrier_follow_the_new_one(scene, mods, capfd):
+    """The user deletes the "Lixel Light Matrices" object: Blender clears the Light Matrices of every frustum and
+    texel grid following it, and Sync made a new carrier, said "1 matrices synced", and left them showing nothing
+    (no volume, no texels) with no word. Now each writing of the matrices points the scene's orphaned Lixel
+    modifiers at the new carrier and names their objects."""
+    ground = scene.objects["lixel_ops ground"]
+    _select_only(scene, [ground.name])
+    assert bpy.ops.lixel.frustum_add() == {"FINISHED"}
+    assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+    frustum = scene.objects["Lixel Frustum (map 0)"]
+    deleted = scene.objects[mods.nodes.CARRIER_NAME]
+    orphan = deleted.data               # (Blender keeps the mesh until the file is saved; the test takes it away)
+    bpy.data.objects.remove(deleted)
+    capfd.readouterr()
+    try:
+        assert bpy.ops.lixel.sync_matrices() == {"FINISHED"}
+        carrier = mods.nodes.scene_debug_object(scene, mods.nodes.CARRIER_NAME)
+        assert (f"Info: Lixel: 'lixel_ops ground', 'Lixel Frustum (map 0)' followed no light matrices (the "
+                f"'{mods.nodes.CARRIER_NAME}' object they followed was deleted): they follow '{carrier.name}' "
+                f"again") in capfd.readouterr().out
+        dg = bpy.context.evaluated_depsgraph_get()
+        dg.update()
+        assert len(frustum.evaluated_get(dg).data.vertices) == 8
+        assert mods.nodes.TEXEL_ATTRIBUTE in ground.evaluated_get(dg).data.attributes
+        assert bpy.ops.lixel.sync_matrices() == {"FINISHED"}
+        assert "followed no light matrices" not in capfd.readouterr().out
+    finally:
+        assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"}
+        bpy.data.meshes.remove(orphan)

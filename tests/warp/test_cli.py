@@ -304,16 +304,21 @@ def test_a_size_out_of_range_names_what_it_counts(tmp_path, capsys, field, value
     assert capsys.readouterr().err == f"lixel: error: {where}: must be between 1 and 16384 {unit} per side (got {value})\n"
 
 
+BUDGET_RANGE = ("must be from 0.01 to 1, as in the Lixel panel: the share of the texel budget the plane maps may "
+                "take")
+
+
 @pytest.mark.parametrize("option, value, allowed", [
     ("lam", -1, "must be positive"), ("lam", 0, "must be positive"),
     ("visible_depth_range", [-5, 10], "must be [near, far] eye depths with 0 <= near < far"),
     ("visible_depth_range", [5, 5], "must be [near, far] eye depths with 0 <= near < far"),
-    ("plane_budget", 1.5, "plane_budget must be in (0, 1]")])
+    ("plane_budget", 1.5, BUDGET_RANGE), ("plane_budget", 1e-12, BUDGET_RANGE), ("plane_budget", 0.005, BUDGET_RANGE)])
 def test_an_option_out_of_range_is_refused_before_computing(tmp_path, capsys, option, value, allowed):
     """A forced λ of -1 or 0 was read, then refused by GMNPR, GLPR and the cascade only ("gmnpr: the forced λ must
     be positive", exit 1) and ignored by every other method; a Visible Range from -5 (or from 5 to 5) computed
-    silently, where the Lixel panel refuses it; plane_budget 1.5 was refused without its value. Each is refused as
-    the config is read, for every method, naming the option, the value and the range it must lie in."""
+    silently, where the Lixel panel refuses it; plane_budget 1.5 was refused without its value, and 1e-12 or 0.005
+    taken where the panel's Plane Budget goes from 0.01 to 1 (``config.PLANE_BUDGET``, read by both). Each is refused
+    as the config is read, for every method, naming the option, the value and the range it must lie in."""
     from addon.cli import main
     config = base_config()
     config["options"] = {option: value}
@@ -371,11 +376,12 @@ def test_a_cascade_with_no_receiver_in_the_visible_range_names_the_range(tmp_pat
     assert main(["--method", "uniform", str(path)]) == 0            # (which does not split by it)
 
 
-@pytest.mark.parametrize("size, options, budget", [(1, {}, "0.75"), (1024, {"plane_budget": 1e-12}, "1.05e-06")])
+@pytest.mark.parametrize("size, options, budget", [(1, {}, "0.75"), (1, {"plane_budget": 0.01}, "0.01")])
 def test_plane_maps_that_do_not_fit_say_what_to_do(tmp_path, capsys, size, options, budget):
     """chess_spot at "shadow_map_size": 1 (the format's least): plane_optimal said "plane_optimal: plane_optimal:
     could not fit the plane maps into the texel budget", its name twice and no remedy. At a plane_budget of 1e-12
-    of a 1024² map it said "give a larger shadow map size": one of 10^12 texels. Either raises the budget."""
+    of a 1024² map it said "give a larger shadow map size": one of 10^12 texels (that budget is now refused as read,
+    as the panel refuses it). Either raises the budget."""
     from addon.cli import main
     config = json.loads((ROOT / "examples" / "chess_spot.json").read_text())
     config["shadow_map_size"], config["options"] = size, options
@@ -671,4 +677,22 @@ def test_a_scaled_camera_is_taken_as_blender_takes_it_unscaled(tmp_path, capsys,
         path.write_text(json.dumps(config))
         assert main(["--method", "all", str(path)]) == 0
         outputs.append(capsys.readouterr().out)
+    assert outputs[0] == outputs[1]
+
+
+@pytest.mark.parametrize("scale", [1e-300, 1e300])
+def test_a_plane_normal_of_any_finite_length_is_a_direction(tmp_path, capsys, scale):
+    """A plane's normal [0, 0, 1e-300] or [0, 0, 1e300] was divided by its length in float64 (which under- or
+    overflows: 0 or inf) and plane_optimal failed with "needs a finite point and a non-zero finite normal" (exit 1),
+    while light.direction [1e308, 0, 0] is a direction (the core's ``normalize``). Now both are read as the core
+    reads a direction: the maps equal those of [0, 0, 1]."""
+    from addon.cli import main
+    config = json.loads((ROOT / "examples" / "chess_spot.json").read_text())
+    outputs = []
+    for normal in ([0, 0, 1], [0, 0, scale]):
+        config["planes"] = [{"point": [0, 0, 0], "normal": normal}]
+        path = tmp_path / "config.json"
+        path.write_text(json.dumps(config))
+        assert main(["--method", "plane_optimal", str(path)]) == 0, capsys.readouterr().err
+        outputs.append(json.loads(capsys.readouterr().out)["maps"])
     assert outputs[0] == outputs[1]

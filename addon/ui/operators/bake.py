@@ -18,9 +18,20 @@ BAKED = "baked"
 class MatrixOperator(LixelSceneOperator):
     """An operator that writes the light matrices to the scene's carrier."""
 
+    def say(self, said: list) -> None:
+        """Each of ``said`` (what building the node groups left the user: ``nodes._keep_edited``) as a warning."""
+        for message in said:
+            self.report({"WARNING"}, message)
+
     def name_followers_of_missing_maps(self, carrier, st) -> None:
-        """A warning naming each object that follows a map ``carrier`` (holding ``st``'s maps) no longer holds: a
-        frustum showed a 2-unit cube at the origin, a texel grid a colour of no texel, and nothing said why."""
+        """Reattach the scene's frusta and texel grids that follow no carrier (``nodes.reattach_orphans``: the
+        carrier object was deleted), saying so, and a warning naming each object that follows a map ``carrier``
+        (holding ``st``'s maps) no longer holds: a frustum showed a 2-unit cube at the origin, a texel grid the
+        colours of no map's texels, and nothing said why."""
+        if again := nodes.reattach_orphans(bpy.context.scene, carrier):
+            self.report({"INFO"}, f"Lixel: {', '.join(map(repr, again))} followed no light matrices (the "
+                                  f"'{nodes.CARRIER_NAME}' object they followed was deleted): they follow "
+                                  f"'{carrier.name}' again")
         count = len(st.setup.maps)
         if stale := nodes.followers_of_missing_maps(carrier, count):
             one = len(stale) == 1
@@ -167,8 +178,10 @@ class LIXEL_OT_texel_grid_add(MatrixOperator, bpy.types.Operator):
         if st is None:
             return {"CANCELLED"}
         carrier = nodes.ensure_carrier(context.scene, st.setup)
+        said = []
         for ob in meshes:
-            nodes.add_texel_grid(ob, carrier, self.map_index)
+            nodes.add_texel_grid(ob, carrier, self.map_index, said)
+        self.say(said)
         self.name_followers_of_missing_maps(carrier, st)
         self.report({"INFO"}, f"Lixel: texel grid of map {self.map_index} on {len(meshes)} object(s)")
         return {"FINISHED"}
@@ -190,7 +203,9 @@ class LIXEL_OT_frustum_add(MatrixOperator, bpy.types.Operator):
         if st is None:
             return {"CANCELLED"}
         carrier = nodes.ensure_carrier(context.scene, st.setup)
-        ob = nodes.add_frustum_object(context.scene, carrier, self.map_index)
+        said = []
+        ob = nodes.add_frustum_object(context.scene, carrier, self.map_index, said)
+        self.say(said)
         self.name_followers_of_missing_maps(carrier, st)
         note = frustum_note(ob, st.setup.maps[self.map_index].matrix, context.evaluated_depsgraph_get())
         self.report({"INFO"}, f"Lixel: '{ob.name}' follows map {self.map_index}" + (f" ({note})" if note else ""))

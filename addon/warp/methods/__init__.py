@@ -1,7 +1,5 @@
 """The warp methods, by name. Each is ``method(view, light, body, options) -> ShadowSetup``;
 those in ``SCENE_METHODS`` also take the scene (the cascade builds one B per split)."""
-from __future__ import annotations
-
 from typing import Callable
 
 from ..types import WarpOptions
@@ -21,6 +19,10 @@ METHODS: dict[str, Callable] = {
     "cascade": cascade,
 }
 SCENE_METHODS = frozenset({"cascade"})
+# The methods that read WarpOptions.visible_depth_range: PSM's d_R (post_perspective.nearest_visible_depth), LiSPSM's,
+# GMNPR's and GLPR's Δz = "visible" (warp_frustum.eye_depth_range), the cascade's range to split (partition.splits);
+# the panel shows the Visible Range for them and checks it against the camera's clip range.
+VISIBLE_RANGE_METHODS = frozenset({"psm", "lispsm", "gmnpr", "glpr", "cascade"})
 
 
 def reads_surface(method: str, options: WarpOptions) -> bool:
