@@ -19,10 +19,10 @@ METHODS: dict[str, Callable] = {
     "cascade": cascade,
 }
 SCENE_METHODS = frozenset({"cascade"})
-# The methods that read WarpOptions.visible_depth_range: PSM's d_R (post_perspective.nearest_visible_depth), LiSPSM's,
-# GMNPR's and GLPR's Δz = "visible" (warp_frustum.eye_depth_range), the cascade's range to split (partition.splits);
-# the panel shows the Visible Range for them and checks it against the camera's clip range.
 VISIBLE_RANGE_METHODS = frozenset({"psm", "lispsm", "gmnpr", "glpr", "cascade"})
+"""The methods that read ``WarpOptions.visible_depth_range``: PSM's d_R (``post_perspective.nearest_visible_depth``),
+LiSPSM's, GMNPR's and GLPR's Δz = "visible" (``warp_frustum.eye_depth_range``), the cascade's range to split
+(``partition.splits``); the panel shows the Visible Range for them and checks it against the camera's clip range."""
 
 
 def reads_surface(method: str, options: WarpOptions) -> bool:
