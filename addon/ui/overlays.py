@@ -568,21 +568,29 @@ def gpu_pipeline():
 
 
 _pip: dict = {}
-"""scene key -> (key, {"map"|"scene": GPUTexture}, its TargetPool) for the picture-in-picture overlays."""
+"""scene key -> (key, {"map"|"scene": GPUTexture} or the error that rendering them raised, its TargetPool) for the
+picture-in-picture overlays."""
 
 
 def _pip_textures(scene, st, props) -> dict:
     """GPU textures of the PiP images, re-rendered only when the setup (generation)
-    or what is shown changed."""
+    or what is shown changed; so is a render that failed (a refused map size is not
+    tried again on every redraw of the viewport: its error is raised again)."""
     from ..gpu.targets import TargetPool
     from . import renders
     key = (st.generation, props.map_pip_size, props.show_map, props.show_shadowed)
     hit = _pip.get(live.scene_key(scene))
     if hit is not None and hit[0] == key:
+        if isinstance(hit[1], Exception):
+            raise hit[1]
         return hit[1]
     pool = hit[2] if hit is not None else TargetPool()   # the scene's own targets: no other frame draws over them
-    textures = renders.pip_textures(st, bpy.context.evaluated_depsgraph_get(), props.map_pip_size,
-                                    props.show_map, props.show_shadowed, pool)
+    try:
+        textures = renders.pip_textures(st, bpy.context.evaluated_depsgraph_get(), props.map_pip_size,
+                                        props.show_map, props.show_shadowed, pool)
+    except Exception as exc:
+        _pip[live.scene_key(scene)] = (key, exc, pool)
+        raise
     _pip[live.scene_key(scene)] = (key, textures, pool)
     return textures
 

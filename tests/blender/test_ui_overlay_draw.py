@@ -186,3 +186,25 @@ def test_the_overlays_of_a_3d_view_with_a_local_camera_show_that_camera(m):
             space.use_local_camera, space.camera = was
             scene.lixel.show_body = False
             m.overlays.sync_handlers()
+
+
+def test_a_picture_in_picture_that_failed_is_not_rendered_again_on_every_redraw(m, monkeypatch):
+    """A refused render (the memory guard, say) shows its message in the status line; the viewport redraws many
+    times a second, and each redraw tried the whole render again. Tried again once what is shown changes."""
+    with active_scene("lixel_draw_pip_fails") as scene:
+        props = scene.lixel
+        props.map_pip_size = 64
+        props.show_map, props.show_shadowed = True, False
+        st = m.live.update(scene, bpy.context.evaluated_depsgraph_get())
+        tries, warp_error = [], importlib.import_module(m.geometry.__name__.rsplit(".", 1)[0] + ".types").WarpError
+
+        def refused(*args, **kwargs):
+            tries.append(args)
+            raise warp_error("8 shadow maps of 16384x16384 texels would take 8.0 GiB of GPU memory")
+        monkeypatch.setattr(m.renders, "pip_textures", refused)
+        notes = [m.overlays._draw_gpu_overlays(scene, st, props) for _ in range(3)]
+        assert len(tries) == 1
+        assert all("16384x16384" in note for note in notes)
+        props.map_pip_size = 96
+        assert "16384x16384" in m.overlays._draw_gpu_overlays(scene, st, props)
+        assert len(tries) == 2
