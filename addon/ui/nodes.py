@@ -6,7 +6,8 @@ group that no longer matches it (someone edited it without renaming it, or an
 older Lixel built it without one) is never rebuilt. It is left as it is, the
 user's from then on (kept with a fake user), the new version is built under the
 next free name, Lixel's own modifiers are pointed at that, and the operator says
-so, naming both groups (:func:`_keep_edited`).
+so, naming both groups (:func:`_keep_edited`). The texel material is versioned and kept the same way
+(:func:`ensure_texel_material`).
 
 The light matrices travel in a *matrix carrier*: the mesh object "Lixel Light
 Matrices" with one point per shadow map and the point attributes
@@ -41,8 +42,7 @@ import logging
 import bpy
 import numpy as np
 
-from ..scene.owned import (DEBUG_KEY, MADE_KEY, NAME_KEY, find_made, is_lixel_made, lixel_datablock, made_as,
-                           mark_made)
+from ..scene.owned import DEBUG_KEY, MADE_KEY, NAME_KEY, find_made, is_lixel_made, made_as, mark_made
 from ..warp.geometry import finite_clip_volume_corners
 from ..warp.types import WarpError
 
@@ -222,16 +222,22 @@ def _keep_edited(edited, tree, notes) -> None:
                 for name, value in values.items():
                     _set_input(mod, tree, name, value)
                 moved.append(ob.name)
+    _leave_to_user(edited, tree, "node group", moved, notes)
+
+
+def _leave_to_user(edited, new, kind: str, moved: list, notes) -> None:
+    """Take Lixel's marks off ``edited`` (a ``kind`` of Lixel's that is not what Lixel built), give it a fake user,
+    and say in ``notes`` (None: the log) that Lixel's ``new`` version replaces it on the objects ``moved``."""
     old = edited.get(VERSION_KEY)
     for key in (MADE_KEY, NAME_KEY, VERSION_KEY, FINGERPRINT_KEY):
         if key in edited.keys():
             del edited[key]
     edited.use_fake_user = True
-    said = (f"Lixel: node group '{edited.name}' (version {old}) is not as Lixel built it (edited, or made before Lixel "
+    said = (f"Lixel: {kind} '{edited.name}' (version {old}) is not as Lixel built it (edited, or made before Lixel "
             f"kept a fingerprint), so it was left as it is, yours now (with a fake user, so it is saved); Lixel's "
-            f"version {tree[VERSION_KEY]} is '{tree.name}'"
+            f"version {new[VERSION_KEY]} is '{new.name}'"
             + (f", now used by Lixel's modifiers on {', '.join(repr(n) for n in moved)}" if moved else "")
-            + f": to keep your edits, point those modifiers back to '{edited.name}' or copy them into '{tree.name}'")
+            + f": to keep your edits, point those modifiers back to '{edited.name}' or copy them into '{new.name}'")
     if notes is None:
         log.warning("%s", said)
     else:
@@ -405,14 +411,21 @@ def ensure_frustum_group(notes=None):
     return _built(tree, FRUSTUM_GROUP_VERSION, edited, notes)
 
 
-def ensure_texel_material():
+def ensure_texel_material(notes=None):
     """The "Lixel Texel Grid" material: per-pixel texel parity from the
     interpolated clip coordinates (x, y, w) with the divide done per pixel, so
     texel edges are exact in EEVEE and Cycles. Workbench shows the per-face
-    ``lixel_texel_color`` (Viewport Shading > Color > Attribute; ``color_type`` 'VERTEX' in the API)."""
-    mat, _ = lixel_datablock(bpy.data.materials, TEXEL_MATERIAL)
-    if mat.get(VERSION_KEY) == MATERIAL_VERSION:
+    ``lixel_texel_color`` (Viewport Shading > Color > Attribute; ``color_type`` 'VERTEX' in the API).
+    Versioned and fingerprinted as the groups are: an outdated material whose nodes differ from what Lixel built is
+    left to the user, and the new version is built beside it (:func:`_keep_edited_material`)."""
+    mat = find_made(bpy.data.materials, TEXEL_MATERIAL)
+    if mat is not None and mat.get(VERSION_KEY) == MATERIAL_VERSION:
         return mat
+    edited = None
+    if mat is not None and (mat.node_tree is None or mat.get(FINGERPRINT_KEY) != fingerprint(mat.node_tree)):
+        edited, mat = mat, None
+    if mat is None:
+        mat = mark_made(bpy.data.materials.new(TEXEL_MATERIAL), TEXEL_MATERIAL)
     if bpy.app.version < (5, 0, 0):
         mat.use_nodes = True
     tree = mat.node_tree
@@ -435,7 +448,30 @@ def ensure_texel_material():
     b.link(bsdf.outputs[0], _socket(out.inputs, "Surface"))
     mat.diffuse_color = (0.6, 0.6, 0.6, 1.0)
     mat[VERSION_KEY] = MATERIAL_VERSION
+    mat[FINGERPRINT_KEY] = fingerprint(tree)
+    if edited is not None:
+        _keep_edited_material(edited, mat, notes)
     return mat
+
+
+def _keep_edited_material(edited, mat, notes) -> None:
+    """:func:`_keep_edited` for the texel material: Lixel's texel-grid modifiers that set ``edited`` and the slot
+    :func:`add_texel_grid` added for it on their meshes take its new version ``mat``."""
+    moved = []
+    for ob in (ob for ob in bpy.data.objects if ob.library is None):
+        mod = lixel_modifier(ob, TEXEL_MODIFIER)
+        try:
+            key = None if mod is None else _input(mod.node_group, "Material")
+        except KeyError:    # an input the user took out of Lixel's group
+            continue
+        if key is None or mod.get(key) != edited:
+            continue
+        mod[key] = mat
+        slots = ob.data.materials
+        if ob.data.library is None and (index := slots.find(edited.name)) >= 0:
+            slots[index] = mat
+        moved.append(ob.name)
+    _leave_to_user(edited, mat, "material", moved, notes)
 
 
 # --- the matrix carrier and the objects using the groups --------------------------------------------------------
@@ -614,7 +650,7 @@ def lixel_modifier(ob, name: str):
 def add_texel_grid(ob, carrier, map_index: int = 0, notes=None):
     """Add (or update) the texel-grid modifier on mesh object ``ob`` (``notes``: see :func:`_keep_edited`)."""
     group = ensure_texel_grid_group(notes)
-    mat = ensure_texel_material()
+    mat = ensure_texel_material(notes)
     mod = _matrix_modifier(ob, TEXEL_MODIFIER, group, carrier, map_index, "Material")
     _set_input(mod, group, "Material", mat)
     if not any(s.material == mat for s in ob.material_slots):
