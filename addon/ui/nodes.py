@@ -455,8 +455,8 @@ def ensure_texel_material(notes=None):
 
 
 def _keep_edited_material(edited, mat, notes) -> None:
-    """:func:`_keep_edited` for the texel material: Lixel's texel-grid modifiers that set ``edited`` and the slot
-    :func:`add_texel_grid` added for it on their meshes take its new version ``mat``."""
+    """:func:`_keep_edited` for the texel material: Lixel's texel-grid modifiers that set ``edited`` (and the slot an
+    earlier :func:`add_texel_grid` added for it on their meshes) take its new version ``mat``."""
     moved = []
     for ob in (ob for ob in bpy.data.objects if ob.library is None):
         mod = lixel_modifier(ob, TEXEL_MODIFIER)
@@ -648,13 +648,13 @@ def lixel_modifier(ob, name: str):
 
 
 def add_texel_grid(ob, carrier, map_index: int = 0, notes=None):
-    """Add (or update) the texel-grid modifier on mesh object ``ob`` (``notes``: see :func:`_keep_edited`)."""
+    """Add (or update) the texel-grid modifier on mesh object ``ob`` (``notes``: see :func:`_keep_edited`). The group
+    sets the material itself (Set Material; the modifier's input keeps it saved): no slot is added to the mesh, whose
+    other objects would show Lixel's material through it (a mesh without material: its faces use the first slot)."""
     group = ensure_texel_grid_group(notes)
     mat = ensure_texel_material(notes)
     mod = _matrix_modifier(ob, TEXEL_MODIFIER, group, carrier, map_index, "Material")
     _set_input(mod, group, "Material", mat)
-    if not any(s.material == mat for s in ob.material_slots):
-        ob.data.materials.append(mat)
     attrs = ob.data.attributes
     if not attrs.active_color_name and not attrs.default_color_name:
         # Workbench's Attribute colour shows the active colour attribute; the mesh has none of its own,
@@ -665,9 +665,9 @@ def add_texel_grid(ob, carrier, map_index: int = 0, notes=None):
 
 
 def remove_texel_grid(ob) -> bool:
-    """Remove the texel-grid modifier from ``ob``; the material slot and colour
-    attribute names it put on the mesh go only with the last object of that mesh
-    that has the grid (another still shows it through them)."""
+    """Remove the texel-grid modifier from ``ob``; the colour attribute names it put on the mesh (and the material
+    slot Lixel added before session 21) go only with the last object of that mesh that has the grid (another still
+    shows it through them)."""
     mod = lixel_modifier(ob, TEXEL_MODIFIER)
     if mod is None:
         return False
