@@ -171,7 +171,7 @@ class LIXEL_OT_texel_grid_add(MatrixOperator, bpy.types.Operator):
             if not meshes:
                 return {"CANCELLED"}
         if self.remove:
-            n = sum(nodes.remove_texel_grid(ob) for ob in meshes)
+            n = nodes.remove_texel_grids(meshes)
             self.report({"INFO"}, f"Lixel: removed the texel grid from {n} object(s)")
             return {"FINISHED"}
         st = self.fresh_state(context, self.map_index)
