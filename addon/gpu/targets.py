@@ -50,8 +50,8 @@ def check_map_memory(setup, mdsm: bool = False, limit: int = MAP_BYTES_LIMIT) ->
     raise WarpError(f"{n} shadow map{'s' if n > 1 else ''} of {', '.join(shapes)} texels"
                     f"{' with their MDSM keys' if mdsm else ''} would take {need / 2 ** 30:.1f} GiB of GPU memory, "
                     f"more than Lixel's limit of {limit / 2 ** 30:g} GiB: {', '.join(remedies[:-1])}"
-                    f"{' or ' if len(remedies) > 1 else ''}{remedies[-1]} (Lixel panel > Method; in a script, --size sets "
-                    f"the Map Size)")
+                    f"{' or ' if len(remedies) > 1 else ''}{remedies[-1]} (Lixel panel > Method; in a script, "
+                    f"--size sets the Map Size)")
 
 
 class TargetPool:
