@@ -135,8 +135,8 @@ class LIXEL_OT_bake_debug(LixelSceneOperator, bpy.types.Operator):
 
 def linked_note(linked: list) -> str:
     """Why the texel grid leaves ``linked`` objects, and the remedy: a linked object can be made local or
-    overridden; a library override keeps its mesh linked (where the grid's material slot goes), so only making the
-    mesh local helps there."""
+    overridden; a library override keeps its mesh linked (where the grid names the colour attribute Workbench shows),
+    so only making the mesh local helps there."""
     libraries = ", ".join(sorted({(ob.library or ob.data.library).name for ob in linked}))
     names, verb = ", ".join(repr(ob.name) for ob in linked), "is" if len(linked) == 1 else "are"
     if all(ob.library is None for ob in linked):
