@@ -324,6 +324,41 @@ def test_texel_grid_leaves_objects_linked_from_a_library_and_says_so(scene, tmp_
         bpy.data.libraries.remove(library)
 
 
+
+def test_texel_grid_on_many_linked_objects_names_a_few_and_counts_the_rest(scene, tmp_path):
+    """Selecting a linked set of tiles with a mesh of the file's own: the warning named every linked object, and
+    Blender cuts a report at about 1,000 characters, so with 4,000 tiles the user read 1,000 characters of names,
+    '... truncated', and neither why nor what to do. It names five (in name order) and counts the rest; the file's
+    own mesh gets its grid."""
+    me = bpy.data.meshes.new("library tile")
+    me.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
+    tiles = [bpy.data.objects.new(f"library tile {i}", me) for i in range(8)]
+    bpy.data.libraries.write(str(tmp_path / "tiles.blend"), set(tiles))
+    for ob in tiles:
+        bpy.data.objects.remove(ob)
+    bpy.data.meshes.remove(me)
+    with bpy.data.libraries.load(str(tmp_path / "tiles.blend"), link=True) as (_src, dst):
+        dst.objects = [f"library tile {i}" for i in range(8)]
+    linked = sorted(dst.objects, key=lambda ob: ob.name)
+    try:
+        for ob in linked:
+            scene.collection.objects.link(ob)
+        ground = scene.objects["lixel_ops ground"]
+        _select_only(scene, [ground.name] + [ob.name for ob in linked])
+        assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+        assert len(ground.modifiers) == 1 and not any(ob.modifiers for ob in linked)
+        _select_only(scene, [ob.name for ob in linked])
+        with pytest.raises(RuntimeError) as refused:
+            bpy.ops.lixel.texel_grid_add()
+        named = ", ".join(f"'library tile {i}'" for i in range(5))
+        assert f"{named} and 3 more are linked from tiles.blend: make it local" in str(refused.value), refused.value
+        assert "'library tile 5'" not in str(refused.value)
+    finally:
+        library = linked[0].library
+        for ob in linked:
+            bpy.data.objects.remove(ob)
+        bpy.data.libraries.remove(library)
+
 WRITES_SCENE = [("reset_settings", {}), ("bake_debug", {}), ("frustum_add", {}), ("sync_matrices", {}),
                 ("texel_grid_add", {}), ("planes_from_selection", {}), ("plane_remove", {})]
 

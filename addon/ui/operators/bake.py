@@ -133,12 +133,19 @@ class LIXEL_OT_bake_debug(LixelSceneOperator, bpy.types.Operator):
         return {"FINISHED"}
 
 
+NAMED = 5
+"""Objects a message names one by one, in name order; it counts the rest (Blender cuts a report at about 1,000
+characters: 4,000 linked tiles' names left out why and what to do)."""
+
+
 def linked_note(linked: list) -> str:
     """Why the texel grid leaves ``linked`` objects, and the remedy: a linked object can be made local or
     overridden; a library override keeps its mesh linked (where the grid names the colour attribute Workbench shows),
     so only making the mesh local helps there."""
     libraries = ", ".join(sorted({(ob.library or ob.data.library).name for ob in linked}))
-    names, verb = ", ".join(repr(ob.name) for ob in linked), "is" if len(linked) == 1 else "are"
+    names = ", ".join(repr(name) for name in sorted(ob.name for ob in linked)[:NAMED]) + \
+        (f" and {len(linked) - NAMED:,} more" if len(linked) > NAMED else "")
+    verb = "is" if len(linked) == 1 else "are"
     if all(ob.library is None for ob in linked):
         what = "a library override whose mesh is" if len(linked) == 1 else "library overrides whose meshes are"
         return (f"{names} {verb} {what} linked from {libraries}: make the mesh local "
@@ -164,10 +171,11 @@ class LIXEL_OT_texel_grid_add(MatrixOperator, bpy.types.Operator):
         if not meshes:
             self.report({"ERROR"}, "Lixel: no mesh selected: select the mesh objects that should show the texel grid")
             return {"CANCELLED"}
-        linked = [ob for ob in meshes if ob.library is not None or ob.data.library is not None]
-        if linked:  # what Lixel would put on linked data is not saved with the file
-            self.report({"WARNING"} if len(linked) < len(meshes) else {"ERROR"}, f"Lixel: {linked_note(linked)}")
-            meshes = [ob for ob in meshes if ob not in linked]
+        local = [ob for ob in meshes if ob.library is None and ob.data.library is None]
+        if len(local) < len(meshes):  # what Lixel would put on linked data is not saved with the file
+            linked = [ob for ob in meshes if ob.library is not None or ob.data.library is not None]
+            self.report({"WARNING"} if local else {"ERROR"}, f"Lixel: {linked_note(linked)}")
+            meshes = local
             if not meshes:
                 return {"CANCELLED"}
         if self.remove:
