@@ -67,6 +67,15 @@ MATERIAL_VERSION = 1
 
 log = logging.getLogger(__name__)
 
+NAMED = 5
+"""Objects a message names one by one; it counts the rest (Blender cuts a report at about 1,000 characters, so the
+names of 4,000 objects left out why and what to do)."""
+
+
+def listed(items: list) -> str:
+    """The first :data:`NAMED` of ``items`` (strings), and how many more."""
+    return ", ".join(items[:NAMED]) + (f" and {len(items) - NAMED:,} more" if len(items) > NAMED else "")
+
 
 # --- small node-building helpers ------------------------------------------------------------------------------
 
@@ -236,7 +245,7 @@ def _leave_to_user(edited, new, kind: str, moved: list, notes) -> None:
     said = (f"Lixel: {kind} '{edited.name}' (version {old}) is not as Lixel built it (edited, or made before Lixel "
             f"kept a fingerprint), so it was left as it is, yours now (with a fake user, so it is saved); Lixel's "
             f"version {new[VERSION_KEY]} is '{new.name}'"
-            + (f", now used by Lixel's modifiers on {', '.join(repr(n) for n in moved)}" if moved else "")
+            + (f", now used by Lixel's modifiers on {listed([repr(n) for n in moved])}" if moved else "")
             + f": to keep your edits, point those modifiers back to '{edited.name}' or copy them into '{new.name}'")
     if notes is None:
         log.warning("%s", said)

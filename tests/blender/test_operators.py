@@ -297,6 +297,30 @@ def test_followers_of_a_map_the_setup_no_longer_has_are_named_when_the_matrices_
     assert "'lixel_ops ground'" not in capfd.readouterr().out
 
 
+
+def test_many_followers_of_a_map_the_setup_no_longer_has_are_counted_past_five(scene, mods, capfd):
+    """Texel grids of the cascade's map 2 on many objects, then one map: the warning named every object, and Blender
+    cuts a report at about 1,000 characters, so with thousands of tiles it lost what to do. Five are named (in name
+    order), the rest counted, and the remedy is said whole."""
+    ground = scene.objects["lixel_ops ground"]
+    tiles = [bpy.data.objects.new(f"lixel_ops tile {i}", ground.data) for i in range(7)]
+    try:
+        for ob in tiles:
+            scene.collection.objects.link(ob)
+        scene.lixel.method = "cascade"
+        _select_only(scene, [ob.name for ob in tiles])
+        assert bpy.ops.lixel.texel_grid_add(map_index=2) == {"FINISHED"}
+        capfd.readouterr()
+        scene.lixel.method = "lispsm"
+        assert bpy.ops.lixel.sync_matrices() == {"FINISHED"}
+        named = ", ".join(f"'lixel_ops tile {i}' (map 2)" for i in range(5))
+        assert (f"Warning: Lixel: {named} and 2 more follow a map the lispsm setup does not have (map 0 only): what "
+                f"they show belongs to no map; add them again for one of its maps, or delete them") in \
+            capfd.readouterr().out
+    finally:
+        for ob in tiles:
+            bpy.data.objects.remove(ob)
+
 def test_texel_grid_leaves_objects_linked_from_a_library_and_says_so(scene, tmp_path):
     """A modifier or material put on linked data is not saved with the file: the grid would vanish on reload."""
     me = bpy.data.meshes.new("library block")
