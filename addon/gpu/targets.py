@@ -36,7 +36,8 @@ def map_bytes(sizes, mdsm: bool = False) -> int:
 
 def check_map_memory(setup, mdsm: bool = False, limit: int = MAP_BYTES_LIMIT) -> None:
     """WarpError, before anything is allocated, when ``setup``'s maps would take more than ``limit`` bytes of GPU
-    memory (:func:`map_bytes`), naming the settings that size them and what to do."""
+    memory (:func:`map_bytes`), naming the settings that size them and what to do: the panel's, and the option a
+    script sizes the maps with (``--size`` overrides the file's Map Size)."""
     sizes = [m.size for m in setup.maps]
     need = map_bytes(sizes, mdsm)
     if need <= limit:
@@ -49,7 +50,8 @@ def check_map_memory(setup, mdsm: bool = False, limit: int = MAP_BYTES_LIMIT) ->
     raise WarpError(f"{n} shadow map{'s' if n > 1 else ''} of {', '.join(shapes)} texels"
                     f"{' with their MDSM keys' if mdsm else ''} would take {need / 2 ** 30:.1f} GiB of GPU memory, "
                     f"more than Lixel's limit of {limit / 2 ** 30:g} GiB: {', '.join(remedies[:-1])}"
-                    f"{' or ' if len(remedies) > 1 else ''}{remedies[-1]} (Lixel panel > Method)")
+                    f"{' or ' if len(remedies) > 1 else ''}{remedies[-1]} (Lixel panel > Method; in a script, "
+                    f"--size sets the Map Size)")
 
 
 class TargetPool:

@@ -6,7 +6,8 @@ group that no longer matches it (someone edited it without renaming it, or an
 older Lixel built it without one) is never rebuilt. It is left as it is, the
 user's from then on (kept with a fake user), the new version is built under the
 next free name, Lixel's own modifiers are pointed at that, and the operator says
-so, naming both groups (:func:`_keep_edited`).
+so, naming both groups (:func:`_keep_edited`). The texel material is versioned and kept the same way
+(:func:`ensure_texel_material`).
 
 The light matrices travel in a *matrix carrier*: the mesh object "Lixel Light
 Matrices" with one point per shadow map and the point attributes
@@ -41,8 +42,7 @@ import logging
 import bpy
 import numpy as np
 
-from ..scene.owned import (DEBUG_KEY, MADE_KEY, NAME_KEY, find_made, is_lixel_made, lixel_datablock, made_as,
-                           mark_made)
+from ..scene.owned import DEBUG_KEY, MADE_KEY, NAME_KEY, find_made, is_lixel_made, made_as, mark_made
 from ..warp.geometry import finite_clip_volume_corners
 from ..warp.types import WarpError
 
@@ -66,6 +66,15 @@ FRUSTUM_GROUP_VERSION = 4   # 4: nothing for a map the carrier does not hold (3 
 MATERIAL_VERSION = 1
 
 log = logging.getLogger(__name__)
+
+NAMED = 5
+"""Objects a message names one by one; it counts the rest (Blender cuts a report at about 1,000 characters, so the
+names of 4,000 objects left out why and what to do)."""
+
+
+def listed(items: list) -> str:
+    """The first :data:`NAMED` of ``items`` (strings), and how many more."""
+    return ", ".join(items[:NAMED]) + (f" and {len(items) - NAMED:,} more" if len(items) > NAMED else "")
 
 
 # --- small node-building helpers ------------------------------------------------------------------------------
@@ -222,16 +231,22 @@ def _keep_edited(edited, tree, notes) -> None:
                 for name, value in values.items():
                     _set_input(mod, tree, name, value)
                 moved.append(ob.name)
+    _leave_to_user(edited, tree, "node group", moved, notes)
+
+
+def _leave_to_user(edited, new, kind: str, moved: list, notes) -> None:
+    """Take Lixel's marks off ``edited`` (a ``kind`` of Lixel's that is not what Lixel built), give it a fake user,
+    and say in ``notes`` (None: the log) that Lixel's ``new`` version replaces it on the objects ``moved``."""
     old = edited.get(VERSION_KEY)
     for key in (MADE_KEY, NAME_KEY, VERSION_KEY, FINGERPRINT_KEY):
         if key in edited.keys():
             del edited[key]
     edited.use_fake_user = True
-    said = (f"Lixel: node group '{edited.name}' (version {old}) is not as Lixel built it (edited, or made before Lixel "
+    said = (f"Lixel: {kind} '{edited.name}' (version {old}) is not as Lixel built it (edited, or made before Lixel "
             f"kept a fingerprint), so it was left as it is, yours now (with a fake user, so it is saved); Lixel's "
-            f"version {tree[VERSION_KEY]} is '{tree.name}'"
-            + (f", now used by Lixel's modifiers on {', '.join(repr(n) for n in moved)}" if moved else "")
-            + f": to keep your edits, point those modifiers back to '{edited.name}' or copy them into '{tree.name}'")
+            f"version {new[VERSION_KEY]} is '{new.name}'"
+            + (f", now used by Lixel's modifiers on {listed([repr(n) for n in moved])}" if moved else "")
+            + f": to keep your edits, point those modifiers back to '{edited.name}' or copy them into '{new.name}'")
     if notes is None:
         log.warning("%s", said)
     else:
@@ -405,14 +420,21 @@ def ensure_frustum_group(notes=None):
     return _built(tree, FRUSTUM_GROUP_VERSION, edited, notes)
 
 
-def ensure_texel_material():
+def ensure_texel_material(notes=None):
     """The "Lixel Texel Grid" material: per-pixel texel parity from the
     interpolated clip coordinates (x, y, w) with the divide done per pixel, so
     texel edges are exact in EEVEE and Cycles. Workbench shows the per-face
-    ``lixel_texel_color`` (Viewport Shading > Color > Attribute; ``color_type`` 'VERTEX' in the API)."""
-    mat, _ = lixel_datablock(bpy.data.materials, TEXEL_MATERIAL)
-    if mat.get(VERSION_KEY) == MATERIAL_VERSION:
+    ``lixel_texel_color`` (Viewport Shading > Color > Attribute; ``color_type`` 'VERTEX' in the API).
+    Versioned and fingerprinted as the groups are: an outdated material whose nodes differ from what Lixel built is
+    left to the user, and the new version is built beside it (:func:`_keep_edited_material`)."""
+    mat = find_made(bpy.data.materials, TEXEL_MATERIAL)
+    if mat is not None and mat.get(VERSION_KEY) == MATERIAL_VERSION:
         return mat
+    edited = None
+    if mat is not None and (mat.node_tree is None or mat.get(FINGERPRINT_KEY) != fingerprint(mat.node_tree)):
+        edited, mat = mat, None
+    if mat is None:
+        mat = mark_made(bpy.data.materials.new(TEXEL_MATERIAL), TEXEL_MATERIAL)
     if bpy.app.version < (5, 0, 0):
         mat.use_nodes = True
     tree = mat.node_tree
@@ -435,7 +457,30 @@ def ensure_texel_material():
     b.link(bsdf.outputs[0], _socket(out.inputs, "Surface"))
     mat.diffuse_color = (0.6, 0.6, 0.6, 1.0)
     mat[VERSION_KEY] = MATERIAL_VERSION
+    mat[FINGERPRINT_KEY] = fingerprint(tree)
+    if edited is not None:
+        _keep_edited_material(edited, mat, notes)
     return mat
+
+
+def _keep_edited_material(edited, mat, notes) -> None:
+    """:func:`_keep_edited` for the texel material: Lixel's texel-grid modifiers that set ``edited`` (and the slot an
+    earlier :func:`add_texel_grid` added for it on their meshes) take its new version ``mat``."""
+    moved = []
+    for ob in (ob for ob in bpy.data.objects if ob.library is None):
+        mod = lixel_modifier(ob, TEXEL_MODIFIER)
+        try:
+            key = None if mod is None else _input(mod.node_group, "Material")
+        except KeyError:    # an input the user took out of Lixel's group
+            continue
+        if key is None or mod.get(key) != edited:
+            continue
+        mod[key] = mat
+        slots = ob.data.materials
+        if ob.data.library is None and (index := slots.find(edited.name)) >= 0:
+            slots[index] = mat
+        moved.append(ob.name)
+    _leave_to_user(edited, mat, "material", moved, notes)
 
 
 # --- the matrix carrier and the objects using the groups --------------------------------------------------------
@@ -612,13 +657,13 @@ def lixel_modifier(ob, name: str):
 
 
 def add_texel_grid(ob, carrier, map_index: int = 0, notes=None):
-    """Add (or update) the texel-grid modifier on mesh object ``ob`` (``notes``: see :func:`_keep_edited`)."""
+    """Add (or update) the texel-grid modifier on mesh object ``ob`` (``notes``: see :func:`_keep_edited`). The group
+    sets the material itself (Set Material; the modifier's input keeps it saved): no slot is added to the mesh, whose
+    other objects would show Lixel's material through it (a mesh without material: its faces use the first slot)."""
     group = ensure_texel_grid_group(notes)
-    mat = ensure_texel_material()
+    mat = ensure_texel_material(notes)
     mod = _matrix_modifier(ob, TEXEL_MODIFIER, group, carrier, map_index, "Material")
     _set_input(mod, group, "Material", mat)
-    if not any(s.material == mat for s in ob.material_slots):
-        ob.data.materials.append(mat)
     attrs = ob.data.attributes
     if not attrs.active_color_name and not attrs.default_color_name:
         # Workbench's Attribute colour shows the active colour attribute; the mesh has none of its own,
@@ -629,27 +674,36 @@ def add_texel_grid(ob, carrier, map_index: int = 0, notes=None):
 
 
 def remove_texel_grid(ob) -> bool:
-    """Remove the texel-grid modifier from ``ob``; the material slot and colour
-    attribute names it put on the mesh go only with the last object of that mesh
-    that has the grid (another still shows it through them)."""
-    mod = lixel_modifier(ob, TEXEL_MODIFIER)
-    if mod is None:
-        return False
-    ob.modifiers.remove(mod)
-    if any(other.data == ob.data and lixel_modifier(other, TEXEL_MODIFIER) is not None
-           for other in bpy.data.objects if other != ob):
-        return True
-    attrs = ob.data.attributes
-    if attrs.active_color_name == PARITY_COLOR_ATTRIBUTE:
-        attrs.active_color_name = ""
-    if attrs.default_color_name == PARITY_COLOR_ATTRIBUTE:
-        attrs.default_color_name = ""
+    """:func:`remove_texel_grids` of ``ob`` alone: whether it had one."""
+    return remove_texel_grids([ob]) == 1
+
+
+def remove_texel_grids(objects) -> int:
+    """Remove the texel-grid modifier from each of ``objects``; the colour attribute names it put on a mesh (and the
+    material slot Lixel added before session 21) go only with the last object of that mesh that has the grid
+    (another still shows it through them). The objects left with a grid are found once, so removing the grids of
+    a scene's many objects takes time in proportion to them (asked per object, it grew with their square: 10k tiles,
+    a minute). Returns how many objects had one."""
+    removed = []
+    for ob in objects:
+        mod = lixel_modifier(ob, TEXEL_MODIFIER)
+        if mod is not None:
+            ob.modifiers.remove(mod)
+            removed.append(ob)
+    if not removed:
+        return 0
+    gridded = {ob.data.name_full for ob in bpy.data.objects
+               if ob.type == "MESH" and lixel_modifier(ob, TEXEL_MODIFIER) is not None}
     mat = find_made(bpy.data.materials, TEXEL_MATERIAL)
-    if mat is not None:
-        idx = ob.data.materials.find(mat.name)
-        if idx >= 0:
-            ob.data.materials.pop(index=idx)
-    return True
+    for mesh in {ob.data.name_full: ob.data for ob in removed if ob.data.name_full not in gridded}.values():
+        attrs = mesh.attributes
+        if attrs.active_color_name == PARITY_COLOR_ATTRIBUTE:
+            attrs.active_color_name = ""
+        if attrs.default_color_name == PARITY_COLOR_ATTRIBUTE:
+            attrs.default_color_name = ""
+        if mat is not None and (index := mesh.materials.find(mat.name)) >= 0:
+            mesh.materials.pop(index=index)
+    return len(removed)
 
 
 def add_frustum_object(scene, carrier, map_index: int = 0, notes=None):

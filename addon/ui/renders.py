@@ -170,7 +170,8 @@ def pip_textures(st: LiveState, depsgraph, longest: int, want_map: bool, want_sc
     ``"scene"`` (the camera view shaded with Lixel's shadows) and ``"map"`` (the
     first shadow map as a grey picture, ``compose.map_picture``), each fitted
     to ``longest`` pixels. They live in ``targets`` (the viewport passes its
-    own pool, so no other frame draws over them) until the next call."""
+    own pool, so no other frame draws over them) until the next call; the pool is trimmed afterwards as a frame's
+    is (``TargetPool.trim``: the viewport's pool kept the shadow maps, up to the memory guard's 4 GiB per scene)."""
     from ..gpu import compose
     from ..gpu.context import ensure_gpu_context
     from ..gpu.pipeline import ShadowFrame
@@ -182,13 +183,17 @@ def pip_textures(st: LiveState, depsgraph, longest: int, want_map: bool, want_sc
     setup, body, links = as_rendered(st, depsgraph, geometry, st.setup)
     frame = ShadowFrame(geometry, st.view, fit_resolution(st.view.resolution, longest),
                         read={"combined"}, targets=targets, lit=links.lit, blocks=links.blocks)
-    frame.camera_prepass()
-    frame.draw_maps(setup, st.settings.shadow, body)
-    if want_scene:
-        frame.shade(st.light, setup, st.settings.shadow, **lighting(st, depsgraph))
-        out["scene"] = frame.combined_texture()
-    if want_map and setup.maps[0].role != "none":   # a light with Shadow off has no map to show
-        out["map"] = compose.map_picture(frame.targets, "map_picture", frame.maps[0][0], setup.maps[0].size, longest)
+    try:
+        frame.camera_prepass()
+        frame.draw_maps(setup, st.settings.shadow, body)
+        if want_scene:
+            frame.shade(st.light, setup, st.settings.shadow, **lighting(st, depsgraph))
+            out["scene"] = frame.combined_texture()
+        if want_map and setup.maps[0].role != "none":   # a light with Shadow off has no map to show
+            out["map"] = compose.map_picture(frame.targets, "map_picture", frame.maps[0][0], setup.maps[0].size,
+                                             longest)
+    finally:
+        frame.targets.trim()    # what ``out`` holds lives on with it
     return out
 
 

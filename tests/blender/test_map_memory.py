@@ -37,12 +37,12 @@ def test_what_fits_and_what_is_refused(targets):
         targets.check_map_memory(_Setup(*[_Map((16384, 16384), f"split{i}:lispsm") for i in range(8)]))
     assert str(cascade.value) == ("8 shadow maps of 16384x16384 texels would take 8.0 GiB of GPU memory, more than "
                                   "Lixel's limit of 4 GiB: lower the Map Size or use fewer Splits or a Shared Texel "
-                                  "Budget (Lixel panel > Method)")
+                                  "Budget (Lixel panel > Method; in a script, --size sets the Map Size)")
     with pytest.raises(targets.WarpError) as one:
         targets.check_map_memory(_Setup(_Map((16384, 16384))), mdsm=True)
     assert str(one.value) == ("1 shadow map of 16384x16384 texels with their MDSM keys would take 5.0 GiB of GPU "
                               "memory, more than Lixel's limit of 4 GiB: lower the Map Size or set MDSM Depths to 1 "
-                              "(Lixel panel > Method)")
+                              "(Lixel panel > Method; in a script, --size sets the Map Size)")
 
 
 def _add(scene, name, data):
@@ -84,7 +84,8 @@ def test_f12_refuses_maps_over_the_limit_before_allocating_them(engine, fresh_sc
         bpy.ops.render.render(scene=scene.name)
     said = str(refused.value)
     assert "shadow maps of 16384x16384 texels would take" in said and "more than Lixel's limit of 4 GiB: lower the " \
-           "Map Size or use fewer Splits or a Shared Texel Budget (Lixel panel > Method)" in said, said
+           "Map Size or use fewer Splits or a Shared Texel Budget (Lixel panel > Method; in a script, --size sets " \
+           "the Map Size)" in said, said
     lx.shadow_map_size = (1024, 1024)       # what the message says to do
     assert bpy.ops.render.render(scene=scene.name) == {"FINISHED"}
 
@@ -100,3 +101,24 @@ def test_the_cli_computes_such_a_cascade_without_allocating(tmp_path, capsys, li
     assert main(["--method", "cascade", str(path)]) == 0, capsys.readouterr().err
     maps = json.loads(capsys.readouterr().out)["maps"]
     assert len(maps) == 8 and all(m["size"] == [16384, 16384] for m in maps)
+
+
+def test_a_script_refusing_such_maps_names_its_own_size_option(lixel, tmp_path):
+    """A script's ``--size`` sets the maps' size, not the panel's Map Size (the file keeps its own): the refusal
+    told a script's user to lower the Map Size in the Lixel panel, which the script then overrode again. It names
+    ``--size`` too; one line, exit 1, no picture written."""
+    from test_scripts import run
+    from ui_scenes import active_scene
+    path = tmp_path / "cascade.blend"
+    with active_scene("lixel_memory_script") as scene:
+        lx = scene.lixel
+        lx.method, lx.cascade_splits, lx.cascade_budget = "cascade", 8, "per_map"
+        lx.shadow_map_size = (1024, 1024)
+        bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    out = tmp_path / "x.png"
+    r = run("module", "render_method.py", path, "--size", "16384", "--output", str(out), "--resolution", "64x48")
+    assert r.returncode == 1 and "Traceback" not in r.stderr, r.stderr
+    said = [line for line in r.stderr.splitlines() if line.startswith("lixel: error:")]
+    assert len(said) == 1 and "shadow maps of 16384x16384 texels would take 8.0 GiB" in said[0], r.stderr
+    assert "--size" in said[0], said[0]
+    assert not out.exists()

@@ -250,7 +250,7 @@ def test_groups_are_idempotent_and_versioned(scene, nodes):
     mod = nodes.add_texel_grid(ground, carrier)
     nodes.add_texel_grid(ground, carrier)
     assert len(ground.modifiers) == 1
-    assert sum(1 for s in ground.material_slots if s.material and s.material.name == nodes.TEXEL_MATERIAL) == 1
+    assert not any(s.material and s.material.name == nodes.TEXEL_MATERIAL for s in ground.material_slots)
     # an outdated group still as Lixel built it is rebuilt in place: the modifier keeps using it
     g1[nodes.VERSION_KEY] = 0
     said = []
@@ -308,6 +308,56 @@ def test_an_edited_group_is_never_rebuilt(scene, nodes, wg, tmp_path):
         assert len(evaluated_points(ob, ["position"])["position"]) == 8      # the map's volume, from the new group
     finally:
         bpy.data.node_groups.remove(group)
+
+
+
+def test_an_edited_texel_material_is_never_rebuilt(scene, nodes, tmp_path):
+    """The "Lixel Texel Grid" material had a version but no fingerprint: a user who changed its colours (without
+    renaming it) lost them to Lixel's next version, which emptied and rebuilt its nodes in place. Now it keeps a
+    fingerprint as the node groups do: an outdated material that differs from it is left as it is, the user's
+    (Lixel's marks off, a fake user); the new version is built beside it and Lixel's texel grids (their modifier's
+    Material and the slot Lixel added) follow it, said by name. The fingerprint survives a save and load, and an
+    unedited outdated material is still rebuilt in place."""
+    ground = scene.objects["lixel_nodes ground"]
+    carrier = nodes.ensure_carrier(scene, _Setup(_Map(np.eye(4), (8, 8))))
+    mod = nodes.add_texel_grid(ground, carrier)
+    key = nodes._input(mod.node_group, "Material")
+    mat = mod[key]
+    path = tmp_path / "material.blend"
+    bpy.data.libraries.write(str(path), {mat})
+    with bpy.data.libraries.load(str(path)) as (_, into):
+        into.materials = [mat.name]
+    loaded = into.materials[0]
+    try:
+        assert loaded is not mat and loaded[nodes.FINGERPRINT_KEY] == nodes.fingerprint(loaded.node_tree)
+    finally:
+        bpy.data.materials.remove(loaded)
+    mix = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeMix")
+    mix.inputs[6].default_value = (1.0, 0.0, 0.0, 1.0)                  # the user's colour
+    mat[nodes.VERSION_KEY] = nodes.MATERIAL_VERSION - 1                 # as a file from before Lixel's next version
+    ground.data.materials.append(mat)                                   # the slot Lixel added before session 21
+    edited = nodes.fingerprint(mat.node_tree)
+    said = []
+    nodes.add_texel_grid(ground, carrier, 0, said)
+    new = mod[key]
+    try:
+        assert new != mat and new.name == f"{nodes.TEXEL_MATERIAL}.001"
+        assert nodes.fingerprint(mat.node_tree) == edited and tuple(mix.inputs[6].default_value) == (1, 0, 0, 1)
+        assert mat.use_fake_user and not any(k.startswith("lixel") for k in mat.keys())
+        assert new[nodes.VERSION_KEY] == nodes.MATERIAL_VERSION and nodes.ensure_texel_material() == new
+        assert [s.material for s in ground.material_slots].count(new) == 1
+        assert mat not in [s.material for s in ground.material_slots]
+        assert said == [f"Lixel: material '{mat.name}' (version {nodes.MATERIAL_VERSION - 1}) is not as Lixel built "
+                        f"it (edited, or made before Lixel kept a fingerprint), so it was left as it is, yours now "
+                        f"(with a fake user, so it is saved); Lixel's version {nodes.MATERIAL_VERSION} is "
+                        f"'{new.name}', now used by Lixel's modifiers on '{ground.name}': to keep your edits, point "
+                        f"those modifiers back to '{mat.name}' or copy them into '{new.name}'"]
+        new[nodes.VERSION_KEY] = nodes.MATERIAL_VERSION - 1               # unedited: rebuilt in place
+        assert nodes.ensure_texel_material(said) == new and len(said) == 1
+    finally:
+        nodes.remove_texel_grid(ground)
+        bpy.data.materials.remove(mat)
+        bpy.data.materials.remove(new)      # the next test makes Lixel's under its own name again
 
 
 FINGERPRINT_CHILD = r'''

@@ -297,6 +297,30 @@ def test_followers_of_a_map_the_setup_no_longer_has_are_named_when_the_matrices_
     assert "'lixel_ops ground'" not in capfd.readouterr().out
 
 
+
+def test_many_followers_of_a_map_the_setup_no_longer_has_are_counted_past_five(scene, mods, capfd):
+    """Texel grids of the cascade's map 2 on many objects, then one map: the warning named every object, and Blender
+    cuts a report at about 1,000 characters, so with thousands of tiles it lost what to do. Five are named (in name
+    order), the rest counted, and the remedy is said whole."""
+    ground = scene.objects["lixel_ops ground"]
+    tiles = [bpy.data.objects.new(f"lixel_ops tile {i}", ground.data) for i in range(7)]
+    try:
+        for ob in tiles:
+            scene.collection.objects.link(ob)
+        scene.lixel.method = "cascade"
+        _select_only(scene, [ob.name for ob in tiles])
+        assert bpy.ops.lixel.texel_grid_add(map_index=2) == {"FINISHED"}
+        capfd.readouterr()
+        scene.lixel.method = "lispsm"
+        assert bpy.ops.lixel.sync_matrices() == {"FINISHED"}
+        named = ", ".join(f"'lixel_ops tile {i}' (map 2)" for i in range(5))
+        assert (f"Warning: Lixel: {named} and 2 more follow a map the lispsm setup does not have (map 0 only): what "
+                f"they show belongs to no map; add them again for one of its maps, or delete them") in \
+            capfd.readouterr().out
+    finally:
+        for ob in tiles:
+            bpy.data.objects.remove(ob)
+
 def test_texel_grid_leaves_objects_linked_from_a_library_and_says_so(scene, tmp_path):
     """A modifier or material put on linked data is not saved with the file: the grid would vanish on reload."""
     me = bpy.data.meshes.new("library block")
@@ -323,6 +347,41 @@ def test_texel_grid_leaves_objects_linked_from_a_library_and_says_so(scene, tmp_
         bpy.data.objects.remove(linked)
         bpy.data.libraries.remove(library)
 
+
+
+def test_texel_grid_on_many_linked_objects_names_a_few_and_counts_the_rest(scene, tmp_path):
+    """Selecting a linked set of tiles with a mesh of the file's own: the warning named every linked object, and
+    Blender cuts a report at about 1,000 characters, so with 4,000 tiles the user read 1,000 characters of names,
+    '... truncated', and neither why nor what to do. It names five (in name order) and counts the rest; the file's
+    own mesh gets its grid."""
+    me = bpy.data.meshes.new("library tile")
+    me.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
+    tiles = [bpy.data.objects.new(f"library tile {i}", me) for i in range(8)]
+    bpy.data.libraries.write(str(tmp_path / "tiles.blend"), set(tiles))
+    for ob in tiles:
+        bpy.data.objects.remove(ob)
+    bpy.data.meshes.remove(me)
+    with bpy.data.libraries.load(str(tmp_path / "tiles.blend"), link=True) as (_src, dst):
+        dst.objects = [f"library tile {i}" for i in range(8)]
+    linked = sorted(dst.objects, key=lambda ob: ob.name)
+    try:
+        for ob in linked:
+            scene.collection.objects.link(ob)
+        ground = scene.objects["lixel_ops ground"]
+        _select_only(scene, [ground.name] + [ob.name for ob in linked])
+        assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+        assert len(ground.modifiers) == 1 and not any(ob.modifiers for ob in linked)
+        _select_only(scene, [ob.name for ob in linked])
+        with pytest.raises(RuntimeError) as refused:
+            bpy.ops.lixel.texel_grid_add()
+        named = ", ".join(f"'library tile {i}'" for i in range(5))
+        assert f"{named} and 3 more are linked from tiles.blend: make it local" in str(refused.value), refused.value
+        assert "'library tile 5'" not in str(refused.value)
+    finally:
+        library = linked[0].library
+        for ob in linked:
+            bpy.data.objects.remove(ob)
+        bpy.data.libraries.remove(library)
 
 WRITES_SCENE = [("reset_settings", {}), ("bake_debug", {}), ("frustum_add", {}), ("sync_matrices", {}),
                 ("texel_grid_add", {}), ("planes_from_selection", {}), ("plane_remove", {})]

@@ -208,3 +208,24 @@ def test_a_picture_in_picture_that_failed_is_not_rendered_again_on_every_redraw(
         props.map_pip_size = 96
         assert "16384x16384" in m.overlays._draw_gpu_overlays(scene, st, props)
         assert len(tries) == 2
+
+
+def test_the_picture_in_picture_keeps_no_more_gpu_memory_than_a_frame_does(m, monkeypatch):
+    """The viewport's pictures drew into the scene's own pool and kept all of it until the next render, the shadow
+    maps too: a setup under the memory guard (8 maps of 8192², 2 GiB) stayed held per scene after the pictures were
+    drawn, and after they were switched off; F12's frames keep at most ``TargetPool.KEEP_BYTES``. The pictures'
+    pool is trimmed as a frame's is, and the pictures still draw."""
+    targets = importlib.import_module(m.live.__name__.rsplit(".", 2)[0] + ".gpu.targets")
+    monkeypatch.setattr(targets.TargetPool, "KEEP_BYTES", 2 ** 20)     # a 1024² depth map takes 4 MiB
+    with active_scene("lixel_draw_pip_memory") as scene:
+        props = scene.lixel
+        props.map_pip_size = 64
+        props.shadow_map_size = (1024, 1024)
+        props.show_map, props.show_shadowed = True, True
+        st = m.live.update(scene, bpy.context.evaluated_depsgraph_get())
+        assert not st.error, st.error
+        assert m.overlays._draw_gpu_overlays(scene, st, props) == ""
+        _, textures, pool = m.overlays._pip[m.live.scene_key(scene)]
+        assert pool.bytes <= 2 ** 20, pool.bytes
+        assert sorted(textures) == ["map", "scene"] and max(t.width for t in textures.values()) == 64
+        assert m.overlays._draw_gpu_overlays(scene, st, props) == ""       # drawn again from what was kept

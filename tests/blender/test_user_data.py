@@ -205,10 +205,62 @@ def test_files_from_before_the_mark_are_still_lixels(lixel, mods):
             bpy.data.node_groups.remove(tree)
 
 
+
+
+def test_the_texel_grids_of_many_objects_go_at_once(user_scene, mods):
+    """Removing the grids of many selected objects at once (the operator asks which meshes still show a grid once,
+    not once per object: per object it took 92 s for 8,000 tiles) takes off what Lixel added to a mesh only when
+    none of its objects keeps a grid, whichever of them were selected."""
+    scene, _users = user_scene
+    cube, ground = scene.objects["lixel_user_data cube"], scene.objects["lixel_user_data ground"]
+    twins = [bpy.data.objects.new(f"my twin {i}", cube.data) for i in range(2)]
+    for twin in twins:
+        scene.collection.objects.link(twin)
+    try:
+        _select(scene, [cube.name, ground.name, *(t.name for t in twins)])
+        assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+        _select(scene, [cube.name, ground.name, twins[0].name])
+        assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"}
+        assert [mods.nodes.lixel_modifier(ob, mods.nodes.TEXEL_MODIFIER) is None
+                for ob in (cube, ground, *twins)] == [True, True, True, False]
+        assert cube.data.attributes.active_color_name == mods.nodes.PARITY_COLOR_ATTRIBUTE   # twin 1 shows it
+        assert ground.data.attributes.active_color_name == ""
+        assert mods.nodes.remove_texel_grids([twins[1], ground]) == 1
+        assert cube.data.attributes.active_color_name == ""
+    finally:
+        for twin in twins:
+            bpy.data.objects.remove(twin)
+
+def test_the_texel_grid_leaves_the_materials_of_a_shared_mesh_alone(user_scene, mods):
+    """A mesh with no material, shared by two objects (Alt+D): the texel grid added to one put Lixel's material in
+    the mesh's first slot, which every face uses, so the other object, never selected, rendered with Lixel's texel
+    material (without the grid's attributes: the texels of no map). The grid's group sets its material itself (Set
+    Material; the modifier keeps it saved), so Lixel adds no slot to a mesh: the twin is left exactly as it was, in
+    its data and as evaluated, and the gridded object still shows Lixel's material."""
+    scene, _users = user_scene
+    cube = scene.objects["lixel_user_data cube"]
+    mesh = cube.data
+    assert len(mesh.materials) == 0
+    twin = bpy.data.objects.new("my twin", mesh)
+    scene.collection.objects.link(twin)
+    try:
+        before = (digest(twin), digest(mesh))
+        _select(scene, [cube.name])
+        assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+        grid_material = mods.owned.find_made(bpy.data.materials, mods.nodes.TEXEL_MATERIAL)
+        dg = bpy.context.evaluated_depsgraph_get()
+        assert [m for m in twin.evaluated_get(dg).data.materials if m] == []
+        assert grid_material.name in [m.name for m in cube.evaluated_get(dg).data.materials if m]
+        assert len(mesh.materials) == 0 and digest(twin) == before[0]
+        assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"}
+        assert (digest(twin), digest(mesh)) == before
+    finally:
+        bpy.data.objects.remove(twin)
+
 def test_the_texel_grid_on_a_shared_mesh_leaves_with_its_last_object(user_scene, mods):
     """Two objects share a mesh that has the user's material: removing the grid from one leaves the other's
-    grid whole (the material slot and the colour attribute Workbench shows stay on the mesh); removing it from
-    the last takes off only what Lixel added."""
+    grid whole (the colour attribute Workbench shows stays on the mesh); removing it from the last takes off only
+    what Lixel added."""
     scene, _users = user_scene
     cube = scene.objects["lixel_user_data cube"]
     mesh = cube.data
@@ -221,7 +273,7 @@ def test_the_texel_grid_on_a_shared_mesh_leaves_with_its_last_object(user_scene,
         assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
         with_grid = ([m.name for m in mesh.materials], mesh.attributes.active_color_name)
         grid_material = mods.owned.find_made(bpy.data.materials, mods.nodes.TEXEL_MATERIAL)
-        assert with_grid == (["my paint", grid_material.name], mods.nodes.PARITY_COLOR_ATTRIBUTE)
+        assert grid_material is not None and with_grid == (["my paint"], mods.nodes.PARITY_COLOR_ATTRIBUTE)
         _select(scene, [cube.name])
         assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"}
         assert mods.nodes.lixel_modifier(cube, mods.nodes.TEXEL_MODIFIER) is None

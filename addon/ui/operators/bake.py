@@ -29,14 +29,14 @@ class MatrixOperator(LixelSceneOperator):
         (holding ``st``'s maps) no longer holds: a frustum showed a 2-unit cube at the origin, a texel grid the
         colours of no map's texels, and nothing said why."""
         if again := nodes.reattach_orphans(bpy.context.scene, carrier):
-            self.report({"INFO"}, f"Lixel: {', '.join(map(repr, again))} followed no light matrices (the "
+            self.report({"INFO"}, f"Lixel: {nodes.listed([repr(n) for n in again])} followed no light matrices (the "
                                   f"'{nodes.CARRIER_NAME}' object they followed was deleted): they follow "
                                   f"'{carrier.name}' again")
         count = len(st.setup.maps)
         if stale := nodes.followers_of_missing_maps(carrier, count):
             one = len(stale) == 1
             maps = "map 0 only" if count == 1 else f"maps 0 to {count - 1}"
-            self.report({"WARNING"}, f"Lixel: {', '.join(f'{name!r} (map {i})' for name, i in stale)} follow"
+            self.report({"WARNING"}, f"Lixel: {nodes.listed([f'{name!r} (map {i})' for name, i in stale])} follow"
                                      f"{'s' if one else ''} a map the {st.method_used} setup does not have ({maps}): "
                                      f"what {'it shows' if one else 'they show'} belongs to no map; add "
                                      f"{'it' if one else 'them'} again for one of its maps, or delete "
@@ -135,10 +135,11 @@ class LIXEL_OT_bake_debug(LixelSceneOperator, bpy.types.Operator):
 
 def linked_note(linked: list) -> str:
     """Why the texel grid leaves ``linked`` objects, and the remedy: a linked object can be made local or
-    overridden; a library override keeps its mesh linked (where the grid's material slot goes), so only making the
-    mesh local helps there."""
+    overridden; a library override keeps its mesh linked (where the grid names the colour attribute Workbench shows),
+    so only making the mesh local helps there."""
     libraries = ", ".join(sorted({(ob.library or ob.data.library).name for ob in linked}))
-    names, verb = ", ".join(repr(ob.name) for ob in linked), "is" if len(linked) == 1 else "are"
+    names = nodes.listed([repr(name) for name in sorted(ob.name for ob in linked)])
+    verb = "is" if len(linked) == 1 else "are"
     if all(ob.library is None for ob in linked):
         what = "a library override whose mesh is" if len(linked) == 1 else "library overrides whose meshes are"
         return (f"{names} {verb} {what} linked from {libraries}: make the mesh local "
@@ -164,14 +165,15 @@ class LIXEL_OT_texel_grid_add(MatrixOperator, bpy.types.Operator):
         if not meshes:
             self.report({"ERROR"}, "Lixel: no mesh selected: select the mesh objects that should show the texel grid")
             return {"CANCELLED"}
-        linked = [ob for ob in meshes if ob.library is not None or ob.data.library is not None]
-        if linked:  # what Lixel would put on linked data is not saved with the file
-            self.report({"WARNING"} if len(linked) < len(meshes) else {"ERROR"}, f"Lixel: {linked_note(linked)}")
-            meshes = [ob for ob in meshes if ob not in linked]
+        local = [ob for ob in meshes if ob.library is None and ob.data.library is None]
+        if len(local) < len(meshes):  # what Lixel would put on linked data is not saved with the file
+            linked = [ob for ob in meshes if ob.library is not None or ob.data.library is not None]
+            self.report({"WARNING"} if local else {"ERROR"}, f"Lixel: {linked_note(linked)}")
+            meshes = local
             if not meshes:
                 return {"CANCELLED"}
         if self.remove:
-            n = sum(nodes.remove_texel_grid(ob) for ob in meshes)
+            n = nodes.remove_texel_grids(meshes)
             self.report({"INFO"}, f"Lixel: removed the texel grid from {n} object(s)")
             return {"FINISHED"}
         st = self.fresh_state(context, self.map_index)
