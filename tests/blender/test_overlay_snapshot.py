@@ -82,6 +82,22 @@ def test_operator_saves_camera_and_observer_snapshots(lixel, tmp_path):
         scene.lixel.show_texels = False
 
 
+def test_a_second_snapshot_keeps_the_first(lixel, tmp_path):
+    """Saving snapshots twice into one folder (of two methods, say) writes the second set beside the first,
+    numbered, and says which files it wrote: the first set's pictures are the user's and stay as they were."""
+    import bpy
+    from ui_scenes import active_scene
+    with active_scene("lixel_snapshot_twice"):
+        assert bpy.ops.lixel.overlay_snapshot(directory=str(tmp_path), width=96) == {"FINISHED"}
+        first = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+        (tmp_path / "overlay_observer.png").write_bytes(b"the user's own picture")
+        assert bpy.ops.lixel.overlay_snapshot(directory=str(tmp_path), width=96) == {"FINISHED"}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["overlay_camera.png", "overlay_camera_2.png",
+                                                          "overlay_observer.png", "overlay_observer_2.png"]
+    assert (tmp_path / "overlay_camera.png").read_bytes() == first["overlay_camera.png"]
+    assert (tmp_path / "overlay_observer.png").read_bytes() == b"the user's own picture"
+
+
 def test_operator_without_a_folder_or_camera_says_so(lixel, tmp_path):
     import bpy
     from ui_scenes import active_scene

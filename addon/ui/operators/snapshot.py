@@ -14,6 +14,16 @@ from .common import LixelSceneOperator
 OBSERVER_OVERLAYS = ("body", "frusta", "warp")
 
 
+def unused_paths(directory: str, names: list) -> list:
+    """``directory``/overlay_NAME.png for each of ``names``, numbered (overlay_NAME_2.png, ...) as one set where any
+    of them is there already: a second snapshot, of another method say, keeps the first."""
+    for k in range(1, 10_000):
+        paths = [os.path.join(directory, f"overlay_{n}{'' if k == 1 else f'_{k}'}.png") for n in names]
+        if not any(os.path.exists(p) for p in paths):
+            return paths
+    raise OSError(f"10,000 snapshots in '{directory}' already")
+
+
 def receiver_overlays(props) -> list:
     """The receiver overlay the scene shows (texel grid and/or heatmap), the heatmap when it shows neither."""
     shown = [n for n in ("texels", "footprint") if getattr(props, f"show_{n}")]
@@ -67,9 +77,9 @@ class LIXEL_OT_overlay_snapshot(LixelSceneOperator, bpy.types.Operator):
             self.report({"ERROR"}, f"Lixel: cannot make the folder '{self.directory}': {exc.strerror}")
             return {"CANCELLED"}
         written = []
-        for name, view_projection, size, names in views:
+        paths = unused_paths(bpy.path.abspath(self.directory), [name for name, *_ in views])
+        for (name, view_projection, size, names), path in zip(views, paths):
             img = snapshot.draw_snapshot(context.scene, st, snapshot.OverlayFlags.of(names), view_projection, size)
-            path = os.path.join(bpy.path.abspath(self.directory), f"overlay_{name}.png")
             try:
                 renders.save_image(img, path, linear=False)
             except OSError as exc:
