@@ -29,11 +29,11 @@ GUARD_STEPS = 16
 GUARD_FAR = 1e6
 """The guard's search hands over to the uniform map rather than move the virtual camera this many
 depths of B back (λ ≈ 1e6 for a sun across the view: the uniform map to float precision)."""
+GUARD_TOLERANCE = 1e-3
+"""The guard's search aims PSM's λ at most this much (relative) above the guard's λ."""
 TURNS = np.array([[[math.cos(a), -math.sin(a), 0, 0], [math.sin(a), math.cos(a), 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
                   for a in np.radians(np.arange(-45.0, 45.0, 2.5))])
 """The turns of a map's x, y about its depth axis that ``turned_fit`` weighs against the shadow edges (every 2.5°)."""
-GUARD_TOLERANCE = 1e-3
-"""The guard's search aims PSM's λ at most this much (relative) above the guard's λ."""
 
 
 @dataclass(frozen=True)
