@@ -16,6 +16,7 @@ from ..fit import fit_to_unit_cube
 from ..frame import LightFrame, light_frames
 from ..geometry import finite_clip_volume_corners, transform_points, translation
 from ..linear_depth import light_depth_row
+from ..partition.receivers import filter_losses
 from ..post_perspective import PPSLight, VirtualCamera, nearest_visible_depth, pps_light_matrix, virtual_camera
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpOptions
 from .common import body_diagnostics, uniform_setup
@@ -30,6 +31,9 @@ GUARD_FAR = 1e6
 depths of B back (λ ≈ 1e6 for a sun across the view: the uniform map to float precision)."""
 GUARD_TOLERANCE = 1e-3
 """The guard's search aims PSM's λ at most this much (relative) above the guard's λ."""
+TURNS = np.array([[[math.cos(a), -math.sin(a), 0, 0], [math.sin(a), math.cos(a), 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+                  for a in np.radians(np.arange(-45.0, 45.0, 2.5))])
+"""The turns of a map's x, y about its depth axis that ``turned_fit`` weighs against the shadow edges (every 2.5°)."""
 
 
 @dataclass(frozen=True)
@@ -100,17 +104,27 @@ def turned_fit(unfitted: np.ndarray, view: View, body: IntersectionBody, frame: 
     and depth unlike, so x, y square in PPS can be skewed in the light's image; turned, PSM tends to the uniform map
     as the virtual camera moves back, as §4.2 says it must (docs/papers.md, "PSM's map axes under a low sun").
     J: a fitted map's d(x/w, y/w) over the frame's x, y at B's centroid; C = J⁻¹ at det 1 puts the fitted x, y along
-    the frame's there; the turn is I + t (C - I), t = log2 of the texel's area before over after, clamped to [0, 1]."""
+    the frame's there; the turn is I + t (C - I), t = log2 of the texel's area before over after, clamped to [0, 1].
+    Then, given the first look's shadow edges, turned about its depth axis by the one of ``TURNS`` of least texel side
+    at B's centroid times ``filter_losses`` (edges along a texel axis: "Texel axes off the shadow edges")."""
     fitted = lambda m: fit_to_unit_cube(m, body.vertices - view.position)
     jacobian = lambda m: raster_jacobian(m @ translation(-view.position) @ np.linalg.inv(frame.to_light), (2, 2),
-                                         transform_points(frame.to_light, body.volume_centroid))[0, :, :2]
+                                         transform_points(frame.to_light, body.volume_centroid))[..., 0, :, :2]
     relative = fitted(unfitted)
     if frame is None or not np.linalg.det(j := jacobian(relative)) > 0:
         return relative
     c = np.linalg.inv(j) * math.sqrt(np.linalg.det(j))
     turned = lambda t: fitted(np.vstack([((1 - t) * np.eye(2) + t * c) @ relative[:2], relative[2:]]))
     t = min(math.log2(max(np.linalg.det(jacobian(turned(1.0))) / np.linalg.det(j), 1.0)), 1.0)
-    return turned(t) if t > 0 else relative
+    relative = turned(t) if t > 0 else relative
+    e = None if body.visible is None else body.visible.edge_directions
+    if e is None or not e.any():
+        return relative
+    turns = fitted(TURNS @ relative)
+    edges = np.stack([body.visible.surface[:, 0], e], 1)[np.any(e != 0, axis=1)]
+    loss = filter_losses([ShadowSetup([ShadowMap(m, (2, 2))], None) for m in turns @ translation(-view.position)],
+                         (None,) * 4 + (edges,))
+    return turns[int(np.argmin(loss / np.sqrt(np.linalg.det(jacobian(turns)))))]
 
 
 def guarded_warp(view: View, light: Light, body: IntersectionBody, options: WarpOptions, warp: PSMWarp,
