@@ -80,24 +80,32 @@ def light_facing_winds_clockwise(shadow_map) -> bool:
     facing the light is counter-clockwise, but a map may mirror x or y, and the
     determinant alone cannot tell (a GREATER map flips z as well), so a small
     triangle facing the light is projected and its signed area checked.
+
+    The light lies on the map's central ray x = y = 0, on the side where the
+    depth z/w falls (LESS; rises, GREATER). Both are read from the matrix's
+    rows, not through its inverse: a point light's face whose near plane is
+    1e-7 of the way to its far one has a z row equal to its w row to 7 digits,
+    a matrix of condition 3e16 whose inverse unprojects every depth to one
+    point (gen42_05_point_low_in_view's cascade at 4096², whose render stopped
+    there). The triangle lies where w = 1 on a perspective map's central ray,
+    1e-3 of its distance to the light wide.
     """
     m = np.asarray(shadow_map.matrix, dtype=np.float64)
-    try:
-        inv = np.linalg.inv(m)
-    except np.linalg.LinAlgError:
+    ray = np.cross(m[0, :3], m[1, :3])
+    on_ray = np.linalg.lstsq(m[:2, :3], -m[:2, 3], rcond=None)[0]
+    (z, w), (dz, dw) = m[2:] @ np.append(on_ray, 1.0), m[2:, :3] @ ray
+    away = ray * np.sign(dz * w - z * dw) * (-1.0 if shadow_map.depth_test == "GREATER" else 1.0)  # d(z/w)·w²
+    size = float(np.linalg.norm(away))
+    if not (np.isfinite(size) and size > 0.0):
         return False  # a degenerate map draws nothing: no winding to speak of
-
-    def unproject(ndc):
-        h = inv @ np.append(ndc, 1.0)
-        return h[:3] / h[3]
+    perspective = abs(dw) > 1e-12 * np.linalg.norm(m[3, :3]) * size
+    near = on_ray + ray * (1.0 - w) / dw if perspective else on_ray
+    size = size / abs(dw) if perspective else size
 
     def project(p):
         h = m @ np.append(p, 1.0)
         return h[:2] / h[3]
 
-    near, far = unproject((0.0, 0.0, -0.5)), unproject((0.0, 0.0, 0.5))
-    away = far - near if shadow_map.depth_test != "GREATER" else near - far
-    size = float(np.linalg.norm(away))
     n = -away / size  # towards the light
     u = perpendicular(n)
     v = np.cross(n, u)  # u x v = n

@@ -562,6 +562,27 @@ def test_reversed_and_mirrored_maps_cull_the_right_faces(lx, scene, variant):
         np.testing.assert_allclose(out.shadow_maps[0], ref.shadow_maps[0][:, ::-1], atol=1e-5)
 
 
+NEAR_LIGHT_FACE = np.array([   # gen42_05_point_low_in_view's cascade at 4096²: a face's near plane 1e-7 of its far
+    [-1.0467169022522258, -1.3421287933913522, -1.4812015034786026, 25.287431016058136],
+    [1.2516409149264895, 0.8713215271319347, -1.721015304255863, -15.057608352104673],
+    [-0.6628267683634359, 0.7397357805354811, -0.11597952464365072, -1.6053130791977437],
+    [-0.6628269009287895, 0.739735928482637, -0.11597954783955564, -1.6053134002603584]])
+
+
+@pytest.mark.parametrize("variant", ["LESS", "GREATER", "MIRRORED"])
+def test_a_face_whose_near_plane_nearly_meets_the_light_winds_as_its_xyw_rows_say(lx, variant):
+    """A point light's face with its near plane 1e-7 of the way to its far one has a z row equal to its w row to 7
+    digits (condition 3e16): the render stopped there ("cannot normalize vector [nan, nan, nan]") where the winding
+    test unprojected through the inverse. Its light-facing triangles wind as the same face's with a near plane
+    farther out (z = w - 2 w_n: the same x, y and w rows), reversed or mirrored alike."""
+    flip = {"LESS": np.eye(4), "GREATER": np.diag([1.0, 1.0, -1.0, 1.0]), "MIRRORED": np.diag([-1.0, 1.0, 1.0, 1.0])}
+    test = "GREATER" if variant == "GREATER" else "LESS"
+    winds = lambda m: lx.pipeline.light_facing_winds_clockwise(lx.types.ShadowMap(flip[variant] @ m, (4096, 4096), test))
+    m = NEAR_LIGHT_FACE
+    farther = [np.vstack([m[:2], m[3] - [0.0, 0.0, 0.0, 2.0 * w_n], m[3]]) for w_n in (1e-2, 1e-1, 1.0)]
+    assert {winds(m) for m in farther} == {winds(NEAR_LIGHT_FACE)} == {variant == "MIRRORED"}
+
+
 def edge_ramp_scene(scene, degrees=3.0):
     """A long box casting one straight shadow edge, rotated ``degrees`` against the
     map's texel grid, seen from straight above by an orthographic camera below
