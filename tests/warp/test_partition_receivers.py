@@ -80,7 +80,8 @@ def test_footprints_in_one_batch_are_each_setups_own():
 
 
 def edged(seen, points, directions):
-    """``seen`` with shadow edges known at ``points`` running along ``directions`` (the engine's first look's)."""
+    """``seen`` with shadow edges known at ``points`` on the ground (normal +z) running along ``directions`` (the
+    engine's first look's)."""
     return (*seen[:4], np.stack([points, directions, np.broadcast_to([0.0, 0.0, 1.0], points.shape)], axis=1))
 
 
