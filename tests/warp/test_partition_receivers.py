@@ -80,8 +80,9 @@ def test_footprints_in_one_batch_are_each_setups_own():
 
 
 def edged(seen, points, directions):
-    """``seen`` with shadow edges known at ``points`` running along ``directions`` (the engine's first look's)."""
-    return (*seen[:4], np.stack([points, directions], axis=1))
+    """``seen`` with shadow edges known at ``points`` on the ground (normal +z) running along ``directions`` (the
+    engine's first look's)."""
+    return (*seen[:4], np.stack([points, directions, np.broadcast_to([0.0, 0.0, 1.0], points.shape)], axis=1))
 
 
 def sun_edges():
@@ -130,7 +131,7 @@ def test_with_no_edges_known_the_candidates_are_scored_by_their_footprints_alone
     view, light, scene = example("outdoor_sun")
     region = region_from_boxes(view, scene)
     seen = receivers(view, light, region, view.near, math.inf, scene)
-    assert seen[4].shape == (0, 2, 3)
+    assert seen[4].shape == (0, 3, 3)
     trials = Trials(view, light, scene, WarpOptions(shadow_map_size=1024, cascade_splits=2), region, seen)
     split = trials.splits_at(np.array([view.near, 20.0, view.far]))[0]
     scored = trials.candidates(split, split.far)

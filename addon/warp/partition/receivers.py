@@ -22,7 +22,7 @@ RAYS = (64, 36)
 
 def receivers(view: View, light: Light, region: VisibleRegion | None, near: float, far: float,
               scene: SceneBounds | None = None) -> tuple | None:
-    """(p, n, tangent bases T (N, 3, 2), G = D_view·T, (M, 2, 3) each sample and its ``edge_directions`` where known)
+    """(p, n, tangent bases T (N, 3, 2), G = D_view·T, (M, 3, 3) each sample, its ``edge_directions`` and normal)
     of the ``region``'s ``surface`` samples and ``normals`` at eye depths [near, far) that the light reaches (a spot's
     cone); None if none. The boxes' ray cast is cast again through ``RAYS`` (48x27 leaves a p95 at walls to chance)."""
     if region is None or region.normals is None:
@@ -31,7 +31,7 @@ def receivers(view: View, light: Light, region: VisibleRegion | None, near: floa
     region = region_from_boxes(view, scene, RAYS) if cast else region
     step = 1 if cast else max(1, -(-len(region.normals) // SAMPLES))
     p, n, e = region.surface[::step, 0], region.normals[::step], region.edge_directions
-    e = np.zeros((0, 2, 3)) if e is None else np.stack([region.surface[:, 0], e], 1)[np.any(e != 0, axis=1)]
+    e = np.zeros((0, 3, 3)) if e is None else np.stack([region.surface[:, 0], e, region.normals], 1)[np.any(e != 0, 1)]
     k = (view.eye_depth(p) >= near) & (view.eye_depth(p) < far)
     if light.type == "SPOT":
         k &= light.rays_to(p) @ light.direction >= np.cos(light.spot_angle / 2)
@@ -69,13 +69,20 @@ def filter_losses(setups: list, seen: tuple) -> np.ndarray:
     the angle of D_M·e to a texel axis of its one map (several: 1), times min(1, n/``EDGES``): a grid along an edge
     holds nothing of the edge's place in a texel, and PCF 2 gains 3-7 % there, 16-33 % at 20-45° (docs/papers.md, the
     cascade's edges); below ``EDGES`` samples the share is shrunk toward the no-edge pick's 0, as if the missing ones
-    were not aligned, so that a split's weight grows with its evidence rather than jumping at a threshold."""
+    were not aligned, so that a split's weight grows with its evidence rather than jumping at a threshold. Times the
+    texel's mean width across those edges on their surfaces, |D_M·e| / |D_M·e × D_M·(n × e)|, over the least of the
+    single maps' (shrunk alike): the wrong pixels follow Σ |Jᵀn|·E|δ(a)| (docs/papers.md, "The far split's edges")."""
     if not len(seen[4]) or not setups:
         return np.ones(len(setups))
-    v = np.abs(np.einsum("mnij,nj->mni", jacobians([s.maps[0] for s in setups], seen[4][:, 0]), seen[4][:, 1]))
-    a = np.degrees(np.arctan2(np.minimum(v[..., 0], v[..., 1]), np.maximum(v[..., 0], v[..., 1])))     # 0..45°
-    share = np.nanmean(np.clip((20.0 - a) / 12.0, 0.0, 1.0), axis=1) * min(1.0, len(seen[4]) / EDGES)
-    return 1.0 + LOSS * share * [len(s.maps) == 1 for s in setups]
+    m, e, n = jacobians([s.maps[0] for s in setups], seen[4][:, 0]), seen[4][:, 1], seen[4][:, 2]
+    v, w = (np.einsum("mnij,nj->mni", m, x) for x in (e, np.cross(n, e)))
+    a = np.degrees(np.arctan2(np.abs(v).min(axis=2), np.abs(v).max(axis=2)))                          # 0..45°
+    with np.errstate(divide="ignore", invalid="ignore"):
+        width = np.linalg.norm(v, axis=2) / np.abs(v[..., 0] * w[..., 1] - v[..., 1] * w[..., 0])
+    single, evidence = np.array([len(s.maps) == 1 for s in setups]), min(1.0, len(seen[4]) / EDGES)
+    width = np.nanmean(np.where(np.isfinite(width), width, np.nan), axis=1)
+    wider = np.nan_to_num(width / np.nanmin(width[single], initial=np.inf) - 1.0) * evidence * single
+    return (1.0 + LOSS * np.nanmean(np.clip((20.0 - a) / 12.0, 0.0, 1.0), axis=1) * evidence * single) * (1.0 + wider)
 
 
 def grazing(setup: ShadowSetup, seen: tuple, light: Light, top: float = 90.0) -> tuple:
