@@ -300,6 +300,4 @@ def cube_sections(poly: ConvexPolytope, basis: np.ndarray) -> list[FacePart]:
 
 def light_frames(view: View, light: Light, body: IntersectionBody, options: WarpOptions) -> list[LightFrame]:
     """The frames a light needs for this body, in selection order."""
-    if light.is_directional:
-        return [sun_frame(view, light, body)]
-    return point_frames(view, light, body, options)
+    return [sun_frame(view, light, body)] if light.is_directional else point_frames(view, light, body, options)

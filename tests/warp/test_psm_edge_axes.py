@@ -43,7 +43,7 @@ def test_psm_turns_its_texel_axes_off_the_shadow_edges_it_is_given():
     d /= np.linalg.norm(d, axis=1)[:, None]                                      # D_M·d = (·, 0), n·d = 0
     assert np.median(grid_angles(plain, points, d)) < 0.01
     looked = dataclasses.replace(body, visible=dataclasses.replace(
-        body.visible, surface=np.stack([points, points], 1), edge_directions=d))
+        body.visible, surface=np.stack([points, points], 1), normals=normals, edge_directions=d))
     setup = compute("psm", view, light, scene, options, body=looked)
     assert setup.diagnostics.extra["psm_applied"] and setup.maps[0].contains(body.vertices, 1e-6).all()
     assert np.percentile(grid_angles(setup.maps[0].matrix, points, d), 10) >= 20.0

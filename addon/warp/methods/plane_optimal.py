@@ -235,9 +235,7 @@ def scaled_to_view_w(m: np.ndarray, view: View, centre: np.ndarray, origin: np.n
     w on the plane (at ``centre``); None when that part is not in front of the camera."""
     w_view = float(view.world_to_clip[3, :3] @ (centre + origin) + view.world_to_clip[3, 3])
     w_light = float(m[3, :3] @ centre + m[3, 3])
-    if not (w_view > 0 and abs(w_light) > 0):
-        return None
-    return m[[0, 1, 3]] * (w_view / w_light)
+    return m[[0, 1, 3]] * (w_view / w_light) if w_view > 0 and abs(w_light) > 0 else None
 
 
 # ---------------------------------------------------------------------------

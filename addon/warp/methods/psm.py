@@ -16,7 +16,7 @@ from ..fit import fit_to_unit_cube
 from ..frame import LightFrame, light_frames
 from ..geometry import finite_clip_volume_corners, transform_points, translation
 from ..linear_depth import light_depth_row
-from ..partition.receivers import filter_losses
+from ..partition.receivers import edge_samples, filter_losses
 from ..post_perspective import PPSLight, VirtualCamera, nearest_visible_depth, pps_light_matrix, virtual_camera
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpOptions
 from .common import body_diagnostics, uniform_setup
@@ -117,11 +117,10 @@ def turned_fit(unfitted: np.ndarray, view: View, body: IntersectionBody, frame: 
     turned = lambda t: fitted(np.vstack([((1 - t) * np.eye(2) + t * c) @ relative[:2], relative[2:]]))
     t = min(math.log2(max(np.linalg.det(jacobian(turned(1.0))) / np.linalg.det(j), 1.0)), 1.0)
     relative = turned(t) if t > 0 else relative
-    e = None if body.visible is None else body.visible.edge_directions
-    if e is None or not e.any():
+    edges = edge_samples(body.visible)
+    if not len(edges):
         return relative
     turns = fitted(TURNS @ relative)
-    edges = np.stack([body.visible.surface[:, 0], e], 1)[np.any(e != 0, axis=1)]
     loss = filter_losses([ShadowSetup([ShadowMap(m, (2, 2))], None) for m in turns @ translation(-view.position)],
                          (None,) * 4 + (edges,))
     return turns[int(np.argmin(loss / np.sqrt(np.linalg.det(jacobian(turns)))))]

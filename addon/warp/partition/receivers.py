@@ -30,8 +30,7 @@ def receivers(view: View, light: Light, region: VisibleRegion | None, near: floa
     cast = scene is not None and region.source == "scene boxes"
     region = region_from_boxes(view, scene, RAYS) if cast else region
     step = 1 if cast else max(1, -(-len(region.normals) // SAMPLES))
-    p, n, e = region.surface[::step, 0], region.normals[::step], region.edge_directions
-    e = np.zeros((0, 3, 3)) if e is None else np.stack([region.surface[:, 0], e, region.normals], 1)[np.any(e != 0, 1)]
+    p, n, e = region.surface[::step, 0], region.normals[::step], edge_samples(region)
     k = (view.eye_depth(p) >= near) & (view.eye_depth(p) < far)
     if light.type == "SPOT":
         k &= light.rays_to(p) @ light.direction >= np.cos(light.spot_angle / 2)
@@ -39,6 +38,12 @@ def receivers(view: View, light: Light, region: VisibleRegion | None, near: floa
     t1 = np.cross(n, np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]]))
     tangent = np.stack([t1, np.cross(n, t1)], axis=2) / np.linalg.norm(t1, axis=1)[:, None, None]
     return (p, n, tangent, raster_jacobian(view.world_to_clip, view.resolution, p) @ tangent, e) if len(p) else None
+
+
+def edge_samples(region: VisibleRegion | None) -> np.ndarray:
+    """(M, 3, 3): each of the ``region``'s shadow-edge samples' point, ``edge_directions`` and normal (none unknown)."""
+    e = None if region is None or region.normals is None else region.edge_directions
+    return np.zeros((0, 3, 3)) if e is None else np.stack([region.surface[:, 0], e, region.normals], 1)[np.any(e != 0, 1)]
 
 
 def footprints(setups: list, seen: tuple) -> list[np.ndarray]:
