@@ -5,6 +5,7 @@ w <= 0 and would come out mirrored), both follow the matrices when they change,
 and building is idempotent and versioned."""
 import importlib
 import math
+from contextlib import contextmanager
 
 import bpy
 import numpy as np
@@ -32,6 +33,20 @@ def scene(lixel):
         for ob in list(coll.objects):
             bpy.data.objects.remove(ob)
         bpy.data.collections.remove(coll)
+
+
+@contextmanager
+def saved_and_loaded(block, kind: str, path):
+    """``block`` (one of ``bpy.data``'s ``kind``) written to a file at ``path`` and loaded back as a copy, removed
+    afterwards: what a saved file gives back."""
+    bpy.data.libraries.write(str(path), {block})
+    with bpy.data.libraries.load(str(path)) as (_, into):
+        setattr(into, kind, [block.name])
+    loaded = getattr(into, kind)[0]
+    try:
+        yield loaded
+    finally:
+        getattr(bpy.data, kind).remove(loaded)
 
 
 class _Map:
@@ -278,15 +293,8 @@ def test_an_edited_group_is_never_rebuilt(scene, nodes, wg, tmp_path):
                                                       (512, 512))))
     ob = nodes.add_frustum_object(scene, carrier, 0)
     group = ob.modifiers[nodes.FRUSTUM_MODIFIER].node_group
-    path = tmp_path / "group.blend"
-    bpy.data.libraries.write(str(path), {group})
-    with bpy.data.libraries.load(str(path)) as (_, into):
-        into.node_groups = [group.name]
-    loaded = into.node_groups[0]
-    try:
+    with saved_and_loaded(group, "node_groups", tmp_path / "group.blend") as loaded:
         assert loaded is not group and loaded[nodes.FINGERPRINT_KEY] == nodes.fingerprint(loaded)
-    finally:
-        bpy.data.node_groups.remove(loaded)
     cube = next(n for n in group.nodes if n.bl_idname == "GeometryNodeMeshCube")
     cube.inputs["Size"].default_value = (3.0, 3.0, 3.0)           # the user's edit
     group.nodes[-1].mute = True
@@ -323,15 +331,8 @@ def test_an_edited_texel_material_is_never_rebuilt(scene, nodes, tmp_path):
     mod = nodes.add_texel_grid(ground, carrier)
     key = nodes._input(mod.node_group, "Material")
     mat = mod[key]
-    path = tmp_path / "material.blend"
-    bpy.data.libraries.write(str(path), {mat})
-    with bpy.data.libraries.load(str(path)) as (_, into):
-        into.materials = [mat.name]
-    loaded = into.materials[0]
-    try:
+    with saved_and_loaded(mat, "materials", tmp_path / "material.blend") as loaded:
         assert loaded is not mat and loaded[nodes.FINGERPRINT_KEY] == nodes.fingerprint(loaded.node_tree)
-    finally:
-        bpy.data.materials.remove(loaded)
     mix = next(n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeMix")
     mix.inputs[6].default_value = (1.0, 0.0, 0.0, 1.0)                  # the user's colour
     mat[nodes.VERSION_KEY] = nodes.MATERIAL_VERSION - 1                 # as a file from before Lixel's next version
