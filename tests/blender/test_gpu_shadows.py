@@ -1054,9 +1054,6 @@ def test_the_map_picture_on_the_gpu_is_depth_to_rgba(lx, scene, lixel):
         np.testing.assert_allclose(got, renders.depth_to_rgba(depth[::step, ::step]), atol=2e-6)
 
 
-
-
-
 def edge_on_scene(scene, X=30.0):
     """A 20 m long wall (2 m thick, 4 m high) on the ground, its x- face at x = X - 1, which a camera 25 m away sees
     nearly edge-on (0.5 m in front of its plane: 0.4-2.8 px wide at 320²) and a point light 30 m away lights at

@@ -318,7 +318,6 @@ def test_an_edited_group_is_never_rebuilt(scene, nodes, wg, tmp_path):
         bpy.data.node_groups.remove(group)
 
 
-
 def test_an_edited_texel_material_is_never_rebuilt(scene, nodes, tmp_path):
     """The "Lixel Texel Grid" material had a version but no fingerprint: a user who changed its colours (without
     renaming it) lost them to Lixel's next version, which emptied and rebuilt its nodes in place. Now it keeps a

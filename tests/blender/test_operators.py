@@ -297,7 +297,6 @@ def test_followers_of_a_map_the_setup_no_longer_has_are_named_when_the_matrices_
     assert "'lixel_ops ground'" not in capfd.readouterr().out
 
 
-
 def test_many_followers_of_a_map_the_setup_no_longer_has_are_counted_past_five(scene, mods, capfd):
     """Texel grids of the cascade's map 2 on many objects, then one map: the warning named every object, and Blender
     cuts a report at about 1,000 characters, so with thousands of tiles it lost what to do. Five are named (in name
@@ -346,7 +345,6 @@ def test_texel_grid_leaves_objects_linked_from_a_library_and_says_so(scene, tmp_
         library = linked.library
         bpy.data.objects.remove(linked)
         bpy.data.libraries.remove(library)
-
 
 
 def test_texel_grid_on_many_linked_objects_names_a_few_and_counts_the_rest(scene, tmp_path):

@@ -205,8 +205,6 @@ def test_files_from_before_the_mark_are_still_lixels(lixel, mods):
             bpy.data.node_groups.remove(tree)
 
 
-
-
 def test_the_texel_grids_of_many_objects_go_at_once(user_scene, mods):
     """Removing the grids of many selected objects at once (the operator asks which meshes still show a grid once,
     not once per object: per object it took 92 s for 8,000 tiles) takes off what Lixel added to a mesh only when
@@ -230,6 +228,7 @@ def test_the_texel_grids_of_many_objects_go_at_once(user_scene, mods):
     finally:
         for twin in twins:
             bpy.data.objects.remove(twin)
+
 
 def test_the_texel_grid_leaves_the_materials_of_a_shared_mesh_alone(user_scene, mods):
     """A mesh with no material, shared by two objects (Alt+D): the texel grid added to one put Lixel's material in
@@ -256,6 +255,7 @@ def test_the_texel_grid_leaves_the_materials_of_a_shared_mesh_alone(user_scene, 
         assert (digest(twin), digest(mesh)) == before
     finally:
         bpy.data.objects.remove(twin)
+
 
 def test_the_texel_grid_on_a_shared_mesh_leaves_with_its_last_object(user_scene, mods):
     """Two objects share a mesh that has the user's material: removing the grid from one leaves the other's

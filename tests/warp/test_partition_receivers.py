@@ -78,7 +78,6 @@ def test_footprints_in_one_batch_are_each_setups_own():
     assert not np.allclose(alone[0], alone[1], equal_nan=True)
 
 
-
 def edged(seen, points, directions):
     """``seen`` with shadow edges known at ``points`` on the ground (normal +z) running along ``directions`` (the
     engine's first look's)."""
