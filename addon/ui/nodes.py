@@ -656,16 +656,24 @@ def lixel_modifier(ob, name: str):
     return None
 
 
+def is_files_own(mesh) -> bool:
+    """Whether what Lixel writes on ``mesh`` stays with the file: a mesh linked from a library is its library's, and a
+    library override keeps only the changes of properties Blender lets it override (its colour attribute names come
+    back empty on reload). A library override *object* keeps a modifier added to it."""
+    return mesh.library is None and mesh.override_library is None
+
+
 def add_texel_grid(ob, carrier, map_index: int = 0, notes=None):
     """Add (or update) the texel-grid modifier on mesh object ``ob`` (``notes``: see :func:`_keep_edited`). The group
     sets the material itself (Set Material; the modifier's input keeps it saved): no slot is added to the mesh, whose
-    other objects would show Lixel's material through it (a mesh without material: its faces use the first slot)."""
+    other objects would show Lixel's material through it (a mesh without material: its faces use the first slot).
+    A mesh that is not the file's own (:func:`is_files_own`: a library override's) is left as it is."""
     group = ensure_texel_grid_group(notes)
     mat = ensure_texel_material(notes)
     mod = _matrix_modifier(ob, TEXEL_MODIFIER, group, carrier, map_index, "Material")
     _set_input(mod, group, "Material", mat)
     attrs = ob.data.attributes
-    if not attrs.active_color_name and not attrs.default_color_name:
+    if is_files_own(ob.data) and not attrs.active_color_name and not attrs.default_color_name:
         # Workbench's Attribute colour shows the active colour attribute; the mesh has none of its own,
         # so point it at the one the modifier makes (the name is all that is stored).
         attrs.active_color_name = attrs.default_color_name = PARITY_COLOR_ATTRIBUTE
@@ -679,8 +687,8 @@ def remove_texel_grid(ob) -> bool:
 
 
 def remove_texel_grids(objects) -> int:
-    """Remove the texel-grid modifier from each of ``objects``; the colour attribute names it put on a mesh (and the
-    material slot an older Lixel added) go only with the last object of that mesh that has the grid
+    """Remove the texel-grid modifier from each of ``objects``; the colour attribute names it put on a mesh of the file's
+    own (and the material slot an older Lixel added) go only with the last object of that mesh that has the grid
     (another still shows it through them). The objects left with a grid are found once, so removing the grids of
     a scene's many objects takes time in proportion to them (asked per object, it grew with their square: 10k tiles,
     a minute). Returns how many objects had one."""
@@ -695,7 +703,8 @@ def remove_texel_grids(objects) -> int:
     gridded = {ob.data.name_full for ob in bpy.data.objects
                if ob.type == "MESH" and lixel_modifier(ob, TEXEL_MODIFIER) is not None}
     mat = find_made(bpy.data.materials, TEXEL_MATERIAL)
-    for mesh in {ob.data.name_full: ob.data for ob in removed if ob.data.name_full not in gridded}.values():
+    for mesh in {ob.data.name_full: ob.data for ob in removed if ob.data.name_full not in gridded
+                 and is_files_own(ob.data)}.values():
         attrs = mesh.attributes
         if attrs.active_color_name == PARITY_COLOR_ATTRIBUTE:
             attrs.active_color_name = ""

@@ -413,10 +413,30 @@ def test_a_scene_linked_from_a_library_is_read_only_to_the_operators_that_change
         bpy.data.scenes.remove(linked)
         bpy.data.libraries.remove(library)
 
-def test_texel_grid_on_a_library_override_says_its_mesh_is_linked_and_how_to_free_it(scene, tmp_path):
-    """Object > Library Override > Make overrides the objects but keeps their meshes linked, where the grid's
-    material slot would go: the remedy named is making the mesh local (Make Local > Objects and Data), which
-    then takes the grid; "make a library override" would send the user round in a circle."""
+OVERRIDE_RELOADED = """
+import json, sys
+import bpy
+bpy.ops.wm.open_mainfile(filepath=sys.argv[1], load_ui=False)
+ob = next(ob for ob in bpy.data.objects if ob.override_library is not None and ob.name == sys.argv[2])
+me = ob.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+print("RELOADED", json.dumps({"modifiers": [m.name for m in ob.modifiers],
+                              "material": [m.name for m in me.materials if m is not None],
+                              "attributes": sorted(a.name for a in me.attributes if a.name.startswith("lixel_")),
+                              "color_names": [ob.data.attributes.active_color_name,
+                                              ob.data.attributes.default_color_name]}))
+"""
+
+
+@pytest.mark.parametrize("mesh_too", [False, True], ids=["linked mesh", "overridden mesh"])
+def test_texel_grid_on_a_library_override_is_saved_and_leaves_its_mesh_as_it_is(scene, mods, tmp_path, capfd,
+                                                                                  mesh_too):
+    """Object > Library Override > Make overrides the objects and keeps their meshes linked; Add Texel Grid refused
+    them ("make the mesh local") although the grid needs no material slot any more, only a modifier, which an
+    override keeps. The grid goes on, is there after saving and reloading, and the mesh is left as it is: its
+    colour attribute names on a linked mesh would not be saved, and on an overridden one come back empty. The user
+    is told that Workbench's Attribute colour (which reads those names) does not show it, and what to do."""
+    import subprocess
+    import sys
     me = bpy.data.meshes.new("override block")
     me.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
     coll = bpy.data.collections.new("override coll")
@@ -430,19 +450,35 @@ def test_texel_grid_on_a_library_override_says_its_mesh_is_linked_and_how_to_fre
     library = dst.collections[0].library
     override = dst.collections[0].override_hierarchy_create(scene, bpy.context.view_layer)
     ob = override.objects[0]
+    if mesh_too:
+        ob.data = ob.data.override_create(remap_local_usages=True)
+    mesh = ob.data
     try:
-        assert ob.override_library is not None and ob.data.library is library
+        assert ob.override_library is not None and (mesh.override_library is not None) == mesh_too
         _select_only(scene, [ob.name])
-        with pytest.raises(RuntimeError, match=r"'override block' is a library override whose mesh is linked from "
-                                               r"library.blend: make the mesh local \(Object > Relations > Make Local"):
-            bpy.ops.lixel.texel_grid_add()
-        assert bpy.ops.object.make_local(type="SELECT_OBDATA") == {"FINISHED"}
-        assert ob.data.library is None
-        assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"} and len(ob.modifiers) == 1
+        capfd.readouterr()
+        assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+        assert [m.name for m in ob.modifiers] == [mods.nodes.TEXEL_MODIFIER]
+        assert (mesh.attributes.active_color_name, mesh.attributes.default_color_name, len(mesh.materials)) == \
+            ("", "", 0)
+        assert (f"Warning: Lixel: '{ob.name}' is a library override whose mesh is library.blend's: its grid shows in "
+                f"Material Preview and Rendered shading, not in Workbench's Attribute colour; for that, make the mesh "
+                f"local (Object > Relations > Make Local > Selected Objects and Data)") in capfd.readouterr().out
+        bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"), copy=True)
+        proc = subprocess.run([sys.executable, "-c", OVERRIDE_RELOADED, str(tmp_path / "shot.blend"), ob.name],
+                              capture_output=True, text=True, timeout=300)
+        reloaded = [line.split(" ", 1)[1] for line in proc.stdout.splitlines() if line.startswith("RELOADED ")]
+        assert reloaded, proc.stdout[-2000:] + proc.stderr[-2000:]
+        assert json.loads(reloaded[0]) == {
+            "modifiers": [mods.nodes.TEXEL_MODIFIER], "material": [mods.nodes.TEXEL_MATERIAL], "color_names": ["", ""],
+            "attributes": sorted([mods.nodes.XYW_ATTRIBUTE, mods.nodes.TEXEL_ATTRIBUTE, mods.nodes.SIZE_ATTRIBUTE,
+                                  mods.nodes.PARITY_COLOR_ATTRIBUTE])}
+        assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"}
+        assert len(ob.modifiers) == 0 and (mesh.attributes.active_color_name, len(mesh.materials)) == ("", 0)
     finally:
-        mesh = ob.data
         bpy.data.objects.remove(ob)
-        bpy.data.meshes.remove(mesh)
+        if mesh_too:
+            bpy.data.meshes.remove(mesh)
         bpy.data.collections.remove(override)
         bpy.data.libraries.remove(library)
 
