@@ -147,6 +147,36 @@ def test_a_run_that_measures_nothing_or_cannot_write_leaves_the_last_report(repo
     assert not list(out.parent.glob(".report.partial-*"))
 
 
+@pytest.mark.parametrize("where", ["--out a file", "--readme-pictures a file", "the user's own entries in --out",
+                                   "one scene name twice"])
+def test_a_report_that_could_not_be_put_where_asked_is_refused_before_it_runs(tmp_path, where):
+    """``--out`` naming a file ran the whole report (12 minutes in full) and then lost it in a traceback; ``--out`` a
+    folder of the user's (beside the .blend given as --scene, say) had the user's folder of the scene's name and
+    report.md deleted without a word; two scenes of one file name (``chess`` and ``other/chess.blend``) shared one
+    folder of figures, the first scene's section showing the second's pictures. Each is refused by name before
+    anything runs, and nothing of the user's changes."""
+    user = tmp_path / "project"
+    (user / "tiny").mkdir(parents=True)
+    (user / "tiny" / "notes.txt").write_text("the user's")
+    (user / "report.md").write_text("the user's")
+    (tmp_path / "a file").write_text("the user's")
+    args, out, said = {
+        "--out a file": ([], tmp_path / "a file", f"--out: {tmp_path / 'a file'} is a file: name a folder"),
+        "--readme-pictures a file": (["--readme-pictures", str(tmp_path / "a file")], tmp_path / "out",
+                                     f"--readme-pictures: {tmp_path / 'a file'} is a file: name a folder"),
+        "the user's own entries in --out": ([], user, f"--out: {user} holds 'report.md', 'tiny', which this report "
+                                                      f"would replace and the last report there did not write"),
+        "one scene name twice": (["--scene", "tiny,tiny"], tmp_path / "out", "--scene: 'tiny' given twice"),
+    }[where]
+    before = {p: p.read_text() for p in tmp_path.rglob("*") if p.is_file()}
+    proc = _run(["--methods", "uniform", "--sizes", "64", "--peers", "none", "--no-overlays"] + args, out,
+                timeout=300)
+    assert proc.returncode == 2, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert f"error: {said}" in proc.stderr and "Traceback" not in proc.stderr, proc.stderr[-2000:]
+    assert "nothing was run; the last report is unchanged" in proc.stderr
+    assert {p: p.read_text() for p in tmp_path.rglob("*") if p.is_file()} == before
+
+
 def test_publish_replaces_only_the_reports_own_entries(tmp_path):
     from bench.report.__main__ import MANIFEST, publish
     out = tmp_path / "out"
