@@ -177,6 +177,34 @@ def test_a_report_that_could_not_be_put_where_asked_is_refused_before_it_runs(tm
     assert {p: p.read_text() for p in tmp_path.rglob("*") if p.is_file()} == before
 
 
+@pytest.mark.parametrize("first, more, said", [
+    ("missing.json", [], "argument first: cannot read {tmp}/missing.json: No such file or directory"),
+    ("not json.txt", [], "argument first: {tmp}/not json.txt is not a report.json of python -m bench.report"),
+    ("a list.json", [], "argument first: {tmp}/a list.json is not a report.json of python -m bench.report"),
+    ("empty folder", [], "argument first: cannot read {tmp}/empty folder/report.json: No such file or directory"),
+    ("report/report.json", ["--limit", "0.5"], "argument --limit: 0.5: give a ratio of 1 or more, e.g. 1.3"),
+    ("report/report.json", ["--limit", "nan"], "argument --limit: nan: give a ratio of 1 or more, e.g. 1.3"),
+    ("report/report.json", ["--limit", "fast"], "argument --limit: fast: give a ratio of 1 or more, e.g. 1.3")])
+def test_comparing_timings_of_what_is_not_a_report_says_which_argument_and_why(tmp_path, capsys, first, more, said):
+    """``python -m bench.report.timing A B`` given a missing file, a folder, or a file that is not a report.json
+    stopped in a traceback; a --limit below 1 failed every comparison (no two medians differ by less than 1x), and NaN
+    did so saying '0 above nanx'. Now argparse names the argument, and a report's folder may be given for its report.json."""
+    from bench.report.timing import main
+    (tmp_path / "not json.txt").write_bytes(b"\xff\xfe not json")
+    (tmp_path / "a list.json").write_text("[]")
+    (tmp_path / "empty folder").mkdir()
+    (tmp_path / "report").mkdir()
+    (tmp_path / "report" / "report.json").write_text(json.dumps({"scenes": [{"name": "s", "methods": [
+        {"method": "uniform", "size": 64, "status": "ok", "timing": {"median_ms": 2.0, "wall_median_ms": 3.0}}]}]}))
+    with pytest.raises(SystemExit) as stopped:
+        main([str(tmp_path / first), str(tmp_path / "report" / "report.json")] + more)
+    err = capsys.readouterr().err
+    assert stopped.value.code == 2 and "Traceback" not in err
+    assert f"python -m bench.report.timing: error: {said.format(tmp=tmp_path)}" in err, err
+    assert main([str(tmp_path / "report"), str(tmp_path / "report" / "report.json")]) == 0
+    assert "1 points; worst ratio 1.00x; 0 above 1.3x" in capsys.readouterr().out
+
+
 def test_publish_replaces_only_the_reports_own_entries(tmp_path):
     from bench.report.__main__ import MANIFEST, publish
     out = tmp_path / "out"
