@@ -42,7 +42,8 @@ import logging
 import bpy
 import numpy as np
 
-from ..scene.owned import DEBUG_KEY, MADE_KEY, NAME_KEY, find_made, is_lixel_made, made_as, mark_made
+from ..scene.owned import (DEBUG_KEY, MADE_KEY, NAME_KEY, find_made, is_lixel_made, made_as, mark_made,
+                           named_as_a_copy)
 from ..warp.geometry import finite_clip_volume_corners
 from ..warp.types import WarpError
 
@@ -489,17 +490,42 @@ def debug_collection(scene):
     """``scene``'s "Lixel Debug" collection: the one Lixel made that the scene holds, else one Lixel made that no
     scene holds, else a new one, linked to the scene. Each scene has its own (a second scene's is "Lixel
     Debug.001"), so baking or syncing in one never rewrites what another shows. A user's collection of that name
-    is left alone."""
-    for coll in scene.collection.children:
-        if coll.library is None and made_as(coll, DEBUG_COLLECTION):
-            return coll
-    held = {c.name for s in bpy.data.scenes for c in s.collection.children}
-    coll = next((c for c in bpy.data.collections if c.library is None and c.name not in held
-                 and made_as(c, DEBUG_COLLECTION)), None)
+    is left alone. The scene's settings point at it (``scene.lixel.debug_collection``): Scene > New > Full Copy
+    copies the collection and the objects in it under copies' names and points the new scene at the copy, which
+    is then Lixel's (:func:`_adopt_scene_copy`). Before, the copy was taken for the user's, so Sync wrote a second
+    carrier that the copied texel grids and frusta did not follow, and Bake a second set beside the stale one."""
+    coll = scene.lixel.debug_collection
+    if coll is None or coll.library is not None or scene.collection.children.get(coll.name) != coll or \
+            not (made_as(coll, DEBUG_COLLECTION) or _adopt_scene_copy(coll)):
+        coll = next((c for c in scene.collection.children if c.library is None and made_as(c, DEBUG_COLLECTION)),
+                    None)
     if coll is None:
-        coll = mark_made(bpy.data.collections.new(DEBUG_COLLECTION), DEBUG_COLLECTION)
-    scene.collection.children.link(coll)
+        held = {c.name for s in bpy.data.scenes for c in s.collection.children}
+        coll = next((c for c in bpy.data.collections if c.library is None and c.name not in held
+                     and made_as(c, DEBUG_COLLECTION)), None)
+        if coll is None:
+            coll = mark_made(bpy.data.collections.new(DEBUG_COLLECTION), DEBUG_COLLECTION)
+        scene.collection.children.link(coll)
+    if scene.lixel.debug_collection != coll:
+        scene.lixel.debug_collection = coll
     return coll
+
+
+def _adopt_scene_copy(coll) -> bool:
+    """Make ``coll``, the copy of a debug collection that a scene's settings point at, Lixel's again with the debug
+    objects in it (and meshes only they show) that are copies of Lixel's (``owned.named_as_a_copy``). Where two
+    objects are copies of one made name (the user's Shift+D copy went along) neither is taken: one may be the
+    user's. Whether ``coll`` is such a copy."""
+    if coll.get(MADE_KEY) != DEBUG_COLLECTION or not named_as_a_copy(coll):
+        return False
+    mark_made(coll, DEBUG_COLLECTION)
+    copies = [ob for ob in coll.objects if DEBUG_KEY in ob.keys() and named_as_a_copy(ob)]
+    made = [ob[MADE_KEY] for ob in copies]
+    for ob in (ob for ob in copies if made.count(ob[MADE_KEY]) == 1):
+        mark_made(ob, ob[MADE_KEY])
+        if ob.data is not None and ob.data.users == 1 and named_as_a_copy(ob.data):
+            mark_made(ob.data, ob.data[MADE_KEY])
+    return True
 
 
 def scene_debug_object(scene, name: str):

@@ -483,6 +483,60 @@ def test_texel_grid_on_a_library_override_is_saved_and_leaves_its_mesh_as_it_is(
         bpy.data.libraries.remove(library)
 
 
+def _evaluated_texels(ob, nodes):
+    dg = bpy.context.evaluated_depsgraph_get()
+    dg.update()
+    me = ob.evaluated_get(dg).data
+    texels = np.zeros(len(me.vertices) * 3, dtype=np.float32)
+    me.attributes[nodes.TEXEL_ATTRIBUTE].data.foreach_get("vector", texels)
+    return texels
+
+
+def test_a_full_copy_of_the_scene_keeps_its_texel_grid_following_sync_and_bake_replacing(scene, mods):
+    """Scene > New > Full Copy copies the "Lixel Debug" collection and its objects under copies' names, and the
+    copied texel grid follows the copied carrier. Lixel took those copies for the user's: Sync in the new scene wrote
+    a second carrier the grid did not follow (it kept the matrices of the copy, without a word), and Bake a second
+    set of objects beside the stale copies. The copy is the new scene's now: Sync moves its grid, Bake replaces its
+    objects, the first scene's are left as they were, and an object the user kept with Shift+D is kept in both."""
+    nodes = mods.nodes
+    ground = scene.objects["lixel_ops ground"]
+    _select_only(scene, [ground.name])
+    assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"} and bpy.ops.lixel.bake_debug() == {"FINISHED"}
+    coll = bpy.data.collections["Lixel Debug"]
+    kept = coll.objects["Lixel B"].copy()    # the user's Shift+D copy of the baked B, kept
+    kept.data = kept.data.copy()
+    coll.objects.link(kept)
+    texels = _evaluated_texels(ground, nodes)
+    window = bpy.context.window
+    assert bpy.ops.scene.new(type="FULL_COPY") == {"FINISHED"}
+    copy = window.scene
+    try:
+        copied = {ob.name for ob in copy.objects}
+        counts = len(bpy.data.objects), len(bpy.data.collections)
+        ground_copy = next(ob for ob in copy.objects if ob.data.name.startswith(ground.data.name))
+        light = next(ob for ob in copy.objects if ob.type == "LIGHT")
+        light.rotation_euler.x += 0.3
+        assert bpy.ops.lixel.sync_matrices() == {"FINISHED"}
+        assert np.abs(_evaluated_texels(ground_copy, nodes) - texels).max() > 1.0
+        assert bpy.ops.lixel.bake_debug() == {"FINISHED"}
+        new = {ob.name for ob in copy.objects} - copied
+        assert len(new) == 1 and next(iter(new)).startswith("Lixel B"), new   # B: the two copies of it are kept
+        assert (len(bpy.data.objects), len(bpy.data.collections)) == (counts[0] + 1, counts[1])
+        window.scene = scene
+        np.testing.assert_array_equal(_evaluated_texels(ground, nodes), texels)
+        assert bpy.ops.lixel.bake_debug() == {"FINISHED"} and kept.name in coll.objects
+    finally:
+        window.scene = scene
+        for c in [c for c in copy.collection.children]:
+            for ob in list(c.objects):
+                bpy.data.objects.remove(ob)
+            bpy.data.collections.remove(c)
+        for ob in list(copy.objects):
+            bpy.data.objects.remove(ob)
+        bpy.data.scenes.remove(copy)
+        bpy.data.objects.remove(kept)
+
+
 def test_reset_settings_keeps_light_and_planes(scene):
     props = scene.lixel
     props.pcf_kernel = 5
