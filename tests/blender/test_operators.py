@@ -483,6 +483,47 @@ def test_texel_grid_on_a_library_override_is_saved_and_leaves_its_mesh_as_it_is(
         bpy.data.libraries.remove(library)
 
 
+def test_remove_texel_grid_says_an_override_cannot_remove_the_grid_its_library_gave_it(scene, mods, tmp_path,
+                                                                                       capfd):
+    """An asset whose library file has the texel grid, overridden here: Remove Texel Grid said it removed the grid,
+    and it came back when the file was opened (an override cannot remove its reference's modifier). The override
+    is left with its grid and named with what to do; a grid of the file's own is removed beside it."""
+    ground = scene.objects["lixel_ops ground"]
+    me = bpy.data.meshes.new("gridded block")
+    me.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
+    coll = bpy.data.collections.new("gridded coll")
+    coll.objects.link(bpy.data.objects.new("gridded block", me))
+    scene.collection.children.link(coll)
+    _select_only(scene, [coll.objects[0].name, ground.name])
+    assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+    bpy.data.libraries.write(str(tmp_path / "assets.blend"), {coll})
+    bpy.data.objects.remove(coll.objects[0])
+    bpy.data.meshes.remove(me)
+    bpy.data.collections.remove(coll)
+    with bpy.data.libraries.load(str(tmp_path / "assets.blend"), link=True) as (_src, dst):
+        dst.collections = ["gridded coll"]
+    library = dst.collections[0].library
+    override = dst.collections[0].override_hierarchy_create(scene, bpy.context.view_layer)
+    ob = override.objects[0]
+    try:
+        said = (r"'gridded block' has its texel grid from assets.blend, which a library override cannot remove \(it "
+                r"comes back when the file is opened\): switch the 'Lixel Texel Grid' modifier off")
+        _select_only(scene, [ob.name])
+        with pytest.raises(RuntimeError, match=said):
+            bpy.ops.lixel.texel_grid_add(remove=True)
+        _select_only(scene, [ob.name, ground.name])
+        capfd.readouterr()
+        assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"}
+        assert [m.name for m in ob.modifiers] == [mods.nodes.TEXEL_MODIFIER] and len(ground.modifiers) == 0
+        out = capfd.readouterr().out
+        assert "Warning: Lixel: 'gridded block' has its texel grid from assets.blend" in out, out
+        assert "Info: Lixel: removed the texel grid from 1 object(s)" in out, out
+    finally:
+        bpy.data.objects.remove(ob)
+        bpy.data.collections.remove(override)
+        bpy.data.libraries.remove(library)
+
+
 def _evaluated_texels(ob, nodes):
     dg = bpy.context.evaluated_depsgraph_get()
     dg.update()

@@ -155,6 +155,17 @@ def workbench_note(overrides: list) -> str:
             f"Objects and Data)")
 
 
+def inherited_note(overrides: list) -> str:
+    """Why Remove Texel Grid leaves the grids ``overrides`` (library overrides) have from their library's objects: an
+    override cannot remove a modifier its reference has (it was removed, and came back when the file was opened)."""
+    libraries = ", ".join(sorted({ob.override_library.reference.library.name for ob in overrides}))
+    names = nodes.listed([repr(name) for name in sorted(ob.name for ob in overrides)])
+    one = len(overrides) == 1
+    return (f"{names} {'has its' if one else 'have their'} texel grid from {libraries}, which a library override "
+            f"cannot remove (it comes back when the file is opened): switch the '{nodes.TEXEL_MODIFIER}' modifier "
+            f"off (Properties > Modifiers: Show in Viewport and Renders), or remove it in {libraries}")
+
+
 class LIXEL_OT_texel_grid_add(MatrixOperator, bpy.types.Operator):
     """Put the shadow-map texel grid on the selected meshes (a geometry-nodes modifier and material); the light matrices come from the "Lixel Light Matrices" object, updated now"""
 
@@ -180,6 +191,13 @@ class LIXEL_OT_texel_grid_add(MatrixOperator, bpy.types.Operator):
             if not meshes:
                 return {"CANCELLED"}
         if self.remove:
+            if inherited := [ob for ob in meshes if getattr(nodes.lixel_modifier(ob, nodes.TEXEL_MODIFIER),
+                                                            "is_override_data", False)]:
+                self.report({"WARNING"} if len(inherited) < len(meshes) else {"ERROR"},
+                            f"Lixel: {inherited_note(inherited)}")
+                meshes = [ob for ob in meshes if ob not in inherited]
+                if not meshes:
+                    return {"CANCELLED"}
             n = nodes.remove_texel_grids(meshes)
             self.report({"INFO"}, f"Lixel: removed the texel grid from {n} object(s)")
             return {"FINISHED"}
