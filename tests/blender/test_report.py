@@ -205,6 +205,18 @@ def test_comparing_timings_of_what_is_not_a_report_says_which_argument_and_why(t
     assert "1 points; worst ratio 1.00x; 0 above 1.3x" in capsys.readouterr().out
 
 
+def test_a_figure_of_a_scene_whose_file_name_has_a_space_or_a_hash_is_linked_in_both_documents():
+    """``--scene "my shot #2.blend"`` names the scene's folder of figures so: in report.md the space ended the link
+    (``![Renders](my shot #2/renders.png)`` shows as text) and in both documents the '#' cut the path. The link is
+    the path URL-encoded, which reads back as the file's path."""
+    from urllib.parse import unquote
+    from bench.report.document import Block, to_html, to_markdown
+    bs = [Block("h1", "Lixel"), Block("img", "my shot #2/renders.png", "Renders")]
+    assert "![Renders](my%20shot%20%232/renders.png)" in to_markdown(bs)
+    assert "<img src='my%20shot%20%232/renders.png' alt='Renders'>" in to_html(bs)
+    assert unquote("my%20shot%20%232/renders.png") == "my shot #2/renders.png"
+
+
 def test_publish_replaces_only_the_reports_own_entries(tmp_path):
     from bench.report.__main__ import MANIFEST, publish
     out = tmp_path / "out"
