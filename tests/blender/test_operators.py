@@ -417,7 +417,7 @@ OVERRIDE_RELOADED = """
 import json, sys
 import bpy
 bpy.ops.wm.open_mainfile(filepath=sys.argv[1], load_ui=False)
-ob = next(ob for ob in bpy.data.objects if ob.override_library is not None and ob.name == sys.argv[2])
+ob = next(ob for ob in bpy.data.objects if ob.library is None and ob.name == sys.argv[2])
 me = ob.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
 print("RELOADED", json.dumps({"modifiers": [m.name for m in ob.modifiers],
                               "material": [m.name for m in me.materials if m is not None],
@@ -427,7 +427,8 @@ print("RELOADED", json.dumps({"modifiers": [m.name for m in ob.modifiers],
 """
 
 
-@pytest.mark.parametrize("mesh_too", [False, True], ids=["linked mesh", "overridden mesh"])
+@pytest.mark.parametrize("mesh_too", [False, True, None], ids=["linked mesh", "overridden mesh",
+                                                               "a local object's linked mesh"])
 def test_texel_grid_on_a_library_override_is_saved_and_leaves_its_mesh_as_it_is(scene, mods, tmp_path, capfd,
                                                                                   mesh_too):
     """Object > Library Override > Make overrides the objects and keeps their meshes linked; Add Texel Grid refused
@@ -452,18 +453,21 @@ def test_texel_grid_on_a_library_override_is_saved_and_leaves_its_mesh_as_it_is(
     ob = override.objects[0]
     if mesh_too:
         ob.data = ob.data.override_create(remap_local_usages=True)
+    elif mesh_too is None:  # Make Local > Selected Objects: the object the file's own, its mesh still linked
+        ob = ob.make_local(clear_liboverride=True)
     mesh = ob.data
     try:
-        assert ob.override_library is not None and (mesh.override_library is not None) == mesh_too
+        assert (ob.override_library is not None) == (mesh_too is not None) and ob.library is None
+        assert (mesh.override_library is not None) == bool(mesh_too) and (mesh.library is None) == bool(mesh_too)
         _select_only(scene, [ob.name])
         capfd.readouterr()
         assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
         assert [m.name for m in ob.modifiers] == [mods.nodes.TEXEL_MODIFIER]
         assert (mesh.attributes.active_color_name, mesh.attributes.default_color_name, len(mesh.materials)) == \
             ("", "", 0)
-        assert (f"Warning: Lixel: '{ob.name}' is a library override whose mesh is library.blend's: its grid shows in "
-                f"Material Preview and Rendered shading, not in Workbench's Attribute colour; for that, make the mesh "
-                f"local (Object > Relations > Make Local > Selected Objects and Data)") in capfd.readouterr().out
+        assert (f"Warning: Lixel: the mesh of '{ob.name}' is library.blend's: the grid shows in Material Preview and "
+                f"Rendered shading, not in Workbench's Attribute colour; for that, make the mesh local (Object > "
+                f"Relations > Make Local > Selected Objects and Data)") in capfd.readouterr().out
         bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"), copy=True)
         proc = subprocess.run([sys.executable, "-c", OVERRIDE_RELOADED, str(tmp_path / "shot.blend"), ob.name],
                               capture_output=True, text=True, timeout=300)

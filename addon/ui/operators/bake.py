@@ -142,17 +142,17 @@ def linked_note(linked: list) -> str:
 
 
 def workbench_note(overrides: list) -> str:
-    """Where the texel grid on ``overrides`` (objects whose meshes are not the file's own: ``nodes.is_files_own``)
+    """Where the texel grid on ``overrides`` (library overrides, or local objects, whose meshes are not the file's
+    own: ``nodes.is_files_own``)
     shows: the modifier and material do, but Workbench's Attribute colour reads the colour attribute the mesh names,
     which Lixel cannot name on a mesh it would not be saved with."""
     libraries = ", ".join(sorted({(ob.data.library or ob.data.override_library.reference.library).name
                                   for ob in overrides}))
     names = nodes.listed([repr(name) for name in sorted(ob.name for ob in overrides)])
     one = len(overrides) == 1
-    return (f"{names} {'is a library override whose mesh is' if one else 'are library overrides whose meshes are'} "
-            f"{libraries}'s: {'its' if one else 'their'} grid shows in Material Preview and Rendered shading, not in "
-            f"Workbench's Attribute colour; for that, make the mesh local (Object > Relations > Make Local > Selected "
-            f"Objects and Data)")
+    return (f"the mesh{'' if one else 'es'} of {names} {'is' if one else 'are'} {libraries}'s: the grid shows in "
+            f"Material Preview and Rendered shading, not in Workbench's Attribute colour; for that, make the mesh "
+            f"local (Object > Relations > Make Local > Selected Objects and Data)")
 
 
 def inherited_note(overrides: list) -> str:
