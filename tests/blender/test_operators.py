@@ -9,7 +9,7 @@ import bpy
 import numpy as np
 import pytest
 
-from ui_scenes import active_scene, look_at
+from ui_scenes import active_scene, look_at, remove_scene
 
 
 @pytest.fixture(scope="module")
@@ -572,14 +572,10 @@ def test_a_full_copy_of_the_scene_keeps_its_texel_grid_following_sync_and_bake_r
         assert bpy.ops.lixel.bake_debug() == {"FINISHED"} and kept.name in coll.objects
     finally:
         window.scene = scene
-        for c in [c for c in copy.collection.children]:
-            for ob in list(c.objects):
-                bpy.data.objects.remove(ob)
+        children = list(copy.collection.children)
+        remove_scene(copy)  # its objects and the data only they used (Lixel's marked meshes must not outlive it)
+        for c in children:
             bpy.data.collections.remove(c)
-        for ob in list(copy.objects):
-            bpy.data.objects.remove(ob)
-        bpy.data.scenes.remove(copy)
-        bpy.data.objects.remove(kept)
 
 
 def test_reset_settings_keeps_light_and_planes(scene):
