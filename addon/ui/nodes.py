@@ -713,8 +713,8 @@ def remove_texel_grid(ob) -> bool:
 
 
 def remove_texel_grids(objects) -> int:
-    """Remove the texel-grid modifier from each of ``objects``; the colour attribute names it put on a mesh of the file's
-    own (and the material slot an older Lixel added) go only with the last object of that mesh that has the grid
+    """Remove the texel-grid modifier from each of ``objects``; the colour attribute names it put on a mesh of the
+    file's own (and the material slot an older Lixel added) go only with the last object of that mesh that has the grid
     (another still shows it through them). The objects left with a grid are found once, so removing the grids of
     a scene's many objects takes time in proportion to them (asked per object, it grew with their square: 10k tiles,
     a minute). Returns how many objects had one."""

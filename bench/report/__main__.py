@@ -114,12 +114,13 @@ def last_reports(out: Path) -> set:
 
 def folder_problems(opts, readme_pictures) -> list:
     """Why the report could not be put where the options say, found before anything runs (it was found after the
-    run, as a traceback that lost it): ``--out`` or ``--readme-pictures`` naming a file, or ``--out`` holding an
-    entry the report would replace (report.*, a scene's folder) that the last report there did not write: the
-    user's own, which publishing removed."""
+    run, as a traceback that lost it): ``--out`` or ``--readme-pictures`` naming a file (or a broken link), or
+    ``--out`` holding an entry the report would replace (report.*, a scene's folder) that the last report there did
+    not write: the user's own, which publishing removed."""
     out = Path(opts.out)
-    problems = [f"{option}: {path} is a file: name a folder" for option, path in
-                (("--out", out), ("--readme-pictures", readme_pictures)) if path is not None and path.is_file()]
+    problems = [f"{option}: {path} is not a folder: name a folder" for option, path in
+                (("--out", out), ("--readme-pictures", readme_pictures))
+                if path is not None and os.path.lexists(path) and not path.is_dir()]   # a file, a broken link
     if out.is_dir():
         names = {"report.html", "report.md", "report.json"} | {Path(str(name)).stem for name in opts.scenes}
         if theirs := sorted(name for name in names - last_reports(out) if os.path.lexists(out / name)):

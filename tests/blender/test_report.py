@@ -147,8 +147,8 @@ def test_a_run_that_measures_nothing_or_cannot_write_leaves_the_last_report(repo
     assert not list(out.parent.glob(".report.partial-*"))
 
 
-@pytest.mark.parametrize("where", ["--out a file", "--readme-pictures a file", "the user's own entries in --out",
-                                   "one scene name twice"])
+@pytest.mark.parametrize("where", ["--out a file", "--out a broken link", "--readme-pictures a file",
+                                   "the user's own entries in --out", "one scene name twice"])
 def test_a_report_that_could_not_be_put_where_asked_is_refused_before_it_runs(tmp_path, where):
     """``--out`` naming a file ran the whole report (12 minutes in full) and then lost it in a traceback; ``--out`` a
     folder of the user's (beside the .blend given as --scene, say) had the user's folder of the scene's name and
@@ -160,10 +160,13 @@ def test_a_report_that_could_not_be_put_where_asked_is_refused_before_it_runs(tm
     (user / "tiny" / "notes.txt").write_text("the user's")
     (user / "report.md").write_text("the user's")
     (tmp_path / "a file").write_text("the user's")
+    (tmp_path / "a link").symlink_to(tmp_path / "gone")
     args, out, said = {
-        "--out a file": ([], tmp_path / "a file", f"--out: {tmp_path / 'a file'} is a file: name a folder"),
+        "--out a file": ([], tmp_path / "a file", f"--out: {tmp_path / 'a file'} is not a folder: name a folder"),
+        "--out a broken link": ([], tmp_path / "a link",
+                                f"--out: {tmp_path / 'a link'} is not a folder: name a folder"),
         "--readme-pictures a file": (["--readme-pictures", str(tmp_path / "a file")], tmp_path / "out",
-                                     f"--readme-pictures: {tmp_path / 'a file'} is a file: name a folder"),
+                                     f"--readme-pictures: {tmp_path / 'a file'} is not a folder: name a folder"),
         "the user's own entries in --out": ([], user, f"--out: {user} holds 'report.md', 'tiny', which this report "
                                                       f"would replace and the last report there did not write"),
         "one scene name twice": (["--scene", "tiny,tiny"], tmp_path / "out", "--scene: 'tiny' given twice"),
@@ -175,6 +178,7 @@ def test_a_report_that_could_not_be_put_where_asked_is_refused_before_it_runs(tm
     assert f"error: {said}" in proc.stderr and "Traceback" not in proc.stderr, proc.stderr[-2000:]
     assert "nothing was run; the last report is unchanged" in proc.stderr
     assert {p: p.read_text() for p in tmp_path.rglob("*") if p.is_file()} == before
+    assert (tmp_path / "a link").is_symlink()
 
 
 @pytest.mark.parametrize("first, more, said", [
@@ -188,7 +192,8 @@ def test_a_report_that_could_not_be_put_where_asked_is_refused_before_it_runs(tm
 def test_comparing_timings_of_what_is_not_a_report_says_which_argument_and_why(tmp_path, capsys, first, more, said):
     """``python -m bench.report.timing A B`` given a missing file, a folder, or a file that is not a report.json
     stopped in a traceback; a --limit below 1 failed every comparison (no two medians differ by less than 1x), and NaN
-    did so saying '0 above nanx'. Now argparse names the argument, and a report's folder may be given for its report.json."""
+    did so saying '0 above nanx'. Now argparse names the argument, and a report's folder may be given for its
+    report.json."""
     from bench.report.timing import main
     (tmp_path / "not json.txt").write_bytes(b"\xff\xfe not json")
     (tmp_path / "a list.json").write_text("[]")
