@@ -16,6 +16,8 @@ The scene layer, the render engine and the UI all ask here; no bpy import.
 """
 from __future__ import annotations
 
+import re
+
 DEBUG_KEY = "lixel_debug"
 """Custom property marking Lixel's own debug objects; its value says what the object is."""
 MADE_KEY = "lixel_made"
@@ -64,6 +66,17 @@ def find_made(datablocks, name: str):
         if idb.get(MADE_KEY) == name and getattr(idb, "library", None) is None and is_lixel_made(idb):
             return idb
     return None
+
+
+def named_as_a_copy(idb) -> bool:
+    """Whether ``idb`` carries Lixel's mark under a name Blender gives a copy of the datablock Lixel made ("Lixel
+    Debug.001" of "Lixel Debug"): Blender's copy, made with a copy of its scene (Scene > New > Full Copy) or by the
+    user's Shift+D. Only where the scene's own settings point at it is it the scene copy's (``ui.nodes``)."""
+    made = idb.get(NAME_KEY) if MADE_KEY in idb.keys() else None
+    if not isinstance(made, str) or made == idb.name:
+        return False
+    base = made.rstrip("0123456789")[:-1] if re.search(r"\.\d{3,}$", made) else made
+    return re.fullmatch(re.escape(base) + r"\.\d{3,}", idb.name) is not None
 
 
 def mark_made(idb, name: str):

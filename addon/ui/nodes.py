@@ -42,7 +42,8 @@ import logging
 import bpy
 import numpy as np
 
-from ..scene.owned import DEBUG_KEY, MADE_KEY, NAME_KEY, find_made, is_lixel_made, made_as, mark_made
+from ..scene.owned import (DEBUG_KEY, MADE_KEY, NAME_KEY, find_made, is_lixel_made, made_as, mark_made,
+                           named_as_a_copy)
 from ..warp.geometry import finite_clip_volume_corners
 from ..warp.types import WarpError
 
@@ -489,17 +490,42 @@ def debug_collection(scene):
     """``scene``'s "Lixel Debug" collection: the one Lixel made that the scene holds, else one Lixel made that no
     scene holds, else a new one, linked to the scene. Each scene has its own (a second scene's is "Lixel
     Debug.001"), so baking or syncing in one never rewrites what another shows. A user's collection of that name
-    is left alone."""
-    for coll in scene.collection.children:
-        if coll.library is None and made_as(coll, DEBUG_COLLECTION):
-            return coll
-    held = {c.name for s in bpy.data.scenes for c in s.collection.children}
-    coll = next((c for c in bpy.data.collections if c.library is None and c.name not in held
-                 and made_as(c, DEBUG_COLLECTION)), None)
+    is left alone. The scene's settings point at it (``scene.lixel.debug_collection``): Scene > New > Full Copy
+    copies the collection and the objects in it under copies' names and points the new scene at the copy, which
+    is then Lixel's (:func:`_adopt_scene_copy`). Before, the copy was taken for the user's, so Sync wrote a second
+    carrier that the copied texel grids and frusta did not follow, and Bake a second set beside the stale one."""
+    coll = scene.lixel.debug_collection
+    if coll is None or coll.library is not None or scene.collection.children.get(coll.name) != coll or \
+            not (made_as(coll, DEBUG_COLLECTION) or _adopt_scene_copy(coll)):
+        coll = next((c for c in scene.collection.children if c.library is None and made_as(c, DEBUG_COLLECTION)),
+                    None)
     if coll is None:
-        coll = mark_made(bpy.data.collections.new(DEBUG_COLLECTION), DEBUG_COLLECTION)
-    scene.collection.children.link(coll)
+        held = {c.name for s in bpy.data.scenes for c in s.collection.children}
+        coll = next((c for c in bpy.data.collections if c.library is None and c.name not in held
+                     and made_as(c, DEBUG_COLLECTION)), None)
+        if coll is None:
+            coll = mark_made(bpy.data.collections.new(DEBUG_COLLECTION), DEBUG_COLLECTION)
+        scene.collection.children.link(coll)
+    if scene.lixel.debug_collection != coll:
+        scene.lixel.debug_collection = coll
     return coll
+
+
+def _adopt_scene_copy(coll) -> bool:
+    """Make ``coll``, the copy of a debug collection that a scene's settings point at, Lixel's again with the debug
+    objects in it (and meshes only they show) that are copies of Lixel's (``owned.named_as_a_copy``). Where two
+    objects are copies of one made name (the user's Shift+D copy went along) neither is taken: one may be the
+    user's. Whether ``coll`` is such a copy."""
+    if coll.get(MADE_KEY) != DEBUG_COLLECTION or not named_as_a_copy(coll):
+        return False
+    mark_made(coll, DEBUG_COLLECTION)
+    copies = [ob for ob in coll.objects if DEBUG_KEY in ob.keys() and named_as_a_copy(ob)]
+    made = [ob[MADE_KEY] for ob in copies]
+    for ob in (ob for ob in copies if made.count(ob[MADE_KEY]) == 1):
+        mark_made(ob, ob[MADE_KEY])
+        if ob.data is not None and ob.data.users == 1 and named_as_a_copy(ob.data):
+            mark_made(ob.data, ob.data[MADE_KEY])
+    return True
 
 
 def scene_debug_object(scene, name: str):
@@ -656,16 +682,24 @@ def lixel_modifier(ob, name: str):
     return None
 
 
+def is_files_own(mesh) -> bool:
+    """Whether what Lixel writes on ``mesh`` stays with the file: a mesh linked from a library is its library's, and a
+    library override keeps only the changes of properties Blender lets it override (its colour attribute names come
+    back empty on reload). A library override *object* keeps a modifier added to it."""
+    return mesh.library is None and mesh.override_library is None
+
+
 def add_texel_grid(ob, carrier, map_index: int = 0, notes=None):
     """Add (or update) the texel-grid modifier on mesh object ``ob`` (``notes``: see :func:`_keep_edited`). The group
     sets the material itself (Set Material; the modifier's input keeps it saved): no slot is added to the mesh, whose
-    other objects would show Lixel's material through it (a mesh without material: its faces use the first slot)."""
+    other objects would show Lixel's material through it (a mesh without material: its faces use the first slot).
+    A mesh that is not the file's own (:func:`is_files_own`: a library override's) is left as it is."""
     group = ensure_texel_grid_group(notes)
     mat = ensure_texel_material(notes)
     mod = _matrix_modifier(ob, TEXEL_MODIFIER, group, carrier, map_index, "Material")
     _set_input(mod, group, "Material", mat)
     attrs = ob.data.attributes
-    if not attrs.active_color_name and not attrs.default_color_name:
+    if is_files_own(ob.data) and not attrs.active_color_name and not attrs.default_color_name:
         # Workbench's Attribute colour shows the active colour attribute; the mesh has none of its own,
         # so point it at the one the modifier makes (the name is all that is stored).
         attrs.active_color_name = attrs.default_color_name = PARITY_COLOR_ATTRIBUTE
@@ -679,8 +713,8 @@ def remove_texel_grid(ob) -> bool:
 
 
 def remove_texel_grids(objects) -> int:
-    """Remove the texel-grid modifier from each of ``objects``; the colour attribute names it put on a mesh (and the
-    material slot an older Lixel added) go only with the last object of that mesh that has the grid
+    """Remove the texel-grid modifier from each of ``objects``; the colour attribute names it put on a mesh of the
+    file's own (and the material slot an older Lixel added) go only with the last object of that mesh that has the grid
     (another still shows it through them). The objects left with a grid are found once, so removing the grids of
     a scene's many objects takes time in proportion to them (asked per object, it grew with their square: 10k tiles,
     a minute). Returns how many objects had one."""
@@ -695,7 +729,8 @@ def remove_texel_grids(objects) -> int:
     gridded = {ob.data.name_full for ob in bpy.data.objects
                if ob.type == "MESH" and lixel_modifier(ob, TEXEL_MODIFIER) is not None}
     mat = find_made(bpy.data.materials, TEXEL_MATERIAL)
-    for mesh in {ob.data.name_full: ob.data for ob in removed if ob.data.name_full not in gridded}.values():
+    for mesh in {ob.data.name_full: ob.data for ob in removed if ob.data.name_full not in gridded
+                 and is_files_own(ob.data)}.values():
         attrs = mesh.attributes
         if attrs.active_color_name == PARITY_COLOR_ATTRIBUTE:
             attrs.active_color_name = ""

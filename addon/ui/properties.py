@@ -117,6 +117,10 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
     initialised: BoolProperty(
         name="Initialised", default=False, options={"HIDDEN"},
         description="The preference defaults have been applied to this scene")
+    debug_collection: PointerProperty(
+        name="Debug Collection", type=bpy.types.Collection, options={"HIDDEN"},
+        description="The collection Lixel keeps this scene's debug objects in (a full copy of the scene points at "
+                    "its copy)")
     light: PointerProperty(
         name="Light", type=bpy.types.Object, poll=_light_poll,
         description="The light that casts Lixel's shadows (empty: the active light, else the first sun)")

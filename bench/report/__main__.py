@@ -107,11 +107,34 @@ def options(args):
     )
 
 
+def last_reports(out: Path) -> set:
+    """The entries of ``out`` the last report wrote (its manifest)."""
+    return set((out / MANIFEST).read_text().split("\n")) - {""} if (out / MANIFEST).is_file() else set()
+
+
+def folder_problems(opts, readme_pictures) -> list:
+    """Why the report could not be put where the options say, found before anything runs (it was found after the
+    run, as a traceback that lost it): ``--out`` or ``--readme-pictures`` naming a file (or a broken link), or
+    ``--out`` holding an entry the report would replace (report.*, a scene's folder) that the last report there did
+    not write: the user's own, which publishing removed."""
+    out = Path(opts.out)
+    problems = [f"{option}: {path} is not a folder: name a folder" for option, path in
+                (("--out", out), ("--readme-pictures", readme_pictures))
+                if path is not None and os.path.lexists(path) and not path.is_dir()]   # a file, a broken link
+    if out.is_dir():
+        names = {"report.html", "report.md", "report.json"} | {Path(str(name)).stem for name in opts.scenes}
+        if theirs := sorted(name for name in names - last_reports(out) if os.path.lexists(out / name)):
+            problems.append(f"--out: {out} holds {', '.join(map(repr, theirs))}, which this report would replace and "
+                            f"the last report there did not write (its list, {MANIFEST}, does not name them): name "
+                            f"another folder, or move them")
+    return problems
+
+
 def publish(partial: Path, out: Path) -> None:
     """Move the finished report from ``partial`` into ``out``: the entries the
     last report wrote (its manifest) are replaced, anything else in ``out`` stays."""
     out.mkdir(parents=True, exist_ok=True)
-    old = set((out / MANIFEST).read_text().split("\n")) - {""} if (out / MANIFEST).is_file() else set()
+    old = last_reports(out)
     new = sorted(p.name for p in partial.iterdir())
     for name in old | set(new):
         target = out / name
@@ -140,7 +163,7 @@ def main(argv=None) -> int:
     from .run import GUESS_S, check, cleanup, plan, run
 
     opts = options(args)
-    problems = check(opts)
+    problems = check(opts) + folder_problems(opts, args.readme_pictures)
     if problems:
         for p in problems:
             print(f"python -m bench.report: error: {p}", file=sys.stderr)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import html
 import json
 import math
+import urllib.parse
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -336,6 +337,12 @@ def _md_inline(text: str) -> str:
     return text.replace("|", "/")
 
 
+def _url(path: str) -> str:
+    """A figure's relative path as a URL: a scene's folder is named after its .blend file, and a space in it ended a
+    Markdown link (the picture showed as text), a '#' or '?' cut the path in either document."""
+    return urllib.parse.quote(path)
+
+
 def to_markdown(bs: list) -> str:
     md = []
     for b in bs:
@@ -348,7 +355,7 @@ def to_markdown(bs: list) -> str:
         elif b.kind == "ul":
             md += [f"- {x}" for x in b.content] + [""]
         elif b.kind == "img":
-            md += [f"![{b.extra}]({b.content})", ""]
+            md += [f"![{b.extra}]({_url(b.content)})", ""]
         elif b.kind == "table":
             head, rows = b.content
             md += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -391,7 +398,7 @@ def to_html(bs: list) -> str:
         elif b.kind == "ul":
             h.append("<ul>" + "".join(f"<li>{_html_inline(x)}</li>" for x in b.content) + "</ul>")
         elif b.kind == "img":
-            h.append(f"<img src='{e(b.content)}' alt='{e(b.extra)}'>")
+            h.append(f"<img src='{e(_url(b.content))}' alt='{e(b.extra)}'>")
         elif b.kind == "table":
             head, rows = b.content
             h.append("<table><tr>" + "".join(f"<th>{e(c)}</th>" for c in head) + "</tr>")

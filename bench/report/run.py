@@ -90,6 +90,10 @@ def check(opts: Options) -> list:
             problems.append(f"--scene: unknown scene {name!r}; choose from {', '.join(known)} (or a .blend path)")
     if not opts.scenes:
         problems.append("--scene: no scene given")
+    labels = [Path(str(name)).stem for name in opts.scenes]
+    if twice := sorted({label for label in labels if labels.count(label) > 1}):
+        problems.append(f"--scene: {', '.join(map(repr, twice))} given twice: a scene is named by its file name, "
+                        f"and each has one folder of figures in the report; rename one of the .blend files")
     bad = [m for m in opts.methods if m not in METHODS]
     if bad or not opts.methods:
         problems.append(f"--methods: unknown {', '.join(map(repr, bad)) or '(none given)'}; "

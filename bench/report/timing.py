@@ -122,15 +122,41 @@ def agreement(a: dict, b: dict, key: str = "median_ms") -> Agreement:
     return Agreement(ratios=ratios, only_in_one=sorted(map(str, pa.keys() ^ pb.keys())))
 
 
+def read_report(text: str) -> dict:
+    """The report.json at ``text`` (or in the report folder ``text``); a missing, unreadable or other file is an
+    argparse error that names it (it was a traceback)."""
+    path = Path(text)
+    path = path / "report.json" if path.is_dir() else path
+    try:
+        report = json.loads(path.read_text())
+    except OSError as exc:
+        raise argparse.ArgumentTypeError(f"cannot read {path}: {exc.strerror}") from None
+    except (UnicodeDecodeError, json.JSONDecodeError):
+        report = None
+    if not isinstance(report, dict) or not isinstance(report.get("scenes"), list):
+        raise argparse.ArgumentTypeError(f"{path} is not a report.json of python -m bench.report")
+    return report
+
+
+def _limit(text: str) -> float:
+    try:
+        limit = float(text)
+    except ValueError:
+        limit = math.nan
+    if not limit >= 1.0:
+        raise argparse.ArgumentTypeError(f"{text}: give a ratio of 1 or more, e.g. 1.3")
+    return limit
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.report.timing",
                                  description="How two report runs' timed points agree (ratio of their medians).")
-    ap.add_argument("first", type=Path, help="report.json of one run")
-    ap.add_argument("second", type=Path, help="report.json of another run")
-    ap.add_argument("--limit", type=float, default=1.3, help="exit 1 when a point's ratio exceeds this (default 1.3)")
+    ap.add_argument("first", type=read_report, help="report.json of one run (or its folder)")
+    ap.add_argument("second", type=read_report, help="report.json of another run (or its folder)")
+    ap.add_argument("--limit", type=_limit, default=1.3, help="exit 1 when a point's ratio exceeds this (default 1.3)")
     ap.add_argument("--all", action="store_true", help="list every point, not only the ten worst")
     args = ap.parse_args(argv)
-    a, b = json.loads(args.first.read_text()), json.loads(args.second.read_text())
+    a, b = args.first, args.second
     worst_cpu = math.nan
     for key, what in (("median_ms", "CPU time (the timed point)"), ("wall_median_ms", "wall clock")):
         ag = agreement(a, b, key)

@@ -9,7 +9,7 @@ import bpy
 import numpy as np
 import pytest
 
-from ui_scenes import active_scene, look_at
+from ui_scenes import active_scene, look_at, remove_scene
 
 
 @pytest.fixture(scope="module")
@@ -413,10 +413,31 @@ def test_a_scene_linked_from_a_library_is_read_only_to_the_operators_that_change
         bpy.data.scenes.remove(linked)
         bpy.data.libraries.remove(library)
 
-def test_texel_grid_on_a_library_override_says_its_mesh_is_linked_and_how_to_free_it(scene, tmp_path):
-    """Object > Library Override > Make overrides the objects but keeps their meshes linked, where the grid's
-    material slot would go: the remedy named is making the mesh local (Make Local > Objects and Data), which
-    then takes the grid; "make a library override" would send the user round in a circle."""
+OVERRIDE_RELOADED = """
+import json, sys
+import bpy
+bpy.ops.wm.open_mainfile(filepath=sys.argv[1], load_ui=False)
+ob = next(ob for ob in bpy.data.objects if ob.library is None and ob.name == sys.argv[2])
+me = ob.evaluated_get(bpy.context.evaluated_depsgraph_get()).data
+print("RELOADED", json.dumps({"modifiers": [m.name for m in ob.modifiers],
+                              "material": [m.name for m in me.materials if m is not None],
+                              "attributes": sorted(a.name for a in me.attributes if a.name.startswith("lixel_")),
+                              "color_names": [ob.data.attributes.active_color_name,
+                                              ob.data.attributes.default_color_name]}))
+"""
+
+
+@pytest.mark.parametrize("mesh_too", [False, True, None], ids=["linked mesh", "overridden mesh",
+                                                               "a local object's linked mesh"])
+def test_texel_grid_on_a_library_override_is_saved_and_leaves_its_mesh_as_it_is(scene, mods, tmp_path, capfd,
+                                                                                  mesh_too):
+    """Object > Library Override > Make overrides the objects and keeps their meshes linked; Add Texel Grid refused
+    them ("make the mesh local") although the grid needs no material slot any more, only a modifier, which an
+    override keeps. The grid goes on, is there after saving and reloading, and the mesh is left as it is: its
+    colour attribute names on a linked mesh would not be saved, and on an overridden one come back empty. The user
+    is told that Workbench's Attribute colour (which reads those names) does not show it, and what to do."""
+    import subprocess
+    import sys
     me = bpy.data.meshes.new("override block")
     me.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
     coll = bpy.data.collections.new("override coll")
@@ -430,21 +451,131 @@ def test_texel_grid_on_a_library_override_says_its_mesh_is_linked_and_how_to_fre
     library = dst.collections[0].library
     override = dst.collections[0].override_hierarchy_create(scene, bpy.context.view_layer)
     ob = override.objects[0]
+    if mesh_too:
+        ob.data = ob.data.override_create(remap_local_usages=True)
+    elif mesh_too is None:  # Make Local > Selected Objects: the object the file's own, its mesh still linked
+        ob = ob.make_local(clear_liboverride=True)
+    mesh = ob.data
     try:
-        assert ob.override_library is not None and ob.data.library is library
+        assert (ob.override_library is not None) == (mesh_too is not None) and ob.library is None
+        assert (mesh.override_library is not None) == bool(mesh_too) and (mesh.library is None) == bool(mesh_too)
         _select_only(scene, [ob.name])
-        with pytest.raises(RuntimeError, match=r"'override block' is a library override whose mesh is linked from "
-                                               r"library.blend: make the mesh local \(Object > Relations > Make Local"):
-            bpy.ops.lixel.texel_grid_add()
-        assert bpy.ops.object.make_local(type="SELECT_OBDATA") == {"FINISHED"}
-        assert ob.data.library is None
-        assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"} and len(ob.modifiers) == 1
+        capfd.readouterr()
+        assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+        assert [m.name for m in ob.modifiers] == [mods.nodes.TEXEL_MODIFIER]
+        assert (mesh.attributes.active_color_name, mesh.attributes.default_color_name, len(mesh.materials)) == \
+            ("", "", 0)
+        assert (f"Warning: Lixel: the mesh of '{ob.name}' is library.blend's: the grid shows in Material Preview and "
+                f"Rendered shading, not in Workbench's Attribute colour; for that, make the mesh local (Object > "
+                f"Relations > Make Local > Selected Objects and Data)") in capfd.readouterr().out
+        bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"), copy=True)
+        proc = subprocess.run([sys.executable, "-c", OVERRIDE_RELOADED, str(tmp_path / "shot.blend"), ob.name],
+                              capture_output=True, text=True, timeout=300)
+        reloaded = [line.split(" ", 1)[1] for line in proc.stdout.splitlines() if line.startswith("RELOADED ")]
+        assert reloaded, proc.stdout[-2000:] + proc.stderr[-2000:]
+        assert json.loads(reloaded[0]) == {
+            "modifiers": [mods.nodes.TEXEL_MODIFIER], "material": [mods.nodes.TEXEL_MATERIAL], "color_names": ["", ""],
+            "attributes": sorted([mods.nodes.XYW_ATTRIBUTE, mods.nodes.TEXEL_ATTRIBUTE, mods.nodes.SIZE_ATTRIBUTE,
+                                  mods.nodes.PARITY_COLOR_ATTRIBUTE])}
+        assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"}
+        assert len(ob.modifiers) == 0 and (mesh.attributes.active_color_name, len(mesh.materials)) == ("", 0)
     finally:
-        mesh = ob.data
         bpy.data.objects.remove(ob)
-        bpy.data.meshes.remove(mesh)
+        if mesh_too:
+            bpy.data.meshes.remove(mesh)
         bpy.data.collections.remove(override)
         bpy.data.libraries.remove(library)
+
+
+def test_remove_texel_grid_says_an_override_cannot_remove_the_grid_its_library_gave_it(scene, mods, tmp_path,
+                                                                                       capfd):
+    """An asset whose library file has the texel grid, overridden here: Remove Texel Grid said it removed the grid,
+    and it came back when the file was opened (an override cannot remove its reference's modifier). The override
+    is left with its grid and named with what to do; a grid of the file's own is removed beside it."""
+    ground = scene.objects["lixel_ops ground"]
+    me = bpy.data.meshes.new("gridded block")
+    me.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
+    coll = bpy.data.collections.new("gridded coll")
+    coll.objects.link(bpy.data.objects.new("gridded block", me))
+    scene.collection.children.link(coll)
+    _select_only(scene, [coll.objects[0].name, ground.name])
+    assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+    bpy.data.libraries.write(str(tmp_path / "assets.blend"), {coll})
+    bpy.data.objects.remove(coll.objects[0])
+    bpy.data.meshes.remove(me)
+    bpy.data.collections.remove(coll)
+    with bpy.data.libraries.load(str(tmp_path / "assets.blend"), link=True) as (_src, dst):
+        dst.collections = ["gridded coll"]
+    library = dst.collections[0].library
+    override = dst.collections[0].override_hierarchy_create(scene, bpy.context.view_layer)
+    ob = override.objects[0]
+    try:
+        said = (r"'gridded block' has its texel grid from assets.blend, which a library override cannot remove \(it "
+                r"comes back when the file is opened\): switch the 'Lixel Texel Grid' modifier off")
+        _select_only(scene, [ob.name])
+        with pytest.raises(RuntimeError, match=said):
+            bpy.ops.lixel.texel_grid_add(remove=True)
+        _select_only(scene, [ob.name, ground.name])
+        capfd.readouterr()
+        assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"}
+        assert [m.name for m in ob.modifiers] == [mods.nodes.TEXEL_MODIFIER] and len(ground.modifiers) == 0
+        out = capfd.readouterr().out
+        assert "Warning: Lixel: 'gridded block' has its texel grid from assets.blend" in out, out
+        assert "Info: Lixel: removed the texel grid from 1 object(s)" in out, out
+    finally:
+        bpy.data.objects.remove(ob)
+        bpy.data.collections.remove(override)
+        bpy.data.libraries.remove(library)
+
+
+def _evaluated_texels(ob, nodes):
+    dg = bpy.context.evaluated_depsgraph_get()
+    dg.update()
+    me = ob.evaluated_get(dg).data
+    texels = np.zeros(len(me.vertices) * 3, dtype=np.float32)
+    me.attributes[nodes.TEXEL_ATTRIBUTE].data.foreach_get("vector", texels)
+    return texels
+
+
+def test_a_full_copy_of_the_scene_keeps_its_texel_grid_following_sync_and_bake_replacing(scene, mods):
+    """Scene > New > Full Copy copies the "Lixel Debug" collection and its objects under copies' names, and the
+    copied texel grid follows the copied carrier. Lixel took those copies for the user's: Sync in the new scene wrote
+    a second carrier the grid did not follow (it kept the matrices of the copy, without a word), and Bake a second
+    set of objects beside the stale copies. The copy is the new scene's now: Sync moves its grid, Bake replaces its
+    objects, the first scene's are left as they were, and an object the user kept with Shift+D is kept in both."""
+    nodes = mods.nodes
+    ground = scene.objects["lixel_ops ground"]
+    _select_only(scene, [ground.name])
+    assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"} and bpy.ops.lixel.bake_debug() == {"FINISHED"}
+    coll = bpy.data.collections["Lixel Debug"]
+    kept = coll.objects["Lixel B"].copy()    # the user's Shift+D copy of the baked B, kept
+    kept.data = kept.data.copy()
+    coll.objects.link(kept)
+    texels = _evaluated_texels(ground, nodes)
+    window = bpy.context.window
+    assert bpy.ops.scene.new(type="FULL_COPY") == {"FINISHED"}
+    copy = window.scene
+    try:
+        copied = {ob.name for ob in copy.objects}
+        counts = len(bpy.data.objects), len(bpy.data.collections)
+        ground_copy = next(ob for ob in copy.objects if ob.data.name.startswith(ground.data.name))
+        light = next(ob for ob in copy.objects if ob.type == "LIGHT")
+        light.rotation_euler.x += 0.3
+        assert bpy.ops.lixel.sync_matrices() == {"FINISHED"}
+        assert np.abs(_evaluated_texels(ground_copy, nodes) - texels).max() > 1.0
+        assert bpy.ops.lixel.bake_debug() == {"FINISHED"}
+        new = {ob.name for ob in copy.objects} - copied
+        assert len(new) == 1 and next(iter(new)).startswith("Lixel B"), new   # B: the two copies of it are kept
+        assert (len(bpy.data.objects), len(bpy.data.collections)) == (counts[0] + 1, counts[1])
+        window.scene = scene
+        np.testing.assert_array_equal(_evaluated_texels(ground, nodes), texels)
+        assert bpy.ops.lixel.bake_debug() == {"FINISHED"} and kept.name in coll.objects
+    finally:
+        window.scene = scene
+        children = list(copy.collection.children)
+        remove_scene(copy)  # its objects and the data only they used (Lixel's marked meshes must not outlive it)
+        for c in children:
+            bpy.data.collections.remove(c)
 
 
 def test_reset_settings_keeps_light_and_planes(scene):

@@ -147,6 +147,81 @@ def test_a_run_that_measures_nothing_or_cannot_write_leaves_the_last_report(repo
     assert not list(out.parent.glob(".report.partial-*"))
 
 
+@pytest.mark.parametrize("where", ["--out a file", "--out a broken link", "--readme-pictures a file",
+                                   "the user's own entries in --out", "one scene name twice"])
+def test_a_report_that_could_not_be_put_where_asked_is_refused_before_it_runs(tmp_path, where):
+    """``--out`` naming a file ran the whole report (12 minutes in full) and then lost it in a traceback; ``--out`` a
+    folder of the user's (beside the .blend given as --scene, say) had the user's folder of the scene's name and
+    report.md deleted without a word; two scenes of one file name (``chess`` and ``other/chess.blend``) shared one
+    folder of figures, the first scene's section showing the second's pictures. Each is refused by name before
+    anything runs, and nothing of the user's changes."""
+    user = tmp_path / "project"
+    (user / "tiny").mkdir(parents=True)
+    (user / "tiny" / "notes.txt").write_text("the user's")
+    (user / "report.md").write_text("the user's")
+    (tmp_path / "a file").write_text("the user's")
+    (tmp_path / "a link").symlink_to(tmp_path / "gone")
+    args, out, said = {
+        "--out a file": ([], tmp_path / "a file", f"--out: {tmp_path / 'a file'} is not a folder: name a folder"),
+        "--out a broken link": ([], tmp_path / "a link",
+                                f"--out: {tmp_path / 'a link'} is not a folder: name a folder"),
+        "--readme-pictures a file": (["--readme-pictures", str(tmp_path / "a file")], tmp_path / "out",
+                                     f"--readme-pictures: {tmp_path / 'a file'} is not a folder: name a folder"),
+        "the user's own entries in --out": ([], user, f"--out: {user} holds 'report.md', 'tiny', which this report "
+                                                      f"would replace and the last report there did not write"),
+        "one scene name twice": (["--scene", "tiny,tiny"], tmp_path / "out", "--scene: 'tiny' given twice"),
+    }[where]
+    before = {p: p.read_text() for p in tmp_path.rglob("*") if p.is_file()}
+    proc = _run(["--methods", "uniform", "--sizes", "64", "--peers", "none", "--no-overlays"] + args, out,
+                timeout=300)
+    assert proc.returncode == 2, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert f"error: {said}" in proc.stderr and "Traceback" not in proc.stderr, proc.stderr[-2000:]
+    assert "nothing was run; the last report is unchanged" in proc.stderr
+    assert {p: p.read_text() for p in tmp_path.rglob("*") if p.is_file()} == before
+    assert (tmp_path / "a link").is_symlink()
+
+
+@pytest.mark.parametrize("first, more, said", [
+    ("missing.json", [], "argument first: cannot read {tmp}/missing.json: No such file or directory"),
+    ("not json.txt", [], "argument first: {tmp}/not json.txt is not a report.json of python -m bench.report"),
+    ("a list.json", [], "argument first: {tmp}/a list.json is not a report.json of python -m bench.report"),
+    ("empty folder", [], "argument first: cannot read {tmp}/empty folder/report.json: No such file or directory"),
+    ("report/report.json", ["--limit", "0.5"], "argument --limit: 0.5: give a ratio of 1 or more, e.g. 1.3"),
+    ("report/report.json", ["--limit", "nan"], "argument --limit: nan: give a ratio of 1 or more, e.g. 1.3"),
+    ("report/report.json", ["--limit", "fast"], "argument --limit: fast: give a ratio of 1 or more, e.g. 1.3")])
+def test_comparing_timings_of_what_is_not_a_report_says_which_argument_and_why(tmp_path, capsys, first, more, said):
+    """``python -m bench.report.timing A B`` given a missing file, a folder, or a file that is not a report.json
+    stopped in a traceback; a --limit below 1 failed every comparison (no two medians differ by less than 1x), and NaN
+    did so saying '0 above nanx'. Now argparse names the argument, and a report's folder may be given for its
+    report.json."""
+    from bench.report.timing import main
+    (tmp_path / "not json.txt").write_bytes(b"\xff\xfe not json")
+    (tmp_path / "a list.json").write_text("[]")
+    (tmp_path / "empty folder").mkdir()
+    (tmp_path / "report").mkdir()
+    (tmp_path / "report" / "report.json").write_text(json.dumps({"scenes": [{"name": "s", "methods": [
+        {"method": "uniform", "size": 64, "status": "ok", "timing": {"median_ms": 2.0, "wall_median_ms": 3.0}}]}]}))
+    with pytest.raises(SystemExit) as stopped:
+        main([str(tmp_path / first), str(tmp_path / "report" / "report.json")] + more)
+    err = capsys.readouterr().err
+    assert stopped.value.code == 2 and "Traceback" not in err
+    assert f"python -m bench.report.timing: error: {said.format(tmp=tmp_path)}" in err, err
+    assert main([str(tmp_path / "report"), str(tmp_path / "report" / "report.json")]) == 0
+    assert "1 points; worst ratio 1.00x; 0 above 1.3x" in capsys.readouterr().out
+
+
+def test_a_figure_of_a_scene_whose_file_name_has_a_space_or_a_hash_is_linked_in_both_documents():
+    """``--scene "my shot #2.blend"`` names the scene's folder of figures so: in report.md the space ended the link
+    (``![Renders](my shot #2/renders.png)`` shows as text) and in both documents the '#' cut the path. The link is
+    the path URL-encoded, which reads back as the file's path."""
+    from urllib.parse import unquote
+    from bench.report.document import Block, to_html, to_markdown
+    bs = [Block("h1", "Lixel"), Block("img", "my shot #2/renders.png", "Renders")]
+    assert "![Renders](my%20shot%20%232/renders.png)" in to_markdown(bs)
+    assert "<img src='my%20shot%20%232/renders.png' alt='Renders'>" in to_html(bs)
+    assert unquote("my%20shot%20%232/renders.png") == "my shot #2/renders.png"
+
+
 def test_publish_replaces_only_the_reports_own_entries(tmp_path):
     from bench.report.__main__ import MANIFEST, publish
     out = tmp_path / "out"

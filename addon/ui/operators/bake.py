@@ -134,18 +134,36 @@ class LIXEL_OT_bake_debug(LixelSceneOperator, bpy.types.Operator):
 
 
 def linked_note(linked: list) -> str:
-    """Why the texel grid leaves ``linked`` objects, and the remedy: a linked object can be made local or
-    overridden; a library override keeps its mesh linked (where the grid names the colour attribute Workbench shows),
-    so only making the mesh local helps there."""
-    libraries = ", ".join(sorted({(ob.library or ob.data.library).name for ob in linked}))
+    """Why the texel grid leaves ``linked`` objects (what Lixel put on them would not be saved), and the remedy."""
+    libraries = ", ".join(sorted({ob.library.name for ob in linked}))
     names = nodes.listed([repr(name) for name in sorted(ob.name for ob in linked)])
-    verb = "is" if len(linked) == 1 else "are"
-    if all(ob.library is None for ob in linked):
-        what = "a library override whose mesh is" if len(linked) == 1 else "library overrides whose meshes are"
-        return (f"{names} {verb} {what} linked from {libraries}: make the mesh local "
-                f"(Object > Relations > Make Local > Selected Objects and Data) to change its texel grid")
-    return (f"{names} {verb} linked from {libraries}: make it local (Object > Relations > Make Local > Selected "
-            f"Objects and Data) to change its texel grid")
+    return (f"{names} {'is' if len(linked) == 1 else 'are'} linked from {libraries}: make it local (Object > "
+            f"Relations > Make Local > Selected Objects and Data) to change its texel grid")
+
+
+def workbench_note(overrides: list) -> str:
+    """Where the texel grid on ``overrides`` (library overrides, or local objects, whose meshes are not the file's
+    own: ``nodes.is_files_own``)
+    shows: the modifier and material do, but Workbench's Attribute colour reads the colour attribute the mesh names,
+    which Lixel cannot name on a mesh it would not be saved with."""
+    libraries = ", ".join(sorted({(ob.data.library or ob.data.override_library.reference.library).name
+                                  for ob in overrides}))
+    names = nodes.listed([repr(name) for name in sorted(ob.name for ob in overrides)])
+    one = len(overrides) == 1
+    return (f"the mesh{'' if one else 'es'} of {names} {'is' if one else 'are'} {libraries}'s: the grid shows in "
+            f"Material Preview and Rendered shading, not in Workbench's Attribute colour; for that, make the mesh "
+            f"local (Object > Relations > Make Local > Selected Objects and Data)")
+
+
+def inherited_note(overrides: list) -> str:
+    """Why Remove Texel Grid leaves the grids ``overrides`` (library overrides) have from their library's objects: an
+    override cannot remove a modifier its reference has (it was removed, and came back when the file was opened)."""
+    libraries = ", ".join(sorted({ob.override_library.reference.library.name for ob in overrides}))
+    names = nodes.listed([repr(name) for name in sorted(ob.name for ob in overrides)])
+    one = len(overrides) == 1
+    return (f"{names} {'has its' if one else 'have their'} texel grid from {libraries}, which a library override "
+            f"cannot remove (it comes back when the file is opened): switch the '{nodes.TEXEL_MODIFIER}' modifier "
+            f"off (Properties > Modifiers: Show in Viewport and Renders), or remove it in {libraries}")
 
 
 class LIXEL_OT_texel_grid_add(MatrixOperator, bpy.types.Operator):
@@ -165,14 +183,21 @@ class LIXEL_OT_texel_grid_add(MatrixOperator, bpy.types.Operator):
         if not meshes:
             self.report({"ERROR"}, "Lixel: no mesh selected: select the mesh objects that should show the texel grid")
             return {"CANCELLED"}
-        local = [ob for ob in meshes if ob.library is None and ob.data.library is None]
-        if len(local) < len(meshes):  # what Lixel would put on linked data is not saved with the file
-            linked = [ob for ob in meshes if ob.library is not None or ob.data.library is not None]
+        local = [ob for ob in meshes if ob.library is None]  # a library override keeps the modifier added to it
+        if len(local) < len(meshes):  # what Lixel would put on a linked object is not saved with the file
+            linked = [ob for ob in meshes if ob.library is not None]
             self.report({"WARNING"} if local else {"ERROR"}, f"Lixel: {linked_note(linked)}")
             meshes = local
             if not meshes:
                 return {"CANCELLED"}
         if self.remove:
+            if inherited := [ob for ob in meshes if getattr(nodes.lixel_modifier(ob, nodes.TEXEL_MODIFIER),
+                                                            "is_override_data", False)]:
+                self.report({"WARNING"} if len(inherited) < len(meshes) else {"ERROR"},
+                            f"Lixel: {inherited_note(inherited)}")
+                meshes = [ob for ob in meshes if ob not in inherited]
+                if not meshes:
+                    return {"CANCELLED"}
             n = nodes.remove_texel_grids(meshes)
             self.report({"INFO"}, f"Lixel: removed the texel grid from {n} object(s)")
             return {"FINISHED"}
@@ -184,6 +209,8 @@ class LIXEL_OT_texel_grid_add(MatrixOperator, bpy.types.Operator):
         for ob in meshes:
             nodes.add_texel_grid(ob, carrier, self.map_index, said)
         self.say(said)
+        if overrides := [ob for ob in meshes if not nodes.is_files_own(ob.data)]:
+            self.report({"WARNING"}, f"Lixel: {workbench_note(overrides)}")
         self.name_followers_of_missing_maps(carrier, st)
         self.report({"INFO"}, f"Lixel: texel grid of map {self.map_index} on {len(meshes)} object(s)")
         return {"FINISHED"}
