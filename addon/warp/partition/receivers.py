@@ -85,9 +85,10 @@ def filter_losses(setups: list, seen: tuple) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         width = np.linalg.norm(v, axis=2) / np.abs(v[..., 0] * w[..., 1] - v[..., 1] * w[..., 0])
     single, evidence = np.array([len(s.maps) == 1 for s in setups]), min(1.0, len(seen[4]) / EDGES)
-    width = np.nanmean(np.where(np.isfinite(width), width, np.nan), axis=1)
+    width, aligned = (np.ma.masked_invalid(x).mean(axis=1).filled(f)      # (edges behind a map: left out)
+                      for x, f in ((width, np.nan), (np.clip((20.0 - a) / 12.0, 0.0, 1.0), 0.0)))
     wider = np.nan_to_num(width / np.nanmin(width[single], initial=np.inf) - 1.0) * evidence * single
-    return (1.0 + LOSS * np.nanmean(np.clip((20.0 - a) / 12.0, 0.0, 1.0), axis=1) * evidence * single) * (1.0 + wider)
+    return (1.0 + LOSS * aligned * evidence * single) * (1.0 + wider)
 
 
 def grazing(setup: ShadowSetup, seen: tuple, light: Light, top: float = 90.0) -> tuple:
