@@ -13,6 +13,7 @@ import numpy as np
 
 from ..body import IntersectionBody, intersection_body
 from ..diagnostics import Diagnostics
+from ..fit import fit_to_unit_cube
 from ..frame import light_cone
 from ..partition.adaptive import max_error, minimax_splits
 from ..partition.budget import shared_sizes
@@ -24,7 +25,7 @@ from ..types import MAX_MAP_SIDE, EmptyBodyError, Light, SceneBounds, ShadowSetu
 from ..visibility import VisibleRegion
 from .common import body_diagnostics
 from .lispsm import gmnpr, lispsm
-from .psm import psm
+from .psm import TURNS, psm
 from .uniform import uniform
 
 SPLIT_WARPS = {"uniform": uniform, "lispsm": lispsm, "gmnpr": gmnpr, "psm": psm}
@@ -41,6 +42,18 @@ def stretched(size: tuple) -> list[tuple[int, int]]:
     """``size``'s texels w·h laid out by each of ``ASPECTS`` (w:h that much wider), those within ``MAX_MAP_SIDE``."""
     laid = [(int(round(size[0] * math.sqrt(a))), int(round(size[1] / math.sqrt(a)))) for a in ASPECTS]
     return [s for s in laid if max(s) <= MAX_MAP_SIDE]
+
+
+def spun(matrix: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
+    """``matrix`` turned about its depth axis by each of ``TURNS``, refitted to the ``points`` in front of its near
+    plane and where their segments cross it (a point light on B is a vertex of B with w = 0: the map's own window)."""
+    s = points @ (matrix[2, :3] + matrix[3, :3]) + matrix[2, 3] + matrix[3, 3]          # w·(z_ndc + 1)
+    f, b = s > 0, s <= 0
+    on = points[f, None] + (points[None, b] - points[f, None]) * (s[f, None] / (s[f, None] - s[None, b]))[..., None]
+    try:
+        return list(fit_to_unit_cube(TURNS @ matrix, np.concatenate([points[f], on.reshape(-1, 3)])))
+    except WarpError:                                                 # (w <= 0 in front of it: left as it is)
+        return []
 
 
 def single(setup: ShadowSetup, **changed) -> ShadowSetup:
@@ -148,11 +161,13 @@ class Trials:
         *at, edges = self.seen                  # the receivers' arrays, and apart the edge samples (point, direction)
         kept, kept_edges = ((d >= split.near) & (d < far) for d in map(self.view.eye_depth, (at[0], edges[:, 0])))
         seen = (*(x[kept] for x in at), edges[kept_edges])
+        spin = laid and len(seen[4]) and not self.light.is_directional
         for w, m in [(w, m) for w, m in maps if len(m.maps) == 1]:
             hull = self.once(("turned", split.near, split.far + split.band, w),
                              lambda: turned(m.maps[0].matrix, split.body.vertices))
             maps += [(w, single(m, matrix=t)) for t in hull + (turned(m.maps[0].matrix, split.body.vertices,
-                                                                      grazing(m, seen, self.light)) if laid else [])]
+                                                                      grazing(m, seen, self.light)) if laid else [])
+                     + (spun(m.maps[0].matrix, split.body.vertices) if spin else [])]
         maps += [(w, single(m, size=size)) for w, m in maps if len(m.maps) == 1 and laid
                  for size in stretched(m.maps[0].size)]
         unique = {}       # (a later copy of a map never wins: the first least wins); by receivers, matrices and sizes
