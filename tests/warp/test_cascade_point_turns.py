@@ -15,8 +15,9 @@ import pytest
 
 from addon.warp import WarpOptions
 from addon.warp.aliasing import raster_jacobian
-from addon.warp.methods.cascade import cascade, spun
-from addon.warp.partition.receivers import filter_losses
+from addon.warp.methods.cascade import cascade
+from addon.warp.methods.psm import TURNS
+from addon.warp.partition.receivers import filter_losses, spun
 from addon.warp.types import ShadowSetup
 from addon.warp.visibility import focused_body, region_from_boxes
 from hard_cases import HARD_CASES, point
@@ -68,7 +69,7 @@ def test_each_turn_of_a_map_whose_light_is_a_vertex_of_b_holds_b_in_front_of_the
     far, body = setup.maps[-1], setup.diagnostics.extra["split_bodies"][-1]
     held = body[far.contains(body, 1e-6)]
     assert len(held) < len(body)                                         # (the light itself: w = 0)
-    turns = spun(far.matrix, body)
+    turns = spun(far.matrix, body, TURNS)
     assert len(turns) == 36
     for m in turns:
         h = held @ m[:3, :3].T + m[:3, 3]

@@ -13,12 +13,11 @@ import numpy as np
 
 from ..body import IntersectionBody, intersection_body
 from ..diagnostics import Diagnostics
-from ..fit import fit_to_unit_cube
 from ..frame import light_cone
 from ..partition.adaptive import max_error, minimax_splits
 from ..partition.budget import shared_sizes
 from ..partition.receivers import (TAIL, filter_losses, footprint_p95, footprint_p95s, footprints, grazing, receivers,
-                                   turned)
+                                   spun, turned)
 from ..partition.splits import practical_splits, split_region, split_view, tightened_depth_range
 from ..partition.stable import stable_depth_range, stable_spot_map, stable_sun_map
 from ..types import MAX_MAP_SIDE, EmptyBodyError, Light, SceneBounds, ShadowSetup, View, WarpError, WarpOptions
@@ -42,18 +41,6 @@ def stretched(size: tuple) -> list[tuple[int, int]]:
     """``size``'s texels w·h laid out by each of ``ASPECTS`` (w:h that much wider), those within ``MAX_MAP_SIDE``."""
     laid = [(int(round(size[0] * math.sqrt(a))), int(round(size[1] / math.sqrt(a)))) for a in ASPECTS]
     return [s for s in laid if max(s) <= MAX_MAP_SIDE]
-
-
-def spun(matrix: np.ndarray, points: np.ndarray) -> list[np.ndarray]:
-    """``matrix`` turned about its depth axis by each of ``TURNS``, refitted to the ``points`` in front of its near
-    plane and where their segments cross it (a point light on B is a vertex of B with w = 0: the map's own window)."""
-    s = points @ (matrix[2, :3] + matrix[3, :3]) + matrix[2, 3] + matrix[3, 3]          # w·(z_ndc + 1)
-    f, b = s > 0, s <= 0
-    on = points[f, None] + (points[None, b] - points[f, None]) * (s[f, None] / (s[f, None] - s[None, b]))[..., None]
-    try:
-        return list(fit_to_unit_cube(TURNS @ matrix, np.concatenate([points[f], on.reshape(-1, 3)])))
-    except WarpError:                                                 # (w <= 0 in front of it: left as it is)
-        return []
 
 
 def single(setup: ShadowSetup, **changed) -> ShadowSetup:
@@ -87,9 +74,8 @@ def split_setup(warp: str, view: View, light: Light, body: IntersectionBody, opt
         else stable_spot_map(light, body, size, options.max_frustum_angle)
     if snapped is not None:
         return ShadowSetup([snapped], Diagnostics("uniform", body_vertices=body.vertices))
-    if warp == "psm":
-        options = dataclasses.replace(options, lambda_guard="off")
-    setup = SPLIT_WARPS[warp](view, light, body, options)
+    setup = SPLIT_WARPS[warp](view, light, body, dataclasses.replace(options, lambda_guard="off") if warp == "psm"
+                              else options)
     if stable:                  # a spot split wider than max_frustum_angle
         setup.diagnostics.fallback("stable", f"this split reaches beyond {math.degrees(options.max_frustum_angle):.0f}° "
                                              f"around spot '{light.name}''s axis: its maps are not texel-snapped")
@@ -155,8 +141,8 @@ class Trials:
 
     def candidates(self, split: Split, far: float, laid: bool = True) -> list:
         """(warp, setup, ``footprints`` at the receivers at eye depths [C_i, ``far``)) of each warp ``split`` tried
-        (Lloyd's pick first), each single map ``turned`` to B_i's hull and (``laid``) to its ``grazing`` ones, and
-        (``laid``) each of those ``stretched``."""
+        (Lloyd's pick first), each single map ``turned`` to B_i's hull and (``laid``) to its ``grazing`` ones and (a
+        point or spot light's, edges known) ``spun`` by ``TURNS``, and (``laid``) each of those ``stretched``."""
         maps = sorted(split.tried, key=lambda t: t[1] is not split.setup)
         *at, edges = self.seen                  # the receivers' arrays, and apart the edge samples (point, direction)
         kept, kept_edges = ((d >= split.near) & (d < far) for d in map(self.view.eye_depth, (at[0], edges[:, 0])))
@@ -167,7 +153,7 @@ class Trials:
                              lambda: turned(m.maps[0].matrix, split.body.vertices))
             maps += [(w, single(m, matrix=t)) for t in hull + (turned(m.maps[0].matrix, split.body.vertices,
                                                                       grazing(m, seen, self.light)) if laid else [])
-                     + (spun(m.maps[0].matrix, split.body.vertices) if spin else [])]
+                     + (spun(m.maps[0].matrix, split.body.vertices, TURNS) if spin else [])]
         maps += [(w, single(m, size=size)) for w, m in maps if len(m.maps) == 1 and laid
                  for size in stretched(m.maps[0].size)]
         unique = {}       # (a later copy of a map never wins: the first least wins); by receivers, matrices and sizes
@@ -277,10 +263,9 @@ def cascade_maps(view: View, light: Light, splits: list, options: WarpOptions) -
         if options.cascade_stable and any(tuple(m.size) != s for m, s in zip(made, own)):   # re-snap to the size
             made = split_setup(split.warp, split.view, light, split.body,
                                dataclasses.replace(options, shadow_map_size=own[0])).maps
-        for m, size in zip(made, own):
-            maps.append(dataclasses.replace(m, size=size, view_depth_range=(start, end), blend_band=band,
-                                            role=f"split{i}:{m.role}"))
-            owner.append(i)
+        maps += [dataclasses.replace(m, size=size, view_depth_range=(start, end), blend_band=band,
+                                     role=f"split{i}:{m.role}") for m, size in zip(made, own)]
+        owner += [i] * len(own)
     return maps, owner
 
 

@@ -81,14 +81,13 @@ def filter_losses(setups: list, seen: tuple) -> np.ndarray:
         return np.ones(len(setups))
     m, e, n = jacobians([s.maps[0] for s in setups], seen[4][:, 0]), seen[4][:, 1], seen[4][:, 2]
     v, w = (np.einsum("mnij,nj->mni", m, x) for x in (e, np.cross(n, e)))
-    a = np.degrees(np.arctan2(np.abs(v).min(axis=2), np.abs(v).max(axis=2)))                          # 0..45°
+    aligned = np.clip((20.0 - np.degrees(np.arctan2(np.abs(v).min(axis=2), np.abs(v).max(axis=2)))) / 12.0, 0.0, 1.0)
     with np.errstate(divide="ignore", invalid="ignore"):
         width = np.linalg.norm(v, axis=2) / np.abs(v[..., 0] * w[..., 1] - v[..., 1] * w[..., 0])
     single, evidence = np.array([len(s.maps) == 1 for s in setups]), min(1.0, len(seen[4]) / EDGES)
-    width, aligned = (np.ma.masked_invalid(x).mean(axis=1).filled(f)      # (edges behind a map: left out)
-                      for x, f in ((width, np.nan), (np.clip((20.0 - a) / 12.0, 0.0, 1.0), 0.0)))
+    width, aligned = (np.ma.masked_invalid(x).mean(axis=1).filled(f) for x, f in ((width, np.nan), (aligned, 0.0)))
     wider = np.nan_to_num(width / np.nanmin(width[single], initial=np.inf) - 1.0) * evidence * single
-    return (1.0 + LOSS * aligned * evidence * single) * (1.0 + wider)
+    return (1.0 + LOSS * aligned * evidence * single) * (1.0 + wider)          # (edges behind a map: left out)
 
 
 def grazing(setup: ShadowSetup, seen: tuple, light: Light, top: float = 90.0) -> tuple:
@@ -154,3 +153,15 @@ def turned(matrix: np.ndarray, points: np.ndarray, along: tuple | None = None) -
     c, s = np.cos(angles), np.sin(angles)                              # the turns fitted at once: (K, 4, 4)
     turns = np.stack([np.stack([c, s], -1), np.stack([-s, c], -1)], -2) @ metric @ matrix[:2]
     return list(fit_to_unit_cube(np.concatenate([turns, np.broadcast_to(matrix[2:], (len(c), 2, 4))], 1), points))
+
+
+def spun(matrix: np.ndarray, points: np.ndarray, turns: np.ndarray) -> list[np.ndarray]:
+    """``matrix`` turned about its depth axis by each of ``turns`` (PSM's TURNS), refitted to the ``points`` in front
+    of its near plane and where their segments cross it (a point light on B is a vertex of B, w = 0: its own window)."""
+    s = points @ (matrix[2, :3] + matrix[3, :3]) + matrix[2, 3] + matrix[3, 3]          # w·(z_ndc + 1)
+    f, b = s > 0, s <= 0
+    on = points[f, None] + (points[None, b] - points[f, None]) * (s[f, None] / (s[f, None] - s[None, b]))[..., None]
+    try:
+        return list(fit_to_unit_cube(turns @ matrix, np.concatenate([points[f], on.reshape(-1, 3)])))
+    except WarpError:                                                 # (w <= 0 in front of it: left as it is)
+        return []
