@@ -17,8 +17,7 @@ from addon.warp import WarpOptions
 from addon.warp.aliasing import raster_jacobian
 from addon.warp.methods.cascade import cascade
 from addon.warp.methods.psm import TURNS
-from addon.warp.partition.receivers import filter_losses, spun
-from addon.warp.types import ShadowSetup
+from addon.warp.partition.receivers import spun
 from addon.warp.visibility import focused_body, region_from_boxes
 from hard_cases import HARD_CASES, point
 
@@ -77,13 +76,3 @@ def test_each_turn_of_a_map_whose_light_is_a_vertex_of_b_holds_b_in_front_of_the
         assert (w > 0).all() and (np.abs(h / w[:, None]) <= 1.0 + 1e-6).all()
         assert np.allclose(m[2:], far.matrix[2:], rtol=1e-6, atol=1e-9 * np.abs(far.matrix[2:]).max())
 
-
-def test_shadow_edges_behind_a_map_weigh_nothing_rather_than_unscore_it():
-    """Edges behind a point light's map (w < 0: no image) leave its footprints as they are, as no edges do, for a
-    single map and for several faces alike; a NaN weight made every footprint of the candidate NaN, so that the p95
-    that scores the splits left its receivers out (cube splits of gen44_11_point_low_in_view)."""
-    far = street_lamp()[-1]
-    behind = np.array([[x, -30.0, 0.0] for x in np.linspace(-5.0, 5.0, 25)])            # the lamp is at y = -16
-    edges = np.stack([behind, np.tile([1.0, 0.0, 0.0], (25, 1)), np.tile([0.0, 0.0, 1.0], (25, 1))], 1)
-    assert filter_losses([ShadowSetup([far], None), ShadowSetup([far, far], None)],
-                         (None,) * 4 + (edges,)).tolist() == [1.0, 1.0]
