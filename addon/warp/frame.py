@@ -123,10 +123,9 @@ def light_cone(points: np.ndarray, apex: np.ndarray) -> tuple[np.ndarray, float]
     """Axis and half-angle of a cone from ``apex`` holding B's ``points`` (apex ones ignored; near π: no single cone)."""
     dirs = np.asarray(points, dtype=np.float64) - apex
     norms = np.sqrt(np.einsum("ij,ij->i", dirs, dirs))
-    farthest = float(norms.max())
     # Points at the apex itself (B has the light as a vertex when the light is
     # outside R) have no direction: a rounding error would give them any.
-    far = norms > 1e-7 * farthest
+    far = norms > 1e-7 * float(norms.max())
     dirs = dirs[far] / norms[far, None]
     mid = [(a + b) / 2 for a, b in zip(dirs.min(axis=0).tolist(), dirs.max(axis=0).tolist())]   # (plain floats)
     short = SURROUND_BLEND - math.hypot(*mid)
@@ -162,14 +161,9 @@ def nearest_box_distance(body: IntersectionBody, apex) -> float:
     """The distance from ``apex`` to the nearest caster or receiver box B was built
     from (inf: none): nothing nearer can cast or receive a shadow."""
     apex = np.asarray(apex, dtype=np.float64)
-    nearest = math.inf
-    for selection in (body.culled.casters, body.culled.receivers):
-        if selection.box is None:
-            continue
-        boxes = selection.boxes
-        gap = np.maximum(np.maximum(boxes[:, 0] - apex, apex - boxes[:, 1]), 0.0)
-        nearest = min(nearest, float(np.sqrt(np.einsum("ij,ij->i", gap, gap)).min()))
-    return nearest
+    gaps = [np.maximum(np.maximum(b[:, 0] - apex, apex - b[:, 1]), 0.0)
+            for b in [s.boxes for s in (body.culled.casters, body.culled.receivers) if s.box is not None]]
+    return min([float(np.sqrt(np.einsum("ij,ij->i", g, g)).min()) for g in gaps], default=math.inf)
 
 
 def cube_near_floor(body: IntersectionBody, apex, hyperbolic: bool,
@@ -217,9 +211,8 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
     up = up_across(view, axis)
     inside = body.contains(apex[None], -10.0 * body.tolerance)[0]                  # (strictly inside B)
     if 2 * half <= options.max_frustum_angle and not inside:
-        floor, cuts_a_box = None, True
-        if body.contains(apex[None])[0]:                                              # (on B)
-            floor, cuts_a_box = cube_near_floor(body, apex, not options.linear_z, math.cos(half))
+        floor, cuts_a_box = cube_near_floor(body, apex, not options.linear_z, math.cos(half)) \
+            if body.contains(apex[None])[0] else (None, True)                         # (on B, or outside it)
         return [perspective_frame(apex, axis, up, body.vertices, "main", body.scale, floor, cuts_a_box)]
     axis = axis if body.cube_axis is None else body.cube_axis
     basis = cube_basis(axis, up_across(view, axis))
@@ -236,11 +229,8 @@ def point_frames(view: View, light: Light, body: IntersectionBody, options: Warp
             forward = -turns[f, 2]
             depth = part @ forward
             ahead = depth >= near_floor
-            if inside or not ahead.any():
-                nearest_part = near_floor * (_FACE_RAYS[f] @ basis)
-            else:
-                nearest_part = part[ahead] * (near_floor / depth[ahead])[:, None]
-            part = np.concatenate([part[ahead], nearest_part])
+            part = np.concatenate([part[ahead], near_floor * (_FACE_RAYS[f] @ basis) if inside or not ahead.any()
+                                   else part[ahead] * (near_floor / depth[ahead])[:, None]])
             farthest = float((part @ forward).max())
         to_light = perspective_of(views[f], *near_far(nearest, farthest, near_floor)[:2])
         frames.append(LightFrame(to_light, part + apex, "cube" + CUBE_FACES[f][0], False, clamped and cuts_a_box))

@@ -17,14 +17,14 @@ from ..frame import light_cone
 from ..partition.adaptive import max_error, minimax_splits
 from ..partition.budget import shared_sizes
 from ..partition.receivers import (TAIL, filter_losses, footprint_p95, footprint_p95s, footprints, grazing, receivers,
-                                   turned)
+                                   spun, turned)
 from ..partition.splits import practical_splits, split_region, split_view, tightened_depth_range
 from ..partition.stable import stable_depth_range, stable_spot_map, stable_sun_map
 from ..types import MAX_MAP_SIDE, EmptyBodyError, Light, SceneBounds, ShadowSetup, View, WarpError, WarpOptions
 from ..visibility import VisibleRegion
 from .common import body_diagnostics
 from .lispsm import gmnpr, lispsm
-from .psm import psm
+from .psm import TURNS, psm
 from .uniform import uniform
 
 SPLIT_WARPS = {"uniform": uniform, "lispsm": lispsm, "gmnpr": gmnpr, "psm": psm}
@@ -74,9 +74,8 @@ def split_setup(warp: str, view: View, light: Light, body: IntersectionBody, opt
         else stable_spot_map(light, body, size, options.max_frustum_angle)
     if snapped is not None:
         return ShadowSetup([snapped], Diagnostics("uniform", body_vertices=body.vertices))
-    if warp == "psm":
-        options = dataclasses.replace(options, lambda_guard="off")
-    setup = SPLIT_WARPS[warp](view, light, body, options)
+    setup = SPLIT_WARPS[warp](view, light, body, dataclasses.replace(options, lambda_guard="off") if warp == "psm"
+                              else options)
     if stable:                  # a spot split wider than max_frustum_angle
         setup.diagnostics.fallback("stable", f"this split reaches beyond {math.degrees(options.max_frustum_angle):.0f}° "
                                              f"around spot '{light.name}''s axis: its maps are not texel-snapped")
@@ -142,17 +141,19 @@ class Trials:
 
     def candidates(self, split: Split, far: float, laid: bool = True) -> list:
         """(warp, setup, ``footprints`` at the receivers at eye depths [C_i, ``far``)) of each warp ``split`` tried
-        (Lloyd's pick first), each single map ``turned`` to B_i's hull and (``laid``) to its ``grazing`` ones, and
-        (``laid``) each of those ``stretched``."""
+        (Lloyd's pick first), each single map ``turned`` to B_i's hull and (``laid``) to its ``grazing`` ones and (a
+        point or spot light's, edges known) ``spun`` by ``TURNS``, and (``laid``) each of those ``stretched``."""
         maps = sorted(split.tried, key=lambda t: t[1] is not split.setup)
         *at, edges = self.seen                  # the receivers' arrays, and apart the edge samples (point, direction)
         kept, kept_edges = ((d >= split.near) & (d < far) for d in map(self.view.eye_depth, (at[0], edges[:, 0])))
         seen = (*(x[kept] for x in at), edges[kept_edges])
+        spin = laid and len(seen[4]) and not self.light.is_directional
         for w, m in [(w, m) for w, m in maps if len(m.maps) == 1]:
             hull = self.once(("turned", split.near, split.far + split.band, w),
                              lambda: turned(m.maps[0].matrix, split.body.vertices))
             maps += [(w, single(m, matrix=t)) for t in hull + (turned(m.maps[0].matrix, split.body.vertices,
-                                                                      grazing(m, seen, self.light)) if laid else [])]
+                                                                      grazing(m, seen, self.light)) if laid else [])
+                     + (spun(m.maps[0].matrix, split.body.vertices, TURNS) if spin else [])]
         maps += [(w, single(m, size=size)) for w, m in maps if len(m.maps) == 1 and laid
                  for size in stretched(m.maps[0].size)]
         unique = {}       # (a later copy of a map never wins: the first least wins); by receivers, matrices and sizes
@@ -262,10 +263,9 @@ def cascade_maps(view: View, light: Light, splits: list, options: WarpOptions) -
         if options.cascade_stable and any(tuple(m.size) != s for m, s in zip(made, own)):   # re-snap to the size
             made = split_setup(split.warp, split.view, light, split.body,
                                dataclasses.replace(options, shadow_map_size=own[0])).maps
-        for m, size in zip(made, own):
-            maps.append(dataclasses.replace(m, size=size, view_depth_range=(start, end), blend_band=band,
-                                            role=f"split{i}:{m.role}"))
-            owner.append(i)
+        maps += [dataclasses.replace(m, size=size, view_depth_range=(start, end), blend_band=band,
+                                     role=f"split{i}:{m.role}") for m, size in zip(made, own)]
+        owner += [i] * len(own)
     return maps, owner
 
 

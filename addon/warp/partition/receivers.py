@@ -153,3 +153,15 @@ def turned(matrix: np.ndarray, points: np.ndarray, along: tuple | None = None) -
     c, s = np.cos(angles), np.sin(angles)                              # the turns fitted at once: (K, 4, 4)
     turns = np.stack([np.stack([c, s], -1), np.stack([-s, c], -1)], -2) @ metric @ matrix[:2]
     return list(fit_to_unit_cube(np.concatenate([turns, np.broadcast_to(matrix[2:], (len(c), 2, 4))], 1), points))
+
+
+def spun(matrix: np.ndarray, points: np.ndarray, turns: np.ndarray) -> list[np.ndarray]:
+    """``matrix`` turned about its depth axis by each of ``turns`` (PSM's TURNS), refitted to the ``points`` in front
+    of its near plane and where their segments cross it (a point light on B is a vertex of B, w = 0: its own window)."""
+    s = points @ (matrix[2, :3] + matrix[3, :3]) + matrix[2, 3] + matrix[3, 3]          # w·(z_ndc + 1)
+    f, b = s > 0, s <= 0
+    on = points[f, None] + (points[None, b] - points[f, None]) * (s[f, None] / (s[f, None] - s[None, b]))[..., None]
+    try:
+        return list(fit_to_unit_cube(turns @ matrix, np.concatenate([points[f], on.reshape(-1, 3)])))
+    except WarpError:                                                 # (w <= 0 in front of it: left as it is)
+        return []
