@@ -28,11 +28,9 @@ def window_matrices(lo: list, hi: list) -> np.ndarray:
     """``window_matrix`` for several boxes given as lists of float 3-lists, (k, 4, 4); each axis padded by
     ``NDC_PAD`` of its extent, or of a millionth of the box's largest extent if more (a flat box)."""
     entries = []
-    for (x0, y0, z0), (x1, y1, z1) in zip(lo, hi):
-        least = max(x1 - x0, y1 - y0, z1 - z0, 0.0) * 1e-6
-        sx, ox = _axis_window(x0, x1, least)
-        sy, oy = _axis_window(y0, y1, least)
-        sz, oz = _axis_window(z0, z1, least)
+    for low, high in zip(lo, hi):
+        least = max(*(b - a for a, b in zip(low, high)), 0.0) * 1e-6
+        (sx, ox), (sy, oy), (sz, oz) = (_axis_window(a, b, least) for a, b in zip(low, high))
         entries += [sx, 0.0, 0.0, ox, 0.0, sy, 0.0, oy, 0.0, 0.0, sz, oz, 0.0, 0.0, 0.0, 1.0]
     return np.array(entries).reshape(-1, 4, 4)
 

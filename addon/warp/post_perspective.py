@@ -59,9 +59,8 @@ class VirtualCamera:
 
 def virtual_camera(view: View, body: IntersectionBody, visible_near: float | None = None) -> VirtualCamera:
     """The shifted camera of §4.2 and §6; ``visible_near``: d_R (default: R's nearest depth)."""
-    origin = view.position
     to_camera = view.world_to_camera[:3, :3]                # camera-relative world -> camera axes
-    b_rel = body.vertices - origin
+    b_rel = body.vertices - view.position
     b_depth = -(b_rel @ to_camera[2])
     if visible_near is None:
         visible_near = view.eye_depth(body.visible_vertices).min()

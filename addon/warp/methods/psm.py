@@ -180,6 +180,5 @@ def _pps_report(warp: PSMWarp) -> dict:
 def _uniform_fallback(view: View, light: Light, body: IntersectionBody, options: WarpOptions,
                       diag: Diagnostics, what: str, reason: str) -> ShadowSetup:
     diag.fallback(what, reason)
-    setup = uniform_setup(view, light, body, options, diag)
     diag.extra["psm_applied"] = False
-    return setup
+    return uniform_setup(view, light, body, options, diag)

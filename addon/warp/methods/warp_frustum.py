@@ -213,9 +213,8 @@ def _eye_and_fade(eye: tuple, box) -> tuple[tuple, float]:
 def _image_direction(v, s: float) -> tuple[float, float]:
     """The unit image-plane direction along ``v`` (sine ``s`` to the light), blended into the frame's +y as s falls
     below PARALLEL_BLEND (+y for a zero or infinite ``v``)."""
-    vx, vy = v
-    length = math.hypot(vx, vy)
-    vx, vy = (vx / length, vy / length) if length > 0 and math.isfinite(length) else (0.0, 1.0)
+    length = math.hypot(*v)
+    vx, vy = (v[0] / length, v[1] / length) if length > 0 and math.isfinite(length) else (0.0, 1.0)
     bx, by = s * vx, s * vy + max(0.0, PARALLEL_BLEND - s)
     length = math.hypot(bx, by)
     return (bx / length, by / length) if length > 1e-12 else (0.0, 1.0)
@@ -252,12 +251,9 @@ def rule_lispsm(g: FrameGeometry, ctx: WarpContext, phi: Optional[float], option
 
 
 def _forced(options: WarpOptions) -> Optional[float]:
-    if options.lam is None:
-        return None
-    lam = float(options.lam)
-    if not lam > 0:
+    if options.lam is not None and not float(options.lam) > 0:
         raise WarpError(f"the forced λ must be positive (got {options.lam}); leave it unset for Eq. 8")
-    return lam
+    return None if options.lam is None else float(options.lam)
 
 
 def rule_gmnpr(g: FrameGeometry, ctx: WarpContext, phi: float, options: WarpOptions) -> float:

@@ -50,8 +50,9 @@ def footprints(setups: list, seen: tuple) -> list[np.ndarray]:
     """Screen pixels per texel σ_max(G·H⁻¹) of each of ``setups`` at the ``receivers`` ``seen``, H = D_map·T of the map
     serving each (inf edge-on, NaN unserved): the judge's ``addon.measure.footprint`` (PSM §1.1), in one batch."""
     p, _, tangent, g, _ = seen
-    h = jacobians([m for s in setups for m in s.maps], p) @ tangent
-    j = g @ np.stack([h[..., 1, 1], -h[..., 0, 1], -h[..., 1, 0], h[..., 0, 0]], -1).reshape(h.shape)   # G·H⁻¹·det H
+    # H = D_M·T, and j = H·Rᵀ·Gᵀ = R·(G·adj H)ᵀ, R the quarter turn: G·H⁻¹·det H's singular values, its determinant
+    trg = tangent @ np.array([[0.0, -1.0], [1.0, 0.0]]) @ np.swapaxes(g, 1, 2)                          # T·Rᵀ·Gᵀ
+    h, j = np.split(jacobians([m for s in setups for m in s.maps], p, np.concatenate([tangent, trg], 2)), 2, axis=3)
     f2, det_j, det_h = entries(j * j, np.add), det2(j), np.abs(det2(h))
     with np.errstate(divide="ignore", invalid="ignore"):
         sigma = np.sqrt((f2 + np.sqrt(np.maximum(f2 * f2 - 4.0 * det_j * det_j, 0.0))) / 2.0) / det_h
@@ -61,12 +62,21 @@ def footprints(setups: list, seen: tuple) -> list[np.ndarray]:
     return list(np.where(served >= 0, sigma[first + served, np.arange(len(p))], np.nan))
 
 
-def jacobians(maps: list, points: np.ndarray) -> np.ndarray:
-    """(M, N, 2, 3) ``raster_jacobian`` of each of ``maps``, each matrix's once (a map laid out anew keeps it)."""
-    first, index = np.unique([id(m.matrix) for m in maps], return_index=True, return_inverse=True)[1:]
-    d = raster_jacobian([maps[i].matrix for i in first], [(2, 2)] * len(first), points)[index]
-    half = np.repeat(np.array([m.size for m in maps], dtype=np.float64) / 2.0, 3, axis=1)   # (w, w, w, h, h, h) / 2
-    return (d.reshape(len(maps), -1, 6) * half[:, None]).reshape(d.shape)     # (one multiply, not one per map)
+def jacobians(maps: list, points: np.ndarray, vectors: np.ndarray | None = None) -> np.ndarray:
+    """(M, N, 2, k) D_M·``vectors`` (N, 3, k; None: D_M) of each of ``maps`` at the ``points``: one ``raster_jacobian``
+    per group with equal z, w rows and x, y rows A·(x, y rows) + t ⊗ (w row) of its first's (turns), A·D_M for each."""
+    matrix = np.array([m.matrix for m in maps], dtype=np.float64)
+    base, group = np.unique(matrix[:, 2:].reshape(-1, 8), axis=0, return_index=True, return_inverse=True)[1:]
+    # x, y rows A·(x, y) + t·w over the same w: d(x/w, y/w) = A·d(x/w, y/w) + t·d(w/w), A times the first's D_M
+    c = matrix[:, :2] @ np.linalg.pinv(xyw := matrix[base][:, [0, 1, 3]])[group]             # [A | t], (M, 2, 3)
+    alike = np.abs(c @ xyw[group] - matrix[:, :2]).max(axis=(1, 2)) <= 1e-12 * np.abs(matrix[:, :2]).max(axis=(1, 2))
+    bases, group = np.unique(np.where(alike, base[group], np.arange(len(maps))), return_inverse=True)
+    d = raster_jacobian(matrix[bases], [(2, 2)] * len(bases), points)
+    d = d if vectors is None else d @ vectors                                                 # (G, N, 2, k)
+    a = np.where(np.all(matrix == matrix[bases[group]], axis=(1, 2))[:, None, None], np.eye(2), c[..., :2])
+    a *= np.array([m.size for m in maps], dtype=np.float64)[:, :, None] / 2.0                 # diag(w, h)/2·A
+    images = a @ np.moveaxis(d, 2, 1).reshape(len(bases), 2, d.shape[1] * d.shape[3])[group]   # (M, 2, N·k)
+    return np.moveaxis(images.reshape(len(maps), 2, *d.shape[1::2]), 1, 2)
 
 
 def filter_losses(setups: list, seen: tuple) -> np.ndarray:
@@ -79,8 +89,8 @@ def filter_losses(setups: list, seen: tuple) -> np.ndarray:
     single maps' (shrunk alike): the wrong pixels follow Σ |Jᵀn|·E|δ(a)| (docs/papers.md, "The far split's edges")."""
     if not len(seen[4]) or not setups:
         return np.ones(len(setups))
-    m, e, n = jacobians([s.maps[0] for s in setups], seen[4][:, 0]), seen[4][:, 1], seen[4][:, 2]
-    v, w = (np.einsum("mnij,nj->mni", m, x) for x in (e, np.cross(n, e)))
+    e, n = seen[4][:, 1], seen[4][:, 2]
+    v, w = np.moveaxis(jacobians([s.maps[0] for s in setups], seen[4][:, 0], np.stack([e, np.cross(n, e)], 2)), 3, 0)
     a = np.degrees(np.arctan2(np.abs(v).min(axis=2), np.abs(v).max(axis=2)))                          # 0..45°
     with np.errstate(divide="ignore", invalid="ignore"):
         width = np.linalg.norm(v, axis=2) / np.abs(v[..., 0] * w[..., 1] - v[..., 1] * w[..., 0])
