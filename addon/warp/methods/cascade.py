@@ -141,13 +141,13 @@ class Trials:
 
     def candidates(self, split: Split, far: float, laid: bool = True) -> list:
         """(warp, setup, ``footprints`` at the receivers at eye depths [C_i, ``far``)) of each warp ``split`` tried
-        (Lloyd's pick first), each single map ``turned`` to B_i's hull and (``laid``) to its ``grazing`` ones and (edges
-        known) ``spun`` by ``TURNS``, and (``laid``) each of those ``stretched``."""
+        (Lloyd's pick first), each single map ``turned`` to B_i's hull and (``laid``) to its ``grazing`` ones and (a
+        point or spot light's, edges known) ``spun`` by ``TURNS``, and (``laid``) each of those ``stretched``."""
         maps = sorted(split.tried, key=lambda t: t[1] is not split.setup)
         *at, edges = self.seen                  # the receivers' arrays, and apart the edge samples (point, direction)
         kept, kept_edges = ((d >= split.near) & (d < far) for d in map(self.view.eye_depth, (at[0], edges[:, 0])))
         seen = (*(x[kept] for x in at), edges[kept_edges])
-        spin = laid and len(seen[4])
+        spin = laid and len(seen[4]) and not self.light.is_directional
         for w, m in [(w, m) for w, m in maps if len(m.maps) == 1]:
             hull = self.once(("turned", split.near, split.far + split.band, w),
                              lambda: turned(m.maps[0].matrix, split.body.vertices))
