@@ -95,7 +95,7 @@ def filter_losses(setups: list, seen: tuple) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         width = np.linalg.norm(v, axis=2) / np.abs(v[..., 0] * w[..., 1] - v[..., 1] * w[..., 0])
     single, evidence = np.array([len(s.maps) == 1 for s in setups]), min(1.0, len(seen[4]) / EDGES)
-    width = np.ma.masked_invalid(width).mean(axis=1).filled(np.nan)   # means over the edges in front of each map
+    width = np.ma.masked_invalid(width).mean(axis=1).filled(np.nan)  # over the edges in front of it (none: no loss)
     wider = np.nan_to_num(width / np.nanmin(width[single], initial=np.inf) - 1.0) * evidence * single
     return (1.0 + LOSS * np.ma.masked_invalid(aligned).mean(axis=1).filled(0.0) * evidence * single) * (1.0 + wider)
 
