@@ -91,13 +91,13 @@ def filter_losses(setups: list, seen: tuple) -> np.ndarray:
         return np.ones(len(setups))
     e, n = seen[4][:, 1], seen[4][:, 2]
     v, w = np.moveaxis(jacobians([s.maps[0] for s in setups], seen[4][:, 0], np.stack([e, np.cross(n, e)], 2)), 3, 0)
-    a = np.degrees(np.arctan2(np.abs(v).min(axis=2), np.abs(v).max(axis=2)))                          # 0..45°
+    aligned = np.clip((20.0 - np.degrees(np.arctan2(np.abs(v).min(axis=2), np.abs(v).max(axis=2)))) / 12.0, 0.0, 1.0)
     with np.errstate(divide="ignore", invalid="ignore"):
         width = np.linalg.norm(v, axis=2) / np.abs(v[..., 0] * w[..., 1] - v[..., 1] * w[..., 0])
     single, evidence = np.array([len(s.maps) == 1 for s in setups]), min(1.0, len(seen[4]) / EDGES)
-    width = np.nanmean(np.where(np.isfinite(width), width, np.nan), axis=1)
+    width = np.ma.masked_invalid(width).mean(axis=1).filled(np.nan)  # over the edges in front of it (none: no loss)
     wider = np.nan_to_num(width / np.nanmin(width[single], initial=np.inf) - 1.0) * evidence * single
-    return (1.0 + LOSS * np.nanmean(np.clip((20.0 - a) / 12.0, 0.0, 1.0), axis=1) * evidence * single) * (1.0 + wider)
+    return (1.0 + LOSS * np.ma.masked_invalid(aligned).mean(axis=1).filled(0.0) * evidence * single) * (1.0 + wider)
 
 
 def grazing(setup: ShadowSetup, seen: tuple, light: Light, top: float = 90.0) -> tuple:
