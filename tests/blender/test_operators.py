@@ -427,6 +427,21 @@ print("RELOADED", json.dumps({"modifiers": [m.name for m in ob.modifiers],
 """
 
 
+def _overridden_from_library(scene, coll, path):
+    """``coll`` written to the library file ``path`` and removed here with its objects and their meshes, then linked
+    back and overridden (Object > Library Override > Make): (the library, the override's collection)."""
+    bpy.data.libraries.write(str(path), {coll})
+    name, meshes = coll.name, [ob.data for ob in coll.objects]
+    for ob in list(coll.objects):
+        bpy.data.objects.remove(ob)
+    for me in meshes:
+        bpy.data.meshes.remove(me)
+    bpy.data.collections.remove(coll)
+    with bpy.data.libraries.load(str(path), link=True) as (_src, dst):
+        dst.collections = [name]
+    return dst.collections[0].library, dst.collections[0].override_hierarchy_create(scene, bpy.context.view_layer)
+
+
 @pytest.mark.parametrize("mesh_too", [False, True, None], ids=["linked mesh", "overridden mesh",
                                                                "a local object's linked mesh"])
 def test_texel_grid_on_a_library_override_is_saved_and_leaves_its_mesh_as_it_is(scene, mods, tmp_path, capfd,
@@ -442,14 +457,7 @@ def test_texel_grid_on_a_library_override_is_saved_and_leaves_its_mesh_as_it_is(
     me.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
     coll = bpy.data.collections.new("override coll")
     coll.objects.link(bpy.data.objects.new("override block", me))
-    bpy.data.libraries.write(str(tmp_path / "library.blend"), {coll})
-    bpy.data.objects.remove(coll.objects[0])
-    bpy.data.meshes.remove(me)
-    bpy.data.collections.remove(coll)
-    with bpy.data.libraries.load(str(tmp_path / "library.blend"), link=True) as (_src, dst):
-        dst.collections = ["override coll"]
-    library = dst.collections[0].library
-    override = dst.collections[0].override_hierarchy_create(scene, bpy.context.view_layer)
+    library, override = _overridden_from_library(scene, coll, tmp_path / "library.blend")
     ob = override.objects[0]
     if mesh_too:
         ob.data = ob.data.override_create(remap_local_usages=True)
@@ -500,14 +508,7 @@ def test_remove_texel_grid_says_an_override_cannot_remove_the_grid_its_library_g
     scene.collection.children.link(coll)
     _select_only(scene, [coll.objects[0].name, ground.name])
     assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
-    bpy.data.libraries.write(str(tmp_path / "assets.blend"), {coll})
-    bpy.data.objects.remove(coll.objects[0])
-    bpy.data.meshes.remove(me)
-    bpy.data.collections.remove(coll)
-    with bpy.data.libraries.load(str(tmp_path / "assets.blend"), link=True) as (_src, dst):
-        dst.collections = ["gridded coll"]
-    library = dst.collections[0].library
-    override = dst.collections[0].override_hierarchy_create(scene, bpy.context.view_layer)
+    library, override = _overridden_from_library(scene, coll, tmp_path / "assets.blend")
     ob = override.objects[0]
     try:
         said = (r"'gridded block' has its texel grid from assets.blend, which a library override cannot remove \(it "
