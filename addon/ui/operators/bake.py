@@ -143,9 +143,8 @@ def linked_note(linked: list) -> str:
 
 def workbench_note(overrides: list) -> str:
     """Where the texel grid on ``overrides`` (library overrides, or local objects, whose meshes are not the file's
-    own: ``nodes.is_files_own``)
-    shows: the modifier and material do, but Workbench's Attribute colour reads the colour attribute the mesh names,
-    which Lixel cannot name on a mesh it would not be saved with."""
+    own: ``nodes.is_files_own``) shows: the modifier and material do, but Workbench's Attribute colour reads the
+    colour attribute the mesh names, which Lixel cannot name on a mesh it would not be saved with."""
     libraries = ", ".join(sorted({(ob.data.library or ob.data.override_library.reference.library).name
                                   for ob in overrides}))
     names = nodes.listed([repr(name) for name in sorted(ob.name for ob in overrides)])
