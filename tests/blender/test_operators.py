@@ -579,6 +579,58 @@ def test_a_full_copy_of_the_scene_keeps_its_texel_grid_following_sync_and_bake_r
             bpy.data.collections.remove(c)
 
 
+def _mesh_co(mesh):
+    co = np.zeros(len(mesh.vertices) * 3)
+    mesh.vertices.foreach_get("co", co)
+    return co
+
+
+def test_a_linked_copy_of_the_scene_leaves_the_first_scenes_grid_and_baked_objects_alone(scene, mods, capfd):
+    """Scene > New > Linked Copy links the same "Lixel Debug" collection (and the same objects) into the new scene.
+    Sync and Bake in the copy, set to another method, rewrote the first scene's carrier and baked B: its texel grid
+    and B showed the copy's setup without a word. The copy takes its own collection now; the ground both scenes
+    hold follows one scene's matrices, and Sync in the other says so, naming it and what to do."""
+    nodes = mods.nodes
+    ground = scene.objects["lixel_ops ground"]
+    _select_only(scene, [ground.name])
+    assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"} and bpy.ops.lixel.bake_debug() == {"FINISHED"}
+    coll = bpy.data.collections["Lixel Debug"]
+    first = {ob.name: _mesh_co(ob.data) for ob in coll.objects}
+    texels = _evaluated_texels(ground, nodes)
+    window = bpy.context.window
+    assert bpy.ops.scene.new(type="LINK_COPY") == {"FINISHED"}
+    copy = window.scene
+    try:
+        copy.lixel.method = "uniform" if scene.lixel.method != "uniform" else "psm"
+        capfd.readouterr()
+        assert bpy.ops.lixel.sync_matrices() == {"FINISHED"} and bpy.ops.lixel.bake_debug() == {"FINISHED"}
+        out = capfd.readouterr().out
+        np.testing.assert_array_equal(_evaluated_texels(ground, nodes), texels)
+        assert {ob.name: _mesh_co(ob.data) for ob in coll.objects}.keys() == first.keys()
+        for name, co in first.items():
+            np.testing.assert_array_equal(_mesh_co(coll.objects[name].data), co)
+        own = copy.lixel.debug_collection
+        assert own != coll and own.name in copy.collection.children and coll.name not in copy.collection.children
+        assert "'lixel_ops ground' (scene 'lixel_ops') follows the light matrices of another scene" in out, out
+        assert "Add Texel Grid" in out, out
+        window.scene = scene
+        capfd.readouterr()
+        assert bpy.ops.lixel.sync_matrices() == {"FINISHED"} and bpy.ops.lixel.bake_debug() == {"FINISHED"}
+        assert "Warning" not in capfd.readouterr().out
+        assert scene.lixel.debug_collection == coll and coll.name in scene.collection.children
+    finally:
+        window.scene = scene
+        own = copy.lixel.debug_collection
+        bpy.data.scenes.remove(copy)
+        if own is not None and own != coll:
+            for ob in list(own.objects):
+                mesh = ob.data
+                bpy.data.objects.remove(ob)
+                if mesh is not None and mesh.users == 0:
+                    bpy.data.meshes.remove(mesh)
+            bpy.data.collections.remove(own)
+
+
 def test_reset_settings_keeps_light_and_planes(scene):
     props = scene.lixel
     props.pcf_kernel = 5

@@ -32,6 +32,13 @@ class MatrixOperator(LixelSceneOperator):
             self.report({"INFO"}, f"Lixel: {nodes.listed([repr(n) for n in again])} followed no light matrices (the "
                                   f"'{nodes.CARRIER_NAME}' object they followed was deleted): they follow "
                                   f"'{carrier.name}' again")
+        if others := nodes.followers_of_other_scenes(bpy.context.scene.objects, carrier):
+            one = len(others) == 1
+            self.report({"WARNING"}, f"Lixel: {nodes.listed([f'{n!r} (scene {s!r})' for n, s in others.items()])} "
+                                     f"follow{'s' if one else ''} the light matrices of another scene that "
+                                     f"{'it is' if one else 'they are'} in too, not this one's: an object shows one "
+                                     f"scene's; select {'it' if one else 'them'} here and Add Texel Grid (a frustum: "
+                                     f"Add Frustum From Matrix) to follow this scene's")
         count = len(st.setup.maps)
         if stale := nodes.followers_of_missing_maps(carrier, count):
             one = len(stale) == 1
@@ -204,6 +211,10 @@ class LIXEL_OT_texel_grid_add(MatrixOperator, bpy.types.Operator):
         if st is None:
             return {"CANCELLED"}
         carrier = nodes.ensure_carrier(context.scene, st.setup)
+        if others := nodes.followers_of_other_scenes(meshes, carrier):
+            self.report({"WARNING"}, f"Lixel: {nodes.listed([f'{n!r} (scene {s!r})' for n, s in others.items()])} "
+                                     f"showed the texel grid of another scene's light matrices: an object shows one "
+                                     f"scene's, this scene's from now on, in every scene it is in")
         said = []
         for ob in meshes:
             nodes.add_texel_grid(ob, carrier, self.map_index, said)
