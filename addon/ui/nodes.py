@@ -665,10 +665,11 @@ def reattach_orphans(scene, carrier) -> list:
     return out
 
 
-def followers_of_other_scenes(objects, carrier) -> dict:
-    """{object name: the other scene's name} for each of ``objects`` whose Lixel frustum or texel-grid modifier follows
-    a carrier other than ``carrier`` (this scene's) that another scene holds: an object in several scenes (a Linked
-    Copy's, or linked to both) shows one scene's matrices, and Sync here does not move it."""
+def followers_of_other_carriers(objects, carrier, scene) -> dict:
+    """{object name: (carrier name, its scene's name or "")} for each of ``objects`` whose Lixel frustum or texel-grid modifier follows a
+    carrier other than ``carrier``, ``scene``'s, which Sync does not write: another scene's (an object in several
+    scenes, a Linked Copy's, shows one scene's matrices: "" where this scene holds it) or one the user renamed or
+    copied (the user's from then on)."""
     out = {}
     for ob in (ob for ob in objects if ob.library is None):
         for name in (FRUSTUM_MODIFIER, TEXEL_MODIFIER):
@@ -677,8 +678,9 @@ def followers_of_other_scenes(objects, carrier) -> dict:
                 other = None if mod is None else mod[_input(mod.node_group, "Light Matrices")]
             except KeyError:    # a group of Lixel's that someone took the input out of
                 continue
-            if other is not None and other != carrier and other.users_scene:
-                out[ob.name] = other.users_scene[0].name
+            if other is not None and other != carrier:
+                scenes = [s.name for s in other.users_scene]
+                out[ob.name] = other.name, scenes[0] if scenes and scene.name not in scenes else ""
     return out
 
 

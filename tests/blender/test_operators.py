@@ -611,8 +611,9 @@ def test_a_linked_copy_of_the_scene_leaves_the_first_scenes_grid_and_baked_objec
             np.testing.assert_array_equal(_mesh_co(coll.objects[name].data), co)
         own = copy.lixel.debug_collection
         assert own != coll and own.name in copy.collection.children and coll.name not in copy.collection.children
-        assert "'lixel_ops ground' (scene 'lixel_ops') follows the light matrices of another scene" in out, out
-        assert "Add Texel Grid" in out, out
+        assert ("'lixel_ops ground' (follows 'Lixel Light Matrices' of scene 'lixel_ops') shows light matrices that "
+                f"are not this scene's '{own.objects[0].name}', so it does not follow the setup: select it and Add "
+                "Texel Grid") in out, out
         window.scene = scene
         capfd.readouterr()
         assert bpy.ops.lixel.sync_matrices() == {"FINISHED"} and bpy.ops.lixel.bake_debug() == {"FINISHED"}
@@ -629,6 +630,28 @@ def test_a_linked_copy_of_the_scene_leaves_the_first_scenes_grid_and_baked_objec
                 if mesh is not None and mesh.users == 0:
                     bpy.data.meshes.remove(mesh)
             bpy.data.collections.remove(own)
+
+
+def test_sync_names_a_texel_grid_that_follows_a_carrier_the_user_renamed(scene, mods, capfd):
+    """The user renamed Lixel's "Lixel Light Matrices" (it is theirs from then on: Lixel never rewrites it). Sync
+    wrote a new carrier and said "1 matrices synced", while the texel grid kept following the renamed one and showed
+    the old matrices without a word. Sync names it and what to do; Add Texel Grid makes it follow again."""
+    nodes = mods.nodes
+    ground = scene.objects["lixel_ops ground"]
+    _select_only(scene, [ground.name])
+    assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+    texels = _evaluated_texels(ground, nodes)
+    bpy.data.objects["Lixel Light Matrices"].name = "my matrices"
+    scene.objects["lixel_ops light"].rotation_euler.x += 0.3
+    capfd.readouterr()
+    assert bpy.ops.lixel.sync_matrices() == {"FINISHED"}
+    assert ("Warning: Lixel: 'lixel_ops ground' (follows 'my matrices') shows light matrices that are not this "
+            "scene's 'Lixel Light Matrices', so it does not follow the setup: select it and Add Texel Grid (a "
+            "frustum: Add Frustum From Matrix) to follow it") in capfd.readouterr().out
+    np.testing.assert_array_equal(_evaluated_texels(ground, nodes), texels)
+    assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"} and bpy.ops.lixel.sync_matrices() == {"FINISHED"}
+    assert "Warning" not in capfd.readouterr().out
+    assert np.abs(_evaluated_texels(ground, nodes) - texels).max() > 1.0
 
 
 def test_reset_settings_keeps_light_and_planes(scene):

@@ -27,18 +27,21 @@ class MatrixOperator(LixelSceneOperator):
         """Reattach the scene's frusta and texel grids that follow no carrier (``nodes.reattach_orphans``: the
         carrier object was deleted), saying so, and a warning naming each object that follows a map ``carrier``
         (holding ``st``'s maps) no longer holds: a frustum showed a 2-unit cube at the origin, a texel grid the
-        colours of no map's texels, and nothing said why."""
+        colours of no map's texels, and nothing said why. Likewise each object following light matrices Sync does
+        not write (``nodes.followers_of_other_carriers``: another scene's, or a carrier the user renamed): Sync
+        said the matrices were synced while such a grid stayed as it was."""
         if again := nodes.reattach_orphans(bpy.context.scene, carrier):
             self.report({"INFO"}, f"Lixel: {nodes.listed([repr(n) for n in again])} followed no light matrices (the "
                                   f"'{nodes.CARRIER_NAME}' object they followed was deleted): they follow "
                                   f"'{carrier.name}' again")
-        if others := nodes.followers_of_other_scenes(bpy.context.scene.objects, carrier):
+        if others := nodes.followers_of_other_carriers(bpy.context.scene.objects, carrier, bpy.context.scene):
             one = len(others) == 1
-            self.report({"WARNING"}, f"Lixel: {nodes.listed([f'{n!r} (scene {s!r})' for n, s in others.items()])} "
-                                     f"follow{'s' if one else ''} the light matrices of another scene that "
-                                     f"{'it is' if one else 'they are'} in too, not this one's: an object shows one "
-                                     f"scene's; select {'it' if one else 'them'} here and Add Texel Grid (a frustum: "
-                                     f"Add Frustum From Matrix) to follow this scene's")
+            named = nodes.listed([f"{n!r} (follows {followed(*c)})" for n, c in others.items()])
+            self.report({"WARNING"}, f"Lixel: {named} "
+                                     f"show{'s' if one else ''} light matrices that are not this scene's "
+                                     f"'{carrier.name}', so {'it does' if one else 'they do'} not follow the setup: "
+                                     f"select {'it' if one else 'them'} and Add Texel Grid (a frustum: Add Frustum "
+                                     f"From Matrix) to follow it (an object in several scenes follows one)")
         count = len(st.setup.maps)
         if stale := nodes.followers_of_missing_maps(carrier, count):
             one = len(stale) == 1
@@ -48,6 +51,11 @@ class MatrixOperator(LixelSceneOperator):
                                      f"what {'it shows' if one else 'they show'} belongs to no map; add "
                                      f"{'it' if one else 'them'} again for one of its maps, or delete "
                                      f"{'it' if one else 'them'}")
+
+
+def followed(carrier: str, scene: str) -> str:
+    """A carrier ``nodes.followers_of_other_carriers`` found, in words."""
+    return f"'{carrier}'" + (f" of scene '{scene}'" if scene else "")
 
 
 def mesh_from_polygons(name, polygons, scene):
@@ -211,10 +219,12 @@ class LIXEL_OT_texel_grid_add(MatrixOperator, bpy.types.Operator):
         if st is None:
             return {"CANCELLED"}
         carrier = nodes.ensure_carrier(context.scene, st.setup)
-        if others := nodes.followers_of_other_scenes(meshes, carrier):
-            self.report({"WARNING"}, f"Lixel: {nodes.listed([f'{n!r} (scene {s!r})' for n, s in others.items()])} "
-                                     f"showed the texel grid of another scene's light matrices: an object shows one "
-                                     f"scene's, this scene's from now on, in every scene it is in")
+        if others := {n: c for n, c in nodes.followers_of_other_carriers(meshes, carrier, context.scene).items()
+                      if c[1]}:
+            named = nodes.listed([f"{n!r} (followed {followed(*c)})" for n, c in others.items()])
+            self.report({"WARNING"}, f"Lixel: {named} "
+                                     f"showed another scene's light matrices: an object follows one scene's, this "
+                                     f"scene's from now on, in every scene it is in")
         said = []
         for ob in meshes:
             nodes.add_texel_grid(ob, carrier, self.map_index, said)
