@@ -235,6 +235,25 @@ def test_a_nan_setting_from_a_script_is_refused_by_name(lixel, mods, name, label
             mods.settings.ShadowSettings(**{name: float("nan")})
 
 
+@pytest.mark.parametrize("light", ["SUN", "SPOT"])
+@pytest.mark.parametrize("field, value", [("energy", float("nan")), ("color", (1.0, float("nan"), 1.0))])
+def test_a_light_a_script_gave_a_nan_strength_or_colour_is_named(lixel, light, field, value):
+    """``light.data.energy = a / b`` with b = 0 in a script: Blender's field takes the NaN, and F12 rendered the frame
+    black (every pixel 0) without a word, the panel's Refresh as if nothing were wrong. The light is named with what
+    to do."""
+    with active_scene("lixel_nan_light", light=light) as scene:
+        scene.lixel.initialised = True
+        scene.render.engine = "LIXEL"
+        scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 32, 18, 100
+        setattr(scene.objects["lixel_nan_light light"].data, field, value)
+        for op in (bpy.ops.lixel.refresh, bpy.ops.render.render):
+            with pytest.raises(RuntimeError, match=r"Lixel: Light 'lixel_nan_light light' has a strength or colour "
+                                                   r"of NaN or infinity \(set from a script\?\), which lit nothing "
+                                                   r"and rendered black: give it a number \(Light properties > "
+                                                   r"Power/Strength, Color, Exposure\)"):
+                op()
+
+
 def test_the_panel_and_the_cli_take_one_max_frustum_angle_range(lixel, mods):
     """The panel's Max Frustum Angle field is bounded by the range the CLI refuses outside
     (``cli.config.FRUSTUM_ANGLE_DEGREES``); the CLI took (0°, 180°) where the panel took 10°-170°."""
