@@ -705,12 +705,22 @@ def followers_of_missing_maps(carrier, count: int) -> list:
 
 
 def lixel_modifier(ob, name: str):
-    """The geometry-nodes modifier Lixel added to ``ob`` as ``name`` (it runs one
-    of Lixel's node groups), or None."""
+    """The geometry-nodes modifier Lixel added to ``ob`` as ``name`` (it runs one of Lixel's node groups, or an
+    unedited copy of one: :func:`is_appended_group`), or None."""
     for mod in ob.modifiers:
-        if mod.type == "NODES" and mod.name.split(".")[0] == name and is_lixel_made(mod.node_group):
+        if mod.type == "NODES" and mod.name.split(".")[0] == name and \
+                (is_lixel_made(mod.node_group) or is_appended_group(mod.node_group)):
             return mod
     return None
+
+
+def is_appended_group(tree) -> bool:
+    """Whether ``tree`` is Lixel's texel-grid or frustum group under a copy's name and as Lixel built it (its
+    fingerprint): what appending an object with a grid from another .blend brings along where this file has the
+    group already ("Lixel Texel Grid.001"). Its modifiers were taken for a user's: Remove Texel Grid said it
+    removed nothing, and Add Texel Grid stacked a second grid on the object. A copy the user edited is theirs."""
+    return tree is not None and tree.library is None and tree.get(MADE_KEY) in (TEXEL_GROUP, FRUSTUM_GROUP) and \
+        named_as_a_copy(tree) and tree.get(FINGERPRINT_KEY) == fingerprint(tree)
 
 
 def is_files_own(mesh) -> bool:

@@ -654,6 +654,42 @@ def test_sync_names_a_texel_grid_that_follows_a_carrier_the_user_renamed(scene, 
     assert np.abs(_evaluated_texels(ground, nodes) - texels).max() > 1.0
 
 
+@pytest.mark.parametrize("has_group", [True, False])
+def test_an_object_appended_with_its_texel_grid_has_it_removed_and_replaced(scene, mods, capfd, tmp_path, has_group):
+    """File > Append of an object with Lixel's texel grid from another .blend. Where this file has Lixel's group
+    already, Blender names the appended one "Lixel Texel Grid.001", and Lixel took its modifier for a user's: Remove
+    Texel Grid said "removed the texel grid from 0 object(s)" and left it, Add Texel Grid stacked a second grid on it.
+    Where it has none, Remove Texel Grid stopped in "unexpected error ... this is a bug in Lixel": an appended
+    object's modifiers say ``is_override_data`` as an override's do. A copy of the group the user edited is theirs."""
+    nodes = mods.nodes
+    ground = scene.objects["lixel_ops ground"]
+    _select_only(scene, [ground.name])
+    assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+    library = str(tmp_path / "library.blend")
+    bpy.data.libraries.write(library, {ground})
+    if not has_group:
+        assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"}
+        bpy.data.node_groups.remove(bpy.data.node_groups[nodes.TEXEL_GROUP])
+    with bpy.data.libraries.load(library, link=False) as (_src, dst):
+        dst.objects = [ground.name]
+    (appended,) = dst.objects
+    scene.collection.objects.link(appended)
+    try:
+        assert appended.modifiers[0].node_group.name == nodes.TEXEL_GROUP + (".001" if has_group else "")
+        _select_only(scene, [appended.name])
+        assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+        assert [m.node_group.name for m in appended.modifiers] == [nodes.TEXEL_GROUP]     # the same one, updated
+        capfd.readouterr()
+        assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"} and len(appended.modifiers) == 0
+        assert "Info: Lixel: removed the texel grid from 1 object(s)" in capfd.readouterr().out
+        copy = nodes.ensure_texel_grid_group().copy()      # the user's copy, edited
+        next(n for n in copy.nodes if n.bl_idname not in ("NodeGroupInput", "NodeGroupOutput")).mute = True
+        appended.modifiers.new(nodes.TEXEL_MODIFIER, "NODES").node_group = copy
+        assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"} and len(appended.modifiers) == 1
+    finally:
+        bpy.data.objects.remove(appended)
+
+
 def test_reset_settings_keeps_light_and_planes(scene):
     props = scene.lixel
     props.pcf_kernel = 5

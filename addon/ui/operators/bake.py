@@ -205,8 +205,9 @@ class LIXEL_OT_texel_grid_add(MatrixOperator, bpy.types.Operator):
             if not meshes:
                 return {"CANCELLED"}
         if self.remove:
-            if inherited := [ob for ob in meshes if getattr(nodes.lixel_modifier(ob, nodes.TEXEL_MODIFIER),
-                                                            "is_override_data", False)]:
+            # (an appended object's modifiers say is_override_data too: only an override inherits from a library)
+            if inherited := [ob for ob in meshes if ob.override_library is not None and getattr(
+                    nodes.lixel_modifier(ob, nodes.TEXEL_MODIFIER), "is_override_data", False)]:
                 self.report({"WARNING"} if len(inherited) < len(meshes) else {"ERROR"},
                             f"Lixel: {inherited_note(inherited)}")
                 meshes = [ob for ob in meshes if ob not in inherited]
