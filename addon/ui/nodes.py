@@ -666,10 +666,10 @@ def reattach_orphans(scene, carrier) -> list:
 
 
 def followers_of_other_carriers(objects, carrier, scene) -> dict:
-    """{object name: (carrier name, its scene's name or "")} for each of ``objects`` whose Lixel frustum or texel-grid modifier follows a
-    carrier other than ``carrier``, ``scene``'s, which Sync does not write: another scene's (an object in several
-    scenes, a Linked Copy's, shows one scene's matrices: "" where this scene holds it) or one the user renamed or
-    copied (the user's from then on)."""
+    """{object name: (carrier name, its scene's name or "")} for each of ``objects`` whose Lixel frustum or
+    texel-grid modifier follows a carrier other than ``carrier``, ``scene``'s, which Sync does not write: another
+    scene's (an object in several scenes, a Linked Copy's, shows one scene's matrices) or one the user renamed or
+    copied (the user's from then on; "" for the scene: this scene holds it)."""
     out = {}
     for ob in (ob for ob in objects if ob.library is None):
         for name in (FRUSTUM_MODIFIER, TEXEL_MODIFIER):
