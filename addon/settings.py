@@ -66,7 +66,7 @@ class ShadowSettings:
             raise WarpError(f"MDSM depth count must be 1..4 (got {self.mdsm_depths})")
         if self.mdsm_selection not in MDSM_SELECTIONS:
             raise WarpError(f"MDSM selection must be one of {', '.join(MDSM_SELECTIONS)}")
-        if min(self.constant_bias, self.slope_bias, self.normal_offset) < 0:
+        if not all(b >= 0 for b in (self.constant_bias, self.slope_bias, self.normal_offset)):   # NaN too
             raise WarpError("biases must be >= 0")
         if not 0 <= self.eye_blur <= MAX_EYE_BLUR:
             raise WarpError(f"eye-space blur must be 0..{MAX_EYE_BLUR:g} pixels (got {self.eye_blur:g})")

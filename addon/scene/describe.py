@@ -342,8 +342,9 @@ def describe_light(light_obj, depsgraph=None, scene=None) -> Light:
       the 179° cap.
 
     A light that lights no surface (:func:`lights_surfaces`) has an energy of 0: its shadows show only in the
-    Shadow pass. Any other object, or a light beyond :data:`MAX_COORDINATE` (a sun has no position), raises
-    :class:`WarpError` naming it (lengths in ``scene``'s units).
+    Shadow pass. Any other object, a light beyond :data:`MAX_COORDINATE` (a sun has no position), or one whose
+    strength or colour a script made NaN (F12 rendered black, without a word) raises :class:`WarpError` naming it
+    (lengths in ``scene``'s units).
     """
     if light_obj is None:
         raise WarpError("No light given: add a Sun, Point, Spot or Area light")
@@ -379,6 +380,10 @@ def describe_light(light_obj, depsgraph=None, scene=None) -> Light:
     if not getattr(data, "normalize", True):
         energy *= unnormalized_area(data, m)
     name = light_obj.name
+    if not all(math.isfinite(v) for v in (energy, *color)):     # Blender's fields let a script's NaN through
+        raise WarpError(f"Light '{name}' has a strength or colour of NaN or infinity (set from a script?), which "
+                        f"lit nothing and rendered black: give it a number (Light properties > Power/Strength, "
+                        f"Color, Exposure)")
     if kind == "SUN":
         return Light("SUN", direction=minus_z, color=color, energy=energy, name=name)
     if kind == "POINT":

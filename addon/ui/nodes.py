@@ -62,6 +62,8 @@ TEXEL_MODIFIER = "Lixel Texel Grid"
 FRUSTUM_MODIFIER = "Lixel Frustum"
 VERSION_KEY = "lixel_version"
 FINGERPRINT_KEY = "lixel_fingerprint"
+SCENE_KEY = "lixel_scene"
+"""Custom property on a debug collection: the scene it is Lixel's for (a scene's Linked Copy holds it too)."""
 TEXEL_GROUP_VERSION = 2     # 2: the mesh as it is for a map the carrier does not hold (1 coloured by a default matrix)
 FRUSTUM_GROUP_VERSION = 4   # 4: nothing for a map the carrier does not hold (3 drew a 2-unit cube there)
 MATERIAL_VERSION = 1
@@ -493,12 +495,20 @@ def debug_collection(scene):
     is left alone. The scene's settings point at it (``scene.lixel.debug_collection``): Scene > New > Full Copy
     copies the collection and the objects in it under copies' names and points the new scene at the copy, which
     is then Lixel's (:func:`_adopt_scene_copy`). Before, the copy was taken for the user's, so Sync wrote a second
-    carrier that the copied texel grids and frusta did not follow, and Bake a second set beside the stale one."""
+    carrier that the copied texel grids and frusta did not follow, and Bake a second set beside the stale one.
+    Scene > New > Linked Copy links the same collection into the new scene (and points its settings at it): it
+    stays the scene's it was made for (``SCENE_KEY``), and the other scene, on its first Sync or Bake, leaves it
+    and takes its own. Before, Sync or Bake in a linked copy rewrote the carrier and the baked objects of the first
+    scene, so its texel grids and B showed the copy's method and camera without a word."""
     coll = scene.lixel.debug_collection
     if coll is None or coll.library is not None or scene.collection.children.get(coll.name) != coll or \
             not (made_as(coll, DEBUG_COLLECTION) or _adopt_scene_copy(coll)):
         coll = next((c for c in scene.collection.children if c.library is None and made_as(c, DEBUG_COLLECTION)),
                     None)
+    owner = None if coll is None else coll.get(SCENE_KEY)
+    if isinstance(owner, bpy.types.Scene) and owner != scene and owner.collection.children.get(coll.name) == coll:
+        scene.collection.children.unlink(coll)  # its scene keeps it; this one takes its own
+        coll = None
     if coll is None:
         held = {c.name for s in bpy.data.scenes for c in s.collection.children}
         coll = next((c for c in bpy.data.collections if c.library is None and c.name not in held
@@ -508,6 +518,8 @@ def debug_collection(scene):
         scene.collection.children.link(coll)
     if scene.lixel.debug_collection != coll:
         scene.lixel.debug_collection = coll
+    if coll.get(SCENE_KEY) != scene:
+        coll[SCENE_KEY] = scene
     return coll
 
 
@@ -653,6 +665,25 @@ def reattach_orphans(scene, carrier) -> list:
     return out
 
 
+def followers_of_other_carriers(objects, carrier, scene) -> dict:
+    """{object name: (carrier name, its scene's name or "")} for each of ``objects`` whose Lixel frustum or
+    texel-grid modifier follows a carrier other than ``carrier``, ``scene``'s, which Sync does not write: another
+    scene's (an object in several scenes, a Linked Copy's, shows one scene's matrices) or one the user renamed or
+    copied (the user's from then on; "" for the scene: this scene holds it)."""
+    out = {}
+    for ob in (ob for ob in objects if ob.library is None):
+        for name in (FRUSTUM_MODIFIER, TEXEL_MODIFIER):
+            mod = lixel_modifier(ob, name)
+            try:
+                other = None if mod is None else mod[_input(mod.node_group, "Light Matrices")]
+            except KeyError:    # a group of Lixel's that someone took the input out of
+                continue
+            if other is not None and other != carrier:
+                scenes = [s.name for s in other.users_scene]
+                out[ob.name] = other.name, scenes[0] if scenes and scene.name not in scenes else ""
+    return out
+
+
 def followers_of_missing_maps(carrier, count: int) -> list:
     """(object name, map index) of every object whose Lixel frustum or texel-grid modifier follows ``carrier``'s map
     ``index`` >= ``count``, a map the carrier no longer holds (the setup has fewer maps since it was added): the
@@ -674,12 +705,22 @@ def followers_of_missing_maps(carrier, count: int) -> list:
 
 
 def lixel_modifier(ob, name: str):
-    """The geometry-nodes modifier Lixel added to ``ob`` as ``name`` (it runs one
-    of Lixel's node groups), or None."""
+    """The geometry-nodes modifier Lixel added to ``ob`` as ``name`` (it runs one of Lixel's node groups, or an
+    unedited copy of one: :func:`is_appended_group`), or None."""
     for mod in ob.modifiers:
-        if mod.type == "NODES" and mod.name.split(".")[0] == name and is_lixel_made(mod.node_group):
+        if mod.type == "NODES" and mod.name.split(".")[0] == name and \
+                (is_lixel_made(mod.node_group) or is_appended_group(mod.node_group)):
             return mod
     return None
+
+
+def is_appended_group(tree) -> bool:
+    """Whether ``tree`` is Lixel's texel-grid or frustum group under a copy's name and as Lixel built it (its
+    fingerprint): what appending an object with a grid from another .blend brings along where this file has the
+    group already ("Lixel Texel Grid.001"). Its modifiers were taken for a user's: Remove Texel Grid said it
+    removed nothing, and Add Texel Grid stacked a second grid on the object. A copy the user edited is theirs."""
+    return tree is not None and tree.library is None and tree.get(MADE_KEY) in (TEXEL_GROUP, FRUSTUM_GROUP) and \
+        named_as_a_copy(tree) and tree.get(FINGERPRINT_KEY) == fingerprint(tree)
 
 
 def is_files_own(mesh) -> bool:

@@ -262,8 +262,20 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
     map_pip_size: IntProperty(name="Map Size on Screen", default=256, min=64, max=1024, subtype="PIXEL",
                               description="Side of the picture-in-picture shadow map")
 
+    def check_numbers(self, names: tuple, panel: str) -> None:
+        """WarpError naming the first of the float settings ``names`` (shown in the Lixel panel's ``panel``) that is
+        NaN: Blender's min and max let a NaN set from Python through, and the core and the shaders compared it as
+        nothing (a NaN Constant Bias rendered no shadows, a NaN Normal Offset a black image, a NaN Max Frustum Angle
+        cube faces for every point light), without a word."""
+        for name in names:
+            if math.isnan(getattr(self, name)):
+                raise WarpError(f"Scene '{self.id_data.name}' has a {self.bl_rna.properties[name].name} of NaN (set "
+                                f"from a script?): give it a number (Lixel panel > {panel} > "
+                                f"{self.bl_rna.properties[name].name}), or Reset Settings")
+
     def warp_options(self) -> WarpOptions:
         """The WarpOptions these settings describe (raises WarpError with a clear message)."""
+        self.check_numbers(("plane_budget", "cascade_lambda", "cascade_blend", "max_frustum_angle"), "Method")
         w, h = (int(v) for v in self.shadow_map_size)
         if not (MIN_MAP_SIZE <= w <= MAX_MAP_SIZE and MIN_MAP_SIZE <= h <= MAX_MAP_SIZE):
             raise WarpError(f"Scene '{self.id_data.name}' has a shadow map size of {w}x{h}, out of range: use "
@@ -303,6 +315,7 @@ class LixelSceneSettings(bpy.types.PropertyGroup):
 
     def shadow_settings(self) -> ShadowSettings:
         """The ShadowSettings these settings describe (an Eye Blur beyond MAX_EYE_BLUR refused by name, not clamped)."""
+        self.check_numbers(("constant_bias", "slope_bias", "normal_offset"), "Shadows")
         if not 0 <= self.eye_blur <= MAX_EYE_BLUR:
             raise WarpError(f"Scene '{self.id_data.name}' has an Eye Blur of {self.eye_blur:g} px, beyond the "
                             f"{MAX_EYE_BLUR:g} px Lixel blurs (each pixel reads (2r + 1)² others): lower it (Lixel "

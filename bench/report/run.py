@@ -94,6 +94,10 @@ def check(opts: Options) -> list:
     if twice := sorted({label for label in labels if labels.count(label) > 1}):
         problems.append(f"--scene: {', '.join(map(repr, twice))} given twice: a scene is named by its file name, "
                         f"and each has one folder of figures in the report; rename one of the .blend files")
+    for option, given in (("--methods", opts.methods), ("--sizes", opts.sizes), ("--peers", opts.peers),
+                          ("--eevee-sizes", opts.eevee_sizes or ())):
+        if twice := sorted({str(v) for v in given if list(given).count(v) > 1}):
+            problems.append(f"{option}: {', '.join(map(repr, twice))} given twice: each is measured once")
     bad = [m for m in opts.methods if m not in METHODS]
     if bad or not opts.methods:
         problems.append(f"--methods: unknown {', '.join(map(repr, bad)) or '(none given)'}; "
@@ -107,8 +111,12 @@ def check(opts: Options) -> list:
     w, h = opts.resolution
     if not (1 <= w <= 8192 and 1 <= h <= 8192):
         problems.append(f"--resolution: {w}x{h} is outside 1..8192 pixels per side")
-    if opts.frames < 1 or opts.repeats < 1 or opts.peer_repeats < 1:
-        problems.append("--frames and --repeats must be at least 1")
+    if opts.eevee_sizes is not None and any(s < 1 for s in opts.eevee_sizes):   # 0 ran EEVEE unmatched, unsaid
+        problems.append("--eevee-sizes: give positive map sizes in texels per side")
+    for option, value in (("--frames", opts.frames), ("--repeats", opts.repeats),
+                          ("--peer-repeats", opts.peer_repeats), ("--eevee-samples", opts.eevee_samples)):
+        if value < 1:   # EEVEE rendered 1 sample where the report said 0 or -1
+            problems.append(f"{option}: {value} is not at least 1")
     return problems
 
 

@@ -579,6 +579,117 @@ def test_a_full_copy_of_the_scene_keeps_its_texel_grid_following_sync_and_bake_r
             bpy.data.collections.remove(c)
 
 
+def _mesh_co(mesh):
+    co = np.zeros(len(mesh.vertices) * 3)
+    mesh.vertices.foreach_get("co", co)
+    return co
+
+
+def test_a_linked_copy_of_the_scene_leaves_the_first_scenes_grid_and_baked_objects_alone(scene, mods, capfd):
+    """Scene > New > Linked Copy links the same "Lixel Debug" collection (and the same objects) into the new scene.
+    Sync and Bake in the copy, set to another method, rewrote the first scene's carrier and baked B: its texel grid
+    and B showed the copy's setup without a word. The copy takes its own collection now; the ground both scenes
+    hold follows one scene's matrices, and Sync in the other says so, naming it and what to do."""
+    nodes = mods.nodes
+    ground = scene.objects["lixel_ops ground"]
+    _select_only(scene, [ground.name])
+    assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"} and bpy.ops.lixel.bake_debug() == {"FINISHED"}
+    coll = bpy.data.collections["Lixel Debug"]
+    first = {ob.name: _mesh_co(ob.data) for ob in coll.objects}
+    texels = _evaluated_texels(ground, nodes)
+    window = bpy.context.window
+    assert bpy.ops.scene.new(type="LINK_COPY") == {"FINISHED"}
+    copy = window.scene
+    try:
+        copy.lixel.method = "uniform" if scene.lixel.method != "uniform" else "psm"
+        capfd.readouterr()
+        assert bpy.ops.lixel.sync_matrices() == {"FINISHED"} and bpy.ops.lixel.bake_debug() == {"FINISHED"}
+        out = capfd.readouterr().out
+        np.testing.assert_array_equal(_evaluated_texels(ground, nodes), texels)
+        assert {ob.name: _mesh_co(ob.data) for ob in coll.objects}.keys() == first.keys()
+        for name, co in first.items():
+            np.testing.assert_array_equal(_mesh_co(coll.objects[name].data), co)
+        own = copy.lixel.debug_collection
+        assert own != coll and own.name in copy.collection.children and coll.name not in copy.collection.children
+        assert ("'lixel_ops ground' (follows 'Lixel Light Matrices' of scene 'lixel_ops') shows light matrices that "
+                f"are not this scene's '{own.objects[0].name}', so it does not follow the setup: select it and Add "
+                "Texel Grid") in out, out
+        window.scene = scene
+        capfd.readouterr()
+        assert bpy.ops.lixel.sync_matrices() == {"FINISHED"} and bpy.ops.lixel.bake_debug() == {"FINISHED"}
+        assert "Warning" not in capfd.readouterr().out
+        assert scene.lixel.debug_collection == coll and coll.name in scene.collection.children
+    finally:
+        window.scene = scene
+        own = copy.lixel.debug_collection
+        bpy.data.scenes.remove(copy)
+        if own is not None and own != coll:
+            for ob in list(own.objects):
+                mesh = ob.data
+                bpy.data.objects.remove(ob)
+                if mesh is not None and mesh.users == 0:
+                    bpy.data.meshes.remove(mesh)
+            bpy.data.collections.remove(own)
+
+
+def test_sync_names_a_texel_grid_that_follows_a_carrier_the_user_renamed(scene, mods, capfd):
+    """The user renamed Lixel's "Lixel Light Matrices" (it is theirs from then on: Lixel never rewrites it). Sync
+    wrote a new carrier and said "1 matrices synced", while the texel grid kept following the renamed one and showed
+    the old matrices without a word. Sync names it and what to do; Add Texel Grid makes it follow again."""
+    nodes = mods.nodes
+    ground = scene.objects["lixel_ops ground"]
+    _select_only(scene, [ground.name])
+    assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+    texels = _evaluated_texels(ground, nodes)
+    bpy.data.objects["Lixel Light Matrices"].name = "my matrices"
+    scene.objects["lixel_ops light"].rotation_euler.x += 0.3
+    capfd.readouterr()
+    assert bpy.ops.lixel.sync_matrices() == {"FINISHED"}
+    assert ("Warning: Lixel: 'lixel_ops ground' (follows 'my matrices') shows light matrices that are not this "
+            "scene's 'Lixel Light Matrices', so it does not follow the setup: select it and Add Texel Grid (a "
+            "frustum: Add Frustum From Matrix) to follow it") in capfd.readouterr().out
+    np.testing.assert_array_equal(_evaluated_texels(ground, nodes), texels)
+    assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"} and bpy.ops.lixel.sync_matrices() == {"FINISHED"}
+    assert "Warning" not in capfd.readouterr().out
+    assert np.abs(_evaluated_texels(ground, nodes) - texels).max() > 1.0
+
+
+@pytest.mark.parametrize("has_group", [True, False])
+def test_an_object_appended_with_its_texel_grid_has_it_removed_and_replaced(scene, mods, capfd, tmp_path, has_group):
+    """File > Append of an object with Lixel's texel grid from another .blend. Where this file has Lixel's group
+    already, Blender names the appended one "Lixel Texel Grid.001", and Lixel took its modifier for a user's: Remove
+    Texel Grid said "removed the texel grid from 0 object(s)" and left it, Add Texel Grid stacked a second grid on it.
+    Where it has none, Remove Texel Grid stopped in "unexpected error ... this is a bug in Lixel": an appended
+    object's modifiers say ``is_override_data`` as an override's do. A copy of the group the user edited is theirs."""
+    nodes = mods.nodes
+    ground = scene.objects["lixel_ops ground"]
+    _select_only(scene, [ground.name])
+    assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+    library = str(tmp_path / "library.blend")
+    bpy.data.libraries.write(library, {ground})
+    if not has_group:
+        assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"}
+        bpy.data.node_groups.remove(bpy.data.node_groups[nodes.TEXEL_GROUP])
+    with bpy.data.libraries.load(library, link=False) as (_src, dst):
+        dst.objects = [ground.name]
+    (appended,) = dst.objects
+    scene.collection.objects.link(appended)
+    try:
+        assert appended.modifiers[0].node_group.name == nodes.TEXEL_GROUP + (".001" if has_group else "")
+        _select_only(scene, [appended.name])
+        assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+        assert [m.node_group.name for m in appended.modifiers] == [nodes.TEXEL_GROUP]     # the same one, updated
+        capfd.readouterr()
+        assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"} and len(appended.modifiers) == 0
+        assert "Info: Lixel: removed the texel grid from 1 object(s)" in capfd.readouterr().out
+        copy = nodes.ensure_texel_grid_group().copy()      # the user's copy, edited
+        next(n for n in copy.nodes if n.bl_idname not in ("NodeGroupInput", "NodeGroupOutput")).mute = True
+        appended.modifiers.new(nodes.TEXEL_MODIFIER, "NODES").node_group = copy
+        assert bpy.ops.lixel.texel_grid_add(remove=True) == {"FINISHED"} and len(appended.modifiers) == 1
+    finally:
+        bpy.data.objects.remove(appended)
+
+
 def test_reset_settings_keeps_light_and_planes(scene):
     props = scene.lixel
     props.pcf_kernel = 5

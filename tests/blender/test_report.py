@@ -181,6 +181,28 @@ def test_a_report_that_could_not_be_put_where_asked_is_refused_before_it_runs(tm
     assert (tmp_path / "a link").is_symlink()
 
 
+@pytest.mark.parametrize("args, said", [
+    (["--peers", "eevee", "--eevee-samples", "-1"], "--eevee-samples: -1 is not at least 1"),
+    (["--peers", "eevee", "--eevee-sizes", "0"], "--eevee-sizes: give positive map sizes in texels per side"),
+    (["--peer-repeats", "0"], "--peer-repeats: 0 is not at least 1"),
+    (["--methods", "uniform,lispsm,uniform"], "--methods: 'uniform' given twice: each is measured once"),
+    (["--sizes", "64,128,64"], "--sizes: '64' given twice: each is measured once"),
+    (["--peers", "cycles,cycles"], "--peers: 'cycles' given twice: each is measured once")])
+def test_options_the_report_would_change_or_repeat_are_refused_by_name(tmp_path, args, said):
+    """``--eevee-samples -1`` (or 0) rendered EEVEE at 1 sample and the report said "EEVEE -1 spp";
+    ``--eevee-sizes 0`` rendered it unmatched (each tile map up to 8192²) and said "at map size(s) 0";
+    ``--peer-repeats 0`` was refused as "--frames and --repeats must be at least 1", naming neither; a method, size or
+    peer given twice was measured twice and listed twice in every table, with two timings for one point. Each is
+    refused by name before anything runs."""
+    base = {"--methods": "uniform", "--sizes": "64", "--peers": "none"}
+    for option in args[::2]:
+        base.pop(option, None)
+    proc = _run([v for kv in base.items() for v in kv] + ["--no-overlays"] + args, tmp_path / "out", timeout=300)
+    assert proc.returncode == 2, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert f"error: {said}" in proc.stderr and "Traceback" not in proc.stderr, proc.stderr[-2000:]
+    assert not (tmp_path / "out").exists()
+
+
 @pytest.mark.parametrize("first, more, said", [
     ("missing.json", [], "argument first: cannot read {tmp}/missing.json: No such file or directory"),
     ("not json.txt", [], "argument first: {tmp}/not json.txt is not a report.json of python -m bench.report"),

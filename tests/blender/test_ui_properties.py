@@ -207,6 +207,53 @@ def test_an_eye_blur_beyond_what_renders_in_time_is_refused_by_name(lixel):
         assert bpy.ops.render.render() == {"FINISHED"}
 
 
+@pytest.mark.parametrize("name, label, panel", [
+    ("constant_bias", "Constant Bias", "Shadows"), ("slope_bias", "Slope Bias", "Shadows"),
+    ("normal_offset", "Normal Offset", "Shadows"), ("max_frustum_angle", "Max Frustum Angle", "Method"),
+    ("plane_budget", "Plane Budget", "Method"), ("cascade_lambda", "Split λ", "Method"),
+    ("cascade_blend", "Blend Band", "Method")])
+def test_a_nan_setting_from_a_script_is_refused_by_name(lixel, mods, name, label, panel):
+    """Blender's min and max let a NaN set from Python through (``scene.lixel.normal_offset = a / b``). The biases
+    were taken as they were: F12 rendered a NaN Constant Bias with no shadows and a NaN Normal Offset (Normal Offset
+    bias) black, without a word; a NaN Max Frustum Angle gave every point light cube faces; the cascade's and the
+    planes' NaNs were refused as "plane_budget must be in (0, 1] (got nan)", naming no scene and no field. Each is
+    refused by name, in the panel's words, before anything renders."""
+    with active_scene("lixel_nan") as scene:
+        scene.lixel.initialised = True
+        scene.render.engine = "LIXEL"
+        scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 32, 18, 100
+        scene.lixel.bias_mode = "NORMAL_OFFSET" if name == "normal_offset" else "CONSTANT_SLOPE"
+        setattr(scene.lixel, name, float("nan"))
+        for op in (bpy.ops.lixel.refresh, bpy.ops.render.render):
+            with pytest.raises(RuntimeError, match=rf"Lixel: Scene 'lixel_nan' has a {label} of NaN \(set from a "
+                                                   rf"script\?\): give it a number \(Lixel panel > {panel} > "
+                                                   rf"{label}\), or Reset Settings"):
+                op()
+        assert bpy.ops.lixel.reset_settings() == {"FINISHED"} and bpy.ops.render.render() == {"FINISHED"}
+    if panel == "Shadows":  # scripts that build the plain settings themselves
+        with pytest.raises(mods.types.WarpError, match="biases must be >= 0"):
+            mods.settings.ShadowSettings(**{name: float("nan")})
+
+
+@pytest.mark.parametrize("light", ["SUN", "SPOT"])
+@pytest.mark.parametrize("field, value", [("energy", float("nan")), ("color", (1.0, float("nan"), 1.0))])
+def test_a_light_a_script_gave_a_nan_strength_or_colour_is_named(lixel, light, field, value):
+    """``light.data.energy = a / b`` with b = 0 in a script: Blender's field takes the NaN, and F12 rendered the frame
+    black (every pixel 0) without a word, the panel's Refresh as if nothing were wrong. The light is named with what
+    to do."""
+    with active_scene("lixel_nan_light", light=light) as scene:
+        scene.lixel.initialised = True
+        scene.render.engine = "LIXEL"
+        scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 32, 18, 100
+        setattr(scene.objects["lixel_nan_light light"].data, field, value)
+        for op in (bpy.ops.lixel.refresh, bpy.ops.render.render):
+            with pytest.raises(RuntimeError, match=r"Lixel: Light 'lixel_nan_light light' has a strength or colour "
+                                                   r"of NaN or infinity \(set from a script\?\), which lit nothing "
+                                                   r"and rendered black: give it a number \(Light properties > "
+                                                   r"Power/Strength, Color, Exposure\)"):
+                op()
+
+
 def test_the_panel_and_the_cli_take_one_max_frustum_angle_range(lixel, mods):
     """The panel's Max Frustum Angle field is bounded by the range the CLI refuses outside
     (``cli.config.FRUSTUM_ANGLE_DEGREES``); the CLI took (0°, 180°) where the panel took 10°-170°."""

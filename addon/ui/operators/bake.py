@@ -27,11 +27,21 @@ class MatrixOperator(LixelSceneOperator):
         """Reattach the scene's frusta and texel grids that follow no carrier (``nodes.reattach_orphans``: the
         carrier object was deleted), saying so, and a warning naming each object that follows a map ``carrier``
         (holding ``st``'s maps) no longer holds: a frustum showed a 2-unit cube at the origin, a texel grid the
-        colours of no map's texels, and nothing said why."""
+        colours of no map's texels, and nothing said why. Likewise each object following light matrices Sync does
+        not write (``nodes.followers_of_other_carriers``: another scene's, or a carrier the user renamed): Sync
+        said the matrices were synced while such a grid stayed as it was."""
         if again := nodes.reattach_orphans(bpy.context.scene, carrier):
             self.report({"INFO"}, f"Lixel: {nodes.listed([repr(n) for n in again])} followed no light matrices (the "
                                   f"'{nodes.CARRIER_NAME}' object they followed was deleted): they follow "
                                   f"'{carrier.name}' again")
+        if others := nodes.followers_of_other_carriers(bpy.context.scene.objects, carrier, bpy.context.scene):
+            one = len(others) == 1
+            named = nodes.listed([f"{n!r} (follows {followed(*c)})" for n, c in others.items()])
+            self.report({"WARNING"}, f"Lixel: {named} "
+                                     f"show{'s' if one else ''} light matrices that are not this scene's "
+                                     f"'{carrier.name}', so {'it does' if one else 'they do'} not follow the setup: "
+                                     f"select {'it' if one else 'them'} and Add Texel Grid (a frustum: Add Frustum "
+                                     f"From Matrix) to follow it (an object in several scenes follows one)")
         count = len(st.setup.maps)
         if stale := nodes.followers_of_missing_maps(carrier, count):
             one = len(stale) == 1
@@ -41,6 +51,11 @@ class MatrixOperator(LixelSceneOperator):
                                      f"what {'it shows' if one else 'they show'} belongs to no map; add "
                                      f"{'it' if one else 'them'} again for one of its maps, or delete "
                                      f"{'it' if one else 'them'}")
+
+
+def followed(carrier: str, scene: str) -> str:
+    """A carrier ``nodes.followers_of_other_carriers`` found, in words."""
+    return f"'{carrier}'" + (f" of scene '{scene}'" if scene else "")
 
 
 def mesh_from_polygons(name, polygons, scene):
@@ -190,8 +205,9 @@ class LIXEL_OT_texel_grid_add(MatrixOperator, bpy.types.Operator):
             if not meshes:
                 return {"CANCELLED"}
         if self.remove:
-            if inherited := [ob for ob in meshes if getattr(nodes.lixel_modifier(ob, nodes.TEXEL_MODIFIER),
-                                                            "is_override_data", False)]:
+            # (an appended object's modifiers say is_override_data too: only an override inherits from a library)
+            if inherited := [ob for ob in meshes if ob.override_library is not None and getattr(
+                    nodes.lixel_modifier(ob, nodes.TEXEL_MODIFIER), "is_override_data", False)]:
                 self.report({"WARNING"} if len(inherited) < len(meshes) else {"ERROR"},
                             f"Lixel: {inherited_note(inherited)}")
                 meshes = [ob for ob in meshes if ob not in inherited]
@@ -204,6 +220,12 @@ class LIXEL_OT_texel_grid_add(MatrixOperator, bpy.types.Operator):
         if st is None:
             return {"CANCELLED"}
         carrier = nodes.ensure_carrier(context.scene, st.setup)
+        if others := {n: c for n, c in nodes.followers_of_other_carriers(meshes, carrier, context.scene).items()
+                      if c[1]}:
+            named = nodes.listed([f"{n!r} (followed {followed(*c)})" for n, c in others.items()])
+            self.report({"WARNING"}, f"Lixel: {named} "
+                                     f"showed another scene's light matrices: an object follows one scene's, this "
+                                     f"scene's from now on, in every scene it is in")
         said = []
         for ob in meshes:
             nodes.add_texel_grid(ob, carrier, self.map_index, said)
