@@ -9,18 +9,17 @@ from typing import Optional
 
 import numpy as np
 
-from ..aliasing import raster_jacobian
 from ..body import IntersectionBody
 from ..diagnostics import Diagnostics
 from ..fit import fit_to_unit_cube
 from ..frame import LightFrame, light_frames
-from ..geometry import finite_clip_volume_corners, transform_points, translation
+from ..geometry import finite_clip_volume_corners, translation
 from ..linear_depth import light_depth_row
-from ..partition.receivers import edge_samples, filter_losses
+from ..partition.receivers import edge_samples
 from ..post_perspective import PPSLight, VirtualCamera, nearest_visible_depth, pps_light_matrix, virtual_camera
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpOptions
 from .common import body_diagnostics, uniform_setup
-from .warp_frustum import eye_depth_range, guard_lambda, light_at_eye, map_lambda
+from .warp_frustum import edge_turned, eye_depth_range, frame_jacobian, guard_lambda, light_at_eye, map_lambda
 
 COVER_TOLERANCE = 1e-6
 """Final check: every B vertex has |NDC| <= 1 + this (the fit pads by 1e-7)."""
@@ -31,9 +30,6 @@ GUARD_FAR = 1e6
 depths of B back (λ ≈ 1e6 for a sun across the view: the uniform map to float precision)."""
 GUARD_TOLERANCE = 1e-3
 """The guard's search aims PSM's λ at most this much (relative) above the guard's λ."""
-TURNS = np.array([[[math.cos(a), -math.sin(a), 0, 0], [math.sin(a), math.cos(a), 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
-                  for a in np.radians(np.arange(-45.0, 45.0, 2.5))])
-"""The turns of a map's x, y about its depth axis that ``turned_fit`` weighs against the shadow edges (every 2.5°)."""
 
 
 @dataclass(frozen=True)
@@ -108,8 +104,7 @@ def turned_fit(unfitted: np.ndarray, view: View, body: IntersectionBody, frame: 
     Then, given the first look's shadow edges, turned about its depth axis by the one of ``TURNS`` of least texel side
     at B's centroid times ``filter_losses`` (edges along a texel axis: "Texel axes off the shadow edges")."""
     fitted = lambda m: fit_to_unit_cube(m, body.vertices - view.position)
-    jacobian = lambda m: raster_jacobian(m @ translation(-view.position) @ np.linalg.inv(frame.to_light), (2, 2),
-                                         transform_points(frame.to_light, body.volume_centroid))[..., 0, :, :2]
+    jacobian = lambda m: frame_jacobian(m @ translation(-view.position), frame, body.volume_centroid)
     relative = fitted(unfitted)
     if frame is None or not np.linalg.det(j := jacobian(relative)) > 0:
         return relative
@@ -120,10 +115,7 @@ def turned_fit(unfitted: np.ndarray, view: View, body: IntersectionBody, frame: 
     edges = edge_samples(body.visible)
     if not len(edges):
         return relative
-    turns = fitted(TURNS @ relative)
-    loss = filter_losses([ShadowSetup([ShadowMap(m, (2, 2))], None) for m in turns @ translation(-view.position)],
-                         (None,) * 4 + (edges,))
-    return turns[int(np.argmin(loss / np.sqrt(np.linalg.det(jacobian(turns)))))]
+    return edge_turned(relative, fitted, lambda m: np.linalg.det(jacobian(m)), edges, translation(-view.position))
 
 
 def guarded_warp(view: View, light: Light, body: IntersectionBody, options: WarpOptions, warp: PSMWarp,

@@ -10,16 +10,20 @@ from typing import Callable, Optional
 import numpy as np
 
 from ..aliasing import (folded, lambda_glpr, lambda_gmnpr, lambda_least_on_screen, lambda_no_worse_on_average,
-                        lambda_no_worse_than_uniform, lispsm_inverse_n_opt)
+                        lambda_no_worse_than_uniform, lispsm_inverse_n_opt, raster_jacobian)
 from ..body import IntersectionBody
 from ..diagnostics import Diagnostics
-from ..fit import fit_runs, window_matrices
+from ..fit import fit_runs, fit_to_unit_cube, window_matrices
 from ..frame import PARALLEL_BLEND, LightFrame, body_light_angles, light_frames, pyramid_sections
-from ..geometry import finite_clip_volume_corners, homogeneous, point_runs, transform_h_runs
+from ..geometry import finite_clip_volume_corners, homogeneous, point_runs, transform_h_runs, transform_points
 from ..linear_depth import frame_depth_row
+from ..partition.receivers import edge_samples, filter_losses
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .common import frame_maps, near_plane_notes
 
+TURNS = np.array([[[math.cos(a), -math.sin(a), 0, 0], [math.sin(a), math.cos(a), 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+                  for a in np.radians(np.arange(-45.0, 45.0, 2.5))])
+"""The turns of a map's x, y about its depth axis that ``edge_turned`` weighs against the shadow edges (every 2.5°)."""
 FADE_START = 2.0
 FADE_END = 4.0
 """Point-light frames: the warp fades out (linearly in μ) as the eye's image moves
@@ -327,6 +331,22 @@ def map_lambda(matrix: np.ndarray, frame: LightFrame) -> tuple[Optional[WarpAxis
     return WarpAxis(frame.to_light, a, h_min, extent), (h_min + w_row[3] / length) / extent
 
 
+def frame_jacobian(matrix: np.ndarray, frame: LightFrame, point: np.ndarray) -> np.ndarray:
+    """d(x/w, y/w) of a world -> clip ``matrix`` (or each of a stack) over ``frame``'s light image x, y at ``point``."""
+    return raster_jacobian(matrix @ np.linalg.inv(frame.to_light), (2, 2),
+                           transform_points(frame.to_light, point))[..., 0, :, :2]
+
+
+def edge_turned(fitted: np.ndarray, refit: Callable, texel_area: Callable, edges: np.ndarray,
+                to_world: np.ndarray = np.eye(4)) -> np.ndarray:
+    """``fitted`` (its coordinates to light clip; ``to_world``: from world to them) turned about its depth axis by the
+    one of ``TURNS`` that, ``refit`` (§4), has the least texel side (``texel_area``) times ``filter_losses`` at the
+    shadow ``edges`` (docs/papers.md, "Texel axes off the shadow edges": edges along a texel axis err in runs)."""
+    turns = refit(TURNS @ fitted)
+    loss = filter_losses([ShadowSetup([ShadowMap(m, (2, 2))], None) for m in turns @ to_world], (None,) * 4 + (edges,))
+    return turns[int(np.argmin(loss / np.sqrt(texel_area(turns))))]
+
+
 def _unit_or_zero(v: np.ndarray) -> np.ndarray:
     length = math.sqrt(v @ v)
     return v / length if length > 0 else np.zeros(3)
@@ -421,6 +441,10 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
             if matrix is None:
                 w.geo, w.matrix = None, frame_maps([w.frame], options.shadow_map_size)[0].matrix
                 w.notes.append((f"{w.frame.role}: uniform", closure))
+    if len(frames) == 1 and warps[0].geo is not None and len(edges := edge_samples(body.visible)):
+        frame = frames[0]                                 # (a sun, a spot or point light with one map: PSM's turn)
+        warps[0].matrix = edge_turned(warps[0].matrix, lambda m: fit_to_unit_cube(m, frame.points), lambda m: np.linalg.det(
+            frame_jacobian(m, frame, body.volume_centroid)), edges)
     maps: list[ShadowMap] = []
     for w in warps:
         diag.fallbacks += w.notes
