@@ -115,7 +115,8 @@ def turned_fit(unfitted: np.ndarray, view: View, body: IntersectionBody, frame: 
     edges = edge_samples(body.visible)
     if not len(edges):
         return relative
-    return edge_turned(relative, fitted, lambda m: np.linalg.det(jacobian(m)), edges, translation(-view.position))
+    return edge_turned(relative, body.vertices - view.position, frame, body.volume_centroid, edges,
+                       translation(-view.position))
 
 
 def guarded_warp(view: View, light: Light, body: IntersectionBody, options: WarpOptions, warp: PSMWarp,

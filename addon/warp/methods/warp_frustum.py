@@ -337,14 +337,14 @@ def frame_jacobian(matrix: np.ndarray, frame: LightFrame, point: np.ndarray) -> 
                            transform_points(frame.to_light, point))[..., 0, :, :2]
 
 
-def edge_turned(fitted: np.ndarray, refit: Callable, texel_area: Callable, edges: np.ndarray,
+def edge_turned(fitted: np.ndarray, points: np.ndarray, frame: LightFrame, centre: np.ndarray, edges: np.ndarray,
                 to_world: np.ndarray = np.eye(4)) -> np.ndarray:
-    """``fitted`` (its coordinates to light clip; ``to_world``: from world to them) turned about its depth axis by the
-    one of ``TURNS`` that, ``refit`` (§4), has the least texel side (``texel_area``) times ``filter_losses`` at the
-    shadow ``edges`` (docs/papers.md, "Texel axes off the shadow edges": edges along a texel axis err in runs)."""
-    turns = refit(TURNS @ fitted)
+    """``fitted`` (``points``' coordinates to light clip; ``to_world``: world to them) turned about its depth axis by the
+    one of ``TURNS`` that, fitted again to the points (§4), has the least texel side in ``frame`` at ``centre`` times
+    ``filter_losses`` at the shadow ``edges`` (docs/papers.md, "Texel axes off the shadow edges")."""
+    turns = fit_to_unit_cube(TURNS @ fitted, points)
     loss = filter_losses([ShadowSetup([ShadowMap(m, (2, 2))], None) for m in turns @ to_world], (None,) * 4 + (edges,))
-    return turns[int(np.argmin(loss / np.sqrt(texel_area(turns))))]
+    return turns[int(np.argmin(loss / np.sqrt(np.linalg.det(frame_jacobian(turns @ to_world, frame, centre)))))]
 
 
 def _unit_or_zero(v: np.ndarray) -> np.ndarray:
@@ -442,9 +442,7 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
                 w.geo, w.matrix = None, frame_maps([w.frame], options.shadow_map_size)[0].matrix
                 w.notes.append((f"{w.frame.role}: uniform", closure))
     if len(frames) == 1 and warps[0].geo is not None and len(edges := edge_samples(body.visible)):
-        frame = frames[0]                                 # (a sun, a spot or point light with one map: PSM's turn)
-        warps[0].matrix = edge_turned(warps[0].matrix, lambda m: fit_to_unit_cube(m, frame.points), lambda m: np.linalg.det(
-            frame_jacobian(m, frame, body.volume_centroid)), edges)
+        warps[0].matrix = edge_turned(warps[0].matrix, frames[0].points, frames[0], body.volume_centroid, edges)
     maps: list[ShadowMap] = []
     for w in warps:
         diag.fallbacks += w.notes
