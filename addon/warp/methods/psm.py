@@ -15,7 +15,6 @@ from ..fit import fit_to_unit_cube
 from ..frame import LightFrame, light_frames
 from ..geometry import finite_clip_volume_corners, translation
 from ..linear_depth import light_depth_row
-from ..partition.receivers import edge_samples
 from ..post_perspective import PPSLight, VirtualCamera, nearest_visible_depth, pps_light_matrix, virtual_camera
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpOptions
 from .common import body_diagnostics, uniform_setup
@@ -101,8 +100,8 @@ def turned_fit(unfitted: np.ndarray, view: View, body: IntersectionBody, frame: 
     as the virtual camera moves back, as §4.2 says it must (docs/papers.md, "PSM's map axes under a low sun").
     J: a fitted map's d(x/w, y/w) over the frame's x, y at B's centroid; C = J⁻¹ at det 1 puts the fitted x, y along
     the frame's there; the turn is I + t (C - I), t = log2 of the texel's area before over after, clamped to [0, 1].
-    Then, given the first look's shadow edges, turned about its depth axis by the one of ``TURNS`` of least texel side
-    at B's centroid times ``filter_losses`` (edges along a texel axis: "Texel axes off the shadow edges")."""
+    Then, given the first look's shadow edges, turned about its depth axis by ``edge_turned``: the turn of least texel
+    side at B's centroid times ``filter_losses`` (edges along a texel axis: "Texel axes off the shadow edges")."""
     fitted = lambda m: fit_to_unit_cube(m, body.vertices - view.position)
     jacobian = lambda m: frame_jacobian(m @ translation(-view.position), frame, body.volume_centroid)
     relative = fitted(unfitted)
@@ -112,11 +111,7 @@ def turned_fit(unfitted: np.ndarray, view: View, body: IntersectionBody, frame: 
     turned = lambda t: fitted(np.vstack([((1 - t) * np.eye(2) + t * c) @ relative[:2], relative[2:]]))
     t = min(math.log2(max(np.linalg.det(jacobian(turned(1.0))) / np.linalg.det(j), 1.0)), 1.0)
     relative = turned(t) if t > 0 else relative
-    edges = edge_samples(body.visible)
-    if not len(edges):
-        return relative
-    return edge_turned(relative, body.vertices - view.position, frame, body.volume_centroid, edges,
-                       translation(-view.position))
+    return edge_turned(relative, body.vertices - view.position, frame, body, translation(-view.position))
 
 
 def guarded_warp(view: View, light: Light, body: IntersectionBody, options: WarpOptions, warp: PSMWarp,

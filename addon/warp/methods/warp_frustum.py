@@ -337,14 +337,17 @@ def frame_jacobian(matrix: np.ndarray, frame: LightFrame, point: np.ndarray) -> 
                            transform_points(frame.to_light, point))[..., 0, :, :2]
 
 
-def edge_turned(fitted: np.ndarray, points: np.ndarray, frame: LightFrame, centre: np.ndarray, edges: np.ndarray,
+def edge_turned(fitted: np.ndarray, points: np.ndarray, frame: LightFrame, body: IntersectionBody,
                 to_world: np.ndarray = np.eye(4)) -> np.ndarray:
     """``fitted`` (``points``' coordinates to light clip; ``to_world``: world to them) turned about its depth axis by the
-    one of ``TURNS`` that, fitted again to the points (§4), has the least texel side in ``frame`` at ``centre`` times
-    ``filter_losses`` at the shadow ``edges`` (docs/papers.md, "Texel axes off the shadow edges")."""
+    one of ``TURNS`` that, fitted again to the points (§4), has the least texel side in ``frame`` at B's centroid times
+    ``filter_losses`` at the first look's shadow edges, if any (docs/papers.md, "Texel axes off the shadow edges")."""
+    if not len(edges := edge_samples(body.visible)):
+        return fitted
     turns = fit_to_unit_cube(TURNS @ fitted, points)
     loss = filter_losses([ShadowSetup([ShadowMap(m, (2, 2))], None) for m in turns @ to_world], (None,) * 4 + (edges,))
-    return turns[int(np.argmin(loss / np.sqrt(np.linalg.det(frame_jacobian(turns @ to_world, frame, centre)))))]
+    return turns[int(np.argmin(loss / np.sqrt(np.linalg.det(frame_jacobian(turns @ to_world, frame,
+                                                                             body.volume_centroid)))))]
 
 
 def _unit_or_zero(v: np.ndarray) -> np.ndarray:
@@ -441,8 +444,8 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
             if matrix is None:
                 w.geo, w.matrix = None, frame_maps([w.frame], options.shadow_map_size)[0].matrix
                 w.notes.append((f"{w.frame.role}: uniform", closure))
-    if len(frames) == 1 and warps[0].geo is not None and len(edges := edge_samples(body.visible)):
-        warps[0].matrix = edge_turned(warps[0].matrix, frames[0].points, frames[0], body.volume_centroid, edges)
+    if len(frames) == 1 and warps[0].geo is not None:      # (a sun, a spot or point light with one map: PSM's turn)
+        warps[0].matrix = edge_turned(warps[0].matrix, frames[0].points, frames[0], body)
     maps: list[ShadowMap] = []
     for w in warps:
         diag.fallbacks += w.notes
