@@ -1,5 +1,5 @@
 """Maps that differ by a map of x/w, y/w share one raster Jacobian (``partition.receivers.jacobians``): PSM's turns
-(``methods.warp_frustum.TURNS``) and the cascade's ``turned`` maps keep their first's z and w rows, so d(x/w, y/w) of each is
+(``methods.psm.TURNS``) and the cascade's ``turned`` maps keep their first's z and w rows, so d(x/w, y/w) of each is
 a 2x2 matrix times the first's, at every point; their Jacobians are each one's own, to rounding."""
 import numpy as np
 import pytest
@@ -8,7 +8,7 @@ from addon.warp import compute
 from addon.warp.aliasing import raster_jacobian
 from addon.warp.fit import fit_to_unit_cube
 from addon.warp.geometry import translation
-from addon.warp.methods.warp_frustum import TURNS
+from addon.warp.methods.psm import TURNS
 from addon.warp.partition import receivers
 from addon.warp.types import ShadowMap
 

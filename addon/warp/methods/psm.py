@@ -18,6 +18,7 @@ from ..linear_depth import light_depth_row
 from ..post_perspective import PPSLight, VirtualCamera, nearest_visible_depth, pps_light_matrix, virtual_camera
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpOptions
 from .common import body_diagnostics, uniform_setup
+from .warp_frustum import TURNS  # noqa: F401 (the cascade's import: it spins its split maps by them)
 from .warp_frustum import edge_turned, eye_depth_range, frame_jacobian, guard_lambda, light_at_eye, map_lambda
 
 COVER_TOLERANCE = 1e-6
