@@ -9,17 +9,18 @@ from typing import Optional
 
 import numpy as np
 
+from ..aliasing import raster_jacobian
 from ..body import IntersectionBody
 from ..diagnostics import Diagnostics
 from ..fit import fit_to_unit_cube
 from ..frame import LightFrame, light_frames
-from ..geometry import finite_clip_volume_corners, translation
+from ..geometry import finite_clip_volume_corners, transform_points, translation
 from ..linear_depth import light_depth_row
 from ..post_perspective import PPSLight, VirtualCamera, nearest_visible_depth, pps_light_matrix, virtual_camera
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpOptions
 from .common import body_diagnostics, uniform_setup
 from .warp_frustum import TURNS  # noqa: F401 (the cascade's import: it spins its split maps by them)
-from .warp_frustum import edge_turned, eye_depth_range, frame_jacobian, guard_lambda, light_at_eye, map_lambda
+from .warp_frustum import edge_turned, eye_depth_range, guard_lambda, light_at_eye, map_lambda
 
 COVER_TOLERANCE = 1e-6
 """Final check: every B vertex has |NDC| <= 1 + this (the fit pads by 1e-7)."""
@@ -101,10 +102,11 @@ def turned_fit(unfitted: np.ndarray, view: View, body: IntersectionBody, frame: 
     as the virtual camera moves back, as §4.2 says it must (docs/papers.md, "PSM's map axes under a low sun").
     J: a fitted map's d(x/w, y/w) over the frame's x, y at B's centroid; C = J⁻¹ at det 1 puts the fitted x, y along
     the frame's there; the turn is I + t (C - I), t = log2 of the texel's area before over after, clamped to [0, 1].
-    Then, given the first look's shadow edges, turned about its depth axis by ``edge_turned``: the turn of least texel
-    side at B's centroid times ``filter_losses`` (edges along a texel axis: "Texel axes off the shadow edges")."""
+    Then, given the first look's shadow edges, turned about its depth axis by ``edge_turned``: the turn of least
+    ``filter_losses`` (texels wide across the edges, edges along a texel axis: "Texel axes off the shadow edges")."""
     fitted = lambda m: fit_to_unit_cube(m, body.vertices - view.position)
-    jacobian = lambda m: frame_jacobian(m @ translation(-view.position), frame, body.volume_centroid)
+    jacobian = lambda m: raster_jacobian(m @ translation(-view.position) @ np.linalg.inv(frame.to_light), (2, 2),
+                                         transform_points(frame.to_light, body.volume_centroid))[..., 0, :, :2]
     relative = fitted(unfitted)
     if frame is None or not np.linalg.det(j := jacobian(relative)) > 0:
         return relative
@@ -112,7 +114,7 @@ def turned_fit(unfitted: np.ndarray, view: View, body: IntersectionBody, frame: 
     turned = lambda t: fitted(np.vstack([((1 - t) * np.eye(2) + t * c) @ relative[:2], relative[2:]]))
     t = min(math.log2(max(np.linalg.det(jacobian(turned(1.0))) / np.linalg.det(j), 1.0)), 1.0)
     relative = turned(t) if t > 0 else relative
-    return edge_turned(relative, body.vertices - view.position, frame, body, translation(-view.position))
+    return edge_turned(relative, body.vertices - view.position, body, translation(-view.position))
 
 
 def guarded_warp(view: View, light: Light, body: IntersectionBody, options: WarpOptions, warp: PSMWarp,

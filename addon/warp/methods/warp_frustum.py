@@ -10,12 +10,12 @@ from typing import Callable, Optional
 import numpy as np
 
 from ..aliasing import (folded, lambda_glpr, lambda_gmnpr, lambda_least_on_screen, lambda_no_worse_on_average,
-                        lambda_no_worse_than_uniform, lispsm_inverse_n_opt, raster_jacobian)
+                        lambda_no_worse_than_uniform, lispsm_inverse_n_opt)
 from ..body import IntersectionBody
 from ..diagnostics import Diagnostics
 from ..fit import fit_runs, fit_to_unit_cube, window_matrices
 from ..frame import PARALLEL_BLEND, LightFrame, body_light_angles, light_frames, pyramid_sections
-from ..geometry import finite_clip_volume_corners, homogeneous, point_runs, transform_h_runs, transform_points
+from ..geometry import finite_clip_volume_corners, homogeneous, point_runs, transform_h_runs
 from ..linear_depth import frame_depth_row
 from ..partition.receivers import edge_samples, filter_losses
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
@@ -331,23 +331,17 @@ def map_lambda(matrix: np.ndarray, frame: LightFrame) -> tuple[Optional[WarpAxis
     return WarpAxis(frame.to_light, a, h_min, extent), (h_min + w_row[3] / length) / extent
 
 
-def frame_jacobian(matrix: np.ndarray, frame: LightFrame, point: np.ndarray) -> np.ndarray:
-    """d(x/w, y/w) of a world -> clip ``matrix`` (or each of a stack) over ``frame``'s light image x, y at ``point``."""
-    return raster_jacobian(matrix @ np.linalg.inv(frame.to_light), (2, 2),
-                           transform_points(frame.to_light, point))[..., 0, :, :2]
-
-
-def edge_turned(fitted: np.ndarray, points: np.ndarray, frame: LightFrame, body: IntersectionBody,
+def edge_turned(fitted: np.ndarray, points: np.ndarray, body: IntersectionBody,
                 to_world: np.ndarray = np.eye(4)) -> np.ndarray:
     """``fitted`` (``points``' coordinates to light clip; ``to_world``: world to them) turned about its depth axis by the
-    one of ``TURNS`` that, fitted again to the points (§4), has the least texel side in ``frame`` at B's centroid times
-    ``filter_losses`` at the first look's shadow edges, if any (docs/papers.md, "Texel axes off the shadow edges")."""
+    one of ``TURNS`` that, fitted again to the points (§4), has the least ``filter_losses`` at the first look's shadow
+    edges, if any: its texels' width across them and their share near a texel axis (docs/papers.md, "Texel axes off
+    the shadow edges"; the texel side at B's centre weighed the width twice, "family, session 23")."""
     if not len(edges := edge_samples(body.visible)):
         return fitted
     turns = fit_to_unit_cube(TURNS @ fitted, points)
-    loss = filter_losses([ShadowSetup([ShadowMap(m, (2, 2))], None) for m in turns @ to_world], (None,) * 4 + (edges,))
-    return turns[int(np.argmin(loss / np.sqrt(np.linalg.det(frame_jacobian(turns @ to_world, frame,
-                                                                             body.volume_centroid)))))]
+    return turns[int(np.argmin(filter_losses([ShadowSetup([ShadowMap(m, (2, 2))], None) for m in turns @ to_world],
+                                             (None,) * 4 + (edges,))))]
 
 
 def _unit_or_zero(v: np.ndarray) -> np.ndarray:
@@ -445,7 +439,7 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
                 w.geo, w.matrix = None, frame_maps([w.frame], options.shadow_map_size)[0].matrix
                 w.notes.append((f"{w.frame.role}: uniform", closure))
     if len(frames) == 1 and warps[0].geo is not None:      # (a sun, a spot or point light with one map: PSM's turn)
-        warps[0].matrix = edge_turned(warps[0].matrix, frames[0].points, frames[0], body)
+        warps[0].matrix = edge_turned(warps[0].matrix, frames[0].points, body)
     maps: list[ShadowMap] = []
     for w in warps:
         diag.fallbacks += w.notes
