@@ -19,8 +19,7 @@ from ..linear_depth import light_depth_row
 from ..post_perspective import PPSLight, VirtualCamera, nearest_visible_depth, pps_light_matrix, virtual_camera
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpOptions
 from .common import body_diagnostics, uniform_setup
-from .warp_frustum import TURNS  # noqa: F401 (the cascade's import: it spins its split maps by them)
-from .warp_frustum import edge_turned, eye_depth_range, guard_lambda, light_at_eye, map_lambda
+from .warp_frustum import TURNS, edge_turned, eye_depth_range, guard_lambda, light_at_eye, map_lambda  # noqa: F401
 
 COVER_TOLERANCE = 1e-6
 """Final check: every B vertex has |NDC| <= 1 + this (the fit pads by 1e-7)."""
@@ -89,10 +88,9 @@ def psm_warp(view: View, light: Light, body: IntersectionBody, options: WarpOpti
     camera = virtual_camera(view, body, visible_near)
     light_in_pps = pps_light_matrix(camera.to_pps @ light.homogeneous_from(view.position), camera.points,
                                     math.inf if light.is_directional else options.max_frustum_angle / 2)
-    relative = None
-    if light_in_pps.matrix is not None:
-        relative = turned_fit(light_in_pps.matrix @ camera.to_pps, view, body, frames[0] if len(frames) == 1 else None)
-    return PSMWarp(camera, light_in_pps, relative)
+    frame = frames[0] if len(frames) == 1 else None
+    return PSMWarp(camera, light_in_pps, None if light_in_pps.matrix is None
+                   else turned_fit(light_in_pps.matrix @ camera.to_pps, view, body, frame))
 
 
 def turned_fit(unfitted: np.ndarray, view: View, body: IntersectionBody, frame: Optional[LightFrame]) -> np.ndarray:
@@ -102,8 +100,7 @@ def turned_fit(unfitted: np.ndarray, view: View, body: IntersectionBody, frame: 
     as the virtual camera moves back, as §4.2 says it must (docs/papers.md, "PSM's map axes under a low sun").
     J: a fitted map's d(x/w, y/w) over the frame's x, y at B's centroid; C = J⁻¹ at det 1 puts the fitted x, y along
     the frame's there; the turn is I + t (C - I), t = log2 of the texel's area before over after, clamped to [0, 1].
-    Then, given the first look's shadow edges, turned about its depth axis by ``edge_turned``: the turn of least
-    ``filter_losses`` (texels wide across the edges, edges along a texel axis: "Texel axes off the shadow edges")."""
+    Then turned about its depth axis off the first look's shadow edges, if any (``edge_turned``)."""
     fitted = lambda m: fit_to_unit_cube(m, body.vertices - view.position)
     jacobian = lambda m: raster_jacobian(m @ translation(-view.position) @ np.linalg.inv(frame.to_light), (2, 2),
                                          transform_points(frame.to_light, body.volume_centroid))[..., 0, :, :2]

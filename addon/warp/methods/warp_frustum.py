@@ -90,7 +90,9 @@ class FrameGeometry(WarpAxis):
 
 def light_at_eye(view: View, light: Light, options: WarpOptions, body: IntersectionBody,
                  middle: Optional[np.ndarray]) -> tuple[Optional[LightAtEye], str]:
-    """The world-space quantities every frame shares, or (None, reason) when the light ray through the eye has none."""
+    """What every frame shares in world space, or (None, why): an orthographic camera, no light ray through the eye."""
+    if view.orthographic:
+        return None, "orthographic camera: no perspective aliasing to redistribute"
     d = view.direction
     if light.is_directional:
         ell, dist = light.direction, 0.0
@@ -333,10 +335,9 @@ def map_lambda(matrix: np.ndarray, frame: LightFrame) -> tuple[Optional[WarpAxis
 
 def edge_turned(fitted: np.ndarray, points: np.ndarray, body: IntersectionBody,
                 to_world: np.ndarray = np.eye(4)) -> np.ndarray:
-    """``fitted`` (``points``' coordinates to light clip; ``to_world``: world to them) turned about its depth axis by the
-    one of ``TURNS`` that, fitted again to the points (§4), has the least ``filter_losses`` at the first look's shadow
-    edges, if any: its texels' width across them and their share near a texel axis (docs/papers.md, "Texel axes off
-    the shadow edges"; the texel side at B's centre weighed the width twice, "family, session 23")."""
+    """``fitted`` (``points``' coordinates to light clip; ``to_world``: world to them) turned about its depth axis by
+    the one of ``TURNS`` that, fitted again to the points (§4), has the least ``filter_losses`` (texels wide across
+    the first look's shadow edges, or along them) there, if any (docs/papers.md, "Texel axes off the shadow edges")."""
     if not len(edges := edge_samples(body.visible)):
         return fitted
     turns = fit_to_unit_cube(TURNS @ fitted, points)
@@ -420,10 +421,7 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
     diag = Diagnostics(name, body_vertices=body.vertices)
     frames = light_frames(view, light, body, options)
     middle = body.volume_centroid - view.position          # B's middle vector (Scherzer §4.4)
-    if view.orthographic:
-        at, reason = None, "orthographic camera: no perspective aliasing to redistribute"
-    else:
-        at, reason = light_at_eye(view, light, options, body, middle if options.middle_vector else None)
+    at, reason = light_at_eye(view, light, options, body, middle)
     ctx = eye_depth_range(view, body, options, diag, at)
     ctx.guard = options.lambda_guard in ("all", name)
     diag.extra.update(z_n=ctx.z_n, delta_z=ctx.z_f - ctx.z_n, frames=[f.role for f in frames],
