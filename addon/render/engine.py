@@ -59,12 +59,14 @@ guard"), the cascade through its splits' warps."""
 
 def looks_for_edges(method: str, options, light) -> bool:
     """Whether ``fit_warp`` takes the first look at the shadow edges (``shadow_edges``): where ``method``'s λ guard
-    acts, for its weights (``weighs_edges``) and the cascade's map pick (``partition.receivers.filter_losses``: the
-    edges' directions), for a point light only the cascade's pick (docs/papers.md, "A pick that sees the edges'
-    directions"), and plane_optimal's default plane (its share of the edges: ``plane_optimal.planes_of_interest``)."""
+    acts, for its weights (``weighs_edges``, not a point light's), the cascade's map pick and the one-map turns of PSM,
+    LiSPSM, GMNPR and GLPR (``warp_frustum.edge_turned``), which read the edges' directions through
+    ``partition.receivers.filter_losses`` under every kind of light (docs/papers.md, "A pick that sees the edges'
+    directions", "family, session 23"), and plane_optimal's default plane (its share of the edges:
+    ``plane_optimal.planes_of_interest``)."""
     if options.focus == "visible" and method == "plane_optimal":
         return not options.planes
-    if options.focus != "visible" or method not in GUARDED or (light.type == "POINT" and method != "cascade"):
+    if options.focus != "visible" or method not in GUARDED:
         return False
     if method == "cascade":
         return options.lambda_guard == "all" and not options.cascade_stable and options.cascade_warp != "uniform"

@@ -49,13 +49,6 @@ def fit_to_unit_cube(transform: np.ndarray, points: np.ndarray) -> np.ndarray:
     return window_matrices(lo, hi).reshape(transform.shape) @ transform
 
 
-def fit_keeping_points(transform: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``fit_to_unit_cube`` and the ``points`` as the fitted map divides them."""
-    ndc = divided(points @ transform[:, :3].T + transform[:, 3])
-    window = window_matrix(ndc.min(axis=0), ndc.max(axis=0))
-    return window @ transform, ndc * window.diagonal()[:3] + window[:3, 3]
-
-
 def fit_runs(matrices, points_h, starts, run) -> np.ndarray:
     """``fit_to_unit_cube`` of maps (k, 4, 4), each to its run of the points (N, 4) (``geometry.point_runs``)."""
     ndc = divided(transform_h_runs(matrices, points_h, run))

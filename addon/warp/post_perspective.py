@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .body import IntersectionBody
-from .fit import fit_keeping_points
+from .fit import divided, window_matrix
 from .frame import image_up
 from .geometry import cross, normalize
 from .polyhedron import BOX_NORMALS, ConvexPolytope, Edges, box_edges, box_offsets, clip_segments
@@ -72,8 +72,10 @@ def virtual_camera(view: View, body: IntersectionBody, visible_near: float | Non
     to_virtual_clip[:2, :3] = to_camera[:2]                 # x, y
     to_virtual_clip[2, 3] = -near                           # z = -near / depth_v: affine in 1 / depth
     to_virtual_clip[3, :3], to_virtual_clip[3, 3] = -to_camera[2], shift     # w = depth + shift, the virtual depth
-    to_pps, b_in_pps = fit_keeping_points(to_virtual_clip, b_rel)          # (w >= near > 0 on B)
-    return VirtualCamera(to_pps, shift, near, float(b_depth.max()) + shift, d_r, b_in_pps)
+    ndc = divided(b_rel @ to_virtual_clip[:, :3].T + to_virtual_clip[:, 3])      # (w >= near > 0 on B)
+    window = window_matrix(ndc.min(axis=0), ndc.max(axis=0))                  # the fit (§4); B' its image of ndc
+    return VirtualCamera(window @ to_virtual_clip, shift, near, float(b_depth.max()) + shift, d_r,
+                         ndc * window.diagonal()[:3] + window[:3, 3])
 
 
 def nearest_visible_depth(view: View, light: Light, body: IntersectionBody,

@@ -307,13 +307,12 @@ def test_the_first_look_knows_which_way_the_shadow_edges_run(mods, fresh_scene):
 
 
 @pytest.mark.parametrize("kind", ["SUN", "POINT"])
-def test_a_point_lights_cascade_gets_the_first_looks_edges_but_its_lambda_guard_does_not_weigh_them(mods, fresh_scene,
-                                                                                                     kind):
+def test_a_point_light_gets_the_first_looks_edges_but_its_lambda_guard_does_not_weigh_them(mods, fresh_scene, kind):
     """The cascade's pick weighs its single maps by the shadow edges' directions (``partition.receivers.filter_losses``)
     for a point light too: ``fit_warp`` takes the first look and hands the cascade each edge sample's direction, but
     not the per-tile edge weights the λ guard weighs its warps by (a point light's warped cube faces rendered worse
-    with them: docs/papers.md, the λ guard, part 7); a sun's cascade gets both, and a point light's LiSPSM, whose
-    guard is all the first look would serve, takes none. plane_optimal takes the edge samples under either light, to
+    with them: docs/papers.md, the λ guard, part 7); a sun's cascade gets both. A point light's one-map LiSPSM takes the
+    directions too, to turn its texel axes off the edges (``warp_frustum.edge_turned``), and no weights. plane_optimal takes the edge samples under either light, to
     price its default plane by its share of the edges (``plane_map.default_plane``), and no edge weights (no guard)."""
     overlook(fresh_scene)
     lamp = fresh_scene.objects["Sun"]
@@ -335,6 +334,7 @@ def test_a_point_lights_cascade_gets_the_first_looks_edges_but_its_lambda_guard_
     cascade = seen("cascade")
     assert cascade.edge_directions is not None and np.any(cascade.edge_directions != 0, axis=1).sum() >= 20
     assert (cascade.edge_weights() is None) == (kind == "POINT")
-    assert (seen("lispsm").edge_directions is None) == (kind == "POINT")
+    lispsm = seen("lispsm")
+    assert lispsm.edge_directions is not None and (lispsm.edge_weights() is None) == (kind == "POINT")
     plane_optimal = seen("plane_optimal")
     assert plane_optimal.edge_directions is not None and plane_optimal.edge_weights() is None

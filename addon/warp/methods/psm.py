@@ -16,11 +16,10 @@ from ..fit import fit_to_unit_cube
 from ..frame import LightFrame, light_frames
 from ..geometry import finite_clip_volume_corners, transform_points, translation
 from ..linear_depth import light_depth_row
-from ..partition.receivers import edge_samples, filter_losses
 from ..post_perspective import PPSLight, VirtualCamera, nearest_visible_depth, pps_light_matrix, virtual_camera
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpOptions
 from .common import body_diagnostics, uniform_setup
-from .warp_frustum import eye_depth_range, guard_lambda, light_at_eye, map_lambda
+from .warp_frustum import TURNS, edge_turned, eye_depth_range, guard_lambda, light_at_eye, map_lambda  # noqa: F401
 
 COVER_TOLERANCE = 1e-6
 """Final check: every B vertex has |NDC| <= 1 + this (the fit pads by 1e-7)."""
@@ -31,9 +30,6 @@ GUARD_FAR = 1e6
 depths of B back (λ ≈ 1e6 for a sun across the view: the uniform map to float precision)."""
 GUARD_TOLERANCE = 1e-3
 """The guard's search aims PSM's λ at most this much (relative) above the guard's λ."""
-TURNS = np.array([[[math.cos(a), -math.sin(a), 0, 0], [math.sin(a), math.cos(a), 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
-                  for a in np.radians(np.arange(-45.0, 45.0, 2.5))])
-"""The turns of a map's x, y about its depth axis that ``turned_fit`` weighs against the shadow edges (every 2.5°)."""
 
 
 @dataclass(frozen=True)
@@ -92,10 +88,9 @@ def psm_warp(view: View, light: Light, body: IntersectionBody, options: WarpOpti
     camera = virtual_camera(view, body, visible_near)
     light_in_pps = pps_light_matrix(camera.to_pps @ light.homogeneous_from(view.position), camera.points,
                                     math.inf if light.is_directional else options.max_frustum_angle / 2)
-    relative = None
-    if light_in_pps.matrix is not None:
-        relative = turned_fit(light_in_pps.matrix @ camera.to_pps, view, body, frames[0] if len(frames) == 1 else None)
-    return PSMWarp(camera, light_in_pps, relative)
+    frame = frames[0] if len(frames) == 1 else None
+    return PSMWarp(camera, light_in_pps, None if light_in_pps.matrix is None
+                   else turned_fit(light_in_pps.matrix @ camera.to_pps, view, body, frame))
 
 
 def turned_fit(unfitted: np.ndarray, view: View, body: IntersectionBody, frame: Optional[LightFrame]) -> np.ndarray:
@@ -105,8 +100,7 @@ def turned_fit(unfitted: np.ndarray, view: View, body: IntersectionBody, frame: 
     as the virtual camera moves back, as §4.2 says it must (docs/papers.md, "PSM's map axes under a low sun").
     J: a fitted map's d(x/w, y/w) over the frame's x, y at B's centroid; C = J⁻¹ at det 1 puts the fitted x, y along
     the frame's there; the turn is I + t (C - I), t = log2 of the texel's area before over after, clamped to [0, 1].
-    Then, given the first look's shadow edges, turned about its depth axis by the one of ``TURNS`` of least texel side
-    at B's centroid times ``filter_losses`` (edges along a texel axis: "Texel axes off the shadow edges")."""
+    Then turned about its depth axis off the first look's shadow edges, if any (``edge_turned``)."""
     fitted = lambda m: fit_to_unit_cube(m, body.vertices - view.position)
     jacobian = lambda m: raster_jacobian(m @ translation(-view.position) @ np.linalg.inv(frame.to_light), (2, 2),
                                          transform_points(frame.to_light, body.volume_centroid))[..., 0, :, :2]
@@ -117,13 +111,7 @@ def turned_fit(unfitted: np.ndarray, view: View, body: IntersectionBody, frame: 
     turned = lambda t: fitted(np.vstack([((1 - t) * np.eye(2) + t * c) @ relative[:2], relative[2:]]))
     t = min(math.log2(max(np.linalg.det(jacobian(turned(1.0))) / np.linalg.det(j), 1.0)), 1.0)
     relative = turned(t) if t > 0 else relative
-    edges = edge_samples(body.visible)
-    if not len(edges):
-        return relative
-    turns = fitted(TURNS @ relative)
-    loss = filter_losses([ShadowSetup([ShadowMap(m, (2, 2))], None) for m in turns @ translation(-view.position)],
-                         (None,) * 4 + (edges,))
-    return turns[int(np.argmin(loss / np.sqrt(np.linalg.det(jacobian(turns)))))]
+    return edge_turned(relative, body.vertices - view.position, body, translation(-view.position))
 
 
 def guarded_warp(view: View, light: Light, body: IntersectionBody, options: WarpOptions, warp: PSMWarp,

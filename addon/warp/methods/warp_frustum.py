@@ -13,13 +13,17 @@ from ..aliasing import (folded, lambda_glpr, lambda_gmnpr, lambda_least_on_scree
                         lambda_no_worse_than_uniform, lispsm_inverse_n_opt)
 from ..body import IntersectionBody
 from ..diagnostics import Diagnostics
-from ..fit import fit_runs, window_matrices
+from ..fit import fit_runs, fit_to_unit_cube, window_matrices
 from ..frame import PARALLEL_BLEND, LightFrame, body_light_angles, light_frames, pyramid_sections
 from ..geometry import finite_clip_volume_corners, homogeneous, point_runs, transform_h_runs
 from ..linear_depth import frame_depth_row
+from ..partition.receivers import edge_samples, filter_losses
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpError, WarpOptions
 from .common import frame_maps, near_plane_notes
 
+TURNS = np.array([[[math.cos(a), -math.sin(a), 0, 0], [math.sin(a), math.cos(a), 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+                  for a in np.radians(np.arange(-45.0, 45.0, 2.5))])
+"""The turns of a map's x, y about its depth axis that ``edge_turned`` weighs against the shadow edges (every 2.5°)."""
 FADE_START = 2.0
 FADE_END = 4.0
 """Point-light frames: the warp fades out (linearly in μ) as the eye's image moves
@@ -86,7 +90,9 @@ class FrameGeometry(WarpAxis):
 
 def light_at_eye(view: View, light: Light, options: WarpOptions, body: IntersectionBody,
                  middle: Optional[np.ndarray]) -> tuple[Optional[LightAtEye], str]:
-    """The world-space quantities every frame shares, or (None, reason) when the light ray through the eye has none."""
+    """What every frame shares in world space, or (None, why): an orthographic camera, no light ray through the eye."""
+    if view.orthographic:
+        return None, "orthographic camera: no perspective aliasing to redistribute"
     d = view.direction
     if light.is_directional:
         ell, dist = light.direction, 0.0
@@ -327,6 +333,18 @@ def map_lambda(matrix: np.ndarray, frame: LightFrame) -> tuple[Optional[WarpAxis
     return WarpAxis(frame.to_light, a, h_min, extent), (h_min + w_row[3] / length) / extent
 
 
+def edge_turned(fitted: np.ndarray, points: np.ndarray, body: IntersectionBody,
+                to_world: np.ndarray = np.eye(4)) -> np.ndarray:
+    """``fitted`` (``points``' coordinates to light clip; ``to_world``: world to them) turned about its depth axis by
+    the one of ``TURNS`` that, fitted again to the points (§4), has the least ``filter_losses`` (texels wide across
+    the first look's shadow edges, or along them) there, if any (docs/papers.md, "Texel axes off the shadow edges")."""
+    if not len(edges := edge_samples(body.visible)):
+        return fitted
+    turns = fit_to_unit_cube(TURNS @ fitted, points)
+    return turns[int(np.argmin(filter_losses([ShadowSetup([ShadowMap(m, (2, 2))], None) for m in turns @ to_world],
+                                             (None,) * 4 + (edges,))))]
+
+
 def _unit_or_zero(v: np.ndarray) -> np.ndarray:
     length = math.sqrt(v @ v)
     return v / length if length > 0 else np.zeros(3)
@@ -403,10 +421,7 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
     diag = Diagnostics(name, body_vertices=body.vertices)
     frames = light_frames(view, light, body, options)
     middle = body.volume_centroid - view.position          # B's middle vector (Scherzer §4.4)
-    if view.orthographic:
-        at, reason = None, "orthographic camera: no perspective aliasing to redistribute"
-    else:
-        at, reason = light_at_eye(view, light, options, body, middle if options.middle_vector else None)
+    at, reason = light_at_eye(view, light, options, body, middle)
     ctx = eye_depth_range(view, body, options, diag, at)
     ctx.guard = options.lambda_guard in ("all", name)
     diag.extra.update(z_n=ctx.z_n, delta_z=ctx.z_f - ctx.z_n, frames=[f.role for f in frames],
@@ -421,6 +436,8 @@ def warped_setup(name: str, rule: LambdaRule, view: View, light: Light, body: In
             if matrix is None:
                 w.geo, w.matrix = None, frame_maps([w.frame], options.shadow_map_size)[0].matrix
                 w.notes.append((f"{w.frame.role}: uniform", closure))
+    if len(frames) == 1 and warps[0].geo is not None:      # (a sun, a spot or point light with one map: PSM's turn)
+        warps[0].matrix = edge_turned(warps[0].matrix, frames[0].points, body)
     maps: list[ShadowMap] = []
     for w in warps:
         diag.fallbacks += w.notes
