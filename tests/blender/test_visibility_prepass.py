@@ -312,8 +312,9 @@ def test_a_point_light_gets_the_first_looks_edges_but_its_lambda_guard_does_not_
     for a point light too: ``fit_warp`` takes the first look and hands the cascade each edge sample's direction, but
     not the per-tile edge weights the λ guard weighs its warps by (a point light's warped cube faces rendered worse
     with them: docs/papers.md, the λ guard, part 7); a sun's cascade gets both. A point light's one-map LiSPSM takes the
-    directions too, to turn its texel axes off the edges (``warp_frustum.edge_turned``), and no weights. plane_optimal takes the edge samples under either light, to
-    price its default plane by its share of the edges (``plane_map.default_plane``), and no edge weights (no guard)."""
+    directions too, to turn its texel axes off the edges (``warp_frustum.edge_turned``), and no weights. plane_optimal
+    takes the edge samples under either light, to price its default plane by its share of the edges
+    (``plane_map.default_plane``), and no edge weights (no guard)."""
     overlook(fresh_scene)
     lamp = fresh_scene.objects["Sun"]
     lamp.data.type = kind
