@@ -46,6 +46,7 @@ from ..guard import guarded_draw, user_message
 from ..scene.owned import is_debug_object
 from ..settings import LixelSettings
 from ..warp import compute, focused_body
+from ..warp.frame import light_frames
 from ..warp.methods import METHODS, reads_surface
 from ..warp.types import Diagnostics, EmptyBodyError, Light, ShadowMap, ShadowSetup, WarpError
 from .warp_cache import shared_warps
@@ -55,6 +56,11 @@ log = logging.getLogger(__name__)
 GUARDED = ("lispsm", "gmnpr", "glpr", "psm", "cascade")
 """The methods whose warp strength the λ guard can keep no worse than the uniform map (docs/papers.md, "The λ
 guard"), the cascade through its splits' warps."""
+
+ONE_MAP_TURNS = ("psm", "lispsm", "gmnpr", "glpr")
+"""The methods that turn a one-map setup's texel axes off the first look's edges (``warp_frustum.edge_turned``): for
+a point light that turn is all their first look serves, so ``fit_warp`` skips it where the light needs several cube
+faces (90-120 ms of a cold frame on point_low_in_view)."""
 
 
 def looks_for_edges(method: str, options, light) -> bool:
@@ -193,6 +199,8 @@ def fit_warp(frame, light, bounds, options, method: str):
     if options.focus == "visible":
         visible, seconds = region_from_frame(frame, surface=reads_surface(method, options) or look)
     body = focused_body(frame.view, light, bounds, options, visible)
+    if look and light.type == "POINT" and method in ONE_MAP_TURNS:     # the look serves only the one-map turn
+        look = len(light_frames(frame.view, light, body, options)) == 1
     if look:
         t = time.perf_counter()
         body = dataclasses.replace(body, visible=first_look(frame, visible, body, light, bounds, options, method))

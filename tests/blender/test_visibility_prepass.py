@@ -339,3 +339,32 @@ def test_a_point_light_gets_the_first_looks_edges_but_its_lambda_guard_does_not_
     assert lispsm.edge_directions is not None and (lispsm.edge_weights() is None) == (kind == "POINT")
     plane_optimal = seen("plane_optimal")
     assert plane_optimal.edge_directions is not None and plane_optimal.edge_weights() is None
+
+
+def test_a_point_light_among_what_is_seen_takes_no_first_look_its_one_map_turn_cannot_use(mods, fresh_scene,
+                                                                                          monkeypatch):
+    """A point light among what the camera sees needs several cube faces, and a one-map turn
+    (``warp_frustum.edge_turned``) is all the first look serves a point light's LiSPSM: ``fit_warp`` skips the look
+    there (its cost, 90-120 ms of a cold frame), while the cascade, whose pick reads the edges, still takes it."""
+    overlook(fresh_scene)
+    lamp = fresh_scene.objects["Sun"]
+    lamp.data.type = "POINT"
+    lamp.location = (0.0, 22.0, 2.0)
+    dg = fresh_scene.view_layers[0].depsgraph
+    dg.update()
+    mods.context.ensure_gpu_context()
+    geometry = mods.geometry.GeometryCache().update(dg)
+    view, light, bounds = mods.describe.describe_scene(fresh_scene, dg, instances=geometry.instances)
+    looked = []
+    first_look = mods.engine.first_look
+    monkeypatch.setattr(mods.engine, "first_look", lambda *args: looked.append(args[-1]) or first_look(*args))
+
+    def fit(method):
+        frame = mods.pipeline.ShadowFrame(geometry, view, read=set())
+        frame.camera_prepass()
+        return mods.engine.fit_warp(frame, light, bounds, mods.settings.LixelSettings(method=method).warp, method)
+
+    body, setup, _ = fit("lispsm")
+    assert len(setup.maps) > 1 and looked == [] and body.visible.edge_directions is None
+    body, setup, _ = fit("cascade")
+    assert looked == ["cascade"] and np.any(body.visible.edge_directions != 0, axis=1).sum() >= 20
