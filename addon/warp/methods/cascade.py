@@ -38,7 +38,7 @@ on a wall nearly edge-on to the light a texel's length is ds/cos α (PSM §1.1),
 
 
 def below(a: tuple, b: tuple) -> bool:
-    """Whether scores a = (p95 at the receivers, at the shadow edges) are below b's: the first by ``MARGIN``, or the
+    """Whether scores a = (p95 at the receivers, mean at the shadow edges) are below b's: the first by ``MARGIN``, or the
     first within ``MARGIN`` of b's (a tie: a sample's noise) and the second by ``MARGIN``."""
     return a[0] < b[0] * (1.0 - MARGIN) or a[0] <= b[0] * (1.0 + MARGIN) and a[1] < b[1] * (1.0 - MARGIN)
 
@@ -201,20 +201,22 @@ class Trials:
         return self.once(("least", split.near, far, split.warp), least)
 
     def at_edges(self, splits: list, setups: list) -> float:
-        """The ``TAIL`` p95 of the footprints of each split's ``setups`` at the shadow-edge samples at its eye depths
-        [C_i, C_(i+1)), where errors show (inf below ``EDGES`` samples: too few to tell two layouts apart)."""
+        """The mean finite footprint of each split's ``setups`` at the shadow-edge samples at its eye depths
+        [C_i, C_(i+1)), where errors show: the wrong pixels follow their sum (docs/papers.md, "The receivers'
+        footprint"); inf below ``EDGES`` samples (too few to tell two layouts apart) or none finite."""
         if len(edges := self.seen[4]) < EDGES:
             return math.inf
-        depth, parts = self.view.eye_depth(edges[:, 0]), []
+        depth, parts = self.view.eye_depth(edges[:, 0]), [np.zeros(0)]
         for s, m, far in zip(splits, setups, [*(s.near for s in splits[1:]), math.inf]):
             e = edges[(depth >= s.near) & (depth < far)]
             parts += footprints([m], receivers_at(self.view, e[:, 0], e[:, 2], e)) if m is not None and len(e) else []
-        return footprint_p95(parts, TAIL)
+        f = np.concatenate(parts)
+        return float(f[np.isfinite(f)].mean()) if np.isfinite(f).any() else math.inf
 
     def searched_depths(self, start: np.ndarray, warps: list) -> np.ndarray:
         """``start`` after ``SWEEPS`` coordinate sweeps of the inner ones over ``FRACTIONS`` of their neighbours'
         log range (linear if orthographic), kept where the ``TAIL`` p95 of the splits' ``least`` falls by ``MARGIN``, or
-        ties and their p95 ``at_edges`` falls (``below``); a layout of more than ``MAX_MAPS`` maps is never kept."""
+        ties and their mean footprint ``at_edges`` falls (``below``); a layout of more than ``MAX_MAPS`` maps is never kept."""
         def tail(c: np.ndarray) -> tuple:          # (the splits' Lloyd's m unread: ``least`` scores them)
             splits = self.splits_at(c, warps, scored=False)
             if sum(len(s.setup.maps) for s in splits if s.setup) > MAX_MAPS:
