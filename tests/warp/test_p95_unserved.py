@@ -36,4 +36,4 @@ def test_a_splits_least_is_a_candidate_that_serves_its_receivers():
     trials = Trials(view=None, light=None, scene=None, options=None)
     trials.candidates = lambda split, far, laid=True: [("psm", None, f) for f in (*UNSERVED, SERVED)]
     least = trials.least(types.SimpleNamespace(near=1.0, warp="psm"), 10.0)
-    assert least[1] is SERVED
+    assert least is SERVED

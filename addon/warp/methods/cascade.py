@@ -16,8 +16,8 @@ from ..diagnostics import Diagnostics
 from ..frame import light_cone
 from ..partition.adaptive import max_error, minimax_splits
 from ..partition.budget import shared_sizes
-from ..partition.receivers import (EDGES, TAIL, filter_losses, footprint_p95, footprint_p95s, footprints, grazing,
-                                   receivers, receivers_at, spun, turned)
+from ..partition.receivers import (TAIL, filter_losses, footprint_p95, footprint_p95s, footprints, grazing, receivers,
+                                   spun, turned)
 from ..partition.splits import practical_splits, split_region, split_view, tightened_depth_range
 from ..partition.stable import stable_depth_range, stable_spot_map, stable_sun_map
 from ..types import MAX_MAP_SIDE, EmptyBodyError, Light, SceneBounds, ShadowSetup, View, WarpError, WarpOptions
@@ -37,8 +37,13 @@ ASPECTS = (2.0, 0.5)
 on a wall nearly edge-on to the light a texel's length is ds/cos α (PSM §1.1), ds its side along one image axis."""
 
 
+def worst(footprints: list) -> tuple:
+    """The ``TAIL`` p95 of the splits' ``footprints`` together, and of the worst split's alone (Lloyd's minimax view)."""
+    return footprint_p95(footprints, TAIL), max([footprint_p95([f], TAIL) for f in footprints if len(f)], default=0.0)
+
+
 def below(a: tuple, b: tuple) -> bool:
-    """Whether scores a = (p95 at the receivers, mean at the shadow edges) are below b's: the first by ``MARGIN``, or the
+    """Whether scores a = (``TAIL`` p95 of the splits, of the worst split) are below b's: the first by ``MARGIN``, or the
     first within ``MARGIN`` of b's (a tie: a sample's noise) and the second by ``MARGIN``."""
     return a[0] < b[0] * (1.0 - MARGIN) or a[0] <= b[0] * (1.0 + MARGIN) and a[1] < b[1] * (1.0 - MARGIN)
 
@@ -192,37 +197,22 @@ class Trials:
             s.predicted_error = max_error(s.view, self.light, s.setup, s.body.visible_vertices)
         return splits, [c[k][2] for (_, c), k in zip(scored, pick)]
 
-    def least(self, split: Split, far: float) -> tuple:
-        """(setup, footprints) of ``split``'s unlaid candidate of least p95 at the receivers at eye depths [C_i, ``far``)
-        (None and none if it has none)."""
-        def least() -> tuple:
-            c = self.candidates(split, far, False)
-            return c[int(np.argmin(footprint_p95s([], [f for *_, f in c])))][1:] if c else (None, np.zeros(0))
+    def least(self, split: Split, far: float) -> np.ndarray:
+        """The footprints of ``split``'s unlaid candidate of least p95 at the receivers at eye depths [C_i, ``far``)."""
+        def least() -> np.ndarray:
+            fs = [f for *_, f in self.candidates(split, far, False)]
+            return fs[int(np.argmin(footprint_p95s([], fs)))] if fs else np.zeros(0)
         return self.once(("least", split.near, far, split.warp), least)
-
-    def at_edges(self, splits: list, setups: list) -> float:
-        """The mean finite footprint of each split's ``setups`` at the shadow-edge samples at its eye depths
-        [C_i, C_(i+1)), where errors show: the wrong pixels follow their sum (docs/papers.md, "The receivers'
-        footprint"); inf below ``EDGES`` samples (too few to tell two layouts apart) or none finite."""
-        if len(edges := self.seen[4]) < EDGES:
-            return math.inf
-        depth, parts = self.view.eye_depth(edges[:, 0]), [np.zeros(0)]
-        for s, m, far in zip(splits, setups, [*(s.near for s in splits[1:]), math.inf]):
-            e = edges[(depth >= s.near) & (depth < far)]
-            parts += footprints([m], receivers_at(self.view, e[:, 0], e[:, 2], e)) if m is not None and len(e) else []
-        f = np.concatenate(parts)
-        return float(f[np.isfinite(f)].mean()) if np.isfinite(f).any() else math.inf
 
     def searched_depths(self, start: np.ndarray, warps: list) -> np.ndarray:
         """``start`` after ``SWEEPS`` coordinate sweeps of the inner ones over ``FRACTIONS`` of their neighbours'
         log range (linear if orthographic), kept where the ``TAIL`` p95 of the splits' ``least`` falls by ``MARGIN``, or
-        ties and their mean footprint ``at_edges`` falls (``below``); a layout of more than ``MAX_MAPS`` maps is never kept."""
+        ties and the worst split's falls (``below``); a layout of more than ``MAX_MAPS`` maps is never kept."""
         def tail(c: np.ndarray) -> tuple:          # (the splits' Lloyd's m unread: ``least`` scores them)
             splits = self.splits_at(c, warps, scored=False)
             if sum(len(s.setup.maps) for s in splits if s.setup) > MAX_MAPS:
                 return math.inf, math.inf
-            least = [self.least(s, far) for s, far in zip(splits, [*c[1:-1], math.inf])]
-            return footprint_p95([f for _, f in least], TAIL), self.at_edges(splits, [m for m, _ in least])
+            return worst([self.least(s, far) for s, far in zip(splits, [*c[1:-1], math.inf])])
 
         c, best = start, tail(start)
         for _, k, f in itertools.product(range(SWEEPS), range(1, len(start) - 1), FRACTIONS):
@@ -264,8 +254,7 @@ def split_depths(view: View, light: Light, scene: SceneBounds, body: Intersectio
     if found is moved:
         return moved, splits, "adaptive"
     searched, now = trials.least_footprint(trials.splits_at(found))
-    a, b = ((footprint_p95(f, TAIL), trials.at_edges(s, [x.setup for x in s]), footprint_p95(f))
-            for s, f in ((searched, now), (splits, seen)))
+    a, b = ((*worst(f), footprint_p95(f)) for f in (now, seen))
     tie = a[0] <= b[0] * (1.0 + MARGIN) and a[2] <= b[2] * (1.0 + MARGIN) and a[1] < b[1] * (1.0 - MARGIN)
     better = (a[0] < b[0] and a[2] <= b[2] or tie) and sum(len(s.setup.maps) for s in searched if s.setup) <= MAX_MAPS
     return (found, searched, "receivers") if better else (moved, splits, "adaptive")

@@ -34,14 +34,10 @@ def receivers(view: View, light: Light, region: VisibleRegion | None, near: floa
     k = (view.eye_depth(p) >= near) & (view.eye_depth(p) < far)
     if light.type == "SPOT":
         k &= light.rays_to(p) @ light.direction >= np.cos(light.spot_angle / 2)
-    return receivers_at(view, p[k], n[k], e) if k.any() else None
-
-
-def receivers_at(view: View, p: np.ndarray, n: np.ndarray, e: np.ndarray) -> tuple:
-    """The ``receivers`` tuple of points ``p`` with normals ``n`` and edge samples ``e``."""
+    p, n = p[k], n[k]
     t1 = np.cross(n, np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]]))
     tangent = np.stack([t1, np.cross(n, t1)], axis=2) / np.linalg.norm(t1, axis=1)[:, None, None]
-    return p, n, tangent, raster_jacobian(view.world_to_clip, view.resolution, p) @ tangent, e
+    return (p, n, tangent, raster_jacobian(view.world_to_clip, view.resolution, p) @ tangent, e) if len(p) else None
 
 
 def edge_samples(region: VisibleRegion | None) -> np.ndarray:
