@@ -37,15 +37,15 @@ ASPECTS = (2.0, 0.5)
 on a wall nearly edge-on to the light a texel's length is ds/cos α (PSM §1.1), ds its side along one image axis."""
 
 
-def worst(footprints: list) -> tuple:
-    """The ``TAIL`` p95 of the splits' ``footprints`` together, and of the worst split's alone (Lloyd's minimax view)."""
-    return footprint_p95(footprints, TAIL), max([footprint_p95([f], TAIL) for f in footprints if len(f)], default=0.0)
+def worst(footprints: list) -> float:
+    """The ``TAIL`` p95 of the worst split's ``footprints`` alone (Lloyd's minimax view: the largest error decides)."""
+    return max([footprint_p95([f], TAIL) for f in footprints if len(f)], default=0.0)
 
 
-def below(a: tuple, b: tuple) -> bool:
-    """Whether scores a = (``TAIL`` p95 of the splits, of the worst split) are below b's: the first by ``MARGIN``, or the
-    first within ``MARGIN`` of b's (a tie: a sample's noise) and the second by ``MARGIN``."""
-    return a[0] < b[0] * (1.0 - MARGIN) or a[0] <= b[0] * (1.0 + MARGIN) and a[1] < b[1] * (1.0 - MARGIN)
+def tied(a: tuple, b: tuple) -> bool:
+    """Whether scores a (p95s of all the splits' footprints, then their ``worst``) are within ``MARGIN`` of b's but the
+    last (a tie: a sample's noise), and their last below b's by ``MARGIN``."""
+    return all(x <= y * (1.0 + MARGIN) for x, y in zip(a[:-1], b[:-1])) and a[-1] < b[-1] * (1.0 - MARGIN)
 
 
 def stretched(size: tuple) -> list[tuple[int, int]]:
@@ -207,12 +207,13 @@ class Trials:
     def searched_depths(self, start: np.ndarray, warps: list) -> np.ndarray:
         """``start`` after ``SWEEPS`` coordinate sweeps of the inner ones over ``FRACTIONS`` of their neighbours'
         log range (linear if orthographic), kept where the ``TAIL`` p95 of the splits' ``least`` falls by ``MARGIN``, or
-        ties and the worst split's falls (``below``); a layout of more than ``MAX_MAPS`` maps is never kept."""
+        ties and their ``worst`` falls (``tied``); a layout of more than ``MAX_MAPS`` maps is never kept."""
         def tail(c: np.ndarray) -> tuple:          # (the splits' Lloyd's m unread: ``least`` scores them)
             splits = self.splits_at(c, warps, scored=False)
             if sum(len(s.setup.maps) for s in splits if s.setup) > MAX_MAPS:
                 return math.inf, math.inf
-            return worst([self.least(s, far) for s, far in zip(splits, [*c[1:-1], math.inf])])
+            least = [self.least(s, far) for s, far in zip(splits, [*c[1:-1], math.inf])]
+            return footprint_p95(least, TAIL), worst(least)
 
         c, best = start, tail(start)
         for _, k, f in itertools.product(range(SWEEPS), range(1, len(start) - 1), FRACTIONS):
@@ -220,7 +221,7 @@ class Trials:
             trial[k] = c[k - 1] + (c[k + 1] - c[k - 1]) * f if self.view.orthographic \
                 else c[k - 1] * (c[k + 1] / c[k - 1]) ** f
             error = tail(trial)
-            if below(error, best):
+            if error[0] < best[0] * (1.0 - MARGIN) or tied(error, best):
                 c, best = trial, error
         return c
 
@@ -247,16 +248,16 @@ def split_depths(view: View, light: Light, scene: SceneBounds, body: Intersectio
     if not adaptive_splits(options):
         return depths, splits, "practical"
     kept = [s.warp for s in splits]
-    moved, _ = minimax_splits(lambda c: [s.predicted_error for s in trials.splits_at(c, kept)], depths,
-                              [s.predicted_error for s in splits], options.cascade_budget == "shared")
+    moved = minimax_splits(lambda c: [s.predicted_error for s in trials.splits_at(c, kept)], depths,
+                           [s.predicted_error for s in splits], options.cascade_budget == "shared")
     splits, seen = trials.least_footprint(splits if np.array_equal(moved, depths) else trials.splits_at(moved))
     found = trials.searched_depths(moved, [s.warp for s in splits]) if seen else moved
     if found is moved:
         return moved, splits, "adaptive"
     searched, now = trials.least_footprint(trials.splits_at(found))
-    a, b = ((*worst(f), footprint_p95(f)) for f in (now, seen))
-    tie = a[0] <= b[0] * (1.0 + MARGIN) and a[2] <= b[2] * (1.0 + MARGIN) and a[1] < b[1] * (1.0 - MARGIN)
-    better = (a[0] < b[0] and a[2] <= b[2] or tie) and sum(len(s.setup.maps) for s in searched if s.setup) <= MAX_MAPS
+    a, b = ((footprint_p95(f, TAIL), footprint_p95(f), worst(f)) for f in (now, seen))
+    better = (a[0] < b[0] and a[1] <= b[1] or tied(a, b)) and \
+        sum(len(s.setup.maps) for s in searched if s.setup) <= MAX_MAPS
     return (found, searched, "receivers") if better else (moved, splits, "adaptive")
 
 

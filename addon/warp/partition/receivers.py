@@ -120,9 +120,8 @@ def entries(a: np.ndarray, op) -> np.ndarray:
 
 
 def footprint_p95(footprints: list, band=(95.0,)) -> float:
-    """The judge's p95 of the finite values of ``footprints`` (edge-on left out; inf, the worst, if none), or the
-    geometric mean of the percentiles of a ``band`` about it (``TAIL``: a p95 at a cliff of the distribution does not
-    decide alone)."""
+    """The judge's p95 of the finite values of ``footprints`` (edge-on left out; none: inf), or the geometric mean of
+    the percentiles of a ``band`` about it (``TAIL``: a p95 at a cliff of the distribution does not decide alone)."""
     v = np.sort(np.concatenate(footprints))          # edge-on (inf), unserved (NaN) last; np.percentile is 3x slower
     k = int(np.isfinite(v).sum())
     at = np.interp(np.multiply(band, (k - 1) / 100), np.arange(k), v[:k]) if k else np.inf
@@ -135,8 +134,7 @@ def footprint_p95s(fixed: list, choices: list) -> np.ndarray:
     finite ones is their (n - 1 - r)-th largest, found among as many of each part's largest (one partition)."""
     f, c = np.concatenate([np.zeros(0), *fixed]), np.full((len(choices), max(map(len, choices))), -np.inf)
     c[np.arange(c.shape[1]) < np.array([len(v) for v in choices])[:, None]] = np.concatenate(choices)
-    f, own = -np.sort(-f[np.isfinite(f)]), np.isfinite(c).sum(axis=1)
-    n = len(f) + own
+    f, n = -np.sort(-f[np.isfinite(f)]), np.isfinite(f).sum() + np.isfinite(c).sum(axis=1)
     x = 95.0 * ((n - 1) / 100)
     r = np.floor(x).astype(int)
     q = int((n - 1 - r).max()) + 1
@@ -144,7 +142,7 @@ def footprint_p95s(fixed: list, choices: list) -> np.ndarray:
     tops = np.c_[np.broadcast_to(f[:q], (len(c), len(f[:q]))), np.partition(c, c.shape[1] - q, axis=1)[:, -q:]]
     tops = -np.sort(-tops, axis=1)[np.arange(len(choices))[:, None], np.maximum((n - 1 - r)[:, None] - [0, 1], 0)]
     with np.errstate(divide="ignore", invalid="ignore"):               # (v_(r+1) - v_r)·(x - r) + v_r: np.interp's
-        return np.where(own > 0, np.exp(np.log((tops[:, 1] - tops[:, 0]) * (x - r) + tops[:, 0])), np.inf)
+        return np.where(np.isfinite(c).any(1), np.exp(np.log((tops[:, 1] - tops[:, 0]) * (x - r) + tops[:, 0])), np.inf)
 
 
 def turned(matrix: np.ndarray, points: np.ndarray, along: tuple | None = None) -> list[np.ndarray]:
