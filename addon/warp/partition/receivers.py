@@ -124,8 +124,7 @@ def footprint_p95(footprints: list, band=(95.0,)) -> float:
     the percentiles of a ``band`` about it (``TAIL``: a p95 at a cliff of the distribution does not decide alone)."""
     v = np.sort(np.concatenate(footprints))          # edge-on (inf), unserved (NaN) last; np.percentile is 3x slower
     k = int(np.isfinite(v).sum())
-    at = np.interp(np.multiply(band, (k - 1) / 100), np.arange(k), v[:k]) if k else np.inf
-    return float(np.exp(np.log(at).mean()))
+    return float(np.exp(np.log(np.interp(np.multiply(band, (k - 1) / 100), np.arange(k), v[:k])).mean())) if k else np.inf
 
 
 def footprint_p95s(fixed: list, choices: list) -> np.ndarray:
