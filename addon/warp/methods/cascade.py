@@ -43,8 +43,7 @@ def worst(footprints: list) -> float:
 
 
 def tied(a: tuple, b: tuple) -> bool:
-    """Whether scores a (p95s of all the splits' footprints, then their ``worst``) are within ``MARGIN`` of b's but the
-    last (a tie: a sample's noise), and their last below b's by ``MARGIN``."""
+    """Whether scores a (p95s of the splits together, then ``worst``) tie b's within ``MARGIN``, the last below by it."""
     return all(x <= y * (1.0 + MARGIN) for x, y in zip(a[:-1], b[:-1])) and a[-1] < b[-1] * (1.0 - MARGIN)
 
 
@@ -182,20 +181,17 @@ class Trials:
         scored = [(s, self.once(("candidates", s.near, s.far, s.band, s.warp, *(w for w, _ in s.tried)),
                                 lambda: self.candidates(s, s.far))) for s in splits
                   if s.setup is not None and np.any((depth >= s.near) & (depth < s.far))]
-
-        def error(picks: list) -> float:
-            return footprint_p95([c[k][2] for (_, c), k in zip(scored, picks)])
-
-        lloyds, pick = [0] * len(scored), [0] * len(scored)
+        pick = [0] * len(scored)
         for i in [*range(len(scored))] * 2:
             others = [c[k][2] for j, ((_, c), k) in enumerate(zip(scored, pick)) if j != i]
             pick[i] = int(np.argmin(footprint_p95s(others, [f for *_, f in scored[i][1]])))
-        if not (scored and error(pick) < (1.0 - MARGIN) * error(lloyds)):
-            pick = lloyds
+        picked, lloyds = ([c[k][2] for (_, c), k in zip(scored, p)] for p in (pick, [0] * len(scored)))
+        if not (scored and footprint_p95(picked) < (1.0 - MARGIN) * footprint_p95(lloyds)):
+            pick, picked = [0] * len(scored), lloyds
         for (s, c), k in [(sc, k) for sc, k in zip(scored, pick) if k]:          # (Lloyd's pick keeps its error)
             s.warp, s.setup, _ = c[k]
             s.predicted_error = max_error(s.view, self.light, s.setup, s.body.visible_vertices)
-        return splits, [c[k][2] for (_, c), k in zip(scored, pick)]
+        return splits, picked
 
     def least(self, split: Split, far: float) -> np.ndarray:
         """The footprints of ``split``'s unlaid candidate of least p95 at the receivers at eye depths [C_i, ``far``)."""
