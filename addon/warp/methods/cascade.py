@@ -43,7 +43,7 @@ def worst(footprints: list) -> float:
 
 
 def tied(a: tuple, b: tuple) -> bool:
-    """Whether scores a (p95s of the splits together, then ``worst``) tie b's within ``MARGIN``, the last below it."""
+    """Whether scores a (p95s of all splits, then their ``worst``) tie b's within ``MARGIN``, the last below by it."""
     return all(x <= y * (1.0 + MARGIN) for x, y in zip(a[:-1], b[:-1])) and a[-1] < b[-1] * (1.0 - MARGIN)
 
 
