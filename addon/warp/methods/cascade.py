@@ -37,16 +37,6 @@ ASPECTS = (2.0, 0.5)
 on a wall nearly edge-on to the light a texel's length is ds/cos α (PSM §1.1), ds its side along one image axis."""
 
 
-def worst(footprints: list) -> float:
-    """The ``TAIL`` p95 of the worst split's ``footprints`` alone (Lloyd's minimax view: the largest error decides)."""
-    return max([footprint_p95([f], TAIL) for f in footprints if len(f)], default=0.0)
-
-
-def tied(a: tuple, b: tuple) -> bool:
-    """Whether scores a (p95s of all splits, then their ``worst``) tie b's within ``MARGIN``, the last below by it."""
-    return all(x <= y * (1.0 + MARGIN) for x, y in zip(a[:-1], b[:-1])) and a[-1] < b[-1] * (1.0 - MARGIN)
-
-
 def stretched(size: tuple) -> list[tuple[int, int]]:
     """``size``'s texels w·h laid out by each of ``ASPECTS`` (w:h that much wider), those within ``MAX_MAP_SIDE``."""
     laid = [(int(round(size[0] * math.sqrt(a))), int(round(size[1] / math.sqrt(a)))) for a in ASPECTS]
@@ -202,14 +192,10 @@ class Trials:
 
     def searched_depths(self, start: np.ndarray, warps: list) -> np.ndarray:
         """``start`` after ``SWEEPS`` coordinate sweeps of the inner ones over ``FRACTIONS`` of their neighbours'
-        log range (linear if orthographic), kept where the ``TAIL`` p95 of the splits' ``least`` falls by ``MARGIN``, or
-        ties and their ``worst`` falls (``tied``); a layout of more than ``MAX_MAPS`` maps is never kept."""
-        def tail(c: np.ndarray) -> tuple:          # (the splits' Lloyd's m unread: ``least`` scores them)
+        log range (linear if orthographic), kept where the ``TAIL`` p95 of the splits' ``least`` falls by ``MARGIN``."""
+        def tail(c: np.ndarray) -> float:          # (the splits' Lloyd's m unread: ``least`` scores them)
             splits = self.splits_at(c, warps, scored=False)
-            if sum(len(s.setup.maps) for s in splits if s.setup) > MAX_MAPS:
-                return math.inf, math.inf
-            least = [self.least(s, far) for s, far in zip(splits, [*c[1:-1], math.inf])]
-            return footprint_p95(least, TAIL), worst(least)
+            return footprint_p95([self.least(s, far) for s, far in zip(splits, [*c[1:-1], math.inf])], TAIL)
 
         c, best = start, tail(start)
         for _, k, f in itertools.product(range(SWEEPS), range(1, len(start) - 1), FRACTIONS):
@@ -217,7 +203,7 @@ class Trials:
             trial[k] = c[k - 1] + (c[k + 1] - c[k - 1]) * f if self.view.orthographic \
                 else c[k - 1] * (c[k + 1] / c[k - 1]) ** f
             error = tail(trial)
-            if error[0] < best[0] * (1.0 - MARGIN) or tied(error, best):
+            if error < best * (1.0 - MARGIN):
                 c, best = trial, error
         return c
 
@@ -251,8 +237,7 @@ def split_depths(view: View, light: Light, scene: SceneBounds, body: Intersectio
     if found is moved:
         return moved, splits, "adaptive"
     searched, now = trials.least_footprint(trials.splits_at(found))
-    a, b = ((footprint_p95(f, TAIL), footprint_p95(f), worst(f)) for f in (now, seen))
-    better = (a[0] < b[0] and a[1] <= b[1] or tied(a, b)) and \
+    better = footprint_p95(now, TAIL) < footprint_p95(seen, TAIL) and footprint_p95(now) <= footprint_p95(seen) and \
         sum(len(s.setup.maps) for s in searched if s.setup) <= MAX_MAPS
     return (found, searched, "receivers") if better else (moved, splits, "adaptive")
 
