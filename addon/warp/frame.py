@@ -198,8 +198,7 @@ _FACE_ROWS = np.array([[2, 1, 0], [2, 1, 0], [0, 2, 1], [0, 2, 1], [0, 1, 2], [0
 _FACE_ROW_SIGNS = np.array([[1.0, 1.0, -1.0], [-1.0, 1.0, 1.0], [1.0, 1.0, -1.0],
                             [-1.0, 1.0, 1.0], [-1.0, 1.0, -1.0], [1.0, 1.0, 1.0]])
 """Each cube face's eye rotation (``look_along`` rows x, y, -forward) as signed rows of the cube's basis."""
-_FACE_TURNS = np.array([[[sign if j == row else 0.0 for j in range(3)] for row, sign in zip(rows, signs)]
-                        for rows, signs in zip(_FACE_ROWS, _FACE_ROW_SIGNS)])
+_FACE_TURNS = np.where(np.eye(3)[_FACE_ROWS] > 0, _FACE_ROW_SIGNS[..., None], 0.0)
 """The same as signed permutations (6, 3, 3): face f's eye rotation is ``_FACE_TURNS[f] @ basis``."""
 
 

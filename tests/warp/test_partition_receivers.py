@@ -54,7 +54,7 @@ def test_any_other_region_gives_its_own_samples_and_none_without_normals():
 def test_the_p95_of_each_union_at_once_is_the_p95_of_that_union():
     """``footprint_p95s`` (the cascade's descent scores every candidate of a split in one batch) gives, bit for bit,
     ``footprint_p95`` of the fixed splits' footprints joined with each candidate's: edge-on (inf) and unserved (NaN)
-    left out, ties, a part or every part without a finite value."""
+    left out, ties, a part or every part without a finite value; a candidate without one scores inf (the worst)."""
     rng = np.random.default_rng(5)
     for trial in range(300):
         def part(n):
@@ -63,7 +63,8 @@ def test_the_p95_of_each_union_at_once_is_the_p95_of_that_union():
             return f
         fixed = [part(int(rng.integers(0, 700 if trial % 2 else 3))) for _ in range(int(rng.integers(0, 4)))]
         choices = [part(int(rng.integers(0, 500 if trial % 5 else 3))) for _ in range(int(rng.integers(1, 20)))]
-        assert footprint_p95s(fixed, choices).tolist() == [footprint_p95(fixed + [c]) for c in choices]
+        expected = [footprint_p95(fixed + [c]) if np.isfinite(c).any() else np.inf for c in choices]
+        assert footprint_p95s(fixed, choices).tolist() == expected
 
 
 def test_footprints_in_one_batch_are_each_setups_own():

@@ -171,20 +171,17 @@ class Trials:
         scored = [(s, self.once(("candidates", s.near, s.far, s.band, s.warp, *(w for w, _ in s.tried)),
                                 lambda: self.candidates(s, s.far))) for s in splits
                   if s.setup is not None and np.any((depth >= s.near) & (depth < s.far))]
-
-        def error(picks: list) -> float:
-            return footprint_p95([c[k][2] for (_, c), k in zip(scored, picks)])
-
-        lloyds, pick = [0] * len(scored), [0] * len(scored)
+        pick = [0] * len(scored)
         for i in [*range(len(scored))] * 2:
             others = [c[k][2] for j, ((_, c), k) in enumerate(zip(scored, pick)) if j != i]
             pick[i] = int(np.argmin(footprint_p95s(others, [f for *_, f in scored[i][1]])))
-        if not (scored and error(pick) < (1.0 - MARGIN) * error(lloyds)):
-            pick = lloyds
+        picked, lloyds = ([c[k][2] for (_, c), k in zip(scored, p)] for p in (pick, [0] * len(scored)))
+        if not (scored and footprint_p95(picked) < (1.0 - MARGIN) * footprint_p95(lloyds)):
+            pick, picked = [0] * len(scored), lloyds
         for (s, c), k in [(sc, k) for sc, k in zip(scored, pick) if k]:          # (Lloyd's pick keeps its error)
             s.warp, s.setup, _ = c[k]
             s.predicted_error = max_error(s.view, self.light, s.setup, s.body.visible_vertices)
-        return splits, [c[k][2] for (_, c), k in zip(scored, pick)]
+        return splits, picked
 
     def least(self, split: Split, far: float) -> np.ndarray:
         """The footprints of ``split``'s unlaid candidate of least p95 at the receivers at eye depths [C_i, ``far``)."""
@@ -233,8 +230,8 @@ def split_depths(view: View, light: Light, scene: SceneBounds, body: Intersectio
     if not adaptive_splits(options):
         return depths, splits, "practical"
     kept = [s.warp for s in splits]
-    moved, _ = minimax_splits(lambda c: [s.predicted_error for s in trials.splits_at(c, kept)], depths,
-                              [s.predicted_error for s in splits], options.cascade_budget == "shared")
+    moved = minimax_splits(lambda c: [s.predicted_error for s in trials.splits_at(c, kept)], depths,
+                           [s.predicted_error for s in splits], options.cascade_budget == "shared")
     splits, seen = trials.least_footprint(splits if np.array_equal(moved, depths) else trials.splits_at(moved))
     found = trials.searched_depths(moved, [s.warp for s in splits]) if seen else moved
     if found is moved:

@@ -31,7 +31,7 @@ def objective(errors: np.ndarray, shared_budget: bool) -> float:
 
 
 def minimax_splits(errors_at: Callable[[np.ndarray], list], splits: np.ndarray, errors: list,
-                   shared_budget: bool = False) -> tuple[np.ndarray, list[float]]:
+                   shared_budget: bool = False) -> np.ndarray:
     """The depths (ends kept) after ``ROUNDS`` (few: a long search settles where a split's B jumps) equalising steps
     on ``errors_at(C_0..C_N)`` from ``splits`` with ``errors``, or those if the :func:`objective` did not fall."""
     c, e = start, start_e = np.asarray(splits, dtype=np.float64), np.asarray(errors, dtype=np.float64)
@@ -43,8 +43,7 @@ def minimax_splits(errors_at: Callable[[np.ndarray], list], splits: np.ndarray, 
             break
         power = local_power(np.diff(np.log(c)), e, np.diff(np.log(moved)), moved_e, power)
         c, e = moved, moved_e
-    c, e = (c, e) if objective(e, shared_budget) < objective(start_e, shared_budget) else (start, start_e)
-    return c, [float(x) for x in e]
+    return c if objective(e, shared_budget) < objective(start_e, shared_budget) else start
 
 
 def usable(errors: np.ndarray) -> bool:

@@ -120,16 +120,17 @@ def entries(a: np.ndarray, op) -> np.ndarray:
 
 
 def footprint_p95(footprints: list, band=(95.0,)) -> float:
-    """The judge's p95 of the finite values of ``footprints`` (edge-on left out; 0 if none), or the geometric mean of
+    """The judge's p95 of the finite values of ``footprints`` (edge-on left out; none: inf), or the geometric mean of
     the percentiles of a ``band`` about it (``TAIL``: a p95 at a cliff of the distribution does not decide alone)."""
     v = np.sort(np.concatenate(footprints))          # edge-on (inf), unserved (NaN) last; np.percentile is 3x slower
     k = int(np.isfinite(v).sum())
-    return float(np.exp(np.log(np.interp(np.multiply(band, (k - 1) / 100), np.arange(k), v[:k])).mean())) if k else 0.0
+    return float(np.exp(np.log(np.interp(np.multiply(band, (k - 1) / 100), np.arange(k), v[:k])).mean())) if k else np.inf
 
 
 def footprint_p95s(fixed: list, choices: list) -> np.ndarray:
-    """``footprint_p95(fixed + [c])`` of each of ``choices`` (not empty) at once: the value at rank r = ⌊0.95·(n - 1)⌋
-    of the n finite ones is their (n - 1 - r)-th largest, found among as many of each part's largest (one partition)."""
+    """``footprint_p95(fixed + [c])`` of each of ``choices`` (not empty) at once, inf for a c with no finite value (it
+    serves none of its receivers: never picked over one that does): the value at rank r = ⌊0.95·(n - 1)⌋ of the n
+    finite ones is their (n - 1 - r)-th largest, found among as many of each part's largest (one partition)."""
     f, c = np.concatenate([np.zeros(0), *fixed]), np.full((len(choices), max(map(len, choices))), -np.inf)
     c[np.arange(c.shape[1]) < np.array([len(v) for v in choices])[:, None]] = np.concatenate(choices)
     f, n = -np.sort(-f[np.isfinite(f)]), np.isfinite(f).sum() + np.isfinite(c).sum(axis=1)
@@ -140,7 +141,7 @@ def footprint_p95s(fixed: list, choices: list) -> np.ndarray:
     tops = np.c_[np.broadcast_to(f[:q], (len(c), len(f[:q]))), np.partition(c, c.shape[1] - q, axis=1)[:, -q:]]
     tops = -np.sort(-tops, axis=1)[np.arange(len(choices))[:, None], np.maximum((n - 1 - r)[:, None] - [0, 1], 0)]
     with np.errstate(divide="ignore", invalid="ignore"):               # (v_(r+1) - v_r)·(x - r) + v_r: np.interp's
-        return np.where(n > 0, np.exp(np.log((tops[:, 1] - tops[:, 0]) * (x - r) + tops[:, 0])), 0.0)
+        return np.where(np.isfinite(c).any(1), np.exp(np.log((tops[:, 1] - tops[:, 0]) * (x - r) + tops[:, 0])), np.inf)
 
 
 def turned(matrix: np.ndarray, points: np.ndarray, along: tuple | None = None) -> list[np.ndarray]:
