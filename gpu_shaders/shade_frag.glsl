@@ -32,7 +32,10 @@
  *     shadow moves: c only absorbs rounding and faceting. The plane's own
  *     error is added: the pre-pass normal's (LIXEL_NORMAL_ERROR) moves the
  *     plane's depth at the PCF reach by r e / (n.l)^2 texels, which passes c
- *     where the light grazes the receiver (n.l < ~0.01).
+ *     where the light grazes the receiver (n.l < ~0.01). A tap that stored
+ *     something past the plane yet nearer the light than P missed the
+ *     receiver (a grazed wall is under a texel wide across the light) and is
+ *     left out of the filter (lixel_seen).
  *   NORMAL_OFFSET: the point looked up is P moved s texels along its normal
  *     (towards the light), less c texels.
  *   CONSTANT, SLOPE, CONSTANT_SLOPE: the classic offsets, c texels plus
