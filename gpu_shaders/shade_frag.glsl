@@ -32,7 +32,10 @@
  *     shadow moves: c only absorbs rounding and faceting. The plane's own
  *     error is added: the pre-pass normal's (LIXEL_NORMAL_ERROR) moves the
  *     plane's depth at the PCF reach by r e / (n.l)^2 texels, which passes c
- *     where the light grazes the receiver (n.l < ~0.01).
+ *     where the light grazes the receiver (n.l < ~0.01). A tap that stored
+ *     something past the plane yet nearer the light than P missed the
+ *     receiver (a grazed wall is under a texel wide across the light) and is
+ *     left out of the filter (lixel_seen).
  *   NORMAL_OFFSET: the point looked up is P moved s texels along its normal
  *     (towards the light), less c texels.
  *   CONSTANT, SLOPE, CONSTANT_SLOPE: the classic offsets, c texels plus
@@ -323,6 +326,29 @@ vec4 lixel_refs(LixelReceiver rcv, bool plane, vec4 px, vec4 py, float bias, boo
   return greater ? 1.0 - d : d;
 }
 
+/* 0 for the taps (keys `key` at NDC (px, py)) that saw past the receiver
+ * plane yet nearer the light than P, 1 for the others. Such a tap's ray
+ * missed P's receiver: the plane comes nearer the light there than what the
+ * texel stored, so the receiver ends before that ray (a wall the light
+ * grazes lies within a texel across, and its plane moves metres along the
+ * light per texel step). What it saw is no part of the receiver and lies
+ * between the plane's point and P along the light: it may or may not shade
+ * P, so the PCF leaves the tap out and lets the taps that saw the receiver,
+ * something nearer the light than its plane, or something behind P decide.
+ * Counted lit, as the plane alone would have it, such taps put false-light
+ * stripes on a shadowed wall 0.7 degrees from grazing (docs/papers.md,
+ * "Grazing, session 23"). Both bounds are moved by the bias, so a tap on the
+ * plane itself is always seen. */
+vec4 lixel_seen(LixelReceiver rcv, bool plane, vec4 px, vec4 py, vec4 key, float bias, bool greater)
+{
+  if (!plane) {
+    return vec4(1.0);
+  }
+  vec4 past = lixel_refs(rcv, true, px, py, -bias, greater);  /* the plane's (or P's) depth moved away from the light */
+  vec4 before = lixel_refs(rcv, false, px, py, bias, greater); /* P's own depth moved towards it */
+  return 1.0 - vec4(greaterThan(key, past)) * vec4(lessThan(key, before));
+}
+
 vec4 lixel_footprint_colour(float texels_per_pixel)
 {
   float t = clamp(log2(max(texels_per_pixel, 1e-6)) / 4.0, -1.0, 1.0);
@@ -441,15 +467,16 @@ float lixel_weight_sum()
  * one gather: x = (c.x, c.y+1), y = (c.x+1, c.y+1), z = (c.x+1, c.y),
  * w = (c.x, c.y), clamped to the edge; each compared with its own reference
  * (lixel_refs). */
-vec4 lixel_cell(int m, ivec2 c, LixelReceiver rcv, bool plane, float bias, bool greater, ivec2 size)
+vec4 lixel_cell(int m, ivec2 c, LixelReceiver rcv, bool plane, float bias, bool greater, ivec2 size, out vec4 seen)
 {
   vec2 to_ndc = 2.0 / vec2(size);
   vec4 t = lixel_gather(m, (vec2(c) + 1.0) / vec2(size));
   vec4 key = greater ? 1.0 - t : t;
   vec4 sx = clamp(vec4(c.x, c.x + 1, c.x + 1, c.x), 0.0, float(size.x - 1));
   vec4 sy = clamp(vec4(c.y + 1, c.y + 1, c.y, c.y), 0.0, float(size.y - 1));
-  vec4 ref = lixel_refs(rcv, plane, (sx + 0.5) * to_ndc.x - 1.0, (sy + 0.5) * to_ndc.y - 1.0, bias, greater);
-  return vec4(lessThan(key, ref));
+  vec4 px = (sx + 0.5) * to_ndc.x - 1.0, py = (sy + 0.5) * to_ndc.y - 1.0;
+  seen = lixel_seen(rcv, plane, px, py, key, bias, greater);
+  return vec4(lessThan(key, lixel_refs(rcv, plane, px, py, bias, greater)));
 }
 
 #define LIXEL_REACH 4
@@ -488,7 +515,8 @@ vec2 lixel_run(int m, ivec2 c, ivec2 along, vec2 first, vec2 second, vec2 f, Lix
     for (int side = 0; side < 2; side++) {
       if ((side == 0 && !split0) || (side == 1 && !split1)) continue;
       int offset = side == 0 ? -2 * (j + 1) : 2 * (j + 1);
-      vec4 t = lixel_cell(m, c + offset * along, rcv, plane, bias, greater, size);
+      vec4 seen; /* the run reads every tap, as the plane alone has it */
+      vec4 t = lixel_cell(m, c + offset * along, rcv, plane, bias, greater, size, seen);
       /* its two columns as (near, far), nearest P first: along x (z, y), (w, x) left, (w, x), (z, y) right */
       vec2 a = along.x == 1 ? t.wx : t.wz, b = along.x == 1 ? t.zy : t.xy;
       vec2 near = side == 0 ? b : a, far = side == 0 ? a : b;
@@ -565,14 +593,17 @@ float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
   ivec2 base = (k % 2 == 1) ? ivec2(floor(look)) - (k - 1) / 2 : ivec2(floor(look - 0.5)) - (k / 2 - 1);
   vec2 f = fract(look - 0.5);  /* even k: the point's place between the first two taps' centres */
   vec2 to_ndc = 2.0 / vec2(size);
-  float hits = 0.0;
+  float hits = 0.0, weights = 0.0;
 #if defined(LIXEL_MDSM) || LIXEL_PCF == 1
   for (int dy = 0; dy < k; dy++) {
     for (int dx = 0; dx < k; dx++) {
       ivec2 s = clamp(base + ivec2(dx, dy), ivec2(0), size - 1);
       vec2 p = (vec2(s) + 0.5) * to_ndc - 1.0;
-      hits += lixel_weight(dx, f.x) * lixel_weight(dy, f.y) *
-              lixel_test(m, s, lixel_refs(rcv, plane, vec4(p.x), vec4(p.y), bias, greater).x, greater);
+      float key = greater ? 1.0 - lixel_fetch(m, s).x : lixel_fetch(m, s).x;
+      float w = lixel_weight(dx, f.x) * lixel_weight(dy, f.y) *
+                lixel_seen(rcv, plane, vec4(p.x), vec4(p.y), vec4(key), bias, greater).x;
+      hits += w * lixel_test(m, s, lixel_refs(rcv, plane, vec4(p.x), vec4(p.y), bias, greater).x, greater);
+      weights += w;
     }
   }
 #else
@@ -583,14 +614,18 @@ float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
   vec4 cell = vec4(0.0);
   for (int gy = 0; gy < k; gy += 2) {
     for (int gx = 0; gx < k; gx += 2) {
-      cell = lixel_cell(m, base + ivec2(gx, gy), rcv, plane, bias, greater, size);
+      vec4 seen;
+      cell = lixel_cell(m, base + ivec2(gx, gy), rcv, plane, bias, greater, size, seen);
       vec2 wx = vec2(lixel_weight(gx, f.x), lixel_weight(gx + 1, f.x));
       vec2 wy = vec2(lixel_weight(gy, f.y), lixel_weight(gy + 1, f.y));
-      hits += dot(vec4(wx.x * wy.y, wx.y * wy.y, wx.y * wy.x, wx.x * wy.x), cell);
+      vec4 w = vec4(wx.x * wy.y, wx.y * wy.y, wx.y * wy.x, wx.x * wy.x) * seen;
+      hits += dot(w, cell);
+      weights += dot(w, vec4(1.0));
     }
   }
 #endif
-  float shadow = hits / (lixel_weight_sum() * lixel_weight_sum());
+  /* over the taps that saw P's receiver (lixel_seen); a missed tap is lit, so none seen: lit */
+  float shadow = weights > 0.0 ? hits / weights : 0.0;
 #if LIXEL_PCF == 2 && !defined(LIXEL_MDSM) && defined(LIXEL_REVECTORIZE)
   if (shadow > 0.0 && shadow < 1.0) {
     /* its taps reach LIXEL_REACH texels farther: the plane's error there too */
