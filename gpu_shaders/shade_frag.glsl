@@ -447,20 +447,15 @@ float lixel_texels_per_pixel(int m, vec3 P, vec3 N, vec2 tc, vec2 size)
  * a box of k - 1 texels over the bilinearly interpolated test (Reeves et al.
  * 1987 with bilinear taps), the outer two taps weighed by the point's
  * fraction f of a texel past the first tap's centre; the shadow is then
- * continuous in the point's position. The weights of an axis sum to
- * lixel_weight_sum(). */
+ * continuous in the point's position. The weights of an axis sum to k (odd
+ * k) or k - 1 (even k); the filter divides by the weight of the taps that saw
+ * P's receiver (lixel_seen). */
 float lixel_weight(int i, float f)
 {
   const int k = LIXEL_PCF;
   if (i >= k) return 0.0;
   if (k % 2 == 1) return 1.0;
   return i == 0 ? 1.0 - f : (i == k - 1 ? f : 1.0);
-}
-
-float lixel_weight_sum()
-{
-  const int k = LIXEL_PCF;
-  return float(k % 2 == 1 ? k : k - 1);
 }
 
 /* The shadow tests (1 = shadowed) of the 2 x 2 texels c, c + 1 of map m, as
