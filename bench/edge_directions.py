@@ -14,7 +14,8 @@ look carries its own gradient: the true edge runs along n × D_viewᵀ n_s (D_vi
 between the lines (0..90°): on the surface, and in the first look's map's texels (D_M·d against D_M·d_true), the
 space where the cascade's pick and PSM's edge turn read an edge's angle to the texel axes
 (``partition.receivers.filter_losses``). Printed per scene and over all: the samples matched, and the angles'
-median, p90 and the share within 2° and 5°.
+median, p90 and the share within 2° and 5°; over all also for the samples away from the true shadow's corners
+(:data:`CORNER_PIXELS`), where a window of texels sees two edges and no one direction is right.
 
 ``--repeat N`` also times the first look: the median wall time of N calls of ``shadow_edges`` (the coarse map drawn
 and read back, then ``at_shadow_edge``) and of ``at_shadow_edge`` alone on the same map, per scene, in ms.
@@ -34,6 +35,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 SAME_PLANE = 0.98
 """A true edge pixel stands for an edge sample only on a surface whose normal is within acos(0.98) ≈ 11° of its."""
+CORNER_PIXELS = 12
+"""Samples this many pixels or fewer from a corner of the true shadow (``bench.edge_footprint.corners``) are also
+left out of a second summary: the straight edges alone, where one direction is the edge's."""
 
 
 def first_look(dg, geometry, view, light, bounds, size: int = 2048):
@@ -51,14 +55,16 @@ def first_look(dg, geometry, view, light, bounds, size: int = 2048):
 
 
 def true_edges(gt):
-    """(the truth's straight edge pixels (H, W), their unit normals on screen (H, W, 2), x right and y up)."""
+    """(the truth's straight edge pixels (H, W), their unit normals on screen (H, W, 2), x right and y up, and the
+    pixels within :data:`CORNER_PIXELS` of a corner)."""
     from addon.measure.errors import dilate, shadow_edges
     from addon.measure.footprint import shadow_edge_normals
     from bench.edge_footprint import corners
     turning = shadow_edge_normals(gt.shadow, gt.valid, 1)
     normals = shadow_edge_normals(gt.shadow, gt.valid)
     edges = shadow_edges(gt.shadow, gt.valid) & np.isfinite(turning[..., 0]) & np.isfinite(normals[..., 0])
-    return edges & ~dilate(corners(edges, turning), 1), normals
+    corner = corners(edges, turning)
+    return edges & ~dilate(corner, 1), normals, dilate(corner, CORNER_PIXELS)
 
 
 def nearest_true(view, gt, straight, points, normals, radius: int) -> tuple[np.ndarray, np.ndarray]:
@@ -84,15 +90,16 @@ def line_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(cos, 0.0, 1.0)))
 
 
-def angle_errors(view, light, bounds, body, options, gt, seen, radius: int) -> tuple[np.ndarray, np.ndarray, int]:
-    """(the angles on the surface, those in the first look's map's texels, the edge samples): one per matched sample."""
+def angle_errors(view, light, bounds, body, options, gt, seen, radius: int) -> tuple:
+    """(the angles on the surface, those in the first look's map's texels, whether the sample is off the corners, the
+    edge samples): one per matched sample."""
     from addon.gpu.visibility import EDGE_MAP
     from addon.warp import compute
     from addon.warp.aliasing import raster_jacobian
     d = seen.edge_directions
     at_edge = np.any(d != 0, axis=1)
     points, normals, d = seen.surface[at_edge].mean(axis=1), seen.normals[at_edge], d[at_edge]
-    straight, edge_n = true_edges(gt)
+    straight, edge_n, cornered = true_edges(gt)
     pixel, found = nearest_true(view, gt, straight, points, normals, radius)
     points, normals, d, pixel = points[found], normals[found], d[found], pixel[found]
     n_s = edge_n[pixel[:, 0], pixel[:, 1]]
@@ -107,7 +114,7 @@ def angle_errors(view, light, bounds, body, options, gt, seen, radius: int) -> t
         if mine.any():
             jac = raster_jacobian(m.matrix, m.size, points[mine])
             in_map[mine] = line_angle(np.einsum("kij,kj->ki", jac, d[mine]), np.einsum("kij,kj->ki", jac, truth[mine]))
-    return line_angle(d, truth), in_map, int(at_edge.sum())
+    return line_angle(d, truth), in_map, ~cornered[pixel[:, 0], pixel[:, 1]], int(at_edge.sum())
 
 
 def timings(frame, region, body, light, bounds, options, repeat: int) -> tuple[float, float]:
@@ -164,7 +171,7 @@ def main(argv=None) -> int:
         n for s in args.seeds.split(",") for n in (generated_name(int(s), k) for k in range(args.generated))
         if not kinds or any(k in n for k in kinds)]
     resolution = tuple(int(v) for v in args.resolution.lower().split("x"))
-    surface, texels, times = [], [], []
+    surface, texels, straight, times = [], [], [], []
     for name in scenes:
         dg, geometry, view, light, gt, _ = scene_with_truth(name, resolution)
         _, _, bounds = describe_scene(bpy.context.scene, dg)
@@ -172,17 +179,20 @@ def main(argv=None) -> int:
         if seen.edge_directions is None:
             print(f"{name:>28}: no first look (nothing casts, or no surface read)", flush=True)
             continue
-        on, in_map, count = angle_errors(view, light, bounds, body, options, gt, seen, args.radius)
+        on, in_map, off_corners, count = angle_errors(view, light, bounds, body, options, gt, seen, args.radius)
         surface.append(on)
         texels.append(in_map)
+        straight.append(off_corners)
         line = f"{name:>28}: {len(on):4d} of {count:4d} edge samples matched; in the map's texels {summary(in_map)}"
         if args.repeat:
             times.append(timings(frame, region, body, light, bounds, options, args.repeat))
             line += f"; first look {times[-1][0]:.1f} ms (at_shadow_edge {times[-1][1]:.2f} ms)"
         print(line, flush=True)
     if surface:
-        print(f"{'all':>28}: {sum(map(len, surface))} samples; in the map's texels {summary(np.concatenate(texels))}; "
-              f"on the surface {summary(np.concatenate(surface))}")
+        on, in_map, off = (np.concatenate(x) for x in (surface, texels, straight))
+        print(f"{'all':>28}: {len(on)} samples; in the map's texels {summary(in_map)}; on the surface {summary(on)}")
+        print(f"{'off corners':>28}: {int(off.sum())} samples (no true corner within {CORNER_PIXELS} px); in the map's "
+              f"texels {summary(in_map[off])}; on the surface {summary(on[off])}")
     if times:
         print(f"{'':>28}  first look, sum of per-scene medians {sum(t[0] for t in times):.1f} ms, "
               f"at_shadow_edge {sum(t[1] for t in times):.2f} ms")
