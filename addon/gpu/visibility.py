@@ -118,8 +118,8 @@ def at_shadow_edge(shadow_map, window_depth: np.ndarray, points: np.ndarray, nor
     size = np.array([int(v) for v in shadow_map.size])
     place = raster_position(m, size, points)
     taps = np.floor(place).astype(np.int64)[:, None] + np.stack(np.meshgrid([-1, 0, 1], [-1, 0, 1]), -1).reshape(-1, 2)
-    clamped = np.clip(taps, 0, size - 1)
-    stored = window_depth[clamped[..., 1], clamped[..., 0]]
+    stored = window_depth[np.minimum(np.maximum(taps[..., 1], 0), size[1] - 1),
+                          np.minimum(np.maximum(taps[..., 0], 0), size[0] - 1)]
     depth, slope = shadow_map.stored_depth(points)
     cos = np.einsum("ij,ij->i", normals, to_light)
     along = np.abs(np.einsum("ij,ij->i", slope, to_light))
@@ -171,7 +171,7 @@ def _edge_test(shadow_map, window_depth, taps, points, normals, depth, bias) -> 
     """:func:`at_shadow_edge`'s test at (K, T, 2) texels ``taps`` (clamped to the map) of K points: (K, T) 1 where the
     texel holds a caster nearer the light than the point's plane, else 0."""
     m, size = shadow_map.matrix, np.array([int(v) for v in shadow_map.size])
-    taps = np.clip(taps, 0, size - 1)
+    taps = np.minimum(np.maximum(taps, 0), size - 1)
     stored = window_depth[taps[..., 1], taps[..., 0]]
     ndc = (taps + 0.5) * (2.0 / size) - 1.0
     inverse = np.linalg.inv(m)
