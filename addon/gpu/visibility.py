@@ -57,8 +57,14 @@ EDGE_MAP = 512
 """Texels a side of the first look's uniform map(s) (:func:`shadow_edges`)."""
 EDGE_PIXELS = 0.5
 """The narrowest band on screen an edge sample of :func:`shadow_edges` is taken to stand for, in pixels."""
-SOBEL = np.array([[-1, -1], [0, -2], [1, -1], [-2, 0], [0, 0], [2, 0], [-1, 1], [0, 2], [1, 1]], dtype=np.float64)
-"""(9, 2): Sobel's d/dx and d/dy over the 3 x 3 taps of ``at_shadow_edge``, in its order (x fastest)."""
+EDGE_DISC = 4
+"""The radius in texels of the disc of taps whose gradient gives an edge sample its edge's rough normal
+(:func:`edge_normals`)."""
+DISC = np.array([(x, y) for y in range(-EDGE_DISC, EDGE_DISC + 1) for x in range(-EDGE_DISC, EDGE_DISC + 1)
+                 if x * x + y * y <= EDGE_DISC * EDGE_DISC + EDGE_DISC], dtype=np.int64)
+"""(T, 2): the taps of :data:`EDGE_DISC`, offsets (x, y) in texels from the sample's texel."""
+EDGE_RUN, EDGE_ACROSS = 12, 3
+"""Texels each way along the rough edge, and across it, of the taps whose line fit turns it (:func:`edge_normals`)."""
 EDGE_GRAZING = 0.05
 """Surface samples whose n·l is below this are left out of :func:`shadow_edges` (turned from the light, or so nearly
 edge-on that a coarse map's texel holds the plane itself at many depths)."""
@@ -102,38 +108,71 @@ def at_shadow_edge(shadow_map, window_depth: np.ndarray, points: np.ndarray, nor
     ``EDGE_GRAZING``) lie at one of its shadow edges, the world width of the 3 x 3 texels around each, 0 elsewhere:
     some but not all of them hold a caster nearer the light than the point's own plane where the light ray through
     the texel's centre meets it (the shading's receiver-plane test, ``gpu_shaders/shade_frag.glsl``), by more than
-    1.5 texel widths. And (N, 3) the edge's unit direction on each point's plane (0 elsewhere): the 3 x 3 taps' Sobel
-    gradient g in texels is the edge's normal in the map, so the edge runs along d = n × D_Mᵀg (D_M·d ⟂ g, n·d = 0)."""
+    1.5 texel widths. And (N, 3) the edge's unit direction on each point's plane (0 elsewhere): with g its normal in
+    texels (:func:`edge_normals`), the edge runs along d = n × D_Mᵀg (D_M·d ⟂ g, n·d = 0)."""
     m = shadow_map.matrix
     to_light = -light.direction[None] if light.is_directional else light.position - points
     to_light = to_light / np.linalg.norm(to_light, axis=1, keepdims=True)
     j = np.linalg.norm(raster_jacobian(m, shadow_map.size, points), axis=2)      # texels per metre, each way
     width = 1.0 / np.sqrt(j[:, 0] * j[:, 1])
     size = np.array([int(v) for v in shadow_map.size])
-    texel = np.floor(raster_position(m, size, points)).astype(np.int64)
-    taps = np.clip(texel[:, None] + np.stack(np.meshgrid([-1, 0, 1], [-1, 0, 1]), -1).reshape(1, 9, 2), 0, size - 1)
-    stored = window_depth[taps[..., 1], taps[..., 0]]
+    place = raster_position(m, size, points)
+    taps = np.floor(place).astype(np.int64)[:, None] + np.stack(np.meshgrid([-1, 0, 1], [-1, 0, 1]), -1).reshape(-1, 2)
+    stored = window_depth[np.minimum(np.maximum(taps[..., 1], 0), size[1] - 1),
+                          np.minimum(np.maximum(taps[..., 0], 0), size[0] - 1)]
     depth, slope = shadow_map.stored_depth(points)
     cos = np.einsum("ij,ij->i", normals, to_light)
     along = np.abs(np.einsum("ij,ij->i", slope, to_light))
     reach = 3.0 * along * np.sqrt(np.maximum(1.0 - cos * cos, 0.0)) / np.maximum(cos, 1e-6) / j.min(axis=1)
     out, direction = np.zeros(len(points)), np.zeros((len(points), 3))   # only where a tap nearer than the plane
-    some = (cos >= EDGE_GRAZING) & (stored.min(axis=1) < 0.5 * (depth - reach) + 0.5)   # can come over 2 texels:
-    if some.any():
-        near = _edge_test(m, size, taps[some], stored[some], points[some], normals[some], depth[some],
-                          1.5 * width[some] * along[some], shadow_map)
-        edge = (near.sum(axis=1) > 0) & (near.sum(axis=1) < 9)
-        out[some] = edge * 3.0 * width[some]
-        g = near @ SOBEL                                                   # (K, 2): toward the casters, in texels
-        d = np.cross(normals[some], np.einsum("kij,ki->kj", raster_jacobian(m, size, points[some]), g))
+    some = np.flatnonzero(                                                 # can come over 2 texels:
+        (cos >= EDGE_GRAZING) & (stored.min(axis=1) < 0.5 * (depth - reach) + 0.5))
+    if len(some):
+        def held(k, at):
+            return _edge_test(shadow_map, window_depth, at, points[k], normals[k], depth[k], 1.5 * width[k] * along[k])
+        near = held(some, taps[some]).sum(axis=1)
+        k = some[(near > 0) & (near < 9)]
+        out[k] = 3.0 * width[k]
+        d = np.cross(normals[k], np.einsum("kij,ki->kj", raster_jacobian(m, size, points[k]),
+                                           edge_normals(lambda at: held(k, at), place[k])))
         length = np.linalg.norm(d, axis=1, keepdims=True)
-        direction[some] = np.where(edge[:, None] & (length > 0), d / np.where(length > 0, length, 1.0), 0.0)
+        direction[k] = np.where(length > 0, d / np.where(length > 0, length, 1.0), 0.0)
     return out, direction
 
 
-def _edge_test(m, size, taps, stored, points, normals, depth, bias, shadow_map) -> np.ndarray:
-    """:func:`at_shadow_edge`'s test at its (K, 9, 2) ``taps`` (``stored`` window depths there) of K points: (K, 9)
-    whether each tap holds a caster nearer the light than the point's plane."""
+def edge_normals(held, place: np.ndarray) -> np.ndarray:
+    """(K, 2) the normals in texels, toward the casters, of the shadow edges at K edge samples at raster ``place``s;
+    ``held``: (K, T, 2) texels -> (K, T), 1 where a texel holds a caster nearer than the sample's plane
+    (``at_shadow_edge``'s test). First the gradient over the disc of :data:`EDGE_DISC` texels about each sample's
+    texel, g₀ = Σ (s_q − s̄)·q (``addon.measure.footprint.shadow_edge_normals``' on the screen): the rough normal n₀,
+    t₀ it turned by 90°. Then the texels at place + u·t₀ + v·n₀, |u| <= :data:`EDGE_RUN`, |v| <= ``EDGE_ACROSS``:
+    where each column u that the edge crosses turns from lit to caster, δ(u) = const − Σ_v s, fitted with a line
+    δ = a + b·u, turns it, g = n₀ − b·t₀. An edge θ off a texel axis is a staircase that steps once in 1/tan θ texels,
+    so only a run that long tells it from one along the axis: the 3 x 3 taps' binary Sobel gradient is exact at 0°,
+    45° and 90° only (a 5° edge read as 0°, 18° or 27°), the disc alone errs by up to 7° at 2-5°, the fit by 2°
+    (``tests/test_first_look_directions.py``)."""
+    ones = held(np.floor(place)[:, None].astype(np.int64) + DISC[None])
+    g = (ones - ones.mean(axis=1, keepdims=True)) @ DISC
+    n = g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-300)
+    t = n @ np.array([[0.0, 1.0], [-1.0, 0.0]])
+    u, v = np.arange(-EDGE_RUN, EDGE_RUN + 1.0), np.arange(-EDGE_ACROSS, EDGE_ACROSS + 1.0)
+    at = np.floor(place[:, None, None] + u[:, None, None] * t[:, None, None] + v[:, None] * n[:, None, None])
+    columns = held(at.astype(np.int64).reshape(len(place), len(u) * len(v), 2)).reshape(at.shape[:3]).sum(axis=2)
+    crossed = (columns > 0) & (columns < len(v))
+    du = np.where(crossed, u - (crossed * u).sum(axis=1, keepdims=True) / np.maximum(crossed.sum(axis=1), 1)[:, None],
+                  0.0)
+    spread = (du * du).sum(axis=1)
+    b = np.where((crossed.sum(axis=1) >= 3) & (spread > 0), -(du * columns).sum(axis=1) / np.maximum(spread, 1e-300),
+                 0.0)
+    return n - b[:, None] * t
+
+
+def _edge_test(shadow_map, window_depth, taps, points, normals, depth, bias) -> np.ndarray:
+    """:func:`at_shadow_edge`'s test at (K, T, 2) texels ``taps`` (clamped to the map) of K points: (K, T) 1 where the
+    texel holds a caster nearer the light than the point's plane, else 0."""
+    m, size = shadow_map.matrix, np.array([int(v) for v in shadow_map.size])
+    taps = np.minimum(np.maximum(taps, 0), size - 1)
+    stored = window_depth[taps[..., 1], taps[..., 0]]
     ndc = (taps + 0.5) * (2.0 / size) - 1.0
     inverse = np.linalg.inv(m)
     start = ndc @ inverse[:, :2].T + inverse[:, 3]                         # each tap's ray at NDC depth 0 and 1
@@ -142,7 +181,6 @@ def _edge_test(m, size, taps, stored, points, normals, depth, bias, shadow_map) 
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.einsum("ij,ij->i", points, normals)[:, None] - np.einsum("ikj,ij->ik", ends[0], normals)
         on_plane = ends[0] + (t / np.einsum("ikj,ij->ik", ray, normals))[..., None] * ray
-    plane = np.where(np.isfinite(on_plane).all(-1), shadow_map.stored_depth(on_plane.reshape(-1, 3))[0].reshape(-1, 9),
-                     depth[:, None])
-    near = (stored < 0.5 * (np.minimum(plane, depth[:, None]) - bias[:, None]) + 0.5).astype(np.float64)
-    return near
+    plane = np.where(np.isfinite(on_plane).all(-1), shadow_map.stored_depth(on_plane.reshape(-1, 3))[0].reshape(
+        taps.shape[:2]), depth[:, None])
+    return (stored < 0.5 * (np.minimum(plane, depth[:, None]) - bias[:, None]) + 0.5).astype(np.float64)
