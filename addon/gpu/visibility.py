@@ -150,7 +150,7 @@ def edge_normals(held, place: np.ndarray) -> np.ndarray:
     δ = a + b·u, turns it, g = n₀ − b·t₀. An edge θ off a texel axis is a staircase that steps once in 1/tan θ texels,
     so only a run that long tells it from one along the axis: the 3 x 3 taps' binary Sobel gradient is exact at 0°,
     45° and 90° only (a 5° edge read as 0°, 18° or 27°), the disc alone errs by up to 7° at 2-5°, the fit by 2°
-    (``tests/test_first_look_directions.py``)."""
+    (``tests/blender/test_first_look_directions.py``)."""
     ones = held(np.floor(place)[:, None].astype(np.int64) + DISC[None])
     g = (ones - ones.mean(axis=1, keepdims=True)) @ DISC
     n = g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-300)
