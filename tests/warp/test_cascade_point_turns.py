@@ -16,7 +16,7 @@ import pytest
 from addon.warp import WarpOptions
 from addon.warp.aliasing import raster_jacobian
 from addon.warp.methods.cascade import cascade
-from addon.warp.methods.psm import TURNS
+from addon.warp.methods.warp_frustum import TURNS
 from addon.warp.partition.receivers import spun
 from addon.warp.visibility import focused_body, region_from_boxes
 from hard_cases import HARD_CASES, point

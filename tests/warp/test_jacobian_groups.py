@@ -8,7 +8,7 @@ from addon.warp import compute
 from addon.warp.aliasing import raster_jacobian
 from addon.warp.fit import fit_to_unit_cube
 from addon.warp.geometry import translation
-from addon.warp.methods.psm import TURNS
+from addon.warp.methods.warp_frustum import TURNS
 from addon.warp.partition import receivers
 from addon.warp.types import ShadowMap
 

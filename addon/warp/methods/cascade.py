@@ -24,8 +24,9 @@ from ..types import MAX_MAP_SIDE, EmptyBodyError, Light, SceneBounds, ShadowSetu
 from ..visibility import VisibleRegion
 from .common import body_diagnostics
 from .lispsm import gmnpr, lispsm
-from .psm import TURNS, psm
+from .psm import psm
 from .uniform import uniform
+from .warp_frustum import TURNS
 
 SPLIT_WARPS = {"uniform": uniform, "lispsm": lispsm, "gmnpr": gmnpr, "psm": psm}
 """A split's warps, in the order "auto" prefers them on a tie."""

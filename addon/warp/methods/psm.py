@@ -19,7 +19,7 @@ from ..linear_depth import light_depth_row
 from ..post_perspective import PPSLight, VirtualCamera, nearest_visible_depth, pps_light_matrix, virtual_camera
 from ..types import Light, ShadowMap, ShadowSetup, View, WarpOptions
 from .common import body_diagnostics, uniform_setup
-from .warp_frustum import TURNS, edge_turned, eye_depth_range, guard_lambda, light_at_eye, map_lambda  # noqa: F401
+from .warp_frustum import edge_turned, eye_depth_range, guard_lambda, light_at_eye, map_lambda
 
 COVER_TOLERANCE = 1e-6
 """Final check: every B vertex has |NDC| <= 1 + this (the fit pads by 1e-7)."""
