@@ -167,7 +167,7 @@ def turned(matrix: np.ndarray, points: np.ndarray, along: tuple | None = None) -
 
 
 def spun(matrix: np.ndarray, points: np.ndarray, turns: np.ndarray) -> list[np.ndarray]:
-    """``matrix`` turned about its depth axis by each of ``turns`` (the edge turns' TURNS), refitted to the ``points`` in front
+    """``matrix`` turned about its depth axis by each of ``turns`` (``TURNS``), refitted to the ``points`` in front
     of its near plane and where their segments cross it (a point light on B is a vertex of B, w = 0: its own window)."""
     s = points @ (matrix[2, :3] + matrix[3, :3]) + matrix[2, 3] + matrix[3, 3]          # w·(z_ndc + 1)
     f, b = s > 0, s <= 0
