@@ -13,10 +13,11 @@
  * only a few float32 steps of P's size. An orthographic camera interpolates
  * without a 1 / w: there the varying stays P (its clip z would add the depth
  * range's offset, losing 2^-24 of the far distance: 3 µm at 0.5 m for a far of
- * 100 m). The normal still comes from the world position's derivatives
- * (prepass_frag.glsl, v_world): on a face along an axis they are exact, and
- * so is its normal's code, which the camera's coordinates' rounding moved by
- * a step on 1.5 % of a floor's and walls' pixels.
+ * 100 m). The pre-pass's normal comes from the derivatives of P itself
+ * (v_world) or of P - C, P relative to the camera's centre (v_from_camera),
+ * whichever is shorter (prepass_frag.glsl): on a face along an axis one of
+ * their coordinates is the same at every vertex, and each rounds by a
+ * float32 step of its own length.
  * lixel_camera_rows: whether the camera is a perspective one, and then those
  * rows' directions as columns, their constant terms and 1 / their lengths.
  * The rows are the same for every vertex of a draw, so the vertex stage solves
@@ -42,12 +43,15 @@ bool lixel_camera_rows(out mat3 rows, out vec3 offsets, out vec3 scale)
 
 #ifdef LIXEL_VERTEX_STAGE
 /* Sets the varying of world position P (relative to the frame's origin),
- * whose clip position is h, and the flat solution that undoes it. */
+ * whose clip position is h, and the flat solution that undoes it; and P
+ * relative to the camera's centre C (v_from_camera), whose derivatives give
+ * the pre-pass's normal. */
 void lixel_camera_varyings(vec3 P, vec4 h)
 {
   mat3 rows;
   vec3 offsets, scale;
   mat3 to_world = mat3(1.0);
+  v_world = P;
   v_camera = P;
   v_camera_offsets = vec3(0.0);
   if (lixel_camera_rows(rows, offsets, scale)) {
@@ -58,6 +62,7 @@ void lixel_camera_varyings(vec3 P, vec4 h)
   v_camera_to_world_x = to_world[0];
   v_camera_to_world_y = to_world[1];
   v_camera_to_world_z = to_world[2];
+  v_from_camera = P + to_world * offsets; /* P - C: rows . C + offsets = 0 (orthographic: P) */
 }
 #else
 /* The world position (relative to the frame's origin) of the varyings. */

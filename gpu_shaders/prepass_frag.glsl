@@ -1,8 +1,8 @@
 /* The camera's pre-pass: the depth of what is seen and, for the shading pass
  * (one full-screen pass over this surface, not a second draw of the
  * receivers), the surface itself: its position relative to the frame's
- * origin and its geometric normal, exact per triangle from screen
- * derivatives (helper invocations interpolate the same triangle), stored
+ * origin and its geometric normal, per triangle from screen derivatives
+ * (helper invocations interpolate the same triangle), stored
  * octahedrally (Cigolle et al., JCGT 2014) in one target:
  *   out_surface = (position, the octahedral normal packed in one float).
  * The packing: the octahedral coordinates in [-1, 1] quantised to 14 and 15
@@ -39,8 +39,20 @@ void main()
 {
   /* The normal's direction (its length and side are the shading pass's: the
    * octahedral map divides by the L1 norm, and the shading turns the normal
-   * towards the viewer). */
-  vec2 o = lixel_octahedral(cross(dFdx(v_world), dFdy(v_world)));
+   * towards the viewer), from the derivatives of P relative to whichever of
+   * the drawing origin and the camera's centre is nearer (camera_lib.glsl):
+   * an interpolated position rounds by a float32 step of its distance from
+   * its reference, and over a pixel's few millimetres that tilts the
+   * normal. Relative to the origin alone it tilted a wall 32 m from there and
+   * 5 m from the camera by 2-5e-4 rad, more than a point light 1.7 mm in
+   * front of it meets it at, so the wall read as facing away
+   * (gen106_05_point_low_in_view, docs/papers.md); relative to the camera
+   * alone a floor through the origin lost its exact code on 2.5 % of its
+   * pixels (one octahedral step). On a face along an axis the coordinate
+   * across it is the same at every vertex, so it stays nearly constant. */
+  vec3 n_origin = cross(dFdx(v_world), dFdy(v_world));
+  vec3 n_camera = cross(dFdx(v_from_camera), dFdy(v_from_camera));
+  vec2 o = lixel_octahedral(dot(v_world, v_world) <= dot(v_from_camera, v_from_camera) ? n_origin : n_camera);
   uvec2 q = uvec2(floor((clamp(o, -1.0, 1.0) + 1.0) * vec2(8191.0, 16383.0) + 0.5));
 #ifdef LIXEL_UNLIT
   uint marks = 0x20000000u;

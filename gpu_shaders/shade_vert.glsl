@@ -5,7 +5,6 @@ invariant gl_Position;
 void main()
 {
   vec4 world = lixel_instance_matrix() * vec4(pos, 1.0);
-  v_world = world.xyz;
   gl_Position = u_view_proj * world;
   lixel_camera_varyings(world.xyz, gl_Position); /* camera_lib.glsl */
 }

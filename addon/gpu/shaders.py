@@ -165,6 +165,7 @@ def _camera_info(name: str, fragment: str):
     iface = gpu.types.GPUStageInterfaceInfo(f"lixel_{name}_iface")
     iface.smooth("VEC3", "v_world")
     iface.smooth("VEC3", "v_camera")
+    iface.smooth("VEC3", "v_from_camera")
     for flat in ("v_camera_offsets", "v_camera_to_world_x", "v_camera_to_world_y", "v_camera_to_world_z"):
         iface.flat("VEC3", flat)                                 # (camera_lib.glsl: solved once per vertex)
     info.vertex_out(iface)
