@@ -630,6 +630,7 @@ def _draw_gpu_overlays(scene, st, props) -> str:
 def register():
     for name, fn in APP_HANDLERS:
         getattr(bpy.app.handlers, name).append(fn)
+    sync_handlers()   # enabled again (Preferences) over a file whose overlays are on (at start-up: on_load_post)
 
 
 def unregister():
