@@ -187,13 +187,17 @@ def test_a_report_that_could_not_be_put_where_asked_is_refused_before_it_runs(tm
     (["--peer-repeats", "0"], "--peer-repeats: 0 is not at least 1"),
     (["--methods", "uniform,lispsm,uniform"], "--methods: 'uniform' given twice: each is measured once"),
     (["--sizes", "64,128,64"], "--sizes: '64' given twice: each is measured once"),
-    (["--peers", "cycles,cycles"], "--peers: 'cycles' given twice: each is measured once")])
+    (["--peers", "cycles,cycles"], "--peers: 'cycles' given twice: each is measured once"),
+    (["--peers", ""], "--peers: unknown (none given); choose from eevee, cycles or none"),
+    (["--resolution", "3x2"], "--resolution: 3x2 is outside 4..8192 pixels per side")])
 def test_options_the_report_would_change_or_repeat_are_refused_by_name(tmp_path, args, said):
     """``--eevee-samples -1`` (or 0) rendered EEVEE at 1 sample and the report said "EEVEE -1 spp";
     ``--eevee-sizes 0`` rendered it unmatched (each tile map up to 8192²) and said "at map size(s) 0";
     ``--peer-repeats 0`` was refused as "--frames and --repeats must be at least 1", naming neither; a method, size or
-    peer given twice was measured twice and listed twice in every table, with two timings for one point. Each is
-    refused by name before anything runs."""
+    peer given twice was measured twice and listed twice in every table, with two timings for one point;
+    ``--peers ''`` (an empty shell variable) ran no peer without a word; ``--resolution 3x2`` was rendered at 4x4 by
+    Blender, and every method failed on "ValueError: operands could not be broadcast together". Each is refused by
+    name before anything runs."""
     base = {"--methods": "uniform", "--sizes": "64", "--peers": "none"}
     for option in args[::2]:
         base.pop(option, None)
