@@ -274,6 +274,20 @@ def test_noise_filter_keeps_real_messages():
     assert not is_noise("Traceback (most recent call last):")
 
 
+def test_the_header_says_which_scenes_had_fewer_frames_than_asked():
+    """``--frames 100000`` said "100000 frame(s) of camera animation" over a report whose scene animates 8: each
+    scene renders its own frames up to the number asked, and the header names the scenes that had fewer."""
+    from bench.report.document import _header
+    result = {"blender": "5.0.1", "seconds": 3, "options": {
+        "quick": False, "scenes": ["chess", "forest"], "methods": ["uniform"], "sizes": [16], "resolution": [32, 32],
+        "frames": 100000, "repeats": 1, "peer_repeats": 3, "cycles_samples": 1, "eevee_samples": 1},
+        "scenes": [{"name": "chess", "frames": list(range(1, 9))}, {"name": "forest", "frames": list(range(1, 5))}]}
+    assert "100000 frame(s) of camera animation (fewer where a scene's ends first: chess 8, forest 4);" in \
+        _header(result)[0]
+    result["options"]["frames"] = 4
+    assert "; 4 frame(s) of camera animation; " in _header(result)[0]
+
+
 def test_timing_summary_and_agreement():
     from bench.report.timing import agreement, summarise
     t = summarise([(0.010, 0.005), (0.030, 0.004), (0.020, 0.006)], [{"a": 0.001}, {"a": 0.003}, {"a": 0.002}])
