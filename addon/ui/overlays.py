@@ -507,7 +507,8 @@ def triangles_origin(triangles: np.ndarray) -> np.ndarray:
 
 
 def _maps_block(maps, origin):
-    """The maps' matrices for coordinates relative to ``origin`` as the shader's uniform block (:data:`OVERLAY_MAPS`)."""
+    """The maps' matrices, for coordinates relative to ``origin``, as the shader's uniform block
+    (:data:`OVERLAY_MAPS`)."""
     import gpu
     block = OVERLAY_MAPS.block()
     for i, m in enumerate(maps):

@@ -201,7 +201,8 @@ def draw_snapshot(scene, st, flags: OverlayFlags, view_projection: np.ndarray, s
                     pushed[2, 3] = BACKDROP_DEPTH_OFFSET  # z_clip += offset * w_clip: NDC depth + offset
                     with gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
                         gpu.matrix.load_identity()
-                        gpu.matrix.load_projection_matrix(mathutils.Matrix((pushed @ vp @ translation(origin)).tolist()))
+                        drawn = pushed @ vp @ translation(origin)
+                        gpu.matrix.load_projection_matrix(mathutils.Matrix(drawn.tolist()))
                         gpu.state.depth_test_set("LESS_EQUAL")
                         gpu.state.depth_mask_set(True)
                         batch.draw(shader)

@@ -234,9 +234,9 @@ def test_a_curve_a_text_and_a_collection_instance_selected_are_named_not_called_
         for ob in made:
             scene.collection.objects.link(ob)
         _select_only(scene, [ob.name for ob in made])
-        named = ("'lixel_ops curve' (a curve), 'lixel_ops text' (a text), 'lixel_ops instancer' (a collection instance) "
-                 "are not meshes (Object > Convert > Mesh makes meshes of curves, surfaces, metaballs and texts; Object "
-                 "> Apply > Make Instances Real, of an instance's objects)")
+        named = ("'lixel_ops curve' (a curve), 'lixel_ops text' (a text), 'lixel_ops instancer' (a collection "
+                 "instance) are not meshes (Object > Convert > Mesh makes meshes of curves, surfaces, metaballs and "
+                 "texts; Object > Apply > Make Instances Real, of an instance's objects)")
         for op, what in ((bpy.ops.lixel.texel_grid_add, "the mesh objects that should show the texel grid"),
                          (bpy.ops.lixel.planes_from_selection, "the faces (Edit Mode) or mesh objects")):
             with pytest.raises(RuntimeError, match=re.escape(f"no mesh selected ({named}): select {what}")):

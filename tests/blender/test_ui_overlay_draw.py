@@ -131,8 +131,9 @@ def test_the_texel_checker_and_heatmap_keep_their_precision_far_from_the_origin(
             drawn[offset] += [m.snapshot.draw_snapshot(scene, st, m.snapshot.OverlayFlags.of([flag]), vp @ shift,
                                                        (W, H)) for flag in ("texels", "footprint")]   # (a backdrop)
         for near_origin, far in zip(drawn[0.0], drawn[1.0e6]):
-            served = np.abs(near_origin - m.snapshot.BACKGROUND).max(axis=-1) > 0.1 if near_origin[..., 3].min() == 1.0 \
-                else near_origin[..., 3] > 0.5          # (the snapshot's background is opaque)
+            opaque = near_origin[..., 3].min() == 1.0          # (the snapshot's background)
+            served = np.abs(near_origin - m.snapshot.BACKGROUND).max(axis=-1) > 0.1 if opaque else \
+                near_origin[..., 3] > 0.5
             assert served.mean() > 0.1
             differ = np.abs(near_origin - far).max(axis=-1) > 0.1
             assert differ[served].mean() < 0.01   # (0 here; 0.42 and 0.04 drawn in world coordinates)
