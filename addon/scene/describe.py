@@ -606,6 +606,9 @@ def pick_light(scene, depsgraph=None, active=None, chosen=None):
                                   not any(ob.data.type in LIGHT_TYPES for ob in lights)):
         lights += _instanced_lights(depsgraph)      # walked only when the scene's own lights do not answer
     if chosen is not None:
+        if chosen.type != "LIGHT":    # (a script sets the panel's Light past its poll)
+            raise NoLightError(f"The Lixel light '{chosen.name}' is {_a(chosen.type.lower())}, not a light: choose a "
+                               f"light (Lixel panel > Light)")
         if chosen not in lights:
             raise NoLightError(f"The Lixel light '{chosen.name}' is not among the lights scene '{scene.name}' shows "
                                f"(hidden, in an excluded collection or in another scene), so Blender lights nothing "

@@ -25,7 +25,9 @@ import bpy
 import numpy as np
 from bpy.app.handlers import persistent
 
+from ..gpu.batches import drawing_origin
 from ..gpu.layout import Member, Struct
+from ..gpu.pipeline import relative
 from ..guard import guarded_callback, user_message
 from . import live
 
@@ -499,32 +501,44 @@ def receiver_triangles_of(scene, st) -> np.ndarray:
     return hit[1]
 
 
-def _maps_block(maps):
-    """The maps' matrices as the shader's uniform block (:data:`OVERLAY_MAPS`)."""
+def triangles_origin(triangles: np.ndarray) -> np.ndarray:
+    """The point the receiver overlays (and the snapshot's backdrop) draw (T, 3, 3) world ``triangles`` relative to."""
+    return drawing_origin(np.stack([triangles.min(axis=1), triangles.max(axis=1)], axis=1))
+
+
+def _maps_block(maps, origin):
+    """The maps' matrices, for coordinates relative to ``origin``, as the shader's uniform block
+    (:data:`OVERLAY_MAPS`)."""
     import gpu
     block = OVERLAY_MAPS.block()
     for i, m in enumerate(maps):
-        block.light[i][:] = np.asarray(m.matrix, dtype=np.float64).T  # a row per column (GLSL is column-major)
+        block.light[i][:] = relative(m.matrix, origin).T  # a row per column (GLSL is column-major)
     return gpu.types.GPUUniformBuf(block.float32().tobytes())
 
 
 def _draw_receivers(scene, st, props, view_projection):
     """The texel-parity checker and/or footprint heatmap on every receiver, with
-    the receiver shader (per-fragment map selection and divide)."""
+    the receiver shader (per-fragment map selection and divide). The receivers
+    are drawn relative to their drawing origin (``batches.drawing_origin``), as
+    the render draws the scene: in world coordinates float32 steps 6 cm at
+    1000 km, which turned the heatmap's screen derivatives to noise."""
     import mathutils
     from gpu_extras.batch import batch_for_shader
     shader = texel_shader()
     tris = receiver_triangles_of(scene, st)
     if not len(tris):
         return
-    bounds, _, batch = _receivers[live.scene_key(scene)]
-    if batch is None:
-        batch = batch_for_shader(shader, "TRIS", {"pos": tris.reshape(-1, 3).astype(np.float32)})
-        _receivers[live.scene_key(scene)] = (bounds, tris, batch)
+    bounds, _, drawn = _receivers[live.scene_key(scene)]
+    if drawn is None:
+        origin = triangles_origin(tris)
+        drawn = (batch_for_shader(shader, "TRIS", {"pos": (tris - origin).reshape(-1, 3).astype(np.float32)}), origin)
+        _receivers[live.scene_key(scene)] = (bounds, tris, drawn)
+    batch, origin = drawn
     maps = st.setup.maps[:MAX_SHADER_MAPS]
     shader.bind()
-    shader.uniform_float("u_view_projection", mathutils.Matrix(np.asarray(view_projection, dtype=np.float64).tolist()))
-    shader.uniform_block("u_maps", _cached(live.scene_key(scene), "maps", st.generation, lambda: _maps_block(maps)))
+    shader.uniform_float("u_view_projection", mathutils.Matrix(relative(view_projection, origin).tolist()))
+    shader.uniform_block("u_maps", _cached(live.scene_key(scene), "maps", (st.generation, origin.tobytes()),
+                                           lambda: _maps_block(maps, origin)))
     shader.uniform_float("u_size", tuple(float(v) for v in maps[0].size))
     shader.uniform_int("u_count", len(maps))
     shader.uniform_float("u_alpha", RECEIVER_ALPHA)
@@ -630,6 +644,7 @@ def _draw_gpu_overlays(scene, st, props) -> str:
 def register():
     for name, fn in APP_HANDLERS:
         getattr(bpy.app.handlers, name).append(fn)
+    sync_handlers()   # enabled again (Preferences) over a file whose overlays are on (at start-up: on_load_post)
 
 
 def unregister():

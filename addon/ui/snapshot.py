@@ -21,7 +21,7 @@ from typing import Optional
 import numpy as np
 
 from ..scene.units import length_text
-from ..warp.geometry import frustum_matrix, look_along, normalize
+from ..warp.geometry import frustum_matrix, look_along, normalize, translation
 
 BACKDROP_DEPTH_OFFSET = 2e-4
 """NDC depth added to the backdrop (the stand-in for the viewport's scene depth)."""
@@ -138,8 +138,8 @@ def camera_view_projection(view) -> np.ndarray:
 
 # --- drawing ---------------------------------------------------------------------------------------------------
 
-def _flat_shaded(triangles: np.ndarray, eye: Optional[np.ndarray], direction: np.ndarray) -> tuple:
-    """Per-vertex positions and colours of grey triangles lit by a headlight."""
+def _flat_shaded(triangles: np.ndarray, eye: Optional[np.ndarray], direction: np.ndarray, origin) -> tuple:
+    """Per-vertex positions (relative to ``origin``) and colours of grey triangles lit by a headlight."""
     t = np.asarray(triangles, dtype=np.float64).reshape(-1, 3, 3)
     n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
     length = np.linalg.norm(n, axis=1, keepdims=True)
@@ -150,7 +150,7 @@ def _flat_shaded(triangles: np.ndarray, eye: Optional[np.ndarray], direction: np
     lo, hi = BACKDROP_GREY
     g = lo + (hi - lo) * lamb
     colours = np.repeat(np.stack([g, g, g, np.ones_like(g)], axis=1), 3, axis=0)
-    return t.reshape(-1, 3).astype(np.float32), colours.astype(np.float32)
+    return (t - origin).reshape(-1, 3).astype(np.float32), colours.astype(np.float32)
 
 
 def _eye_of(view_projection: np.ndarray):
@@ -193,14 +193,16 @@ def draw_snapshot(scene, st, flags: OverlayFlags, view_projection: np.ndarray, s
                 tris = overlays.receiver_triangles_of(scene, st)
                 if len(tris):
                     eye, direction = _eye_of(vp)
-                    pos, col = _flat_shaded(tris, eye, direction)
+                    origin = overlays.triangles_origin(tris)   # as the overlays draw them (precision far out)
+                    pos, col = _flat_shaded(tris, eye, direction, origin)
                     shader = overlays.builtin_shader("SMOOTH_COLOR", "3D_SMOOTH_COLOR")
                     batch = batch_for_shader(shader, "TRIS", {"pos": pos, "color": col})
                     pushed = np.eye(4)
                     pushed[2, 3] = BACKDROP_DEPTH_OFFSET  # z_clip += offset * w_clip: NDC depth + offset
                     with gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
                         gpu.matrix.load_identity()
-                        gpu.matrix.load_projection_matrix(mathutils.Matrix((pushed @ vp).tolist()))
+                        drawn = pushed @ vp @ translation(origin)
+                        gpu.matrix.load_projection_matrix(mathutils.Matrix(drawn.tolist()))
                         gpu.state.depth_test_set("LESS_EQUAL")
                         gpu.state.depth_mask_set(True)
                         batch.draw(shader)

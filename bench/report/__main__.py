@@ -85,7 +85,7 @@ def options(args):
     base = quick_defaults() if args.quick else full_defaults()
     sizes = args.sizes or list(QUICK_SIZES if args.quick else DEFAULT_SIZES)
     peers = args.peers if args.peers is not None else ["eevee", "cycles"]
-    peers = [] if peers == ["none"] else peers
+    peers = [] if peers == ["none"] else peers or [""]   # ("": none given, refused by name)
     from .run import MAX_MAP_SIZE
     fitting = [s for s in sizes if s <= MAX_MAP_SIZE]
     eevee_sizes = args.eevee_sizes if args.eevee_sizes is not None else \

@@ -289,10 +289,14 @@ def _header(result: dict) -> list[str]:
     o = result["options"]
     ev = f"EEVEE {o['eevee_samples']} spp at map size(s) {', '.join(map(str, o['eevee_sizes']))}" \
         if o.get("eevee_sizes") else "no EEVEE"
+    shorter = [f"{s['name']} {len(s['frames'])}" for s in result.get("scenes", [])
+               if 0 < len(s.get("frames", ())) < o["frames"]]   # (a scene's animation ends first: it said --frames)
+    frames = f"{o['frames']} frame(s) of camera animation" + (f" (fewer where a scene's ends first: "
+                                                              f"{', '.join(shorter)})" if shorter else "")
     return [f"Blender {result['blender']}; {'quick run' if o['quick'] else 'full run'}: scenes "
             f"{', '.join(o['scenes'])}; methods {', '.join(o['methods'])}; map sizes "
             f"{', '.join(str(s) for s in o['sizes'])}; {o['resolution'][0]}×{o['resolution'][1]} pixels; "
-            f"{o['frames']} frame(s) of camera animation; timing: median of {o['repeats']} frames per Lixel point, "
+            f"{frames}; timing: median of {o['repeats']} frames per Lixel point, "
             f"{o['peer_repeats']} renders per peer point, in process CPU time (wall clock beside it); {ev}; Cycles "
             f"{o['cycles_samples']} spp (direct light only). Took {result.get('seconds', 0):.0f} s."]
 

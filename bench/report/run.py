@@ -76,6 +76,11 @@ def scene_names() -> list:
     return list(BUILDERS)
 
 
+MIN_SIDE = 4
+"""The smallest render side Blender takes (``RenderSettings.resolution_x``'s minimum, 4.2 and 5.0): it raised a 3x2
+report to 4x4 unasked, and every method failed on "operands could not be broadcast together"."""
+
+
 def check(opts: Options) -> list:
     """Problems with the options (an empty list when they can run)."""
     from addon.warp import METHODS
@@ -106,11 +111,12 @@ def check(opts: Options) -> list:
         problems.append("--sizes: give positive map sizes in texels per side")
     from .peers import PEERS
     bad = [p for p in opts.peers if p not in PEERS]
-    if bad:
-        problems.append(f"--peers: unknown {', '.join(map(repr, bad))}; choose from {', '.join(PEERS)} or none")
+    if bad:   # ('' for --peers '': an empty shell variable, which ran no peer without a word)
+        problems.append(f"--peers: unknown {', '.join(repr(p) for p in bad if p) or '(none given)'}; "
+                        f"choose from {', '.join(PEERS)} or none")
     w, h = opts.resolution
-    if not (1 <= w <= 8192 and 1 <= h <= 8192):
-        problems.append(f"--resolution: {w}x{h} is outside 1..8192 pixels per side")
+    if not (MIN_SIDE <= w <= 8192 and MIN_SIDE <= h <= 8192):
+        problems.append(f"--resolution: {w}x{h} is outside {MIN_SIDE}..8192 pixels per side")
     if opts.eevee_sizes is not None and any(s < 1 for s in opts.eevee_sizes):   # 0 ran EEVEE unmatched, unsaid
         problems.append("--eevee-sizes: give positive map sizes in texels per side")
     for option, value in (("--frames", opts.frames), ("--repeats", opts.repeats),

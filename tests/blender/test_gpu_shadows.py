@@ -7,6 +7,7 @@ maps are 2048² where the issue asks for it.
 import importlib
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import bpy
 import numpy as np
@@ -16,6 +17,7 @@ from mathutils.bvhtree import BVHTree
 
 from addon.measure.errors import shadow_edges
 from addon.warp.methods import METHODS as _METHODS_AT_COLLECTION
+from ui_scenes import build
 
 METHOD_NAMES = sorted(_METHODS_AT_COLLECTION)
 
@@ -583,6 +585,57 @@ def test_a_face_whose_near_plane_nearly_meets_the_light_winds_as_its_xyw_rows_sa
     assert {winds(m) for m in farther} == {winds(NEAR_LIGHT_FACE)} == {variant == "MIRRORED"}
 
 
+def light_facing_winding_judged_at(matrix, depth_test) -> set:
+    """Whether a light-facing triangle winds clockwise, judged apart from ``light_facing_winds_clockwise``: tiny
+    triangles (1e-6 of their distance from the world origin wide) at points the map sees (NDC (±0.5, ±0.5, z),
+    unprojected), each across the map's ray through it (the cross product of the NDC x and y gradients there) and
+    facing where the depth falls along it (rises, GREATER), projected. One answer, or several where the map's own
+    triangles disagree (none of the golden maps')."""
+    m = np.asarray(matrix, dtype=np.float64)
+    answers = set()
+    for x, y, z in ((x, y, z) for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.0, 0.5)):
+        h = np.linalg.solve(m, [x, y, z, 1.0])
+        p = h[:3] / h[3]
+        clip = m @ np.append(p, 1.0)
+        jac = (m[:3, :3] - np.outer(clip[:3] / clip[3], m[3, :3])) / clip[3]   # d NDC / d p
+        ray = np.cross(jac[0], jac[1])
+        towards = -ray * np.sign(jac[2] @ ray) * (-1.0 if depth_test == "GREATER" else 1.0)
+        u = np.cross(towards, np.eye(3)[int(np.argmin(np.abs(towards)))])
+        u, towards = u / np.linalg.norm(u), towards / np.linalg.norm(towards)
+        width = 1e-6 * max(np.linalg.norm(p), 1e-300)
+        corners = [m @ np.append(p + d * width, 1.0) for d in (np.zeros(3), u, np.cross(towards, u))]
+        if min(c[3] for c in corners) <= 0.0:
+            continue
+        (ax, ay), (bx, by), (cx, cy) = (c[:2] / c[3] for c in corners)
+        answers.add(bool((bx - ax) * (cy - ay) - (by - ay) * (cx - ax) < 0))
+    return answers
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e-3, 1e3])
+def test_every_golden_map_winds_as_its_own_triangles_at_any_scene_size(lx, scale):
+    """The winding of a light-facing triangle that the depth pass culls by agrees with the map's own tiny triangles
+    (``light_facing_winding_judged_at``) for every map of ``tests.warp.golden`` (714: every method on the examples,
+    the hard cases and the bench scenes), and for the same scenes 1,000 times smaller and larger. It was read from a
+    triangle across the central ray 1e-3 of the distance to the light (or, on a map with parallel rays, of
+    |row 0 x row 1|) wide, which could reach w < 0 and project mirrored: 29 maps at their own size wound the other
+    way (outdoor_sun's PSM and GLPR, bench spot's GMNPR and GLPR, ...), 197 at a thousandth of it."""
+    import gzip
+    import json
+    with gzip.open(Path(__file__).parents[1] / "warp" / "golden.json.gz", "rt") as f:
+        golden = json.load(f)
+    wrong, judged = [], 0
+    for name, setup in sorted(golden.items()):
+        for m in setup.get("maps", []):
+            matrix = np.reshape(m["matrix"], (4, 4)) @ np.diag([1.0 / scale] * 3 + [1.0])
+            judged_as = light_facing_winding_judged_at(matrix, m["depth_test"])
+            assert len(judged_as) == 1, f"{name} {m['role']}: its own triangles disagree"
+            judged += 1
+            if lx.pipeline.light_facing_winds_clockwise(lx.types.ShadowMap(matrix, (1024, 1024), m["depth_test"])) \
+                    not in judged_as:
+                wrong.append(f"{name} {m['role']}")
+    assert judged == 714 and wrong == []
+
+
 def edge_ramp_scene(scene, degrees=3.0):
     """A long box casting one straight shadow edge, rotated ``degrees`` against the
     map's texel grid, seen from straight above by an orthographic camera below
@@ -901,6 +954,46 @@ def test_each_map_culls_faces_turned_from_the_light_only_on_solids_it_sees_from_
     for (_, culled_fb), (_, whole_fb), m in zip(bare_culled, bare, setup.maps):
         a, b = lx.compose.read_depth(culled_fb, m.size), lx.compose.read_depth(whole_fb, m.size)
         assert np.mean(np.abs(a - b) > 1e-5) < 1e-4, "the benchmarks' bare draw culling the same faces differs"
+
+
+def culled_and_whole_maps(lx, lixel, scene, method, size=512):
+    """(each map as the frame draws it, culling the faces turned from the light of the solids it sees from outside;
+    the same map drawing every face), window depths, and the maps' roles."""
+    dg = scene.view_layers[0].depsgraph
+    dg.update()
+    geometry = lx.geometry.GeometryCache().update(dg)
+    view, lt, bounds = lx.describe.describe_scene(scene, dg, instances=geometry.instances)
+    frame = lx.pipeline.ShadowFrame(geometry, view, scene=lx.batches.GPUScene())
+    frame.camera_prepass()
+    body, setup, _ = importlib.import_module(f"{lixel.__name__}.addon.render.engine").fit_warp(
+        frame, lt, bounds, lx.warp.WarpOptions(shadow_map_size=(size, size)), method)
+    shadow = lx.settings.ShadowSettings()
+    frame.draw_maps(setup, shadow, body)
+    assert frame.casters.instance_count == 2
+    whole = lx.pipeline.depth_pass(setup, frame.scene, frame.casters, shadow, lx.targets.TargetPool())
+    return [(lx.compose.read_depth(c, m.size), lx.compose.read_depth(w, m.size), m.role)
+            for (_, c), (_, w), m in zip(frame.maps, whole, setup.maps)]
+
+
+@pytest.mark.parametrize("scale", [1.0, 0.01])
+@pytest.mark.parametrize("kind", ["SUN", "SPOT", "POINT"])
+@pytest.mark.parametrize("method", METHOD_NAMES)
+def test_culling_keeps_the_faces_towards_the_light_for_every_method_at_any_scene_size(lx, lixel, scene, method, kind,
+                                                                                      scale):
+    """The depth pass culls a solid's faces turned from the light (``light_facing_winds_clockwise``), so each map
+    holds what drawing every face gives. The winding was read from a triangle across the map's central ray that could
+    reach w < 0, where it projects mirrored: then the faces towards the light were culled and the back faces drawn,
+    which lost the box's shadow on its own dark side (the Shadow pass) -- for LiSPSM's and the cascade's sun maps in
+    this scene made 1 cm wide (and in 29 of the 714 maps of ``tests.warp.golden`` at their own size: outdoor_sun's
+    PSM and GLPR, bench spot's GMNPR, ...)."""
+    build(scene, light=kind)
+    for ob in scene.objects:
+        ob.location *= scale
+        ob.scale *= scale
+    scene.camera.data.clip_start *= scale
+    scene.camera.data.clip_end *= scale
+    for culled, whole, role in culled_and_whole_maps(lx, lixel, scene, method):
+        assert np.mean(np.abs(culled - whole) > 1e-5) < 1e-4, f"{role}: culling drew other faces than the whole map"
 
 
 def test_a_mesh_bounds_solids_when_closed_with_normals_outwards(lx):

@@ -94,6 +94,21 @@ def test_file_load_drops_draw_handlers_and_state(lixel, tmp_path):
         assert overlays.draw_handlers_active() == ()
 
 
+def test_enabling_lixel_again_draws_the_overlays_its_scenes_show(lixel):
+    """Disabled and enabled again (Preferences > Add-ons), Lixel drew none of the overlays the panel still showed
+    on, until they were toggled off and on or a file was opened: the draw handlers come back with it."""
+    with active_scene("lixel_reenable") as scene:
+        assert bpy.ops.lixel.toggle_overlay(overlay="show_frusta") == {"FINISHED"}
+        disable_lixel()
+        enable_lixel()
+        assert scene.lixel.show_frusta
+        overlays = importlib.import_module(f"{ADDON_MODULE}.addon.ui.overlays")
+        assert overlays.draw_handlers_active() == ("pixel", "view")
+        scene.lixel.show_frusta = False
+        overlays.sync_handlers()
+        assert overlays.draw_handlers_active() == ()
+
+
 def test_opening_a_file_with_overlays_on_restores_them(lixel, tmp_path):
     overlays = importlib.import_module(f"{ADDON_MODULE}.addon.ui.overlays")
     with_overlay, without = tmp_path / "overlay_on.blend", tmp_path / "overlay_off.blend"

@@ -4,6 +4,7 @@ camera, the light or the meshes are missing."""
 import importlib
 import json
 import os
+import re
 
 import bpy
 import numpy as np
@@ -215,6 +216,41 @@ def test_planes_without_selection_is_a_clear_error(scene):
     _select_only(scene, [])
     with pytest.raises(RuntimeError, match="no mesh selected"):
         bpy.ops.lixel.planes_from_selection()
+
+
+def test_a_curve_a_text_and_a_collection_instance_selected_are_named_not_called_no_mesh(scene, capfd):
+    """With a bevelled curve, a text and a collection instance selected (each shows a surface and casts its shadow),
+    Add Texel Grid and Planes From Selection said "no mesh selected"; with a mesh too, they left them out without a
+    word. They name them as what they are and how to make meshes of them."""
+    curve = bpy.data.curves.new("lixel_ops curve", "CURVE")
+    curve.splines.new("POLY").points.add(1)
+    curve.bevel_depth = 0.2
+    text = bpy.data.curves.new("lixel_ops text", "FONT")
+    held = bpy.data.collections.new("lixel_ops held")
+    instancer = bpy.data.objects.new("lixel_ops instancer", None)
+    instancer.instance_type, instancer.instance_collection = "COLLECTION", held
+    made = [bpy.data.objects.new(n, d) for n, d in (("lixel_ops curve", curve), ("lixel_ops text", text))] + [instancer]
+    try:
+        for ob in made:
+            scene.collection.objects.link(ob)
+        _select_only(scene, [ob.name for ob in made])
+        named = ("'lixel_ops curve' (a curve), 'lixel_ops text' (a text), 'lixel_ops instancer' (a collection "
+                 "instance) are not meshes (Object > Convert > Mesh makes meshes of curves, surfaces, metaballs and "
+                 "texts; Object > Apply > Make Instances Real, of an instance's objects)")
+        for op, what in ((bpy.ops.lixel.texel_grid_add, "the mesh objects that should show the texel grid"),
+                         (bpy.ops.lixel.planes_from_selection, "the faces (Edit Mode) or mesh objects")):
+            with pytest.raises(RuntimeError, match=re.escape(f"no mesh selected ({named}): select {what}")):
+                op()
+        _select_only(scene, [ob.name for ob in made] + ["lixel_ops ground"])
+        capfd.readouterr()
+        assert bpy.ops.lixel.texel_grid_add() == {"FINISHED"}
+        assert bpy.ops.lixel.planes_from_selection() == {"FINISHED"}
+        said = capfd.readouterr().out
+        assert f"Warning: Lixel: the texel grid goes on meshes: {named}" in said
+        assert f"Warning: Lixel: planes of interest come from meshes: {named}" in said
+        assert [m.name for m in scene.objects["lixel_ops ground"].modifiers] == ["Lixel Texel Grid"]
+    finally:
+        bpy.data.batch_remove(made + [curve, text, held])
 
 
 def _mesh_points(mesh) -> np.ndarray:

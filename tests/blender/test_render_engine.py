@@ -252,6 +252,21 @@ def test_a_lixel_light_hidden_from_renders_is_named_and_lights_nothing(engine, s
     assert got[-1]["result"].shadow_mask.max() > 0.5 and not got[-1]["warnings"]
 
 
+def test_a_lixel_light_a_script_set_to_another_object_is_named_as_no_light(engine, scene, capfd, lixel):
+    """The panel's Light takes lights only, but a script's ``scene.lixel.light = ob`` passes any object: F12 and
+    Refresh said the mesh "is not among the lights scene shows (hidden, in an excluded collection or in another
+    scene): show it" -- it was shown. They name it as what it is, and what to do."""
+    build(scene)
+    scene.lixel.light = scene.objects["Box"]
+    got = _render_under_a_sky(engine, scene)
+    assert "Traceback" not in capfd.readouterr().err
+    _lit_by_the_world_alone(got[-1]["result"], (0.2, 0.3, 0.4))
+    said = "The Lixel light 'Box' is a mesh, not a light: choose a light (Lixel panel > Light)"
+    assert got[-1]["warnings"][0] == f"Lixel: no shadows in this view ({said}; the frame is lit by the world alone)"
+    with bpy.context.temp_override(scene=scene), pytest.raises(RuntimeError, match=re.escape(said)):
+        bpy.ops.lixel.refresh()
+
+
 def _differing(a, b) -> float:
     return float((np.abs(a - b).max(axis=-1) > 1e-3).mean())
 

@@ -187,13 +187,17 @@ def test_a_report_that_could_not_be_put_where_asked_is_refused_before_it_runs(tm
     (["--peer-repeats", "0"], "--peer-repeats: 0 is not at least 1"),
     (["--methods", "uniform,lispsm,uniform"], "--methods: 'uniform' given twice: each is measured once"),
     (["--sizes", "64,128,64"], "--sizes: '64' given twice: each is measured once"),
-    (["--peers", "cycles,cycles"], "--peers: 'cycles' given twice: each is measured once")])
+    (["--peers", "cycles,cycles"], "--peers: 'cycles' given twice: each is measured once"),
+    (["--peers", ""], "--peers: unknown (none given); choose from eevee, cycles or none"),
+    (["--resolution", "3x2"], "--resolution: 3x2 is outside 4..8192 pixels per side")])
 def test_options_the_report_would_change_or_repeat_are_refused_by_name(tmp_path, args, said):
     """``--eevee-samples -1`` (or 0) rendered EEVEE at 1 sample and the report said "EEVEE -1 spp";
     ``--eevee-sizes 0`` rendered it unmatched (each tile map up to 8192²) and said "at map size(s) 0";
     ``--peer-repeats 0`` was refused as "--frames and --repeats must be at least 1", naming neither; a method, size or
-    peer given twice was measured twice and listed twice in every table, with two timings for one point. Each is
-    refused by name before anything runs."""
+    peer given twice was measured twice and listed twice in every table, with two timings for one point;
+    ``--peers ''`` (an empty shell variable) ran no peer without a word; ``--resolution 3x2`` was rendered at 4x4 by
+    Blender, and every method failed on "ValueError: operands could not be broadcast together". Each is refused by
+    name before anything runs."""
     base = {"--methods": "uniform", "--sizes": "64", "--peers": "none"}
     for option in args[::2]:
         base.pop(option, None)
@@ -268,6 +272,20 @@ def test_noise_filter_keeps_real_messages():
     assert is_noise("Fra:1 Mem:42.12M (Peak 42.12M) | Time:00:10.20 | Rendering 1 / 1 samples")
     assert not is_noise("Error: Not freed memory blocks: 3")
     assert not is_noise("Traceback (most recent call last):")
+
+
+def test_the_header_says_which_scenes_had_fewer_frames_than_asked():
+    """``--frames 100000`` said "100000 frame(s) of camera animation" over a report whose scene animates 8: each
+    scene renders its own frames up to the number asked, and the header names the scenes that had fewer."""
+    from bench.report.document import _header
+    result = {"blender": "5.0.1", "seconds": 3, "options": {
+        "quick": False, "scenes": ["chess", "forest"], "methods": ["uniform"], "sizes": [16], "resolution": [32, 32],
+        "frames": 100000, "repeats": 1, "peer_repeats": 3, "cycles_samples": 1, "eevee_samples": 1},
+        "scenes": [{"name": "chess", "frames": list(range(1, 9))}, {"name": "forest", "frames": list(range(1, 5))}]}
+    assert "100000 frame(s) of camera animation (fewer where a scene's ends first: chess 8, forest 4);" in \
+        _header(result)[0]
+    result["options"]["frames"] = 4
+    assert "; 4 frame(s) of camera animation; " in _header(result)[0]
 
 
 def test_timing_summary_and_agreement():

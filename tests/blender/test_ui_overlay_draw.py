@@ -21,7 +21,7 @@ def m(lixel):
     class M:
         pass
     ns = M()
-    for name in ("live", "overlays", "renders"):
+    for name in ("live", "overlays", "renders", "snapshot"):
         setattr(ns, name, importlib.import_module(f"{lixel.__name__}.addon.ui.{name}"))
     ns.geometry = importlib.import_module(f"{lixel.__name__}.addon.warp.geometry")
     importlib.import_module(f"{lixel.__name__}.addon.gpu.context").ensure_gpu_context()
@@ -105,6 +105,38 @@ def test_texel_checker_and_heatmap_on_receivers(m):
         fine = draw(m, scene, st, vp, show_footprint=True)
         cold = fine[fine[..., 3] > 0.5][:, :3]
         assert (cold[:, 2] > cold[:, 0]).mean() > 0.9
+
+
+def test_the_texel_checker_and_heatmap_keep_their_precision_far_from_the_origin(m):
+    """The scene and the observer moved 1000 km away draw the checker and the heatmap they draw at the origin: the
+    receivers are drawn relative to their centre, as the render draws the scene (``batches.drawing_origin``). In
+    world coordinates float32 steps there are 6 cm: the heatmap's screen derivatives turned to noise (red, green
+    and blue speckles all over the ground) and the checker's texels frayed; so did the overlay snapshot's grey
+    backdrop, which the overlays are depth-tested against."""
+    with active_scene("lixel_draw_far") as scene:
+        scene.lixel.initialised = True
+        scene.lixel.method = "uniform"
+        scene.lixel.shadow_map_size = (64, 64)
+        vp = observer(m)
+        drawn = {}
+        for offset in (0.0, 1.0e6):
+            for ob in scene.objects:
+                ob.location.x += offset
+            shift = np.eye(4)
+            shift[0, 3] = -offset
+            st = m.live.update(scene, bpy.context.evaluated_depsgraph_get())
+            assert st.ok, st.error
+            drawn[offset] = [draw(m, scene, st, vp @ shift, **{flag: True}) for flag in ("show_texels",
+                                                                                         "show_footprint")]
+            drawn[offset] += [m.snapshot.draw_snapshot(scene, st, m.snapshot.OverlayFlags.of([flag]), vp @ shift,
+                                                       (W, H)) for flag in ("texels", "footprint")]   # (a backdrop)
+        for near_origin, far in zip(drawn[0.0], drawn[1.0e6]):
+            opaque = near_origin[..., 3].min() == 1.0          # (the snapshot's background)
+            served = np.abs(near_origin - m.snapshot.BACKGROUND).max(axis=-1) > 0.1 if opaque else \
+                near_origin[..., 3] > 0.5
+            assert served.mean() > 0.1
+            differ = np.abs(near_origin - far).max(axis=-1) > 0.1
+            assert differ[served].mean() < 0.01   # (0 here; 0.42 and 0.04 drawn in world coordinates)
 
 
 def test_picture_in_picture_images(m):

@@ -10,7 +10,7 @@ from ...scene.owned import DEBUG_KEY, is_lixel_made
 from ...warp.geometry import finite_clip_volume_corners
 from ...warp.polyhedron import hexahedron_faces
 from .. import nodes
-from .common import LixelSceneOperator
+from .common import LixelSceneOperator, not_meshes_note, selected_shapes_not_meshes
 
 BAKED = "baked"
 
@@ -194,9 +194,13 @@ class LIXEL_OT_texel_grid_add(MatrixOperator, bpy.types.Operator):
     @guarded_operator
     def execute(self, context):
         meshes = [ob for ob in context.selected_objects if ob.type == "MESH" and ob.get(DEBUG_KEY) is None]
+        shapes = [] if self.remove else selected_shapes_not_meshes(context)
         if not meshes:
-            self.report({"ERROR"}, "Lixel: no mesh selected: select the mesh objects that should show the texel grid")
+            self.report({"ERROR"}, f"Lixel: no mesh selected{f' ({not_meshes_note(shapes)})' if shapes else ''}: "
+                                   f"select the mesh objects that should show the texel grid")
             return {"CANCELLED"}
+        if shapes:
+            self.report({"WARNING"}, f"Lixel: the texel grid goes on meshes: {not_meshes_note(shapes)}")
         local = [ob for ob in meshes if ob.library is None]  # a library override keeps the modifier added to it
         if len(local) < len(meshes):  # what Lixel would put on a linked object is not saved with the file
             linked = [ob for ob in meshes if ob.library is not None]

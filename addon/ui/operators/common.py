@@ -2,7 +2,27 @@
 clear report of what is missing (no camera, no light, no mesh)."""
 from ...warp.types import WarpError
 from .. import live
+from ..nodes import listed
 from ..properties import ensure_defaults
+
+SHAPED = {"CURVE": "a curve", "SURFACE": "a surface", "META": "a metaball", "FONT": "a text"}
+"""Object types that show surfaces without being meshes (what they are called in a message)."""
+
+
+def selected_shapes_not_meshes(context) -> list:
+    """The selected objects that show surfaces but are not meshes (:data:`SHAPED`, and empties instancing a
+    collection), which the operators taking meshes leave out."""
+    return [ob for ob in context.selected_objects if ob.type in SHAPED or (
+        ob.type == "EMPTY" and ob.instance_type == "COLLECTION" and ob.instance_collection is not None)]
+
+
+def not_meshes_note(obs: list) -> str:
+    """Names ``obs`` (:func:`selected_shapes_not_meshes`) as what they are, and how to make meshes of them."""
+    named = listed([f"'{ob.name}' ({SHAPED.get(ob.type, 'a collection instance')})" for ob in obs])
+    how = [hint for hint, kinds in (("Object > Convert > Mesh makes meshes of curves, surfaces, metaballs and texts",
+                                     SHAPED), ("Object > Apply > Make Instances Real, of an instance's objects",
+                                               ("EMPTY",))) if any(ob.type in kinds for ob in obs)]
+    return f"{named} {'is not a mesh' if len(obs) == 1 else 'are not meshes'} ({'; '.join(how)})"
 
 
 def scene_poll(cls, context) -> bool:

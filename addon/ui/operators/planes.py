@@ -8,7 +8,7 @@ from ...scene.owned import DEBUG_KEY
 from ...scene.planes import NoPlane, planes_from_objects, planes_from_selected_faces
 from ...warp.plane_map import enclosing_polygon
 from ..properties import PLANE_CORNERS
-from .common import LixelSceneOperator, editable_scene_poll, initialise
+from .common import LixelSceneOperator, editable_scene_poll, initialise, not_meshes_note, selected_shapes_not_meshes
 
 
 def selection_planes(context) -> list:
@@ -37,11 +37,15 @@ class LIXEL_OT_planes_from_selection(LixelSceneOperator, bpy.types.Operator):
         except NoPlane as exc:
             self.report({"ERROR"}, f"Lixel: {exc}")
             return {"CANCELLED"}
+        shapes = [] if context.mode == "EDIT_MESH" else selected_shapes_not_meshes(context)
         if not planes:
             what = "no face selected" if context.mode == "EDIT_MESH" else "no mesh selected"
+            what += f" ({not_meshes_note(shapes)})" if shapes else ""
             self.report({"ERROR"}, f"Lixel: {what}: select the faces (Edit Mode) or mesh objects "
                                    f"that should get their own shadow map")
             return {"CANCELLED"}
+        if shapes:
+            self.report({"WARNING"}, f"Lixel: planes of interest come from meshes: {not_meshes_note(shapes)}")
         props = context.scene.lixel
         if not self.append:
             props.planes.clear()
