@@ -51,17 +51,6 @@ def single(setup: ShadowSetup, **changed) -> ShadowSetup:
 
 MAX_MAPS = 8
 """The most maps the shading pass reads (``addon.gpu.shaders.MAX_MAPS``)."""
-
-
-def maps_needed(splits: list) -> int:
-    """How many maps ``splits`` draw."""
-    return sum(len(s.setup.maps) for s in splits if s.setup is not None)
-
-
-def layout_p95(splits: list, footprints: list, band=(95.0,)) -> float:
-    """``footprint_p95`` of a layout's ``footprints``, inf where its ``splits`` need more than ``MAX_MAPS`` maps: the
-    split search and its final check never prefer a layout the shading pass cannot read."""
-    return footprint_p95(footprints, band) if maps_needed(splits) <= MAX_MAPS else math.inf
 OVERLAP = 1e-4
 """Each split's B reaches this fraction of its depths past both ends (a floor at a split depth meets it in a volume)."""
 
@@ -204,11 +193,10 @@ class Trials:
 
     def searched_depths(self, start: np.ndarray, warps: list) -> np.ndarray:
         """``start`` after ``SWEEPS`` coordinate sweeps of the inner ones over ``FRACTIONS`` of their neighbours'
-        log range (linear if orthographic), kept where the ``TAIL`` ``layout_p95`` of the splits' ``least`` falls by
-        ``MARGIN``."""
+        log range (linear if orthographic), kept where the ``TAIL`` p95 of the splits' ``least`` falls by ``MARGIN``."""
         def tail(c: np.ndarray) -> float:          # (the splits' Lloyd's m unread: ``least`` scores them)
             splits = self.splits_at(c, warps, scored=False)
-            return layout_p95(splits, [self.least(s, far) for s, far in zip(splits, [*c[1:-1], math.inf])], TAIL)
+            return footprint_p95([self.least(s, far) for s, far in zip(splits, [*c[1:-1], math.inf])], TAIL)
 
         c, best = start, tail(start)
         for _, k, f in itertools.product(range(SWEEPS), range(1, len(start) - 1), FRACTIONS):
@@ -250,8 +238,8 @@ def split_depths(view: View, light: Light, scene: SceneBounds, body: Intersectio
     if found is moved:
         return moved, splits, "adaptive"
     searched, now = trials.least_footprint(trials.splits_at(found))
-    better = layout_p95(searched, now, TAIL) < layout_p95(splits, seen, TAIL) and \
-        layout_p95(searched, now) <= layout_p95(splits, seen)
+    better = footprint_p95(now, TAIL) < footprint_p95(seen, TAIL) and footprint_p95(now) <= footprint_p95(seen) and \
+        sum(len(s.setup.maps) for s in searched if s.setup) <= MAX_MAPS
     return (found, searched, "receivers") if better else (moved, splits, "adaptive")
 
 
@@ -285,7 +273,7 @@ def fitting_splits(view: View, light: Light, scene: SceneBounds, body: Intersect
     for count in range(options.cascade_splits, 0, -1):
         depths, splits, scheme = split_depths(view, light, scene, body,
                                               dataclasses.replace(options, cascade_splits=count))
-        needed = maps_needed(splits)
+        needed = sum(len(s.setup.maps) for s in splits if s.setup is not None)
         if needed <= MAX_MAPS or count == 1:
             return depths, splits, scheme
         diag.fallback("splits", f"{count} splits need {needed} maps and the shading pass reads {MAX_MAPS}: "
