@@ -358,9 +358,10 @@ vec4 lixel_footprint_colour(float texels_per_pixel)
 /* The one rule by which every filter (the PCF's taps, MDSM texels, the
  * revectorized runs) judges a tap: for keys `key` at NDC (px, py), 1 where
  * the key is nearer the light than the tap's reference (lixel_refs), and
- * `seen` 0 where the tap missed P's receiver (lixel_seen). Every filter
- * leaves the taps not seen out: the PCF divides by the weight of the others
- * (P is lit where none is seen), and a revectorized run ends at one. */
+ * `seen` 0 where the tap missed P's receiver (lixel_seen). A tap not seen
+ * stands for what the taps seen say: the PCF divides by their weight (P is
+ * lit where none is seen), and a revectorized run reads it as the PCF's
+ * shadow rounded (lixel_revectorized). */
 vec4 lixel_judge(LixelReceiver rcv, bool plane, vec4 px, vec4 py, vec4 key, float bias, bool greater, out vec4 seen)
 {
   seen = lixel_seen(rcv, plane, px, py, key, bias, greater);
@@ -510,15 +511,15 @@ vec4 lixel_cell(int m, ivec2 c, LixelReceiver rcv, bool plane, float bias, bool 
  * f = (along, across)) is on a run when a column of it is split; a column not
  * split is then the run's end in the cell (a step of the stairs, at x = 0.5),
  * and up to LIXEL_REACH columns are read each way from the split ones.
- * A tap that missed P's receiver (lixel_judge) tells nothing of the stairs:
- * a column holding one ends the run at an unknown row.
+ * A tap that missed P's receiver (lixel_judge) reads `fill`: what the taps
+ * that saw it say of P, as in the PCF, whose division by their weight counts
+ * each missed tap as their mean.
  * Returns (P's shadow: the bilinear ramp across the rows, one texel wide,
  * moved to that line; the run's length), or shadow -1 where the cell is not
  * on a run along this axis, an end is not found (a run longer than the
- * reach) or unknown, or both lie on one row (a bump between two corners of a
- * shadow). */
+ * reach) or both lie on one row (a bump between two corners of a shadow). */
 vec2 lixel_run(int m, ivec2 c, ivec2 along, vec2 first, vec2 second, vec2 f, LixelReceiver rcv, bool plane, float bias,
-               bool greater, ivec2 size)
+               bool greater, ivec2 size, float fill)
 {
   bool split0 = first.x != first.y, split1 = second.x != second.y;
   if ((!split0 && !split1) || (split0 && split1 && first != second)) {
@@ -536,7 +537,7 @@ vec2 lixel_run(int m, ivec2 c, ivec2 along, vec2 first, vec2 second, vec2 f, Lix
       int offset = side == 0 ? -2 * (j + 1) : 2 * (j + 1);
       vec4 seen;
       vec4 t = lixel_cell(m, c + offset * along, rcv, plane, bias, greater, size, seen);
-      t = mix(vec4(-1.0), t, seen);  /* a missed tap: -1 */
+      t = mix(vec4(fill), t, seen);  /* lixel_judge's rule */
       /* its two columns as (near, far), nearest P first: along x (z, y), (w, x) left, (w, x), (z, y) right */
       vec2 a = along.x == 1 ? t.wx : t.wz, b = along.x == 1 ? t.zy : t.xy;
       vec2 near = side == 0 ? b : a, far = side == 0 ? a : b;
@@ -545,7 +546,7 @@ vec2 lixel_run(int m, ivec2 c, ivec2 along, vec2 first, vec2 second, vec2 f, Lix
         float x = side == 0 ? -0.5 - float(2 * j + k) : 1.5 + float(2 * j + k);
         bool open = side == 0 ? (split0 && x0 == 0.5) : (split1 && x1 == 0.5);
         if (open && col != run) {
-          float row = col.x != col.y || col.x < 0.0 ? -2.0 : (col.x == s ? 1.0 : 0.0);
+          float row = col.x != col.y ? -2.0 : (col.x == s ? 1.0 : 0.0);
           if (side == 0) { x0 = x; row0 = row; } else { x1 = x; row1 = row; }
         }
       }
@@ -559,16 +560,16 @@ vec2 lixel_run(int m, ivec2 c, ivec2 along, vec2 first, vec2 second, vec2 f, Lix
 }
 
 /* P's shadow with the edge revectorized (lixel_run) along whichever texel axis
- * the edge runs on the longer run, or `bilinear` where it runs on none or a
- * tap of P's cell missed the receiver; b, seen: the cell's taps (lixel_cell). */
+ * the edge runs on the longer run, or `bilinear` (the PCF's) where it runs on
+ * none; b, seen: the cell's taps (lixel_cell). The runs read binary tests, so
+ * a tap that missed the receiver reads the PCF's shadow rounded. */
 float lixel_revectorized(int m, ivec2 c, vec4 b, vec4 seen, vec2 f, float bilinear, LixelReceiver rcv, bool plane,
                          float bias, bool greater, ivec2 size)
 {
-  if (any(lessThan(seen, vec4(1.0)))) {
-    return bilinear;
-  }
-  vec2 across_y = lixel_run(m, c, ivec2(1, 0), b.wx, b.zy, f, rcv, plane, bias, greater, size);
-  vec2 across_x = lixel_run(m, c, ivec2(0, 1), b.wz, b.xy, f.yx, rcv, plane, bias, greater, size);
+  float fill = bilinear >= 0.5 ? 1.0 : 0.0;
+  b = mix(vec4(fill), b, seen);
+  vec2 across_y = lixel_run(m, c, ivec2(1, 0), b.wx, b.zy, f, rcv, plane, bias, greater, size, fill);
+  vec2 across_x = lixel_run(m, c, ivec2(0, 1), b.wz, b.xy, f.yx, rcv, plane, bias, greater, size, fill);
   vec2 best = across_x.y > across_y.y ? across_x : across_y;
   return best.x >= 0.0 ? best.x : bilinear;
 }
