@@ -36,7 +36,7 @@ def steep_scene(scene):
     sun.rotation_euler = (math.radians(4.0), 0.0, math.radians(15.0))
 
 
-@pytest.mark.parametrize("depths", [2, 3])
+@pytest.mark.parametrize("depths", [3, 4])
 def test_a_reversed_depth_map_with_several_depths_per_texel_shadows_as_the_plain_map(lx, scene, depths):
     """MDSM keys are stored smaller-nearer whatever the depth test (mdsm_frag.glsl): a GREATER map of the same
     surfaces shadows every pixel as the LESS map does, with the receiver-plane bias judging its taps (its key 0
