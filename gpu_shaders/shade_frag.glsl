@@ -35,7 +35,7 @@
  *     where the light grazes the receiver (n.l < ~0.01). A tap that stored
  *     something past the plane yet nearer the light than P missed the
  *     receiver (a grazed wall is under a texel wide across the light) and is
- *     left out of the filter (lixel_seen).
+ *     left out of every filter (lixel_seen, lixel_judge).
  *   NORMAL_OFFSET: the point looked up is P moved s texels along its normal
  *     (towards the light), less c texels.
  *   CONSTANT, SLOPE, CONSTANT_SLOPE: the classic offsets, c texels plus
@@ -355,22 +355,45 @@ vec4 lixel_footprint_colour(float texels_per_pixel)
   return vec4(clamp(-t, 0.0, 1.0), 1.0 - abs(t), clamp(t, 0.0, 1.0), 1.0);
 }
 
-/* One texel's shadow test against the fragment's reference depth: 0 or 1, or
- * with n depths per texel the n-shadow test's fraction (MDSM §4.2; keys:
- * smaller = nearer the light, channels beyond n repeat key 0). */
-float lixel_test(int m, ivec2 s, float ref, bool greater)
+/* The one rule by which every filter (the PCF's taps, MDSM texels, the
+ * revectorized runs) judges a tap: for keys `key` at NDC (px, py), 1 where
+ * the key is nearer the light than the tap's reference (lixel_refs), and
+ * `seen` 0 where the tap missed P's receiver (lixel_seen). A tap not seen
+ * stands for what the taps seen say: the PCF divides by their weight (P is
+ * lit where none is seen), and a revectorized run reads it as the PCF's
+ * shadow rounded (lixel_revectorized). */
+vec4 lixel_judge(LixelReceiver rcv, bool plane, vec4 px, vec4 py, vec4 key, float bias, bool greater, out vec4 seen)
+{
+  seen = lixel_seen(rcv, plane, px, py, key, bias, greater);
+  return vec4(lessThan(key, lixel_refs(rcv, plane, px, py, bias, greater)));
+}
+
+/* Texel s of map m (at NDC p) judged: (its shadowed weight, its weight seen).
+ * With n depths per texel, the n-shadow test's fraction (MDSM §4.2; the map
+ * holds keys, smaller = nearer the light, channels beyond n repeat key 0),
+ * and the texel is seen or missed as its key 0, the map's own depth on the
+ * texel's ray: the other keys were met anywhere in its q x q neighbourhood
+ * (mdsm_frag.glsl), and a key of the receiver itself from a texel beside it
+ * lies past the plane on this ray wherever the plane moves more than the
+ * bias per texel (judged each alone, they were left out: docs/papers.md,
+ * "graze2, session 24"). */
+vec2 lixel_texel(int m, ivec2 s, vec2 p, LixelReceiver rcv, bool plane, float bias, bool greater)
 {
   vec4 t = lixel_fetch(m, s);
 #ifdef LIXEL_MDSM
-  float c = 0.0;
-  for (int j = 0; j < LIXEL_MDSM; j++) {
-    c += t[j] < ref ? 1.0 : 0.0;
-  }
-  return c / float(LIXEL_MDSM);
+  vec4 key = t;
+  const int n = LIXEL_MDSM;
 #else
-  float key = greater ? 1.0 - t.r : t.r;
-  return key < ref ? 1.0 : 0.0;
+  vec4 key = vec4(greater ? 1.0 - t.r : t.r);
+  const int n = 1;
 #endif
+  vec4 seen;
+  vec4 shadowed = lixel_judge(rcv, plane, vec4(p.x), vec4(p.y), key, bias, greater, seen);
+  float hits = 0.0;
+  for (int j = 0; j < n; j++) {
+    hits += shadowed[j];
+  }
+  return vec2(hits / float(n), 1.0) * seen.x;
 }
 
 /* Whether map i serves P (clip volume, depth range, region); h = its clip position. */
@@ -470,8 +493,7 @@ vec4 lixel_cell(int m, ivec2 c, LixelReceiver rcv, bool plane, float bias, bool 
   vec4 sx = clamp(vec4(c.x, c.x + 1, c.x + 1, c.x), 0.0, float(size.x - 1));
   vec4 sy = clamp(vec4(c.y + 1, c.y + 1, c.y, c.y), 0.0, float(size.y - 1));
   vec4 px = (sx + 0.5) * to_ndc.x - 1.0, py = (sy + 0.5) * to_ndc.y - 1.0;
-  seen = lixel_seen(rcv, plane, px, py, key, bias, greater);
-  return vec4(lessThan(key, lixel_refs(rcv, plane, px, py, bias, greater)));
+  return lixel_judge(rcv, plane, px, py, key, bias, greater, seen);
 }
 
 #define LIXEL_REACH 4
@@ -489,12 +511,15 @@ vec4 lixel_cell(int m, ivec2 c, LixelReceiver rcv, bool plane, float bias, bool 
  * f = (along, across)) is on a run when a column of it is split; a column not
  * split is then the run's end in the cell (a step of the stairs, at x = 0.5),
  * and up to LIXEL_REACH columns are read each way from the split ones.
+ * A tap that missed P's receiver (lixel_judge) reads `fill`: what the taps
+ * that saw it say of P, as in the PCF, whose division by their weight counts
+ * each missed tap as their mean.
  * Returns (P's shadow: the bilinear ramp across the rows, one texel wide,
  * moved to that line; the run's length), or shadow -1 where the cell is not
  * on a run along this axis, an end is not found (a run longer than the
  * reach) or both lie on one row (a bump between two corners of a shadow). */
 vec2 lixel_run(int m, ivec2 c, ivec2 along, vec2 first, vec2 second, vec2 f, LixelReceiver rcv, bool plane, float bias,
-               bool greater, ivec2 size)
+               bool greater, ivec2 size, float fill)
 {
   bool split0 = first.x != first.y, split1 = second.x != second.y;
   if ((!split0 && !split1) || (split0 && split1 && first != second)) {
@@ -510,8 +535,9 @@ vec2 lixel_run(int m, ivec2 c, ivec2 along, vec2 first, vec2 second, vec2 f, Lix
     for (int side = 0; side < 2; side++) {
       if ((side == 0 && !split0) || (side == 1 && !split1)) continue;
       int offset = side == 0 ? -2 * (j + 1) : 2 * (j + 1);
-      vec4 seen; /* the run reads every tap, as the plane alone has it */
+      vec4 seen;
       vec4 t = lixel_cell(m, c + offset * along, rcv, plane, bias, greater, size, seen);
+      t = mix(vec4(fill), t, seen);  /* lixel_judge's rule */
       /* its two columns as (near, far), nearest P first: along x (z, y), (w, x) left, (w, x), (z, y) right */
       vec2 a = along.x == 1 ? t.wx : t.wz, b = along.x == 1 ? t.zy : t.xy;
       vec2 near = side == 0 ? b : a, far = side == 0 ? a : b;
@@ -534,13 +560,16 @@ vec2 lixel_run(int m, ivec2 c, ivec2 along, vec2 first, vec2 second, vec2 f, Lix
 }
 
 /* P's shadow with the edge revectorized (lixel_run) along whichever texel axis
- * the edge runs on the longer run, or `bilinear` where it runs on none; b: the
- * cell's taps (lixel_cell). */
-float lixel_revectorized(int m, ivec2 c, vec4 b, vec2 f, float bilinear, LixelReceiver rcv, bool plane, float bias,
-                         bool greater, ivec2 size)
+ * the edge runs on the longer run, or `bilinear` (the PCF's) where it runs on
+ * none; b, seen: the cell's taps (lixel_cell). The runs read binary tests, so
+ * a tap that missed the receiver reads the PCF's shadow rounded. */
+float lixel_revectorized(int m, ivec2 c, vec4 b, vec4 seen, vec2 f, float bilinear, LixelReceiver rcv, bool plane,
+                         float bias, bool greater, ivec2 size)
 {
-  vec2 across_y = lixel_run(m, c, ivec2(1, 0), b.wx, b.zy, f, rcv, plane, bias, greater, size);
-  vec2 across_x = lixel_run(m, c, ivec2(0, 1), b.wz, b.xy, f.yx, rcv, plane, bias, greater, size);
+  float fill = bilinear >= 0.5 ? 1.0 : 0.0;
+  b = mix(vec4(fill), b, seen);
+  vec2 across_y = lixel_run(m, c, ivec2(1, 0), b.wx, b.zy, f, rcv, plane, bias, greater, size, fill);
+  vec2 across_x = lixel_run(m, c, ivec2(0, 1), b.wz, b.xy, f.yx, rcv, plane, bias, greater, size, fill);
   vec2 best = across_x.y > across_y.y ? across_x : across_y;
   return best.x >= 0.0 ? best.x : bilinear;
 }
@@ -594,11 +623,10 @@ float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
     for (int dx = 0; dx < k; dx++) {
       ivec2 s = clamp(base + ivec2(dx, dy), ivec2(0), size - 1);
       vec2 p = (vec2(s) + 0.5) * to_ndc - 1.0;
-      float key = greater ? 1.0 - lixel_fetch(m, s).x : lixel_fetch(m, s).x;
-      float w = lixel_weight(dx, f.x) * lixel_weight(dy, f.y) *
-                lixel_seen(rcv, plane, vec4(p.x), vec4(p.y), vec4(key), bias, greater).x;
-      hits += w * lixel_test(m, s, lixel_refs(rcv, plane, vec4(p.x), vec4(p.y), bias, greater).x, greater);
-      weights += w;
+      vec2 t = lixel_texel(m, s, p, rcv, plane, bias, greater);
+      float w = lixel_weight(dx, f.x) * lixel_weight(dy, f.y);
+      hits += w * t.x;
+      weights += w * t.y;
     }
   }
 #else
@@ -606,10 +634,9 @@ float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
    * a software rasterizer; lixel_cell), the cell at c holding texels c and
    * c + 1 each way, each tap weighed by lixel_weight (taps beyond k - 1 weigh
    * nothing). */
-  vec4 cell = vec4(0.0);
+  vec4 cell = vec4(0.0), seen = vec4(1.0);
   for (int gy = 0; gy < k; gy += 2) {
     for (int gx = 0; gx < k; gx += 2) {
-      vec4 seen;
       cell = lixel_cell(m, base + ivec2(gx, gy), rcv, plane, bias, greater, size, seen);
       vec2 wx = vec2(lixel_weight(gx, f.x), lixel_weight(gx + 1, f.x));
       vec2 wy = vec2(lixel_weight(gy, f.y), lixel_weight(gy + 1, f.y));
@@ -625,7 +652,7 @@ float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
   if (shadow > 0.0 && shadow < 1.0) {
     /* its taps reach LIXEL_REACH texels farther: the plane's error there too */
     float reach_bias = bias + min(float(LIXEL_REACH) * grazing, LIXEL_SLOPE_LIMIT) * rcv.texel;
-    shadow = lixel_revectorized(m, base, cell, f, shadow, rcv, plane, reach_bias, greater, size);
+    shadow = lixel_revectorized(m, base, cell, seen, f, shadow, rcv, plane, reach_bias, greater, size);
   }
 #endif
 #ifdef LIXEL_REGIONS
@@ -638,7 +665,8 @@ float lixel_shadow(int m, vec3 P, vec3 N, vec3 L, vec4 h)
   if (lixel.maps[m].range.w > 0.5 && max(off_centre.x, off_centre.y) <= LIXEL_ON_LIXEL) {
     ivec2 own = ivec2(floor(tc));
     vec2 p = (vec2(own) + 0.5) * to_ndc - 1.0;
-    shadow = lixel_test(m, own, lixel_refs(rcv, plane, vec4(p.x), vec4(p.y), bias, greater).x, greater);
+    vec2 t = lixel_texel(m, own, p, rcv, plane, bias, greater);
+    shadow = t.y > 0.0 ? t.x / t.y : 0.0;
   }
 #endif
   return shadow;
