@@ -95,12 +95,12 @@ def psm_warp(view: View, light: Light, body: IntersectionBody, options: WarpOpti
 
 def turned_fit(unfitted: np.ndarray, view: View, body: IntersectionBody, frame: Optional[LightFrame]) -> np.ndarray:
     """The fit (§4) of ``unfitted`` (camera-relative world -> the PPS light's clip), its x, y turned from PPS's towards
-    ``frame``'s as far as that shortens the texel's longer side at B's centroid (§1.1's d_s, the side that aliases; a
-    skewed texel can be smaller in area and longer). PPS scales the view's x, y and depth unlike, so x, y square in
-    PPS can be skewed in the light's image; turned, PSM tends to the uniform map as the virtual camera moves back, as
-    §4.2 says it must (docs/papers.md, "PSM's map axes under a low sun", "pointpsm, session 24"). J: a fitted map's
-    d(x/w, y/w) over the frame's x, y at B's centroid; C = J⁻¹ at det 1 puts the fitted x, y along the frame's there;
-    the turn is I + t (C - I), t in [0, 1] by 1/256. Then turned off the first look's shadow edges (``edge_turned``)."""
+    ``frame``'s as far as that shrinks the texel at B's centroid, fully from half its area. PPS scales the view's x, y
+    and depth unlike, so x, y square in PPS can be skewed in the light's image; turned, PSM tends to the uniform map
+    as the virtual camera moves back, as §4.2 says it must (docs/papers.md, "PSM's map axes under a low sun").
+    J: a fitted map's d(x/w, y/w) over the frame's x, y at B's centroid; C = J⁻¹ at det 1 puts the fitted x, y along
+    the frame's there; the turn is I + t (C - I), t = log2 of the texel's area before over after, clamped to [0, 1].
+    Then turned about its depth axis off the first look's shadow edges, if any (``edge_turned``)."""
     fitted = lambda m: fit_to_unit_cube(m, body.vertices - view.position)
     jacobian = lambda m: raster_jacobian(m @ translation(-view.position) @ np.linalg.inv(frame.to_light), (2, 2),
                                          transform_points(frame.to_light, body.volume_centroid))[..., 0, :, :2]
@@ -108,9 +108,9 @@ def turned_fit(unfitted: np.ndarray, view: View, body: IntersectionBody, frame: 
     if frame is None or not np.linalg.det(j := jacobian(relative)) > 0:
         return relative
     c = np.linalg.inv(j) * math.sqrt(np.linalg.det(j))
-    turned = fitted((np.eye(4) + np.linspace(0, 1, 257)[:, None, None] * np.pad(c - np.eye(2), (0, 2))) @ relative)
-    k = int(np.argmax(np.linalg.svd(jacobian(turned), compute_uv=False)[:, -1]))  # (J's least σ: 1 / the longer side)
-    relative = turned[k] if k else relative
+    turned = lambda t: fitted(np.vstack([((1 - t) * np.eye(2) + t * c) @ relative[:2], relative[2:]]))
+    t = min(math.log2(max(np.linalg.det(jacobian(turned(1.0))) / np.linalg.det(j), 1.0)), 1.0)
+    relative = turned(t) if t > 0 else relative
     return edge_turned(relative, body.vertices - view.position, body, translation(-view.position))
 
 
