@@ -931,17 +931,7 @@ def test_each_map_culls_faces_turned_from_the_light_only_on_solids_it_sees_from_
     lt = light(scene, "POINT", (0.0, 0.0, 4.5), energy=500.0)
     cam = camera(scene, (0.0, -5.0, 3.0), (0, 0, 0))
     aim(cam, (0.0, 0.0, 0.5))
-    dg = scene.view_layers[0].depsgraph
-    dg.update()
-    geometry = lx.geometry.GeometryCache().update(dg)
-    view, lt, bounds = lx.describe.describe_scene(scene, dg, instances=geometry.instances)
-    frame = lx.pipeline.ShadowFrame(geometry, view, scene=lx.batches.GPUScene())
-    frame.camera_prepass()
-    options = lx.warp.WarpOptions(shadow_map_size=(1024, 1024))
-    body, setup, _ = importlib.import_module(f"{lixel.__name__}.addon.render.engine").fit_warp(
-        frame, lt, bounds, options, "uniform")
-    shadow = lx.settings.ShadowSettings()
-    frame.draw_maps(setup, shadow, body)
+    frame, setup, shadow = drawn_frame(lx, lixel, scene, "uniform", 1024)
     solids = [{g.key[1] for g in s.groups} for s in frame.map_solids]
     assert len(setup.maps) > 1 and all("Room" not in s for s in solids) and any("Solid" in s for s in solids)
     whole = lx.pipeline.depth_pass(setup, frame.scene, frame.casters, shadow, lx.targets.TargetPool())
@@ -956,9 +946,9 @@ def test_each_map_culls_faces_turned_from_the_light_only_on_solids_it_sees_from_
         assert np.mean(np.abs(a - b) > 1e-5) < 1e-4, "the benchmarks' bare draw culling the same faces differs"
 
 
-def culled_and_whole_maps(lx, lixel, scene, method, size=512):
-    """(each map as the frame draws it, culling the faces turned from the light of the solids it sees from outside;
-    the same map drawing every face), window depths, and the maps' roles."""
+def drawn_frame(lx, lixel, scene, method, size):
+    """(the scene's ShadowFrame with ``method``'s maps of ``size``² drawn as the engine draws them, its setup, the
+    default ShadowSettings)."""
     dg = scene.view_layers[0].depsgraph
     dg.update()
     geometry = lx.geometry.GeometryCache().update(dg)
@@ -969,6 +959,13 @@ def culled_and_whole_maps(lx, lixel, scene, method, size=512):
         frame, lt, bounds, lx.warp.WarpOptions(shadow_map_size=(size, size)), method)
     shadow = lx.settings.ShadowSettings()
     frame.draw_maps(setup, shadow, body)
+    return frame, setup, shadow
+
+
+def culled_and_whole_maps(lx, lixel, scene, method, size=512):
+    """(each map as the frame draws it, culling the faces turned from the light of the solids it sees from outside;
+    the same map drawing every face), window depths, and the maps' roles."""
+    frame, setup, shadow = drawn_frame(lx, lixel, scene, method, size)
     assert frame.casters.instance_count == 2
     whole = lx.pipeline.depth_pass(setup, frame.scene, frame.casters, shadow, lx.targets.TargetPool())
     return [(lx.compose.read_depth(c, m.size), lx.compose.read_depth(w, m.size), m.role)
