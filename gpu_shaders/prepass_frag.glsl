@@ -49,7 +49,9 @@ void main()
    * (gen106_05_point_low_in_view, docs/papers.md); relative to the camera
    * alone a floor through the origin lost its exact code on 2.5 % of its
    * pixels (one octahedral step). On a face along an axis the coordinate
-   * across it is the same at every vertex, so it stays nearly constant. */
+   * across it is the same at every vertex, so it stays nearly constant.
+   * Both are taken and one kept: derivatives need every fragment of the quad
+   * to take them, which a branch per fragment would not guarantee. */
   vec3 n_origin = cross(dFdx(v_world), dFdy(v_world));
   vec3 n_camera = cross(dFdx(v_from_camera), dFdy(v_from_camera));
   vec2 o = lixel_octahedral(dot(v_world, v_world) <= dot(v_from_camera, v_from_camera) ? n_origin : n_camera);
